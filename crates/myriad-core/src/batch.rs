@@ -1,0 +1,222 @@
+//! [`PointBatch`]: a columnar block of points. Readers yield batches, builders and writers consume
+//! them. Each attribute of the [`Schema`] is one optional column; positions are always present and
+//! in f64 world coordinates.
+
+use crate::schema::{Attribute, Schema};
+
+/// A LAS wave packet descriptor reference (formats 4, 5, 9, 10): 29 bytes on disk.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WavePacket {
+    pub descriptor_index: u8,
+    pub byte_offset: u64,
+    pub size: u32,
+    pub return_point_location: f32,
+    pub x_t: f32,
+    pub y_t: f32,
+    pub z_t: f32,
+}
+
+/// Calls `$m!(field, Type, Attribute)` for every optional column, so operations over all columns
+/// are written once.
+macro_rules! for_each_column {
+    ($m:ident) => {
+        $m!(intensity, u16, Intensity);
+        $m!(return_number, u8, ReturnNumber);
+        $m!(number_of_returns, u8, NumberOfReturns);
+        $m!(classification, u8, Classification);
+        $m!(classification_flags, u8, ClassificationFlags);
+        $m!(scan_flags, u8, ScanFlags);
+        $m!(scanner_channel, u8, ScannerChannel);
+        $m!(scan_angle, f32, ScanAngle);
+        $m!(user_data, u8, UserData);
+        $m!(point_source_id, u16, PointSourceId);
+        $m!(gps_time, f64, GpsTime);
+        $m!(rgb, [u16; 3], Rgb);
+        $m!(nir, u16, Nir);
+        $m!(wave_packet, WavePacket, WavePacket);
+        $m!(normal, [f32; 3], Normal);
+    };
+}
+
+/// Columns of points. Bit layouts of the LAS flag columns:
+/// `classification_flags`: bit 0 synthetic, 1 key point, 2 withheld, 3 overlap;
+/// `scan_flags`: bit 0 scan direction, bit 1 edge of flight line.
+/// `scan_angle` is in degrees. `extra_bytes` holds `extra_stride` raw bytes per point.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PointBatch {
+    pub positions: Vec<[f64; 3]>,
+    pub intensity: Option<Vec<u16>>,
+    pub return_number: Option<Vec<u8>>,
+    pub number_of_returns: Option<Vec<u8>>,
+    pub classification: Option<Vec<u8>>,
+    pub classification_flags: Option<Vec<u8>>,
+    pub scan_flags: Option<Vec<u8>>,
+    pub scanner_channel: Option<Vec<u8>>,
+    pub scan_angle: Option<Vec<f32>>,
+    pub user_data: Option<Vec<u8>>,
+    pub point_source_id: Option<Vec<u16>>,
+    pub gps_time: Option<Vec<f64>>,
+    pub rgb: Option<Vec<[u16; 3]>>,
+    pub nir: Option<Vec<u16>>,
+    pub wave_packet: Option<Vec<WavePacket>>,
+    pub normal: Option<Vec<[f32; 3]>>,
+    pub extra_bytes: Option<Vec<u8>>,
+    pub extra_stride: usize,
+}
+
+impl PointBatch {
+    /// An empty batch with a column for every attribute of `schema`.
+    pub fn with_schema(schema: &Schema, capacity: usize) -> PointBatch {
+        let mut b = PointBatch {
+            positions: Vec::with_capacity(capacity),
+            ..Default::default()
+        };
+        macro_rules! init {
+            ($f:ident, $t:ty, $a:ident) => {
+                if schema.has(&Attribute::$a) {
+                    b.$f = Some(Vec::with_capacity(capacity));
+                }
+            };
+        }
+        for_each_column!(init);
+        if schema.extra_bytes > 0 {
+            b.extra_stride = schema.extra_bytes;
+            b.extra_bytes = Some(Vec::with_capacity(capacity * schema.extra_bytes));
+        }
+        b
+    }
+
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Keeps the first `n` points.
+    pub fn truncate(&mut self, n: usize) {
+        self.positions.truncate(n);
+        macro_rules! trunc {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &mut self.$f {
+                    c.truncate(n);
+                }
+            };
+        }
+        for_each_column!(trunc);
+        if let Some(e) = &mut self.extra_bytes {
+            e.truncate(n * self.extra_stride);
+        }
+    }
+
+    /// Keeps the points for which `keep[i]` is true, in order.
+    pub fn retain_mask(&mut self, keep: &[bool]) {
+        assert_eq!(keep.len(), self.len());
+        fn filter<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {
+            let mut i = 0;
+            v.retain(|_| {
+                i += 1;
+                keep[i - 1]
+            });
+        }
+        filter(&mut self.positions, keep);
+        macro_rules! ret {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &mut self.$f {
+                    filter(c, keep);
+                }
+            };
+        }
+        for_each_column!(ret);
+        if let Some(e) = &mut self.extra_bytes {
+            let s = self.extra_stride;
+            let mut w = 0;
+            for (i, &k) in keep.iter().enumerate() {
+                if k {
+                    e.copy_within(i * s..(i + 1) * s, w * s);
+                    w += 1;
+                }
+            }
+            e.truncate(w * s);
+        }
+    }
+
+    /// Appends `other`, which must carry the same columns.
+    pub fn append(&mut self, other: &PointBatch) {
+        self.positions.extend_from_slice(&other.positions);
+        macro_rules! app {
+            ($f:ident, $t:ty, $a:ident) => {
+                match (&mut self.$f, &other.$f) {
+                    (Some(a), Some(b)) => a.extend_from_slice(b),
+                    (None, None) => {}
+                    _ => panic!("append: batches differ in column {}", stringify!($f)),
+                }
+            };
+        }
+        for_each_column!(app);
+        if let (Some(a), Some(b)) = (&mut self.extra_bytes, &other.extra_bytes) {
+            a.extend_from_slice(b);
+        }
+    }
+
+    /// Checks that every column has one entry per point (a cheap invariant for tests and writers).
+    pub fn is_consistent(&self) -> bool {
+        let n = self.len();
+        let mut ok = true;
+        macro_rules! chk {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &self.$f {
+                    ok &= c.len() == n;
+                }
+            };
+        }
+        for_each_column!(chk);
+        if let Some(e) = &self.extra_bytes {
+            ok &= e.len() == n * self.extra_stride;
+        }
+        ok
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> PointBatch {
+        let mut s = Schema::new(vec![Attribute::Intensity, Attribute::Rgb]);
+        s.extra_bytes = 2;
+        let mut b = PointBatch::with_schema(&s, 4);
+        for i in 0..4u16 {
+            b.positions.push([i as f64, 0.0, 0.0]);
+            b.intensity.as_mut().unwrap().push(i * 10);
+            b.rgb.as_mut().unwrap().push([i, i, i]);
+            b.extra_bytes
+                .as_mut()
+                .unwrap()
+                .extend_from_slice(&[i as u8, 0xAA]);
+        }
+        b
+    }
+
+    #[test]
+    fn retain_mask_keeps_rows_aligned() {
+        let mut b = sample();
+        b.retain_mask(&[true, false, false, true]);
+        assert_eq!(b.len(), 2);
+        assert_eq!(b.intensity.as_deref(), Some(&[0u16, 30][..]));
+        assert_eq!(b.extra_bytes.as_deref(), Some(&[0u8, 0xAA, 3, 0xAA][..]));
+        assert!(b.is_consistent());
+        assert!(b.gps_time.is_none());
+    }
+
+    #[test]
+    fn append_and_truncate() {
+        let mut a = sample();
+        a.append(&sample());
+        assert_eq!(a.len(), 8);
+        a.truncate(5);
+        assert_eq!(a.rgb.as_ref().unwrap().len(), 5);
+        assert_eq!(a.extra_bytes.as_ref().unwrap().len(), 10);
+        assert!(a.is_consistent());
+    }
+}

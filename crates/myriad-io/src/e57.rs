@@ -1,0 +1,208 @@
+//! E57 through the `e57` crate: every scan in the file, its pose applied, spherical coordinates
+//! converted, intensity and colour normalized by the file's limits and stored as 16 bits.
+//!
+//! The crate's point iterator borrows its reader, so decoding runs on a producer thread that sends
+//! batches through a channel of depth 2: memory stays bounded and the caller's thread is free.
+//!
+//! The 48-byte file header is checked here first, so that the common failures name a byte offset:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 8 | "ASTM-E57" |
+//! | 8 | 8 | major, minor version (u32 each) |
+//! | 16 | 8 | physical file length (u64) |
+//! | 24 | 8 | XML section offset (u64) |
+//! | 32 | 8 | XML section length (u64) |
+//! | 40 | 8 | page size (u64) |
+
+use crate::{Format, PointSource, SourceInfo};
+use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+
+pub struct E57Source {
+    info: SourceInfo,
+    rx: Option<Receiver<Result<PointBatch>>>,
+    skipped: std::sync::Arc<std::sync::atomic::AtomicU64>,
+}
+
+fn check_header(path: &Path, file_size: u64) -> Result<u64> {
+    let mut h = [0u8; 48];
+    let n = crate::read_util::read_prefix(path, &mut h)?;
+    if n < 8 || &h[..8] != b"ASTM-E57" {
+        return Err(Error::at_byte(
+            path,
+            0,
+            "wrong magic number: E57 files start with \"ASTM-E57\"",
+        ));
+    }
+    if n < 48 {
+        return Err(Error::at_byte(
+            path,
+            n as u64,
+            "file ends inside the 48-byte E57 header",
+        ));
+    }
+    let u = |o: usize| u64::from_le_bytes(h[o..o + 8].try_into().unwrap());
+    let (len, xml_off, xml_len) = (u(16), u(24), u(32));
+    if len > file_size {
+        return Err(Error::at_byte(
+            path,
+            file_size,
+            format!("file is truncated: header declares {len} bytes"),
+        ));
+    }
+    if xml_off
+        .checked_add(xml_len)
+        .is_none_or(|end| end > file_size)
+    {
+        return Err(Error::at_byte(
+            path,
+            24,
+            "XML section lies outside the file",
+        ));
+    }
+    Ok(xml_off)
+}
+
+fn e57_error(path: &Path, at: u64, e: e57::Error) -> Error {
+    Error::at_byte(path, at, format!("invalid E57 data: {e}"))
+}
+
+impl E57Source {
+    pub fn open(path: &Path) -> Result<E57Source> {
+        let file_size = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len();
+        let xml_off = check_header(path, file_size)?;
+        let reader = e57::E57Reader::from_file(path).map_err(|e| e57_error(path, xml_off, e))?;
+        let clouds = reader.pointclouds();
+        let points = clouds.iter().map(|c| c.records).sum();
+        let mut attributes = Vec::new();
+        if clouds.iter().any(|c| c.has_intensity()) {
+            attributes.push(Attribute::Intensity);
+        }
+        if clouds.iter().any(|c| c.has_color()) {
+            attributes.push(Attribute::Rgb);
+        }
+        let crs = reader
+            .coordinate_metadata()
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .map(str::to_string);
+        let h = reader.header();
+        Ok(E57Source {
+            info: SourceInfo {
+                path: path.to_path_buf(),
+                format: Format::E57,
+                version: format!(
+                    "{}.{}, {} scan{}",
+                    h.major,
+                    h.minor,
+                    clouds.len(),
+                    if clouds.len() == 1 { "" } else { "s" }
+                ),
+                points: Some(points),
+                bounds: None,
+                schema: Schema::new(attributes),
+                scale: None,
+                offset: None,
+                crs,
+                file_size,
+            },
+            rx: None,
+            skipped: Default::default(),
+        })
+    }
+
+    fn start(&mut self, batch: usize) {
+        let (tx, rx) = sync_channel(2);
+        let path = self.info.path.clone();
+        let schema = self.info.schema.clone();
+        let skipped = self.skipped.clone();
+        std::thread::Builder::new()
+            .name("e57-reader".into())
+            .spawn(move || {
+                if let Err(e) = produce(&path, &schema, batch, &tx, &skipped) {
+                    let _ = tx.send(Err(e));
+                }
+            })
+            .expect("spawn E57 reader thread");
+        self.rx = Some(rx);
+    }
+}
+
+fn produce(
+    path: &PathBuf,
+    schema: &Schema,
+    batch_size: usize,
+    tx: &SyncSender<Result<PointBatch>>,
+    skipped: &std::sync::atomic::AtomicU64,
+) -> Result<()> {
+    let mut reader = e57::E57Reader::from_file(path).map_err(|e| e57_error(path, 0, e))?;
+    for pc in reader.pointclouds() {
+        let at = pc.file_offset;
+        let mut it = reader
+            .pointcloud_simple(&pc)
+            .map_err(|e| e57_error(path, at, e))?;
+        it.apply_pose(true);
+        it.spherical_to_cartesian(true);
+        it.normalize_intensity(true);
+        it.normalize_color(true);
+        it.intensity_to_color(false);
+        let mut batch = PointBatch::with_schema(schema, batch_size);
+        for p in it {
+            let p = p.map_err(|e| e57_error(path, at, e))?;
+            let e57::CartesianCoordinate::Valid { x, y, z } = p.cartesian else {
+                skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                continue;
+            };
+            if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+                skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                continue;
+            }
+            let u16n = |v: f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+            batch.positions.push([x, y, z]);
+            if let Some(c) = &mut batch.intensity {
+                c.push(p.intensity.map_or(0, u16n));
+            }
+            if let Some(c) = &mut batch.rgb {
+                c.push(
+                    p.color
+                        .map_or([0; 3], |c| [u16n(c.red), u16n(c.green), u16n(c.blue)]),
+                );
+            }
+            if batch.len() == batch_size {
+                let full =
+                    std::mem::replace(&mut batch, PointBatch::with_schema(schema, batch_size));
+                if tx.send(Ok(full)).is_err() {
+                    return Ok(()); // the consumer went away
+                }
+            }
+        }
+        if !batch.is_empty() && tx.send(Ok(batch)).is_err() {
+            return Ok(());
+        }
+    }
+    Ok(())
+}
+
+impl PointSource for E57Source {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
+        if self.rx.is_none() {
+            self.start(max.max(1));
+        }
+        match self.rx.as_ref().expect("started").recv() {
+            Ok(r) => r.map(Some),
+            Err(_) => Ok(None), // producer finished
+        }
+    }
+
+    fn skipped_non_finite(&self) -> u64 {
+        self.skipped.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}

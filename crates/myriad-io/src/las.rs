@@ -1,0 +1,468 @@
+//! LAS 1.0-1.4 and LAZ (COPC included, read as plain LAZ) through the `las` crate: it parses
+//! headers and VLRs and decompresses LAZ on all cores; records are decoded into columns here
+//! (`las_records`), which is several times faster than materializing `las::Point`s.
+
+use crate::atomic::AtomicFile;
+use crate::las_records::{self, Layout, Quantization};
+use crate::{Format, PointSource, SourceInfo};
+use myriad_core::{Aabb, Attribute, Error, ExtraDim, ExtraType, PointBatch, Result, Schema};
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// A file handle that publishes how far it has read, so that errors raised deep inside the `las`
+/// and `laz` crates can still name a byte offset.
+struct Tracked {
+    file: File,
+    pos: Arc<AtomicU64>,
+}
+
+impl Read for Tracked {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.file.read(buf)?;
+        self.pos.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+impl Seek for Tracked {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        let p = self.file.seek(to)?;
+        self.pos.store(p, Ordering::Relaxed);
+        Ok(p)
+    }
+}
+
+pub struct LasSource {
+    info: SourceInfo,
+    reader: las::Reader,
+    header: las::Header,
+    layout: Layout,
+    quant: Quantization,
+    record_len: usize,
+    data: las::PointData,
+    remaining: u64,
+    read: u64,
+    pos: Arc<AtomicU64>,
+}
+
+fn header_error(path: &Path, e: las::Error) -> Error {
+    Error::at_byte(path, 0, format!("invalid LAS header: {e}"))
+}
+
+impl LasSource {
+    pub fn open(path: &Path) -> Result<LasSource> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let file_size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let mut magic = [0u8; 4];
+        let n = crate::read_util::read_prefix(path, &mut magic)?;
+        if n < 4 || &magic != b"LASF" {
+            return Err(Error::at_byte(
+                path,
+                0,
+                "wrong magic number: LAS files start with \"LASF\"",
+            ));
+        }
+        if file_size < 227 {
+            return Err(Error::at_byte(
+                path,
+                file_size,
+                "file ends inside the 227-byte LAS header",
+            ));
+        }
+        let raw = las::raw::Header::read_from(BufReader::new(
+            File::open(path).map_err(|e| Error::io(path, e))?,
+        ))
+        .map_err(|e| header_error(path, e))?;
+        if raw.offset_to_point_data as u64 > file_size {
+            return Err(Error::at_byte(
+                path,
+                96,
+                format!(
+                    "offset to point data {} is past the end of the file ({file_size} bytes)",
+                    raw.offset_to_point_data
+                ),
+            ));
+        }
+        let pos = Arc::new(AtomicU64::new(0));
+        let tracked = Tracked {
+            file,
+            pos: pos.clone(),
+        };
+        let reader =
+            las::Reader::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| match e {
+                las::Error::Io(io) => Error::io(path, io),
+                e => header_error(path, e),
+            })?;
+        let header = reader.header().clone();
+        let fmt = header.point_format();
+        let format_id = fmt.to_u8().map_err(|e| header_error(path, e))?;
+        let layout = Layout::new(format_id).ok_or_else(|| {
+            Error::at_byte(path, 104, format!("unknown point format {format_id}"))
+        })?;
+        let record_len = fmt.len() as usize;
+        let count = header.number_of_points();
+        let compressed = fmt.is_compressed;
+        if !compressed {
+            let needed = raw.offset_to_point_data as u64 + count * record_len as u64;
+            if needed > file_size {
+                let holds = (file_size - raw.offset_to_point_data as u64) / record_len as u64;
+                return Err(Error::at_byte(
+                    path,
+                    file_size,
+                    format!(
+                        "file ends after {holds} of the {count} point records its header declares"
+                    ),
+                ));
+            }
+        }
+        let t = header.transforms();
+        let quant = Quantization {
+            scale: [t.x.scale, t.y.scale, t.z.scale],
+            offset: [t.x.offset, t.y.offset, t.z.offset],
+        };
+        let b = header.bounds();
+        let is_copc = header.all_vlrs().any(|v| v.user_id == "copc");
+        let version = format!(
+            "{}{}.{} point format {format_id}",
+            if is_copc { "COPC, LAS " } else { "" },
+            header.version().major,
+            header.version().minor
+        );
+        let mut schema = Schema::for_las_format(format_id);
+        schema.extra_bytes = fmt.extra_bytes as usize;
+        schema
+            .attributes
+            .extend(extra_dims(&header).into_iter().map(Attribute::Extra));
+        let info = SourceInfo {
+            path: path.to_path_buf(),
+            format: if compressed { Format::Laz } else { Format::Las },
+            version,
+            points: Some(count),
+            bounds: (count > 0)
+                .then(|| Aabb::new([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z])),
+            schema,
+            scale: Some(quant.scale),
+            offset: Some(quant.offset),
+            crs: crs_of(&header),
+            file_size,
+        };
+        let data = las::PointDataBuilder::new().for_header(&header).build();
+        Ok(LasSource {
+            info,
+            reader,
+            header,
+            layout,
+            quant,
+            record_len,
+            data,
+            remaining: count,
+            read: 0,
+            pos,
+        })
+    }
+
+    /// The parsed LAS header, for writers that copy a file's point format, VLRs and scaling.
+    pub fn header(&self) -> &las::Header {
+        &self.header
+    }
+
+    fn read_error(&self, e: las::Error) -> Error {
+        let path = &self.info.path;
+        let at = self.pos.load(Ordering::Relaxed);
+        match e {
+            las::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => Error::at_byte(
+                path,
+                at,
+                format!(
+                    "unexpected end of file after {} of {} points",
+                    self.read,
+                    self.info.points.unwrap_or(0)
+                ),
+            ),
+            e => Error::at_byte(path, at, format!("cannot decode point {}: {e}", self.read)),
+        }
+    }
+}
+
+impl PointSource for LasSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
+        if self.remaining == 0 {
+            return Ok(None);
+        }
+        let want = self.remaining.min(max.max(1) as u64);
+        let got = self
+            .reader
+            .fill_points(want, &mut self.data)
+            .map_err(|e| self.read_error(e))?;
+        if got < want {
+            return Err(Error::at_byte(
+                &self.info.path,
+                self.pos.load(Ordering::Relaxed),
+                format!(
+                    "file ends after {} of the {} points its header declares",
+                    self.read + got,
+                    self.info.points.unwrap_or(0)
+                ),
+            ));
+        }
+        let extra = self.record_len - self.layout.base_len;
+        let mut batch = las_records::batch_for(&self.layout, extra, got as usize);
+        las_records::decode(
+            self.data.raw_bytes(),
+            self.record_len,
+            &self.layout,
+            &self.quant,
+            &mut batch,
+        );
+        self.remaining -= got;
+        self.read += got;
+        Ok(Some(batch))
+    }
+}
+
+fn crs_of(header: &las::Header) -> Option<String> {
+    if let Some(wkt) = header.get_wkt_crs_bytes() {
+        let s = String::from_utf8_lossy(wkt)
+            .trim_end_matches('\0')
+            .trim()
+            .to_string();
+        if !s.is_empty() {
+            return Some(s);
+        }
+    }
+    let gt = header.get_geotiff_crs().ok().flatten()?;
+    let code = gt
+        .get_projected_crs_geo_key_value()
+        .or_else(|| gt.get_geodetic_crs_geo_key_value())?;
+    let mut s = format!("EPSG:{code}");
+    if let Some(v) = gt.get_vertical_crs_geo_key_value() {
+        s.push_str(&format!("+{v}"));
+    }
+    Some(s)
+}
+
+/// Parses the extra-bytes VLR (LASF_Spec / 4): 192-byte descriptors, LAS 1.4 R15 table 24.
+///
+/// | offset | size | field |
+/// |---|---|---|
+/// | 0 | 2 | reserved |
+/// | 2 | 1 | data type (0 = undocumented, 1..10 = u8..f64) |
+/// | 3 | 1 | options (bit 3 scale, bit 4 offset; for type 0, the byte count) |
+/// | 4 | 32 | name |
+/// | 40 | 24 | no data, 64 min, 88 max |
+/// | 112 | 24 | scale (f64 first) |
+/// | 136 | 24 | offset (f64 first) |
+/// | 160 | 32 | description |
+pub fn extra_dims(header: &las::Header) -> Vec<ExtraDim> {
+    let Some(vlr) = header
+        .all_vlrs()
+        .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+    else {
+        return Vec::new();
+    };
+    let text = |b: &[u8]| {
+        String::from_utf8_lossy(b)
+            .trim_end_matches('\0')
+            .trim()
+            .to_string()
+    };
+    let mut dims = Vec::new();
+    let mut offset = 0;
+    for d in vlr.data.chunks_exact(192) {
+        let options = d[3];
+        let Some(data_type) = ExtraType::from_las_code(d[2], options) else {
+            break;
+        };
+        let f = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().unwrap());
+        dims.push(ExtraDim {
+            name: text(&d[4..36]),
+            data_type,
+            offset,
+            description: text(&d[160..192]),
+            scale: (options & 0x08 != 0).then(|| f(112)),
+            add_offset: (options & 0x10 != 0).then(|| f(136)),
+        });
+        offset += data_type.size();
+    }
+    dims
+}
+
+/// What to write: point format, version, scaling, VLRs.
+#[derive(Debug, Clone)]
+pub struct LasWriteOptions {
+    pub header: las::Header,
+}
+
+impl LasWriteOptions {
+    /// The same point format, scaling, VLRs and version as `header` (a source's).
+    pub fn like(header: &las::Header) -> LasWriteOptions {
+        LasWriteOptions {
+            header: header.clone(),
+        }
+    }
+
+    /// The smallest LAS 1.4 point format that holds every attribute of `schema`, with `scale` and
+    /// `offset` for positions.
+    pub fn for_schema(
+        schema: &Schema,
+        scale: [f64; 3],
+        offset: [f64; 3],
+    ) -> Result<LasWriteOptions> {
+        let has = |a: Attribute| schema.has(&a);
+        let wave = has(Attribute::WavePacket);
+        let format = if has(Attribute::Nir) {
+            if wave { 10 } else { 8 }
+        } else if has(Attribute::ScannerChannel) {
+            match (has(Attribute::Rgb), wave) {
+                (true, true) => 10,
+                (true, false) => 7,
+                (false, true) => 9,
+                (false, false) => 6,
+            }
+        } else {
+            match (has(Attribute::Rgb), wave) {
+                (true, true) => 5,
+                (true, false) => {
+                    if has(Attribute::GpsTime) {
+                        3
+                    } else {
+                        2
+                    }
+                }
+                (false, true) => 4,
+                (false, false) => {
+                    if has(Attribute::GpsTime) {
+                        1
+                    } else {
+                        0
+                    }
+                }
+            }
+        };
+        let mut b = las::Builder::from((1, 4));
+        b.point_format =
+            las::point::Format::new(format).map_err(|e| Error::Invalid(e.to_string()))?;
+        b.point_format.extra_bytes = schema.extra_bytes as u16;
+        for (i, t) in [
+            &mut b.transforms.x,
+            &mut b.transforms.y,
+            &mut b.transforms.z,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            t.scale = scale[i];
+            t.offset = offset[i];
+        }
+        b.generating_software = "myriad".into();
+        let header = b.into_header().map_err(|e| Error::Invalid(e.to_string()))?;
+        Ok(LasWriteOptions { header })
+    }
+}
+
+/// Streams batches into a LAS or LAZ file (LAZ when `path` ends in .laz), atomically.
+pub struct LasSink {
+    writer: Option<las::Writer<BufWriter<File>>>,
+    file: AtomicFile,
+    layout: Layout,
+    quant: Quantization,
+    record_len: usize,
+    bytes: Vec<u8>,
+    written: u64,
+    path: PathBuf,
+}
+
+impl LasSink {
+    pub fn create(path: &Path, options: LasWriteOptions, force: bool) -> Result<LasSink> {
+        let compressed = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+        let mut header = options.header;
+        let mut b = las::Builder::from(header);
+        b.point_format.is_compressed = compressed;
+        b.vlrs
+            .retain(|v| !(v.user_id == "laszip encoded" || v.user_id == "copc"));
+        b.evlrs.retain(|v| v.user_id != "copc");
+        header = b
+            .into_header()
+            .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+        let fmt = header.point_format();
+        let format_id = fmt.to_u8().map_err(|e| Error::Invalid(e.to_string()))?;
+        let layout = Layout::new(format_id).expect("las crate accepted the format");
+        let t = header.transforms();
+        let quant = Quantization {
+            scale: [t.x.scale, t.y.scale, t.z.scale],
+            offset: [t.x.offset, t.y.offset, t.z.offset],
+        };
+        let record_len = fmt.len() as usize;
+        let file = AtomicFile::create(path, force)?;
+        let out = BufWriter::with_capacity(1 << 20, file.open_write()?);
+        let writer = las::Writer::new(out, header).map_err(|e| las_write_error(path, e))?;
+        Ok(LasSink {
+            writer: Some(writer),
+            file,
+            layout,
+            quant,
+            record_len,
+            bytes: Vec::new(),
+            written: 0,
+            path: path.to_path_buf(),
+        })
+    }
+
+    pub fn write(&mut self, batch: &PointBatch) -> Result<()> {
+        self.bytes.clear();
+        las_records::encode(
+            batch,
+            self.record_len,
+            &self.layout,
+            &self.quant,
+            &mut self.bytes,
+        )
+        .map_err(|e| {
+            Error::Invalid(format!(
+                "{}: point {}: {}",
+                self.path.display(),
+                self.written + e.point as u64,
+                e.message
+            ))
+        })?;
+        let w = self.writer.as_mut().expect("write after finish");
+        let data = las::PointDataBuilder::new()
+            .for_header(w.header())
+            .build_from_bytes(std::mem::take(&mut self.bytes))
+            .map_err(|e| las_write_error(&self.path, e))?;
+        w.write_points(&data)
+            .map_err(|e| las_write_error(&self.path, e))?;
+        self.written += batch.len() as u64;
+        Ok(())
+    }
+
+    /// Completes the header and moves the file to its name. Returns the points written.
+    pub fn finish(mut self) -> Result<u64> {
+        let mut w = self.writer.take().expect("finish twice");
+        w.close().map_err(|e| las_write_error(&self.path, e))?;
+        let inner = w.into_inner().map_err(|e| las_write_error(&self.path, e))?;
+        inner
+            .into_inner()
+            .map_err(|e| Error::io(&self.path, e.into_error()))?
+            .sync_all()
+            .map_err(|e| Error::io(&self.path, e))?;
+        self.file.commit()?;
+        Ok(self.written)
+    }
+}
+
+fn las_write_error(path: &Path, e: las::Error) -> Error {
+    match e {
+        las::Error::Io(io) => Error::io(path, io),
+        e => Error::Invalid(format!("{}: {e}", path.display())),
+    }
+}

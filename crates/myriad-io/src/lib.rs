@@ -1,0 +1,175 @@
+//! Streaming readers and writers of the point-cloud formats users have: LAS/LAZ (and COPC, read as
+//! LAZ), E57, PLY, PCD, and PTS/XYZ/CSV/TXT text.
+//!
+//! A reader is a [`PointSource`]: it reports what its header knows ([`SourceInfo`]) on open, without
+//! reading points, then yields [`PointBatch`]es; memory does not grow with the file. [`open`] picks
+//! the reader from the file's magic bytes, falling back on the extension. Every error names the
+//! file and the byte offset (binary formats) or line (text formats). Points whose coordinates are
+//! NaN or infinite are skipped and counted ([`PointSource::skipped_non_finite`]).
+//!
+//! Writers ([`las::LasSink`], [`ply::PlySink`]) write through an [`atomic::AtomicFile`]: the output
+//! appears under its name only when complete.
+
+pub mod atomic;
+pub mod e57;
+pub mod las;
+mod las_records;
+pub mod pcd;
+pub mod ply;
+mod read_util;
+pub mod text;
+
+use myriad_core::{Aabb, Error, PointBatch, Result, Schema};
+use std::path::{Path, PathBuf};
+
+/// Points a reader yields per batch unless asked otherwise.
+pub const DEFAULT_BATCH: usize = 1 << 16;
+
+/// The file formats Myriad reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Las,
+    Laz,
+    E57,
+    Ply,
+    Pcd,
+    Text,
+}
+
+impl Format {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Format::Las => "LAS",
+            Format::Laz => "LAZ",
+            Format::E57 => "E57",
+            Format::Ply => "PLY",
+            Format::Pcd => "PCD",
+            Format::Text => "text",
+        }
+    }
+}
+
+/// What a reader knows from the header alone.
+#[derive(Debug, Clone)]
+pub struct SourceInfo {
+    pub path: PathBuf,
+    pub format: Format,
+    /// Format version and variant, e.g. "1.2 point format 3", "binary_little_endian 1.0", "COPC 1.0".
+    pub version: String,
+    /// Point count as the header states it; `None` where the format has no count (XYZ text).
+    pub points: Option<u64>,
+    /// Bounds as the header states them; `None` where the header has none or they are not exact.
+    pub bounds: Option<Aabb>,
+    pub schema: Schema,
+    /// LAS scale and offset per axis.
+    pub scale: Option<[f64; 3]>,
+    pub offset: Option<[f64; 3]>,
+    /// Coordinate reference system: WKT, or "EPSG:n" from GeoTIFF keys.
+    pub crs: Option<String>,
+    pub file_size: u64,
+}
+
+/// A streaming reader of one file. Not `Send`: the `las` reader is not, so a source is opened on
+/// the thread that reads it.
+pub trait PointSource {
+    fn info(&self) -> &SourceInfo;
+    /// The next batch of at most `max` points, or `None` at the end of the file.
+    fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>>;
+    /// Points skipped so far because a coordinate was NaN or infinite.
+    fn skipped_non_finite(&self) -> u64 {
+        0
+    }
+}
+
+/// Options that apply to the text readers.
+#[derive(Debug, Clone, Default)]
+pub struct OpenOptions {
+    /// Column layout for text input, e.g. "x,y,z,intensity,r,g,b"; detected when `None`.
+    pub columns: Option<String>,
+}
+
+/// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
+pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::unsupported(
+            path,
+            "is a directory, not a point cloud file",
+        ));
+    }
+    match detect(path)? {
+        Format::Las | Format::Laz => Ok(Box::new(las::LasSource::open(path)?)),
+        Format::E57 => Ok(Box::new(e57::E57Source::open(path)?)),
+        Format::Ply => Ok(Box::new(ply::PlySource::open(path)?)),
+        Format::Pcd => Ok(Box::new(pcd::PcdSource::open(path)?)),
+        Format::Text => Ok(Box::new(text::TextSource::open(
+            path,
+            options.columns.as_deref(),
+        )?)),
+    }
+}
+
+/// Decides the format from the first bytes, then the extension.
+pub fn detect(path: &Path) -> Result<Format> {
+    let mut head = [0u8; 8];
+    let n = read_util::read_prefix(path, &mut head)?;
+    let head = &head[..n];
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    if head.starts_with(b"LASF") {
+        return Ok(if ext == "laz" {
+            Format::Laz
+        } else {
+            Format::Las
+        });
+    }
+    if head.starts_with(b"ASTM-E57") {
+        return Ok(Format::E57);
+    }
+    if head.starts_with(b"ply") {
+        return Ok(Format::Ply);
+    }
+    let known = |e: &str| match e {
+        "las" | "laz" => Some("LAS files start with \"LASF\""),
+        "e57" => Some("E57 files start with \"ASTM-E57\""),
+        "ply" => Some("PLY files start with \"ply\""),
+        _ => None,
+    };
+    if let Some(what) = known(&ext) {
+        return Err(Error::at_byte(
+            path,
+            0,
+            format!("wrong magic number: {what}"),
+        ));
+    }
+    match ext.as_str() {
+        "pcd" => Ok(Format::Pcd),
+        "xyz" | "txt" | "csv" | "pts" | "asc" => Ok(Format::Text),
+        "" => Err(Error::unsupported(
+            path,
+            "no file extension and no known magic number",
+        )),
+        other => Err(Error::unsupported(
+            path,
+            format!(
+                "unknown extension \".{other}\" (reads las, laz, e57, ply, pcd, xyz, txt, csv, pts)"
+            ),
+        )),
+    }
+}
+
+/// Streams a whole source and returns (points, exact bounds).
+pub fn scan(source: &mut dyn PointSource) -> Result<(u64, Aabb)> {
+    let mut n = 0u64;
+    let mut b = Aabb::EMPTY;
+    while let Some(batch) = source.read_batch(DEFAULT_BATCH * 4)? {
+        n += batch.len() as u64;
+        for p in &batch.positions {
+            b.extend(*p);
+        }
+    }
+    Ok((n, b))
+}

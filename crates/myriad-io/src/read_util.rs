@@ -1,0 +1,152 @@
+//! Small shared pieces for the hand-written readers: a buffered reader that knows its byte offset,
+//! and fixed-size little/big-endian scalar decoding.
+
+use myriad_core::{Error, Result};
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+pub fn read_prefix(path: &Path, buf: &mut [u8]) -> Result<usize> {
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut n = 0;
+    while n < buf.len() {
+        match f.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) => return Err(Error::io(path, e)),
+        }
+    }
+    Ok(n)
+}
+
+/// A buffered file reader that tracks the byte offset of the next byte it returns.
+pub struct OffsetReader {
+    pub path: PathBuf,
+    inner: BufReader<File>,
+    pub offset: u64,
+}
+
+impl OffsetReader {
+    pub fn open(path: &Path) -> Result<OffsetReader> {
+        let f = File::open(path).map_err(|e| Error::io(path, e))?;
+        Ok(OffsetReader {
+            path: path.to_path_buf(),
+            inner: BufReader::with_capacity(1 << 20, f),
+            offset: 0,
+        })
+    }
+
+    /// Reads one line including its terminator into `line`; returns false at end of file.
+    pub fn read_line(&mut self, line: &mut Vec<u8>) -> Result<bool> {
+        line.clear();
+        let n = self
+            .inner
+            .read_until(b'\n', line)
+            .map_err(|e| Error::io(&self.path, e))?;
+        self.offset += n as u64;
+        Ok(n > 0)
+    }
+
+    /// Fills `buf` completely, or fails naming the offset where the file ended.
+    pub fn read_exact(&mut self, buf: &mut [u8], what: &str) -> Result<()> {
+        let mut got = 0;
+        while got < buf.len() {
+            match self.inner.read(&mut buf[got..]) {
+                Ok(0) => {
+                    return Err(Error::at_byte(
+                        &self.path,
+                        self.offset + got as u64,
+                        format!("unexpected end of file in {what}"),
+                    ));
+                }
+                Ok(k) => got += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(Error::io(&self.path, e)),
+            }
+        }
+        self.offset += buf.len() as u64;
+        Ok(())
+    }
+
+    /// Reads up to `buf.len()` bytes, fewer only at end of file.
+    pub fn read_up_to(&mut self, buf: &mut [u8]) -> Result<usize> {
+        let mut got = 0;
+        while got < buf.len() {
+            match self.inner.read(&mut buf[got..]) {
+                Ok(0) => break,
+                Ok(k) => got += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(Error::io(&self.path, e)),
+            }
+        }
+        self.offset += got as u64;
+        Ok(got)
+    }
+}
+
+/// Scalar types that appear in PLY and PCD records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    pub fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::I64 | Scalar::U64 | Scalar::F64 => 8,
+        }
+    }
+
+    /// Decodes one value from the start of `b` (which holds at least `size()` bytes).
+    pub fn decode(self, b: &[u8], big_endian: bool) -> f64 {
+        macro_rules! get {
+            ($t:ty, $n:expr) => {{
+                let a: [u8; $n] = b[..$n].try_into().unwrap();
+                (if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }) as f64
+            }};
+        }
+        match self {
+            Scalar::I8 => b[0] as i8 as f64,
+            Scalar::U8 => b[0] as f64,
+            Scalar::I16 => get!(i16, 2),
+            Scalar::U16 => get!(u16, 2),
+            Scalar::I32 => get!(i32, 4),
+            Scalar::U32 => get!(u32, 4),
+            Scalar::I64 => get!(i64, 8),
+            Scalar::U64 => get!(u64, 8),
+            Scalar::F32 => get!(f32, 4),
+            Scalar::F64 => get!(f64, 8),
+        }
+    }
+}
+
+/// Scales a colour or intensity channel to 16 bits: 8-bit integers are widened (v * 257), 16-bit
+/// integers kept, floats in 0..1 stretched, anything else clamped.
+pub fn to_u16_channel(v: f64, ty: Scalar) -> u16 {
+    let x = match ty {
+        Scalar::U8 => v * 257.0,
+        Scalar::F32 | Scalar::F64 if v <= 1.0 => v * 65535.0,
+        _ => v,
+    };
+    x.round().clamp(0.0, 65535.0) as u16
+}
+
+pub fn parse_f64(tok: &[u8]) -> Option<f64> {
+    std::str::from_utf8(tok).ok()?.parse::<f64>().ok()
+}

@@ -1,0 +1,415 @@
+//! The scanners. A scan is a sequence of pulses numbered 0, 1, 2, ...; pulse k's origin and
+//! direction follow from k alone (flight line and scan line for airborne, station and angular
+//! step for terrestrial), so any range of pulses can be generated independently.
+//!
+//! - Airborne (`city`, `terrain`): parallel flight lines at 600 m, an oscillating mirror sweeping
+//!   ±20° across track (zig-zag), 30 % side overlap. Trees are semi-transparent and give several
+//!   returns; buildings cast occlusion shadows on the off-nadir side.
+//! - Terrestrial (`indoor`): rooms with furniture, two stations per room at tripod height, each a
+//!   full panorama with elevations from -60° to +90°; density falls off with range.
+
+use crate::rng::{Rng, hash3, mix, unit};
+use crate::scene::{self, Box3, Hit, Kind, Scene};
+use myriad_core::PointBatch;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// Returns of one pulse, in order along the ray.
+pub struct Return {
+    pub pos: [f64; 3],
+    pub class: u8,
+    pub rgb: [u16; 3],
+    pub intensity: u16,
+}
+
+#[derive(Default)]
+struct MixHasher(u64);
+impl Hasher for MixHasher {
+    fn finish(&self) -> u64 {
+        mix(self.0)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 = self.0.rotate_left(8) ^ *b as u64;
+        }
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.0 = mix(self.0 ^ v as u64);
+    }
+}
+type Map<K, V> = HashMap<K, V, BuildHasherDefault<MixHasher>>;
+
+pub const ALTITUDE: f64 = 600.0;
+const HALF_ANGLE_DEG: f64 = 20.0;
+const SPACING: f64 = 0.3;
+const PULSE_PERIOD: f64 = 1.0 / 250_000.0;
+
+/// The plan of an airborne survey covering a square of side `side` metres.
+#[derive(Debug, Clone, Copy)]
+pub struct Flight {
+    pub side: f64,
+    pub half_angle: f64,
+    pub swath: f64,
+    pub line_spacing: f64,
+    pub pulses_per_scanline: u64,
+    pub scanlines_per_line: u64,
+}
+
+impl Flight {
+    /// Plans a survey that yields about `points` returns at ~0.3 m pulse spacing.
+    pub fn plan(points: u64) -> Flight {
+        let density = 1.0 / (SPACING * SPACING) / 0.7 * 1.12;
+        let side = (points as f64 / density).sqrt().max(20.0);
+        let max_swath = 2.0 * ALTITUDE * HALF_ANGLE_DEG.to_radians().tan();
+        let swath = max_swath.min(side * 1.2);
+        let half_angle = (swath * 0.5 / ALTITUDE).atan();
+        Flight {
+            side,
+            half_angle,
+            swath,
+            line_spacing: swath * 0.7,
+            pulses_per_scanline: (swath / SPACING).ceil() as u64,
+            scanlines_per_line: (side / SPACING).ceil() as u64,
+        }
+    }
+}
+
+/// Per-block memo of the scene's hashed objects (buildings per block, tree per cell).
+#[derive(Default)]
+pub struct Cache {
+    buildings: Map<(i64, i64), Vec<(Box3, u64)>>,
+    trees: Map<(i64, i64), Option<scene::Tree>>,
+    furniture: Map<(i64, i64), Vec<(Box3, u64)>>,
+}
+
+pub struct Airborne<'a> {
+    pub scene: &'a Scene,
+    pub flight: Flight,
+}
+
+impl Airborne<'_> {
+    /// Generates pulse k's returns into `out` (appending).
+    pub fn pulse(&self, k: u64, cache: &mut Cache, out: &mut PointBatch) {
+        let f = &self.flight;
+        let per_line = f.pulses_per_scanline * f.scanlines_per_line;
+        let line = k / per_line;
+        let in_line = k % per_line;
+        let scanline = in_line / f.pulses_per_scanline;
+        let i = in_line % f.pulses_per_scanline;
+        let mut rng = Rng::new(k ^ 0x5EED_0000_0000 ^ self.scene.seed.rotate_left(17));
+        // Zig-zag: even scan lines sweep west to east, odd ones back.
+        let u = (i as f64 + 0.5) / f.pulses_per_scanline as f64;
+        let sweep = if scanline % 2 == 0 { u } else { 1.0 - u };
+        let angle = (sweep * 2.0 - 1.0) * f.half_angle;
+        let along = (scanline as f64 + u) * SPACING;
+        let northbound = line % 2 == 0;
+        let y = if northbound { along } else { f.side - along };
+        let x = line as f64 * f.line_spacing;
+        let origin = [x + rng.normal() * 0.01, y, ALTITUDE + rng.normal() * 0.05];
+        let dir = [angle.sin(), 0.0, -angle.cos()];
+        let gps = 1.0e6 + k as f64 * PULSE_PERIOD + line as f64 * 60.0;
+        let hits = self.cast(origin, dir, cache, &mut rng);
+        let n = hits.len() as u8;
+        for (r, h) in hits.iter().enumerate() {
+            let noise = rng.normal() * 0.02;
+            let t = h.t + noise;
+            let pos = [
+                origin[0] + dir[0] * t,
+                origin[1] + dir[1] * t,
+                origin[2] + dir[2] * t,
+            ];
+            let cos = -(h.normal[0] * dir[0] + h.normal[1] * dir[1] + h.normal[2] * dir[2]);
+            let energy = 0.5f64.powi(r as i32);
+            let range_falloff = (ALTITUDE / h.t).powi(2);
+            let intensity = (h.reflectance
+                * cos.abs().max(0.05)
+                * range_falloff
+                * energy
+                * 60000.0
+                * (1.0 + 0.06 * rng.normal()))
+            .clamp(1.0, 65535.0) as u16;
+            out.positions.push(pos);
+            push(&mut out.intensity, intensity);
+            push(&mut out.return_number, r as u8 + 1);
+            push(&mut out.number_of_returns, n);
+            push(&mut out.classification, h.class);
+            push(&mut out.classification_flags, 0);
+            let edge = (i == 0 || i + 1 == f.pulses_per_scanline) as u8;
+            push(&mut out.scan_flags, (scanline % 2 == 0) as u8 | edge << 1);
+            push(&mut out.scan_angle, angle.to_degrees().round() as f32);
+            push(&mut out.user_data, 0);
+            push(&mut out.point_source_id, line as u16 + 1);
+            push(&mut out.gps_time, gps);
+            push(&mut out.rgb, jitter(h.rgb, &mut rng));
+        }
+    }
+
+    /// Casts one pulse: semi-transparent crowns first, then the first opaque surface.
+    fn cast(&self, o: [f64; 3], d: [f64; 3], cache: &mut Cache, rng: &mut Rng) -> Vec<Hit> {
+        let s = self.scene;
+        let top = 40.0 + scene::MAX_OBJECT_HEIGHT;
+        let (t0, t1) = ((o[2] - top) / -d[2], (o[2] + 40.0) / -d[2]);
+        let (xa, xb) = (o[0] + d[0] * t0, o[0] + d[0] * t1);
+        let (xlo, xhi) = (xa.min(xb), xa.max(xb));
+        let (ylo, yhi) = (o[1] - 0.01, o[1] + 0.01);
+        let mut opaque: Option<Hit> = self.terrain_hit(o, d);
+        if s.kind == Kind::City {
+            let bs = scene::BLOCK;
+            for bx in (xlo / bs).floor() as i64..=(xhi / bs).floor() as i64 {
+                for by in (ylo / bs).floor() as i64..=(yhi / bs).floor() as i64 {
+                    let list = cache.buildings.entry((bx, by)).or_insert_with(|| {
+                        let mut v = Vec::new();
+                        s.buildings(bx, by, &mut v);
+                        v
+                    });
+                    for (b, h) in list.iter() {
+                        if let Some((t, n)) = scene::ray_box(o, d, b) {
+                            if opaque.as_ref().is_none_or(|x| t < x.t) {
+                                let roof = n[2] > 0.5;
+                                opaque = Some(Hit {
+                                    t,
+                                    normal: n,
+                                    class: scene::BUILDING,
+                                    rgb: if roof {
+                                        scene::roof_colour(*h)
+                                    } else {
+                                        [52000, 50000, 46000]
+                                    },
+                                    reflectance: if roof { 0.3 } else { 0.5 },
+                                    transparent: false,
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let tc = scene::TREE_CELL;
+        let m = scene::MAX_CROWN;
+        let mut crowns: Vec<Hit> = Vec::new();
+        for cx in ((xlo - m) / tc).floor() as i64..=((xhi + m) / tc).floor() as i64 {
+            for cy in ((ylo - m) / tc).floor() as i64..=((yhi + m) / tc).floor() as i64 {
+                let tree = *cache
+                    .trees
+                    .entry((cx, cy))
+                    .or_insert_with(|| s.tree(cx, cy));
+                let Some(tree) = tree else { continue };
+                if let Some((t, n)) = scene::ray_sphere(o, d, tree.center, tree.radius) {
+                    if opaque.as_ref().is_none_or(|x| t < x.t) {
+                        let h = hash3(s.seed, cx, cy);
+                        let g = 0.7 + 0.3 * unit(h);
+                        crowns.push(Hit {
+                            // Leaves are hit somewhere inside the crown's outer shell.
+                            t: t + rng.f64() * tree.radius * 0.5,
+                            normal: n,
+                            class: scene::HIGH_VEGETATION,
+                            rgb: [
+                                (14000.0 * g) as u16,
+                                (34000.0 * g) as u16,
+                                (12000.0 * g) as u16,
+                            ],
+                            reflectance: 0.45,
+                            transparent: true,
+                        });
+                    }
+                }
+            }
+        }
+        crowns.sort_by(|a, b| a.t.total_cmp(&b.t));
+        let mut hits = Vec::with_capacity(4);
+        for c in crowns {
+            if hits.is_empty() || rng.f64() < 0.55 {
+                hits.push(c);
+            }
+            if hits.len() == 3 {
+                break;
+            }
+        }
+        if let Some(op) = opaque {
+            if hits.is_empty() || rng.f64() < 0.6 {
+                hits.push(op);
+            }
+        }
+        hits
+    }
+
+    fn terrain_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<Hit> {
+        let s = self.scene;
+        let mut t = o[2] / -d[2];
+        for _ in 0..5 {
+            let (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
+            let (h, g) = s.terrain(x, y);
+            let f = o[2] + d[2] * t - h;
+            let df = d[2] - (g[0] * d[0] + g[1] * d[1]);
+            t -= f / df;
+        }
+        let (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
+        let (_, g) = s.terrain(x, y);
+        let len = (g[0] * g[0] + g[1] * g[1] + 1.0).sqrt();
+        let (class, rgb, reflectance) = s.ground_material(x, y);
+        Some(Hit {
+            t,
+            normal: [-g[0] / len, -g[1] / len, 1.0 / len],
+            class,
+            rgb,
+            reflectance,
+            transparent: false,
+        })
+    }
+}
+
+#[inline]
+fn push<T>(c: &mut Option<Vec<T>>, v: T) {
+    if let Some(c) = c {
+        c.push(v);
+    }
+}
+
+fn jitter(c: [u16; 3], rng: &mut Rng) -> [u16; 3] {
+    let k = 1.0 + 0.08 * rng.normal();
+    c.map(|v| (v as f64 * k).clamp(0.0, 65535.0) as u16)
+}
+
+/// Terrestrial scans of furnished rooms.
+pub struct Indoor {
+    pub seed: u64,
+    pub pulses_per_station: u64,
+    pub n_el: u64,
+}
+
+pub const ROOM: [f64; 3] = [12.0, 8.0, 3.0];
+const ROOM_PITCH: [f64; 2] = [14.0, 10.0];
+const ROOMS_PER_ROW: u64 = 16;
+
+impl Indoor {
+    pub fn plan(points: u64, seed: u64) -> Indoor {
+        let stations = points.div_ceil(2_000_000).max(1);
+        let per = points.div_ceil(stations).max(64);
+        // Elevation covers 150 of the azimuth's 360 degrees: choose equal angular steps.
+        let n_el = ((per as f64 * 150.0 / 360.0).sqrt().round() as u64).max(4);
+        Indoor {
+            seed,
+            pulses_per_station: per,
+            n_el,
+        }
+    }
+
+    fn room_box(&self, room: u64) -> Box3 {
+        let x = (room % ROOMS_PER_ROW) as f64 * ROOM_PITCH[0];
+        let y = (room / ROOMS_PER_ROW) as f64 * ROOM_PITCH[1];
+        Box3 {
+            min: [x, y, 0.0],
+            max: [x + ROOM[0], y + ROOM[1], ROOM[2]],
+        }
+    }
+
+    fn furniture(&self, room: u64, r: &Box3) -> Vec<(Box3, u64)> {
+        let h = mix(self.seed ^ room.wrapping_mul(0xF00D));
+        let n = 3 + h % 5;
+        (0..n)
+            .map(|i| {
+                let hi = mix(h ^ i);
+                let (w, d, ht) = match hi % 3 {
+                    0 => (1.6, 0.8, 0.75),
+                    1 => (1.0, 0.5, 2.0),
+                    _ => (0.5, 0.5, 0.45),
+                };
+                let x = r.min[0] + 0.3 + (ROOM[0] - w - 0.6) * unit(hi >> 8);
+                let y = r.min[1] + 0.3 + (ROOM[1] - d - 0.6) * unit(hi >> 20);
+                (
+                    Box3 {
+                        min: [x, y, 0.0],
+                        max: [x + w, y + d, ht],
+                    },
+                    hi,
+                )
+            })
+            .collect()
+    }
+
+    pub fn pulse(&self, k: u64, cache: &mut Cache, out: &mut PointBatch) {
+        let station = k / self.pulses_per_station;
+        let j = k % self.pulses_per_station;
+        let room = station / 2;
+        let rbox = self.room_box(room);
+        let sh = mix(self.seed ^ station.wrapping_mul(0x57A7));
+        let o = [
+            rbox.min[0]
+                + 2.0
+                + (ROOM[0] - 4.0) * (0.2 + 0.6 * (station % 2) as f64 * 0.9 + 0.1 * unit(sh)),
+            rbox.min[1] + 2.0 + (ROOM[1] - 4.0) * unit(sh >> 16),
+            1.5,
+        ];
+        let n_az = self.pulses_per_station.div_ceil(self.n_el);
+        let az = (j / self.n_el) as f64 / n_az as f64 * std::f64::consts::TAU;
+        let el = (-60.0 + 150.0 * ((j % self.n_el) as f64 + 0.5) / self.n_el as f64).to_radians();
+        let d = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+        // Exit of the room box from inside.
+        let (mut t, mut axis) = (f64::INFINITY, 0);
+        for a in 0..3 {
+            if d[a].abs() > 1e-12 {
+                let ta = if d[a] > 0.0 {
+                    (rbox.max[a] - o[a]) / d[a]
+                } else {
+                    (rbox.min[a] - o[a]) / d[a]
+                };
+                if ta < t {
+                    t = ta;
+                    axis = a;
+                }
+            }
+        }
+        let mut normal = [0.0; 3];
+        normal[axis] = -d[axis].signum();
+        let wall_tint = unit(mix(room ^ self.seed)) * 6000.0;
+        let (mut class, mut rgb, mut refl) = match (axis, d[2] < 0.0) {
+            (2, true) => (scene::GROUND, [30000, 22000, 14000], 0.4),
+            (2, false) => (scene::BUILDING, [60000, 60000, 59000], 0.8),
+            _ => (
+                scene::BUILDING,
+                [56000 - wall_tint as u16, 54000, 50000 + wall_tint as u16],
+                0.7,
+            ),
+        };
+        let furniture = cache
+            .furniture
+            .entry((room as i64, 0))
+            .or_insert_with(|| self.furniture(room, &rbox));
+        for (b, h) in furniture.iter() {
+            if let Some((tb, n)) = scene::ray_box(o, d, b) {
+                if tb < t {
+                    t = tb;
+                    normal = n;
+                    class = scene::UNCLASSIFIED;
+                    rgb = [
+                        [20000, 12000, 8000],
+                        [44000, 44000, 46000],
+                        [9000, 20000, 40000],
+                    ][(h % 3) as usize];
+                    refl = 0.5;
+                }
+            }
+        }
+        let mut rng = Rng::new(k ^ self.seed.rotate_left(29));
+        let t = t + rng.normal() * 0.002;
+        let cos = -(normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2]);
+        let intensity = (refl * cos.abs().max(0.05) / (1.0 + (t / 8.0).powi(2)) * 60000.0)
+            .clamp(1.0, 65535.0) as u16;
+        out.positions
+            .push([o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t]);
+        push(&mut out.intensity, intensity);
+        push(&mut out.return_number, 1);
+        push(&mut out.number_of_returns, 1);
+        push(&mut out.classification, class);
+        push(&mut out.classification_flags, 0);
+        push(&mut out.scan_flags, 0);
+        push(&mut out.scan_angle, 0.0);
+        push(&mut out.user_data, 0);
+        push(&mut out.point_source_id, station as u16 + 1);
+        push(
+            &mut out.gps_time,
+            2.0e6 + station as f64 * 600.0 + j as f64 * 1e-6,
+        );
+        push(&mut out.rgb, jitter(rgb, &mut rng));
+    }
+}

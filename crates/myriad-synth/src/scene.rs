@@ -1,0 +1,285 @@
+//! The procedural world. Everything is a pure function of position and seed: terrain height is a
+//! sum of smooth waves, and buildings, trees and roads are decided per grid cell by hashing the
+//! cell's coordinates. Nothing is stored, so a scene of any extent costs no memory.
+
+use crate::rng::{hash3, unit};
+
+/// ASPRS classes used by the scenes.
+pub const GROUND: u8 = 2;
+pub const HIGH_VEGETATION: u8 = 5;
+pub const BUILDING: u8 = 6;
+pub const ROAD: u8 = 11;
+pub const UNCLASSIFIED: u8 = 1;
+
+/// City blocks are BLOCK metres square with a road of ROAD_WIDTH along their south and west sides.
+pub const BLOCK: f64 = 100.0;
+pub const ROAD_WIDTH: f64 = 14.0;
+/// Trees are placed one per TREE_CELL cell at most; crowns stay inside their cell's neighbourhood.
+pub const TREE_CELL: f64 = 9.0;
+pub const MAX_CROWN: f64 = 4.2;
+/// Tallest object above the terrain, so rays can skip the empty sky quickly.
+pub const MAX_OBJECT_HEIGHT: f64 = 45.0;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind {
+    City,
+    Terrain,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Box3 {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Tree {
+    pub center: [f64; 3],
+    pub radius: f64,
+    pub trunk_base: f64,
+}
+
+/// What a ray hit: distance along the ray, surface normal, class and colour.
+#[derive(Debug, Clone, Copy)]
+pub struct Hit {
+    pub t: f64,
+    pub normal: [f64; 3],
+    pub class: u8,
+    pub rgb: [u16; 3],
+    /// Fraction of pulse energy reflected (0..1).
+    pub reflectance: f64,
+    /// Trees let part of the pulse through.
+    pub transparent: bool,
+}
+
+pub struct Scene {
+    pub kind: Kind,
+    pub seed: u64,
+    amp: f64,
+}
+
+impl Scene {
+    pub fn new(kind: Kind, seed: u64) -> Scene {
+        Scene {
+            kind,
+            seed,
+            amp: if kind == Kind::City { 4.0 } else { 35.0 },
+        }
+    }
+
+    /// Terrain height and its gradient.
+    pub fn terrain(&self, x: f64, y: f64) -> (f64, [f64; 2]) {
+        let s = (self.seed % 1000) as f64;
+        let waves = [
+            (0.0021, 0.0017, 1.0, s),
+            (0.0063, 0.0049, 0.35, s * 1.7),
+            (0.0190, 0.0230, 0.08, s * 2.3),
+        ];
+        let (mut h, mut gx, mut gy) = (0.0, 0.0, 0.0);
+        for (fx, fy, a, ph) in waves {
+            let (sx, cx) = (fx * x + ph).sin_cos();
+            let (sy, cy) = (fy * y - ph).sin_cos();
+            h += a * sx * cy;
+            gx += a * fx * cx * cy;
+            gy += -a * fy * sx * sy;
+        }
+        (self.amp * h, [self.amp * gx, self.amp * gy])
+    }
+
+    /// Is (x, y) on a road? City: the grid streets; terrain: one winding road.
+    pub fn on_road(&self, x: f64, y: f64) -> bool {
+        match self.kind {
+            Kind::City => x.rem_euclid(BLOCK) < ROAD_WIDTH || y.rem_euclid(BLOCK) < ROAD_WIDTH,
+            Kind::Terrain => {
+                let cx = 300.0 * (y * 0.003).sin() + 150.0 * (y * 0.0071).cos();
+                (x.rem_euclid(1500.0) - 750.0 - cx).abs() < 4.0
+            }
+        }
+    }
+
+    /// Up to four buildings of city block (bx, by), inside the block's non-road area.
+    pub fn buildings(&self, bx: i64, by: i64, out: &mut Vec<(Box3, u64)>) {
+        out.clear();
+        if self.kind != Kind::City {
+            return;
+        }
+        let h = hash3(self.seed ^ 0xB1D, bx, by);
+        if h % 7 == 0 {
+            return; // a park
+        }
+        let n = 1 + (h >> 8) % 4;
+        let x0 = bx as f64 * BLOCK + ROAD_WIDTH + 4.0;
+        let y0 = by as f64 * BLOCK + ROAD_WIDTH + 4.0;
+        let room = BLOCK - ROAD_WIDTH - 8.0;
+        // Split the block into n lots along x; each lot holds one building.
+        for i in 0..n {
+            let hi = hash3(h, i as i64, 7);
+            let lot = room / n as f64;
+            let w = lot * (0.55 + 0.35 * unit(hi));
+            let d = room * (0.4 + 0.55 * unit(hi >> 7));
+            let lx = x0 + lot * i as f64 + (lot - w) * 0.5;
+            let ly = y0 + (room - d) * unit(hi >> 13);
+            let height = 6.0 + (MAX_OBJECT_HEIGHT - 8.0) * unit(hi >> 19).powi(2);
+            let (ground, _) = self.terrain(lx + w * 0.5, ly + d * 0.5);
+            out.push((
+                Box3 {
+                    min: [lx, ly, ground - 1.0],
+                    max: [lx + w, ly + d, ground + height],
+                },
+                hi,
+            ));
+        }
+    }
+
+    /// The tree of tree cell (cx, cy), if any.
+    pub fn tree(&self, cx: i64, cy: i64) -> Option<Tree> {
+        let h = hash3(self.seed ^ 0x7EE, cx, cy);
+        let p = match self.kind {
+            Kind::City => 0.18,
+            Kind::Terrain => 0.55,
+        };
+        if unit(h) > p {
+            return None;
+        }
+        let r = 2.0 + (MAX_CROWN - 2.0) * unit(h >> 9);
+        let m = TREE_CELL - 2.0 * r;
+        let x = cx as f64 * TREE_CELL + r + m.max(0.0) * unit(h >> 17);
+        let y = cy as f64 * TREE_CELL + r + m.max(0.0) * unit(h >> 25);
+        if self.on_road(x, y) {
+            return None;
+        }
+        if self.kind == Kind::City {
+            let mut b = Vec::new();
+            self.buildings(
+                (x / BLOCK).floor() as i64,
+                (y / BLOCK).floor() as i64,
+                &mut b,
+            );
+            if b.iter().any(|(bb, _)| {
+                x > bb.min[0] - r && x < bb.max[0] + r && y > bb.min[1] - r && y < bb.max[1] + r
+            }) {
+                return None;
+            }
+        }
+        let (g, _) = self.terrain(x, y);
+        let trunk = 2.0 + 6.0 * unit(h >> 33);
+        Some(Tree {
+            center: [x, y, g + trunk + r],
+            radius: r,
+            trunk_base: g,
+        })
+    }
+
+    /// Colour and reflectance of the ground at (x, y).
+    pub fn ground_material(&self, x: f64, y: f64) -> (u8, [u16; 3], f64) {
+        if self.on_road(x, y) {
+            let marking = self.kind == Kind::City && {
+                let u = (x.rem_euclid(BLOCK) - ROAD_WIDTH * 0.5).abs();
+                let v = (y.rem_euclid(BLOCK) - ROAD_WIDTH * 0.5).abs();
+                (u < 0.15 || v < 0.15) && (x + y).rem_euclid(6.0) < 3.0
+            };
+            return if marking {
+                (ROAD, [60000, 60000, 58000], 0.8)
+            } else {
+                (ROAD, [16000, 16000, 17000], 0.12)
+            };
+        }
+        let n = ((x * 0.05).sin() * (y * 0.043).cos() + 1.0) * 0.5;
+        let rgb = [
+            (18000.0 + 14000.0 * n) as u16,
+            (26000.0 + 12000.0 * (1.0 - n)) as u16,
+            (12000.0 + 6000.0 * n) as u16,
+        ];
+        (GROUND, rgb, 0.35 + 0.2 * n)
+    }
+}
+
+pub fn roof_colour(h: u64) -> [u16; 3] {
+    const ROOFS: [[u16; 3]; 5] = [
+        [42000, 20000, 16000],
+        [30000, 30000, 32000],
+        [50000, 48000, 45000],
+        [22000, 22000, 24000],
+        [38000, 28000, 20000],
+    ];
+    ROOFS[(h % 5) as usize]
+}
+
+/// Ray / box from outside: entry distance and normal.
+pub fn ray_box(o: [f64; 3], d: [f64; 3], b: &Box3) -> Option<(f64, [f64; 3])> {
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    let mut axis = 0;
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < b.min[a] || o[a] > b.max[a] {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / d[a];
+        let (mut ta, mut tb) = ((b.min[a] - o[a]) * inv, (b.max[a] - o[a]) * inv);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        if ta > t0 {
+            t0 = ta;
+            axis = a;
+        }
+        t1 = t1.min(tb);
+        if t0 > t1 {
+            return None;
+        }
+    }
+    let mut n = [0.0; 3];
+    n[axis] = -d[axis].signum();
+    Some((t0, n))
+}
+
+/// Ray / sphere: nearest positive hit and normal.
+pub fn ray_sphere(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Option<(f64, [f64; 3])> {
+    let oc = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+    let b = oc[0] * d[0] + oc[1] * d[1] + oc[2] * d[2];
+    let cc = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - r * r;
+    let disc = b * b - cc;
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    if t <= 0.0 {
+        return None;
+    }
+    let p = [
+        o[0] + d[0] * t - c[0],
+        o[1] + d[1] * t - c[1],
+        o[2] + d[2] * t - c[2],
+    ];
+    Some((t, [p[0] / r, p[1] / r, p[2] / r]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_and_sphere_hits() {
+        let b = Box3 {
+            min: [0.0, 0.0, 0.0],
+            max: [1.0, 1.0, 1.0],
+        };
+        let (t, n) = ray_box([0.5, 0.5, 10.0], [0.0, 0.0, -1.0], &b).unwrap();
+        assert!((t - 9.0).abs() < 1e-12 && n == [0.0, 0.0, 1.0]);
+        assert!(ray_box([2.0, 0.5, 10.0], [0.0, 0.0, -1.0], &b).is_none());
+        let (t, _) = ray_sphere([0.0, 0.0, 10.0], [0.0, 0.0, -1.0], [0.0, 0.0, 0.0], 2.0).unwrap();
+        assert!((t - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn terrain_gradient_matches_finite_difference() {
+        let s = Scene::new(Kind::Terrain, 3);
+        let (h, g) = s.terrain(120.0, -40.0);
+        let (hx, _) = s.terrain(120.001, -40.0);
+        let (hy, _) = s.terrain(120.0, -39.999);
+        assert!(((hx - h) / 0.001 - g[0]).abs() < 1e-3);
+        assert!(((hy - h) / 0.001 - g[1]).abs() < 1e-3);
+    }
+}

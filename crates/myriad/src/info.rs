@@ -1,0 +1,137 @@
+//! `myriad info FILE...`
+
+use anyhow::Result;
+use clap::Args;
+use myriad_io::{OpenOptions, SourceInfo};
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct InfoArgs {
+    /// Point cloud files (LAS, LAZ, COPC, E57, PLY, PCD, PTS, XYZ/CSV/TXT)
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// One JSON object per file, one per line
+    #[arg(long)]
+    json: bool,
+    /// Report only what the header states; do not stream the points of formats whose header
+    /// lacks exact bounds (E57, PLY, PCD, text)
+    #[arg(long)]
+    header_only: bool,
+    /// Column layout of text files, e.g. x,y,z,intensity,r,g,b
+    #[arg(long)]
+    columns: Option<String>,
+}
+
+struct Report {
+    info: SourceInfo,
+    points: Option<u64>,
+    bounds: Option<myriad_core::Aabb>,
+    skipped: u64,
+}
+
+pub fn run(args: InfoArgs) -> Result<()> {
+    let options = OpenOptions {
+        columns: args.columns.clone(),
+    };
+    for path in &args.files {
+        let mut src = myriad_io::open(path, &options)?;
+        let info = src.info().clone();
+        let (points, bounds, skipped) = if info.bounds.is_some() || args.header_only {
+            (info.points, info.bounds, 0)
+        } else {
+            let (n, b) = myriad_io::scan(src.as_mut())?;
+            (Some(n), (n > 0).then_some(b), src.skipped_non_finite())
+        };
+        if skipped > 0 {
+            eprintln!(
+                "warning: {}: skipped {skipped} points with NaN or infinite coordinates",
+                path.display()
+            );
+        }
+        let r = Report {
+            info,
+            points,
+            bounds,
+            skipped,
+        };
+        if args.json {
+            println!("{}", to_json(&r));
+        } else {
+            print_human(&r);
+        }
+    }
+    Ok(())
+}
+
+fn to_json(r: &Report) -> serde_json::Value {
+    let i = &r.info;
+    json!({
+        "path": i.path.display().to_string(),
+        "format": i.format.name(),
+        "version": i.version,
+        "points": r.points,
+        "header_points": i.points,
+        "skipped_non_finite": r.skipped,
+        "bounds": r.bounds.map(|b| json!({"min": b.min, "max": b.max})),
+        "attributes": i.schema.names(),
+        "crs": i.crs,
+        "scale": i.scale,
+        "offset": i.offset,
+        "file_size": i.file_size,
+    })
+}
+
+fn thousands(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (k, c) in s.chars().enumerate() {
+        if k > 0 && (s.len() - k) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+fn print_human(r: &Report) {
+    let i = &r.info;
+    println!("{}", i.path.display());
+    println!("  format      {} {}", i.format.name(), i.version);
+    match r.points {
+        Some(n) => println!("  points      {}", thousands(n)),
+        None => println!("  points      unknown (header has no count)"),
+    }
+    if r.skipped > 0 {
+        println!(
+            "  skipped     {} with NaN/infinite coordinates",
+            thousands(r.skipped)
+        );
+    }
+    if let Some(b) = r.bounds {
+        let s = b.size();
+        println!(
+            "  bounds min  {:.3} {:.3} {:.3}",
+            b.min[0], b.min[1], b.min[2]
+        );
+        println!(
+            "         max  {:.3} {:.3} {:.3}",
+            b.max[0], b.max[1], b.max[2]
+        );
+        println!("         size {:.3} x {:.3} x {:.3}", s[0], s[1], s[2]);
+    }
+    println!("  attributes  {}", i.schema);
+    if let (Some(s), Some(o)) = (i.scale, i.offset) {
+        println!("  scale       {} {} {}", s[0], s[1], s[2]);
+        println!("  offset      {} {} {}", o[0], o[1], o[2]);
+    }
+    match &i.crs {
+        Some(c) if c.len() > 100 => println!(
+            "  crs         {}...",
+            &c[..c.char_indices().nth(100).map_or(c.len(), |x| x.0)]
+        ),
+        Some(c) => println!("  crs         {c}"),
+        None => println!("  crs         none"),
+    }
+    println!("  file size   {} bytes", thousands(i.file_size));
+}
