@@ -31,10 +31,14 @@ impl Rng {
     pub fn f64(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
-    /// Roughly normal (sum of uniforms), mean 0, sd 1.
+    /// Roughly normal noise, mean 0, sd 1: the sum of two uniforms from one 64-bit draw
+    /// (a triangular distribution; plenty for sensor noise).
     #[inline]
     pub fn normal(&mut self) -> f64 {
-        (self.f64() + self.f64() + self.f64() + self.f64() - 2.0) * 1.732
+        let h = self.next_u64();
+        let a = (h >> 32) as f64 * (1.0 / 4_294_967_296.0);
+        let b = (h & 0xFFFF_FFFF) as f64 * (1.0 / 4_294_967_296.0);
+        (a + b - 1.0) * 2.449
     }
 }
 
@@ -42,4 +46,10 @@ impl Rng {
 #[inline]
 pub fn unit(h: u64) -> f64 {
     (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// The i-th independent uniform in [0,1) drawn from hash `h`.
+#[inline]
+pub fn sub(h: u64, i: u64) -> f64 {
+    unit(mix(h ^ i.wrapping_mul(0xA24B_AED4_963E_E407)))
 }

@@ -8,11 +8,9 @@
 //! - Terrestrial (`indoor`): rooms with furniture, two stations per room at tripod height, each a
 //!   full panorama with elevations from -60° to +90°; density falls off with range.
 
-use crate::rng::{Rng, hash3, mix, unit};
+use crate::rng::{Rng, hash3, mix, sub, unit};
 use crate::scene::{self, Box3, Hit, Kind, Scene};
 use myriad_core::PointBatch;
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
 
 /// Returns of one pulse, in order along the ray.
 pub struct Return {
@@ -22,22 +20,27 @@ pub struct Return {
     pub intensity: u16,
 }
 
-#[derive(Default)]
-struct MixHasher(u64);
-impl Hasher for MixHasher {
-    fn finish(&self) -> u64 {
-        mix(self.0)
+/// A direct-mapped memo keyed by grid cell: one slot per hash bucket, overwritten on collision.
+/// Cheaper than a hash map for the few cells each pulse asks for, and bounded in size.
+struct CellCache<T> {
+    slots: Vec<Option<((i64, i64), T)>>,
+}
+
+impl<T> CellCache<T> {
+    const BITS: u32 = 10;
+    fn new() -> Self {
+        CellCache { slots: (0..1 << Self::BITS).map(|_| None).collect() }
     }
-    fn write(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.0 = self.0.rotate_left(8) ^ *b as u64;
+    #[inline]
+    fn get_or_insert_with(&mut self, key: (i64, i64), f: impl FnOnce() -> T) -> &T {
+        let i = (hash3(0, key.0, key.1) >> (64 - Self::BITS)) as usize;
+        let slot = &mut self.slots[i];
+        if !matches!(slot, Some((k, _)) if *k == key) {
+            *slot = Some((key, f()));
         }
-    }
-    fn write_i64(&mut self, v: i64) {
-        self.0 = mix(self.0 ^ v as u64);
+        &slot.as_ref().expect("filled above").1
     }
 }
-type Map<K, V> = HashMap<K, V, BuildHasherDefault<MixHasher>>;
 
 pub const ALTITUDE: f64 = 600.0;
 const HALF_ANGLE_DEG: f64 = 20.0;
@@ -75,11 +78,27 @@ impl Flight {
 }
 
 /// Per-block memo of the scene's hashed objects (buildings per block, tree per cell).
-#[derive(Default)]
 pub struct Cache {
-    buildings: Map<(i64, i64), Vec<(Box3, u64)>>,
-    trees: Map<(i64, i64), Option<scene::Tree>>,
-    furniture: Map<(i64, i64), Vec<(Box3, u64)>>,
+    buildings: CellCache<Vec<(Box3, u64)>>,
+    trees: CellCache<Option<scene::Tree>>,
+    furniture: CellCache<Vec<(Box3, u64)>>,
+    /// Height of the previous ground hit: the next pulse lands 0.3 m away, so Newton starts there.
+    last_ground: f64,
+    crowns: Vec<Hit>,
+    hits: Vec<Hit>,
+}
+
+impl Default for Cache {
+    fn default() -> Cache {
+        Cache {
+            buildings: CellCache::new(),
+            trees: CellCache::new(),
+            furniture: CellCache::new(),
+            last_ground: 0.0,
+            crowns: Vec::new(),
+            hits: Vec::new(),
+        }
+    }
 }
 
 pub struct Airborne<'a> {
@@ -106,11 +125,12 @@ impl Airborne<'_> {
         let y = if northbound { along } else { f.side - along };
         let x = line as f64 * f.line_spacing;
         let origin = [x + rng.normal() * 0.01, y, ALTITUDE + rng.normal() * 0.05];
-        let dir = [angle.sin(), 0.0, -angle.cos()];
+        let (sa, ca) = scene::sin_cos(angle);
+        let dir = [sa, 0.0, -ca];
         let gps = 1.0e6 + k as f64 * PULSE_PERIOD + line as f64 * 60.0;
-        let hits = self.cast(origin, dir, cache, &mut rng);
-        let n = hits.len() as u8;
-        for (r, h) in hits.iter().enumerate() {
+        self.cast(origin, dir, cache, &mut rng);
+        let n = cache.hits.len() as u8;
+        for (r, h) in cache.hits.iter().enumerate() {
             let noise = rng.normal() * 0.02;
             let t = h.t + noise;
             let pos = [
@@ -136,7 +156,7 @@ impl Airborne<'_> {
             push(&mut out.classification_flags, 0);
             let edge = (i == 0 || i + 1 == f.pulses_per_scanline) as u8;
             push(&mut out.scan_flags, (scanline % 2 == 0) as u8 | edge << 1);
-            push(&mut out.scan_angle, angle.to_degrees().round() as f32);
+            push(&mut out.scan_angle, scene::round_fast(angle.to_degrees()) as f32);
             push(&mut out.user_data, 0);
             push(&mut out.point_source_id, line as u16 + 1);
             push(&mut out.gps_time, gps);
@@ -145,19 +165,21 @@ impl Airborne<'_> {
     }
 
     /// Casts one pulse: semi-transparent crowns first, then the first opaque surface.
-    fn cast(&self, o: [f64; 3], d: [f64; 3], cache: &mut Cache, rng: &mut Rng) -> Vec<Hit> {
+    /// Fills `cache.hits`.
+    fn cast(&self, o: [f64; 3], d: [f64; 3], cache: &mut Cache, rng: &mut Rng) {
         let s = self.scene;
-        let top = 40.0 + scene::MAX_OBJECT_HEIGHT;
-        let (t0, t1) = ((o[2] - top) / -d[2], (o[2] + 40.0) / -d[2]);
+        let relief = s.relief();
+        let top = relief + scene::MAX_OBJECT_HEIGHT + 1.0;
+        let (t0, t1) = ((o[2] - top) / -d[2], (o[2] + relief + 1.0) / -d[2]);
         let (xa, xb) = (o[0] + d[0] * t0, o[0] + d[0] * t1);
         let (xlo, xhi) = (xa.min(xb), xa.max(xb));
         let (ylo, yhi) = (o[1] - 0.01, o[1] + 0.01);
-        let mut opaque: Option<Hit> = self.terrain_hit(o, d);
+        let mut opaque: Option<Hit> = Some(self.terrain_hit(o, d, &mut cache.last_ground));
         if s.kind == Kind::City {
             let bs = scene::BLOCK;
-            for bx in (xlo / bs).floor() as i64..=(xhi / bs).floor() as i64 {
-                for by in (ylo / bs).floor() as i64..=(yhi / bs).floor() as i64 {
-                    let list = cache.buildings.entry((bx, by)).or_insert_with(|| {
+            for bx in scene::floor_fast(xlo / bs)..=scene::floor_fast(xhi / bs) {
+                for by in scene::floor_fast(ylo / bs)..=scene::floor_fast(yhi / bs) {
+                    let list = cache.buildings.get_or_insert_with((bx, by), || {
                         let mut v = Vec::new();
                         s.buildings(bx, by, &mut v);
                         v
@@ -186,13 +208,13 @@ impl Airborne<'_> {
         }
         let tc = scene::TREE_CELL;
         let m = scene::MAX_CROWN;
-        let mut crowns: Vec<Hit> = Vec::new();
-        for cx in ((xlo - m) / tc).floor() as i64..=((xhi + m) / tc).floor() as i64 {
-            for cy in ((ylo - m) / tc).floor() as i64..=((yhi + m) / tc).floor() as i64 {
+        let mut crowns = std::mem::take(&mut cache.crowns);
+        crowns.clear();
+        for cx in scene::floor_fast((xlo - m) / tc)..=scene::floor_fast((xhi + m) / tc) {
+            for cy in scene::floor_fast((ylo - m) / tc)..=scene::floor_fast((yhi + m) / tc) {
                 let tree = *cache
                     .trees
-                    .entry((cx, cy))
-                    .or_insert_with(|| s.tree(cx, cy));
+                    .get_or_insert_with((cx, cy), || s.tree(cx, cy));
                 let Some(tree) = tree else { continue };
                 if let Some((t, n)) = scene::ray_sphere(o, d, tree.center, tree.radius) {
                     if opaque.as_ref().is_none_or(|x| t < x.t) {
@@ -216,8 +238,9 @@ impl Airborne<'_> {
             }
         }
         crowns.sort_by(|a, b| a.t.total_cmp(&b.t));
-        let mut hits = Vec::with_capacity(4);
-        for c in crowns {
+        let hits = &mut cache.hits;
+        hits.clear();
+        for &c in &crowns {
             if hits.is_empty() || rng.f64() < 0.55 {
                 hits.push(c);
             }
@@ -230,31 +253,28 @@ impl Airborne<'_> {
                 hits.push(op);
             }
         }
-        hits
+        cache.crowns = crowns;
     }
 
-    fn terrain_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<Hit> {
+    fn terrain_hit(&self, o: [f64; 3], d: [f64; 3], last_ground: &mut f64) -> Hit {
         let s = self.scene;
-        let mut t = o[2] / -d[2];
-        for _ in 0..5 {
-            let (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
-            let (h, g) = s.terrain(x, y);
+        // Newton on f(t) = z(t) - h(x(t), y(t)); the terrain is smooth, so a few steps converge.
+        let mut t = (o[2] - *last_ground) / -d[2];
+        let (mut x, mut y) = (o[0] + d[0] * t, o[1] + d[1] * t);
+        let (mut h, mut g) = s.terrain(x, y);
+        for _ in 0..4 {
             let f = o[2] + d[2] * t - h;
-            let df = d[2] - (g[0] * d[0] + g[1] * d[1]);
-            t -= f / df;
+            if f.abs() < 2e-3 {
+                break;
+            }
+            t -= f / (d[2] - (g[0] * d[0] + g[1] * d[1]));
+            (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
+            (h, g) = s.terrain(x, y);
         }
-        let (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
-        let (_, g) = s.terrain(x, y);
         let len = (g[0] * g[0] + g[1] * g[1] + 1.0).sqrt();
         let (class, rgb, reflectance) = s.ground_material(x, y);
-        Some(Hit {
-            t,
-            normal: [-g[0] / len, -g[1] / len, 1.0 / len],
-            class,
-            rgb,
-            reflectance,
-            transparent: false,
-        })
+        *last_ground = h;
+        Hit { t, normal: [-g[0] / len, -g[1] / len, 1.0 / len], class, rgb, reflectance, transparent: false }
     }
 }
 
@@ -314,8 +334,8 @@ impl Indoor {
                     1 => (1.0, 0.5, 2.0),
                     _ => (0.5, 0.5, 0.45),
                 };
-                let x = r.min[0] + 0.3 + (ROOM[0] - w - 0.6) * unit(hi >> 8);
-                let y = r.min[1] + 0.3 + (ROOM[1] - d - 0.6) * unit(hi >> 20);
+                let x = r.min[0] + 0.3 + (ROOM[0] - w - 0.6) * sub(hi, 8);
+                let y = r.min[1] + 0.3 + (ROOM[1] - d - 0.6) * sub(hi, 20);
                 (
                     Box3 {
                         min: [x, y, 0.0],
@@ -337,7 +357,7 @@ impl Indoor {
             rbox.min[0]
                 + 2.0
                 + (ROOM[0] - 4.0) * (0.2 + 0.6 * (station % 2) as f64 * 0.9 + 0.1 * unit(sh)),
-            rbox.min[1] + 2.0 + (ROOM[1] - 4.0) * unit(sh >> 16),
+            rbox.min[1] + 2.0 + (ROOM[1] - 4.0) * sub(sh, 16),
             1.5,
         ];
         let n_az = self.pulses_per_station.div_ceil(self.n_el);
@@ -373,8 +393,7 @@ impl Indoor {
         };
         let furniture = cache
             .furniture
-            .entry((room as i64, 0))
-            .or_insert_with(|| self.furniture(room, &rbox));
+            .get_or_insert_with((room as i64, 0), || self.furniture(room, &rbox));
         for (b, h) in furniture.iter() {
             if let Some((tb, n)) = scene::ray_box(o, d, b) {
                 if tb < t {
