@@ -93,6 +93,26 @@ impl PointBatch {
         self.positions.is_empty()
     }
 
+    /// A copy of the points in `range`.
+    pub fn slice(&self, range: std::ops::Range<usize>) -> PointBatch {
+        let mut b = PointBatch {
+            positions: self.positions[range.clone()].to_vec(),
+            ..Default::default()
+        };
+        macro_rules! sl {
+            ($f:ident, $t:ty, $a:ident) => {
+                b.$f = self.$f.as_ref().map(|c| c[range.clone()].to_vec());
+            };
+        }
+        for_each_column!(sl);
+        b.extra_stride = self.extra_stride;
+        b.extra_bytes = self
+            .extra_bytes
+            .as_ref()
+            .map(|e| e[range.start * self.extra_stride..range.end * self.extra_stride].to_vec());
+        b
+    }
+
     /// Keeps the first `n` points.
     pub fn truncate(&mut self, n: usize) {
         self.positions.truncate(n);
@@ -214,6 +234,11 @@ mod tests {
         let mut a = sample();
         a.append(&sample());
         assert_eq!(a.len(), 8);
+        assert_eq!(
+            a.slice(4..6).positions,
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+        );
+        assert_eq!(a.slice(4..6).extra_bytes.unwrap(), vec![0, 0xAA, 1, 0xAA]);
         a.truncate(5);
         assert_eq!(a.rgb.as_ref().unwrap().len(), 5);
         assert_eq!(a.extra_bytes.as_ref().unwrap().len(), 10);

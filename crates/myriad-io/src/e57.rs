@@ -194,7 +194,7 @@ impl PointSource for E57Source {
 
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
         if self.rx.is_none() {
-            self.start(max.max(1));
+            self.start(crate::batch_len(max));
         }
         match self.rx.as_ref().expect("started").recv() {
             Ok(r) => r.map(Some),

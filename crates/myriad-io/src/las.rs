@@ -126,10 +126,10 @@ impl LasSource {
         let b = header.bounds();
         let is_copc = header.all_vlrs().any(|v| v.user_id == "copc");
         let version = format!(
-            "{}{}.{} point format {format_id}",
-            if is_copc { "COPC, LAS " } else { "" },
+            "{}.{} point format {format_id}{}",
             header.version().major,
-            header.version().minor
+            header.version().minor,
+            if is_copc { " (COPC)" } else { "" }
         );
         let mut schema = Schema::for_las_format(format_id);
         schema.extra_bytes = fmt.extra_bytes as usize;
@@ -196,7 +196,7 @@ impl PointSource for LasSource {
         if self.remaining == 0 {
             return Ok(None);
         }
-        let want = self.remaining.min(max.max(1) as u64);
+        let want = self.remaining.min(crate::batch_len(max) as u64);
         let got = self
             .reader
             .fill_points(want, &mut self.data)
@@ -367,15 +367,29 @@ impl LasWriteOptions {
     }
 }
 
+/// The point stream of a [`LasSink`]: raw records, or LAZ chunks compressed on all cores.
+enum PointOut {
+    Las(BufWriter<File>),
+    Laz(laz::ParLasZipCompressor<BufWriter<File>>),
+}
+
 /// Streams batches into a LAS or LAZ file (LAZ when `path` ends in .laz), atomically.
+///
+/// The `las` crate encodes the header and VLRs; records and the final header (counts, counts per
+/// return, bounds, EVLRs) are written here. The crate's own `Writer` refuses to close a legacy
+/// (1.0-1.3) file that holds return numbers 6 or 7, which the 3-bit field allows and real scans
+/// contain, and panics when dropped after an error; this writer does neither.
 pub struct LasSink {
-    writer: Option<las::Writer<BufWriter<File>>>,
+    out: Option<PointOut>,
     file: AtomicFile,
+    header: las::Header,
     layout: Layout,
     quant: Quantization,
     record_len: usize,
     bytes: Vec<u8>,
     written: u64,
+    by_return: [u64; 15],
+    bounds: Aabb,
     path: PathBuf,
 }
 
@@ -384,35 +398,49 @@ impl LasSink {
         let compressed = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
-        let mut header = options.header;
-        let mut b = las::Builder::from(header);
+        let invalid = |e: las::Error| Error::Invalid(format!("{}: {e}", path.display()));
+        let mut b = las::Builder::from(options.header);
         b.point_format.is_compressed = compressed;
         b.vlrs
             .retain(|v| !(v.user_id == "laszip encoded" || v.user_id == "copc"));
         b.evlrs.retain(|v| v.user_id != "copc");
-        header = b
-            .into_header()
-            .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
-        let fmt = header.point_format();
-        let format_id = fmt.to_u8().map_err(|e| Error::Invalid(e.to_string()))?;
+        let mut header = b.into_header().map_err(invalid)?;
+        if compressed {
+            header.add_laz_vlr().map_err(invalid)?;
+        }
+        let fmt = *header.point_format();
+        let format_id = fmt.to_u8().map_err(invalid)?;
         let layout = Layout::new(format_id).expect("las crate accepted the format");
         let t = header.transforms();
         let quant = Quantization {
             scale: [t.x.scale, t.y.scale, t.z.scale],
             offset: [t.x.offset, t.y.offset, t.z.offset],
         };
-        let record_len = fmt.len() as usize;
         let file = AtomicFile::create(path, force)?;
-        let out = BufWriter::with_capacity(1 << 20, file.open_write()?);
-        let writer = las::Writer::new(out, header).map_err(|e| las_write_error(path, e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
+        header
+            .write_to(&mut w)
+            .map_err(|e| las_write_error(path, e))?;
+        let out = if compressed {
+            let vlr = header.laz_vlr().map_err(invalid)?;
+            PointOut::Laz(
+                laz::ParLasZipCompressor::new(w, vlr)
+                    .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?,
+            )
+        } else {
+            PointOut::Las(w)
+        };
         Ok(LasSink {
-            writer: Some(writer),
+            out: Some(out),
             file,
+            header,
             layout,
             quant,
-            record_len,
+            record_len: fmt.len() as usize,
             bytes: Vec::new(),
             written: 0,
+            by_return: [0; 15],
+            bounds: Aabb::EMPTY,
             path: path.to_path_buf(),
         })
     }
@@ -434,27 +462,97 @@ impl LasSink {
                 e.message
             ))
         })?;
-        let w = self.writer.as_mut().expect("write after finish");
-        let data = las::PointDataBuilder::new()
-            .for_header(w.header())
-            .build_from_bytes(std::mem::take(&mut self.bytes))
-            .map_err(|e| las_write_error(&self.path, e))?;
-        w.write_points(&data)
-            .map_err(|e| las_write_error(&self.path, e))?;
+        for p in &batch.positions {
+            self.bounds.extend(*p);
+        }
+        if let Some(r) = &batch.return_number {
+            for &n in r {
+                if (1..=15).contains(&n) {
+                    self.by_return[n as usize - 1] += 1;
+                }
+            }
+        }
+        let io = |e| Error::io(&self.path, e);
+        match self.out.as_mut().expect("write after finish") {
+            PointOut::Las(w) => std::io::Write::write_all(w, &self.bytes).map_err(io)?,
+            PointOut::Laz(c) => c.compress_many(&self.bytes).map_err(io)?,
+        }
         self.written += batch.len() as u64;
         Ok(())
     }
 
-    /// Completes the header and moves the file to its name. Returns the points written.
+    /// Writes EVLRs and the final header, then moves the file to its name. Returns the points.
     pub fn finish(mut self) -> Result<u64> {
-        let mut w = self.writer.take().expect("finish twice");
-        w.close().map_err(|e| las_write_error(&self.path, e))?;
-        let inner = w.into_inner().map_err(|e| las_write_error(&self.path, e))?;
-        inner
-            .into_inner()
-            .map_err(|e| Error::io(&self.path, e.into_error()))?
+        use std::io::Write;
+        let path = self.path.clone();
+        let io = |e| Error::io(&path, e);
+        let mut w = match self.out.take().expect("finish twice") {
+            PointOut::Las(w) => w,
+            PointOut::Laz(mut c) => {
+                c.done()
+                    .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+                c.into_inner()
+            }
+        };
+        let mut raw = self
+            .header
+            .clone()
+            .into_raw()
+            .map_err(|e| las_write_error(&path, e))?;
+        let legacy_ok = self.layout.format < 6 && self.written <= u32::MAX as u64;
+        let version = self.header.version();
+        let v14 = version >= las::Version::new(1, 4);
+        if !legacy_ok && !v14 {
+            return Err(Error::Invalid(format!(
+                "{}: {} points do not fit a LAS {}.{} file",
+                path.display(),
+                self.written,
+                version.major,
+                version.minor
+            )));
+        }
+        if !self.header.evlrs().is_empty() {
+            let start = w.stream_position().map_err(io)?;
+            for v in self.header.evlrs() {
+                v.clone()
+                    .into_raw(true)
+                    .and_then(|r| r.write_to(&mut w))
+                    .map_err(|e| las_write_error(&path, e))?;
+            }
+            raw.evlr = Some(las::raw::header::Evlr {
+                start_of_first_evlr: start,
+                number_of_evlrs: self.header.evlrs().len() as u32,
+            });
+        }
+        raw.number_of_point_records = if legacy_ok { self.written as u32 } else { 0 };
+        raw.number_of_points_by_return = std::array::from_fn(|i| {
+            if legacy_ok {
+                self.by_return[i] as u32
+            } else {
+                0
+            }
+        });
+        if v14 {
+            raw.large_file = Some(las::raw::header::LargeFile {
+                number_of_point_records: self.written,
+                number_of_points_by_return: self.by_return,
+            });
+        }
+        let b = if self.written > 0 {
+            self.bounds
+        } else {
+            Aabb::new([0.0; 3], [0.0; 3])
+        };
+        (raw.min_x, raw.min_y, raw.min_z) = (b.min[0], b.min[1], b.min[2]);
+        (raw.max_x, raw.max_y, raw.max_z) = (b.max[0], b.max[1], b.max[2]);
+        w.seek(SeekFrom::Start(0)).map_err(io)?;
+        raw.write_to(&mut w)
+            .map_err(|e| las_write_error(&path, e))?;
+        w.flush().map_err(io)?;
+        w.into_inner()
+            .map_err(|e| Error::io(&path, e.into_error()))?
             .sync_all()
-            .map_err(|e| Error::io(&self.path, e))?;
+            .map_err(io)?;
         self.file.commit()?;
         Ok(self.written)
     }

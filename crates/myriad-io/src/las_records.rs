@@ -180,7 +180,11 @@ pub fn batch_for(layout: &Layout, extra: usize, capacity: usize) -> PointBatch {
 fn round_half_away(v: f64) -> f64 {
     if v.abs() < 4.0e15 {
         let t = v as i64 as f64; // truncates toward zero; v - t is exact
-        if (v - t).abs() >= 0.5 { t + 1.0f64.copysign(v) } else { t }
+        if (v - t).abs() >= 0.5 {
+            t + 1.0f64.copysign(v)
+        } else {
+            t
+        }
     } else {
         v
     }
@@ -280,7 +284,19 @@ mod tests {
 
     #[test]
     fn fast_rounding_matches_std() {
-        for v in [0.0, 0.49999999999999994, 0.5, 1.5, 2.5, -0.5, -1.5, -2.4999, 1e9 + 0.5, -3e12 - 0.5, 7.2e15] {
+        for v in [
+            0.0,
+            0.49999999999999994,
+            0.5,
+            1.5,
+            2.5,
+            -0.5,
+            -1.5,
+            -2.4999,
+            1e9 + 0.5,
+            -3e12 - 0.5,
+            7.2e15,
+        ] {
             assert_eq!(round_half_away(v), v.round(), "{v}");
         }
         assert!(round_half_away(f64::NAN).is_nan());

@@ -24,6 +24,13 @@ use std::path::{Path, PathBuf};
 
 /// Points a reader yields per batch unless asked otherwise.
 pub const DEFAULT_BATCH: usize = 1 << 16;
+/// Readers never yield more than this many points at once, whatever they are asked for, so a
+/// caller's `usize::MAX` cannot turn streaming into reading the whole file.
+pub const MAX_BATCH: usize = 1 << 20;
+
+pub(crate) fn batch_len(max: usize) -> usize {
+    max.clamp(1, MAX_BATCH)
+}
 
 /// The file formats Myriad reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,7 +80,7 @@ pub struct SourceInfo {
 /// the thread that reads it.
 pub trait PointSource {
     fn info(&self) -> &SourceInfo;
-    /// The next batch of at most `max` points, or `None` at the end of the file.
+    /// The next batch of at most `max` points (and at most [`MAX_BATCH`]), or `None` at the end.
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>>;
     /// Points skipped so far because a coordinate was NaN or infinite.
     fn skipped_non_finite(&self) -> u64 {

@@ -440,7 +440,7 @@ impl PointSource for PcdSource {
         if self.done >= self.total {
             return Ok(None);
         }
-        let n = (self.total - self.done).min(max.max(1) as u64) as usize;
+        let n = (self.total - self.done).min(crate::batch_len(max) as u64) as usize;
         let mut batch = PointBatch::with_schema(&self.info.schema, n);
         let width: usize = self.fields.iter().map(|f| f.count).sum();
         let mut values = vec![0.0; self.fields.len()];

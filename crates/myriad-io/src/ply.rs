@@ -419,7 +419,7 @@ impl PointSource for PlySource {
         if self.remaining == 0 {
             return Ok(None);
         }
-        let n = self.remaining.min(max.max(1) as u64);
+        let n = self.remaining.min(crate::batch_len(max) as u64);
         let mut batch = PointBatch::with_schema(&self.info.schema, n as usize);
         match self.encoding {
             Encoding::Ascii => self.read_ascii(n, &mut batch)?,

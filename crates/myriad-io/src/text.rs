@@ -298,10 +298,11 @@ impl PointSource for TextSource {
     }
 
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
+        let max = crate::batch_len(max);
         let mut batch = PointBatch::with_schema(&self.info.schema, max.min(1 << 16));
         let mut line = Vec::new();
         let mut lines = 0;
-        while lines < max.max(1) {
+        while lines < max {
             if let Some(p) = self.pending.take() {
                 line = p;
             } else if !self.reader.read_line(&mut line)? {

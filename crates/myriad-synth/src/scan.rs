@@ -29,7 +29,9 @@ struct CellCache<T> {
 impl<T> CellCache<T> {
     const BITS: u32 = 10;
     fn new() -> Self {
-        CellCache { slots: (0..1 << Self::BITS).map(|_| None).collect() }
+        CellCache {
+            slots: (0..1 << Self::BITS).map(|_| None).collect(),
+        }
     }
     #[inline]
     fn get_or_insert_with(&mut self, key: (i64, i64), f: impl FnOnce() -> T) -> &T {
@@ -156,7 +158,10 @@ impl Airborne<'_> {
             push(&mut out.classification_flags, 0);
             let edge = (i == 0 || i + 1 == f.pulses_per_scanline) as u8;
             push(&mut out.scan_flags, (scanline % 2 == 0) as u8 | edge << 1);
-            push(&mut out.scan_angle, scene::round_fast(angle.to_degrees()) as f32);
+            push(
+                &mut out.scan_angle,
+                scene::round_fast(angle.to_degrees()) as f32,
+            );
             push(&mut out.user_data, 0);
             push(&mut out.point_source_id, line as u16 + 1);
             push(&mut out.gps_time, gps);
@@ -212,9 +217,7 @@ impl Airborne<'_> {
         crowns.clear();
         for cx in scene::floor_fast((xlo - m) / tc)..=scene::floor_fast((xhi + m) / tc) {
             for cy in scene::floor_fast((ylo - m) / tc)..=scene::floor_fast((yhi + m) / tc) {
-                let tree = *cache
-                    .trees
-                    .get_or_insert_with((cx, cy), || s.tree(cx, cy));
+                let tree = *cache.trees.get_or_insert_with((cx, cy), || s.tree(cx, cy));
                 let Some(tree) = tree else { continue };
                 if let Some((t, n)) = scene::ray_sphere(o, d, tree.center, tree.radius) {
                     if opaque.as_ref().is_none_or(|x| t < x.t) {
@@ -274,7 +277,14 @@ impl Airborne<'_> {
         let len = (g[0] * g[0] + g[1] * g[1] + 1.0).sqrt();
         let (class, rgb, reflectance) = s.ground_material(x, y);
         *last_ground = h;
-        Hit { t, normal: [-g[0] / len, -g[1] / len, 1.0 / len], class, rgb, reflectance, transparent: false }
+        Hit {
+            t,
+            normal: [-g[0] / len, -g[1] / len, 1.0 / len],
+            class,
+            rgb,
+            reflectance,
+            transparent: false,
+        }
     }
 }
 

@@ -14,8 +14,8 @@ pub struct InfoArgs {
     /// One JSON object per file, one per line
     #[arg(long)]
     json: bool,
-    /// Report only what the header states; do not stream the points of formats whose header
-    /// lacks exact bounds (E57, PLY, PCD, text)
+    /// Report only what the header states, without reading the points (fast, but headers can
+    /// be wrong: by default every point is read to count it and measure the real bounds)
     #[arg(long)]
     header_only: bool,
     /// Column layout of text files, e.g. x,y,z,intensity,r,g,b
@@ -37,7 +37,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
     for path in &args.files {
         let mut src = myriad_io::open(path, &options)?;
         let info = src.info().clone();
-        let (points, bounds, skipped) = if info.bounds.is_some() || args.header_only {
+        let (points, bounds, skipped) = if args.header_only {
             (info.points, info.bounds, 0)
         } else {
             let (n, b) = myriad_io::scan(src.as_mut())?;
@@ -74,6 +74,7 @@ fn to_json(r: &Report) -> serde_json::Value {
         "header_points": i.points,
         "skipped_non_finite": r.skipped,
         "bounds": r.bounds.map(|b| json!({"min": b.min, "max": b.max})),
+        "header_bounds": i.bounds.map(|b| json!({"min": b.min, "max": b.max})),
         "attributes": i.schema.names(),
         "crs": i.crs,
         "scale": i.scale,
