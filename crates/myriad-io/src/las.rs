@@ -52,6 +52,16 @@ fn header_error(path: &Path, e: las::Error) -> Error {
     Error::at_byte(path, 0, format!("invalid LAS header: {e}"))
 }
 
+/// Did reading stop at the end of the file? (`laz` wraps I/O errors without exposing a source.)
+fn is_eof(e: &las::Error) -> bool {
+    let io = match e {
+        las::Error::Io(io) => io,
+        las::Error::LasZipError(laz::LasZipError::IoError(io)) => io,
+        _ => return false,
+    };
+    io.kind() == std::io::ErrorKind::UnexpectedEof
+}
+
 impl LasSource {
     pub fn open(path: &Path) -> Result<LasSource> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
@@ -91,11 +101,19 @@ impl LasSource {
             file,
             pos: pos.clone(),
         };
-        let reader =
-            las::Reader::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| match e {
-                las::Error::Io(io) => Error::io(path, io),
-                e => header_error(path, e),
-            })?;
+        // For LAZ this also reads the chunk table, which sits at the end of the file.
+        let reader = las::Reader::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| {
+            let at = pos.load(Ordering::Relaxed).min(file_size);
+            if is_eof(&e) {
+                Error::at_byte(
+                    path,
+                    at,
+                    "unexpected end of file in the VLRs or the LAZ chunk table (truncated file?)",
+                )
+            } else {
+                Error::at_byte(path, at, format!("invalid LAS/LAZ header data: {e}"))
+            }
+        })?;
         let header = reader.header().clone();
         let fmt = header.point_format();
         let format_id = fmt.to_u8().map_err(|e| header_error(path, e))?;
@@ -172,17 +190,22 @@ impl LasSource {
     fn read_error(&self, e: las::Error) -> Error {
         let path = &self.info.path;
         let at = self.pos.load(Ordering::Relaxed);
-        match e {
-            las::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => Error::at_byte(
+        if is_eof(&e) {
+            Error::at_byte(
                 path,
                 at,
                 format!(
-                    "unexpected end of file after {} of {} points",
+                    "unexpected end of file while reading points {}.. of the {} its header declares",
                     self.read,
                     self.info.points.unwrap_or(0)
                 ),
-            ),
-            e => Error::at_byte(path, at, format!("cannot decode point {}: {e}", self.read)),
+            )
+        } else {
+            Error::at_byte(
+                path,
+                at,
+                format!("cannot decode the points from {} on: {e}", self.read),
+            )
         }
     }
 }

@@ -13,7 +13,7 @@
 //!
 //! A PTS file (or any text file) may start with a line holding only the point count; it is used as
 //! the header count. Lines starting with `#` or `//` are comments. PTS intensities (-2048..2047)
-//! are shifted to 0..65535; colours 0..255 are widened to 16 bits.
+//! are stretched to 0..65535; colours 0..255 are widened to 16 bits.
 
 use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};

@@ -1,0 +1,301 @@
+//! Reader behaviour on small files made here: PLY (ascii and both binary byte orders), PCD
+//! (ascii, binary, binary_compressed), text layouts, NaN skipping, and the PLY writer.
+
+use myriad_core::{Attribute, PointBatch, Schema};
+use myriad_io::ply::PlySink;
+use myriad_io::{OpenOptions, PointSource, open};
+use std::path::PathBuf;
+
+fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-formats-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn read(path: &PathBuf, columns: Option<&str>) -> (Box<dyn PointSource>, PointBatch) {
+    let mut src = open(
+        path,
+        &OpenOptions {
+            columns: columns.map(str::to_string),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut all: Option<PointBatch> = None;
+    while let Some(b) = src.read_batch(2).unwrap_or_else(|e| panic!("{e}")) {
+        match &mut all {
+            Some(a) => a.append(&b),
+            None => all = Some(b),
+        }
+    }
+    (src, all.unwrap_or_default())
+}
+
+fn ply_binary(big: bool) -> Vec<u8> {
+    let order = if big {
+        "binary_big_endian"
+    } else {
+        "binary_little_endian"
+    };
+    let mut v = format!(
+        "ply\nformat {order} 1.0\ncomment two points\nelement face 1\nproperty list uchar int vertex_indices\n\
+         element vertex 2\nproperty double x\nproperty float y\nproperty float z\nproperty uchar red\n\
+         property uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         property ushort scalar_intensity\nend_header\n"
+    )
+    .into_bytes();
+    // The face element comes first and must be skipped: a 3-item list.
+    v.push(3);
+    for i in [0i32, 1, 0] {
+        v.extend(if big {
+            i.to_be_bytes()
+        } else {
+            i.to_le_bytes()
+        });
+    }
+    for (x, y, z, c, n, i) in [
+        (1.5f64, 2.0f32, 3.0f32, [255u8, 0, 10], 1.0f32, 100u16),
+        (-4.25, 5.0, 6.0, [0, 128, 255], 0.0, 65535),
+    ] {
+        v.extend(if big {
+            x.to_be_bytes()
+        } else {
+            x.to_le_bytes()
+        });
+        for f in [y, z] {
+            v.extend(if big {
+                f.to_be_bytes()
+            } else {
+                f.to_le_bytes()
+            });
+        }
+        v.extend(c);
+        for f in [n, 0.0, 1.0 - n] {
+            v.extend(if big {
+                f.to_be_bytes()
+            } else {
+                f.to_le_bytes()
+            });
+        }
+        v.extend(if big {
+            i.to_be_bytes()
+        } else {
+            i.to_le_bytes()
+        });
+    }
+    v
+}
+
+#[test]
+fn ply_binary_both_byte_orders() {
+    for big in [false, true] {
+        let (src, b) = read(&tmp(&format!("b{big}.ply"), &ply_binary(big)), None);
+        assert_eq!(src.info().points, Some(2));
+        assert_eq!(
+            b.positions,
+            vec![[1.5, 2.0, 3.0], [-4.25, 5.0, 6.0]],
+            "big endian: {big}"
+        );
+        assert_eq!(
+            b.rgb.as_ref().unwrap(),
+            &vec![[65535, 0, 2570], [0, 32896, 65535]]
+        );
+        assert_eq!(b.normal.as_ref().unwrap()[0], [1.0, 0.0, 0.0]);
+        assert_eq!(b.intensity.as_ref().unwrap(), &vec![100, 65535]);
+    }
+}
+
+#[test]
+fn ply_ascii_with_faces_and_nan() {
+    let text = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+property float confidence\nproperty float intensity\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0 1 0.5\nnan 1 1 1 0.5\n2 2 2 1 1.0\n3 0 1 2\n";
+    let (src, b) = read(&tmp("a.ply", text), None);
+    assert_eq!(b.positions, vec![[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]);
+    assert_eq!(src.skipped_non_finite(), 1);
+    assert_eq!(b.intensity.unwrap(), vec![32768, 65535]);
+}
+
+#[test]
+fn ply_writer_round_trip() {
+    let schema = Schema::new(vec![
+        Attribute::Intensity,
+        Attribute::Classification,
+        Attribute::Rgb,
+        Attribute::Normal,
+    ]);
+    let mut b = PointBatch::with_schema(&schema, 3);
+    for i in 0..3u16 {
+        b.positions
+            .push([500000.123456789 + i as f64, 4e6 - 0.001 * i as f64, -12.5]);
+        b.intensity.as_mut().unwrap().push(i * 1000);
+        b.classification.as_mut().unwrap().push(i as u8 + 2);
+        b.rgb.as_mut().unwrap().push([i * 257 * 50, 65535, 0]);
+        b.normal.as_mut().unwrap().push([0.0, i as f32 * 0.5, 1.0]);
+    }
+    let d = std::env::temp_dir().join(format!("myriad-plyw-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("out.ply");
+    let mut sink = PlySink::create(&p, &schema, true).unwrap();
+    sink.write(&b).unwrap();
+    assert_eq!(sink.finish().unwrap(), 3);
+    let (_, back) = read(&p, None);
+    assert_eq!(
+        back.positions, b.positions,
+        "double positions survive exactly"
+    );
+    assert_eq!(back.intensity, b.intensity);
+    assert_eq!(back.classification, b.classification);
+    assert_eq!(back.normal, b.normal);
+    assert_eq!(
+        back.rgb, b.rgb,
+        "8-bit colours widened back to the same 16-bit values"
+    );
+}
+
+fn pcd_header(data: &str, n: usize) -> String {
+    format!(
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb intensity\nSIZE 4 4 4 4 2\nTYPE F F F F U\nCOUNT 1 1 1 1 1\n\
+         WIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {data}\n"
+    )
+}
+
+fn packed(r: u8, g: u8, b: u8) -> f32 {
+    f32::from_bits((r as u32) << 16 | (g as u32) << 8 | b as u32)
+}
+
+#[test]
+fn pcd_ascii_binary_and_compressed_agree() {
+    let pts = [
+        (1.0f32, 2.0f32, 3.0f32, packed(255, 0, 0), 7u16),
+        (f32::NAN, 0.0, 0.0, packed(0, 0, 0), 0),
+        (4.0, 5.0, 6.5, packed(0, 255, 1), 9),
+    ];
+    let mut ascii = pcd_header("ascii", 3).into_bytes();
+    let mut binary = pcd_header("binary", 3).into_bytes();
+    let mut columns: Vec<u8> = Vec::new();
+    for (x, y, z, c, i) in pts {
+        ascii.extend(format!("{x} {y} {z} {:e} {i}\n", c).into_bytes());
+        for f in [x, y, z, c] {
+            binary.extend(f.to_le_bytes());
+        }
+        binary.extend(i.to_le_bytes());
+    }
+    for field in 0..5 {
+        for p in pts {
+            match field {
+                0 => columns.extend(p.0.to_le_bytes()),
+                1 => columns.extend(p.1.to_le_bytes()),
+                2 => columns.extend(p.2.to_le_bytes()),
+                3 => columns.extend(p.3.to_le_bytes()),
+                _ => columns.extend(p.4.to_le_bytes()),
+            }
+        }
+    }
+    // An LZF block of literal runs (at most 32 bytes each).
+    let mut lzf = Vec::new();
+    for chunk in columns.chunks(32) {
+        lzf.push(chunk.len() as u8 - 1);
+        lzf.extend_from_slice(chunk);
+    }
+    let mut comp = pcd_header("binary_compressed", 3).into_bytes();
+    comp.extend((lzf.len() as u32).to_le_bytes());
+    comp.extend((columns.len() as u32).to_le_bytes());
+    comp.extend(&lzf);
+    for (name, bytes) in [("a.pcd", ascii), ("b.pcd", binary), ("c.pcd", comp)] {
+        let (src, b) = read(&tmp(name, &bytes), None);
+        assert_eq!(
+            b.positions,
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.5]],
+            "{name}"
+        );
+        assert_eq!(src.skipped_non_finite(), 1, "{name}");
+        assert_eq!(
+            b.rgb.as_ref().unwrap(),
+            &vec![[65535, 0, 0], [0, 65535, 257]],
+            "{name}"
+        );
+        assert_eq!(b.intensity.as_ref().unwrap(), &vec![7, 9], "{name}");
+    }
+}
+
+#[test]
+fn text_layouts() {
+    // (file name, content, --columns, expected positions, intensity, rgb)
+    type Case<'a> = (
+        &'a str,
+        &'a str,
+        Option<&'a str>,
+        Vec<[f64; 3]>,
+        Option<Vec<u16>>,
+        Option<Vec<[u16; 3]>>,
+    );
+    let cases: Vec<Case> = vec![
+        (
+            "plain.xyz",
+            "1 2 3\n4 5 6\n",
+            None,
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]],
+            None,
+            None,
+        ),
+        (
+            "comma.csv",
+            "# comment\n1,2,3\n\n4,5,6\n",
+            None,
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]],
+            None,
+            None,
+        ),
+        (
+            "named.csv",
+            "X;Y;Z;Intensity\n1;2;3;0.5\n",
+            None,
+            vec![[1.0, 2.0, 3.0]],
+            Some(vec![32768]),
+            None,
+        ),
+        (
+            "rgb.txt",
+            "1 2 3 255 0 128\n",
+            None,
+            vec![[1.0, 2.0, 3.0]],
+            None,
+            Some(vec![[65535, 0, 32896]]),
+        ),
+        (
+            "scan.pts",
+            "2\n1 2 3 -2048 10 20 30\n4 5 6 2047 0 0 0\n",
+            None,
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]],
+            Some(vec![0, 65535]),
+            Some(vec![[2570, 5140, 7710], [0, 0, 0]]),
+        ),
+        (
+            "swapped.txt",
+            "7 1 2 3\n",
+            Some("intensity,x,y,z"),
+            vec![[1.0, 2.0, 3.0]],
+            Some(vec![7]),
+            None,
+        ),
+        (
+            "extra.txt",
+            "1 2 3 9 9\n",
+            None,
+            vec![[1.0, 2.0, 3.0]],
+            None,
+            None,
+        ),
+    ];
+    for (name, content, cols, pos, intensity, rgb) in cases {
+        let (src, b) = read(&tmp(name, content.as_bytes()), cols);
+        assert_eq!(b.positions, pos, "{name}");
+        assert_eq!(b.intensity, intensity, "{name}");
+        assert_eq!(b.rgb, rgb, "{name}");
+        if name.ends_with(".pts") {
+            assert_eq!(src.info().points, Some(2), "PTS count line");
+        }
+    }
+}

@@ -1,0 +1,310 @@
+//! The `myriad` binary as a user runs it: exit codes, one-line errors naming the file and the
+//! byte offset or line, and the synth -> info path. Needs no shared data.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn myriad(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
+        .args(args)
+        .output()
+        .expect("run myriad");
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `info` on `path` must fail with exit code 1 and one line `error: <path>: <where>...`
+/// containing `expect`.
+fn bad(path: &Path, expect: &str) {
+    let r = myriad(&["info", s(path)]);
+    assert_eq!(
+        r.code,
+        1,
+        "{}: exit code; stderr: {}",
+        path.display(),
+        r.stderr
+    );
+    assert!(!r.stderr.contains("panicked"), "panic: {}", r.stderr);
+    let lines: Vec<&str> = r
+        .stderr
+        .lines()
+        .filter(|l| !l.starts_with("warning:"))
+        .collect();
+    assert_eq!(lines.len(), 1, "one error line expected: {:?}", r.stderr);
+    let line = lines[0];
+    assert!(
+        line.starts_with(&format!("error: {}", path.display())),
+        "names the file: {line}"
+    );
+    assert!(line.contains(expect), "expected {expect:?} in {line:?}");
+}
+
+fn synth(dir: &Path, name: &str, points: u64) -> PathBuf {
+    let p = dir.join(name);
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&p),
+        "--points",
+        &points.to_string(),
+        "--seed",
+        "5",
+    ]);
+    assert_eq!(r.code, 0, "synth failed: {}", r.stderr);
+    p
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn las_and_laz_faults() {
+    let d = tempdir("las");
+    let las = std::fs::read(synth(&d, "ok.las", 3000)).unwrap();
+    let laz = std::fs::read(synth(&d, "ok.laz", 50_000)).unwrap();
+
+    bad(
+        &write(&d, "short-header.las", &las[..100]),
+        "byte 100: file ends inside the 227-byte LAS header",
+    );
+    bad(
+        &write(&d, "truncated.las", &las[..las.len() - 1000]),
+        "of the 3000 point records its header declares",
+    );
+    let mut magic = las.clone();
+    magic[..4].copy_from_slice(b"LASX");
+    bad(
+        &write(&d, "magic.las", &magic),
+        "byte 0: wrong magic number",
+    );
+    // Header counts that lie: the legacy count (byte 107) and the LAS 1.4 count (byte 247).
+    let mut lie = las.clone();
+    lie[107..111].copy_from_slice(&5000u32.to_le_bytes());
+    lie[247..255].copy_from_slice(&5000u64.to_le_bytes());
+    bad(
+        &write(&d, "lie.las", &lie),
+        "file ends after 3000 of the 5000 point records",
+    );
+    bad(
+        &write(&d, "truncated.laz", &laz[..laz.len() / 2]),
+        "unexpected end of file in the VLRs or the LAZ chunk table",
+    );
+    let mut lie = laz.clone();
+    lie[107..111].copy_from_slice(&60_000u32.to_le_bytes());
+    lie[247..255].copy_from_slice(&60_000u64.to_le_bytes());
+    bad(
+        &write(&d, "lie.laz", &lie),
+        "unexpected end of file while reading points 0.. of the 60000",
+    );
+    let mut offset = las.clone();
+    offset[96..100].copy_from_slice(&u32::MAX.to_le_bytes());
+    bad(
+        &write(&d, "offset.las", &offset),
+        "byte 96: offset to point data",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn text_formats_name_the_line() {
+    let d = tempdir("text");
+    bad(
+        &write(&d, "nan.xyz", b"1 2 3\n4 5 6\n7 8 abc\n"),
+        "line 3: not a number: \"abc\"",
+    );
+    bad(
+        &write(&d, "short.csv", b"x,y,z,intensity\n1,2,3,4\n5,6\n"),
+        "line 3: expected 4 values",
+    );
+    bad(
+        &write(&d, "binary.txt", &[0xFF, 0xFE, 0x00, 0x41, b'\n']),
+        "line 1",
+    );
+    bad(&write(&d, "ascii.ply", b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 five 6\n"), "line 9: not a number: \"five\"");
+    bad(&write(&d, "lie.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 5 6\n"), "line 10: file ends after 2 of 3 vertices");
+    bad(
+        &write(
+            &d,
+            "noheader.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 3\n",
+        ),
+        "file ends before \"end_header\"",
+    );
+    bad(&write(&d, "bad.pcd", b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 3\n4 x 6\n"), "line 11: not a number: \"x\"");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn binary_formats_name_the_byte() {
+    let d = tempdir("bin");
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    let header_len = ply.len();
+    ply.extend_from_slice(&[0u8; 12 * 3]);
+    bad(
+        &write(&d, "lie.ply", &ply),
+        &format!("byte {}: file ends before the 4 vertices", header_len + 36),
+    );
+    bad(
+        &write(&d, "magic.ply", b"plx\nformat ascii 1.0\n"),
+        "byte 0: wrong magic number",
+    );
+    let mut pcd = b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 5\nHEIGHT 1\nPOINTS 5\nDATA binary\n".to_vec();
+    pcd.extend_from_slice(&[0u8; 12 * 2]);
+    bad(&write(&d, "lie.pcd", &pcd), "file ends before the 5 points");
+    let mut pcdc = b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n".to_vec();
+    let at = pcdc.len();
+    pcdc.extend_from_slice(&5u32.to_le_bytes());
+    pcdc.extend_from_slice(&12u32.to_le_bytes());
+    pcdc.extend_from_slice(&[0xE0, 0xFF, 0xFF, 0x00, 0x00]); // a back reference before any output
+    bad(
+        &write(&d, "lzf.pcd", &pcdc),
+        &format!("byte {}: corrupt LZF data", at + 8),
+    );
+    bad(
+        &write(&d, "garbage.pcd", b"\x00\x01\x02garbage\n"),
+        "byte 0: wrong magic number",
+    );
+    bad(
+        &write(&d, "magic.e57", b"ASTM-E58 and then nothing of use"),
+        "byte 0: wrong magic number",
+    );
+    let mut e57 = b"ASTM-E57".to_vec();
+    e57.extend_from_slice(&[1, 0, 0, 0, 0, 0, 0, 0]);
+    e57.extend_from_slice(&1_000_000u64.to_le_bytes());
+    e57.resize(48, 0);
+    bad(
+        &write(&d, "truncated.e57", &e57),
+        "byte 48: file is truncated",
+    );
+    bad(
+        &write(&d, "short.e57", b"ASTM-E57\x01\x00"),
+        "byte 10: file ends inside the 48-byte E57 header",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn paths_that_are_not_point_clouds() {
+    let d = tempdir("paths");
+    let r = myriad(&["info", s(&d)]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("is a directory"), "{}", r.stderr);
+    let odd = write(&d, "scan.abc", b"1 2 3\n");
+    let r = myriad(&["info", s(&odd)]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("unknown extension \".abc\""),
+        "{}",
+        r.stderr
+    );
+    let r = myriad(&["info", s(&d.join("missing.las"))]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.starts_with("error: ") && r.stderr.contains("missing.las"),
+        "{}",
+        r.stderr
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(myriad(&[]).code, 2);
+    assert_eq!(myriad(&["info"]).code, 2);
+    assert_eq!(
+        myriad(&["synth", "-o", "x.las", "--points", "many"]).code,
+        2
+    );
+    assert_eq!(myriad(&["frobnicate"]).code, 2);
+    let help = myriad(&["synth", "--help"]);
+    assert_eq!(help.code, 0);
+    assert!(help.stdout.contains("--points"));
+}
+
+#[test]
+fn synth_then_info_json() {
+    let d = tempdir("synth");
+    for (name, scene) in [
+        ("city.laz", "city"),
+        ("terrain.las", "terrain"),
+        ("indoor.laz", "indoor"),
+    ] {
+        let p = d.join(name);
+        let r = myriad(&["synth", "-o", s(&p), "--points", "20000", "--scene", scene]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let r = myriad(&["info", "--json", s(&p)]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+        assert_eq!(v["points"], 20000, "{name}");
+        assert_eq!(
+            v["format"],
+            if name.ends_with("laz") { "LAZ" } else { "LAS" }
+        );
+        let min = v["bounds"]["min"].as_array().unwrap();
+        let max = v["bounds"]["max"].as_array().unwrap();
+        for a in 0..3 {
+            assert!(
+                min[a].as_f64().unwrap() < max[a].as_f64().unwrap(),
+                "{name}: flat bounds"
+            );
+        }
+        let attrs: Vec<&str> = v["attributes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_str().unwrap())
+            .collect();
+        for a in [
+            "x",
+            "intensity",
+            "classification",
+            "gps_time",
+            "rgb",
+            "return_number",
+        ] {
+            assert!(attrs.contains(&a), "{name}: missing {a}");
+        }
+    }
+    // An existing output is not replaced without --force, and is left as it was.
+    let p = d.join("city.laz");
+    let before = std::fs::read(&p).unwrap();
+    let r = myriad(&["synth", "-o", s(&p), "--points", "10"]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("--force"), "{}", r.stderr);
+    assert_eq!(std::fs::read(&p).unwrap(), before);
+    let r = myriad(&["synth", "-o", s(&p), "--points", "10", "--force"]);
+    assert_eq!(r.code, 0);
+    let r = myriad(&["synth", "-o", s(&d.join("x.ply")), "--points", "10"]);
+    assert_eq!(r.code, 1);
+    // Nothing but the outputs is left in the folder (no temporary files).
+    let mut names: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["city.laz", "indoor.laz", "terrain.las"]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
