@@ -252,7 +252,9 @@ impl TextSource {
             match *c {
                 Col::Pos(a) => pos[a] = v,
                 Col::Intensity if self.pts_intensity => {
-                    intensity = ((v + 2048.0) * 16.0).round().clamp(0.0, 65535.0) as u16
+                    intensity = ((v + 2048.0) * (65535.0 / 4095.0))
+                        .round()
+                        .clamp(0.0, 65535.0) as u16
                 }
                 Col::Intensity => intensity = to_u16_channel(v, Scalar::F64),
                 Col::Rgb(k) => {
