@@ -52,6 +52,43 @@ fn header_error(path: &Path, e: las::Error) -> Error {
     Error::at_byte(path, 0, format!("invalid LAS header: {e}"))
 }
 
+/// Checks the LAZ chunk table's header before the `laz` crate sizes a vector from it (laz 0.13
+/// allocates `number_of_chunks` entries unchecked: a flipped byte asked for 68 GB in fuzzing).
+///
+/// | where | size | field |
+/// |---|---|---|
+/// | offset to point data | 8 | i64: offset of the chunk table (-1: not written) |
+/// | chunk table offset | 4 | u32 version (0) |
+/// | + 4 | 4 | u32 number of chunks |
+fn check_laz_chunk_table(path: &Path, raw: &las::raw::Header, file_size: u64) -> Result<()> {
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let at = raw.offset_to_point_data as u64;
+    let mut b = [0u8; 8];
+    let read_at = |f: &mut File, at: u64, b: &mut [u8]| -> Result<()> {
+        f.seek(SeekFrom::Start(at)).map_err(|e| Error::io(path, e))?;
+        f.read_exact(b).map_err(|_| Error::at_byte(path, at, "unexpected end of file in the LAZ chunk table"))
+    };
+    read_at(&mut f, at, &mut b)?;
+    let table = i64::from_le_bytes(b);
+    if table == -1 {
+        return Ok(()); // written by a streaming writer; laz finds the chunks by scanning
+    }
+    if table < at as i64 + 8 || table as u64 + 8 > file_size {
+        return Err(Error::at_byte(path, at, format!("LAZ chunk table offset {table} lies outside the file")));
+    }
+    read_at(&mut f, table as u64, &mut b)?;
+    let chunks = u32::from_le_bytes(b[4..8].try_into().unwrap()) as u64;
+    let points = raw.large_file.map_or(raw.number_of_point_records as u64, |l| l.number_of_point_records.max(raw.number_of_point_records as u64));
+    if chunks > points.max(1) || chunks > file_size {
+        return Err(Error::at_byte(
+            path,
+            table as u64 + 4,
+            format!("LAZ chunk table declares {chunks} chunks for {points} points in a {file_size}-byte file"),
+        ));
+    }
+    Ok(())
+}
+
 /// Did reading stop at the end of the file? (`laz` wraps I/O errors without exposing a source.)
 fn is_eof(e: &las::Error) -> bool {
     let io = match e {
@@ -95,6 +132,9 @@ impl LasSource {
                     raw.offset_to_point_data
                 ),
             ));
+        }
+        if raw.point_data_record_format & 0xC0 != 0 {
+            check_laz_chunk_table(path, &raw, file_size)?;
         }
         let pos = Arc::new(AtomicU64::new(0));
         let tracked = Tracked {

@@ -372,6 +372,18 @@ impl PcdSource {
                 ),
             ));
         }
+        let left = self.info.file_size.saturating_sub(self.reader.offset);
+        if csize as u64 > left {
+            return Err(Error::at_byte(
+                &self.info.path,
+                at,
+                format!("compressed size {csize} runs past the end of the file ({left} bytes left)"),
+            ));
+        }
+        // LZF expands at most ~100:1 (a 3-byte back reference yields 264 bytes).
+        if usize_ as u64 > csize as u64 * 100 + 1024 {
+            return Err(Error::at_byte(&self.info.path, at + 4, format!("uncompressed size {usize_} is impossible for {csize} compressed bytes")));
+        }
         let mut comp = vec![0u8; csize];
         self.reader
             .read_exact(&mut comp, "the compressed point data")?;
