@@ -290,6 +290,22 @@ impl PointSource for LasSource {
     }
 }
 
+/// Reads every point record of a LAS/LAZ file as raw bytes, decoding nothing: the speed of the
+/// `las`/`laz` crates alone (LAZ decompressed on all cores), the baseline for [`LasSource`].
+pub fn read_raw_records(path: &Path) -> Result<u64> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| header_error(path, e))?;
+    let mut data = las::PointDataBuilder::new().for_header(reader.header()).build();
+    let mut n = 0;
+    loop {
+        let got = reader.fill_points(crate::MAX_BATCH as u64, &mut data).map_err(|e| header_error(path, e))?;
+        if got == 0 {
+            return Ok(n);
+        }
+        n += got;
+    }
+}
+
 fn crs_of(header: &las::Header) -> Option<String> {
     if let Some(wkt) = header.get_wkt_crs_bytes() {
         let s = String::from_utf8_lossy(wkt)

@@ -1,6 +1,7 @@
 //! The `myriad` command: argument parsing and wiring only. Library crates do the work; this file
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
+mod bench;
 mod info;
 mod synth;
 
@@ -24,6 +25,9 @@ enum Command {
     Info(info::InfoArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
+    /// Measure reading and synthesis speed (medians over several runs, with baselines)
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +35,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => info::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::Bench(b) => bench::run(b),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,108 @@
+//! `myriad bench`: speed figures as medians over several runs, each next to a baseline measured
+//! in the same process, so that a noisy machine still gives a meaningful ratio.
+
+use anyhow::Result;
+use clap::{Args, Subcommand};
+use myriad_io::OpenOptions;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Reading speed of files; for LAS/LAZ also the raw speed of the las/laz crates (baseline)
+    Read(ReadArgs),
+    /// Speed and peak memory of `synth`
+    Synth(SynthBenchArgs),
+}
+
+#[derive(Args)]
+pub struct ReadArgs {
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+}
+
+#[derive(Args)]
+pub struct SynthBenchArgs {
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "100M")]
+    points: u64,
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Output file (replaced on every run, removed at the end); .las or .laz
+    #[arg(short, long, default_value = "myriad-bench-synth.las")]
+    output: PathBuf,
+}
+
+pub fn run(c: BenchCommand) -> Result<()> {
+    match c {
+        BenchCommand::Read(a) => read(a),
+        BenchCommand::Synth(a) => synth(a),
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Peak resident memory of this process so far, from /proc (Linux); None elsewhere.
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+}
+
+fn time_points(f: impl Fn() -> Result<u64>, runs: usize) -> Result<(u64, f64)> {
+    let mut rates = Vec::new();
+    let mut n = 0;
+    for _ in 0..runs.max(1) {
+        let t = Instant::now();
+        n = f()?;
+        rates.push(n as f64 / t.elapsed().as_secs_f64());
+    }
+    Ok((n, median(rates)))
+}
+
+fn read(a: ReadArgs) -> Result<()> {
+    println!("{:<48} {:>12} {:>14} {:>16} {:>7}", "file", "points", "myriad pts/s", "las/laz raw pts/s", "ratio");
+    for path in &a.files {
+        let format = myriad_io::detect(path)?;
+        let (n, ours) = time_points(
+            || {
+                let mut src = myriad_io::open(path, &OpenOptions::default())?;
+                let mut n = 0u64;
+                let mut sum = 0.0;
+                while let Some(b) = src.read_batch(myriad_io::MAX_BATCH)? {
+                    n += b.len() as u64;
+                    sum += b.positions.first().map_or(0.0, |p| p[0]); // keep the decode live
+                }
+                std::hint::black_box(sum);
+                Ok(n)
+            },
+            a.runs,
+        )?;
+        let name = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        if matches!(format, myriad_io::Format::Las | myriad_io::Format::Laz) {
+            let (_, raw) = time_points(|| Ok(myriad_io::las::read_raw_records(path)?), a.runs)?;
+            println!("{name:<48} {n:>12} {:>14.0} {:>16.0} {:>6.0}%", ours, raw, 100.0 * ours / raw);
+        } else {
+            println!("{name:<48} {n:>12} {ours:>14.0} {:>16} {:>7}", "-", "-");
+        }
+    }
+    println!("medians of {} runs each; ratio = myriad / raw decode by the las and laz crates", a.runs);
+    Ok(())
+}
+
+fn synth(a: SynthBenchArgs) -> Result<()> {
+    let options = myriad_synth::SynthOptions { points: a.points, scene: myriad_synth::SceneKind::City, seed: 1 };
+    let (n, rate) = time_points(|| Ok(myriad_synth::write(&options, &a.output, true, |_| {})?), a.runs)?;
+    let bytes = std::fs::metadata(&a.output).map(|m| m.len()).unwrap_or(0);
+    std::fs::remove_file(&a.output).ok();
+    println!("synth {n} points to {}: median {:.2} M points/s over {} runs, {bytes} bytes", a.output.display(), rate / 1e6, a.runs);
+    match peak_rss_bytes() {
+        Some(p) => println!("peak resident memory: {:.1} MB", p as f64 / 1e6),
+        None => println!("peak resident memory: unknown on this platform"),
+    }
+    Ok(())
+}
