@@ -65,8 +65,10 @@ fn check_laz_chunk_table(path: &Path, raw: &las::raw::Header, file_size: u64) ->
     let at = raw.offset_to_point_data as u64;
     let mut b = [0u8; 8];
     let read_at = |f: &mut File, at: u64, b: &mut [u8]| -> Result<()> {
-        f.seek(SeekFrom::Start(at)).map_err(|e| Error::io(path, e))?;
-        f.read_exact(b).map_err(|_| Error::at_byte(path, at, "unexpected end of file in the LAZ chunk table"))
+        f.seek(SeekFrom::Start(at))
+            .map_err(|e| Error::io(path, e))?;
+        f.read_exact(b)
+            .map_err(|_| Error::at_byte(path, at, "unexpected end of file in the LAZ chunk table"))
     };
     read_at(&mut f, at, &mut b)?;
     let table = i64::from_le_bytes(b);
@@ -74,16 +76,27 @@ fn check_laz_chunk_table(path: &Path, raw: &las::raw::Header, file_size: u64) ->
         return Ok(()); // written by a streaming writer; laz finds the chunks by scanning
     }
     if table < at as i64 + 8 || table as u64 + 8 > file_size {
-        return Err(Error::at_byte(path, at, format!("LAZ chunk table offset {table} lies outside the file")));
+        return Err(Error::at_byte(
+            path,
+            at,
+            format!("LAZ chunk table offset {table} lies outside the file"),
+        ));
     }
     read_at(&mut f, table as u64, &mut b)?;
     let chunks = u32::from_le_bytes(b[4..8].try_into().unwrap()) as u64;
-    let points = raw.large_file.map_or(raw.number_of_point_records as u64, |l| l.number_of_point_records.max(raw.number_of_point_records as u64));
+    let points = raw
+        .large_file
+        .map_or(raw.number_of_point_records as u64, |l| {
+            l.number_of_point_records
+                .max(raw.number_of_point_records as u64)
+        });
     if chunks > points.max(1) || chunks > file_size {
         return Err(Error::at_byte(
             path,
             table as u64 + 4,
-            format!("LAZ chunk table declares {chunks} chunks for {points} points in a {file_size}-byte file"),
+            format!(
+                "LAZ chunk table declares {chunks} chunks for {points} points in a {file_size}-byte file"
+            ),
         ));
     }
     Ok(())
@@ -294,11 +307,16 @@ impl PointSource for LasSource {
 /// `las`/`laz` crates alone (LAZ decompressed on all cores), the baseline for [`LasSource`].
 pub fn read_raw_records(path: &Path) -> Result<u64> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| header_error(path, e))?;
-    let mut data = las::PointDataBuilder::new().for_header(reader.header()).build();
+    let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
+        .map_err(|e| header_error(path, e))?;
+    let mut data = las::PointDataBuilder::new()
+        .for_header(reader.header())
+        .build();
     let mut n = 0;
     loop {
-        let got = reader.fill_points(crate::MAX_BATCH as u64, &mut data).map_err(|e| header_error(path, e))?;
+        let got = reader
+            .fill_points(crate::MAX_BATCH as u64, &mut data)
+            .map_err(|e| header_error(path, e))?;
         if got == 0 {
             return Ok(n);
         }

@@ -377,12 +377,18 @@ impl PcdSource {
             return Err(Error::at_byte(
                 &self.info.path,
                 at,
-                format!("compressed size {csize} runs past the end of the file ({left} bytes left)"),
+                format!(
+                    "compressed size {csize} runs past the end of the file ({left} bytes left)"
+                ),
             ));
         }
         // LZF expands at most ~100:1 (a 3-byte back reference yields 264 bytes).
         if usize_ as u64 > csize as u64 * 100 + 1024 {
-            return Err(Error::at_byte(&self.info.path, at + 4, format!("uncompressed size {usize_} is impossible for {csize} compressed bytes")));
+            return Err(Error::at_byte(
+                &self.info.path,
+                at + 4,
+                format!("uncompressed size {usize_} is impossible for {csize} compressed bytes"),
+            ));
         }
         let mut comp = vec![0u8; csize];
         self.reader

@@ -90,21 +90,22 @@ where
     let scanner = match options.scene {
         SceneKind::City => {
             city = scene::Scene::new(scene::Kind::City, options.seed);
-            Scanner::Air(scan::Airborne {
-                scene: &city,
-                flight: scan::Flight::plan(options.points),
-            })
+            Scanner::Air(scan::Airborne::new(
+                &city,
+                scan::Flight::plan(options.points, 0.97),
+            ))
         }
         SceneKind::Terrain => {
             terrain = scene::Scene::new(scene::Kind::Terrain, options.seed);
-            Scanner::Air(scan::Airborne {
-                scene: &terrain,
-                flight: scan::Flight::plan(options.points),
-            })
+            Scanner::Air(scan::Airborne::new(
+                &terrain,
+                scan::Flight::plan(options.points, 1.1),
+            ))
         }
         SceneKind::Indoor => Scanner::Indoor(scan::Indoor::plan(options.points, options.seed)),
     };
-    let wave = (rayon::current_num_threads() * 2).max(2) as u64;
+    // Several blocks per thread per wave, so that uneven blocks still keep every core busy.
+    let wave = (rayon::current_num_threads() * 6).max(2) as u64;
     let (tx, rx) = sync_channel::<Vec<PointBatch>>(1);
     std::thread::scope(|s| {
         let writer = s.spawn(move || -> Result<()> {

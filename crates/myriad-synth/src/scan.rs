@@ -61,20 +61,31 @@ pub struct Flight {
 }
 
 impl Flight {
-    /// Plans a survey that yields about `points` returns at ~0.3 m pulse spacing.
-    pub fn plan(points: u64) -> Flight {
-        let density = 1.0 / (SPACING * SPACING) / 0.7 * 1.12;
-        let side = (points as f64 / density).sqrt().max(20.0);
+    /// Plans a survey of whole flight lines that yields about `points` returns at ~0.3 m pulse
+    /// spacing: the area is about square, and the line length is chosen so that the last line
+    /// ends about where the points run out (no half-flown strip). `returns_per_pulse` is the
+    /// scene's average (more where trees let pulses through), estimated low on purpose: the scan
+    /// then stops a little before the end of its last line rather than starting another.
+    pub fn plan(points: u64, returns_per_pulse: f64) -> Flight {
+        let pulses = points as f64 / returns_per_pulse;
         let max_swath = 2.0 * ALTITUDE * HALF_ANGLE_DEG.to_radians().tan();
-        let swath = max_swath.min(side * 1.2);
-        let half_angle = (swath * 0.5 / ALTITUDE).atan();
+        // Area covered per pulse, counting the 30 % side overlap once.
+        let area = pulses * SPACING * SPACING * 0.7;
+        let side = area.sqrt().max(20.0);
+        let swath = max_swath.min(side / 0.7);
+        let line_spacing = swath * 0.7;
+        let lines = (side / line_spacing).round().max(1.0);
+        let pulses_per_scanline = (swath / SPACING).ceil() as u64;
+        let scanlines_per_line = (pulses / lines / pulses_per_scanline as f64)
+            .ceil()
+            .max(1.0) as u64;
         Flight {
-            side,
-            half_angle,
+            side: scanlines_per_line as f64 * SPACING,
+            half_angle: (swath * 0.5 / ALTITUDE).atan(),
             swath,
-            line_spacing: swath * 0.7,
-            pulses_per_scanline: (swath / SPACING).ceil() as u64,
-            scanlines_per_line: (side / SPACING).ceil() as u64,
+            line_spacing,
+            pulses_per_scanline,
+            scanlines_per_line,
         }
     }
 }
@@ -104,11 +115,31 @@ impl Default for Cache {
 }
 
 pub struct Airborne<'a> {
-    pub scene: &'a Scene,
-    pub flight: Flight,
+    scene: &'a Scene,
+    flight: Flight,
+    /// Per position across the swath (west to east): mirror angle, its sine and cosine, and the
+    /// scan angle rank in degrees. Every scan line uses the same angles, so they are computed once.
+    mirror: Vec<(f64, f64, f64, f32)>,
 }
 
-impl Airborne<'_> {
+impl<'a> Airborne<'a> {
+    pub fn new(scene: &'a Scene, flight: Flight) -> Airborne<'a> {
+        let n = flight.pulses_per_scanline;
+        let mirror = (0..n)
+            .map(|i| {
+                let u = (i as f64 + 0.5) / n as f64;
+                let angle = (u * 2.0 - 1.0) * flight.half_angle;
+                let (s, c) = scene::sin_cos(angle);
+                (angle, s, c, scene::round_fast(angle.to_degrees()) as f32)
+            })
+            .collect();
+        Airborne {
+            scene,
+            flight,
+            mirror,
+        }
+    }
+
     /// Generates pulse k's returns into `out` (appending).
     pub fn pulse(&self, k: u64, cache: &mut Cache, out: &mut PointBatch) {
         let f = &self.flight;
@@ -120,14 +151,17 @@ impl Airborne<'_> {
         let mut rng = Rng::new(k ^ 0x5EED_0000_0000 ^ self.scene.seed.rotate_left(17));
         // Zig-zag: even scan lines sweep west to east, odd ones back.
         let u = (i as f64 + 0.5) / f.pulses_per_scanline as f64;
-        let sweep = if scanline % 2 == 0 { u } else { 1.0 - u };
-        let angle = (sweep * 2.0 - 1.0) * f.half_angle;
+        let across = if scanline % 2 == 0 {
+            i
+        } else {
+            f.pulses_per_scanline - 1 - i
+        };
+        let (_, sa, ca, angle_rank) = self.mirror[across as usize];
         let along = (scanline as f64 + u) * SPACING;
         let northbound = line % 2 == 0;
         let y = if northbound { along } else { f.side - along };
         let x = line as f64 * f.line_spacing;
-        let origin = [x + rng.normal() * 0.01, y, ALTITUDE + rng.normal() * 0.05];
-        let (sa, ca) = scene::sin_cos(angle);
+        let origin = [x, y, ALTITUDE + rng.normal() * 0.05];
         let dir = [sa, 0.0, -ca];
         let gps = 1.0e6 + k as f64 * PULSE_PERIOD + line as f64 * 60.0;
         self.cast(origin, dir, cache, &mut rng);
@@ -158,10 +192,7 @@ impl Airborne<'_> {
             push(&mut out.classification_flags, 0);
             let edge = (i == 0 || i + 1 == f.pulses_per_scanline) as u8;
             push(&mut out.scan_flags, (scanline % 2 == 0) as u8 | edge << 1);
-            push(
-                &mut out.scan_angle,
-                scene::round_fast(angle.to_degrees()) as f32,
-            );
+            push(&mut out.scan_angle, angle_rank);
             push(&mut out.user_data, 0);
             push(&mut out.point_source_id, line as u16 + 1);
             push(&mut out.gps_time, gps);
@@ -275,7 +306,7 @@ impl Airborne<'_> {
             (h, g) = s.terrain(x, y);
         }
         let len = (g[0] * g[0] + g[1] * g[1] + 1.0).sqrt();
-        let (class, rgb, reflectance) = s.ground_material(x, y);
+        let (class, rgb, reflectance) = s.ground_material(x, y, h);
         *last_ground = h;
         Hit {
             t,

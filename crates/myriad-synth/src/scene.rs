@@ -97,8 +97,9 @@ impl Scene {
         match self.kind {
             Kind::City => wrap(x, BLOCK) < ROAD_WIDTH || wrap(y, BLOCK) < ROAD_WIDTH,
             Kind::Terrain => {
-                let cx = 300.0 * (y * 0.003).sin() + 150.0 * (y * 0.0071).cos();
-                (wrap(x, 1500.0) - 750.0 - cx).abs() < 4.0
+                // One road every 1500 m, the first meandering through the first flight strip.
+                let cx = 120.0 * sin_cos(y * 0.004).0 + 60.0 * sin_cos(y * 0.0093).1;
+                (wrap(x + 1300.0, 1500.0) - 1300.0 - cx).abs() < 4.0
             }
         }
     }
@@ -177,7 +178,8 @@ impl Scene {
     }
 
     /// Colour and reflectance of the ground at (x, y).
-    pub fn ground_material(&self, x: f64, y: f64) -> (u8, [u16; 3], f64) {
+    /// Class, colour and reflectance of the ground at (x, y), whose terrain height is `h`.
+    pub fn ground_material(&self, x: f64, y: f64, h: f64) -> (u8, [u16; 3], f64) {
         if self.on_road(x, y) {
             let marking = self.kind == Kind::City && {
                 let u = (wrap(x, BLOCK) - ROAD_WIDTH * 0.5).abs();
@@ -190,7 +192,13 @@ impl Scene {
                 (ROAD, [16000, 16000, 17000], 0.12)
             };
         }
-        let n = (sin_cos(x * 0.05).0 * sin_cos(y * 0.043).1 + 1.0) * 0.5;
+        // Patchy fields: a product of triangle waves (cheap, no trigonometry).
+        let tri = |u: f64| (2.0 * (u - floor_fast(u) as f64) - 1.0).abs();
+        let mut n = tri(x * 0.013 + 0.3 * tri(y * 0.0051)) * tri(y * 0.011 + 0.3 * tri(x * 0.0043));
+        if self.kind == Kind::Terrain {
+            // Meadows in the valleys, dry grass and rock on the tops.
+            n = (0.6 * n + 0.5 * (h / self.relief() + 0.4)).clamp(0.0, 1.0);
+        }
         let rgb = [
             (18000.0 + 14000.0 * n) as u16,
             (26000.0 + 12000.0 * (1.0 - n)) as u16,

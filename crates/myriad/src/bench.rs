@@ -65,7 +65,10 @@ fn time_points(f: impl Fn() -> Result<u64>, runs: usize) -> Result<(u64, f64)> {
 }
 
 fn read(a: ReadArgs) -> Result<()> {
-    println!("{:<48} {:>12} {:>14} {:>16} {:>7}", "file", "points", "myriad pts/s", "las/laz raw pts/s", "ratio");
+    println!(
+        "{:<48} {:>12} {:>14} {:>16} {:>7}",
+        "file", "points", "myriad pts/s", "las/laz raw pts/s", "ratio"
+    );
     for path in &a.files {
         let format = myriad_io::detect(path)?;
         let (n, ours) = time_points(
@@ -82,24 +85,47 @@ fn read(a: ReadArgs) -> Result<()> {
             },
             a.runs,
         )?;
-        let name = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |f| f.to_string_lossy().into_owned(),
+        );
         if matches!(format, myriad_io::Format::Las | myriad_io::Format::Laz) {
             let (_, raw) = time_points(|| Ok(myriad_io::las::read_raw_records(path)?), a.runs)?;
-            println!("{name:<48} {n:>12} {:>14.0} {:>16.0} {:>6.0}%", ours, raw, 100.0 * ours / raw);
+            println!(
+                "{name:<48} {n:>12} {:>14.0} {:>16.0} {:>6.0}%",
+                ours,
+                raw,
+                100.0 * ours / raw
+            );
         } else {
             println!("{name:<48} {n:>12} {ours:>14.0} {:>16} {:>7}", "-", "-");
         }
     }
-    println!("medians of {} runs each; ratio = myriad / raw decode by the las and laz crates", a.runs);
+    println!(
+        "medians of {} runs each; ratio = myriad / raw decode by the las and laz crates",
+        a.runs
+    );
     Ok(())
 }
 
 fn synth(a: SynthBenchArgs) -> Result<()> {
-    let options = myriad_synth::SynthOptions { points: a.points, scene: myriad_synth::SceneKind::City, seed: 1 };
-    let (n, rate) = time_points(|| Ok(myriad_synth::write(&options, &a.output, true, |_| {})?), a.runs)?;
+    let options = myriad_synth::SynthOptions {
+        points: a.points,
+        scene: myriad_synth::SceneKind::City,
+        seed: 1,
+    };
+    let (n, rate) = time_points(
+        || Ok(myriad_synth::write(&options, &a.output, true, |_| {})?),
+        a.runs,
+    )?;
     let bytes = std::fs::metadata(&a.output).map(|m| m.len()).unwrap_or(0);
     std::fs::remove_file(&a.output).ok();
-    println!("synth {n} points to {}: median {:.2} M points/s over {} runs, {bytes} bytes", a.output.display(), rate / 1e6, a.runs);
+    println!(
+        "synth {n} points to {}: median {:.2} M points/s over {} runs, {bytes} bytes",
+        a.output.display(),
+        rate / 1e6,
+        a.runs
+    );
     match peak_rss_bytes() {
         Some(p) => println!("peak resident memory: {:.1} MB", p as f64 / 1e6),
         None => println!("peak resident memory: unknown on this platform"),

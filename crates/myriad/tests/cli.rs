@@ -125,7 +125,10 @@ fn las_and_laz_faults() {
     let data = u32::from_le_bytes(laz[96..100].try_into().unwrap()) as usize;
     let table = i64::from_le_bytes(laz[data..data + 8].try_into().unwrap()) as usize;
     chunks[table + 4..table + 8].copy_from_slice(&0x8480_0000u32.to_le_bytes());
-    bad(&write(&d, "chunks.laz", &chunks), &format!("byte {}: LAZ chunk table declares", table + 4));
+    bad(
+        &write(&d, "chunks.laz", &chunks),
+        &format!("byte {}: LAZ chunk table declares", table + 4),
+    );
     let mut offset = las.clone();
     offset[96..100].copy_from_slice(&u32::MAX.to_le_bytes());
     bad(
