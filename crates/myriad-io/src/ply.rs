@@ -485,6 +485,12 @@ impl PlySink {
     }
 
     pub fn write(&mut self, batch: &PointBatch) -> Result<()> {
+        if !batch.is_consistent() {
+            return Err(Error::Invalid(format!(
+                "{}: a column's length differs from the point count",
+                self.path.display()
+            )));
+        }
         let mut rec = Vec::with_capacity(64);
         for i in 0..batch.len() {
             rec.clear();

@@ -2,6 +2,7 @@
 //! (ascii, binary, binary_compressed), text layouts, NaN skipping, and the PLY writer.
 
 use myriad_core::{Attribute, PointBatch, Schema};
+use myriad_io::las::{LasSink, LasWriteOptions};
 use myriad_io::ply::PlySink;
 use myriad_io::{OpenOptions, PointSource, open};
 use std::path::PathBuf;
@@ -298,4 +299,55 @@ fn text_layouts() {
             assert_eq!(src.info().points, Some(2), "PTS count line");
         }
     }
+}
+
+/// A LAS 1.4 LAZ chunk whose layer sizes claim more than the chunk holds must be an error before
+/// the laz crate allocates them (found by fuzzing: 4 GiB zero-filled per layer).
+#[test]
+fn laz_layer_sizes_are_checked() {
+    let schema = Schema::new(vec![
+        Attribute::Intensity,
+        Attribute::ScannerChannel,
+        Attribute::GpsTime,
+    ]);
+    let d = std::env::temp_dir().join(format!("myriad-lazlayers-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("pf6.laz");
+    let opts = LasWriteOptions::for_schema(&schema, [0.01; 3], [0.0; 3]).unwrap();
+    assert_eq!(opts.header.point_format().to_u8().unwrap(), 6);
+    let mut sink = LasSink::create(&p, opts, true).unwrap();
+    let mut b = PointBatch::default();
+    let mut inconsistent = PointBatch::with_schema(&schema, 1);
+    inconsistent.positions.push([0.0; 3]);
+    assert!(
+        sink.write(&inconsistent).is_err(),
+        "a batch with short columns is refused"
+    );
+    for i in 0..1000 {
+        b.positions
+            .push([i as f64, (i * 7 % 13) as f64, 0.5 * i as f64]);
+    }
+    b.intensity = Some((0..1000).map(|i| i as u16).collect());
+    b.gps_time = Some((0..1000).map(|i| i as f64 * 0.1).collect());
+    sink.write(&b).unwrap();
+    sink.finish().unwrap();
+    let (_, back) = read(&p, None);
+    assert_eq!(back.positions, b.positions);
+    // First chunk: 8-byte table offset, first point (30 bytes), u32 count, then 9 layer sizes.
+    let mut bytes = std::fs::read(&p).unwrap();
+    let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+    let z_layer = data + 8 + 30 + 4 + 4;
+    bytes[z_layer..z_layer + 4].copy_from_slice(&0xF000_0000u32.to_le_bytes());
+    let bad = tmp("bad-layers.laz", &bytes);
+    let err = open(&bad, &OpenOptions::default())
+        .err()
+        .expect("corrupt layer size must be an error")
+        .to_string();
+    assert!(
+        err.contains(&format!(
+            "byte {}: LAZ chunk 0: its layers claim",
+            data + 8 + 30 + 4
+        )),
+        "{err}"
+    );
 }

@@ -129,6 +129,13 @@ fn las_and_laz_faults() {
         &write(&d, "chunks.laz", &chunks),
         &format!("byte {}: LAZ chunk table declares", table + 4),
     );
+    // An EVLR whose u64 length runs past the file (found by fuzzing: the las crate would try to
+    // allocate it). Synth writes LAS 1.4, whose header holds the EVLR offset (235) and count (243).
+    let mut evlr = las.clone();
+    evlr[235..243].copy_from_slice(&1000u64.to_le_bytes());
+    evlr[243..247].copy_from_slice(&1u32.to_le_bytes());
+    evlr[1020..1028].copy_from_slice(&(u64::MAX - 5).to_le_bytes());
+    bad(&write(&d, "evlr.las", &evlr), "byte 1020: EVLR length");
     let mut offset = las.clone();
     offset[96..100].copy_from_slice(&u32::MAX.to_le_bytes());
     bad(
