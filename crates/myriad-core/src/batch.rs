@@ -16,6 +16,23 @@ pub struct WavePacket {
     pub z_t: f32,
 }
 
+/// One point's values, for readers that assemble points one at a time (PLY, PCD, text).
+/// [`PointBatch::push_record`] stores the values whose column the batch has.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PointRecord {
+    pub position: [f64; 3],
+    pub intensity: u16,
+    pub return_number: u8,
+    pub number_of_returns: u8,
+    pub classification: u8,
+    pub scan_angle: f32,
+    pub user_data: u8,
+    pub point_source_id: u16,
+    pub gps_time: f64,
+    pub rgb: [u16; 3],
+    pub normal: [f32; 3],
+}
+
 /// Calls `$m!(field, Type, Attribute)` for every optional column, so operations over all columns
 /// are written once.
 macro_rules! for_each_column {
@@ -88,6 +105,45 @@ impl PointBatch {
 
     pub fn len(&self) -> usize {
         self.positions.len()
+    }
+
+    /// Appends one point; columns the record has no value for get their zero.
+    pub fn push_record(&mut self, r: &PointRecord) {
+        self.positions.push(r.position);
+        macro_rules! put {
+            ($($f:ident),*) => {$(
+                if let Some(c) = &mut self.$f {
+                    c.push(r.$f);
+                }
+            )*};
+        }
+        put!(
+            intensity,
+            return_number,
+            number_of_returns,
+            classification,
+            scan_angle,
+            user_data,
+            point_source_id
+        );
+        put!(gps_time, rgb, normal);
+        macro_rules! zero {
+            ($($f:ident),*) => {$(
+                if let Some(c) = &mut self.$f {
+                    c.push(Default::default());
+                }
+            )*};
+        }
+        zero!(
+            classification_flags,
+            scan_flags,
+            scanner_channel,
+            nir,
+            wave_packet
+        );
+        if let Some(e) = &mut self.extra_bytes {
+            e.resize(e.len() + self.extra_stride, 0);
+        }
     }
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
@@ -226,6 +282,28 @@ mod tests {
         assert_eq!(b.intensity.as_deref(), Some(&[0u16, 30][..]));
         assert_eq!(b.extra_bytes.as_deref(), Some(&[0u8, 0xAA, 3, 0xAA][..]));
         assert!(b.is_consistent());
+        assert!(b.gps_time.is_none());
+    }
+
+    #[test]
+    fn push_record_fills_every_column() {
+        let s = Schema::new(vec![
+            Attribute::Intensity,
+            Attribute::Rgb,
+            Attribute::Nir,
+            Attribute::Normal,
+        ]);
+        let mut b = PointBatch::with_schema(&s, 1);
+        b.push_record(&PointRecord {
+            position: [1.0, 2.0, 3.0],
+            intensity: 9,
+            rgb: [1, 2, 3],
+            ..Default::default()
+        });
+        assert!(b.is_consistent());
+        assert_eq!(b.intensity, Some(vec![9]));
+        assert_eq!(b.nir, Some(vec![0]));
+        assert_eq!(b.normal, Some(vec![[0.0; 3]]));
         assert!(b.gps_time.is_none());
     }
 

@@ -12,7 +12,7 @@
 
 use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
-use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
+use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -288,70 +288,37 @@ impl PcdSource {
     }
 
     fn push(&mut self, batch: &mut PointBatch, values: &[f64]) {
-        let mut pos = [0.0; 3];
-        let mut rgb = [0u16; 3];
-        let mut normal = [0f32; 3];
-        let mut scal = [0f64; 8];
+        let mut r = PointRecord::default();
+        let u8c = |v: f64| v.clamp(0.0, 255.0) as u8;
         for (f, &v) in self.fields.iter().zip(values) {
             match f.target {
-                Target::Pos(a) => pos[a] = v,
+                Target::Pos(a) => r.position[a] = v,
                 Target::PackedRgb => {
                     let bits = if f.ty == Scalar::F32 {
                         (v as f32).to_bits()
                     } else {
                         v as u32
                     };
-                    rgb = [(bits >> 16) & 0xFF, (bits >> 8) & 0xFF, bits & 0xFF]
+                    r.rgb = [(bits >> 16) & 0xFF, (bits >> 8) & 0xFF, bits & 0xFF]
                         .map(|c| c as u16 * 257);
                 }
-                Target::Rgb(c) => rgb[c] = to_u16_channel(v, f.ty),
-                Target::Normal(a) => normal[a] = v as f32,
-                Target::Intensity => scal[0] = to_u16_channel(v, f.ty) as f64,
-                Target::Classification => scal[1] = v,
-                Target::GpsTime => scal[2] = v,
-                Target::ReturnNumber => scal[3] = v,
-                Target::NumberOfReturns => scal[4] = v,
-                Target::PointSourceId => scal[5] = v,
-                Target::UserData => scal[6] = v,
-                Target::ScanAngle => scal[7] = v,
+                Target::Rgb(c) => r.rgb[c] = to_u16_channel(v, f.ty),
+                Target::Normal(a) => r.normal[a] = v as f32,
+                Target::Intensity => r.intensity = to_u16_channel(v, f.ty),
+                Target::Classification => r.classification = u8c(v),
+                Target::GpsTime => r.gps_time = v,
+                Target::ReturnNumber => r.return_number = u8c(v),
+                Target::NumberOfReturns => r.number_of_returns = u8c(v),
+                Target::PointSourceId => r.point_source_id = v.clamp(0.0, 65535.0) as u16,
+                Target::UserData => r.user_data = u8c(v),
+                Target::ScanAngle => r.scan_angle = v as f32,
                 Target::Skip => {}
             }
         }
-        if !pos.iter().all(|c| c.is_finite()) {
+        if r.position.iter().all(|c| c.is_finite()) {
+            batch.push_record(&r);
+        } else {
             self.skipped += 1;
-            return;
-        }
-        batch.positions.push(pos);
-        let u8c = |v: f64| v.clamp(0.0, 255.0) as u8;
-        if let Some(c) = &mut batch.intensity {
-            c.push(scal[0] as u16);
-        }
-        if let Some(c) = &mut batch.classification {
-            c.push(u8c(scal[1]));
-        }
-        if let Some(c) = &mut batch.gps_time {
-            c.push(scal[2]);
-        }
-        if let Some(c) = &mut batch.return_number {
-            c.push(u8c(scal[3]));
-        }
-        if let Some(c) = &mut batch.number_of_returns {
-            c.push(u8c(scal[4]));
-        }
-        if let Some(c) = &mut batch.point_source_id {
-            c.push(scal[5].clamp(0.0, 65535.0) as u16);
-        }
-        if let Some(c) = &mut batch.user_data {
-            c.push(u8c(scal[6]));
-        }
-        if let Some(c) = &mut batch.scan_angle {
-            c.push(scal[7] as f32);
-        }
-        if let Some(c) = &mut batch.rgb {
-            c.push(rgb);
-        }
-        if let Some(c) = &mut batch.normal {
-            c.push(normal);
         }
     }
 

@@ -7,7 +7,7 @@
 use crate::atomic::AtomicFile;
 use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
-use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
+use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -294,37 +294,21 @@ impl PlySource {
     }
 
     fn push(&mut self, batch: &mut PointBatch, values: &[f64]) {
-        let mut pos = [0.0; 3];
-        let mut rgb = [0u16; 3];
-        let mut normal = [0f32; 3];
-        let mut intensity = 0u16;
-        let mut class = 0u8;
+        let mut r = PointRecord::default();
         for ((t, p), &v) in self.targets.iter().zip(&self.vertex.props).zip(values) {
             match *t {
-                Target::Pos(a) => pos[a] = v,
-                Target::Rgb(c) => rgb[c] = to_u16_channel(v, p.ty),
-                Target::Intensity => intensity = to_u16_channel(v, p.ty),
-                Target::Normal(a) => normal[a] = v as f32,
-                Target::Classification => class = v.clamp(0.0, 255.0) as u8,
+                Target::Pos(a) => r.position[a] = v,
+                Target::Rgb(c) => r.rgb[c] = to_u16_channel(v, p.ty),
+                Target::Intensity => r.intensity = to_u16_channel(v, p.ty),
+                Target::Normal(a) => r.normal[a] = v as f32,
+                Target::Classification => r.classification = v.clamp(0.0, 255.0) as u8,
                 Target::Skip => {}
             }
         }
-        if !pos.iter().all(|c| c.is_finite()) {
+        if r.position.iter().all(|c| c.is_finite()) {
+            batch.push_record(&r);
+        } else {
             self.skipped += 1;
-            return;
-        }
-        batch.positions.push(pos);
-        if let Some(c) = &mut batch.rgb {
-            c.push(rgb);
-        }
-        if let Some(c) = &mut batch.intensity {
-            c.push(intensity);
-        }
-        if let Some(c) = &mut batch.normal {
-            c.push(normal);
-        }
-        if let Some(c) = &mut batch.classification {
-            c.push(class);
         }
     }
 

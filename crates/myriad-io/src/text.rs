@@ -17,7 +17,7 @@
 
 use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
-use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
+use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -226,10 +226,7 @@ impl TextSource {
     }
 
     fn parse_line(&mut self, line: &[u8], batch: &mut PointBatch) -> Result<()> {
-        let mut pos = [0.0; 3];
-        let mut rgb = [0u16; 3];
-        let mut normal = [0f32; 3];
-        let (mut intensity, mut class, mut time) = (0u16, 0u8, 0f64);
+        let mut r = PointRecord::default();
         let mut toks = tokens(line);
         for c in &self.cols {
             let t = toks.next().ok_or_else(|| {
@@ -250,45 +247,30 @@ impl TextSource {
                 )
             })?;
             match *c {
-                Col::Pos(a) => pos[a] = v,
+                Col::Pos(a) => r.position[a] = v,
                 Col::Intensity if self.pts_intensity => {
-                    intensity = ((v + 2048.0) * (65535.0 / 4095.0))
+                    r.intensity = ((v + 2048.0) * (65535.0 / 4095.0))
                         .round()
                         .clamp(0.0, 65535.0) as u16
                 }
-                Col::Intensity => intensity = to_u16_channel(v, Scalar::F64),
+                Col::Intensity => r.intensity = to_u16_channel(v, Scalar::F64),
                 Col::Rgb(k) => {
-                    rgb[k] = if v <= 255.0 {
+                    r.rgb[k] = if v <= 255.0 {
                         to_u16_channel(v, Scalar::U8)
                     } else {
                         to_u16_channel(v, Scalar::U16)
                     }
                 }
-                Col::Normal(k) => normal[k] = v as f32,
-                Col::Classification => class = v.clamp(0.0, 255.0) as u8,
-                Col::GpsTime => time = v,
+                Col::Normal(k) => r.normal[k] = v as f32,
+                Col::Classification => r.classification = v.clamp(0.0, 255.0) as u8,
+                Col::GpsTime => r.gps_time = v,
                 Col::Skip => {}
             }
         }
-        if !pos.iter().all(|c| c.is_finite()) {
+        if r.position.iter().all(|c| c.is_finite()) {
+            batch.push_record(&r);
+        } else {
             self.skipped += 1;
-            return Ok(());
-        }
-        batch.positions.push(pos);
-        if let Some(c) = &mut batch.intensity {
-            c.push(intensity);
-        }
-        if let Some(c) = &mut batch.classification {
-            c.push(class);
-        }
-        if let Some(c) = &mut batch.gps_time {
-            c.push(time);
-        }
-        if let Some(c) = &mut batch.rgb {
-            c.push(rgb);
-        }
-        if let Some(c) = &mut batch.normal {
-            c.push(normal);
         }
         Ok(())
     }

@@ -9,7 +9,7 @@ mod rng;
 pub mod scan;
 pub mod scene;
 
-use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
+use myriad_core::{Error, PointBatch, Result, Schema};
 use myriad_io::las::{LasSink, LasWriteOptions};
 use rayon::prelude::*;
 use std::path::Path;
@@ -37,22 +37,9 @@ pub struct SynthOptions {
 pub const ORIGIN: [f64; 3] = [500_000.0, 4_400_000.0, 0.0];
 const BLOCK_PULSES: u64 = 1 << 15;
 
-/// The attributes every synthetic scan carries (LAS point format 3).
+/// The attributes every synthetic scan carries: those of LAS point format 3.
 pub fn schema() -> Schema {
-    use Attribute::*;
-    Schema::new(vec![
-        Intensity,
-        ReturnNumber,
-        NumberOfReturns,
-        Classification,
-        ClassificationFlags,
-        ScanFlags,
-        ScanAngle,
-        UserData,
-        PointSourceId,
-        GpsTime,
-        Rgb,
-    ])
+    Schema::for_las_format(3)
 }
 
 enum Scanner<'a> {
