@@ -351,3 +351,99 @@ fn laz_layer_sizes_are_checked() {
         "{err}"
     );
 }
+
+/// Every scan of an E57 file is read, each with its own pose (rotation and translation) applied,
+/// and points without valid coordinates are skipped and counted.
+#[test]
+fn e57_reads_every_scan_with_its_pose() {
+    use e57::{
+        E57Writer, Quaternion, Record, RecordDataType, RecordName, RecordValue, Transform,
+        Translation,
+    };
+    let d = std::env::temp_dir().join(format!("myriad-e57-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("two-scans.e57");
+    let xyz = |name| Record {
+        name,
+        data_type: RecordDataType::Double {
+            min: None,
+            max: None,
+        },
+    };
+    let proto = vec![
+        xyz(RecordName::CartesianX),
+        xyz(RecordName::CartesianY),
+        xyz(RecordName::CartesianZ),
+        Record {
+            name: RecordName::Intensity,
+            data_type: RecordDataType::Single {
+                min: Some(0.0),
+                max: Some(1.0),
+            },
+        },
+    ];
+    let mut w = E57Writer::from_file(&p, "file-guid").unwrap();
+    let scans: [(&str, Option<Transform>, Vec<[f64; 4]>); 2] = [
+        (
+            "a",
+            None,
+            vec![
+                [0.0, 0.0, 0.0, 0.5],
+                [1.0, 0.0, 0.0, 1.0],
+                [f64::NAN, 0.0, 0.0, 0.0],
+            ],
+        ),
+        (
+            "b",
+            // A quarter turn about z, then 10 m along x.
+            Some(Transform {
+                rotation: Quaternion {
+                    w: std::f64::consts::FRAC_1_SQRT_2,
+                    x: 0.0,
+                    y: 0.0,
+                    z: std::f64::consts::FRAC_1_SQRT_2,
+                },
+                translation: Translation {
+                    x: 10.0,
+                    y: 0.0,
+                    z: 0.0,
+                },
+            }),
+            vec![[1.0, 0.0, 0.0, 0.25], [2.0, 0.0, 5.0, 0.0]],
+        ),
+    ];
+    for (guid, pose, points) in scans {
+        let mut pc = w.add_pointcloud(guid, proto.clone()).unwrap();
+        pc.set_transform(pose);
+        for q in points {
+            let v = vec![
+                RecordValue::Double(q[0]),
+                RecordValue::Double(q[1]),
+                RecordValue::Double(q[2]),
+                RecordValue::Single(q[3] as f32),
+            ];
+            pc.add_point(v).unwrap();
+        }
+        pc.finalize().unwrap();
+    }
+    w.finalize().unwrap();
+    drop(w);
+    let (src, b) = read(&p, None);
+    assert_eq!(src.info().points, Some(5), "header count covers both scans");
+    assert_eq!(src.skipped_non_finite(), 1);
+    let got: Vec<[i64; 3]> = b
+        .positions
+        .iter()
+        .map(|p| p.map(|c| (c * 1000.0).round() as i64))
+        .collect();
+    assert_eq!(
+        got,
+        vec![
+            [0, 0, 0],
+            [1000, 0, 0],
+            [10000, 1000, 0],
+            [10000, 2000, 5000]
+        ]
+    );
+    assert_eq!(b.intensity.unwrap(), vec![32768, 65535, 16384, 0]);
+}
