@@ -13,6 +13,7 @@
 pub mod atomic;
 pub mod e57;
 pub mod las;
+mod las_guard;
 mod las_records;
 pub mod pcd;
 pub mod ply;

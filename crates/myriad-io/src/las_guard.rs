@@ -1,0 +1,184 @@
+//! Checks on untrusted LAS/LAZ headers made before the `las` and `laz` crates see them. Those
+//! crates size buffers from header fields without checking them against the file (las 0.11: EVLR
+//! lengths; laz 0.13: chunk counts, layer sizes), which turns one flipped byte into a panic or
+//! gigabytes of memory. Each check here was prompted by a fuzzing finding (`fuzz/`); each names
+//! the byte offset of the field it rejects.
+
+use myriad_core::{Error, Result};
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::path::Path;
+
+/// Checks that the first EVLR lies inside the file before the `las` crate reads it: las 0.11
+/// sizes a vector from its u64 length unchecked (a panic or gigabytes of memory; found by fuzzing).
+///
+/// | offset in the EVLR | size | field |
+/// |---|---|---|
+/// | 0 | 2 | reserved |
+/// | 2 | 16 | user id |
+/// | 18 | 2 | record id |
+/// | 20 | 8 | u64 record length after header |
+/// | 28 | 32 | description |
+pub(crate) fn check_evlr(path: &Path, raw: &las::raw::Header, file_size: u64) -> Result<()> {
+    let Some(evlr) = raw.evlr.filter(|e| e.number_of_evlrs > 0) else {
+        return Ok(());
+    };
+    let start = evlr.start_of_first_evlr;
+    if start.checked_add(60).is_none_or(|end| end > file_size) {
+        return Err(Error::at_byte(
+            path,
+            235,
+            format!("first EVLR offset {start} lies outside the file"),
+        ));
+    }
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut len = [0u8; 8];
+    f.seek(SeekFrom::Start(start + 20))
+        .map_err(|e| Error::io(path, e))?;
+    f.read_exact(&mut len).map_err(|e| Error::io(path, e))?;
+    let len = u64::from_le_bytes(len);
+    if (start + 60)
+        .checked_add(len)
+        .is_none_or(|end| end > file_size)
+    {
+        return Err(Error::at_byte(
+            path,
+            start + 20,
+            format!("EVLR length {len} runs past the end of the file"),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks the LAZ chunk table's header before the `laz` crate sizes a vector from it (laz 0.13
+/// allocates `number_of_chunks` entries unchecked: a flipped byte asked for 68 GB in fuzzing).
+///
+/// | where | size | field |
+/// |---|---|---|
+/// | offset to point data | 8 | i64: offset of the chunk table (-1: not written) |
+/// | chunk table offset | 4 | u32 version (0) |
+/// | + 4 | 4 | u32 number of chunks |
+pub(crate) fn check_laz_chunk_table(
+    path: &Path,
+    raw: &las::raw::Header,
+    file_size: u64,
+) -> Result<()> {
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let at = raw.offset_to_point_data as u64;
+    let mut b = [0u8; 8];
+    let read_at = |f: &mut File, at: u64, b: &mut [u8]| -> Result<()> {
+        f.seek(SeekFrom::Start(at))
+            .map_err(|e| Error::io(path, e))?;
+        f.read_exact(b)
+            .map_err(|_| Error::at_byte(path, at, "unexpected end of file in the LAZ chunk table"))
+    };
+    read_at(&mut f, at, &mut b)?;
+    let table = i64::from_le_bytes(b);
+    if table == -1 {
+        return Ok(()); // written by a streaming writer; laz finds the chunks by scanning
+    }
+    if table < at as i64 + 8 || table as u64 + 8 > file_size {
+        return Err(Error::at_byte(
+            path,
+            at,
+            format!("LAZ chunk table offset {table} lies outside the file"),
+        ));
+    }
+    read_at(&mut f, table as u64, &mut b)?;
+    let chunks = u32::from_le_bytes(b[4..8].try_into().unwrap()) as u64;
+    let points = raw
+        .large_file
+        .map_or(raw.number_of_point_records as u64, |l| {
+            l.number_of_point_records
+                .max(raw.number_of_point_records as u64)
+        });
+    if chunks > points.max(1) || chunks > file_size {
+        return Err(Error::at_byte(
+            path,
+            table as u64 + 4,
+            format!(
+                "LAZ chunk table declares {chunks} chunks for {points} points in a {file_size}-byte file"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks every chunk of a layered (LAS 1.4, point formats 6-10) LAZ file: the layer byte counts
+/// must fit inside the chunk. laz 0.13 resizes a buffer to each count and fills it with zeros
+/// before reading, so one corrupt u32 costs up to 4 GiB of memory per layer (found by fuzzing).
+///
+/// A layered chunk: the first point uncompressed (the sum of the item sizes), u32 point count,
+/// one u32 byte count per layer (Point14: 9, RGB14: 1, RGBNIR14: 2, WavePacket14: 1,
+/// Byte14(n): n), then the layers. Chunks follow the 8-byte chunk table offset, in table order.
+pub(crate) fn check_laz_layers(
+    path: &Path,
+    header: &las::Header,
+    data_start: u64,
+    file_size: u64,
+) -> Result<()> {
+    use laz::LazItemType as T;
+    let bad = |at: u64, m: String| Error::at_byte(path, at, m);
+    let vlr = header
+        .laz_vlr()
+        .map_err(|e| bad(0, format!("invalid laszip VLR: {e}")))?;
+    let mut first_point = 0u64;
+    let mut layers = 0u64;
+    for item in vlr.items() {
+        first_point += item.size() as u64;
+        layers += match item.item_type() {
+            T::Point14 => 9,
+            T::RGB14 | T::WavePacket14 => 1,
+            T::RGBNIR14 => 2,
+            T::Byte14(n) => n as u64,
+            _ => return Ok(()), // not layered: no per-layer sizes to check
+        };
+    }
+    let mut f = BufReader::new(File::open(path).map_err(|e| Error::io(path, e))?);
+    f.seek(SeekFrom::Start(data_start))
+        .map_err(|e| Error::io(path, e))?;
+    let table = match laz::laszip::ChunkTable::read_from(&mut f, &vlr) {
+        Ok(t) => t,
+        Err(e) => {
+            return Err(bad(
+                data_start,
+                format!("cannot read the LAZ chunk table: {e}"),
+            ));
+        }
+    };
+    let mut start = data_start + 8;
+    let mut sizes = vec![0u8; 4 * layers as usize];
+    for (i, chunk) in table.as_ref().iter().enumerate() {
+        let head = first_point + 4 + 4 * layers;
+        if start.saturating_add(chunk.byte_count) > file_size || chunk.byte_count < head {
+            if chunk.byte_count == 0 {
+                break; // an empty trailing chunk
+            }
+            return Err(bad(
+                start,
+                format!(
+                    "LAZ chunk {i} ({} bytes) does not fit the file",
+                    chunk.byte_count
+                ),
+            ));
+        }
+        f.seek(SeekFrom::Start(start + first_point + 4))
+            .map_err(|e| Error::io(path, e))?;
+        f.read_exact(&mut sizes).map_err(|e| Error::io(path, e))?;
+        let total: u64 = sizes
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as u64)
+            .sum();
+        if head + total > chunk.byte_count {
+            return Err(bad(
+                start + first_point + 4,
+                format!(
+                    "LAZ chunk {i}: its layers claim {total} bytes of a {}-byte chunk",
+                    chunk.byte_count
+                ),
+            ));
+        }
+        start += chunk.byte_count;
+    }
+    Ok(())
+}
