@@ -104,7 +104,8 @@ pub(crate) fn check_laz_chunk_table(
     Ok(())
 }
 
-/// Checks every chunk of a layered (LAS 1.4, point formats 6-10) LAZ file: the layer byte counts
+/// Checks the laszip VLR against the header, then every chunk of a layered (LAS 1.4, point
+/// formats 6-10) LAZ file: the layer byte counts
 /// must fit inside the chunk. laz 0.13 resizes a buffer to each count and fills it with zeros
 /// before reading, so one corrupt u32 costs up to 4 GiB of memory per layer (found by fuzzing).
 ///
@@ -122,6 +123,21 @@ pub(crate) fn check_laz_layers(
     let vlr = header
         .laz_vlr()
         .map_err(|e| bad(0, format!("invalid laszip VLR: {e}")))?;
+    // The items must describe exactly the header's record (laz divides by their size), and fixed
+    // chunks must hold at least one point.
+    let record_len = header.point_format().len() as u64;
+    if vlr.items_size() != record_len {
+        return Err(bad(
+            105,
+            format!(
+                "laszip VLR describes {}-byte records, the header {record_len}-byte ones",
+                vlr.items_size()
+            ),
+        ));
+    }
+    if !vlr.uses_variable_size_chunks() && vlr.chunk_size() == 0 {
+        return Err(bad(0, "laszip VLR declares chunks of 0 points".into()));
+    }
     let mut first_point = 0u64;
     let mut layers = 0u64;
     for item in vlr.items() {

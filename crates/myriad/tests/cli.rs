@@ -136,6 +136,20 @@ fn las_and_laz_faults() {
     evlr[243..247].copy_from_slice(&1u32.to_le_bytes());
     evlr[1020..1028].copy_from_slice(&(u64::MAX - 5).to_le_bytes());
     bad(&write(&d, "evlr.las", &evlr), "byte 1020: EVLR length");
+    // A laszip VLR whose items describe 0-byte records: laz divides by that (found by fuzzing).
+    // Its data: compressor, coder, version, options, chunk size, special EVLRs (32 bytes), then the
+    // u16 item count.
+    let mut items = laz.clone();
+    let vlr = laz
+        .windows(14)
+        .position(|w| w == b"laszip encoded")
+        .expect("laszip VLR")
+        - 2;
+    items[vlr + 54 + 32..vlr + 54 + 34].copy_from_slice(&0u16.to_le_bytes());
+    bad(
+        &write(&d, "items.laz", &items),
+        "byte 105: laszip VLR describes 0-byte records",
+    );
     let mut offset = las.clone();
     offset[96..100].copy_from_slice(&u32::MAX.to_le_bytes());
     bad(
