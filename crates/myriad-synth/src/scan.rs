@@ -35,7 +35,10 @@ impl<T> CellCache<T> {
     }
     #[inline]
     fn get_or_insert_with(&mut self, key: (i64, i64), f: impl FnOnce() -> T) -> &T {
-        let i = (hash3(0, key.0, key.1) >> (64 - Self::BITS)) as usize;
+        // Multiplicative hashing of the cell: two multiplies, enough to spread neighbouring cells.
+        let h = (key.0 as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (key.1 as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        let i = (h >> (64 - Self::BITS)) as usize;
         let slot = &mut self.slots[i];
         if !matches!(slot, Some((k, _)) if *k == key) {
             *slot = Some((key, f()));
@@ -294,16 +297,19 @@ impl<'a> Airborne<'a> {
         let s = self.scene;
         // Newton on f(t) = z(t) - h(x(t), y(t)); the terrain is smooth, so a few steps converge.
         let mut t = (o[2] - *last_ground) / -d[2];
-        let (mut x, mut y) = (o[0] + d[0] * t, o[1] + d[1] * t);
-        let (mut h, mut g) = s.terrain(x, y);
+        debug_assert!(d[1] == 0.0, "airborne rays sweep across track only");
+        let y = o[1];
+        let row = s.terrain_row(y);
+        let mut x = o[0] + d[0] * t;
+        let (mut h, mut g) = s.terrain_at(&row, x);
         for _ in 0..4 {
             let f = o[2] + d[2] * t - h;
             if f.abs() < 2e-3 {
                 break;
             }
             t -= f / (d[2] - (g[0] * d[0] + g[1] * d[1]));
-            (x, y) = (o[0] + d[0] * t, o[1] + d[1] * t);
-            (h, g) = s.terrain(x, y);
+            x = o[0] + d[0] * t;
+            (h, g) = s.terrain_at(&row, x);
         }
         let len = (g[0] * g[0] + g[1] * g[1] + 1.0).sqrt();
         let (class, rgb, reflectance) = s.ground_material(x, y, h);

@@ -26,6 +26,14 @@ pub enum Kind {
     Terrain,
 }
 
+/// The y-dependent factors of the terrain's waves along one row (see [`Scene::terrain_row`]).
+#[derive(Debug, Clone, Copy)]
+pub struct TerrainRow {
+    sin: [f64; 3],
+    cos: [f64; 3],
+    phase: f64,
+}
+
 #[derive(Debug, Clone, Copy)]
 pub struct Box3 {
     pub min: [f64; 3],
@@ -67,29 +75,56 @@ impl Scene {
         }
     }
 
-    /// Terrain height and its gradient. Uses [`sin_cos`], good to 1e-7, which is plenty for a
-    /// landscape and four times cheaper than libm's.
-    pub fn terrain(&self, x: f64, y: f64) -> (f64, [f64; 2]) {
-        let s = (self.seed % 1000) as f64;
-        let waves = [
-            (0.0021, 0.0017, 1.0, s),
-            (0.0063, 0.0049, 0.35, s * 1.7),
-            (0.0190, 0.0230, 0.08, s * 2.3),
+    /// The terrain's waves: (x frequency, y frequency, amplitude, phase). The flat city needs no
+    /// fine ripples; the hills get all three octaves.
+    fn waves(&self) -> &'static [(f64, f64, f64)] {
+        const WAVES: [(f64, f64, f64); 3] = [
+            (0.0021, 0.0017, 1.0),
+            (0.0063, 0.0049, 0.35),
+            (0.0190, 0.0230, 0.08),
         ];
+        if self.kind == Kind::City {
+            &WAVES[..2]
+        } else {
+            &WAVES[..]
+        }
+    }
+
+    /// The terrain's y-dependent factors along the row `y`: a ray of an airborne pulse has no y
+    /// component, so every Newton step of one pulse shares them.
+    pub fn terrain_row(&self, y: f64) -> TerrainRow {
+        let mut row = TerrainRow {
+            sin: [0.0; 3],
+            cos: [0.0; 3],
+            phase: (self.seed % 1000) as f64,
+        };
+        for (k, &(_, fy, _)) in self.waves().iter().enumerate() {
+            (row.sin[k], row.cos[k]) = sin_cos(fy * y - row.phase * (1.0 + 0.7 * k as f64));
+        }
+        row
+    }
+
+    /// Terrain height and its gradient at (x, row). Uses [`sin_cos`], good to 1e-7, which is
+    /// plenty for a landscape and cheaper than libm's.
+    pub fn terrain_at(&self, row: &TerrainRow, x: f64) -> (f64, [f64; 2]) {
         let (mut h, mut gx, mut gy) = (0.0, 0.0, 0.0);
-        for (fx, fy, a, ph) in waves {
-            let (sx, cx) = sin_cos(fx * x + ph);
-            let (sy, cy) = sin_cos(fy * y - ph);
-            h += a * sx * cy;
-            gx += a * fx * cx * cy;
-            gy += -a * fy * sx * sy;
+        for (k, &(fx, fy, a)) in self.waves().iter().enumerate() {
+            let (sx, cx) = sin_cos(fx * x + row.phase * (1.0 + 0.7 * k as f64));
+            h += a * sx * row.cos[k];
+            gx += a * fx * cx * row.cos[k];
+            gy += -a * fy * sx * row.sin[k];
         }
         (self.amp * h, [self.amp * gx, self.amp * gy])
     }
 
+    /// Terrain height and its gradient at (x, y).
+    pub fn terrain(&self, x: f64, y: f64) -> (f64, [f64; 2]) {
+        self.terrain_at(&self.terrain_row(y), x)
+    }
+
     /// The terrain never leaves [-relief, relief].
     pub fn relief(&self) -> f64 {
-        self.amp * if self.kind == Kind::City { 1.36 } else { 1.44 }
+        self.amp * self.waves().iter().map(|w| w.2).sum::<f64>() + 0.01
     }
 
     /// Is (x, y) on a road? City: the grid streets; terrain: one winding road.
