@@ -184,6 +184,9 @@ impl PcdSource {
         if counts.is_empty() {
             counts = vec![1; names.len()];
         }
+        if counts.contains(&0) {
+            return Err(Error::at_line(path, line_no, "a field has COUNT 0"));
+        }
         if counts.len() != names.len() {
             return Err(Error::at_line(
                 path,
