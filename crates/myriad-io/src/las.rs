@@ -12,6 +12,7 @@ use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 /// A file handle that publishes how far it has read, so that errors raised deep inside the `las`
 /// and `laz` crates can still name a byte offset.
@@ -36,18 +37,29 @@ impl Seek for Tracked {
     }
 }
 
+/// Reads LAS/LAZ. Records are read (and LAZ decompressed on all cores) by a producer thread one
+/// block ahead, while the caller decodes the previous block into columns: decoding overlaps
+/// decompression instead of following it.
 pub struct LasSource {
     info: SourceInfo,
-    reader: las::Reader,
     header: las::Header,
     layout: Layout,
     quant: Quantization,
     record_len: usize,
-    data: las::PointData,
     remaining: u64,
-    read: u64,
-    pos: Arc<AtomicU64>,
+    stream: Option<RecordStream>,
 }
+
+/// Raw record blocks from the producer thread, and the part of the last block not yet decoded.
+struct RecordStream {
+    rx: Receiver<Result<Vec<u8>>>,
+    pending: Vec<u8>,
+    at: usize,
+}
+
+/// Records per block the producer thread reads: several LAZ chunks, so that decompression runs
+/// on all cores, and a few tens of megabytes at most.
+const PRODUCER_BLOCK: u64 = 1 << 19;
 
 fn header_error(path: &Path, e: las::Error) -> Error {
     Error::at_byte(path, 0, format!("invalid LAS header: {e}"))
@@ -175,18 +187,15 @@ impl LasSource {
             crs: crs_of(&header),
             file_size,
         };
-        let data = las::PointDataBuilder::new().for_header(&header).build();
+        drop(reader); // the producer thread opens its own: `las::Reader` is not `Send`
         Ok(LasSource {
             info,
-            reader,
             header,
             layout,
             quant,
             record_len,
-            data,
             remaining: count,
-            read: 0,
-            pos,
+            stream: None,
         })
     }
 
@@ -194,27 +203,76 @@ impl LasSource {
     pub fn header(&self) -> &las::Header {
         &self.header
     }
+}
 
-    fn read_error(&self, e: las::Error) -> Error {
-        let path = &self.info.path;
-        let at = self.pos.load(Ordering::Relaxed);
-        if is_eof(&e) {
-            Error::at_byte(
-                path,
-                at,
-                format!(
-                    "unexpected end of file while reading points {}.. of the {} its header declares",
-                    self.read,
-                    self.info.points.unwrap_or(0)
-                ),
-            )
-        } else {
-            Error::at_byte(
-                path,
-                at,
-                format!("cannot decode the points from {} on: {e}", self.read),
-            )
+/// An error from the `las` reader, at the byte the file handle had reached.
+fn read_error(path: &Path, at: u64, read: u64, total: u64, e: las::Error) -> Error {
+    if is_eof(&e) {
+        Error::at_byte(
+            path,
+            at,
+            format!(
+                "unexpected end of file while reading points {read}.. of the {total} its header declares"
+            ),
+        )
+    } else {
+        Error::at_byte(
+            path,
+            at,
+            format!("cannot decode the points from {read} on: {e}"),
+        )
+    }
+}
+
+/// The producer thread: reads `total` records in blocks and sends them, or the first error.
+fn produce_records(path: PathBuf, total: u64, tx: SyncSender<Result<Vec<u8>>>) {
+    let pos = Arc::new(AtomicU64::new(0));
+    let opened = File::open(&path)
+        .map_err(|e| Error::io(&path, e))
+        .and_then(|file| {
+            let tracked = Tracked {
+                file,
+                pos: pos.clone(),
+            };
+            las::Reader::new(BufReader::with_capacity(1 << 20, tracked))
+                .map_err(|e| header_error(&path, e))
+        });
+    let mut reader = match opened {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = tx.send(Err(e));
+            return;
         }
+    };
+    let mut data = las::PointDataBuilder::new()
+        .for_header(reader.header())
+        .build();
+    let mut read = 0u64;
+    while read < total {
+        let want = (total - read).min(PRODUCER_BLOCK);
+        let block = match reader.fill_points(want, &mut data) {
+            Ok(got) if got == want => Ok(data.raw_bytes().to_vec()),
+            Ok(got) => Err(Error::at_byte(
+                &path,
+                pos.load(Ordering::Relaxed),
+                format!(
+                    "file ends after {} of the {total} points its header declares",
+                    read + got
+                ),
+            )),
+            Err(e) => Err(read_error(
+                &path,
+                pos.load(Ordering::Relaxed),
+                read,
+                total,
+                e,
+            )),
+        };
+        let failed = block.is_err();
+        if tx.send(block).is_err() || failed {
+            return; // the source was dropped, or the error is delivered
+        }
+        read += want;
     }
 }
 
@@ -227,33 +285,46 @@ impl PointSource for LasSource {
         if self.remaining == 0 {
             return Ok(None);
         }
-        let want = self.remaining.min(crate::batch_len(max) as u64);
-        let got = self
-            .reader
-            .fill_points(want, &mut self.data)
-            .map_err(|e| self.read_error(e))?;
-        if got < want {
-            return Err(Error::at_byte(
-                &self.info.path,
-                self.pos.load(Ordering::Relaxed),
-                format!(
-                    "file ends after {} of the {} points its header declares",
-                    self.read + got,
-                    self.info.points.unwrap_or(0)
-                ),
-            ));
+        let stream = self.stream.get_or_insert_with(|| {
+            let (tx, rx) = sync_channel(1);
+            let (path, total) = (self.info.path.clone(), self.remaining);
+            std::thread::Builder::new()
+                .name("las-reader".into())
+                .spawn(move || produce_records(path, total, tx))
+                .expect("spawn LAS reader thread");
+            RecordStream {
+                rx,
+                pending: Vec::new(),
+                at: 0,
+            }
+        });
+        if stream.at == stream.pending.len() {
+            stream.pending = match stream.rx.recv() {
+                Ok(block) => block?,
+                Err(_) => {
+                    return Err(Error::at_byte(
+                        &self.info.path,
+                        0,
+                        "the reader thread stopped early",
+                    ));
+                }
+            };
+            stream.at = 0;
         }
+        let left = (stream.pending.len() - stream.at) / self.record_len;
+        let n = left.min(crate::batch_len(max)).min(self.remaining as usize);
+        let bytes = &stream.pending[stream.at..stream.at + n * self.record_len];
         let extra = self.record_len - self.layout.base_len;
-        let mut batch = las_records::batch_for(&self.layout, extra, got as usize);
+        let mut batch = las_records::batch_for(&self.layout, extra, n);
         las_records::decode(
-            self.data.raw_bytes(),
+            bytes,
             self.record_len,
             &self.layout,
             &self.quant,
             &mut batch,
         );
-        self.remaining -= got;
-        self.read += got;
+        stream.at += n * self.record_len;
+        self.remaining -= n as u64;
         Ok(Some(batch))
     }
 }
