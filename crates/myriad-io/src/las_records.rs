@@ -199,6 +199,7 @@ pub struct EncodeError {
 
 /// Encodes `batch` as records of `layout` with `record_len` bytes each, appending to `out`.
 /// Columns the batch lacks are written as zero; extra bytes are copied up to the record's room.
+/// Works column by column: one tight loop per field over all records.
 pub fn encode(
     batch: &PointBatch,
     record_len: usize,
@@ -209,10 +210,17 @@ pub fn encode(
     let start = out.len();
     out.resize(start + batch.len() * record_len, 0);
     let records = &mut out[start..];
-    let get = |c: &Option<Vec<u8>>, i: usize| c.as_ref().map_or(0, |v| v[i]);
-    let get16 = |c: &Option<Vec<u16>>, i: usize| c.as_ref().map_or(0, |v| v[i]);
-    for (i, r) in records.chunks_exact_mut(record_len).enumerate() {
-        let p = batch.positions[i];
+    // Writes one column into every record at byte `offset` via `put`.
+    fn column<T: Copy>(records: &mut [u8], len: usize, col: &[T], put: impl Fn(&mut [u8], T)) {
+        for (r, &v) in records.chunks_exact_mut(len).zip(col) {
+            put(r, v);
+        }
+    }
+    for (i, (r, p)) in records
+        .chunks_exact_mut(record_len)
+        .zip(&batch.positions)
+        .enumerate()
+    {
         for a in 0..3 {
             let v = round_half_away((p[a] - q.offset[a]) / q.scale[a]);
             if !(v >= i32::MIN as f64 && v <= i32::MAX as f64) {
@@ -223,43 +231,84 @@ pub fn encode(
             }
             r[a * 4..a * 4 + 4].copy_from_slice(&(v as i32).to_le_bytes());
         }
-        r[12..14].copy_from_slice(&get16(&batch.intensity, i).to_le_bytes());
-        let ret = get(&batch.return_number, i);
-        let nret = get(&batch.number_of_returns, i);
-        let scan = get(&batch.scan_flags, i) & 0x03;
-        let cflags = get(&batch.classification_flags, i);
-        let class = get(&batch.classification, i);
-        let angle = batch.scan_angle.as_ref().map_or(0.0, |v| v[i] as f64);
-        if layout.extended {
-            r[14] = (ret & 0x0F) | (nret << 4);
-            r[15] = (cflags & 0x0F) | ((get(&batch.scanner_channel, i) & 0x03) << 4) | (scan << 6);
-            r[16] = class;
-            r[17] = get(&batch.user_data, i);
-            let a = (angle / 0.006)
-                .round()
-                .clamp(i16::MIN as f64, i16::MAX as f64) as i16;
-            r[18..20].copy_from_slice(&a.to_le_bytes());
-            r[20..22].copy_from_slice(&get16(&batch.point_source_id, i).to_le_bytes());
-        } else {
-            r[14] = (ret & 0x07) | ((nret & 0x07) << 3) | (scan << 6);
-            r[15] = (class.min(31)) | ((cflags & 0x07) << 5);
-            r[16] = angle.round().clamp(-128.0, 127.0) as i8 as u8;
-            r[17] = get(&batch.user_data, i);
-            r[18..20].copy_from_slice(&get16(&batch.point_source_id, i).to_le_bytes());
+    }
+    let n = record_len;
+    if let Some(c) = &batch.intensity {
+        column(records, n, c, |r, v| {
+            r[12..14].copy_from_slice(&v.to_le_bytes())
+        });
+    }
+    // Bit fields are OR-ed into bytes 14 and 15 (and the class byte of legacy formats).
+    let or_bits = |records: &mut [u8], col: &Option<Vec<u8>>, byte: usize, mask: u8, shift: u32| {
+        if let Some(c) = col {
+            column(records, n, c, |r, v| r[byte] |= (v & mask) << shift);
         }
-        if let (Some(o), Some(g)) = (layout.gps, &batch.gps_time) {
-            r[o..o + 8].copy_from_slice(&g[i].to_le_bytes());
+    };
+    if layout.extended {
+        or_bits(records, &batch.return_number, 14, 0x0F, 0);
+        or_bits(records, &batch.number_of_returns, 14, 0x0F, 4);
+        or_bits(records, &batch.classification_flags, 15, 0x0F, 0);
+        or_bits(records, &batch.scanner_channel, 15, 0x03, 4);
+        or_bits(records, &batch.scan_flags, 15, 0x03, 6);
+        if let Some(c) = &batch.classification {
+            column(records, n, c, |r, v| r[16] = v);
         }
-        if let (Some(o), Some(c)) = (layout.rgb, &batch.rgb) {
+        if let Some(c) = &batch.user_data {
+            column(records, n, c, |r, v| r[17] = v);
+        }
+        if let Some(c) = &batch.scan_angle {
+            column(records, n, c, |r, v| {
+                let a = round_half_away(v as f64 / 0.006).clamp(i16::MIN as f64, i16::MAX as f64)
+                    as i16;
+                r[18..20].copy_from_slice(&a.to_le_bytes())
+            });
+        }
+        if let Some(c) = &batch.point_source_id {
+            column(records, n, c, |r, v| {
+                r[20..22].copy_from_slice(&v.to_le_bytes())
+            });
+        }
+    } else {
+        or_bits(records, &batch.return_number, 14, 0x07, 0);
+        or_bits(records, &batch.number_of_returns, 14, 0x07, 3);
+        or_bits(records, &batch.scan_flags, 14, 0x03, 6);
+        if let Some(c) = &batch.classification {
+            column(records, n, c, |r, v| r[15] |= v.min(31));
+        }
+        or_bits(records, &batch.classification_flags, 15, 0x07, 5);
+        if let Some(c) = &batch.scan_angle {
+            column(records, n, c, |r, v| {
+                r[16] = round_half_away(v as f64).clamp(-128.0, 127.0) as i8 as u8
+            });
+        }
+        if let Some(c) = &batch.user_data {
+            column(records, n, c, |r, v| r[17] = v);
+        }
+        if let Some(c) = &batch.point_source_id {
+            column(records, n, c, |r, v| {
+                r[18..20].copy_from_slice(&v.to_le_bytes())
+            });
+        }
+    }
+    if let (Some(o), Some(c)) = (layout.gps, &batch.gps_time) {
+        column(records, n, c, |r, v| {
+            r[o..o + 8].copy_from_slice(&v.to_le_bytes())
+        });
+    }
+    if let (Some(o), Some(c)) = (layout.rgb, &batch.rgb) {
+        column(records, n, c, |r, v| {
             for k in 0..3 {
-                r[o + 2 * k..o + 2 * k + 2].copy_from_slice(&c[i][k].to_le_bytes());
+                r[o + 2 * k..o + 2 * k + 2].copy_from_slice(&v[k].to_le_bytes());
             }
-        }
-        if let (Some(o), Some(n)) = (layout.nir, &batch.nir) {
-            r[o..o + 2].copy_from_slice(&n[i].to_le_bytes());
-        }
-        if let (Some(o), Some(w)) = (layout.wave, &batch.wave_packet) {
-            let w = &w[i];
+        });
+    }
+    if let (Some(o), Some(c)) = (layout.nir, &batch.nir) {
+        column(records, n, c, |r, v| {
+            r[o..o + 2].copy_from_slice(&v.to_le_bytes())
+        });
+    }
+    if let (Some(o), Some(c)) = (layout.wave, &batch.wave_packet) {
+        column(records, n, c, |r, w| {
             r[o] = w.descriptor_index;
             r[o + 1..o + 9].copy_from_slice(&w.byte_offset.to_le_bytes());
             r[o + 9..o + 13].copy_from_slice(&w.size.to_le_bytes());
@@ -267,12 +316,15 @@ pub fn encode(
             r[o + 17..o + 21].copy_from_slice(&w.x_t.to_le_bytes());
             r[o + 21..o + 25].copy_from_slice(&w.y_t.to_le_bytes());
             r[o + 25..o + 29].copy_from_slice(&w.z_t.to_le_bytes());
-        }
-        if let Some(e) = &batch.extra_bytes {
-            let s = batch.extra_stride;
-            let room = record_len - layout.base_len;
-            let k = s.min(room);
-            r[layout.base_len..layout.base_len + k].copy_from_slice(&e[i * s..i * s + k]);
+        });
+    }
+    if let Some(e) = &batch.extra_bytes {
+        let s = batch.extra_stride;
+        let k = s.min(record_len - layout.base_len);
+        if s > 0 {
+            for (r, src) in records.chunks_exact_mut(record_len).zip(e.chunks_exact(s)) {
+                r[layout.base_len..layout.base_len + k].copy_from_slice(&src[..k]);
+            }
         }
     }
     Ok(())

@@ -100,6 +100,8 @@ pub struct Cache {
     furniture: CellCache<Vec<(Box3, u64)>>,
     /// Height of the previous ground hit: the next pulse lands 0.3 m away, so Newton starts there.
     last_ground: f64,
+    /// The terrain row of the previous pulse, from which the next one is derived.
+    last_row: Option<scene::TerrainRow>,
     crowns: Vec<Hit>,
     hits: Vec<Hit>,
 }
@@ -111,6 +113,7 @@ impl Default for Cache {
             trees: CellCache::new(),
             furniture: CellCache::new(),
             last_ground: 0.0,
+            last_row: None,
             crowns: Vec::new(),
             hits: Vec::new(),
         }
@@ -213,7 +216,8 @@ impl<'a> Airborne<'a> {
         let (xa, xb) = (o[0] + d[0] * t0, o[0] + d[0] * t1);
         let (xlo, xhi) = (xa.min(xb), xa.max(xb));
         let (ylo, yhi) = (o[1] - 0.01, o[1] + 0.01);
-        let mut opaque: Option<Hit> = Some(self.terrain_hit(o, d, &mut cache.last_ground));
+        let mut opaque: Option<Hit> =
+            Some(self.terrain_hit(o, d, &mut cache.last_ground, &mut cache.last_row));
         if s.kind == Kind::City {
             let bs = scene::BLOCK;
             for bx in scene::floor_fast(xlo / bs)..=scene::floor_fast(xhi / bs) {
@@ -293,13 +297,23 @@ impl<'a> Airborne<'a> {
         cache.crowns = crowns;
     }
 
-    fn terrain_hit(&self, o: [f64; 3], d: [f64; 3], last_ground: &mut f64) -> Hit {
+    fn terrain_hit(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        last_ground: &mut f64,
+        last_row: &mut Option<scene::TerrainRow>,
+    ) -> Hit {
         let s = self.scene;
         // Newton on f(t) = z(t) - h(x(t), y(t)); the terrain is smooth, so a few steps converge.
         let mut t = (o[2] - *last_ground) / -d[2];
         debug_assert!(d[1] == 0.0, "airborne rays sweep across track only");
         let y = o[1];
-        let row = s.terrain_row(y);
+        let row = match last_row {
+            Some(r) if (r.y() - y).abs() < 1.0 => s.terrain_row_from(r, y),
+            _ => s.terrain_row(y),
+        };
+        *last_row = Some(row);
         let mut x = o[0] + d[0] * t;
         let (mut h, mut g) = s.terrain_at(&row, x);
         for _ in 0..4 {
