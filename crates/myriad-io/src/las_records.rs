@@ -216,13 +216,16 @@ pub fn encode(
             put(r, v);
         }
     }
+    // Multiplying by the inverse scale instead of dividing: for coordinates that came from LAS
+    // integers the product is within a few ulp of the integer, far from any rounding boundary.
+    let inv = q.scale.map(|s| 1.0 / s);
     for (i, (r, p)) in records
         .chunks_exact_mut(record_len)
         .zip(&batch.positions)
         .enumerate()
     {
         for a in 0..3 {
-            let v = round_half_away((p[a] - q.offset[a]) / q.scale[a]);
+            let v = round_half_away((p[a] - q.offset[a]) * inv[a]);
             if !(v >= i32::MIN as f64 && v <= i32::MAX as f64) {
                 return Err(EncodeError {
                     point: i,
