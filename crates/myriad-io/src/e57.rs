@@ -133,7 +133,7 @@ impl E57Source {
 }
 
 fn produce(
-    path: &PathBuf,
+    path: &Path,
     schema: &Schema,
     batch_size: usize,
     tx: &SyncSender<Result<PointBatch>>,

@@ -135,11 +135,13 @@ impl TextSource {
                     "not text: invalid UTF-8 (is this a binary file?)",
                 ));
             }
-            if toks.len() == 1 && count.is_none() && header_cols.is_none() {
-                if let Ok(n) = std::str::from_utf8(toks[0]).unwrap_or("").parse::<u64>() {
-                    count = Some(n);
-                    continue;
-                }
+            if toks.len() == 1
+                && count.is_none()
+                && header_cols.is_none()
+                && let Ok(n) = std::str::from_utf8(toks[0]).unwrap_or("").parse::<u64>()
+            {
+                count = Some(n);
+                continue;
             }
             if let Some(bad) = toks.iter().find(|t| parse_f64(t).is_none()) {
                 // A line of column names is a header (skipped when --columns overrides it).

@@ -157,14 +157,14 @@ impl<'a> Airborne<'a> {
         let mut rng = Rng::new(k ^ 0x5EED_0000_0000 ^ self.scene.seed.rotate_left(17));
         // Zig-zag: even scan lines sweep west to east, odd ones back.
         let u = (i as f64 + 0.5) / f.pulses_per_scanline as f64;
-        let across = if scanline % 2 == 0 {
+        let across = if scanline.is_multiple_of(2) {
             i
         } else {
             f.pulses_per_scanline - 1 - i
         };
         let (_, sa, ca, angle_rank) = self.mirror[across as usize];
         let along = (scanline as f64 + u) * SPACING;
-        let northbound = line % 2 == 0;
+        let northbound = line.is_multiple_of(2);
         let y = if northbound { along } else { f.side - along };
         let x = line as f64 * f.line_spacing;
         let origin = [x, y, ALTITUDE + rng.normal() * 0.05];
@@ -197,7 +197,10 @@ impl<'a> Airborne<'a> {
             push(&mut out.classification, h.class);
             push(&mut out.classification_flags, 0);
             let edge = (i == 0 || i + 1 == f.pulses_per_scanline) as u8;
-            push(&mut out.scan_flags, (scanline % 2 == 0) as u8 | edge << 1);
+            push(
+                &mut out.scan_flags,
+                scanline.is_multiple_of(2) as u8 | edge << 1,
+            );
             push(&mut out.scan_angle, angle_rank);
             push(&mut out.user_data, 0);
             push(&mut out.point_source_id, line as u16 + 1);
@@ -228,22 +231,22 @@ impl<'a> Airborne<'a> {
                         v
                     });
                     for (b, h) in list.iter() {
-                        if let Some((t, n)) = scene::ray_box(o, d, b) {
-                            if opaque.as_ref().is_none_or(|x| t < x.t) {
-                                let roof = n[2] > 0.5;
-                                opaque = Some(Hit {
-                                    t,
-                                    normal: n,
-                                    class: scene::BUILDING,
-                                    rgb: if roof {
-                                        scene::roof_colour(*h)
-                                    } else {
-                                        [52000, 50000, 46000]
-                                    },
-                                    reflectance: if roof { 0.3 } else { 0.5 },
-                                    transparent: false,
-                                });
-                            }
+                        if let Some((t, n)) = scene::ray_box(o, d, b)
+                            && opaque.as_ref().is_none_or(|x| t < x.t)
+                        {
+                            let roof = n[2] > 0.5;
+                            opaque = Some(Hit {
+                                t,
+                                normal: n,
+                                class: scene::BUILDING,
+                                rgb: if roof {
+                                    scene::roof_colour(*h)
+                                } else {
+                                    [52000, 50000, 46000]
+                                },
+                                reflectance: if roof { 0.3 } else { 0.5 },
+                                transparent: false,
+                            });
                         }
                     }
                 }
@@ -257,24 +260,24 @@ impl<'a> Airborne<'a> {
             for cy in scene::floor_fast((ylo - m) / tc)..=scene::floor_fast((yhi + m) / tc) {
                 let tree = *cache.trees.get_or_insert_with((cx, cy), || s.tree(cx, cy));
                 let Some(tree) = tree else { continue };
-                if let Some((t, n)) = scene::ray_sphere(o, d, tree.center, tree.radius) {
-                    if opaque.as_ref().is_none_or(|x| t < x.t) {
-                        let h = hash3(s.seed, cx, cy);
-                        let g = 0.7 + 0.3 * unit(h);
-                        crowns.push(Hit {
-                            // Leaves are hit somewhere inside the crown's outer shell.
-                            t: t + rng.f64() * tree.radius * 0.5,
-                            normal: n,
-                            class: scene::HIGH_VEGETATION,
-                            rgb: [
-                                (14000.0 * g) as u16,
-                                (34000.0 * g) as u16,
-                                (12000.0 * g) as u16,
-                            ],
-                            reflectance: 0.45,
-                            transparent: true,
-                        });
-                    }
+                if let Some((t, n)) = scene::ray_sphere(o, d, tree.center, tree.radius)
+                    && opaque.as_ref().is_none_or(|x| t < x.t)
+                {
+                    let h = hash3(s.seed, cx, cy);
+                    let g = 0.7 + 0.3 * unit(h);
+                    crowns.push(Hit {
+                        // Leaves are hit somewhere inside the crown's outer shell.
+                        t: t + rng.f64() * tree.radius * 0.5,
+                        normal: n,
+                        class: scene::HIGH_VEGETATION,
+                        rgb: [
+                            (14000.0 * g) as u16,
+                            (34000.0 * g) as u16,
+                            (12000.0 * g) as u16,
+                        ],
+                        reflectance: 0.45,
+                        transparent: true,
+                    });
                 }
             }
         }
@@ -289,10 +292,10 @@ impl<'a> Airborne<'a> {
                 break;
             }
         }
-        if let Some(op) = opaque {
-            if hits.is_empty() || rng.f64() < 0.6 {
-                hits.push(op);
-            }
+        if let Some(op) = opaque
+            && (hits.is_empty() || rng.f64() < 0.6)
+        {
+            hits.push(op);
         }
         cache.crowns = crowns;
     }
@@ -456,18 +459,18 @@ impl Indoor {
             .furniture
             .get_or_insert_with((room as i64, 0), || self.furniture(room, &rbox));
         for (b, h) in furniture.iter() {
-            if let Some((tb, n)) = scene::ray_box(o, d, b) {
-                if tb < t {
-                    t = tb;
-                    normal = n;
-                    class = scene::UNCLASSIFIED;
-                    rgb = [
-                        [20000, 12000, 8000],
-                        [44000, 44000, 46000],
-                        [9000, 20000, 40000],
-                    ][(h % 3) as usize];
-                    refl = 0.5;
-                }
+            if let Some((tb, n)) = scene::ray_box(o, d, b)
+                && tb < t
+            {
+                t = tb;
+                normal = n;
+                class = scene::UNCLASSIFIED;
+                rgb = [
+                    [20000, 12000, 8000],
+                    [44000, 44000, 46000],
+                    [9000, 20000, 40000],
+                ][(h % 3) as usize];
+                refl = 0.5;
             }
         }
         let mut rng = Rng::new(k ^ self.seed.rotate_left(29));

@@ -169,7 +169,7 @@ impl Scene {
             return;
         }
         let h = hash3(self.seed ^ 0xB1D, bx, by);
-        if h % 7 == 0 {
+        if h.is_multiple_of(7) {
             return; // a park
         }
         let n = 1 + (h >> 8) % 4;
