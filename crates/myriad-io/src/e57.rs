@@ -17,7 +17,7 @@
 
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub struct E57Source {
