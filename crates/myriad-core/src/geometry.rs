@@ -115,6 +115,101 @@ impl Obb {
     }
 }
 
+/// An affine transform `p' = R p + t`, stored as three rows `[r0 r1 r2 t]`. Named by what it maps
+/// between, e.g. `project_from_scanner`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Affine {
+    pub rows: [[f64; 4]; 3],
+}
+
+impl Affine {
+    pub const IDENTITY: Affine = Affine {
+        rows: [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ],
+    };
+
+    pub fn translation(t: [f64; 3]) -> Affine {
+        let mut a = Affine::IDENTITY;
+        for i in 0..3 {
+            a.rows[i][3] = t[i];
+        }
+        a
+    }
+
+    /// Rotation from a 3x3 matrix given by rows.
+    pub fn rotation(m: [[f64; 3]; 3]) -> Affine {
+        Affine {
+            rows: std::array::from_fn(|i| [m[i][0], m[i][1], m[i][2], 0.0]),
+        }
+    }
+
+    /// Rotation about x, then the result by y, then by z, as matrices multiplied in the order
+    /// Rx * Ry * Rz (Scheiblauer 2006, section 5.3); angles in degrees.
+    pub fn rotation_xyz_degrees(a: [f64; 3]) -> Affine {
+        let [x, y, z] = a.map(f64::to_radians);
+        let rx = [
+            [1.0, 0.0, 0.0],
+            [0.0, x.cos(), -x.sin()],
+            [0.0, x.sin(), x.cos()],
+        ];
+        let ry = [
+            [y.cos(), 0.0, y.sin()],
+            [0.0, 1.0, 0.0],
+            [-y.sin(), 0.0, y.cos()],
+        ];
+        let rz = [
+            [z.cos(), -z.sin(), 0.0],
+            [z.sin(), z.cos(), 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        Affine::rotation(mul3(mul3(rx, ry), rz))
+    }
+
+    /// `self` after `first`: (self * first)(p) = self(first(p)).
+    pub fn then_after(&self, first: &Affine) -> Affine {
+        let mut r = Affine {
+            rows: [[0.0; 4]; 3],
+        };
+        for i in 0..3 {
+            for j in 0..4 {
+                let mut v = if j == 3 { self.rows[i][3] } else { 0.0 };
+                for k in 0..3 {
+                    v += self.rows[i][k] * first.rows[k][j];
+                }
+                r.rows[i][j] = v;
+            }
+        }
+        r
+    }
+
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|i| {
+            let r = &self.rows[i];
+            r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + r[3]
+        })
+    }
+
+    /// The linear part only (for directions such as normals).
+    pub fn apply_vector(&self, v: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|i| {
+            let r = &self.rows[i];
+            r[0] * v[0] + r[1] * v[1] + r[2] * v[2]
+        })
+    }
+
+    /// The 3x3 linear part, by rows.
+    pub fn linear(&self) -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| [self.rows[i][0], self.rows[i][1], self.rows[i][2]])
+    }
+}
+
+fn mul3(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,6 +224,20 @@ mod tests {
         assert!(b.contains([0.0, 3.0, 1.0]));
         assert!(!b.contains([0.0, 6.0, 1.0]));
         assert_eq!(b.corners()[7], [1.0, 5.0, 3.0]);
+    }
+
+    #[test]
+    fn affine_rotation_order_and_composition() {
+        let close = |a: [f64; 3], b: [f64; 3]| (0..3).all(|i| (a[i] - b[i]).abs() < 1e-12);
+        // A quarter turn about z maps x to y.
+        let rz = Affine::rotation_xyz_degrees([0.0, 0.0, 90.0]);
+        assert!(close(rz.apply([1.0, 0.0, 0.0]), [0.0, 1.0, 0.0]));
+        // Rx * Ry * Rz applies Rz first: x -> y (Rz) -> y stays (Ry about y) -> z (Rx 90).
+        let r = Affine::rotation_xyz_degrees([90.0, 90.0, 90.0]);
+        assert!(close(r.apply([1.0, 0.0, 0.0]), [0.0, 0.0, 1.0]));
+        let t = Affine::translation([10.0, 0.0, 0.0]).then_after(&rz);
+        assert!(close(t.apply([1.0, 0.0, 0.0]), [10.0, 1.0, 0.0]));
+        assert!(close(t.apply_vector([1.0, 0.0, 0.0]), [0.0, 1.0, 0.0]));
     }
 
     #[test]

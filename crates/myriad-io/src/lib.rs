@@ -16,6 +16,7 @@ pub mod las;
 mod las_guard;
 mod las_records;
 pub mod pcd;
+pub mod placement;
 pub mod ply;
 mod read_util;
 pub mod text;
@@ -87,13 +88,25 @@ pub trait PointSource {
     fn skipped_non_finite(&self) -> u64 {
         0
     }
+    /// Points dropped so far by a placement's trimming box.
+    fn trimmed(&self) -> u64 {
+        0
+    }
+    /// The placement file applied to this source, if any.
+    fn placement_path(&self) -> Option<&Path> {
+        None
+    }
 }
 
-/// Options that apply to the text readers.
+/// How files are opened.
 #[derive(Debug, Clone, Default)]
 pub struct OpenOptions {
     /// Column layout for text input, e.g. "x,y,z,intensity,r,g,b"; detected when `None`.
     pub columns: Option<String>,
+    /// A placement file (trimming box and transform, see [`placement`]) to apply.
+    pub placement: Option<PathBuf>,
+    /// Apply `SCAN.placement` next to a scan when it exists and `placement` is `None`.
+    pub sidecar_placements: bool,
 }
 
 /// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
@@ -105,15 +118,24 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> 
             "is a directory, not a point cloud file",
         ));
     }
-    match detect(path)? {
-        Format::Las | Format::Laz => Ok(Box::new(las::LasSource::open(path)?)),
-        Format::E57 => Ok(Box::new(e57::E57Source::open(path)?)),
-        Format::Ply => Ok(Box::new(ply::PlySource::open(path)?)),
-        Format::Pcd => Ok(Box::new(pcd::PcdSource::open(path)?)),
-        Format::Text => Ok(Box::new(text::TextSource::open(
-            path,
-            options.columns.as_deref(),
-        )?)),
+    let source: Box<dyn PointSource> = match detect(path)? {
+        Format::Las | Format::Laz => Box::new(las::LasSource::open(path)?),
+        Format::E57 => Box::new(e57::E57Source::open(path)?),
+        Format::Ply => Box::new(ply::PlySource::open(path)?),
+        Format::Pcd => Box::new(pcd::PcdSource::open(path)?),
+        Format::Text => Box::new(text::TextSource::open(path, options.columns.as_deref())?),
+    };
+    let placement = match &options.placement {
+        Some(p) => Some(p.clone()),
+        None if options.sidecar_placements => placement::Placement::sidecar(path),
+        None => None,
+    };
+    match placement {
+        Some(p) => Ok(Box::new(placement::Placed::new(
+            source,
+            placement::Placement::read(&p)?,
+        ))),
+        None => Ok(source),
     }
 }
 

@@ -21,6 +21,13 @@ pub struct InfoArgs {
     /// Column layout of text files, e.g. x,y,z,intensity,r,g,b
     #[arg(long)]
     columns: Option<String>,
+    /// Placement (trimming box and transform into project coordinates) to apply to every file;
+    /// by default a file's sidecar SCAN.placement is applied when it exists (see README)
+    #[arg(long, conflicts_with = "no_placement")]
+    placement: Option<PathBuf>,
+    /// Ignore sidecar placement files
+    #[arg(long)]
+    no_placement: bool,
 }
 
 struct Report {
@@ -28,11 +35,15 @@ struct Report {
     points: Option<u64>,
     bounds: Option<myriad_core::Aabb>,
     skipped: u64,
+    placement: Option<PathBuf>,
+    trimmed: u64,
 }
 
 pub fn run(args: InfoArgs) -> Result<()> {
     let options = OpenOptions {
         columns: args.columns.clone(),
+        placement: args.placement.clone(),
+        sidecar_placements: !args.no_placement,
     };
     for path in &args.files {
         let mut src = myriad_io::open(path, &options)?;
@@ -54,6 +65,8 @@ pub fn run(args: InfoArgs) -> Result<()> {
             points,
             bounds,
             skipped,
+            placement: src.placement_path().map(|p| p.to_path_buf()),
+            trimmed: src.trimmed(),
         };
         if args.json {
             println!("{}", to_json(&r));
@@ -73,6 +86,8 @@ fn to_json(r: &Report) -> serde_json::Value {
         "points": r.points,
         "header_points": i.points,
         "skipped_non_finite": r.skipped,
+        "placement": r.placement.as_ref().map(|p| p.display().to_string()),
+        "trimmed": r.trimmed,
         "bounds": r.bounds.map(|b| json!({"min": b.min, "max": b.max})),
         "header_bounds": i.bounds.map(|b| json!({"min": b.min, "max": b.max})),
         "attributes": i.schema.names(),

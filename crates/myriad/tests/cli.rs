@@ -344,3 +344,42 @@ fn synth_then_info_json() {
     assert_eq!(names, ["city.laz", "indoor.laz", "terrain.las"]);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn info_applies_sidecar_placements() {
+    let d = tempdir("placement");
+    let scan = write(&d, "scan.xyz", b"0 0 0\n1 0 0\n5 0 0\n");
+    write(
+        &d,
+        "scan.xyz.placement",
+        b"TRANSLATE 1000 0 0\nOBB-ANGLES SOCS 0 0 0 2 2 2 0 0 0\n",
+    );
+    let r = myriad(&["info", "--json", s(&scan)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(v["points"], 2);
+    assert_eq!(v["trimmed"], 1);
+    assert_eq!(v["bounds"]["min"][0], 1000.0);
+    assert!(
+        v["placement"]
+            .as_str()
+            .unwrap()
+            .ends_with("scan.xyz.placement")
+    );
+    let r = myriad(&["info", "--json", "--no-placement", s(&scan)]);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(
+        (v["points"].as_u64(), v["trimmed"].as_u64()),
+        (Some(3), Some(0))
+    );
+    let bad_placement = write(&d, "bad.placement", b"TRANSLATE 1 2 3\nROTATE-DEG 1 2\n");
+    let r = myriad(&["info", "--placement", s(&bad_placement), s(&scan)]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .contains("bad.placement: line 2: ROTATE-DEG takes 3 numbers"),
+        "{}",
+        r.stderr
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
