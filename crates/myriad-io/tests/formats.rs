@@ -20,6 +20,7 @@ fn read(path: &PathBuf, columns: Option<&str>) -> (Box<dyn PointSource>, PointBa
         path,
         &OpenOptions {
             columns: columns.map(str::to_string),
+            ..Default::default()
         },
     )
     .unwrap_or_else(|e| panic!("{e}"));
