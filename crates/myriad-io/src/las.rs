@@ -488,6 +488,14 @@ impl LasWriteOptions {
         let header = b.into_header().map_err(|e| Error::Invalid(e.to_string()))?;
         Ok(LasWriteOptions { header })
     }
+
+    /// Sets the coordinate reference system as OGC WKT (stored in a LAS 1.4 WKT VLR).
+    pub fn with_wkt_crs(mut self, wkt: &str) -> Result<LasWriteOptions> {
+        self.header
+            .set_wkt_crs(wkt.as_bytes().to_vec())
+            .map_err(|e| Error::Invalid(e.to_string()))?;
+        Ok(self)
+    }
 }
 
 /// The point stream of a [`LasSink`]: raw records, or LAZ chunks compressed on all cores.

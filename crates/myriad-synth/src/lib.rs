@@ -33,8 +33,18 @@ pub struct SynthOptions {
     pub seed: u64,
 }
 
-/// Where a scene sits in the world (a UTM-like easting/northing), so coordinates look real.
+/// Where a scene sits in the world: easting and northing in [`CRS_WKT`], so coordinates look real.
 pub const ORIGIN: [f64; 3] = [500_000.0, 4_400_000.0, 0.0];
+
+/// The coordinate reference system of every synthetic scan: WGS 84 / UTM zone 33N (EPSG:32633).
+pub const CRS_WKT: &str = concat!(
+    r#"PROJCS["WGS 84 / UTM zone 33N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,"#,
+    r#"AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],"#,
+    r#"UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],"#,
+    r#"PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",15],"#,
+    r#"PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],"#,
+    r#"UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32633"]]"#
+);
 const BLOCK_PULSES: u64 = 1 << 15;
 
 /// The attributes every synthetic scan carries: those of LAS point format 3.
@@ -150,7 +160,7 @@ pub fn write(
             path.display()
         )));
     }
-    let opts = LasWriteOptions::for_schema(&schema(), [0.001; 3], ORIGIN)?;
+    let opts = LasWriteOptions::for_schema(&schema(), [0.001; 3], ORIGIN)?.with_wkt_crs(CRS_WKT)?;
     let mut sink = LasSink::create(path, opts, force)?;
     let mut written = 0u64;
     generate(options, |b| {

@@ -307,6 +307,11 @@ fn synth_then_info_json() {
                 "{name}: flat bounds"
             );
         }
+        assert!(
+            v["crs"].as_str().unwrap().contains("UTM zone 33N"),
+            "{name}: crs {}",
+            v["crs"]
+        );
         let attrs: Vec<&str> = v["attributes"]
             .as_array()
             .unwrap()
