@@ -1,0 +1,346 @@
+//! The Memory Optimized Sequential Point Tree (MOSPT) of one node (Scheiblauer 2006, chapter 3):
+//! the node's original points in level order, so that a prefix of the order is a coarser level of
+//! detail of the node, and no point is invented.
+//!
+//! The thesis inserts points into an octree, then pulls one representative per cell up, bottom to
+//! top, and sequentializes by a level-order traversal. Here the same tree is built flat: points
+//! are sorted by their Morton code at the finest depth, so every cell of every level is a
+//! contiguous run; bottom-up, each occupied cell picks one representative among its children's
+//! representatives, and the children it passes over keep the finer level. A point's level is the
+//! coarsest level whose cell it represents. Hence the invariant the renderer relies on: the points
+//! of levels `0..=l` are exactly one original point per occupied cell of level `l`.
+//!
+//! Choosing the representative: the thesis takes the point nearest the cell's mean colour
+//! (perceptual distance). We do that when the input has colour, with the "redmean" weighting as
+//! the perceptual distance; without colour, the point nearest the cell's centroid, which keeps
+//! coarse levels on the geometry they stand for rather than at an arbitrary corner.
+//!
+//! Points that share a finest-level cell with their representative (duplicates, or more points
+//! than `max_depth` resolves: the thesis's leaf strategy 3.a) form a last level `depth + 1`.
+
+use myriad_core::{Aabb, PointBatch};
+
+/// A node's points in level order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mospt {
+    /// `order[i]` is the index, in the input batch, of the i-th point of the level order.
+    pub order: Vec<u32>,
+    /// `prefix[l]` points (of `order`) make up level of detail `l`; the last entry is the
+    /// point count.
+    pub prefix: Vec<u64>,
+    /// Cell size of each level: the spacing of the points of levels `0..=l`. The last level
+    /// (points sharing a finest cell) repeats the finest spacing.
+    pub spacing: Vec<f64>,
+}
+
+/// Interleaves the low 21 bits of x, y, z (x in bit 0).
+fn morton(x: u32, y: u32, z: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut x = v as u64 & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        (x | x << 2) & 0x1249_2492_4924_9249
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
+/// Perceptual-ish squared distance between 16-bit colours ("redmean" weighting).
+fn colour_distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let r = (a[0] + b[0]) * 0.5 / 65535.0;
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    (2.0 + r) * d[0] * d[0] + 4.0 * d[1] * d[1] + (3.0 - r) * d[2] * d[2]
+}
+
+/// Builds the MOSPT of `batch`, whose points lie in the cube `cube` (an octree node), with at
+/// most `max_depth` (at most 21) levels below the root cell.
+pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
+    let n = batch.len();
+    assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
+    let max_depth = max_depth.min(21);
+    let side = cube
+        .size()
+        .into_iter()
+        .fold(0.0f64, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let cells = (1u64 << max_depth) as f64;
+    let cell_of = |p: [f64; 3], a: usize| {
+        (((p[a] - cube.min[a]) / side * cells) as i64).clamp(0, (1 << max_depth) - 1) as u32
+    };
+    let codes: Vec<u64> = batch
+        .positions
+        .iter()
+        .map(|&p| morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
+        .collect();
+    let mut sorted: Vec<u32> = (0..n as u32).collect();
+    sorted.sort_unstable_by_key(|&i| codes[i as usize]);
+
+    // The effective depth: the first level whose cells already separate the points as well as
+    // `max_depth` does; finer levels would add nothing.
+    let distinct = |l: u32| {
+        let shift = 3 * (max_depth - l);
+        sorted
+            .windows(2)
+            .filter(|w| codes[w[0] as usize] >> shift != codes[w[1] as usize] >> shift)
+            .count()
+            + 1
+    };
+    let finest = distinct(max_depth);
+    let depth = (0..=max_depth)
+        .find(|&l| distinct(l) == finest)
+        .unwrap_or(max_depth);
+
+    // Per point: the level at which it enters (depth + 1: never a representative).
+    let mut level = vec![depth + 1; n];
+    // Sums over each cell, for its mean colour or centroid.
+    let rgb = batch.rgb.as_ref();
+    let value = |i: u32| -> [f64; 3] {
+        match rgb {
+            Some(c) => c[i as usize].map(f64::from),
+            None => batch.positions[i as usize],
+        }
+    };
+    let distance = |a: [f64; 3], b: [f64; 3]| -> f64 {
+        if rgb.is_some() {
+            colour_distance(a, b)
+        } else {
+            (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
+        }
+    };
+    // Cells of the current level, as runs of `sorted`: (start, end, representative, value sum).
+    struct Cell {
+        start: usize,
+        end: usize,
+        rep: u32,
+        sum: [f64; 3],
+    }
+    // Finest level: every run of equal codes (at `depth`) is a cell; its representative is the
+    // point nearest the cell's mean.
+    let shift_of = |l: u32| 3 * (max_depth - l);
+    let mut current: Vec<Cell> = Vec::new();
+    let mut start = 0;
+    while start < n {
+        let key = codes[sorted[start] as usize] >> shift_of(depth);
+        let mut end = start;
+        let mut sum = [0.0; 3];
+        while end < n && codes[sorted[end] as usize] >> shift_of(depth) == key {
+            let v = value(sorted[end]);
+            (0..3).for_each(|k| sum[k] += v[k]);
+            end += 1;
+        }
+        let mean = sum.map(|s| s / (end - start) as f64);
+        let rep = *sorted[start..end]
+            .iter()
+            .min_by(|&&a, &&b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
+            .unwrap();
+        level[rep as usize] = depth;
+        current.push(Cell {
+            start,
+            end,
+            rep,
+            sum,
+        });
+        start = end;
+    }
+    // Coarser levels: merge sibling cells; the representative nearest the merged mean moves up.
+    for l in (0..depth).rev() {
+        let mut parents: Vec<Cell> = Vec::new();
+        let mut k = 0;
+        while k < current.len() {
+            let key = codes[sorted[current[k].start] as usize] >> shift_of(l);
+            let first = k;
+            let mut sum = [0.0; 3];
+            while k < current.len()
+                && codes[sorted[current[k].start] as usize] >> shift_of(l) == key
+            {
+                (0..3).for_each(|c| sum[c] += current[k].sum[c]);
+                k += 1;
+            }
+            let (s, e) = (current[first].start, current[k - 1].end);
+            let mean = sum.map(|v| v / (e - s) as f64);
+            let rep = current[first..k]
+                .iter()
+                .map(|c| c.rep)
+                .min_by(|&a, &b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
+                .unwrap();
+            level[rep as usize] = l;
+            parents.push(Cell {
+                start: s,
+                end: e,
+                rep,
+                sum,
+            });
+        }
+        current = parents;
+    }
+
+    // Level order; within a level, Morton order (the stable sort keeps `sorted`'s order).
+    let mut order = sorted;
+    order.sort_by_key(|&i| level[i as usize]);
+    let levels = depth as usize + 2;
+    let mut prefix = vec![0u64; levels];
+    for &i in &order {
+        prefix[level[i as usize] as usize] += 1;
+    }
+    for l in 1..levels {
+        prefix[l] += prefix[l - 1];
+    }
+    let spacing = (0..levels)
+        .map(|l| side / (1u64 << (l.min(depth as usize))) as f64)
+        .collect();
+    Mospt {
+        order,
+        prefix,
+        spacing,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use myriad_core::{Attribute, Schema};
+    use std::collections::HashSet;
+
+    fn batch(points: &[[f64; 3]], colours: Option<&[[u16; 3]]>) -> PointBatch {
+        let schema = Schema::new(if colours.is_some() {
+            vec![Attribute::Rgb]
+        } else {
+            vec![]
+        });
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        b.positions = points.to_vec();
+        if let Some(c) = colours {
+            b.rgb = Some(c.to_vec());
+        }
+        b
+    }
+
+    fn unit() -> Aabb {
+        Aabb::new([0.0; 3], [1.0; 3])
+    }
+
+    /// Checks the invariants every MOSPT must keep.
+    fn check(b: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
+        let m = build(b, cube, max_depth);
+        let n = b.len();
+        let mut seen = m.order.clone();
+        seen.sort_unstable();
+        assert_eq!(
+            seen,
+            (0..n as u32).collect::<Vec<_>>(),
+            "order is a permutation"
+        );
+        assert_eq!(*m.prefix.last().unwrap(), n as u64);
+        assert!(m.prefix.windows(2).all(|w| w[0] <= w[1]));
+        assert_eq!(m.prefix[0], 1.min(n as u64), "one root point");
+        let depth = m.prefix.len() as u32 - 2;
+        let side = cube.size()[0];
+        for l in 0..=depth {
+            let cell = |i: u32| {
+                let p = b.positions[i as usize];
+                let c = (1u64 << l) as f64;
+                (0..3)
+                    .map(|a| ((p[a] - cube.min[a]) / side * c).min(c - 1.0) as u64)
+                    .collect::<Vec<_>>()
+            };
+            let prefix: Vec<Vec<u64>> = m.order[..m.prefix[l as usize] as usize]
+                .iter()
+                .map(|&i| cell(i))
+                .collect();
+            let distinct: HashSet<_> = prefix.iter().cloned().collect();
+            assert_eq!(
+                distinct.len(),
+                prefix.len(),
+                "level {l}: two points in one cell"
+            );
+            let all: HashSet<_> = (0..n as u32).map(cell).collect();
+            assert_eq!(distinct, all, "level {l}: an occupied cell has no point");
+            assert_eq!(m.spacing[l as usize], side / (1u64 << l) as f64);
+        }
+        m
+    }
+
+    fn random_points(n: usize, seed: u64) -> Vec<[f64; 3]> {
+        let mut s = seed;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Clustered: half the points on a plane, half spread, like a scan.
+        (0..n)
+            .map(|i| {
+                if i % 2 == 0 {
+                    [next(), next(), 0.25]
+                } else {
+                    [next(), next(), next()]
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn prefixes_hold_one_point_per_occupied_cell() {
+        for (n, seed, depth) in [
+            (1, 1, 5),
+            (2, 2, 5),
+            (1000, 3, 4),
+            (20_000, 4, 8),
+            (5000, 5, 21),
+        ] {
+            let pts = random_points(n, seed);
+            check(&batch(&pts, None), &unit(), depth);
+            let colours: Vec<[u16; 3]> = (0..n)
+                .map(|i| [(i * 97 % 65536) as u16, (i * 13 % 65536) as u16, 7])
+                .collect();
+            check(&batch(&pts, Some(&colours)), &unit(), depth);
+        }
+    }
+
+    #[test]
+    fn representative_is_nearest_the_mean_colour() {
+        let pts = [[0.1, 0.1, 0.1], [0.2, 0.1, 0.1], [0.3, 0.1, 0.1]];
+        let colours = [[0, 0, 0], [65535, 65535, 65535], [32000, 33000, 32500]];
+        let m = check(&batch(&pts, Some(&colours)), &unit(), 1);
+        assert_eq!(m.order[0], 2, "grey is nearest the mean colour");
+        assert_eq!(m.prefix, vec![1, 3]);
+    }
+
+    #[test]
+    fn without_colour_the_representative_is_nearest_the_centroid() {
+        let pts = [
+            [0.1, 0.1, 0.1],
+            [0.21, 0.2, 0.2],
+            [0.3, 0.3, 0.3],
+            [0.05, 0.3, 0.1],
+        ];
+        let m = check(&batch(&pts, None), &unit(), 1);
+        assert_eq!(m.order[0], 1);
+    }
+
+    #[test]
+    fn duplicates_form_the_last_level() {
+        let pts = vec![[0.5, 0.5, 0.5]; 5];
+        let m = check(&batch(&pts, None), &unit(), 10);
+        assert_eq!(
+            m.prefix,
+            vec![1, 5],
+            "one representative, four duplicates after it"
+        );
+    }
+
+    #[test]
+    fn spacing_halves_and_depth_stops_when_points_are_separated() {
+        // In an 8 m cube, points at 0.1 and 0.9 share a cell down to 1 m cells and are separated
+        // by the 0.5 m cells of level 4; deeper levels (up to 12) would add nothing.
+        let m = check(
+            &batch(&[[0.1, 0.1, 0.1], [0.9, 0.9, 0.9]], None),
+            &Aabb::new([0.0; 3], [8.0; 3]),
+            12,
+        );
+        assert_eq!(m.prefix, vec![1, 1, 1, 1, 2, 2]);
+        assert_eq!(m.spacing, vec![8.0, 4.0, 2.0, 1.0, 0.5, 0.5]);
+    }
+}
