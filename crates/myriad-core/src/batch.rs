@@ -33,6 +33,61 @@ pub struct PointRecord {
     pub normal: [f32; 3],
 }
 
+/// Fixed-size little-endian byte form of a column's element, for row records (spill files).
+pub trait RowBytes: Copy {
+    const SIZE: usize;
+    fn put(&self, out: &mut Vec<u8>);
+    fn get(b: &[u8]) -> Self;
+}
+
+macro_rules! row_bytes_num {
+    ($($t:ty),*) => {$(
+        impl RowBytes for $t {
+            const SIZE: usize = std::mem::size_of::<$t>();
+            fn put(&self, out: &mut Vec<u8>) {
+                out.extend_from_slice(&self.to_le_bytes());
+            }
+            fn get(b: &[u8]) -> Self {
+                <$t>::from_le_bytes(b[..Self::SIZE].try_into().unwrap())
+            }
+        }
+    )*};
+}
+row_bytes_num!(u8, u16, u32, u64, f32, f64);
+
+impl<T: RowBytes + Default> RowBytes for [T; 3] {
+    const SIZE: usize = 3 * T::SIZE;
+    fn put(&self, out: &mut Vec<u8>) {
+        self.iter().for_each(|v| v.put(out));
+    }
+    fn get(b: &[u8]) -> Self {
+        std::array::from_fn(|k| T::get(&b[k * T::SIZE..]))
+    }
+}
+
+impl RowBytes for WavePacket {
+    const SIZE: usize = 29;
+    fn put(&self, out: &mut Vec<u8>) {
+        self.descriptor_index.put(out);
+        self.byte_offset.put(out);
+        self.size.put(out);
+        for v in [self.return_point_location, self.x_t, self.y_t, self.z_t] {
+            v.put(out);
+        }
+    }
+    fn get(b: &[u8]) -> Self {
+        WavePacket {
+            descriptor_index: b[0],
+            byte_offset: u64::get(&b[1..]),
+            size: u32::get(&b[9..]),
+            return_point_location: f32::get(&b[13..]),
+            x_t: f32::get(&b[17..]),
+            y_t: f32::get(&b[21..]),
+            z_t: f32::get(&b[25..]),
+        }
+    }
+}
+
 /// Calls `$m!(field, Type, Attribute)` for every optional column, so operations over all columns
 /// are written once.
 macro_rules! for_each_column {
@@ -235,6 +290,57 @@ impl PointBatch {
         }
     }
 
+    /// Bytes of one row record of this batch's columns (see [`PointBatch::put_row`]).
+    pub fn row_size(&self) -> usize {
+        let mut n = <[f64; 3]>::SIZE + self.extra_stride * self.extra_bytes.is_some() as usize;
+        macro_rules! size {
+            ($f:ident, $t:ty, $a:ident) => {
+                if self.$f.is_some() {
+                    n += <$t>::SIZE;
+                }
+            };
+        }
+        for_each_column!(size);
+        n
+    }
+
+    /// Appends point `i` as a row record: position, then each present column in the fixed
+    /// column order, then the extra bytes. Read back with [`PointBatch::push_row`] on a batch
+    /// with the same columns.
+    pub fn put_row(&self, i: usize, out: &mut Vec<u8>) {
+        self.positions[i].put(out);
+        macro_rules! put {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &self.$f {
+                    c[i].put(out);
+                }
+            };
+        }
+        for_each_column!(put);
+        if let Some(e) = &self.extra_bytes {
+            out.extend_from_slice(&e[i * self.extra_stride..(i + 1) * self.extra_stride]);
+        }
+    }
+
+    /// Appends one row record written by [`PointBatch::put_row`] from a batch with these columns.
+    pub fn push_row(&mut self, row: &[u8]) {
+        let mut at = 0;
+        self.positions.push(<[f64; 3]>::get(row));
+        at += <[f64; 3]>::SIZE;
+        macro_rules! get {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &mut self.$f {
+                    c.push(<$t>::get(&row[at..]));
+                    at += <$t>::SIZE;
+                }
+            };
+        }
+        for_each_column!(get);
+        if let Some(e) = &mut self.extra_bytes {
+            e.extend_from_slice(&row[at..at + self.extra_stride]);
+        }
+    }
+
     /// Checks that every column has one entry per point (a cheap invariant for tests and writers).
     pub fn is_consistent(&self) -> bool {
         let n = self.len();
@@ -305,6 +411,45 @@ mod tests {
         assert_eq!(b.nir, Some(vec![0]));
         assert_eq!(b.normal, Some(vec![[0.0; 3]]));
         assert!(b.gps_time.is_none());
+    }
+
+    #[test]
+    fn rows_round_trip() {
+        let mut s = Schema::for_las_format(10);
+        s.attributes.push(Attribute::Normal);
+        s.extra_bytes = 3;
+        let mut b = PointBatch::with_schema(&s, 2);
+        for i in 0..2u8 {
+            b.push_record(&PointRecord {
+                position: [i as f64, 1.5, -2.25],
+                intensity: 7,
+                gps_time: 1e9 + i as f64,
+                ..Default::default()
+            });
+        }
+        b.wave_packet.as_mut().unwrap()[1] = WavePacket {
+            descriptor_index: 3,
+            byte_offset: 1 << 40,
+            size: 9,
+            return_point_location: 0.5,
+            x_t: 1.0,
+            y_t: 2.0,
+            z_t: 3.0,
+        };
+        b.extra_bytes
+            .as_mut()
+            .unwrap()
+            .copy_from_slice(&[1, 2, 3, 4, 5, 6]);
+        let mut bytes = Vec::new();
+        for i in 0..2 {
+            b.put_row(i, &mut bytes);
+        }
+        assert_eq!(bytes.len(), 2 * b.row_size());
+        let mut back = PointBatch::with_schema(&s, 2);
+        for row in bytes.chunks_exact(b.row_size()) {
+            back.push_row(row);
+        }
+        assert_eq!(back, b);
     }
 
     #[test]

@@ -9,7 +9,7 @@ pub mod error;
 pub mod geometry;
 pub mod schema;
 
-pub use batch::{PointBatch, PointRecord, WavePacket};
+pub use batch::{PointBatch, PointRecord, RowBytes, WavePacket};
 pub use error::{Error, Location, Result};
 pub use geometry::{Aabb, Affine, Obb};
 pub use schema::{Attribute, ExtraDim, ExtraType, Schema};

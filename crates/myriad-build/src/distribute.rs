@@ -1,0 +1,396 @@
+//! Distribution, the first phase of the out-of-core build: every input is read once and its
+//! points are scattered into chunks, cells of one octree level over the root cube, each spilled to
+//! its own file on disk. Memory holds only the write buffers (`buffer_bytes` in all) and one batch.
+//!
+//! Decoding LAZ twice (count, then distribute) would halve the speed, so the chunk level comes
+//! from the header counts and bounds alone: level `L` is chosen so that a surface of the total
+//! point count (occupying about 4^L of the 8^L cells) gives chunks near `chunk_points`. A chunk
+//! that ends up larger is split again from its own spill file into its eight children, until it
+//! fits. Inputs whose header has no bounds (PLY, PCD, text, E57, placed scans) are read once more
+//! for their bounds first.
+//!
+//! Inputs of different formats merge: the dataset schema is the union of theirs, and a point
+//! lacking an attribute gets its zero. Extra bytes are kept when all inputs have the same ones.
+//!
+//! Spill files are rows of [`PointBatch::put_row`] in the merged schema. They live in a private
+//! folder that is removed when the [`Distribution`] is dropped, on success and on failure.
+
+use myriad_core::{Aabb, Attribute, Error, PointBatch, Result, Schema};
+use myriad_io::{OpenOptions, PointSource};
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Deepest chunk level (a 21-bit cell index per axis).
+const MAX_LEVEL: u32 = 20;
+
+#[derive(Debug, Clone)]
+pub struct DistributeOptions {
+    /// A chunk with more points than this is split into its eight children.
+    pub chunk_points: u64,
+    /// Memory for the chunks' write buffers, in bytes.
+    pub buffer_bytes: usize,
+    /// Where the private spill folder is made (next to the output, so that it is on its disk).
+    pub temp_dir: PathBuf,
+}
+
+/// One chunk: an octree cell and the points that fell into it, spilled to disk.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chunk {
+    pub level: u32,
+    pub cell: [u32; 3],
+    pub points: u64,
+    path: PathBuf,
+}
+
+/// The result of distribution. Dropping it removes the spill files.
+#[derive(Debug)]
+pub struct Distribution {
+    /// The root cube of the octree: the union of the inputs' bounds, made cubic.
+    pub root: Aabb,
+    pub schema: Schema,
+    pub chunks: Vec<Chunk>,
+    pub points: u64,
+    /// Bounds of the points actually read.
+    pub bounds: Aabb,
+    /// Points that lay outside the root cube (headers that understate their bounds) and were
+    /// put into the nearest cell; their coordinates are unchanged.
+    pub clamped: u64,
+    /// Held so that dropping the distribution removes the spill files.
+    _spill: SpillFolder,
+}
+
+impl Distribution {
+    /// Reads a chunk's points back.
+    pub fn load(&self, chunk: &Chunk) -> Result<PointBatch> {
+        let template = PointBatch::with_schema(&self.schema, 0);
+        let row = template.row_size();
+        let bytes = std::fs::read(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
+        if bytes.len() as u64 != chunk.points * row as u64 {
+            return Err(Error::at_byte(
+                &chunk.path,
+                bytes.len() as u64,
+                "spill file has the wrong size",
+            ));
+        }
+        let mut b = PointBatch::with_schema(&self.schema, chunk.points as usize);
+        for r in bytes.chunks_exact(row) {
+            b.push_row(r);
+        }
+        Ok(b)
+    }
+
+    /// The cube of a chunk's cell.
+    pub fn cell_bounds(&self, chunk: &Chunk) -> Aabb {
+        let side = self.root.size()[0] / (1u64 << chunk.level) as f64;
+        let min: [f64; 3] = std::array::from_fn(|a| self.root.min[a] + chunk.cell[a] as f64 * side);
+        Aabb::new(min, min.map(|m| m + side))
+    }
+}
+
+#[derive(Debug)]
+struct SpillFolder(PathBuf);
+
+impl Drop for SpillFolder {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Write buffers of the chunks of one level, flushed to their files when `limit` is reached.
+struct Scatter<'a> {
+    folder: &'a Path,
+    level: u32,
+    buffers: HashMap<[u32; 3], Vec<u8>>,
+    counts: HashMap<[u32; 3], u64>,
+    buffered: usize,
+    limit: usize,
+}
+
+fn spill_path(folder: &Path, level: u32, c: [u32; 3]) -> PathBuf {
+    folder.join(format!("{level}-{}-{}-{}.rows", c[0], c[1], c[2]))
+}
+
+impl Scatter<'_> {
+    fn add(&mut self, cell: [u32; 3], batch: &PointBatch, i: usize) -> Result<()> {
+        let buf = self.buffers.entry(cell).or_default();
+        let before = buf.len();
+        batch.put_row(i, buf);
+        self.buffered += buf.len() - before;
+        *self.counts.entry(cell).or_default() += 1;
+        if self.buffered > self.limit {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        for (cell, buf) in self.buffers.iter_mut().filter(|(_, b)| !b.is_empty()) {
+            let path = spill_path(self.folder, self.level, *cell);
+            let mut f = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&path)
+                .map_err(|e| Error::io(&path, e))?;
+            f.write_all(buf).map_err(|e| Error::io(&path, e))?;
+            buf.clear();
+        }
+        self.buffers.clear(); // capacity would otherwise outgrow the budget
+        self.buffered = 0;
+        Ok(())
+    }
+}
+
+/// The union of the inputs' schemas, in the canonical column order.
+fn merged_schema(infos: &[myriad_io::SourceInfo]) -> Result<Schema> {
+    let mut all = Schema::for_las_format(10).attributes;
+    all.push(Attribute::ScannerChannel);
+    all.push(Attribute::Normal);
+    let mut attributes: Vec<Attribute> = all
+        .into_iter()
+        .filter(|a| infos.iter().any(|i| i.schema.has(a)))
+        .collect();
+    attributes.dedup();
+    let first = &infos[0].schema;
+    let extras: Vec<&Attribute> = first
+        .attributes
+        .iter()
+        .filter(|a| matches!(a, Attribute::Extra(_)))
+        .collect();
+    for i in &infos[1..] {
+        let theirs: Vec<&Attribute> = i
+            .schema
+            .attributes
+            .iter()
+            .filter(|a| matches!(a, Attribute::Extra(_)))
+            .collect();
+        if i.schema.extra_bytes != first.extra_bytes || theirs != extras {
+            return Err(Error::unsupported(
+                &i.path,
+                format!(
+                    "its extra bytes differ from those of {}; inputs to one dataset must share them",
+                    infos[0].path.display()
+                ),
+            ));
+        }
+    }
+    attributes.extend(extras.into_iter().cloned());
+    Ok(Schema {
+        attributes,
+        extra_bytes: first.extra_bytes,
+    })
+}
+
+/// Gives `b` exactly the columns of `schema`: missing ones are filled with zeros.
+fn conform(mut b: PointBatch, schema: &Schema) -> PointBatch {
+    let n = b.len();
+    let mut target = PointBatch::with_schema(schema, 0);
+    macro_rules! take {
+        ($($f:ident),*) => {$(
+            target.$f = match (target.$f.is_some(), b.$f.take()) {
+                (true, Some(c)) => Some(c),
+                (true, None) => Some(vec![Default::default(); n]),
+                (false, _) => None,
+            };
+        )*};
+    }
+    take!(
+        intensity,
+        return_number,
+        number_of_returns,
+        classification,
+        classification_flags,
+        scan_flags
+    );
+    take!(
+        scanner_channel,
+        scan_angle,
+        user_data,
+        point_source_id,
+        gps_time,
+        rgb,
+        nir,
+        wave_packet,
+        normal
+    );
+    target.extra_bytes = if schema.extra_bytes > 0 {
+        b.extra_bytes.take()
+    } else {
+        None
+    };
+    target.positions = b.positions;
+    target
+}
+
+fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] {
+    let side = root.size()[0];
+    let n = (1u64 << level) as f64;
+    let mut outside = false;
+    let c = std::array::from_fn(|a| {
+        let v = ((p[a] - root.min[a]) / side * n).floor();
+        outside |= !(0.0..n).contains(&v);
+        v.clamp(0.0, n - 1.0) as u32
+    });
+    *clamped += outside as u64;
+    c
+}
+
+/// Reads every input once and scatters its points into chunks under `options.temp_dir`.
+pub fn distribute(
+    inputs: &[PathBuf],
+    open: &OpenOptions,
+    options: &DistributeOptions,
+) -> Result<Distribution> {
+    if inputs.is_empty() {
+        return Err(Error::Invalid("no inputs".into()));
+    }
+    let mut infos = Vec::new();
+    let mut bounds = Aabb::EMPTY;
+    let mut declared = 0u64;
+    for path in inputs {
+        let mut src = myriad_io::open(path, open)?;
+        let info = src.info().clone();
+        let (n, b) = match (info.points, info.bounds) {
+            (Some(n), Some(b)) => (n, b),
+            _ => myriad_io::scan(src.as_mut())?, // no exact header bounds: one pass for them
+        };
+        declared += n;
+        bounds = bounds.union(&b);
+        infos.push(info);
+    }
+    let schema = merged_schema(&infos)?;
+    let side = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9) * (1.0 + 1e-9);
+    let root = Aabb::new(bounds.min, bounds.min.map(|m| m + side));
+    // A surface fills about 4^L of the 8^L cells of level L.
+    let per_chunk = options.chunk_points.max(1) as f64;
+    let level = ((declared as f64 / per_chunk).max(1.0).log(4.0).ceil() as u32).min(MAX_LEVEL);
+
+    let folder = options
+        .temp_dir
+        .join(format!(".myriad-build-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
+    let folder = SpillFolder(folder);
+    let mut scatter = Scatter {
+        folder: &folder.0,
+        level,
+        buffers: HashMap::new(),
+        counts: HashMap::new(),
+        buffered: 0,
+        limit: options.buffer_bytes,
+    };
+    let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
+    for path in inputs {
+        let mut src: Box<dyn PointSource> = myriad_io::open(path, open)?;
+        while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
+            let b = conform(b, &schema);
+            for i in 0..b.len() {
+                let p = b.positions[i];
+                actual.extend(p);
+                scatter.add(cell_of(&root, level, p, &mut clamped), &b, i)?;
+            }
+            points += b.len() as u64;
+        }
+    }
+    scatter.flush()?;
+    let mut chunks: Vec<Chunk> = scatter
+        .counts
+        .iter()
+        .map(|(&cell, &n)| Chunk {
+            level,
+            cell,
+            points: n,
+            path: spill_path(&folder.0, level, cell),
+        })
+        .collect();
+
+    // Split chunks that came out too large, from their own spill files, until they fit.
+    let mut done = Vec::new();
+    while let Some(chunk) = chunks.pop() {
+        if chunk.points <= options.chunk_points || chunk.level >= MAX_LEVEL {
+            done.push(chunk);
+            continue;
+        }
+        chunks.extend(split(
+            &chunk,
+            &root,
+            &schema,
+            &folder.0,
+            options.buffer_bytes,
+        )?);
+    }
+    done.sort_by_key(|c| (c.level, c.cell));
+    Ok(Distribution {
+        root,
+        schema,
+        chunks: done,
+        points,
+        bounds: actual,
+        clamped,
+        _spill: folder,
+    })
+}
+
+/// Scatters a chunk's points into its eight children and removes its spill file.
+fn split(
+    chunk: &Chunk,
+    root: &Aabb,
+    schema: &Schema,
+    folder: &Path,
+    buffer_bytes: usize,
+) -> Result<Vec<Chunk>> {
+    let level = chunk.level + 1;
+    let mut scatter = Scatter {
+        folder,
+        level,
+        buffers: HashMap::new(),
+        counts: HashMap::new(),
+        buffered: 0,
+        limit: buffer_bytes,
+    };
+    let row = PointBatch::with_schema(schema, 0).row_size();
+    let mut file = std::fs::File::open(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
+    let mut block = vec![0u8; row * 4096];
+    let mut ignored = 0;
+    loop {
+        let mut got = 0;
+        while got < block.len() {
+            match file
+                .read(&mut block[got..])
+                .map_err(|e| Error::io(&chunk.path, e))?
+            {
+                0 => break,
+                k => got += k,
+            }
+        }
+        if got % row != 0 {
+            return Err(Error::at_byte(
+                &chunk.path,
+                got as u64,
+                "spill file ends inside a row",
+            ));
+        }
+        let mut b = PointBatch::with_schema(schema, got / row);
+        for r in block[..got].chunks_exact(row) {
+            b.push_row(r);
+        }
+        for i in 0..b.len() {
+            scatter.add(cell_of(root, level, b.positions[i], &mut ignored), &b, i)?;
+        }
+        if got < block.len() {
+            break;
+        }
+    }
+    scatter.flush()?;
+    drop(file);
+    std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
+    Ok(scatter
+        .counts
+        .iter()
+        .map(|(&cell, &n)| Chunk {
+            level,
+            cell,
+            points: n,
+            path: spill_path(folder, level, cell),
+        })
+        .collect())
+}

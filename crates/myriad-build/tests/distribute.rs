@@ -1,0 +1,178 @@
+//! Distribution: nothing lost or duplicated, chunks within their cells and under the size limit,
+//! inputs of different formats merged, spill files removed.
+
+use myriad_build::distribute::{DistributeOptions, distribute};
+use myriad_core::{Attribute, PointBatch, Schema};
+use myriad_io::las::{LasSink, LasWriteOptions};
+use myriad_io::{OpenOptions, scan};
+use std::path::{Path, PathBuf};
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-distribute-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// (x, y, z, gps time) of every point, as exact bit patterns, sorted: a multiset to compare.
+fn keys(b: &PointBatch) -> Vec<[u64; 4]> {
+    let gps = b.gps_time.as_ref();
+    (0..b.len())
+        .map(|i| {
+            let p = b.positions[i];
+            [
+                p[0].to_bits(),
+                p[1].to_bits(),
+                p[2].to_bits(),
+                gps.map_or(0, |g| g[i].to_bits()),
+            ]
+        })
+        .collect()
+}
+
+fn read_all(path: &Path) -> PointBatch {
+    let mut src = myriad_io::open(path, &OpenOptions::default()).unwrap();
+    let mut all: Option<PointBatch> = None;
+    while let Some(b) = src.read_batch(1 << 16).unwrap() {
+        match &mut all {
+            Some(a) => a.append(&b),
+            None => all = Some(b),
+        }
+    }
+    all.unwrap()
+}
+
+#[test]
+fn nothing_lost_chunks_fit_and_spill_files_go() {
+    let d = tempdir("city");
+    let las = d.join("city.las");
+    let opts = myriad_synth::SynthOptions {
+        points: 200_000,
+        scene: myriad_synth::SceneKind::City,
+        seed: 3,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    // A few text points inside the same area: another format, fewer attributes.
+    let (_, b) = scan(
+        myriad_io::open(&las, &OpenOptions::default())
+            .unwrap()
+            .as_mut(),
+    )
+    .unwrap();
+    let xyz = d.join("extra.xyz");
+    let text: String = (0..100)
+        .map(|i| {
+            format!(
+                "{} {} {}\n",
+                b.min[0] + i as f64,
+                b.min[1] + 2.0 * i as f64,
+                b.min[2]
+            )
+        })
+        .collect();
+    std::fs::write(&xyz, text).unwrap();
+
+    let spill = d.join("spill");
+    std::fs::create_dir_all(&spill).unwrap();
+    let options = DistributeOptions {
+        chunk_points: 20_000,
+        buffer_bytes: 256 << 10,
+        temp_dir: spill.clone(),
+    };
+    let dist = distribute(
+        &[las.clone(), xyz.clone()],
+        &OpenOptions::default(),
+        &options,
+    )
+    .unwrap();
+    assert_eq!(dist.points, 200_100);
+    assert_eq!(dist.chunks.iter().map(|c| c.points).sum::<u64>(), 200_100);
+    assert_eq!(dist.clamped, 0);
+    assert!(dist.chunks.len() > 10, "{} chunks", dist.chunks.len());
+    assert!(dist.schema.has(&Attribute::Rgb) && dist.schema.has(&Attribute::GpsTime));
+    let mut got = Vec::new();
+    let mut zero_intensity = 0;
+    for c in &dist.chunks {
+        assert!(c.points <= 20_000, "chunk {c:?} too large");
+        let b = dist.load(c).unwrap();
+        assert!(b.is_consistent());
+        assert_eq!(b.len() as u64, c.points);
+        let cell = dist.cell_bounds(c);
+        assert!(
+            b.positions.iter().all(|p| cell.contains(*p)),
+            "a point outside its chunk's cell"
+        );
+        zero_intensity += b
+            .intensity
+            .as_ref()
+            .unwrap()
+            .iter()
+            .filter(|&&i| i == 0)
+            .count();
+        got.extend(keys(&b));
+    }
+    assert!(zero_intensity >= 100, "text points get zero intensity");
+    let mut want = keys(&read_all(&las));
+    let text = read_all(&xyz);
+    want.extend((0..text.len()).map(|i| {
+        let p = text.positions[i];
+        [
+            p[0].to_bits(),
+            p[1].to_bits(),
+            p[2].to_bits(),
+            0f64.to_bits(),
+        ]
+    }));
+    got.sort_unstable();
+    want.sort_unstable();
+    assert!(
+        got == want,
+        "the chunks do not hold exactly the input points"
+    );
+    drop(dist);
+    assert_eq!(
+        std::fs::read_dir(&spill).unwrap().count(),
+        0,
+        "spill files left behind"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn inputs_with_different_extra_bytes_are_refused() {
+    let d = tempdir("extra");
+    let mut s = Schema::new(vec![Attribute::Intensity]);
+    s.extra_bytes = 2;
+    let las = d.join("eb.las");
+    let mut sink = LasSink::create(
+        &las,
+        LasWriteOptions::for_schema(&s, [0.01; 3], [0.0; 3]).unwrap(),
+        true,
+    )
+    .unwrap();
+    let mut b = PointBatch::with_schema(
+        &myriad_core::Schema {
+            extra_bytes: 2,
+            ..Schema::for_las_format(1)
+        },
+        1,
+    );
+    b.push_record(&myriad_core::PointRecord {
+        position: [1.0, 2.0, 3.0],
+        ..Default::default()
+    });
+    sink.write(&b).unwrap();
+    sink.finish().unwrap();
+    let xyz = d.join("p.xyz");
+    std::fs::write(&xyz, "1 2 3\n").unwrap();
+    let options = DistributeOptions {
+        chunk_points: 10,
+        buffer_bytes: 1 << 16,
+        temp_dir: d.clone(),
+    };
+    let err = distribute(&[las, xyz], &OpenOptions::default(), &options)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("extra bytes differ"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
