@@ -6,3 +6,4 @@
 
 pub mod distribute;
 pub mod mospt;
+pub mod nested;

@@ -204,6 +204,54 @@ impl PointBatch {
         self.positions.is_empty()
     }
 
+    /// The schema of the columns this batch has.
+    pub fn schema(&self) -> Schema {
+        let mut attributes = Vec::new();
+        macro_rules! has {
+            ($f:ident, $t:ty, $a:ident) => {
+                if self.$f.is_some() {
+                    attributes.push(Attribute::$a);
+                }
+            };
+        }
+        for_each_column!(has);
+        Schema {
+            attributes,
+            extra_bytes: if self.extra_bytes.is_some() {
+                self.extra_stride
+            } else {
+                0
+            },
+        }
+    }
+
+    /// A copy of the points at `indices`, in that order.
+    pub fn gather(&self, indices: &[u32]) -> PointBatch {
+        let pick = |i: &u32| *i as usize;
+        let mut b = PointBatch {
+            positions: indices.iter().map(|i| self.positions[pick(i)]).collect(),
+            ..Default::default()
+        };
+        macro_rules! g {
+            ($f:ident, $t:ty, $a:ident) => {
+                b.$f = self
+                    .$f
+                    .as_ref()
+                    .map(|c| indices.iter().map(|i| c[pick(i)]).collect());
+            };
+        }
+        for_each_column!(g);
+        b.extra_stride = self.extra_stride;
+        b.extra_bytes = self.extra_bytes.as_ref().map(|e| {
+            let s = self.extra_stride;
+            indices
+                .iter()
+                .flat_map(|i| e[pick(i) * s..(pick(i) + 1) * s].iter().copied())
+                .collect()
+        });
+        b
+    }
+
     /// A copy of the points in `range`.
     pub fn slice(&self, range: std::ops::Range<usize>) -> PointBatch {
         let mut b = PointBatch {
@@ -450,6 +498,17 @@ mod tests {
             back.push_row(row);
         }
         assert_eq!(back, b);
+    }
+
+    #[test]
+    fn gather_and_schema() {
+        let b = sample();
+        let g = b.gather(&[3, 0]);
+        assert_eq!(g.intensity, Some(vec![30, 0]));
+        assert_eq!(g.extra_bytes, Some(vec![3, 0xAA, 0, 0xAA]));
+        assert_eq!(g.schema(), b.schema());
+        assert!(b.schema().has(&Attribute::Rgb) && !b.schema().has(&Attribute::GpsTime));
+        assert_eq!(b.schema().extra_bytes, 2);
     }
 
     #[test]

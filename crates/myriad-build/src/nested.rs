@@ -1,0 +1,266 @@
+//! The nested octree inside one chunk (Scheiblauer 2006, chapter 4): an outer octree whose nodes
+//! each hold a MOSPT ([`crate::mospt`]) of original points.
+//!
+//! A node with more than `capacity` points keeps one point per occupied cell of its inner grid
+//! (the deepest inner level, at most `inner_depth`, whose MOSPT prefix fits the capacity) and
+//! passes the rest, the thesis's rejected points, down to its eight children. A node with at most
+//! `capacity` points, or at `max_level`, keeps them all (the thesis's leaf strategy 3.a). Every
+//! point ends in exactly one node; a node's points are stored in MOSPT order, so a prefix of a node
+//! is a coarser level of detail of that node.
+
+use crate::mospt;
+use myriad_core::{Aabb, PointBatch};
+
+/// A node of the outer octree: a level and a cell index per axis at that level, over the root cube.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct NodeKey {
+    pub level: u32,
+    pub cell: [u32; 3],
+}
+
+impl NodeKey {
+    pub const ROOT: NodeKey = NodeKey {
+        level: 0,
+        cell: [0; 3],
+    };
+
+    /// Child `octant` (bit 0: +x, bit 1: +y, bit 2: +z).
+    pub fn child(&self, octant: usize) -> NodeKey {
+        NodeKey {
+            level: self.level + 1,
+            cell: std::array::from_fn(|a| self.cell[a] * 2 + (octant >> a & 1) as u32),
+        }
+    }
+
+    /// The node's cube, given the root cube.
+    pub fn bounds(&self, root: &Aabb) -> Aabb {
+        let side = root.size()[0] / (1u64 << self.level) as f64;
+        let min: [f64; 3] = std::array::from_fn(|a| root.min[a] + self.cell[a] as f64 * side);
+        Aabb::new(min, min.map(|m| m + side))
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct NestedParams {
+    /// Most points in a node.
+    pub capacity: usize,
+    /// Depth of a node's inner grid (its MOSPT) below the node's cube.
+    pub inner_depth: u32,
+    /// Deepest outer level; nodes there keep every point they get.
+    pub max_level: u32,
+}
+
+/// A built node: its points in MOSPT order, with the prefix count and spacing of each level.
+#[derive(Debug, Clone)]
+pub struct BuiltNode {
+    pub key: NodeKey,
+    pub points: PointBatch,
+    pub prefix: Vec<u64>,
+    pub spacing: Vec<f64>,
+}
+
+/// Builds the subtree rooted at `key` (whose cube, over `root`, holds every point of `batch`),
+/// returning its nodes parents first.
+pub fn build_subtree(
+    batch: PointBatch,
+    root: &Aabb,
+    key: NodeKey,
+    params: &NestedParams,
+) -> Vec<BuiltNode> {
+    let mut out = Vec::new();
+    let mut work = vec![(key, batch)];
+    while let Some((key, batch)) = work.pop() {
+        if batch.is_empty() {
+            continue;
+        }
+        let cube = key.bounds(root);
+        let leaf = batch.len() <= params.capacity || key.level >= params.max_level;
+        let m = mospt::build(&batch, &cube, if leaf { 21 } else { params.inner_depth });
+        let keep = if leaf {
+            batch.len()
+        } else {
+            // The deepest inner level whose prefix fits the capacity (at least the root point).
+            let inner_levels = m.prefix.len() - 1; // the last entry is the rejected rest
+            let l = (0..inner_levels)
+                .rev()
+                .find(|&l| m.prefix[l] as usize <= params.capacity)
+                .unwrap_or(0);
+            m.prefix[l] as usize
+        };
+        let kept_levels = m
+            .prefix
+            .iter()
+            .take_while(|&&p| (p as usize) < keep)
+            .count()
+            + 1;
+        let mut node_mask = vec![false; batch.len()];
+        for &i in &m.order[..keep] {
+            node_mask[i as usize] = true;
+        }
+        if keep < batch.len() {
+            // Pass the rest down by octant.
+            let mid = cube.center();
+            let mut children: [Vec<u32>; 8] = Default::default();
+            for (i, p) in batch.positions.iter().enumerate() {
+                if !node_mask[i] {
+                    children[(0..3)
+                        .map(|a| ((p[a] >= mid[a]) as usize) << a)
+                        .sum::<usize>()]
+                    .push(i as u32);
+                }
+            }
+            for (o, picked) in children.iter().enumerate().filter(|(_, c)| !c.is_empty()) {
+                work.push((key.child(o), batch.gather(picked)));
+            }
+        }
+        out.push(BuiltNode {
+            key,
+            points: batch.gather(&m.order[..keep]),
+            prefix: m.prefix[..kept_levels]
+                .iter()
+                .map(|&p| p.min(keep as u64))
+                .collect(),
+            spacing: m.spacing[..kept_levels].to_vec(),
+        });
+    }
+    out.sort_by_key(|n| n.key);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::{HashMap, HashSet};
+
+    fn random_batch(n: usize, seed: u64) -> PointBatch {
+        let mut s = seed;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut b = PointBatch::with_schema(
+            &myriad_core::Schema::new(vec![myriad_core::Attribute::GpsTime]),
+            n,
+        );
+        for i in 0..n {
+            // A terrain-like sheet with some scatter above it, and a few exact duplicates.
+            let (x, y) = (next(), next());
+            let z = if i % 5 == 0 {
+                next()
+            } else {
+                0.3 + 0.1 * (x * 6.0).sin()
+            };
+            b.positions.push(if i % 97 == 0 {
+                [0.5, 0.5, 0.5]
+            } else {
+                [x, y, z]
+            });
+            b.gps_time.as_mut().unwrap().push(i as f64);
+        }
+        b
+    }
+
+    #[test]
+    fn every_point_once_in_a_node_that_contains_it() {
+        let root = Aabb::new([0.0; 3], [1.0; 3]);
+        let params = NestedParams {
+            capacity: 3000,
+            inner_depth: 5,
+            max_level: 8,
+        };
+        let input = random_batch(60_000, 9);
+        let nodes = build_subtree(input.clone(), &root, NodeKey::ROOT, &params);
+        assert!(nodes.len() > 8, "{} nodes", nodes.len());
+        let keys: HashSet<NodeKey> = nodes.iter().map(|n| n.key).collect();
+        let mut seen = Vec::new();
+        let mut per_node = HashMap::new();
+        for n in &nodes {
+            assert!(
+                n.points.len() <= params.capacity || n.key.level == params.max_level,
+                "{:?} holds {}",
+                n.key,
+                n.points.len()
+            );
+            assert_eq!(*n.prefix.last().unwrap() as usize, n.points.len());
+            assert_eq!(n.prefix.len(), n.spacing.len());
+            let cube = n.key.bounds(&root);
+            assert!(
+                n.points.positions.iter().all(|p| cube.contains(*p)),
+                "{:?}: a point outside the node",
+                n.key
+            );
+            if n.key.level > 0 {
+                let parent = NodeKey {
+                    level: n.key.level - 1,
+                    cell: n.key.cell.map(|c| c / 2),
+                };
+                assert!(keys.contains(&parent), "{:?} has no parent", n.key);
+            }
+            // Each full level of the node's MOSPT holds one point per occupied cell.
+            for l in 0..n.prefix.len() - 1 {
+                let k = 1u64 << l;
+                let cell = |p: [f64; 3]| {
+                    (0..3)
+                        .map(|a| {
+                            (((p[a] - cube.min[a]) / cube.size()[a] * k as f64) as u64).min(k - 1)
+                        })
+                        .collect::<Vec<_>>()
+                };
+                let prefix: Vec<_> = n.points.positions[..n.prefix[l] as usize]
+                    .iter()
+                    .map(|p| cell(*p))
+                    .collect();
+                let all: HashSet<_> = n.points.positions.iter().map(|p| cell(*p)).collect();
+                assert_eq!(
+                    prefix.iter().cloned().collect::<HashSet<_>>().len(),
+                    prefix.len(),
+                    "{:?} level {l}: shared cell",
+                    n.key
+                );
+                assert_eq!(
+                    prefix.len(),
+                    all.len(),
+                    "{:?} level {l}: an occupied cell without point",
+                    n.key
+                );
+            }
+            seen.extend(
+                n.points
+                    .gps_time
+                    .as_ref()
+                    .unwrap()
+                    .iter()
+                    .map(|t| *t as u64),
+            );
+            per_node.insert(n.key, n.points.len());
+        }
+        seen.sort_unstable();
+        assert_eq!(
+            seen,
+            (0..60_000).collect::<Vec<u64>>(),
+            "every input point exactly once"
+        );
+        // Inner nodes are full: they pass points down only when they reached their capacity or
+        // their inner grid.
+        assert!(per_node[&NodeKey::ROOT] > 100);
+    }
+
+    #[test]
+    fn small_input_is_one_leaf() {
+        let root = Aabb::new([0.0; 3], [1.0; 3]);
+        let nodes = build_subtree(
+            random_batch(500, 2),
+            &root,
+            NodeKey::ROOT,
+            &NestedParams {
+                capacity: 1000,
+                inner_depth: 6,
+                max_level: 8,
+            },
+        );
+        assert_eq!(nodes.len(), 1);
+        assert_eq!(nodes[0].points.len(), 500);
+    }
+}
