@@ -259,8 +259,18 @@ pub fn distribute(
         infos.push(info);
     }
     let schema = merged_schema(&infos)?;
-    let side = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9) * (1.0 + 1e-9);
-    let root = Aabb::new(bounds.min, bounds.min.map(|m| m + side));
+    // Headers state bounds rounded to their scale (and some are a step off): a margin of one
+    // scale step and 1e-5 of the extent keeps such points inside the root cube.
+    let step = infos
+        .iter()
+        .filter_map(|i| i.scale)
+        .flatten()
+        .fold(0.0f64, f64::max);
+    let extent = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9);
+    let margin = step + extent * 1e-5;
+    let side = extent + 2.0 * margin;
+    let min = bounds.min.map(|m| m - margin);
+    let root = Aabb::new(min, min.map(|m| m + side));
     // A surface fills about 4^L of the 8^L cells of level L.
     let per_chunk = options.chunk_points.max(1) as f64;
     let level = ((declared as f64 / per_chunk).max(1.0).log(4.0).ceil() as u32).min(MAX_LEVEL);

@@ -127,6 +127,107 @@ pub fn build_subtree(
     out
 }
 
+/// The node of `batch` at `key`: all of it in MOSPT order (a leaf's content).
+fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb) -> BuiltNode {
+    let m = mospt::build(&batch, &key.bounds(root), 21);
+    BuiltNode {
+        key,
+        points: batch.gather(&m.order),
+        prefix: m.prefix,
+        spacing: m.spacing,
+    }
+}
+
+/// Builds the levels above the chunks. `chunk_roots` are the roots of the chunks' subtrees (the
+/// first node [`build_subtree`] returns for each chunk). Bottom-up, level by level, every parent
+/// takes one point per occupied cell of its inner grid from its children's points (the deepest
+/// MOSPT prefix within `capacity`); those points move up, so every point stays in exactly one
+/// node, and each child keeps the rest in a rebuilt MOSPT. A child left empty stays in the tree
+/// so that traversal still reaches its descendants.
+///
+/// Returns the new top nodes and the chunk roots as they are now, together, parents first.
+/// Memory: the chunk roots (at most `capacity` points each) and the tops.
+pub fn build_tops(
+    chunk_roots: Vec<BuiltNode>,
+    root: &Aabb,
+    params: &NestedParams,
+) -> Vec<BuiltNode> {
+    use std::collections::BTreeMap;
+    let mut by_level: BTreeMap<u32, Vec<BuiltNode>> = BTreeMap::new();
+    for n in chunk_roots {
+        by_level.entry(n.key.level).or_default().push(n);
+    }
+    let mut done = Vec::new();
+    while let Some((&level, _)) = by_level.iter().next_back() {
+        let nodes = by_level.remove(&level).expect("present");
+        if level == 0 {
+            done.extend(nodes);
+            break;
+        }
+        let mut families: BTreeMap<NodeKey, Vec<BuiltNode>> = BTreeMap::new();
+        for n in nodes {
+            let parent = NodeKey {
+                level: level - 1,
+                cell: n.key.cell.map(|c| c / 2),
+            };
+            families.entry(parent).or_default().push(n);
+        }
+        for (parent, mut children) in families {
+            // Candidates: every child's points, child after child.
+            let mut union: Option<PointBatch> = None;
+            for child in &children {
+                match &mut union {
+                    Some(u) => u.append(&child.points),
+                    None => union = Some(child.points.clone()),
+                }
+            }
+            let union = union.unwrap_or_default();
+            let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
+            let inner_levels = m.prefix.len() - 1;
+            let l = (0..inner_levels)
+                .rev()
+                .find(|&l| m.prefix[l] as usize <= params.capacity)
+                .unwrap_or(0);
+            let keep = (m.prefix[l] as usize).min(union.len());
+            let mut moved = vec![false; union.len()];
+            m.order[..keep]
+                .iter()
+                .for_each(|&i| moved[i as usize] = true);
+            // Children keep what did not move up, in a rebuilt MOSPT.
+            let mut start = 0;
+            for child in children.iter_mut() {
+                let n = child.points.len();
+                let stay: Vec<u32> = (0..n as u32)
+                    .filter(|&i| !moved[start + i as usize])
+                    .collect();
+                if stay.len() != n {
+                    *child = leaf_node(child.key, child.points.gather(&stay), root);
+                }
+                start += n;
+            }
+            let kept_levels = m
+                .prefix
+                .iter()
+                .take_while(|&&p| (p as usize) < keep)
+                .count()
+                + 1;
+            let top = BuiltNode {
+                key: parent,
+                points: union.gather(&m.order[..keep]),
+                prefix: m.prefix[..kept_levels]
+                    .iter()
+                    .map(|&p| p.min(keep as u64))
+                    .collect(),
+                spacing: m.spacing[..kept_levels].to_vec(),
+            };
+            done.extend(children);
+            by_level.entry(level - 1).or_default().push(top);
+        }
+    }
+    done.sort_by_key(|n| n.key);
+    done
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

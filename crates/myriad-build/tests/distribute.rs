@@ -176,3 +176,132 @@ fn inputs_with_different_extra_bytes_are_refused() {
     assert!(err.contains("extra bytes differ"), "{err}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// The whole hierarchy of a scan: distribute, a nested octree per chunk, then the levels above the
+/// chunks. Every point is in exactly one node, inside the node's cube; nodes respect the capacity;
+/// every node's parent exists; every node's points are a MOSPT (one point per occupied cell at
+/// each full level).
+#[test]
+fn chunks_and_tops_form_one_nested_octree() {
+    use myriad_build::nested::{NestedParams, NodeKey, build_subtree, build_tops};
+    use std::collections::HashSet;
+    let d = tempdir("tree");
+    let las = d.join("terrain.las");
+    let opts = myriad_synth::SynthOptions {
+        points: 150_000,
+        scene: myriad_synth::SceneKind::Terrain,
+        seed: 4,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    let dist = distribute(
+        &[las.clone()],
+        &OpenOptions::default(),
+        &DistributeOptions {
+            chunk_points: 15_000,
+            buffer_bytes: 1 << 20,
+            temp_dir: d.clone(),
+        },
+    )
+    .unwrap();
+    assert_eq!(dist.clamped, 0);
+    let params = NestedParams {
+        capacity: 4000,
+        inner_depth: 6,
+        max_level: 16,
+    };
+    let mut nodes = Vec::new();
+    let mut chunk_roots = Vec::new();
+    for c in &dist.chunks {
+        let key = NodeKey {
+            level: c.level,
+            cell: c.cell,
+        };
+        for n in build_subtree(dist.load(c).unwrap(), &dist.root, key, &params) {
+            if n.key == key {
+                chunk_roots.push(n)
+            } else {
+                nodes.push(n)
+            }
+        }
+    }
+    nodes.extend(build_tops(chunk_roots, &dist.root, &params));
+    let keys: HashSet<NodeKey> = nodes.iter().map(|n| n.key).collect();
+    assert_eq!(keys.len(), nodes.len(), "a node built twice");
+    assert!(keys.contains(&NodeKey::ROOT));
+    let mut times: Vec<u64> = Vec::new();
+    for n in &nodes {
+        assert!(
+            n.points.len() <= params.capacity,
+            "{:?} holds {}",
+            n.key,
+            n.points.len()
+        );
+        let cube = n.key.bounds(&dist.root);
+        if let Some(p) = n.points.positions.iter().find(|p| !cube.contains(**p)) {
+            panic!("{:?}: point {p:?} outside {cube:?}", n.key);
+        }
+        if n.key.level > 0 {
+            assert!(
+                keys.contains(&NodeKey {
+                    level: n.key.level - 1,
+                    cell: n.key.cell.map(|c| c / 2)
+                }),
+                "{:?} orphan",
+                n.key
+            );
+        }
+        for l in 0..n.prefix.len().saturating_sub(1) {
+            let k = 1u64 << l;
+            let cell = |p: &[f64; 3]| {
+                (0..3)
+                    .map(|a| (((p[a] - cube.min[a]) / cube.size()[a] * k as f64) as u64).min(k - 1))
+                    .collect::<Vec<_>>()
+            };
+            let prefix: HashSet<_> = n.points.positions[..n.prefix[l] as usize]
+                .iter()
+                .map(cell)
+                .collect();
+            assert_eq!(
+                prefix.len(),
+                n.prefix[l] as usize,
+                "{:?} level {l}: shared cell",
+                n.key
+            );
+            assert_eq!(
+                prefix,
+                n.points.positions.iter().map(cell).collect::<HashSet<_>>(),
+                "{:?} level {l}",
+                n.key
+            );
+        }
+        times.extend(
+            n.points
+                .gps_time
+                .as_ref()
+                .unwrap()
+                .iter()
+                .map(|t| t.to_bits()),
+        );
+    }
+    let mut want: Vec<u64> = read_all(&las)
+        .gps_time
+        .unwrap()
+        .iter()
+        .map(|t| t.to_bits())
+        .collect();
+    times.sort_unstable();
+    want.sort_unstable();
+    assert!(
+        times == want,
+        "points lost or duplicated: {} vs {}",
+        times.len(),
+        want.len()
+    );
+    let root = nodes.iter().find(|n| n.key == NodeKey::ROOT).unwrap();
+    assert!(
+        root.points.len() > 100,
+        "the root holds a coarse sample of everything"
+    );
+    drop(dist);
+    std::fs::remove_dir_all(&d).unwrap();
+}

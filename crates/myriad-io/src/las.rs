@@ -590,6 +590,7 @@ impl LasSink {
             &self.layout,
             &self.quant,
             &mut self.bytes,
+            &mut self.bounds,
         )
         .map_err(|e| {
             Error::Invalid(format!(
@@ -599,9 +600,6 @@ impl LasSink {
                 e.message
             ))
         })?;
-        for p in &batch.positions {
-            self.bounds.extend(*p);
-        }
         if let Some(r) = &batch.return_number {
             for &n in r {
                 if (1..=15).contains(&n) {

@@ -197,15 +197,17 @@ pub struct EncodeError {
     pub message: String,
 }
 
-/// Encodes `batch` as records of `layout` with `record_len` bytes each, appending to `out`.
-/// Columns the batch lacks are written as zero; extra bytes are copied up to the record's room.
-/// Works column by column: one tight loop per field over all records.
+/// Encodes `batch` as records of `layout` with `record_len` bytes each, appending to `out`, and
+/// extends `bounds` by the coordinates as stored (after rounding to the scale), which is what a
+/// header's bounds must describe. Columns the batch lacks are written as zero; extra bytes are
+/// copied up to the record's room. Works column by column: one tight loop per field.
 pub fn encode(
     batch: &PointBatch,
     record_len: usize,
     layout: &Layout,
     q: &Quantization,
     out: &mut Vec<u8>,
+    bounds: &mut myriad_core::Aabb,
 ) -> Result<(), EncodeError> {
     let start = out.len();
     out.resize(start + batch.len() * record_len, 0);
@@ -219,6 +221,7 @@ pub fn encode(
     // Multiplying by the inverse scale instead of dividing: for coordinates that came from LAS
     // integers the product is within a few ulp of the integer, far from any rounding boundary.
     let inv = q.scale.map(|s| 1.0 / s);
+    let mut stored = [0.0; 3];
     for (i, (r, p)) in records
         .chunks_exact_mut(record_len)
         .zip(&batch.positions)
@@ -233,7 +236,9 @@ pub fn encode(
                 });
             }
             r[a * 4..a * 4 + 4].copy_from_slice(&(v as i32).to_le_bytes());
+            stored[a] = v * q.scale[a] + q.offset[a];
         }
+        bounds.extend(stored);
     }
     let n = record_len;
     if let Some(c) = &batch.intensity {
@@ -388,7 +393,15 @@ mod tests {
             decode(&bytes, record_len, &layout, &q, &mut batch);
             assert!(batch.is_consistent());
             let mut out = Vec::new();
-            encode(&batch, record_len, &layout, &q, &mut out).unwrap();
+            encode(
+                &batch,
+                record_len,
+                &layout,
+                &q,
+                &mut out,
+                &mut myriad_core::Aabb::EMPTY,
+            )
+            .unwrap();
             assert_eq!(out, bytes, "format {f}");
         }
     }

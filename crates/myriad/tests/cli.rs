@@ -299,6 +299,8 @@ fn synth_then_info_json() {
             v["format"],
             if name.ends_with("laz") { "LAZ" } else { "LAS" }
         );
+        // The header states the bounds of the coordinates as stored (rounded to the scale).
+        assert_eq!(v["bounds"], v["header_bounds"], "{name}: header bounds");
         let min = v["bounds"]["min"].as_array().unwrap();
         let max = v["bounds"]["max"].as_array().unwrap();
         for a in 0..3 {
