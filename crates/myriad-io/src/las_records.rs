@@ -393,15 +393,9 @@ mod tests {
             decode(&bytes, record_len, &layout, &q, &mut batch);
             assert!(batch.is_consistent());
             let mut out = Vec::new();
-            encode(
-                &batch,
-                record_len,
-                &layout,
-                &q,
-                &mut out,
-                &mut myriad_core::Aabb::EMPTY,
-            )
-            .unwrap();
+            let mut bounds = myriad_core::Aabb::EMPTY;
+            encode(&batch, record_len, &layout, &q, &mut out, &mut bounds).unwrap();
+            assert!(batch.positions.iter().all(|p| bounds.contains(*p)));
             assert_eq!(out, bytes, "format {f}");
         }
     }
