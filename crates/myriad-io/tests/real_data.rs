@@ -11,7 +11,11 @@ fn data_dir() -> Option<PathBuf> {
     if d.is_dir() {
         Some(d)
     } else {
-        eprintln!(
+        // Written to the stderr handle, not with eprintln!, which the test harness captures:
+        // a skipped test must say so.
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr(),
             "SKIPPED: {} not found; real-data tests need ../shared/data",
             d.display()
         );
