@@ -112,6 +112,19 @@ fn spill_path(folder: &Path, level: u32, c: [u32; 3]) -> PathBuf {
 }
 
 impl Scatter<'_> {
+    /// The chunks written so far.
+    fn chunks(&self) -> Vec<Chunk> {
+        self.counts
+            .iter()
+            .map(|(&cell, &n)| Chunk {
+                level: self.level,
+                cell,
+                points: n,
+                path: spill_path(self.folder, self.level, cell),
+            })
+            .collect()
+    }
+
     fn add(&mut self, cell: [u32; 3], batch: &PointBatch, i: usize) -> Result<()> {
         let buf = self.buffers.entry(cell).or_default();
         let before = buf.len();
@@ -302,16 +315,7 @@ pub fn distribute(
         }
     }
     scatter.flush()?;
-    let mut chunks: Vec<Chunk> = scatter
-        .counts
-        .iter()
-        .map(|(&cell, &n)| Chunk {
-            level,
-            cell,
-            points: n,
-            path: spill_path(&folder.0, level, cell),
-        })
-        .collect();
+    let mut chunks = scatter.chunks();
 
     // Split chunks that came out too large, from their own spill files, until they fit.
     let mut done = Vec::new();
@@ -393,14 +397,5 @@ fn split(
     scatter.flush()?;
     drop(file);
     std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
-    Ok(scatter
-        .counts
-        .iter()
-        .map(|(&cell, &n)| Chunk {
-            level,
-            cell,
-            points: n,
-            path: spill_path(folder, level, cell),
-        })
-        .collect())
+    Ok(scatter.chunks())
 }

@@ -59,6 +59,37 @@ pub struct BuiltNode {
     pub spacing: Vec<f64>,
 }
 
+/// How many points of a MOSPT a node with at most `capacity` points keeps: the prefix of the
+/// deepest inner level that fits (at least the root point). The last prefix entry is the rest
+/// that no inner level separates, so it is never taken here.
+fn fitting_prefix(m: &mospt::Mospt, capacity: usize) -> usize {
+    let inner_levels = m.prefix.len() - 1;
+    let l = (0..inner_levels)
+        .rev()
+        .find(|&l| m.prefix[l] as usize <= capacity)
+        .unwrap_or(0);
+    m.prefix[l] as usize
+}
+
+/// The node holding the first `keep` points of `batch`'s MOSPT `m`, with the levels they span.
+fn node_from_prefix(key: NodeKey, batch: &PointBatch, m: &mospt::Mospt, keep: usize) -> BuiltNode {
+    let kept_levels = m
+        .prefix
+        .iter()
+        .take_while(|&&p| (p as usize) < keep)
+        .count()
+        + 1;
+    BuiltNode {
+        key,
+        points: batch.gather(&m.order[..keep]),
+        prefix: m.prefix[..kept_levels]
+            .iter()
+            .map(|&p| p.min(keep as u64))
+            .collect(),
+        spacing: m.spacing[..kept_levels].to_vec(),
+    }
+}
+
 /// Builds the subtree rooted at `key` (whose cube, over `root`, holds every point of `batch`),
 /// returning its nodes parents first.
 pub fn build_subtree(
@@ -79,20 +110,8 @@ pub fn build_subtree(
         let keep = if leaf {
             batch.len()
         } else {
-            // The deepest inner level whose prefix fits the capacity (at least the root point).
-            let inner_levels = m.prefix.len() - 1; // the last entry is the rejected rest
-            let l = (0..inner_levels)
-                .rev()
-                .find(|&l| m.prefix[l] as usize <= params.capacity)
-                .unwrap_or(0);
-            m.prefix[l] as usize
+            fitting_prefix(&m, params.capacity)
         };
-        let kept_levels = m
-            .prefix
-            .iter()
-            .take_while(|&&p| (p as usize) < keep)
-            .count()
-            + 1;
         let mut node_mask = vec![false; batch.len()];
         for &i in &m.order[..keep] {
             node_mask[i as usize] = true;
@@ -113,15 +132,7 @@ pub fn build_subtree(
                 work.push((key.child(o), batch.gather(picked)));
             }
         }
-        out.push(BuiltNode {
-            key,
-            points: batch.gather(&m.order[..keep]),
-            prefix: m.prefix[..kept_levels]
-                .iter()
-                .map(|&p| p.min(keep as u64))
-                .collect(),
-            spacing: m.spacing[..kept_levels].to_vec(),
-        });
+        out.push(node_from_prefix(key, &batch, &m, keep));
     }
     out.sort_by_key(|n| n.key);
     out
@@ -183,12 +194,7 @@ pub fn build_tops(
             }
             let union = union.unwrap_or_default();
             let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
-            let inner_levels = m.prefix.len() - 1;
-            let l = (0..inner_levels)
-                .rev()
-                .find(|&l| m.prefix[l] as usize <= params.capacity)
-                .unwrap_or(0);
-            let keep = (m.prefix[l] as usize).min(union.len());
+            let keep = fitting_prefix(&m, params.capacity).min(union.len());
             let mut moved = vec![false; union.len()];
             m.order[..keep]
                 .iter()
@@ -205,21 +211,7 @@ pub fn build_tops(
                 }
                 start += n;
             }
-            let kept_levels = m
-                .prefix
-                .iter()
-                .take_while(|&&p| (p as usize) < keep)
-                .count()
-                + 1;
-            let top = BuiltNode {
-                key: parent,
-                points: union.gather(&m.order[..keep]),
-                prefix: m.prefix[..kept_levels]
-                    .iter()
-                    .map(|&p| p.min(keep as u64))
-                    .collect(),
-                spacing: m.spacing[..kept_levels].to_vec(),
-            };
+            let top = node_from_prefix(parent, &union, &m, keep);
             done.extend(children);
             by_level.entry(level - 1).or_default().push(top);
         }
