@@ -258,18 +258,23 @@ pub fn distribute(
         return Err(Error::Invalid("no inputs".into()));
     }
     let mut infos = Vec::new();
+    // Sources whose header gave the bounds are kept open for the scatter pass; a source that was
+    // read for its bounds is opened again (None).
+    let mut sources: Vec<Option<Box<dyn PointSource>>> = Vec::new();
     let mut bounds = Aabb::EMPTY;
     let mut declared = 0u64;
     for path in inputs {
         let mut src = myriad_io::open(path, open)?;
         let info = src.info().clone();
-        let (n, b) = match (info.points, info.bounds) {
-            (Some(n), Some(b)) => (n, b),
-            _ => myriad_io::scan(src.as_mut())?, // no exact header bounds: one pass for them
+        let ((n, b), kept) = match (info.points, info.bounds) {
+            (Some(n), Some(b)) => ((n, b), Some(src)),
+            // No exact header bounds: one pass for them.
+            _ => (myriad_io::scan(src.as_mut())?, None),
         };
         declared += n;
         bounds = bounds.union(&b);
         infos.push(info);
+        sources.push(kept);
     }
     let schema = merged_schema(&infos)?;
     // Headers state bounds rounded to their scale (and some are a step off): a margin of one
@@ -302,8 +307,11 @@ pub fn distribute(
         limit: options.buffer_bytes,
     };
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
-    for path in inputs {
-        let mut src: Box<dyn PointSource> = myriad_io::open(path, open)?;
+    for (path, kept) in inputs.iter().zip(sources) {
+        let mut src = match kept {
+            Some(src) => src,
+            None => myriad_io::open(path, open)?,
+        };
         while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
             let b = conform(b, &schema);
             for i in 0..b.len() {

@@ -118,20 +118,20 @@ impl LasSource {
             file,
             pos: pos.clone(),
         };
-        // For LAZ this also reads the chunk table, which sits at the end of the file.
-        let reader = las::Reader::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| {
+        // The header and VLRs only: the producer thread opens its own reader (`las::Reader` is
+        // not `Send`), and the LAZ chunk table was checked above.
+        let header = las::Header::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| {
             let at = pos.load(Ordering::Relaxed).min(file_size);
             if is_eof(&e) {
                 Error::at_byte(
                     path,
                     at,
-                    "unexpected end of file in the VLRs or the LAZ chunk table (truncated file?)",
+                    "unexpected end of file in the header or VLRs (truncated file?)",
                 )
             } else {
                 Error::at_byte(path, at, format!("invalid LAS/LAZ header data: {e}"))
             }
         })?;
-        let header = reader.header().clone();
         if header.point_format().is_compressed {
             check_laz_layers(path, &header, raw.offset_to_point_data as u64, file_size)?;
         }
@@ -187,7 +187,6 @@ impl LasSource {
             crs: crs_of(&header),
             file_size,
         };
-        drop(reader); // the producer thread opens its own: `las::Reader` is not `Send`
         Ok(LasSource {
             info,
             header,
