@@ -21,6 +21,9 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
+/// Name of the spill folder, followed by the process id.
+pub const SPILL_PREFIX: &str = ".myriad-build-";
+
 /// Deepest chunk level (a 21-bit cell index per axis).
 const MAX_LEVEL: u32 = 20;
 
@@ -32,6 +35,15 @@ pub struct DistributeOptions {
     pub buffer_bytes: usize,
     /// Where the private spill folder is made (next to the output, so that it is on its disk).
     pub temp_dir: PathBuf,
+}
+
+/// What [`distribute_with`] reports as it goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Progress {
+    /// The inputs' headers declare this many points in all.
+    Declared(u64),
+    /// This many more points were read.
+    Read(u64),
 }
 
 /// One chunk: an octree cell and the points that fell into it, spilled to disk.
@@ -56,6 +68,13 @@ pub struct Distribution {
     /// Points that lay outside the root cube (headers that understate their bounds) and were
     /// put into the nearest cell; their coordinates are unchanged.
     pub clamped: u64,
+    /// What each input's header said, and the points taken from it.
+    pub sources: Vec<(myriad_io::SourceInfo, u64)>,
+    /// Points skipped for NaN or infinite coordinates, and dropped by placement boxes.
+    pub skipped_non_finite: u64,
+    pub trimmed: u64,
+    /// The first LAS/LAZ input's header with its VLRs ([`myriad_io::las::header_to_bytes`]).
+    pub las_header: Option<Vec<u8>>,
     /// Held so that dropping the distribution removes the spill files.
     _spill: SpillFolder,
 }
@@ -78,6 +97,12 @@ impl Distribution {
             b.push_row(r);
         }
         Ok(b)
+    }
+
+    /// The private folder of the spill files (removed with the distribution), for other
+    /// temporary files of the build.
+    pub fn spill_dir(&self) -> &Path {
+        &self._spill.0
     }
 
     /// The cube of a chunk's cell.
@@ -254,6 +279,17 @@ pub fn distribute(
     open: &OpenOptions,
     options: &DistributeOptions,
 ) -> Result<Distribution> {
+    distribute_with(inputs, open, options, &mut |_| {})
+}
+
+/// [`distribute`], calling `on_read` with the number of points of each batch read, and once
+/// with the total the headers declare (`on_declared`) before the scatter pass.
+pub fn distribute_with(
+    inputs: &[PathBuf],
+    open: &OpenOptions,
+    options: &DistributeOptions,
+    on_read: &mut dyn FnMut(Progress),
+) -> Result<Distribution> {
     if inputs.is_empty() {
         return Err(Error::Invalid("no inputs".into()));
     }
@@ -263,9 +299,15 @@ pub fn distribute(
     let mut sources: Vec<Option<Box<dyn PointSource>>> = Vec::new();
     let mut bounds = Aabb::EMPTY;
     let mut declared = 0u64;
+    let mut las_header = None;
     for path in inputs {
         let mut src = myriad_io::open(path, open)?;
         let info = src.info().clone();
+        if las_header.is_none() {
+            if let Some(h) = src.las_header() {
+                las_header = Some(myriad_io::las::header_to_bytes(h)?);
+            }
+        }
         let ((n, b), kept) = match (info.points, info.bounds) {
             (Some(n), Some(b)) => ((n, b), Some(src)),
             // No exact header bounds: one pass for them.
@@ -295,7 +337,7 @@ pub fn distribute(
 
     let folder = options
         .temp_dir
-        .join(format!(".myriad-build-{}", std::process::id()));
+        .join(format!("{SPILL_PREFIX}{}", std::process::id()));
     std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
     let folder = SpillFolder(folder);
     let mut scatter = Scatter {
@@ -306,12 +348,15 @@ pub fn distribute(
         buffered: 0,
         limit: options.buffer_bytes,
     };
+    on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
+    let (mut skipped, mut trimmed, mut taken) = (0u64, 0u64, Vec::new());
     for (path, kept) in inputs.iter().zip(sources) {
         let mut src = match kept {
             Some(src) => src,
             None => myriad_io::open(path, open)?,
         };
+        let before = points;
         while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
             let b = conform(b, &schema);
             for i in 0..b.len() {
@@ -320,7 +365,11 @@ pub fn distribute(
                 scatter.add(cell_of(&root, level, p, &mut clamped), &b, i)?;
             }
             points += b.len() as u64;
+            on_read(Progress::Read(b.len() as u64));
         }
+        skipped += src.skipped_non_finite();
+        trimmed += src.trimmed();
+        taken.push(points - before);
     }
     scatter.flush()?;
     let mut chunks = scatter.chunks();
@@ -348,6 +397,10 @@ pub fn distribute(
         points,
         bounds: actual,
         clamped,
+        sources: infos.into_iter().zip(taken).collect(),
+        skipped_non_finite: skipped,
+        trimmed,
+        las_header,
         _spill: folder,
     })
 }

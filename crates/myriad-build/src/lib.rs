@@ -1,9 +1,11 @@
-//! Level-of-detail builders. So far: [`distribute`], the first phase of the out-of-core pipeline
-//! (every input read once, points scattered to octree-cell chunks on disk within a memory budget),
-//! and [`mospt`], the Memory Optimized Sequential Point Tree of one node (Scheiblauer 2006,
-//! chapter 3), the inner structure of the `nested-octree`. Building chunks, merging the tops and
-//! writing the dataset come with `convert`.
+//! Level-of-detail builders and the out-of-core pipeline. [`distribute`] reads every input once
+//! and scatters its points to octree-cell chunks on disk within a memory budget; [`mospt`] is the
+//! Memory Optimized Sequential Point Tree of one node (Scheiblauer 2006, chapter 3); [`nested`]
+//! builds the `nested-octree` of a chunk and the levels above the chunks; [`convert`] runs the
+//! whole build in parallel and writes the dataset.
 
+pub mod convert;
 pub mod distribute;
+pub mod extract;
 pub mod mospt;
 pub mod nested;

@@ -9,36 +9,8 @@
 //! is a coarser level of detail of that node.
 
 use crate::mospt;
+pub use myriad_core::NodeKey;
 use myriad_core::{Aabb, PointBatch};
-
-/// A node of the outer octree: a level and a cell index per axis at that level, over the root cube.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct NodeKey {
-    pub level: u32,
-    pub cell: [u32; 3],
-}
-
-impl NodeKey {
-    pub const ROOT: NodeKey = NodeKey {
-        level: 0,
-        cell: [0; 3],
-    };
-
-    /// Child `octant` (bit 0: +x, bit 1: +y, bit 2: +z).
-    pub fn child(&self, octant: usize) -> NodeKey {
-        NodeKey {
-            level: self.level + 1,
-            cell: std::array::from_fn(|a| self.cell[a] * 2 + (octant >> a & 1) as u32),
-        }
-    }
-
-    /// The node's cube, given the root cube.
-    pub fn bounds(&self, root: &Aabb) -> Aabb {
-        let side = root.size()[0] / (1u64 << self.level) as f64;
-        let min: [f64; 3] = std::array::from_fn(|a| root.min[a] + self.cell[a] as f64 * side);
-        Aabb::new(min, min.map(|m| m + side))
-    }
-}
 
 #[derive(Debug, Clone, Copy)]
 pub struct NestedParams {
@@ -99,6 +71,24 @@ pub fn build_subtree(
     params: &NestedParams,
 ) -> Vec<BuiltNode> {
     let mut out = Vec::new();
+    build_subtree_with(batch, root, key, params, &mut |n| {
+        out.push(n);
+        Ok::<(), ()>(())
+    })
+    .expect("collecting cannot fail");
+    out.sort_by_key(|n| n.key);
+    out
+}
+
+/// [`build_subtree`], handing each node to `emit` as soon as it is built (so a caller can write
+/// it out and free it), the subtree's root first.
+pub fn build_subtree_with<E>(
+    batch: PointBatch,
+    root: &Aabb,
+    key: NodeKey,
+    params: &NestedParams,
+    emit: &mut dyn FnMut(BuiltNode) -> Result<(), E>,
+) -> Result<(), E> {
     let mut work = vec![(key, batch)];
     while let Some((key, batch)) = work.pop() {
         if batch.is_empty() {
@@ -132,10 +122,11 @@ pub fn build_subtree(
                 work.push((key.child(o), batch.gather(picked)));
             }
         }
-        out.push(node_from_prefix(key, &batch, &m, keep));
+        let node = node_from_prefix(key, &batch, &m, keep);
+        drop(batch);
+        emit(node)?;
     }
-    out.sort_by_key(|n| n.key);
-    out
+    Ok(())
 }
 
 /// The node of `batch` at `key`: all of it in MOSPT order (a leaf's content).
@@ -147,6 +138,45 @@ fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb) -> BuiltNode {
         prefix: m.prefix,
         spacing: m.spacing,
     }
+}
+
+/// One step of [`build_tops`]: the node `parent` takes one point per occupied cell of its inner
+/// grid from its `children`'s points (the deepest MOSPT prefix within `capacity`); each child
+/// keeps the rest, in a rebuilt MOSPT. Returns the parent and the children as they are now.
+pub fn take_up(
+    parent: NodeKey,
+    mut children: Vec<BuiltNode>,
+    root: &Aabb,
+    params: &NestedParams,
+) -> (BuiltNode, Vec<BuiltNode>) {
+    // Candidates: every child's points, child after child.
+    let mut union: Option<PointBatch> = None;
+    for child in &children {
+        match &mut union {
+            Some(u) => u.append(&child.points),
+            None => union = Some(child.points.clone()),
+        }
+    }
+    let union = union.unwrap_or_default();
+    let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
+    let keep = fitting_prefix(&m, params.capacity).min(union.len());
+    let mut moved = vec![false; union.len()];
+    m.order[..keep]
+        .iter()
+        .for_each(|&i| moved[i as usize] = true);
+    // Children keep what did not move up, in a rebuilt MOSPT.
+    let mut start = 0;
+    for child in children.iter_mut() {
+        let n = child.points.len();
+        let stay: Vec<u32> = (0..n as u32)
+            .filter(|&i| !moved[start + i as usize])
+            .collect();
+        if stay.len() != n {
+            *child = leaf_node(child.key, child.points.gather(&stay), root);
+        }
+        start += n;
+    }
+    (node_from_prefix(parent, &union, &m, keep), children)
 }
 
 /// Builds the levels above the chunks. `chunk_roots` are the roots of the chunks' subtrees (the
@@ -183,35 +213,8 @@ pub fn build_tops(
             };
             families.entry(parent).or_default().push(n);
         }
-        for (parent, mut children) in families {
-            // Candidates: every child's points, child after child.
-            let mut union: Option<PointBatch> = None;
-            for child in &children {
-                match &mut union {
-                    Some(u) => u.append(&child.points),
-                    None => union = Some(child.points.clone()),
-                }
-            }
-            let union = union.unwrap_or_default();
-            let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
-            let keep = fitting_prefix(&m, params.capacity).min(union.len());
-            let mut moved = vec![false; union.len()];
-            m.order[..keep]
-                .iter()
-                .for_each(|&i| moved[i as usize] = true);
-            // Children keep what did not move up, in a rebuilt MOSPT.
-            let mut start = 0;
-            for child in children.iter_mut() {
-                let n = child.points.len();
-                let stay: Vec<u32> = (0..n as u32)
-                    .filter(|&i| !moved[start + i as usize])
-                    .collect();
-                if stay.len() != n {
-                    *child = leaf_node(child.key, child.points.gather(&stay), root);
-                }
-                start += n;
-            }
-            let top = node_from_prefix(parent, &union, &m, keep);
+        for (parent, children) in families {
+            let (top, children) = take_up(parent, children, root, params);
             done.extend(children);
             by_level.entry(level - 1).or_default().push(top);
         }

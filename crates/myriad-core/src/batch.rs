@@ -272,6 +272,89 @@ impl PointBatch {
         b
     }
 
+    /// How many optional columns [`PointBatch::column_le`] numbers (every field but positions and
+    /// extra bytes), in a fixed order: intensity, return_number, number_of_returns,
+    /// classification, classification_flags, scan_flags, scanner_channel, scan_angle, user_data,
+    /// point_source_id, gps_time, rgb, nir, wave_packet, normal.
+    pub const COLUMNS: usize = 15;
+
+    /// Optional column `k` (see [`PointBatch::COLUMNS`]) as little-endian element bytes, with
+    /// its element size; `None` when the batch lacks it.
+    pub fn column_le(&self, k: usize) -> Option<(usize, Vec<u8>)> {
+        let mut i = 0;
+        let mut out = None;
+        macro_rules! get {
+            ($f:ident, $t:ty, $a:ident) => {
+                if i == k {
+                    out = self.$f.as_ref().map(|c| {
+                        let mut bytes = Vec::with_capacity(c.len() * <$t as RowBytes>::SIZE);
+                        c.iter().for_each(|v| v.put(&mut bytes));
+                        (<$t as RowBytes>::SIZE, bytes)
+                    });
+                }
+                i += 1;
+            };
+        }
+        for_each_column!(get);
+        let _ = i;
+        out
+    }
+
+    /// Element size of optional column `k`.
+    pub fn column_size(k: usize) -> usize {
+        let mut i = 0;
+        let mut size = 0;
+        macro_rules! sz {
+            ($f:ident, $t:ty, $a:ident) => {
+                if i == k {
+                    size = <$t as RowBytes>::SIZE;
+                }
+                i += 1;
+            };
+        }
+        for_each_column!(sz);
+        let _ = i;
+        size
+    }
+
+    /// The attribute of optional column `k`.
+    pub fn column_attribute(k: usize) -> Option<Attribute> {
+        let mut i = 0;
+        let mut attr = None;
+        macro_rules! at {
+            ($f:ident, $t:ty, $a:ident) => {
+                if i == k {
+                    attr = Some(Attribute::$a);
+                }
+                i += 1;
+            };
+        }
+        for_each_column!(at);
+        let _ = i;
+        attr
+    }
+
+    /// Sets optional column `k` from little-endian element bytes (whole elements; a trailing
+    /// partial element is ignored).
+    pub fn set_column_le(&mut self, k: usize, bytes: &[u8]) {
+        let mut i = 0;
+        macro_rules! set {
+            ($f:ident, $t:ty, $a:ident) => {
+                if i == k {
+                    self.$f = Some(
+                        bytes
+                            .chunks_exact(<$t as RowBytes>::SIZE)
+                            .map(<$t as RowBytes>::get)
+                            .collect(),
+                    );
+                }
+                i += 1;
+            };
+        }
+        for_each_column!(set);
+        let _ = i;
+    }
+
     /// Keeps the first `n` points.
     pub fn truncate(&mut self, n: usize) {
         self.positions.truncate(n);

@@ -254,3 +254,61 @@ mod tests {
         assert!((b.max[0] - (10.0 + 2.0 * h)).abs() < 1e-12);
     }
 }
+
+/// A node of an octree: a level and a cell index per axis at that level, over the root cube.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct NodeKey {
+    pub level: u32,
+    pub cell: [u32; 3],
+}
+
+impl NodeKey {
+    pub const ROOT: NodeKey = NodeKey {
+        level: 0,
+        cell: [0; 3],
+    };
+
+    /// Child `octant` (bit 0: +x, bit 1: +y, bit 2: +z).
+    pub fn child(&self, octant: usize) -> NodeKey {
+        NodeKey {
+            level: self.level + 1,
+            cell: std::array::from_fn(|a| self.cell[a] * 2 + (octant >> a & 1) as u32),
+        }
+    }
+
+    /// The node's cube, given the root cube.
+    pub fn bounds(&self, root: &Aabb) -> Aabb {
+        let side = root.size()[0] / (1u64 << self.level) as f64;
+        let min: [f64; 3] = std::array::from_fn(|a| root.min[a] + self.cell[a] as f64 * side);
+        Aabb::new(min, min.map(|m| m + side))
+    }
+}
+
+impl NodeKey {
+    /// The parent's key (the root's own for the root).
+    pub fn parent(&self) -> NodeKey {
+        if self.level == 0 {
+            return *self;
+        }
+        NodeKey {
+            level: self.level - 1,
+            cell: self.cell.map(|c| c / 2),
+        }
+    }
+
+    /// Is `self` `other` or one of its descendants?
+    pub fn is_within(&self, other: &NodeKey) -> bool {
+        self.level >= other.level
+            && (0..3).all(|a| self.cell[a] >> (self.level - other.level) == other.cell[a])
+    }
+}
+
+impl std::fmt::Display for NodeKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}-{}-{}-{}",
+            self.level, self.cell[0], self.cell[1], self.cell[2]
+        )
+    }
+}

@@ -11,5 +11,5 @@ pub mod schema;
 
 pub use batch::{PointBatch, PointRecord, RowBytes, WavePacket};
 pub use error::{Error, Location, Result};
-pub use geometry::{Aabb, Affine, Obb};
+pub use geometry::{Aabb, Affine, NodeKey, Obb};
 pub use schema::{Attribute, ExtraDim, ExtraType, Schema};

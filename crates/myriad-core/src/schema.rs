@@ -50,6 +50,32 @@ impl Attribute {
     }
 }
 
+impl Attribute {
+    /// The attribute [`Attribute::name`] names (not `Extra`, whose dimension is described apart).
+    pub fn from_name(name: &str) -> Option<Attribute> {
+        use Attribute::*;
+        [
+            Intensity,
+            ReturnNumber,
+            NumberOfReturns,
+            Classification,
+            ClassificationFlags,
+            ScanFlags,
+            ScannerChannel,
+            ScanAngle,
+            UserData,
+            PointSourceId,
+            GpsTime,
+            Rgb,
+            Nir,
+            WavePacket,
+            Normal,
+        ]
+        .into_iter()
+        .find(|a| a.name() == name)
+    }
+}
+
 /// Data type of a LAS extra-bytes dimension (LAS 1.4 R15, table 24). `Undocumented(n)` is type 0:
 /// n opaque bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -84,6 +110,22 @@ impl ExtraType {
             10 => ExtraType::F64,
             _ => return None,
         })
+    }
+    /// The LAS `data_type` code and, for type 0, the byte count.
+    pub fn las_code(&self) -> (u8, u8) {
+        match self {
+            ExtraType::Undocumented(n) => (0, *n),
+            ExtraType::U8 => (1, 0),
+            ExtraType::I8 => (2, 0),
+            ExtraType::U16 => (3, 0),
+            ExtraType::I16 => (4, 0),
+            ExtraType::U32 => (5, 0),
+            ExtraType::I32 => (6, 0),
+            ExtraType::U64 => (7, 0),
+            ExtraType::I64 => (8, 0),
+            ExtraType::F32 => (9, 0),
+            ExtraType::F64 => (10, 0),
+        }
     }
     pub fn size(&self) -> usize {
         match self {

@@ -280,6 +280,10 @@ impl PointSource for LasSource {
         &self.info
     }
 
+    fn las_header(&self) -> Option<&las::Header> {
+        Some(&self.header)
+    }
+
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
         if self.remaining == 0 {
             return Ok(None);
@@ -484,6 +488,24 @@ impl LasWriteOptions {
             t.offset = offset[i];
         }
         b.generating_software = "myriad".into();
+        let header = b.into_header().map_err(|e| Error::Invalid(e.to_string()))?;
+        Ok(LasWriteOptions { header })
+    }
+
+    /// Sets the scale and offset of positions.
+    pub fn with_transforms(self, scale: [f64; 3], offset: [f64; 3]) -> Result<LasWriteOptions> {
+        let mut b = las::Builder::from(self.header);
+        for (i, t) in [
+            &mut b.transforms.x,
+            &mut b.transforms.y,
+            &mut b.transforms.z,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            t.scale = scale[i];
+            t.offset = offset[i];
+        }
         let header = b.into_header().map_err(|e| Error::Invalid(e.to_string()))?;
         Ok(LasWriteOptions { header })
     }
@@ -697,4 +719,25 @@ fn las_write_error(path: &Path, e: las::Error) -> Error {
         las::Error::Io(io) => Error::io(path, io),
         e => Error::Invalid(format!("{}: {e}", path.display())),
     }
+}
+
+/// A LAS header with its VLRs and EVLRs as the bytes of an empty LAS file (uncompressed, without
+/// the LAZ and COPC records), to be stored and read back with [`header_from_bytes`].
+pub fn header_to_bytes(header: &las::Header) -> Result<Vec<u8>> {
+    let invalid = |e: las::Error| Error::Invalid(format!("LAS header: {e}"));
+    let mut b = las::Builder::from(header.clone());
+    b.point_format.is_compressed = false;
+    b.vlrs
+        .retain(|v| !(v.user_id == "laszip encoded" || v.user_id == "copc"));
+    b.evlrs.retain(|v| v.user_id != "copc");
+    let header = b.into_header().map_err(invalid)?;
+    let w = las::Writer::new(std::io::Cursor::new(Vec::new()), header).map_err(invalid)?;
+    Ok(w.into_inner().map_err(invalid)?.into_inner())
+}
+
+/// The header [`header_to_bytes`] stored.
+pub fn header_from_bytes(bytes: &[u8]) -> Result<las::Header> {
+    let r = las::Reader::new(std::io::Cursor::new(bytes.to_vec()))
+        .map_err(|e| Error::Invalid(format!("stored LAS header: {e}")))?;
+    Ok(r.header().clone())
 }

@@ -96,6 +96,11 @@ pub trait PointSource {
     fn placement_path(&self) -> Option<&Path> {
         None
     }
+    /// The LAS header (with VLRs) of a LAS/LAZ source, so that its points can be written back in
+    /// their own point format.
+    fn las_header(&self) -> Option<&::las::Header> {
+        None
+    }
 }
 
 /// How files are opened.

@@ -216,6 +216,10 @@ impl PointSource for Placed {
         &self.info
     }
 
+    fn las_header(&self) -> Option<&::las::Header> {
+        self.inner.las_header()
+    }
+
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
         let t = &self.placement.project_from_scanner;
         while let Some(mut b) = self.inner.read_batch(max)? {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// Point cloud files (LAS, LAZ, COPC, E57, PLY, PCD, PTS, XYZ/CSV/TXT)
+    /// Point cloud files (LAS, LAZ, COPC, E57, PLY, PCD, PTS, XYZ/CSV/TXT) or datasets (.myr)
     #[arg(required = true)]
     files: Vec<PathBuf>,
     /// One JSON object per file, one per line
@@ -46,6 +46,14 @@ pub fn run(args: InfoArgs) -> Result<()> {
         sidecar_placements: !args.no_placement,
     };
     for path in &args.files {
+        if crate::dataset::is_dataset(path)
+            || path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("myr"))
+        {
+            crate::dataset::info(path, args.json)?;
+            continue;
+        }
         let mut src = myriad_io::open(path, &options)?;
         let info = src.info().clone();
         let (points, bounds, skipped) = if args.header_only {
@@ -98,7 +106,7 @@ fn to_json(r: &Report) -> serde_json::Value {
     })
 }
 
-fn thousands(n: u64) -> String {
+pub fn thousands(n: u64) -> String {
     let s = n.to_string();
     let mut out = String::new();
     for (k, c) in s.chars().enumerate() {

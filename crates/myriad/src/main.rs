@@ -2,6 +2,7 @@
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
 mod bench;
+mod dataset;
 mod info;
 mod synth;
 
@@ -21,8 +22,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Show what a point cloud file holds: format, count, bounds, attributes, CRS
+    /// Build a level-of-detail dataset (.myr) from point clouds of any size
+    Convert(dataset::ConvertArgs),
+    /// Show what a point cloud file or dataset holds: format, count, bounds, attributes, CRS
     Info(info::InfoArgs),
+    /// Write a dataset's points (in a box, at a level of detail) to LAS, LAZ or PLY
+    Extract(dataset::ExtractArgs),
+    /// Read every page of a dataset, check checksums and invariants, name damaged nodes
+    Verify(dataset::VerifyArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
     /// Measure reading and synthesis speed (medians over several runs, with baselines)
@@ -33,7 +40,10 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Convert(a) => dataset::convert(a),
         Command::Info(a) => info::run(a),
+        Command::Extract(a) => dataset::extract(a),
+        Command::Verify(a) => dataset::verify(a),
         Command::Synth(a) => synth::run(a),
         Command::Bench(b) => bench::run(b),
     };

@@ -1,0 +1,484 @@
+//! `convert`: the whole out-of-core build of a `nested-octree` dataset.
+//!
+//! 1. [`distribute`](crate::distribute): every input read once, points scattered to chunks on disk.
+//! 2. Chunks built in parallel (one per thread): each chunk's subtree ([`nested::build_subtree_with`]);
+//!    every node but the chunk's root is compressed and appended to the dataset as soon as it is
+//!    built. The chunk roots are spilled to disk, because the levels above may still take points
+//!    from them.
+//! 3. The levels above the chunks, bottom-up, families in parallel: a parent takes its
+//!    representatives from its children ([`nested::take_up`]); the children are then final and
+//!    written; the parent is spilled and becomes a child one level up.
+//! 4. The writer adds the hierarchy pages, metadata and header, and renames the file.
+//!
+//! Memory: the distribution's write buffers, then per thread one chunk (at most `chunk_points`
+//! points, several copies while its subtree is built) or one family (nine nodes of at most
+//! `capacity` points). [`plan`] sizes both from `--memory`.
+
+use crate::distribute::{self, DistributeOptions, SPILL_PREFIX};
+use crate::nested::{self, BuiltNode, NestedParams};
+use myriad_core::{Error, NodeKey, PointBatch, Result, Schema};
+use myriad_format::{DatasetWriter, Metadata, Quantization};
+use myriad_io::OpenOptions;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub const DEFAULT_CAPACITY: usize = 1 << 16;
+pub const DEFAULT_INNER_DEPTH: u32 = 7;
+pub const DEFAULT_MAX_LEVEL: u32 = 20;
+
+#[derive(Debug, Clone)]
+pub struct ConvertOptions {
+    pub output: PathBuf,
+    pub force: bool,
+    /// Memory budget in bytes.
+    pub memory: u64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Quantization step for inputs whose coordinates are floats (not LAS/LAZ), in their units.
+    pub precision: f64,
+    pub params: NestedParams,
+    pub open: OpenOptions,
+}
+
+impl ConvertOptions {
+    pub fn new(output: &Path) -> ConvertOptions {
+        ConvertOptions {
+            output: output.to_path_buf(),
+            force: false,
+            memory: default_memory(),
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            precision: 1e-4,
+            params: NestedParams {
+                capacity: DEFAULT_CAPACITY,
+                inner_depth: DEFAULT_INNER_DEPTH,
+                max_level: DEFAULT_MAX_LEVEL,
+            },
+            open: OpenOptions {
+                sidecar_placements: true,
+                ..Default::default()
+            },
+        }
+    }
+}
+
+/// A quarter of the machine's memory, at most 8 GB (1 GB when it cannot be read).
+pub fn default_memory() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|m| {
+            m.lines()
+                .find(|l| l.starts_with("MemTotal:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+        })
+        .map(|kb| kb * 1024);
+    total.map_or(1 << 30, |t| (t / 4).min(8 << 30))
+}
+
+/// Parses a memory size: "512MB", "2GB", "1.5G", "300k", or plain bytes.
+pub fn parse_size(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let v: f64 = num
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a size (e.g. 512MB, 2GB, or bytes)"))?;
+    let mult = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1u64,
+        "k" | "kb" | "kib" => 1 << 10,
+        "m" | "mb" | "mib" => 1 << 20,
+        "g" | "gb" | "gib" => 1 << 30,
+        "t" | "tb" | "tib" => 1 << 40,
+        u => {
+            return Err(format!(
+                "\"{s}\": unknown unit \"{u}\" (use B, KB, MB, GB, TB)"
+            ));
+        }
+    };
+    Ok((v * mult as f64) as u64)
+}
+
+/// Bytes a point takes in memory while its chunk is built (its columns, a copy passed down, the
+/// MOSPT's codes and orders), for the widest common schema.
+const BUILD_BYTES_PER_POINT: u64 = 4 * 72 + 48;
+/// The smallest budget the build accepts.
+pub const MIN_MEMORY: u64 = 256 << 20;
+
+/// How a memory budget is spent: write buffers for distribution, and points per chunk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plan {
+    pub buffer_bytes: usize,
+    pub chunk_points: u64,
+}
+
+pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
+    // Fixed costs: readers' blocks (LAZ decompresses one block ahead on all cores), the
+    // writer's buffer, code and allocator slack.
+    let fixed = 160u64 << 20;
+    let free = memory.saturating_sub(fixed);
+    let buffer_bytes = (free / 4).clamp(8 << 20, 512 << 20);
+    let family = 9 * params.capacity as u64 * BUILD_BYTES_PER_POINT / 2;
+    let per_thread = free.saturating_sub(family * threads as u64) * 3 / 4 / threads as u64;
+    let chunk_points = (per_thread / BUILD_BYTES_PER_POINT).clamp(50_000, 2_000_000);
+    Plan {
+        buffer_bytes: buffer_bytes as usize,
+        chunk_points,
+    }
+}
+
+/// Follows a build: phases with a total of work units, and progress within them.
+pub trait Report: Sync {
+    fn phase(&self, name: &'static str, total: u64);
+    fn advance(&self, n: u64);
+}
+
+/// A [`Report`] that says nothing.
+pub struct Silent;
+impl Report for Silent {
+    fn phase(&self, _: &'static str, _: u64) {}
+    fn advance(&self, _: u64) {}
+}
+
+#[derive(Debug, Clone)]
+pub struct Summary {
+    pub points: u64,
+    pub nodes: u64,
+    pub depth: u32,
+    pub bytes: u64,
+    pub chunks: usize,
+    pub seconds: f64,
+    /// Seconds per phase.
+    pub phases: Vec<(&'static str, f64)>,
+    pub skipped_non_finite: u64,
+    pub trimmed: u64,
+    pub clamped: u64,
+}
+
+/// A node waiting on disk for the levels above: its points as rows, in MOSPT order.
+struct Pending {
+    key: NodeKey,
+    path: PathBuf,
+    points: usize,
+    prefix: Vec<u64>,
+    spacing: Vec<f64>,
+}
+
+/// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
+/// points have it. Any order within a level keeps the prefix property; acquisition order makes
+/// neighbours in the page neighbours along a scan line, which compresses far better (time deltas
+/// are nearly constant, positions and intensities change slowly).
+fn acquisition_order(node: &mut BuiltNode) {
+    let Some(t) = &node.points.gps_time else {
+        return;
+    };
+    let mut order: Vec<u32> = Vec::with_capacity(t.len());
+    let mut start = 0usize;
+    for &end in &node.prefix {
+        let end = end as usize;
+        let mut level: Vec<u32> = (start as u32..end as u32).collect();
+        level.sort_by(|&a, &b| t[a as usize].total_cmp(&t[b as usize]));
+        order.extend(level);
+        start = end;
+    }
+    node.points = node.points.gather(&order);
+}
+
+fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
+    acquisition_order(&mut node);
+    writer.write_node(node.key, &node.points, &node.prefix, &node.spacing)
+}
+
+fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
+    let path = dir.join(format!("node-{}.rows", node.key));
+    let mut bytes = Vec::with_capacity(node.points.len() * node.points.row_size());
+    for i in 0..node.points.len() {
+        node.points.put_row(i, &mut bytes);
+    }
+    std::fs::write(&path, &bytes).map_err(|e| Error::io(&path, e))?;
+    Ok(Pending {
+        key: node.key,
+        path,
+        points: node.points.len(),
+        prefix: node.prefix,
+        spacing: node.spacing,
+    })
+}
+
+fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
+    let bytes = std::fs::read(&p.path).map_err(|e| Error::io(&p.path, e))?;
+    let mut b = PointBatch::with_schema(schema, p.points);
+    let row = b.row_size();
+    if bytes.len() != row * p.points {
+        return Err(Error::at_byte(
+            &p.path,
+            bytes.len() as u64,
+            "spilled node has the wrong size",
+        ));
+    }
+    for r in bytes.chunks_exact(row) {
+        b.push_row(r);
+    }
+    std::fs::remove_file(&p.path).map_err(|e| Error::io(&p.path, e))?;
+    Ok(BuiltNode {
+        key: p.key,
+        points: b,
+        prefix: p.prefix,
+        spacing: p.spacing,
+    })
+}
+
+/// Removes what a killed build left next to `output`: spill folders and partial outputs whose
+/// process is gone.
+pub fn remove_stale(output: &Path) {
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Some(name) = output.file_name().and_then(|n| n.to_str()) else {
+        return;
+    };
+    let partial = format!(".{name}.");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let dead = |pid: &str| {
+        pid.parse::<u32>()
+            .is_ok_and(|p| p != std::process::id() && !Path::new("/proc").join(pid).exists())
+    };
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let Some(f) = file.to_str() else { continue };
+        if let Some(pid) = f.strip_prefix(SPILL_PREFIX) {
+            if dead(pid) {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+        } else if let Some(rest) = f.strip_prefix(&partial) {
+            if let Some(pid) = rest.strip_suffix(".partial") {
+                if dead(pid) {
+                    let _ = std::fs::remove_file(e.path());
+                }
+            }
+        }
+    }
+}
+
+/// The integer grid of the dataset: the finest input scale per axis (LAS/LAZ inputs keep their
+/// coordinates exactly), `precision` for inputs of float coordinates; the first LAS input's
+/// offset, else the root cube's corner on a whole unit.
+fn quantization(dist: &distribute::Distribution, precision: f64) -> Quantization {
+    let mut scale = [f64::INFINITY; 3];
+    for (info, _) in &dist.sources {
+        let s = info.scale.unwrap_or([precision; 3]);
+        for a in 0..3 {
+            scale[a] = scale[a].min(s[a]);
+        }
+    }
+    let offset = dist
+        .sources
+        .iter()
+        .find_map(|(i, _)| i.offset)
+        .unwrap_or(dist.root.min.map(f64::floor));
+    Quantization { scale, offset }
+}
+
+/// Converts `inputs` into a dataset at `options.output`.
+pub fn convert(
+    inputs: &[PathBuf],
+    options: &ConvertOptions,
+    report: &dyn Report,
+) -> Result<Summary> {
+    let start = Instant::now();
+    let out = &options.output;
+    if !options.force && out.exists() {
+        return Err(Error::Invalid(format!(
+            "{}: output exists (use --force to replace it)",
+            out.display()
+        )));
+    }
+    if options.memory < MIN_MEMORY {
+        return Err(Error::Invalid(format!(
+            "--memory {} MB is below the {} MB the build needs",
+            options.memory >> 20,
+            MIN_MEMORY >> 20
+        )));
+    }
+    if !(options.precision.is_finite() && options.precision > 0.0) {
+        return Err(Error::Invalid(
+            "--precision must be a positive length".into(),
+        ));
+    }
+    remove_stale(out);
+    let threads = options.threads.max(1);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
+    let params = options.params;
+    let plan = plan(options.memory, threads, &params);
+    let temp_dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut phases = Vec::new();
+    let mut t = Instant::now();
+
+    // 1. Distribution.
+    let dist = distribute::distribute_with(
+        inputs,
+        &options.open,
+        &DistributeOptions {
+            chunk_points: plan.chunk_points,
+            buffer_bytes: plan.buffer_bytes,
+            temp_dir,
+        },
+        &mut |p| match p {
+            distribute::Progress::Declared(n) => report.phase("reading", n),
+            distribute::Progress::Read(n) => report.advance(n),
+        },
+    )?;
+    if dist.points == 0 {
+        return Err(Error::Invalid(format!(
+            "{}: the inputs hold no points",
+            inputs[0].display()
+        )));
+    }
+    phases.push(("reading", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    let quant = quantization(&dist, options.precision);
+    let writer = DatasetWriter::create(out, options.force, quant)?;
+    let root = dist.root;
+    let schema = dist.schema.clone();
+    let spill_dir = dist.spill_dir().to_path_buf();
+
+    // 2. Chunks, in parallel, largest first (they take longest).
+    report.phase("building", dist.points);
+    let mut chunks = dist.chunks.clone();
+    chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
+    let pending: Vec<Pending> = pool.install(|| {
+        chunks
+            .par_iter()
+            .map(|chunk| -> Result<Pending> {
+                let batch = dist.load(chunk)?;
+                let key = NodeKey {
+                    level: chunk.level,
+                    cell: chunk.cell,
+                };
+                let mut top = None;
+                nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
+                    if node.key == key {
+                        top = Some(spill(node, &spill_dir)?);
+                    } else {
+                        report.advance(node.points.len() as u64);
+                        write(&writer, node)?;
+                    }
+                    Ok::<(), Error>(())
+                })?;
+                Ok(top.expect("a chunk has points, so its subtree has a root"))
+            })
+            .collect::<Result<Vec<_>>>()
+    })?;
+    phases.push(("building", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    // 3. The levels above the chunks.
+    let mut by_level: BTreeMap<u32, Vec<Pending>> = BTreeMap::new();
+    for p in pending {
+        by_level.entry(p.key.level).or_default().push(p);
+    }
+    report.phase("merging", by_level.values().map(|v| v.len() as u64).sum());
+    while let Some((&level, _)) = by_level.iter().next_back() {
+        let nodes = by_level.remove(&level).expect("present");
+        if level == 0 {
+            for p in nodes {
+                write(&writer, unspill(p, &schema)?)?;
+            }
+            break;
+        }
+        let mut families: BTreeMap<NodeKey, Vec<Pending>> = BTreeMap::new();
+        for n in nodes {
+            families.entry(n.key.parent()).or_default().push(n);
+        }
+        let parents: Vec<Pending> = pool.install(|| {
+            families
+                .into_par_iter()
+                .map(|(parent, kids)| -> Result<Pending> {
+                    let count = kids.len() as u64;
+                    let children = kids
+                        .into_iter()
+                        .map(|p| unspill(p, &schema))
+                        .collect::<Result<Vec<_>>>()?;
+                    let (top, children) = nested::take_up(parent, children, &root, &params);
+                    for c in children {
+                        write(&writer, c)?;
+                    }
+                    report.advance(count);
+                    spill(top, &spill_dir)
+                })
+                .collect::<Result<Vec<_>>>()
+        })?;
+        by_level.entry(level - 1).or_default().extend(parents);
+    }
+    phases.push(("merging", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    // 4. Hierarchy, metadata, header.
+    report.phase("writing", 1);
+    let meta = Metadata {
+        structure: "nested-octree".into(),
+        parameters: serde_json::json!({
+            "capacity": params.capacity,
+            "inner_depth": params.inner_depth,
+            "max_level": params.max_level,
+        }),
+        points: dist.points,
+        nodes: 0,
+        depth: 0,
+        bounds: dist.bounds,
+        root,
+        quantization: quant,
+        crs: dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
+        schema: schema.clone(),
+        sources: dist
+            .sources
+            .iter()
+            .map(|(i, n)| {
+                serde_json::json!({
+                    "path": i.path.display().to_string(),
+                    "format": i.format.name(),
+                    "version": i.version,
+                    "points": n,
+                })
+            })
+            .collect(),
+        las_header: dist.las_header.clone(),
+        software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
+    };
+    let (written, nodes, depth) = writer.totals();
+    if written != dist.points {
+        // Only a builder bug could lose points; the partial file is removed, nothing appears.
+        return Err(Error::Invalid(format!(
+            "{}: internal error: {} points read, {written} in the nodes",
+            out.display(),
+            dist.points
+        )));
+    }
+    let bytes = writer.finish(meta)?;
+    report.advance(1);
+    phases.push(("writing", t.elapsed().as_secs_f64()));
+    Ok(Summary {
+        points: dist.points,
+        nodes,
+        depth,
+        bytes,
+        chunks: dist.chunks.len(),
+        seconds: start.elapsed().as_secs_f64(),
+        phases,
+        skipped_non_finite: dist.skipped_non_finite,
+        trimmed: dist.trimmed,
+        clamped: dist.clamped,
+    })
+}

@@ -1,0 +1,219 @@
+//! Reading a dataset back: `extract` (the original points in a box at a level of detail, to
+//! LAS/LAZ/PLY, streaming, node by node) and `verify` (every page read, checksums and the
+//! structure's invariants checked).
+
+use myriad_core::{Aabb, Attribute, Error, NodeKey, Result, Schema};
+use myriad_format::{Damage, Dataset, NodeEntry};
+use myriad_io::las::{LasSink, LasWriteOptions};
+use myriad_io::ply::PlySink;
+use std::collections::HashSet;
+use std::path::Path;
+
+#[derive(Debug, Clone, Default)]
+pub struct ExtractOptions {
+    /// Only points inside this box (bounds inclusive).
+    pub bbox: Option<Aabb>,
+    /// Only the levels of detail whose point spacing is at least this; `None`: every point.
+    pub spacing: Option<f64>,
+    pub force: bool,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct ExtractSummary {
+    pub points: u64,
+    pub nodes_read: u64,
+    /// Damaged pages met (their nodes were skipped).
+    pub damage: Vec<Damage>,
+}
+
+enum Sink {
+    Las(LasSink),
+    Ply(PlySink),
+}
+
+/// The LAS format to write: the input's own (from the stored header) when it holds every
+/// attribute of the dataset, else the smallest LAS 1.4 format that does.
+fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
+    let m = &ds.meta;
+    let q = m.quantization;
+    if let Some(bytes) = &m.las_header {
+        let header = myriad_io::las::header_from_bytes(bytes)?;
+        let fmt = header.point_format();
+        let holds = Schema::for_las_format(fmt.to_u8().unwrap_or(0));
+        let covered = m
+            .schema
+            .attributes
+            .iter()
+            .all(|a| matches!(a, Attribute::Extra(_)) || holds.has(a))
+            && fmt.extra_bytes as usize == m.schema.extra_bytes;
+        if covered {
+            return LasWriteOptions::like(&header).with_transforms(q.scale, q.offset);
+        }
+    }
+    let o = LasWriteOptions::for_schema(&m.schema, q.scale, q.offset)?;
+    match &m.crs {
+        Some(wkt) if !wkt.starts_with("EPSG:") => o.with_wkt_crs(wkt),
+        _ => Ok(o),
+    }
+}
+
+/// The nodes a query touches, in key order: those whose cube meets the box and whose coarsest
+/// level is not finer than the spacing.
+fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEntry> {
+    nodes
+        .into_iter()
+        .filter(|n| {
+            let cube = n.key.bounds(&ds.meta.root);
+            let meets = o
+                .bbox
+                .is_none_or(|b| (0..3).all(|a| cube.min[a] <= b.max[a] && b.min[a] <= cube.max[a]));
+            let coarse_enough = match o.spacing {
+                Some(s) => n.spacing.first().is_some_and(|&top| top >= s),
+                None => true,
+            };
+            meets && coarse_enough && n.points > 0
+        })
+        .collect()
+}
+
+/// How many of a node's points (a prefix) have spacing at least `spacing`.
+fn prefix_for(n: &NodeEntry, spacing: Option<f64>) -> usize {
+    match spacing {
+        None => n.points as usize,
+        Some(s) => n
+            .spacing
+            .iter()
+            .zip(&n.prefix)
+            .take_while(|(sp, _)| **sp >= s)
+            .last()
+            .map_or(0, |(_, &p)| p as usize),
+    }
+}
+
+/// Writes the points of `ds` that the options select to `out` (.las, .laz or .ply). Damaged
+/// nodes are reported in the summary and skipped.
+pub fn extract(ds: &Dataset, out: &Path, o: &ExtractOptions) -> Result<ExtractSummary> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    let mut sink = match ext.as_str() {
+        "las" | "laz" => Sink::Las(LasSink::create(out, las_options(ds)?, o.force)?),
+        "ply" => Sink::Ply(PlySink::create(out, &ds.meta.schema, o.force)?),
+        _ => {
+            return Err(Error::unsupported(out, "extract writes .las, .laz or .ply"));
+        }
+    };
+    let (nodes, mut damage) = ds.nodes();
+    let mut summary = ExtractSummary::default();
+    for n in wanted(ds, nodes, o) {
+        let mut batch = match ds.read_node(&n) {
+            Ok(b) => b,
+            Err(d) => {
+                damage.push(d);
+                continue;
+            }
+        };
+        summary.nodes_read += 1;
+        batch.truncate(prefix_for(&n, o.spacing));
+        if let Some(b) = &o.bbox {
+            let keep: Vec<bool> = batch.positions.iter().map(|&p| b.contains(p)).collect();
+            batch.retain_mask(&keep);
+        }
+        if batch.is_empty() {
+            continue;
+        }
+        summary.points += batch.len() as u64;
+        match &mut sink {
+            Sink::Las(s) => s.write(&batch)?,
+            Sink::Ply(s) => s.write(&batch)?,
+        }
+    }
+    match sink {
+        Sink::Las(s) => s.finish()?,
+        Sink::Ply(s) => s.finish()?,
+    };
+    summary.damage = damage;
+    Ok(summary)
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct VerifyReport {
+    pub nodes: u64,
+    pub points: u64,
+    pub pages_bytes: u64,
+    pub damage: Vec<Damage>,
+}
+
+/// Reads every hierarchy and node page of `ds`; checks checksums, that every node's points lie
+/// in its cube, that its levels of detail are consistent, that every node's parent exists, and
+/// that the counts add up to the header's.
+pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
+    let (nodes, mut damage) = ds.nodes();
+    let root = ds.meta.root;
+    let q = ds.meta.quantization;
+    let keys: HashSet<NodeKey> = nodes.iter().map(|n| n.key).collect();
+    let mut report = VerifyReport::default();
+    let node_damage = |n: &NodeEntry, message: String| Damage {
+        key: n.key,
+        offset: n.page.offset,
+        message,
+        subtree: false,
+    };
+    for n in &nodes {
+        report.nodes += 1;
+        on_node(n.points as u64);
+        if n.key.level > 0 && !keys.contains(&n.key.parent()) {
+            damage.push(node_damage(n, "its parent is not in the hierarchy".into()));
+        }
+        let prefix_ok = !n.prefix.is_empty()
+            && n.prefix.len() == n.spacing.len()
+            && n.prefix.windows(2).all(|w| w[0] <= w[1])
+            && n.spacing.windows(2).all(|w| w[0] >= w[1])
+            && *n.prefix.last().unwrap() == n.points;
+        if !prefix_ok && n.points > 0 {
+            damage.push(node_damage(
+                n,
+                "inconsistent level-of-detail prefixes".into(),
+            ));
+        }
+        let batch = match ds.read_node(n) {
+            Ok(b) => b,
+            Err(d) => {
+                damage.push(d);
+                continue;
+            }
+        };
+        report.points += batch.len() as u64;
+        report.pages_bytes += n.page.length as u64;
+        // Points lie in the node's cube, give or take half a quantization step.
+        let cube = n.key.bounds(&root);
+        let slack: [f64; 3] = std::array::from_fn(|a| q.scale[a] + cube.size()[a] * 1e-9);
+        let outside = batch.positions.iter().position(|p| {
+            (0..3).any(|a| p[a] < cube.min[a] - slack[a] || p[a] > cube.max[a] + slack[a])
+        });
+        if let Some(i) = outside {
+            damage.push(node_damage(
+                n,
+                format!(
+                    "point {i} {:?} lies outside the node's cube",
+                    batch.positions[i]
+                ),
+            ));
+        }
+    }
+    if damage.is_empty() && report.points != ds.meta.points {
+        damage.push(Damage {
+            key: NodeKey::ROOT,
+            offset: 0,
+            message: format!(
+                "the nodes hold {} points, the metadata says {}",
+                report.points, ds.meta.points
+            ),
+            subtree: true,
+        });
+    }
+    report.damage = damage;
+    report
+}

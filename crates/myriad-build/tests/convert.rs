@@ -1,0 +1,373 @@
+//! `convert` end to end: nothing lost (every field of every point survives convert then
+//! extract), the dataset's invariants, box and spacing queries, damaged pages caught and named.
+
+use myriad_build::convert::{ConvertOptions, Silent, convert};
+use myriad_build::extract::{ExtractOptions, extract, verify};
+use myriad_core::{Aabb, PointBatch};
+use myriad_format::Dataset;
+use myriad_io::OpenOptions;
+use std::path::{Path, PathBuf};
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-convert-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn data_dir() -> Option<PathBuf> {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if d.is_dir() {
+        Some(d)
+    } else {
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED: {} not found; real-data tests need ../shared/data",
+            d.display()
+        );
+        None
+    }
+}
+
+fn read_all(path: &Path) -> PointBatch {
+    let mut src = myriad_io::open(path, &OpenOptions::default()).unwrap();
+    let mut all = PointBatch::with_schema(&src.info().schema, 0);
+    while let Some(b) = src.read_batch(1 << 16).unwrap() {
+        all.append(&b);
+    }
+    all
+}
+
+/// Every point as the bytes of all its fields, sorted: a multiset.
+fn records(b: &PointBatch) -> Vec<Vec<u8>> {
+    let mut rows: Vec<Vec<u8>> = (0..b.len())
+        .map(|i| {
+            let mut r = Vec::new();
+            b.put_row(i, &mut r);
+            r
+        })
+        .collect();
+    rows.sort_unstable();
+    rows
+}
+
+fn options(out: &Path) -> ConvertOptions {
+    let mut o = ConvertOptions::new(out);
+    o.open = OpenOptions::default();
+    o
+}
+
+fn synth(dir: &Path, points: u64) -> PathBuf {
+    let las = dir.join("city.las");
+    let opts = myriad_synth::SynthOptions {
+        points,
+        scene: myriad_synth::SceneKind::City,
+        seed: 5,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    las
+}
+
+#[test]
+fn nothing_lost_many_chunks_and_nodes() {
+    let d = tempdir("synth");
+    let las = synth(&d, 400_000);
+    let out = d.join("city.myr");
+    let mut o = options(&out);
+    // The smallest budget: chunks of 50 000 points, so the build runs on many chunks and merges
+    // them; small nodes, so the tree is deep.
+    o.memory = myriad_build::convert::MIN_MEMORY;
+    o.params.capacity = 4096;
+    o.threads = 2;
+    let s = convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+    assert_eq!(s.points, 400_000);
+    assert!(s.chunks >= 8, "{} chunks", s.chunks);
+    assert!(s.depth >= 4, "depth {}", s.depth);
+    // The spill folder is gone; only the input and the dataset remain.
+    let mut names: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["city.las", "city.myr"]);
+
+    let ds = Dataset::open(&out).unwrap();
+    assert_eq!(ds.meta.points, 400_000);
+    assert_eq!(ds.meta.nodes, s.nodes);
+    let r = verify(&ds, |_| {});
+    assert!(r.damage.is_empty(), "{:?}", r.damage);
+    assert_eq!(r.points, 400_000);
+
+    let back = d.join("back.las");
+    let e = extract(&ds, &back, &ExtractOptions::default()).unwrap();
+    assert_eq!(e.points, 400_000);
+    assert_eq!(records(&read_all(&back)), records(&read_all(&las)));
+    // The input's point format and version.
+    let fmt = |p: &Path| {
+        myriad_io::open(p, &OpenOptions::default())
+            .unwrap()
+            .info()
+            .version
+            .clone()
+    };
+    assert_eq!(fmt(&back), fmt(&las));
+
+    // An existing output is not replaced without force.
+    let before = std::fs::read(&out).unwrap();
+    let err = convert(std::slice::from_ref(&las), &o, &Silent).unwrap_err();
+    assert!(err.to_string().contains("--force"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+}
+
+#[test]
+fn box_and_spacing_queries() {
+    let d = tempdir("query");
+    let las = synth(&d, 200_000);
+    let out = d.join("q.myr");
+    let mut o = options(&out);
+    o.params.capacity = 4096;
+    convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+    let ds = Dataset::open(&out).unwrap();
+    let all = read_all(&las);
+    let b = ds.meta.bounds;
+    let c = b.center();
+    let bx = Aabb::new([b.min[0], b.min[1], b.min[2]], [c[0], c[1], b.max[2]]);
+    let part = d.join("part.laz");
+    let e = extract(
+        &ds,
+        &part,
+        &ExtractOptions {
+            bbox: Some(bx),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut inside = all.clone();
+    let keep: Vec<bool> = all.positions.iter().map(|&p| bx.contains(p)).collect();
+    inside.retain_mask(&keep);
+    assert!(inside.len() > 10_000 && inside.len() < all.len());
+    assert_eq!(e.points as usize, inside.len());
+    assert_eq!(records(&read_all(&part)), records(&inside));
+
+    // Coarser spacing, fewer points, each an original one; the coarsest is the root's.
+    let mut last = all.len() as u64 + 1;
+    let originals = records(&all);
+    for spacing in [0.5, 2.0, 8.0, 1e6] {
+        let p = d.join(format!("lod{spacing}.ply"));
+        let e = extract(
+            &ds,
+            &p,
+            &ExtractOptions {
+                spacing: Some(spacing),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            e.points < last && e.points >= 1,
+            "spacing {spacing}: {}",
+            e.points
+        );
+        last = e.points;
+        if spacing == 1e6 {
+            assert_eq!(e.points, 0, "nothing is as coarse as a megametre");
+        }
+    }
+    // At 2 m, the points are originals and about one per 2 m cell of the surface.
+    let p = d.join("lod.las");
+    extract(
+        &ds,
+        &p,
+        &ExtractOptions {
+            spacing: Some(2.0),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let lod = records(&read_all(&p));
+    assert!(lod.iter().all(|r| originals.binary_search(r).is_ok()));
+    let area = (b.max[0] - b.min[0]) * (b.max[1] - b.min[1]);
+    let n = lod.len() as f64;
+    assert!(
+        n > area / 64.0 && n < area,
+        "{n} points at 2 m over {area} m²"
+    );
+}
+
+#[test]
+fn damaged_pages_are_named_and_skipped() {
+    let d = tempdir("damage");
+    let las = synth(&d, 100_000);
+    let out = d.join("d.myr");
+    let mut o = options(&out);
+    o.params.capacity = 4096;
+    convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+    let good = std::fs::read(&out).unwrap();
+    let ds = Dataset::open(&out).unwrap();
+    let (nodes, damage) = ds.nodes();
+    assert!(damage.is_empty());
+    let victim = nodes
+        .iter()
+        .filter(|n| n.points > 100)
+        .nth(3)
+        .unwrap()
+        .clone();
+    drop(ds);
+
+    // A flipped byte in each part of one node page (head, directory, column data).
+    for at in [
+        10,
+        40,
+        victim.page.length as u64 / 2,
+        victim.page.length as u64 - 1,
+    ] {
+        let mut bytes = good.clone();
+        bytes[(victim.page.offset + at) as usize] ^= 0x10;
+        std::fs::write(&out, &bytes).unwrap();
+        let ds = Dataset::open(&out).unwrap();
+        let r = verify(&ds, |_| {});
+        assert_eq!(r.damage.len(), 1, "flip at {at}: {:?}", r.damage);
+        assert_eq!(r.damage[0].key, victim.key);
+        let msg = ds.damage_error(&r.damage[0]).to_string();
+        assert!(msg.contains(&victim.key.to_string()), "{msg}");
+        assert!(ds.read_node(&victim).is_err());
+        // A reader goes on without the node.
+        let e = extract(
+            &ds,
+            &d.join("rest.las"),
+            &ExtractOptions {
+                force: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(e.damage.len(), 1);
+        assert_eq!(e.points, 100_000 - victim.points as u64);
+    }
+
+    // A flipped byte in the root hierarchy page: the subtree is reported, nothing panics.
+    let ds = Dataset::open(&out).unwrap();
+    let root = ds.root_page().page;
+    drop(ds);
+    let mut bytes = good.clone();
+    bytes[(root.offset + 20) as usize] ^= 1;
+    std::fs::write(&out, &bytes).unwrap();
+    let ds = Dataset::open(&out).unwrap();
+    let r = verify(&ds, |_| {});
+    assert!(r.damage.iter().any(|d| d.subtree), "{:?}", r.damage);
+
+    // Header, metadata, truncation: the dataset does not open, and says where.
+    for at in [0usize, 20, good.len() - 10] {
+        let mut bytes = good.clone();
+        bytes[at] ^= 1;
+        std::fs::write(&out, &bytes).unwrap();
+        let err = Dataset::open(&out).err().expect("damaged header opened");
+        assert!(err.to_string().contains("byte"), "{err}");
+    }
+    std::fs::write(&out, &good[..good.len() - 1]).unwrap();
+    assert!(Dataset::open(&out).is_err());
+}
+
+#[test]
+fn inputs_of_several_formats_merge() {
+    let d = tempdir("merge");
+    let las = synth(&d, 50_000);
+    let all = read_all(&las);
+    // The same area as PLY (float coordinates, colour only) from the first points.
+    let ply = d.join("part.ply");
+    let mut sink = myriad_io::ply::PlySink::create(
+        &ply,
+        &myriad_core::Schema::new(vec![myriad_core::Attribute::Rgb]),
+        false,
+    )
+    .unwrap();
+    let mut some = all.slice(0..1000);
+    some.positions.iter_mut().for_each(|p| p[2] += 0.12345);
+    let mut rgb_only = PointBatch::with_schema(
+        &myriad_core::Schema::new(vec![myriad_core::Attribute::Rgb]),
+        0,
+    );
+    rgb_only.positions = some.positions.clone();
+    rgb_only.rgb = some.rgb.clone();
+    sink.write(&rgb_only).unwrap();
+    sink.finish().unwrap();
+    let out = d.join("m.myr");
+    let mut o = options(&out);
+    o.precision = 0.0001;
+    let s = convert(&[las.clone(), ply.clone()], &o, &Silent).unwrap();
+    assert_eq!(s.points, 51_000);
+    let ds = Dataset::open(&out).unwrap();
+    assert_eq!(ds.meta.sources.len(), 2);
+    // The finer of the two grids (LAS 1 mm, PLY 0.1 mm).
+    assert_eq!(ds.meta.quantization.scale, [0.0001; 3]);
+    let back = d.join("m.las");
+    extract(&ds, &back, &ExtractOptions::default()).unwrap();
+    let b = read_all(&back);
+    assert_eq!(b.len(), 51_000);
+    // The PLY points are there, on their 0.1 mm grid.
+    let z: Vec<f64> = rgb_only.positions.iter().map(|p| p[2]).collect();
+    for want in z.iter().take(50) {
+        assert!(b.positions.iter().any(|p| (p[2] - want).abs() < 0.00006));
+    }
+}
+
+#[test]
+fn nothing_lost_for_every_las_file_in_shared_data() {
+    let Some(dir) = data_dir() else { return };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
+        })
+        .collect();
+    files.sort();
+    assert!(files.len() >= 20, "{} LAS/LAZ files", files.len());
+    let d = tempdir("real");
+    for f in &files {
+        let name = f.file_stem().unwrap().to_str().unwrap();
+        let out = d.join(format!("{name}.myr"));
+        let mut o = options(&out);
+        o.params.capacity = 16_384;
+        let s = convert(std::slice::from_ref(f), &o, &Silent)
+            .unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        let ds = Dataset::open(&out).unwrap();
+        let r = verify(&ds, |_| {});
+        assert!(r.damage.is_empty(), "{}: {:?}", f.display(), r.damage);
+        let back = d.join(format!("{name}.las"));
+        extract(&ds, &back, &ExtractOptions::default()).unwrap();
+        let input = read_all(f);
+        let output = read_all(&back);
+        assert_eq!(s.points as usize, input.len(), "{}", f.display());
+        assert_eq!(output.schema(), input.schema(), "{}", f.display());
+        assert!(
+            records(&output) == records(&input),
+            "{}: the extracted points differ from the input's",
+            f.display()
+        );
+        let info = |p: &Path| {
+            let s = myriad_io::open(p, &OpenOptions::default()).unwrap();
+            let i = s.info();
+            (
+                i.version.replace("COPC 1.0, ", ""),
+                i.scale,
+                i.offset,
+                i.crs.clone(),
+            )
+        };
+        let (vi, si, oi, ci) = info(f);
+        let (vo, so, oo, co) = info(&back);
+        assert_eq!((so, oo), (si, oi), "{}", f.display());
+        assert_eq!(ci, co, "{}: CRS", f.display());
+        assert!(
+            vi.contains(&vo) || vo.contains(&vi),
+            "{}: {vi} / {vo}",
+            f.display()
+        );
+        std::fs::remove_file(&out).unwrap();
+        std::fs::remove_file(&back).unwrap();
+    }
+}

@@ -1,0 +1,221 @@
+//! The hierarchy, stored in pages as COPC does: a page holds the entries of the nodes of a
+//! subtree [`PAGE_LEVELS`] levels deep, and references to the pages of the subtrees below it. A
+//! reader of a dataset of any size opens it by reading the root page alone, and walks down only
+//! where it needs to. Byte layout: docs/format.md.
+
+use myriad_core::NodeKey;
+
+pub const HIERARCHY_MAGIC: &[u8; 4] = b"MYRH";
+/// Levels of nodes per hierarchy page.
+pub const PAGE_LEVELS: u32 = 5;
+
+/// Where a page lies and its CRC-32 (of all its bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PageRef {
+    pub offset: u64,
+    pub length: u32,
+    pub crc: u32,
+}
+
+/// One node: its key, where its page lies, and its level-of-detail prefixes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeEntry {
+    pub key: NodeKey,
+    /// The node page; length 0 for a node without points (kept so that traversal reaches its
+    /// descendants).
+    pub page: PageRef,
+    pub points: u32,
+    /// `prefix[l]` points of the node make up its level of detail `l`; the last is `points`.
+    pub prefix: Vec<u32>,
+    /// Point spacing of each level of detail.
+    pub spacing: Vec<f64>,
+}
+
+/// A reference to the page of the subtree rooted at `key`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChildPage {
+    pub key: NodeKey,
+    pub page: PageRef,
+}
+
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct HierarchyPage {
+    pub nodes: Vec<NodeEntry>,
+    pub children: Vec<ChildPage>,
+}
+
+/// The root of the page that holds `key`'s entry.
+pub fn page_root(key: NodeKey) -> NodeKey {
+    let level = key.level / PAGE_LEVELS * PAGE_LEVELS;
+    NodeKey {
+        level,
+        cell: key.cell.map(|c| c >> (key.level - level)),
+    }
+}
+
+fn put_key(out: &mut Vec<u8>, k: NodeKey) {
+    out.push(k.level as u8);
+    for c in k.cell {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
+}
+
+fn put_ref(out: &mut Vec<u8>, r: PageRef) {
+    out.extend_from_slice(&r.offset.to_le_bytes());
+    out.extend_from_slice(&r.length.to_le_bytes());
+    out.extend_from_slice(&r.crc.to_le_bytes());
+}
+
+impl HierarchyPage {
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(12 + self.nodes.len() * 80 + self.children.len() * 29);
+        out.extend_from_slice(HIERARCHY_MAGIC);
+        out.extend_from_slice(&(self.nodes.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(self.children.len() as u32).to_le_bytes());
+        for n in &self.nodes {
+            put_key(&mut out, n.key);
+            put_ref(&mut out, n.page);
+            out.extend_from_slice(&n.points.to_le_bytes());
+            out.push(n.prefix.len() as u8);
+            for (p, s) in n.prefix.iter().zip(&n.spacing) {
+                out.extend_from_slice(&p.to_le_bytes());
+                out.extend_from_slice(&s.to_le_bytes());
+            }
+        }
+        for c in &self.children {
+            put_key(&mut out, c.key);
+            put_ref(&mut out, c.page);
+        }
+        out
+    }
+
+    /// Decodes a page; an error gives the byte inside the page and what is wrong.
+    pub fn decode(b: &[u8]) -> Result<HierarchyPage, (usize, String)> {
+        let mut r = Cursor { b, at: 0 };
+        if r.bytes(4)? != HIERARCHY_MAGIC {
+            return Err((0, "not a hierarchy page (wrong magic)".into()));
+        }
+        let (nodes, children) = (r.u32()? as usize, r.u32()? as usize);
+        // Each entry takes at least 34 bytes, each reference 29: counts beyond that are damage.
+        if nodes
+            .saturating_mul(34)
+            .saturating_add(children.saturating_mul(29))
+            > b.len()
+        {
+            return Err((
+                4,
+                format!("{nodes} nodes and {children} pages do not fit the page"),
+            ));
+        }
+        let mut page = HierarchyPage::default();
+        for _ in 0..nodes {
+            let key = r.key()?;
+            let pr = r.page_ref()?;
+            let points = r.u32()?;
+            let levels = r.bytes(1)?[0] as usize;
+            let mut prefix = Vec::with_capacity(levels);
+            let mut spacing = Vec::with_capacity(levels);
+            for _ in 0..levels {
+                prefix.push(r.u32()?);
+                spacing.push(f64::from_le_bytes(r.bytes(8)?.try_into().unwrap()));
+            }
+            page.nodes.push(NodeEntry {
+                key,
+                page: pr,
+                points,
+                prefix,
+                spacing,
+            });
+        }
+        for _ in 0..children {
+            let key = r.key()?;
+            let pr = r.page_ref()?;
+            page.children.push(ChildPage { key, page: pr });
+        }
+        if r.at != b.len() {
+            return Err((r.at, "bytes after the last entry".into()));
+        }
+        Ok(page)
+    }
+}
+
+struct Cursor<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn bytes(&mut self, n: usize) -> Result<&'a [u8], (usize, String)> {
+        if self.b.len() - self.at < n {
+            return Err((self.at, "page ends inside an entry".into()));
+        }
+        self.at += n;
+        Ok(&self.b[self.at - n..self.at])
+    }
+    fn u32(&mut self) -> Result<u32, (usize, String)> {
+        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().unwrap()))
+    }
+    fn key(&mut self) -> Result<NodeKey, (usize, String)> {
+        let at = self.at;
+        let level = self.bytes(1)?[0] as u32;
+        let cell = [self.u32()?, self.u32()?, self.u32()?];
+        if level > 31 || cell.iter().any(|&c| (c as u64) >> level != 0) {
+            return Err((
+                at,
+                format!(
+                    "invalid node key {level}-{}-{}-{}",
+                    cell[0], cell[1], cell[2]
+                ),
+            ));
+        }
+        Ok(NodeKey { level, cell })
+    }
+    fn page_ref(&mut self) -> Result<PageRef, (usize, String)> {
+        let offset = u64::from_le_bytes(self.bytes(8)?.try_into().unwrap());
+        Ok(PageRef {
+            offset,
+            length: self.u32()?,
+            crc: self.u32()?,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_page_roots() {
+        let k = |level, x, y, z| NodeKey {
+            level,
+            cell: [x, y, z],
+        };
+        let page = HierarchyPage {
+            nodes: vec![NodeEntry {
+                key: k(3, 1, 2, 7),
+                page: PageRef {
+                    offset: 64,
+                    length: 1000,
+                    crc: 7,
+                },
+                points: 99,
+                prefix: vec![1, 8, 99],
+                spacing: vec![4.0, 2.0, 1.0],
+            }],
+            children: vec![ChildPage {
+                key: k(5, 4, 8, 31),
+                page: PageRef {
+                    offset: 5000,
+                    length: 50,
+                    crc: 9,
+                },
+            }],
+        };
+        let bytes = page.encode();
+        assert_eq!(HierarchyPage::decode(&bytes).unwrap(), page);
+        assert!(HierarchyPage::decode(&bytes[..bytes.len() - 1]).is_err());
+        assert_eq!(page_root(k(3, 1, 2, 7)), NodeKey::ROOT);
+        assert_eq!(page_root(k(7, 100, 4, 5)), k(5, 25, 1, 1));
+        assert_eq!(page_root(k(5, 25, 1, 1)), k(5, 25, 1, 1));
+    }
+}

@@ -1,0 +1,677 @@
+//! The Myriad dataset file, `.myr`: a 64-byte header, node pages, metadata (JSON) and a hierarchy
+//! stored in pages (like COPC), every page with a CRC-32. Writers append node pages from any
+//! thread as nodes are built and write the hierarchy, metadata and header last; readers work on
+//! byte ranges ([`ByteSource`]: a file now, HTTP range requests later) and are shared between
+//! threads. Opening a dataset of any size reads the header, the metadata and the root hierarchy
+//! page. The byte layout is in docs/format.md.
+//!
+//! This crate decides nothing about levels of detail: it stores what a builder gives it.
+
+pub mod hierarchy;
+pub mod page;
+
+pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
+pub use page::Quantization;
+
+use myriad_core::{
+    Aabb, Attribute, Error, ExtraDim, ExtraType, NodeKey, PointBatch, Result, Schema,
+};
+use myriad_io::atomic::AtomicFile;
+use serde_json::{Value, json};
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
+pub const FORMAT_VERSION: u32 = 1;
+pub const HEADER_LEN: usize = 64;
+
+/// What the dataset holds, stored as JSON after the node pages.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Metadata {
+    /// The hierarchy's kind, e.g. "nested-octree", and its parameters.
+    pub structure: String,
+    pub parameters: Value,
+    pub points: u64,
+    pub nodes: u64,
+    /// Deepest node level.
+    pub depth: u32,
+    /// Bounds of the points.
+    pub bounds: Aabb,
+    /// The root node's cube.
+    pub root: Aabb,
+    pub quantization: Quantization,
+    /// OGC WKT (or "EPSG:n").
+    pub crs: Option<String>,
+    pub schema: Schema,
+    /// The inputs: path, format, points taken from each.
+    pub sources: Vec<Value>,
+    /// A LAS header (with its VLRs) of the input, so that extraction writes the input's point
+    /// format, version and VLRs; `None` when no input was LAS/LAZ.
+    pub las_header: Option<Vec<u8>>,
+    pub software: String,
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|v| format!("{v:02x}")).collect()
+}
+
+fn unhex(s: &str) -> Option<Vec<u8>> {
+    if s.len() % 2 != 0 {
+        return None;
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
+fn aabb_json(b: &Aabb) -> Value {
+    json!({"min": b.min, "max": b.max})
+}
+
+fn schema_json(s: &Schema) -> Value {
+    let mut names = Vec::new();
+    let mut extra = Vec::new();
+    for a in &s.attributes {
+        match a {
+            Attribute::Extra(d) => {
+                let (code, len) = d.data_type.las_code();
+                extra.push(json!({
+                    "name": d.name, "type": code, "bytes": len, "offset": d.offset,
+                    "description": d.description, "scale": d.scale, "add_offset": d.add_offset,
+                }));
+            }
+            a => names.push(Value::from(a.name())),
+        }
+    }
+    json!({"attributes": names, "extra_bytes": s.extra_bytes, "extra_dims": extra})
+}
+
+impl Metadata {
+    pub fn to_json(&self) -> Value {
+        let q = &self.quantization;
+        json!({
+            "structure": self.structure,
+            "parameters": self.parameters,
+            "points": self.points,
+            "nodes": self.nodes,
+            "depth": self.depth,
+            "bounds": aabb_json(&self.bounds),
+            "root": aabb_json(&self.root),
+            "scale": q.scale,
+            "offset": q.offset,
+            "crs": self.crs,
+            "schema": schema_json(&self.schema),
+            "sources": self.sources,
+            "las_header": self.las_header.as_deref().map(hex),
+            "software": self.software,
+        })
+    }
+
+    pub fn from_json(v: &Value) -> std::result::Result<Metadata, String> {
+        let field = |k: &str| v.get(k).ok_or_else(|| format!("metadata lacks \"{k}\""));
+        let f3 = |x: &Value| -> std::result::Result<[f64; 3], String> {
+            let a = x
+                .as_array()
+                .filter(|a| a.len() == 3)
+                .ok_or("expected 3 numbers")?;
+            let mut out = [0.0; 3];
+            for (o, e) in out.iter_mut().zip(a) {
+                *o = e.as_f64().ok_or("expected a number")?;
+            }
+            Ok(out)
+        };
+        let aabb = |k: &str| -> std::result::Result<Aabb, String> {
+            let b = field(k)?;
+            Ok(Aabb::new(
+                f3(b.get("min").ok_or("no min")?)?,
+                f3(b.get("max").ok_or("no max")?)?,
+            ))
+        };
+        let u = |k: &str| {
+            field(k)?
+                .as_u64()
+                .ok_or_else(|| format!("\"{k}\" is not a count"))
+        };
+        let s = field("schema")?;
+        let mut attributes = Vec::new();
+        for n in s["attributes"]
+            .as_array()
+            .ok_or("schema has no attributes")?
+        {
+            let name = n.as_str().ok_or("attribute name is not a string")?;
+            attributes.push(
+                Attribute::from_name(name).ok_or_else(|| format!("unknown attribute {name}"))?,
+            );
+        }
+        for d in s["extra_dims"]
+            .as_array()
+            .ok_or("schema has no extra_dims")?
+        {
+            let code = d["type"].as_u64().unwrap_or(u64::MAX) as u8;
+            let len = d["bytes"].as_u64().unwrap_or(0) as u8;
+            attributes.push(Attribute::Extra(ExtraDim {
+                name: d["name"].as_str().unwrap_or_default().to_string(),
+                data_type: ExtraType::from_las_code(code, len).ok_or("bad extra dimension type")?,
+                offset: d["offset"].as_u64().unwrap_or(0) as usize,
+                description: d["description"].as_str().unwrap_or_default().to_string(),
+                scale: d["scale"].as_f64(),
+                add_offset: d["add_offset"].as_f64(),
+            }));
+        }
+        let scale = f3(field("scale")?)?;
+        if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err("scale must be positive".into());
+        }
+        Ok(Metadata {
+            structure: field("structure")?.as_str().unwrap_or_default().to_string(),
+            parameters: field("parameters")?.clone(),
+            points: u("points")?,
+            nodes: u("nodes")?,
+            depth: u("depth")? as u32,
+            bounds: aabb("bounds")?,
+            root: aabb("root")?,
+            quantization: Quantization {
+                scale,
+                offset: f3(field("offset")?)?,
+            },
+            crs: v.get("crs").and_then(|c| c.as_str()).map(str::to_string),
+            schema: Schema {
+                attributes,
+                extra_bytes: s["extra_bytes"].as_u64().unwrap_or(0) as usize,
+            },
+            sources: v
+                .get("sources")
+                .and_then(|s| s.as_array())
+                .cloned()
+                .unwrap_or_default(),
+            las_header: match v.get("las_header").and_then(|h| h.as_str()) {
+                Some(h) => Some(unhex(h).ok_or("las_header is not hex")?),
+                None => None,
+            },
+            software: v
+                .get("software")
+                .and_then(|s| s.as_str())
+                .unwrap_or_default()
+                .to_string(),
+        })
+    }
+}
+
+/// The 64-byte file header.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Header {
+    metadata: PageRef,
+    hierarchy: PageRef,
+    file_length: u64,
+    points: u64,
+}
+
+impl Header {
+    fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut b = [0u8; HEADER_LEN];
+        b[..8].copy_from_slice(MAGIC);
+        b[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        let put = |b: &mut [u8; HEADER_LEN], at: usize, r: PageRef| {
+            b[at..at + 8].copy_from_slice(&r.offset.to_le_bytes());
+            b[at + 8..at + 12].copy_from_slice(&r.length.to_le_bytes());
+            b[at + 12..at + 16].copy_from_slice(&r.crc.to_le_bytes());
+        };
+        put(&mut b, 16, self.metadata);
+        put(&mut b, 32, self.hierarchy);
+        b[48..56].copy_from_slice(&self.file_length.to_le_bytes());
+        b[56..64].copy_from_slice(&self.points.to_le_bytes());
+        let crc = crc32fast::hash(&b);
+        b[12..16].copy_from_slice(&crc.to_le_bytes());
+        b
+    }
+
+    fn decode(b: &[u8; HEADER_LEN]) -> std::result::Result<Header, (u64, String)> {
+        if &b[..8] != MAGIC {
+            return Err((0, "not a Myriad dataset (wrong magic)".into()));
+        }
+        let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+        let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+        let version = u32_at(8);
+        let mut zeroed = *b;
+        zeroed[12..16].fill(0);
+        if crc32fast::hash(&zeroed) != u32_at(12) {
+            return Err((12, "header checksum mismatch".into()));
+        }
+        if version != FORMAT_VERSION {
+            return Err((
+                8,
+                format!("format version {version}; this build reads {FORMAT_VERSION}"),
+            ));
+        }
+        let r = |at: usize| PageRef {
+            offset: u64_at(at),
+            length: u32_at(at + 8),
+            crc: u32_at(at + 12),
+        };
+        Ok(Header {
+            metadata: r(16),
+            hierarchy: r(32),
+            file_length: u64_at(48),
+            points: u64_at(56),
+        })
+    }
+}
+
+/// Bytes addressed by offset: a file, later an HTTP resource. Shared between threads.
+pub trait ByteSource: Send + Sync {
+    fn len(&self) -> u64;
+    fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>>;
+}
+
+/// A local file, read with positioned reads (no shared cursor).
+pub struct FileBytes {
+    file: File,
+    len: u64,
+}
+
+impl FileBytes {
+    pub fn open(path: &Path) -> Result<FileBytes> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        Ok(FileBytes { file, len })
+    }
+}
+
+impl ByteSource for FileBytes {
+    fn len(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let mut b = vec![0u8; len];
+        self.file.read_exact_at(&mut b, offset)?;
+        Ok(b)
+    }
+}
+
+/// Writes a dataset: node pages appended by any thread as they are built, then
+/// [`DatasetWriter::finish`] writes the hierarchy pages, the metadata and the header, and moves
+/// the file to its name. Until then the file has a zeroed header, under a temporary name.
+pub struct DatasetWriter {
+    out: Mutex<Out>,
+    file: AtomicFile,
+    path: PathBuf,
+    quant: Quantization,
+    entries: Mutex<Vec<NodeEntry>>,
+}
+
+struct Out {
+    w: BufWriter<File>,
+    pos: u64,
+}
+
+impl DatasetWriter {
+    pub fn create(path: &Path, force: bool, quant: Quantization) -> Result<DatasetWriter> {
+        let file = AtomicFile::create(path, force)?;
+        let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
+        w.write_all(&[0u8; HEADER_LEN])
+            .map_err(|e| Error::io(path, e))?;
+        Ok(DatasetWriter {
+            out: Mutex::new(Out {
+                w,
+                pos: HEADER_LEN as u64,
+            }),
+            file,
+            path: path.to_path_buf(),
+            quant,
+            entries: Mutex::new(Vec::new()),
+        })
+    }
+
+    pub fn quantization(&self) -> &Quantization {
+        &self.quant
+    }
+
+    /// Compresses and appends one node (on the calling thread; only the append is serialized).
+    /// `prefix` and `spacing` are the node's levels of detail. Returns the page's bytes.
+    pub fn write_node(
+        &self,
+        key: NodeKey,
+        batch: &PointBatch,
+        prefix: &[u64],
+        spacing: &[f64],
+    ) -> Result<u64> {
+        if batch.len() > u32::MAX as usize {
+            return Err(Error::Invalid(format!(
+                "node {key} holds {} points; a node holds at most 2^32 - 1",
+                batch.len()
+            )));
+        }
+        let bytes = if batch.is_empty() {
+            Vec::new()
+        } else {
+            page::encode(batch, &self.quant)
+        };
+        let crc = crc32fast::hash(&bytes);
+        let offset = {
+            let mut out = self.out.lock().expect("writer lock");
+            let at = out.pos;
+            out.w
+                .write_all(&bytes)
+                .map_err(|e| Error::io(&self.path, e))?;
+            out.pos += bytes.len() as u64;
+            at
+        };
+        self.entries.lock().expect("entries lock").push(NodeEntry {
+            key,
+            page: PageRef {
+                offset: if bytes.is_empty() { 0 } else { offset },
+                length: bytes.len() as u32,
+                crc,
+            },
+            points: batch.len() as u32,
+            prefix: prefix.iter().map(|&p| p as u32).collect(),
+            spacing: spacing.to_vec(),
+        });
+        Ok(bytes.len() as u64)
+    }
+
+    /// Points, nodes and deepest level written so far.
+    pub fn totals(&self) -> (u64, u64, u32) {
+        let e = self.entries.lock().expect("entries lock");
+        (
+            e.iter().map(|n| n.points as u64).sum(),
+            e.len() as u64,
+            e.iter().map(|n| n.key.level).max().unwrap_or(0),
+        )
+    }
+
+    /// Bytes written so far.
+    pub fn position(&self) -> u64 {
+        self.out.lock().expect("writer lock").pos
+    }
+
+    /// Writes the hierarchy pages (children before parents), the metadata and the header, syncs,
+    /// and renames the file to its name. `meta.nodes` and `meta.depth` are set here. Returns the
+    /// file's size.
+    pub fn finish(self, mut meta: Metadata) -> Result<u64> {
+        let path = self.path.clone();
+        let io = |e| Error::io(&path, e);
+        let entries = self.entries.into_inner().expect("entries lock");
+        let mut out = self.out.into_inner().expect("writer lock");
+        meta.nodes = entries.len() as u64;
+        meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
+        meta.points = entries.iter().map(|e| e.points as u64).sum();
+        // Group entries by page; pages by their parent page.
+        let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
+        for e in entries {
+            pages
+                .entry(hierarchy::page_root(e.key))
+                .or_default()
+                .push(e);
+        }
+        let mut below: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
+        for &k in pages.keys() {
+            if k.level > 0 {
+                below
+                    .entry(hierarchy::page_root(k.parent()))
+                    .or_default()
+                    .push(k);
+            }
+        }
+        fn write_page(
+            key: NodeKey,
+            pages: &mut BTreeMap<NodeKey, Vec<NodeEntry>>,
+            below: &HashMap<NodeKey, Vec<NodeKey>>,
+            out: &mut Out,
+        ) -> std::io::Result<PageRef> {
+            let mut children = Vec::new();
+            for &c in below.get(&key).map(|v| v.as_slice()).unwrap_or(&[]) {
+                children.push(ChildPage {
+                    key: c,
+                    page: write_page(c, pages, below, out)?,
+                });
+            }
+            let mut nodes = pages.remove(&key).unwrap_or_default();
+            nodes.sort_by_key(|n| n.key);
+            let bytes = HierarchyPage { nodes, children }.encode();
+            let r = PageRef {
+                offset: out.pos,
+                length: bytes.len() as u32,
+                crc: crc32fast::hash(&bytes),
+            };
+            out.w.write_all(&bytes)?;
+            out.pos += bytes.len() as u64;
+            Ok(r)
+        }
+        let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, &mut out).map_err(io)?;
+        let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
+        let metadata = PageRef {
+            offset: out.pos,
+            length: json.len() as u32,
+            crc: crc32fast::hash(&json),
+        };
+        out.w.write_all(&json).map_err(io)?;
+        out.pos += json.len() as u64;
+        let header = Header {
+            metadata,
+            hierarchy,
+            file_length: out.pos,
+            points: meta.points,
+        };
+        // Everything else is on disk before the header that makes the file a dataset.
+        out.w.flush().map_err(io)?;
+        let mut f = out.w.into_inner().map_err(|e| io(e.into_error()))?;
+        f.sync_data().map_err(io)?;
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        f.write_all(&header.encode()).map_err(io)?;
+        f.sync_all().map_err(io)?;
+        drop(f);
+        self.file.commit()?;
+        Ok(header.file_length)
+    }
+}
+
+/// A damaged part of a dataset met while reading: the node (or the root of the subtree whose
+/// hierarchy page is damaged), the byte offset, and what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Damage {
+    pub key: NodeKey,
+    pub offset: u64,
+    pub message: String,
+    /// A hierarchy page (the whole subtree below `key` is unreachable) rather than a node page.
+    pub subtree: bool,
+}
+
+impl std::fmt::Display for Damage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.subtree {
+            write!(
+                f,
+                "hierarchy page of subtree {} at byte {}: {}",
+                self.key, self.offset, self.message
+            )
+        } else {
+            write!(
+                f,
+                "node {} at byte {}: {}",
+                self.key, self.offset, self.message
+            )
+        }
+    }
+}
+
+/// An open dataset. Cheap to share: readers on many threads call it at once.
+pub struct Dataset {
+    bytes: Arc<dyn ByteSource>,
+    path: PathBuf,
+    pub meta: Metadata,
+    root: PageRef,
+    pub file_length: u64,
+}
+
+impl Dataset {
+    pub fn open(path: &Path) -> Result<Dataset> {
+        Dataset::from_source(Arc::new(FileBytes::open(path)?), path)
+    }
+
+    /// Opens a dataset from any byte source; `name` labels errors.
+    pub fn from_source(bytes: Arc<dyn ByteSource>, name: &Path) -> Result<Dataset> {
+        let len = bytes.len();
+        if len < HEADER_LEN as u64 {
+            return Err(Error::at_byte(
+                name,
+                len,
+                "file ends inside the 64-byte dataset header",
+            ));
+        }
+        let head = bytes
+            .read_at(0, HEADER_LEN)
+            .map_err(|e| Error::io(name, e))?;
+        let header = Header::decode(head.as_slice().try_into().unwrap())
+            .map_err(|(at, m)| Error::at_byte(name, at, m))?;
+        if header.file_length != len {
+            return Err(Error::at_byte(
+                name,
+                len,
+                format!(
+                    "file has {len} bytes, its header says {} (truncated?)",
+                    header.file_length
+                ),
+            ));
+        }
+        let m = header.metadata;
+        if m.offset.saturating_add(m.length as u64) > len {
+            return Err(Error::at_byte(
+                name,
+                16,
+                "metadata lies past the end of the file",
+            ));
+        }
+        let json = bytes
+            .read_at(m.offset, m.length as usize)
+            .map_err(|e| Error::io(name, e))?;
+        if crc32fast::hash(&json) != m.crc {
+            return Err(Error::at_byte(name, m.offset, "metadata checksum mismatch"));
+        }
+        let meta = serde_json::from_slice::<Value>(&json)
+            .map_err(|e| e.to_string())
+            .and_then(|v| Metadata::from_json(&v))
+            .map_err(|e| Error::at_byte(name, m.offset, format!("metadata: {e}")))?;
+        Ok(Dataset {
+            bytes,
+            path: name.to_path_buf(),
+            meta,
+            root: header.hierarchy,
+            file_length: len,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn read_checked(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
+        if r.offset.saturating_add(r.length as u64) > self.file_length {
+            return Err("page lies past the end of the file".into());
+        }
+        let b = self
+            .bytes
+            .read_at(r.offset, r.length as usize)
+            .map_err(|e| e.to_string())?;
+        if crc32fast::hash(&b) != r.crc {
+            return Err("checksum mismatch".into());
+        }
+        Ok(b)
+    }
+
+    /// The root hierarchy page's reference (the only page opening reads).
+    pub fn root_page(&self) -> ChildPage {
+        ChildPage {
+            key: NodeKey::ROOT,
+            page: self.root,
+        }
+    }
+
+    /// Reads one hierarchy page.
+    pub fn hierarchy_page(&self, p: &ChildPage) -> std::result::Result<HierarchyPage, Damage> {
+        let damage = |offset: u64, message: String| Damage {
+            key: p.key,
+            offset,
+            message,
+            subtree: true,
+        };
+        let b = self
+            .read_checked(p.page)
+            .map_err(|m| damage(p.page.offset, m))?;
+        HierarchyPage::decode(&b).map_err(|(at, m)| damage(p.page.offset + at as u64, m))
+    }
+
+    /// Every node entry reachable through undamaged hierarchy pages, and the damage met.
+    pub fn nodes(&self) -> (Vec<NodeEntry>, Vec<Damage>) {
+        let mut nodes = Vec::new();
+        let mut damage = Vec::new();
+        let mut todo = vec![self.root_page()];
+        while let Some(p) = todo.pop() {
+            match self.hierarchy_page(&p) {
+                Ok(page) => {
+                    nodes.extend(page.nodes);
+                    todo.extend(page.children);
+                }
+                Err(d) => damage.push(d),
+            }
+        }
+        nodes.sort_by_key(|n| n.key);
+        (nodes, damage)
+    }
+
+    /// Reads and decodes a node's points, with every column of the dataset.
+    pub fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
+        self.read_node_columns(e, &self.meta.schema)
+    }
+
+    /// Reads and decodes a node's points with the columns of `schema` only.
+    pub fn read_node_columns(
+        &self,
+        e: &NodeEntry,
+        schema: &Schema,
+    ) -> std::result::Result<PointBatch, Damage> {
+        let damage = |offset: u64, message: String| Damage {
+            key: e.key,
+            offset,
+            message,
+            subtree: false,
+        };
+        if e.page.length == 0 {
+            if e.points != 0 {
+                return Err(damage(0, format!("{} points but no page", e.points)));
+            }
+            return Ok(PointBatch::with_schema(schema, 0));
+        }
+        let b = self
+            .read_checked(e.page)
+            .map_err(|m| damage(e.page.offset, m))?;
+        let batch = page::decode(&b, schema, &self.meta.quantization)
+            .map_err(|pe| damage(e.page.offset + pe.at as u64, pe.message))?;
+        if batch.len() != e.points as usize {
+            return Err(damage(
+                e.page.offset,
+                format!(
+                    "page holds {} points, the hierarchy says {}",
+                    batch.len(),
+                    e.points
+                ),
+            ));
+        }
+        Ok(batch)
+    }
+
+    /// A damage report as an error naming the file.
+    pub fn damage_error(&self, d: &Damage) -> Error {
+        let msg = if d.subtree {
+            format!("hierarchy page of subtree {}: {}", d.key, d.message)
+        } else {
+            format!("node {}: {}", d.key, d.message)
+        };
+        Error::at_byte(&self.path, d.offset, msg)
+    }
+}

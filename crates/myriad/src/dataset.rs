@@ -1,0 +1,363 @@
+//! `myriad convert`, `extract`, `verify`, and `info` on a dataset.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use myriad_build::convert::{self, ConvertOptions};
+use myriad_build::extract::{self, ExtractOptions};
+use myriad_core::Aabb;
+use myriad_format::Dataset;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use crate::info::thousands;
+
+#[derive(Args)]
+pub struct ConvertArgs {
+    /// Input point clouds (LAS, LAZ, E57, PLY, PCD, PTS/XYZ/CSV/TXT); several merge into one dataset
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// The dataset to write (.myr)
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Hierarchy to build (nested-octree: 003, Scheiblauer)
+    #[arg(long, default_value = "nested-octree")]
+    structure: String,
+    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
+    #[arg(long, value_parser = convert::parse_size)]
+    memory: Option<u64>,
+    /// Worker threads [default: all cores]
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
+    #[arg(long, default_value_t = 0.0001)]
+    precision: f64,
+    /// Most points per node
+    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
+    capacity: usize,
+    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
+    #[arg(long)]
+    columns: Option<String>,
+    /// Ignore SCAN.placement files next to inputs (see README)
+    #[arg(long)]
+    no_placement: bool,
+    /// Replace an existing output
+    #[arg(long)]
+    force: bool,
+    /// Print the summary as one JSON object
+    #[arg(long)]
+    json: bool,
+}
+
+/// A progress bar per phase on a terminal (indicatif draws nothing when stderr is not one).
+struct Bar {
+    bar: Mutex<Option<ProgressBar>>,
+}
+
+impl convert::Report for Bar {
+    fn phase(&self, name: &'static str, total: u64) {
+        let b = ProgressBar::new(total);
+        let unit = if name == "merging" { "nodes" } else { "points" };
+        b.set_style(
+            ProgressStyle::with_template(&format!(
+                "{{prefix:>9}} [{{bar:40}}] {{human_pos}}/{{human_len}} {unit} {{per_sec}} ETA {{eta}}"
+            ))
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        b.set_prefix(name);
+        if let Some(old) = self.bar.lock().unwrap().replace(b) {
+            old.finish_and_clear();
+        }
+    }
+    fn advance(&self, n: u64) {
+        if let Some(b) = &*self.bar.lock().unwrap() {
+            b.inc(n);
+        }
+    }
+}
+
+pub fn convert(a: ConvertArgs) -> Result<()> {
+    if a.structure != "nested-octree" {
+        bail!(
+            "--structure {}: this build has nested-octree (layered, mwkd and kd are planned)",
+            a.structure
+        );
+    }
+    if a.capacity < 64 {
+        bail!("--capacity {} is too small (at least 64)", a.capacity);
+    }
+    let mut o = ConvertOptions::new(&a.output);
+    o.force = a.force;
+    if let Some(m) = a.memory {
+        o.memory = m;
+    }
+    if let Some(t) = a.threads {
+        if t == 0 {
+            bail!("--threads must be at least 1");
+        }
+        o.threads = t;
+    }
+    o.precision = a.precision;
+    o.params.capacity = a.capacity;
+    o.open.columns = a.columns;
+    o.open.sidecar_placements = !a.no_placement;
+    let bar = Bar {
+        bar: Mutex::new(None),
+    };
+    let s = convert::convert(&a.inputs, &o, &bar)?;
+    if let Some(b) = bar.bar.lock().unwrap().take() {
+        b.finish_and_clear();
+    }
+    let rate = s.points as f64 / s.seconds;
+    let bpp = s.bytes as f64 / s.points as f64;
+    if a.json {
+        println!(
+            "{}",
+            json!({
+                "output": a.output.display().to_string(),
+                "points": s.points, "nodes": s.nodes, "depth": s.depth, "chunks": s.chunks,
+                "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
+                "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
+                "trimmed": s.trimmed,
+                "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
+            })
+        );
+        return Ok(());
+    }
+    println!("{}", a.output.display());
+    println!("  points      {}", thousands(s.points));
+    println!("  nodes       {} (depth {})", thousands(s.nodes), s.depth);
+    println!(
+        "  time        {:.2} s, {:.2} M points/s ({})",
+        s.seconds,
+        rate / 1e6,
+        s.phases
+            .iter()
+            .map(|(n, t)| format!("{n} {t:.2} s"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!(
+        "  size        {} bytes, {:.2} bytes per point",
+        thousands(s.bytes),
+        bpp
+    );
+    if s.skipped_non_finite > 0 {
+        println!(
+            "  skipped     {} with NaN/infinite coordinates",
+            thousands(s.skipped_non_finite)
+        );
+    }
+    if s.trimmed > 0 {
+        println!(
+            "  trimmed     {} outside placement boxes",
+            thousands(s.trimmed)
+        );
+    }
+    Ok(())
+}
+
+/// Is `path` a dataset (by its magic)?
+pub fn is_dataset(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && &head == myriad_format::MAGIC
+}
+
+pub fn info(path: &Path, as_json: bool) -> Result<()> {
+    let ds = Dataset::open(path)?;
+    let m = &ds.meta;
+    let (nodes, damage) = ds.nodes();
+    for d in &damage {
+        eprintln!("warning: {}", ds.damage_error(d));
+    }
+    // Per level: nodes, points, and the finest spacing.
+    let mut levels: BTreeMap<u32, (u64, u64, f64)> = BTreeMap::new();
+    for n in &nodes {
+        let e = levels.entry(n.key.level).or_insert((0, 0, f64::INFINITY));
+        e.0 += 1;
+        e.1 += n.points as u64;
+        if let Some(&s) = n.spacing.first() {
+            e.2 = e.2.min(s);
+        }
+    }
+    let bpp = ds.file_length as f64 / m.points.max(1) as f64;
+    if as_json {
+        println!(
+            "{}",
+            json!({
+                "path": path.display().to_string(),
+                "format": "myriad",
+                "version": myriad_format::FORMAT_VERSION,
+                "points": m.points,
+                "nodes": m.nodes,
+                "depth": m.depth,
+                "structure": m.structure,
+                "parameters": m.parameters,
+                "bounds": json!({"min": m.bounds.min, "max": m.bounds.max}),
+                "root": json!({"min": m.root.min, "max": m.root.max}),
+                "scale": m.quantization.scale,
+                "offset": m.quantization.offset,
+                "crs": m.crs,
+                "attributes": m.schema.names(),
+                "file_size": ds.file_length,
+                "bytes_per_point": bpp,
+                "sources": m.sources,
+                "levels": levels.iter().map(|(l, (n, p, s))| json!({"level": l, "nodes": n, "points": p, "node_size": s})).collect::<Vec<_>>(),
+                "damaged_hierarchy_pages": damage.len(),
+            })
+        );
+        return Ok(());
+    }
+    let b = m.bounds;
+    println!("{}", path.display());
+    println!(
+        "  format      Myriad dataset {}",
+        myriad_format::FORMAT_VERSION
+    );
+    println!("  structure   {} {}", m.structure, m.parameters);
+    println!("  points      {}", thousands(m.points));
+    println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
+    println!(
+        "  bounds min  {:.3} {:.3} {:.3}",
+        b.min[0], b.min[1], b.min[2]
+    );
+    println!(
+        "         max  {:.3} {:.3} {:.3}",
+        b.max[0], b.max[1], b.max[2]
+    );
+    println!("  attributes  {}", m.schema);
+    let q = m.quantization;
+    println!("  scale       {} {} {}", q.scale[0], q.scale[1], q.scale[2]);
+    match &m.crs {
+        Some(c) if c.len() > 100 => println!(
+            "  crs         {}...",
+            &c[..c.char_indices().nth(100).map_or(c.len(), |x| x.0)]
+        ),
+        Some(c) => println!("  crs         {c}"),
+        None => println!("  crs         none"),
+    }
+    println!(
+        "  file size   {} bytes, {:.2} bytes per point",
+        thousands(ds.file_length),
+        bpp
+    );
+    println!("  level      nodes         points   node size");
+    for (l, (n, p, s)) in &levels {
+        println!(
+            "  {l:>5} {:>10} {:>14} {s:>11.3}",
+            thousands(*n),
+            thousands(*p)
+        );
+    }
+    Ok(())
+}
+
+fn parse_box(s: &str) -> Result<Aabb, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("\"{s}\": expected minx,miny,minz,maxx,maxy,maxz"))?;
+    if v.len() != 6 {
+        return Err(format!("\"{s}\": expected 6 numbers, got {}", v.len()));
+    }
+    if (0..3).any(|a| v[a] > v[a + 3]) {
+        return Err(format!("\"{s}\": a minimum is above its maximum"));
+    }
+    Ok(Aabb::new([v[0], v[1], v[2]], [v[3], v[4], v[5]]))
+}
+
+#[derive(Args)]
+pub struct ExtractArgs {
+    /// The dataset (.myr)
+    dataset: PathBuf,
+    /// Output: .las, .laz (the input's point format when it was LAS/LAZ) or .ply
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Only points in this box: minx,miny,minz,maxx,maxy,maxz
+    #[arg(long = "box", value_parser = parse_box)]
+    bbox: Option<Aabb>,
+    /// Level of detail: points at about this spacing [default: every original point]
+    #[arg(long)]
+    spacing: Option<f64>,
+    /// Replace an existing output
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn extract(a: ExtractArgs) -> Result<()> {
+    if let Some(s) = a.spacing {
+        if !(s.is_finite() && s > 0.0) {
+            bail!("--spacing must be a positive length");
+        }
+    }
+    let ds = Dataset::open(&a.dataset)?;
+    let s = extract::extract(
+        &ds,
+        &a.output,
+        &ExtractOptions {
+            bbox: a.bbox,
+            spacing: a.spacing,
+            force: a.force,
+        },
+    )?;
+    for d in &s.damage {
+        eprintln!("warning: {}", ds.damage_error(d));
+    }
+    println!(
+        "{}: {} points from {} nodes",
+        a.output.display(),
+        thousands(s.points),
+        thousands(s.nodes_read)
+    );
+    if !s.damage.is_empty() {
+        bail!(
+            "{}: {} damaged pages skipped; the output lacks their points",
+            a.dataset.display(),
+            s.damage.len()
+        );
+    }
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct VerifyArgs {
+    /// Datasets (.myr)
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+}
+
+pub fn verify(a: VerifyArgs) -> Result<()> {
+    let mut bad = 0;
+    for path in &a.datasets {
+        let ds = Dataset::open(path)?;
+        let bar = ProgressBar::new(ds.meta.points);
+        let r = extract::verify(&ds, |n| bar.inc(n));
+        bar.finish_and_clear();
+        for d in &r.damage {
+            println!("damaged: {}", ds.damage_error(d));
+        }
+        if r.damage.is_empty() {
+            println!(
+                "{}: ok, {} nodes, {} points, every checksum and invariant holds",
+                path.display(),
+                thousands(r.nodes),
+                thousands(r.points)
+            );
+        } else {
+            println!("{}: {} damaged", path.display(), r.damage.len());
+            bad += 1;
+        }
+    }
+    if bad > 0 {
+        bail!("{bad} of {} datasets damaged", a.datasets.len());
+    }
+    Ok(())
+}
