@@ -390,3 +390,178 @@ fn info_applies_sidecar_placements() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn convert_info_verify_extract() {
+    let d = tempdir("convert");
+    let las = synth(&d, "c.las", 300_000);
+    let out = d.join("c.myr");
+    let r = myriad(&["convert", s(&las), "-o", s(&out), "--memory", "512MB"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    for want in ["300,000", "bytes per point", "points/s"] {
+        assert!(
+            r.stdout.contains(want),
+            "summary lacks {want}: {}",
+            r.stdout
+        );
+    }
+    let r = myriad(&["info", "--json", s(&out)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(v["points"], 300_000);
+    assert_eq!(v["structure"], "nested-octree");
+    let levels = v["levels"].as_array().unwrap();
+    let per_level: u64 = levels.iter().map(|l| l["points"].as_u64().unwrap()).sum();
+    assert_eq!(per_level, 300_000);
+    assert_eq!(levels[0]["nodes"], 1);
+    assert!(v["bytes_per_point"].as_f64().unwrap() < 30.0);
+    let r = myriad(&["info", s(&out)]);
+    assert!(r.stdout.contains("level") && r.stdout.contains("nested-octree"));
+    let r = myriad(&["verify", s(&out)]);
+    assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
+    assert!(r.stdout.contains("ok"));
+    let back = d.join("back.laz");
+    let r = myriad(&[
+        "extract",
+        s(&out),
+        "-o",
+        s(&back),
+        "--box=-1e9,-1e9,-1e9,1e9,1e9,1e9",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = myriad(&["info", "--json", s(&back)]);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(v["points"], 300_000);
+
+    // Usage errors and bad values.
+    let r = myriad(&["convert", s(&las), "-o", s(&out)]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("--force"), "{}", r.stderr);
+    let r = myriad(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&out),
+        "--force",
+        "--memory",
+        "lots",
+    ]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    let r = myriad(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&out),
+        "--force",
+        "--memory",
+        "10MB",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    let r = myriad(&[
+        "extract",
+        s(&out),
+        "-o",
+        s(&back),
+        "--force",
+        "--box",
+        "1,2,3",
+    ]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+
+    // A bad input names the file and the byte; nothing is written.
+    let junk = write(&d, "junk.las", b"LASF but not really a header at all");
+    let o2 = d.join("j.myr");
+    let r = myriad(&["convert", s(&junk), "-o", s(&o2)]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr
+            .starts_with(&format!("error: {}: byte", junk.display())),
+        "{}",
+        r.stderr
+    );
+    assert!(!o2.exists());
+
+    // A flipped byte in a node page: verify names the node and exits 1; extract reports it
+    // and exits 1 after writing the rest.
+    let mut bytes = std::fs::read(&out).unwrap();
+    bytes[64 + 200] ^= 0x55;
+    std::fs::write(&out, &bytes).unwrap();
+    let r = myriad(&["verify", s(&out)]);
+    assert_eq!(r.code, 1, "{}", r.stdout);
+    assert!(
+        r.stdout.contains("damaged: ") && r.stdout.contains("node "),
+        "{}",
+        r.stdout
+    );
+    let r = myriad(&["extract", s(&out), "-o", s(&back), "--force"]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("warning: ") && r.stderr.contains("node "),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("panicked"));
+    // Not a dataset.
+    let r = myriad(&["verify", s(&las)]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("byte 0"), "{}", r.stderr);
+}
+
+#[test]
+fn a_killed_build_leaves_nothing_that_opens() {
+    let d = tempdir("kill");
+    let las = synth(&d, "k.las", 1_500_000);
+    let out = d.join("k.myr");
+    // Kill at moments spread over the build (reading, building, merging, writing).
+    for delay_ms in [30u64, 150, 400, 700, 1000, 1400, 2000] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
+            .args([
+                "convert",
+                s(&las),
+                "-o",
+                s(&out),
+                "--force",
+                "--memory",
+                "300MB",
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let killed = child.kill().is_ok();
+        let status = child.wait().unwrap();
+        if killed && !status.success() {
+            assert!(
+                !out.exists(),
+                "killed at {delay_ms} ms, yet {} exists",
+                out.display()
+            );
+        }
+        // Whatever was left (temporary files) does not open as a dataset.
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p != las && p.is_file() && p != out {
+                let r = myriad(&["info", s(&p)]);
+                assert_ne!(
+                    r.code,
+                    0,
+                    "{} opens after a kill at {delay_ms} ms",
+                    p.display()
+                );
+            }
+        }
+        let _ = std::fs::remove_file(&out);
+    }
+    // The next build clears what the killed ones left, and succeeds.
+    let r = myriad(&["convert", s(&las), "-o", s(&out)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let left: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    let r = myriad(&["verify", s(&out)]);
+    assert_eq!(r.code, 0);
+}
