@@ -82,19 +82,23 @@ pub struct Distribution {
 impl Distribution {
     /// Reads a chunk's points back.
     pub fn load(&self, chunk: &Chunk) -> Result<PointBatch> {
-        let template = PointBatch::with_schema(&self.schema, 0);
-        let row = template.row_size();
-        let bytes = std::fs::read(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
-        if bytes.len() as u64 != chunk.points * row as u64 {
-            return Err(Error::at_byte(
-                &chunk.path,
-                bytes.len() as u64,
-                "spill file has the wrong size",
-            ));
-        }
         let mut b = PointBatch::with_schema(&self.schema, chunk.points as usize);
-        for r in bytes.chunks_exact(row) {
-            b.push_row(r);
+        let row = b.row_size();
+        let mut frames = Frames::open(&chunk.path)?;
+        while let Some(rows) = frames.next_frame()? {
+            if rows.len() % row != 0 {
+                return Err(frames.error("spill frame ends inside a row"));
+            }
+            for r in rows.chunks_exact(row) {
+                b.push_row(r);
+            }
+        }
+        if b.len() as u64 != chunk.points {
+            return Err(frames.error(format!(
+                "spill file holds {} points, not {}",
+                b.len(),
+                chunk.points
+            )));
         }
         Ok(b)
     }
@@ -170,7 +174,7 @@ impl Scatter<'_> {
                 .append(true)
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
-            f.write_all(buf).map_err(|e| Error::io(&path, e))?;
+            write_frame(&mut f, buf).map_err(|e| Error::io(&path, e))?;
             buf.clear();
         }
         self.buffers.clear(); // capacity would otherwise outgrow the budget
@@ -423,40 +427,84 @@ fn split(
         limit: buffer_bytes,
     };
     let row = PointBatch::with_schema(schema, 0).row_size();
-    let mut file = std::fs::File::open(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
-    let mut block = vec![0u8; row * 4096];
+    let mut frames = Frames::open(&chunk.path)?;
     let mut ignored = 0;
-    loop {
-        let mut got = 0;
-        while got < block.len() {
-            match file
-                .read(&mut block[got..])
-                .map_err(|e| Error::io(&chunk.path, e))?
-            {
-                0 => break,
-                k => got += k,
-            }
+    while let Some(rows) = frames.next_frame()? {
+        if rows.len() % row != 0 {
+            return Err(frames.error("spill frame ends inside a row"));
         }
-        if got % row != 0 {
-            return Err(Error::at_byte(
-                &chunk.path,
-                got as u64,
-                "spill file ends inside a row",
-            ));
-        }
-        let mut b = PointBatch::with_schema(schema, got / row);
-        for r in block[..got].chunks_exact(row) {
+        let mut b = PointBatch::with_schema(schema, rows.len() / row);
+        for r in rows.chunks_exact(row) {
             b.push_row(r);
         }
         for i in 0..b.len() {
             scatter.add(cell_of(root, level, b.positions[i], &mut ignored), &b, i)?;
         }
-        if got < block.len() {
-            break;
-        }
     }
     scatter.flush()?;
-    drop(file);
+    drop(frames);
     std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
     Ok(scatter.chunks())
+}
+
+/// Spill files are frames: raw length (u32), compressed length (u32), then the rows compressed
+/// by zstd at level 1. Rows compress about twofold, which halves the disk a build needs (a
+/// billion points of LAS format 3 would otherwise spill 52 GB) for little time.
+fn write_frame(f: &mut std::fs::File, rows: &[u8]) -> std::io::Result<()> {
+    let z = zstd::bulk::compress(rows, 1)?;
+    let mut out = Vec::with_capacity(8 + z.len());
+    out.extend_from_slice(&(rows.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(z.len() as u32).to_le_bytes());
+    out.extend_from_slice(&z);
+    f.write_all(&out)
+}
+
+/// Reads the frames of a spill file one after the other.
+struct Frames {
+    file: std::io::BufReader<std::fs::File>,
+    path: PathBuf,
+    at: u64,
+}
+
+impl Frames {
+    fn open(path: &Path) -> Result<Frames> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        Ok(Frames {
+            file: std::io::BufReader::with_capacity(1 << 20, file),
+            path: path.to_path_buf(),
+            at: 0,
+        })
+    }
+
+    fn error(&self, message: impl Into<String>) -> Error {
+        Error::at_byte(&self.path, self.at, message)
+    }
+
+    fn next_frame(&mut self) -> Result<Option<Vec<u8>>> {
+        let mut head = [0u8; 8];
+        let mut got = 0;
+        while got < 8 {
+            match self
+                .file
+                .read(&mut head[got..])
+                .map_err(|e| Error::io(&self.path, e))?
+            {
+                0 if got == 0 => return Ok(None),
+                0 => return Err(self.error("spill file ends inside a frame head")),
+                k => got += k,
+            }
+        }
+        let raw = u32::from_le_bytes(head[..4].try_into().unwrap()) as usize;
+        let len = u32::from_le_bytes(head[4..].try_into().unwrap()) as usize;
+        let mut z = vec![0u8; len];
+        self.file
+            .read_exact(&mut z)
+            .map_err(|_| self.error("spill file ends inside a frame"))?;
+        let rows = zstd::bulk::decompress(&z, raw).map_err(|e| self.error(e.to_string()))?;
+        if rows.len() != raw {
+            return Err(self.error("spill frame has the wrong length"));
+        }
+        self.at += 8 + len as u64;
+        Ok(Some(rows))
+    }
 }

@@ -73,23 +73,24 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
         .iter()
         .map(|&p| morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
         .collect();
-    let mut sorted: Vec<u32> = (0..n as u32).collect();
-    sorted.sort_unstable_by_key(|&i| codes[i as usize]);
+    // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache.
+    let mut pairs: Vec<(u64, u32)> = codes.iter().enumerate().map(|(i, &c)| (c, i as u32)).collect();
+    pairs.sort_unstable();
+    let sorted: Vec<u32> = pairs.iter().map(|p| p.1).collect();
+    // Codes in sorted order.
+    let sc: Vec<u64> = pairs.iter().map(|p| p.0).collect();
+    drop(codes);
 
     // The effective depth: the first level whose cells already separate the points as well as
-    // `max_depth` does; finer levels would add nothing.
-    let distinct = |l: u32| {
-        let shift = 3 * (max_depth - l);
-        sorted
-            .windows(2)
-            .filter(|w| codes[w[0] as usize] >> shift != codes[w[1] as usize] >> shift)
-            .count()
-            + 1
-    };
-    let finest = distinct(max_depth);
-    let depth = (0..=max_depth)
-        .find(|&l| distinct(l) == finest)
-        .unwrap_or(max_depth);
+    // `max_depth` does; finer levels would add nothing. Two neighbours in Morton order whose
+    // codes differ first separate at the level given by their highest differing bit.
+    let depth = pairs
+        .windows(2)
+        .filter(|w| w[0].0 != w[1].0)
+        .map(|w| max_depth - (63 - (w[0].0 ^ w[1].0).leading_zeros()) / 3)
+        .max()
+        .unwrap_or(0);
+    drop(pairs);
 
     // Per point: the level at which it enters (depth + 1: never a representative).
     let mut level = vec![depth + 1; n];
@@ -121,10 +122,10 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
     let mut current: Vec<Cell> = Vec::new();
     let mut start = 0;
     while start < n {
-        let key = codes[sorted[start] as usize] >> shift_of(depth);
+        let key = sc[start] >> shift_of(depth);
         let mut end = start;
         let mut sum = [0.0; 3];
-        while end < n && codes[sorted[end] as usize] >> shift_of(depth) == key {
+        while end < n && sc[end] >> shift_of(depth) == key {
             let v = value(sorted[end]);
             (0..3).for_each(|k| sum[k] += v[k]);
             end += 1;
@@ -148,11 +149,11 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
         let mut parents: Vec<Cell> = Vec::new();
         let mut k = 0;
         while k < current.len() {
-            let key = codes[sorted[current[k].start] as usize] >> shift_of(l);
+            let key = sc[current[k].start] >> shift_of(l);
             let first = k;
             let mut sum = [0.0; 3];
             while k < current.len()
-                && codes[sorted[current[k].start] as usize] >> shift_of(l) == key
+                && sc[current[k].start] >> shift_of(l) == key
             {
                 (0..3).for_each(|c| sum[c] += current[k].sum[c]);
                 k += 1;
