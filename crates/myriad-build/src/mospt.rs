@@ -74,7 +74,11 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
         .map(|&p| morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
         .collect();
     // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache.
-    let mut pairs: Vec<(u64, u32)> = codes.iter().enumerate().map(|(i, &c)| (c, i as u32)).collect();
+    let mut pairs: Vec<(u64, u32)> = codes
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| (c, i as u32))
+        .collect();
     pairs.sort_unstable();
     let sorted: Vec<u32> = pairs.iter().map(|p| p.1).collect();
     // Codes in sorted order.
@@ -152,9 +156,7 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
             let key = sc[current[k].start] >> shift_of(l);
             let first = k;
             let mut sum = [0.0; 3];
-            while k < current.len()
-                && sc[current[k].start] >> shift_of(l) == key
-            {
+            while k < current.len() && sc[current[k].start] >> shift_of(l) == key {
                 (0..3).for_each(|c| sum[c] += current[k].sum[c]);
                 k += 1;
             }

@@ -13,6 +13,29 @@ pub enum BenchCommand {
     Read(ReadArgs),
     /// Speed and peak memory of `synth`
     Synth(SynthBenchArgs),
+    /// Conversion speed, peak memory and size (each run a separate `myriad convert` process),
+    /// next to the raw LAS/LAZ decode of the same file
+    Convert(ConvertBenchArgs),
+}
+
+#[derive(Args)]
+pub struct ConvertBenchArgs {
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Memory budget passed to convert (e.g. 2GB)
+    #[arg(long)]
+    memory: Option<String>,
+    /// Node capacities to compare, e.g. 16384,65536 [default: convert's default]
+    #[arg(long, value_delimiter = ',')]
+    capacity: Vec<usize>,
+    /// Worker threads passed to convert
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Where the dataset is written (removed at the end)
+    #[arg(short, long, default_value = "myriad-bench-convert.myr")]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -38,6 +61,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
     match c {
         BenchCommand::Read(a) => read(a),
         BenchCommand::Synth(a) => synth(a),
+        BenchCommand::Convert(a) => convert(a),
     }
 }
 
@@ -47,7 +71,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Peak resident memory of this process so far, from /proc (Linux); None elsewhere.
-fn peak_rss_bytes() -> Option<u64> {
+pub fn peak_rss_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
@@ -130,5 +154,99 @@ fn synth(a: SynthBenchArgs) -> Result<()> {
         Some(p) => println!("peak resident memory: {:.1} MB", p as f64 / 1e6),
         None => println!("peak resident memory: unknown on this platform"),
     }
+    Ok(())
+}
+
+fn convert(a: ConvertBenchArgs) -> Result<()> {
+    let exe = std::env::current_exe()?;
+    let capacities: Vec<Option<usize>> = if a.capacity.is_empty() {
+        vec![None]
+    } else {
+        a.capacity.iter().map(|&c| Some(c)).collect()
+    };
+    println!(
+        "{:<40} {:>9} {:>11} {:>8} {:>10} {:>9} {:>8} {:>10} {:>12} {:>6}",
+        "file",
+        "capacity",
+        "points",
+        "seconds",
+        "M pts/s",
+        "peak MB",
+        "B/pt",
+        "input B/pt",
+        "raw M pts/s",
+        "ratio"
+    );
+    for path in &a.files {
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |f| f.to_string_lossy().into_owned(),
+        );
+        let input_bytes = std::fs::metadata(path)?.len();
+        let is_las = matches!(
+            myriad_io::detect(path)?,
+            myriad_io::Format::Las | myriad_io::Format::Laz
+        );
+        for cap in &capacities {
+            let (mut secs, mut rates, mut raws, mut peaks) = (vec![], vec![], vec![], vec![]);
+            let mut last = serde_json::Value::Null;
+            for _ in 0..a.runs.max(1) {
+                // Baseline first, in the same minute: the las/laz crates decoding the file.
+                if is_las {
+                    let t = Instant::now();
+                    let n = myriad_io::las::read_raw_records(path)?;
+                    raws.push(n as f64 / t.elapsed().as_secs_f64());
+                }
+                let mut cmd = std::process::Command::new(&exe);
+                cmd.arg("convert").arg(path).arg("-o").arg(&a.output);
+                cmd.args(["--force", "--json"]);
+                if let Some(m) = &a.memory {
+                    cmd.args(["--memory", m]);
+                }
+                if let Some(c) = cap {
+                    cmd.args(["--capacity", &c.to_string()]);
+                }
+                if let Some(t) = a.threads {
+                    cmd.args(["--threads", &t.to_string()]);
+                }
+                let out = cmd.output()?;
+                if !out.status.success() {
+                    anyhow::bail!(
+                        "convert failed: {}",
+                        String::from_utf8_lossy(&out.stderr).trim()
+                    );
+                }
+                last = serde_json::from_slice(&out.stdout)?;
+                secs.push(last["seconds"].as_f64().unwrap_or(f64::NAN));
+                rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
+                peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
+            }
+            std::fs::remove_file(&a.output).ok();
+            let points = last["points"].as_u64().unwrap_or(0);
+            let ours = median(rates);
+            let (raw, ratio) = if raws.is_empty() {
+                ("-".to_string(), "-".to_string())
+            } else {
+                let r = median(raws);
+                (
+                    format!("{:.2}", r / 1e6),
+                    format!("{:.0}%", 100.0 * ours / r),
+                )
+            };
+            println!(
+                "{name:<40} {:>9} {points:>11} {:>8.2} {:>10.2} {:>9.0} {:>8.2} {:>10.2} {raw:>12} {ratio:>6}",
+                cap.map_or("default".to_string(), |c| c.to_string()),
+                median(secs),
+                ours / 1e6,
+                peaks.iter().cloned().fold(0.0, f64::max) / 1e6,
+                last["bytes_per_point"].as_f64().unwrap_or(f64::NAN),
+                input_bytes as f64 / points.max(1) as f64,
+            );
+        }
+    }
+    println!(
+        "medians of {} runs; peak MB is the largest peak RSS of the convert processes; ratio = convert / raw decode",
+        a.runs
+    );
     Ok(())
 }

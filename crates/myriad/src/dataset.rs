@@ -122,6 +122,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
                 "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
                 "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
                 "trimmed": s.trimmed,
+                "peak_rss_bytes": crate::bench::peak_rss_bytes(),
                 "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
             })
         );
@@ -145,6 +146,9 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         thousands(s.bytes),
         bpp
     );
+    if let Some(p) = crate::bench::peak_rss_bytes() {
+        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
+    }
     if s.skipped_non_finite > 0 {
         println!(
             "  skipped     {} with NaN/infinite coordinates",
