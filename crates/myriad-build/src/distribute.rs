@@ -130,10 +130,28 @@ impl Drop for SpillFolder {
 struct Scatter<'a> {
     folder: &'a Path,
     level: u32,
-    buffers: HashMap<[u32; 3], Vec<u8>>,
-    counts: HashMap<[u32; 3], u64>,
+    /// Slot of each cell met so far.
+    cells: HashMap<[u32; 3], usize>,
+    /// Per slot: the cell, its write buffer, its point count.
+    slots: Vec<([u32; 3], Vec<u8>, u64)>,
+    /// The last cell added to, and its slot: consecutive points mostly share a cell.
+    last: Option<([u32; 3], usize)>,
     buffered: usize,
     limit: usize,
+}
+
+impl<'a> Scatter<'a> {
+    fn new(folder: &'a Path, level: u32, limit: usize) -> Scatter<'a> {
+        Scatter {
+            folder,
+            level,
+            cells: HashMap::new(),
+            slots: Vec::new(),
+            last: None,
+            buffered: 0,
+            limit,
+        }
+    }
 }
 
 fn spill_path(folder: &Path, level: u32, c: [u32; 3]) -> PathBuf {
@@ -143,9 +161,9 @@ fn spill_path(folder: &Path, level: u32, c: [u32; 3]) -> PathBuf {
 impl Scatter<'_> {
     /// The chunks written so far.
     fn chunks(&self) -> Vec<Chunk> {
-        self.counts
+        self.slots
             .iter()
-            .map(|(&cell, &n)| Chunk {
+            .map(|&(cell, _, n)| Chunk {
                 level: self.level,
                 cell,
                 points: n,
@@ -155,11 +173,23 @@ impl Scatter<'_> {
     }
 
     fn add(&mut self, cell: [u32; 3], batch: &PointBatch, i: usize) -> Result<()> {
-        let buf = self.buffers.entry(cell).or_default();
+        let slot = match self.last {
+            Some((c, s)) if c == cell => s,
+            _ => {
+                let next = self.slots.len();
+                let s = *self.cells.entry(cell).or_insert(next);
+                if s == next {
+                    self.slots.push((cell, Vec::new(), 0));
+                }
+                self.last = Some((cell, s));
+                s
+            }
+        };
+        let (_, buf, count) = &mut self.slots[slot];
         let before = buf.len();
         batch.put_row(i, buf);
         self.buffered += buf.len() - before;
-        *self.counts.entry(cell).or_default() += 1;
+        *count += 1;
         if self.buffered > self.limit {
             self.flush()?;
         }
@@ -167,7 +197,7 @@ impl Scatter<'_> {
     }
 
     fn flush(&mut self) -> Result<()> {
-        for (cell, buf) in self.buffers.iter_mut().filter(|(_, b)| !b.is_empty()) {
+        for (cell, buf, _) in self.slots.iter_mut().filter(|(_, b, _)| !b.is_empty()) {
             let path = spill_path(self.folder, self.level, *cell);
             let mut f = std::fs::OpenOptions::new()
                 .create(true)
@@ -175,9 +205,9 @@ impl Scatter<'_> {
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
             write_frame(&mut f, buf).map_err(|e| Error::io(&path, e))?;
-            buf.clear();
+            // Freed, not cleared: capacities would otherwise outgrow the budget.
+            *buf = Vec::new();
         }
-        self.buffers.clear(); // capacity would otherwise outgrow the budget
         self.buffered = 0;
         Ok(())
     }
@@ -344,14 +374,7 @@ pub fn distribute_with(
         .join(format!("{SPILL_PREFIX}{}", std::process::id()));
     std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
     let folder = SpillFolder(folder);
-    let mut scatter = Scatter {
-        folder: &folder.0,
-        level,
-        buffers: HashMap::new(),
-        counts: HashMap::new(),
-        buffered: 0,
-        limit: options.buffer_bytes,
-    };
+    let mut scatter = Scatter::new(&folder.0, level, options.buffer_bytes);
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
     let (mut skipped, mut trimmed, mut taken) = (0u64, 0u64, Vec::new());
@@ -418,14 +441,7 @@ fn split(
     buffer_bytes: usize,
 ) -> Result<Vec<Chunk>> {
     let level = chunk.level + 1;
-    let mut scatter = Scatter {
-        folder,
-        level,
-        buffers: HashMap::new(),
-        counts: HashMap::new(),
-        buffered: 0,
-        limit: buffer_bytes,
-    };
+    let mut scatter = Scatter::new(folder, level, buffer_bytes);
     let row = PointBatch::with_schema(schema, 0).row_size();
     let mut frames = Frames::open(&chunk.path)?;
     let mut ignored = 0;
