@@ -40,6 +40,9 @@ pub struct ConvertOptions {
     pub precision: f64,
     pub params: NestedParams,
     pub open: OpenOptions,
+    /// Points per chunk, instead of what the memory budget gives (for tests: many chunks from
+    /// a small input).
+    pub chunk_points: Option<u64>,
 }
 
 impl ConvertOptions {
@@ -59,6 +62,7 @@ impl ConvertOptions {
                 sidecar_placements: true,
                 ..Default::default()
             },
+            chunk_points: None,
         }
     }
 }
@@ -104,14 +108,17 @@ pub fn parse_size(s: &str) -> std::result::Result<u64, String> {
 /// Bytes a point takes in memory while its chunk is built (its columns, a copy passed down, the
 /// MOSPT's codes and orders), for the widest common schema.
 const BUILD_BYTES_PER_POINT: u64 = 4 * 72 + 48;
+const MIN_CHUNK_POINTS: u64 = 50_000;
 /// The smallest budget the build accepts.
-pub const MIN_MEMORY: u64 = 256 << 20;
+pub const MIN_MEMORY: u64 = 512 << 20;
 
 /// How a memory budget is spent: write buffers for distribution, and points per chunk.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plan {
     pub buffer_bytes: usize,
     pub chunk_points: u64,
+    /// Threads that fit the budget (at most those asked for).
+    pub threads: usize,
 }
 
 pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
@@ -121,11 +128,15 @@ pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
     let free = memory.saturating_sub(fixed);
     let buffer_bytes = (free / 4).clamp(8 << 20, 512 << 20);
     let family = 9 * params.capacity as u64 * BUILD_BYTES_PER_POINT / 2;
-    let per_thread = free.saturating_sub(family * threads as u64) * 3 / 4 / threads as u64;
-    let chunk_points = (per_thread / BUILD_BYTES_PER_POINT).clamp(50_000, 2_000_000);
+    // Fewer threads than asked when the budget cannot give each a useful chunk.
+    let least = MIN_CHUNK_POINTS * BUILD_BYTES_PER_POINT + family;
+    let threads = threads.clamp(1, ((free * 3 / 4) / least).max(1) as usize);
+    let per_thread = (free * 3 / 4 / threads as u64).saturating_sub(family);
+    let chunk_points = (per_thread / BUILD_BYTES_PER_POINT).clamp(MIN_CHUNK_POINTS, 2_000_000);
     Plan {
         buffer_bytes: buffer_bytes as usize,
         chunk_points,
+        threads,
     }
 }
 
@@ -311,13 +322,12 @@ pub fn convert(
         ));
     }
     remove_stale(out);
-    let threads = options.threads.max(1);
+    let params = options.params;
+    let plan = plan(options.memory, options.threads.max(1), &params);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
+        .num_threads(plan.threads)
         .build()
         .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
-    let params = options.params;
-    let plan = plan(options.memory, threads, &params);
     let temp_dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -330,7 +340,7 @@ pub fn convert(
         inputs,
         &options.open,
         &DistributeOptions {
-            chunk_points: plan.chunk_points,
+            chunk_points: options.chunk_points.unwrap_or(plan.chunk_points),
             buffer_bytes: plan.buffer_bytes,
             temp_dir,
         },
@@ -481,4 +491,43 @@ pub fn convert(
         trimmed: dist.trimmed,
         clamped: dist.clamped,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes() {
+        assert_eq!(parse_size("512MB"), Ok(512 << 20));
+        assert_eq!(parse_size("2GB"), Ok(2 << 30));
+        assert_eq!(parse_size("1.5g"), Ok(3 << 29));
+        assert_eq!(parse_size("300k"), Ok(300 << 10));
+        assert_eq!(parse_size("123456"), Ok(123456));
+        assert!(parse_size("lots").is_err());
+        assert!(parse_size("2 parsecs").is_err());
+        assert!(parse_size("").is_err());
+    }
+
+    #[test]
+    fn plans_fit_the_budget() {
+        let params = NestedParams {
+            capacity: DEFAULT_CAPACITY,
+            inner_depth: DEFAULT_INNER_DEPTH,
+            max_level: DEFAULT_MAX_LEVEL,
+        };
+        for memory in [MIN_MEMORY, 512 << 20, 2 << 30, 8 << 30] {
+            for threads in [1, 2, 8, 64] {
+                let p = plan(memory, threads, &params);
+                // Buffers (which may hold twice their length in capacity) during distribution;
+                // chunks and families per thread while building.
+                let build = p.threads as u64
+                    * (p.chunk_points * BUILD_BYTES_PER_POINT
+                        + 9 * params.capacity as u64 * BUILD_BYTES_PER_POINT / 2);
+                assert!(2 * p.buffer_bytes as u64 + (160 << 20) <= memory);
+                assert!(build + (160 << 20) <= memory, "{memory} {threads}: {p:?}");
+                assert!(p.threads >= 1 && p.threads <= threads);
+            }
+        }
+    }
 }

@@ -53,26 +53,29 @@ fn colour_distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (2.0 + r) * d[0] * d[0] + 4.0 * d[1] * d[1] + (3.0 - r) * d[2] * d[2]
 }
 
-/// Builds the MOSPT of `batch`, whose points lie in the cube `cube` (an octree node), with at
-/// most `max_depth` (at most 21) levels below the root cell.
-pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
-    let n = batch.len();
-    assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
-    let max_depth = max_depth.min(21);
+/// Levels of the Morton codes [`codes`] computes.
+pub const CODE_LEVELS: u32 = 21;
+
+/// Morton codes of `batch`'s points at [`CODE_LEVELS`] levels below the cube `cube`.
+pub fn codes(batch: &PointBatch, cube: &Aabb) -> Vec<u64> {
     let side = cube
         .size()
         .into_iter()
         .fold(0.0f64, f64::max)
         .max(f64::MIN_POSITIVE);
-    let cells = (1u64 << max_depth) as f64;
+    let cells = (1u64 << CODE_LEVELS) as f64;
     let cell_of = |p: [f64; 3], a: usize| {
-        (((p[a] - cube.min[a]) / side * cells) as i64).clamp(0, (1 << max_depth) - 1) as u32
+        (((p[a] - cube.min[a]) / side * cells) as i64).clamp(0, (1 << CODE_LEVELS) - 1) as u32
     };
-    let codes: Vec<u64> = batch
+    batch
         .positions
         .iter()
         .map(|&p| morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
-        .collect();
+        .collect()
+}
+
+/// The order that sorts `codes`.
+pub fn sort_order(codes: &[u64]) -> Vec<u32> {
     // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache.
     let mut pairs: Vec<(u64, u32)> = codes
         .iter()
@@ -80,21 +83,51 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
         .map(|(i, &c)| (c, i as u32))
         .collect();
     pairs.sort_unstable();
-    let sorted: Vec<u32> = pairs.iter().map(|p| p.1).collect();
-    // Codes in sorted order.
-    let sc: Vec<u64> = pairs.iter().map(|p| p.0).collect();
-    drop(codes);
+    pairs.into_iter().map(|p| p.1).collect()
+}
+
+/// Builds the MOSPT of `batch`, whose points lie in the cube `cube` (an octree node), with at
+/// most `max_depth` (at most 21) levels below the root cell.
+pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
+    let codes = codes(batch, cube);
+    let sorted = sort_order(&codes);
+    let sc: Vec<u64> = sorted.iter().map(|&i| codes[i as usize]).collect();
+    build_sorted(batch, sorted, &sc, cube, max_depth)
+}
+
+/// [`build`] for points whose Morton order is known: `sorted` lists `batch`'s points in that
+/// order and `sorted_codes` their codes ([`codes`], relative to `cube`), in the same order.
+pub fn build_sorted(
+    batch: &PointBatch,
+    sorted: Vec<u32>,
+    sorted_codes: &[u64],
+    cube: &Aabb,
+    max_depth: u32,
+) -> Mospt {
+    let n = batch.len();
+    assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
+    assert_eq!(sorted.len(), n);
+    let max_depth = max_depth.min(CODE_LEVELS);
+    let side = cube
+        .size()
+        .into_iter()
+        .fold(0.0f64, f64::max)
+        .max(f64::MIN_POSITIVE);
+    // Codes at `max_depth`, in sorted order.
+    let sc: Vec<u64> = sorted_codes
+        .iter()
+        .map(|c| c >> (3 * (CODE_LEVELS - max_depth)))
+        .collect();
 
     // The effective depth: the first level whose cells already separate the points as well as
     // `max_depth` does; finer levels would add nothing. Two neighbours in Morton order whose
     // codes differ first separate at the level given by their highest differing bit.
-    let depth = pairs
+    let depth = sc
         .windows(2)
-        .filter(|w| w[0].0 != w[1].0)
-        .map(|w| max_depth - (63 - (w[0].0 ^ w[1].0).leading_zeros()) / 3)
+        .filter(|w| w[0] != w[1])
+        .map(|w| max_depth - (63 - (w[0] ^ w[1]).leading_zeros()) / 3)
         .max()
         .unwrap_or(0);
-    drop(pairs);
 
     // Per point: the level at which it enters (depth + 1: never a representative).
     let mut level = vec![depth + 1; n];

@@ -89,41 +89,74 @@ pub fn build_subtree_with<E>(
     params: &NestedParams,
     emit: &mut dyn FnMut(BuiltNode) -> Result<(), E>,
 ) -> Result<(), E> {
-    let mut work = vec![(key, batch)];
-    while let Some((key, batch)) = work.pop() {
+    // Sorted once by Morton code: every node below keeps that order, and its codes relative to
+    // its own cube are its parent's shifted by one level, so no node sorts again.
+    let codes = mospt::codes(&batch, &key.bounds(root));
+    let order = mospt::sort_order(&codes);
+    let sorted = batch.gather(&order);
+    drop(batch);
+    let codes: Vec<u64> = order.iter().map(|&i| codes[i as usize]).collect();
+    drop(order);
+    let batch = sorted;
+    let mut work = vec![(key, batch, codes)];
+    while let Some((key, batch, codes)) = work.pop() {
         if batch.is_empty() {
             continue;
         }
+        let n = batch.len();
         let cube = key.bounds(root);
-        let leaf = batch.len() <= params.capacity || key.level >= params.max_level;
-        let m = mospt::build(&batch, &cube, if leaf { 21 } else { params.inner_depth });
+        let leaf = n <= params.capacity || key.level >= params.max_level;
+        let depth = if leaf {
+            mospt::CODE_LEVELS
+        } else {
+            params.inner_depth
+        };
+        let m = mospt::build_sorted(&batch, (0..n as u32).collect(), &codes, &cube, depth);
         let keep = if leaf {
-            batch.len()
+            n
         } else {
             fitting_prefix(&m, params.capacity)
         };
-        let mut node_mask = vec![false; batch.len()];
-        for &i in &m.order[..keep] {
-            node_mask[i as usize] = true;
-        }
-        if keep < batch.len() {
-            // Pass the rest down by octant.
-            let mid = cube.center();
-            let mut children: [Vec<u32>; 8] = Default::default();
-            for (i, p) in batch.positions.iter().enumerate() {
-                if !node_mask[i] {
-                    children[(0..3)
-                        .map(|a| ((p[a] >= mid[a]) as usize) << a)
-                        .sum::<usize>()]
-                    .push(i as u32);
-                }
-            }
-            for (o, picked) in children.iter().enumerate().filter(|(_, c)| !c.is_empty()) {
-                work.push((key.child(o), batch.gather(picked)));
-            }
-        }
         let node = node_from_prefix(key, &batch, &m, keep);
-        drop(batch);
+        if keep < n {
+            // The rest goes down; in Morton order each child's points are one run, whose
+            // octant is the top three bits of the code.
+            let mut rest_mask = vec![true; n];
+            for &i in &m.order[..keep] {
+                rest_mask[i as usize] = false;
+            }
+            drop(m);
+            let mut rest = batch;
+            rest.retain_mask(&rest_mask);
+            let rest_codes: Vec<u64> = codes
+                .iter()
+                .zip(&rest_mask)
+                .filter(|(_, k)| **k)
+                .map(|(c, _)| *c)
+                .collect();
+            drop(codes);
+            let top = 3 * (mospt::CODE_LEVELS - 1);
+            let below = (1u64 << (3 * mospt::CODE_LEVELS)) - 1;
+            let mut start = 0;
+            while start < rest.len() {
+                let octant = rest_codes[start] >> top;
+                let end = start
+                    + rest_codes[start..]
+                        .iter()
+                        .take_while(|&&c| c >> top == octant)
+                        .count();
+                let child_codes = rest_codes[start..end]
+                    .iter()
+                    .map(|c| (c << 3) & below)
+                    .collect();
+                work.push((
+                    key.child(octant as usize),
+                    rest.slice(start..end),
+                    child_codes,
+                ));
+                start = end;
+            }
+        }
         emit(node)?;
     }
     Ok(())

@@ -75,9 +75,10 @@ fn nothing_lost_many_chunks_and_nodes() {
     let las = synth(&d, 400_000);
     let out = d.join("city.myr");
     let mut o = options(&out);
-    // The smallest budget: chunks of 50 000 points, so the build runs on many chunks and merges
-    // them; small nodes, so the tree is deep.
+    // The smallest budget, and chunks of 30 000 points, so the build runs on many chunks and
+    // merges them; small nodes, so the tree is deep.
     o.memory = myriad_build::convert::MIN_MEMORY;
+    o.chunk_points = Some(30_000);
     o.params.capacity = 4096;
     o.threads = 2;
     let s = convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
