@@ -27,6 +27,8 @@ use std::time::Instant;
 pub const DEFAULT_CAPACITY: usize = 1 << 16;
 pub const DEFAULT_INNER_DEPTH: u32 = 7;
 pub const DEFAULT_MAX_LEVEL: u32 = 20;
+/// Spill files are compressed when they would exceed this (8 GB, about 150 M points).
+pub const SPILL_COMPRESS_ABOVE: u64 = 8 << 30;
 
 #[derive(Debug, Clone)]
 pub struct ConvertOptions {
@@ -342,6 +344,7 @@ pub fn convert(
         &DistributeOptions {
             chunk_points: options.chunk_points.unwrap_or(plan.chunk_points),
             buffer_bytes: plan.buffer_bytes,
+            compress_above: SPILL_COMPRESS_ABOVE,
             temp_dir,
         },
         &mut |p| match p {

@@ -77,6 +77,7 @@ fn nothing_lost_chunks_fit_and_spill_files_go() {
     let options = DistributeOptions {
         chunk_points: 20_000,
         buffer_bytes: 256 << 10,
+        compress_above: 0,
         temp_dir: spill.clone(),
     };
     let dist = distribute(
@@ -168,6 +169,7 @@ fn inputs_with_different_extra_bytes_are_refused() {
     let options = DistributeOptions {
         chunk_points: 10,
         buffer_bytes: 1 << 16,
+        compress_above: u64::MAX,
         temp_dir: d.clone(),
     };
     let err = distribute(&[las, xyz], &OpenOptions::default(), &options)
@@ -199,6 +201,7 @@ fn chunks_and_tops_form_one_nested_octree() {
         &DistributeOptions {
             chunk_points: 15_000,
             buffer_bytes: 1 << 20,
+            compress_above: u64::MAX,
             temp_dir: d.clone(),
         },
     )
