@@ -345,6 +345,7 @@ pub fn convert(
             chunk_points: options.chunk_points.unwrap_or(plan.chunk_points),
             buffer_bytes: plan.buffer_bytes,
             compress_above: SPILL_COMPRESS_ABOVE,
+            min_chunks: 8 * plan.threads as u64,
             temp_dir,
         },
         &mut |p| match p {

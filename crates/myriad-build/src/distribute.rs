@@ -4,8 +4,9 @@
 //!
 //! Decoding LAZ twice (count, then distribute) would halve the speed, so the chunk level comes
 //! from the header counts and bounds alone: level `L` is chosen so that a surface of the total
-//! point count (occupying about 4^L of the 8^L cells) gives chunks near `chunk_points`. A chunk
-//! that ends up larger is split again from its own spill file into its eight children, until it
+//! point count (occupying about 4^L of the 8^L cells) gives chunks near `chunk_points`, and at
+//! least about `min_chunks` of them so that every thread has work until the end. A chunk that
+//! ends up larger is split again from its own spill file into its eight children, until it
 //! fits. Inputs whose header has no bounds (PLY, PCD, text, E57, placed scans) are read once more
 //! for their bounds first.
 //!
@@ -36,6 +37,8 @@ pub struct DistributeOptions {
     /// Compress spill files (zstd level 1) when the inputs would spill more than this many
     /// bytes: it halves the disk a big build needs, at about 1.5 s of a core per 400 MB.
     pub compress_above: u64,
+    /// At least this many chunks (about), so that every thread has work until the end.
+    pub min_chunks: u64,
     /// Where the private spill folder is made (next to the output, so that it is on its disk).
     pub temp_dir: PathBuf,
 }
@@ -372,7 +375,12 @@ pub fn distribute_with(
     let root = Aabb::new(min, min.map(|m| m + side));
     // A surface fills about 4^L of the 8^L cells of level L.
     let per_chunk = options.chunk_points.max(1) as f64;
-    let level = ((declared as f64 / per_chunk).max(1.0).log(4.0).ceil() as u32).min(MAX_LEVEL);
+    let chunks = (declared as f64 / per_chunk)
+        .max(options.min_chunks as f64)
+        .max(1.0);
+    // Never chunks smaller than the budget needs to make sense of (1/16 of chunk_points).
+    let chunks = chunks.min((declared as f64 * 16.0 / per_chunk).max(1.0));
+    let level = (chunks.log(4.0).ceil() as u32).min(MAX_LEVEL);
 
     let folder = options
         .temp_dir

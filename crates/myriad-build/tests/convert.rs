@@ -373,3 +373,36 @@ fn nothing_lost_for_every_las_file_in_shared_data() {
         std::fs::remove_file(&back).unwrap();
     }
 }
+
+#[test]
+fn one_dataset_read_from_many_threads() {
+    fn shareable<T: Send + Sync>(_: &T) {}
+    let d = tempdir("threads");
+    let las = synth(&d, 60_000);
+    let out = d.join("t.myr");
+    let mut o = options(&out);
+    o.params.capacity = 2048;
+    convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+    let ds = Dataset::open(&out).unwrap();
+    shareable(&ds);
+    let (nodes, _) = ds.nodes();
+    assert!(nodes.len() > 8);
+    let totals: Vec<u64> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4)
+            .map(|t| {
+                let (ds, nodes) = (&ds, &nodes);
+                s.spawn(move || {
+                    // Each thread reads every node, starting at a different one.
+                    (0..nodes.len())
+                        .map(|k| {
+                            let n = &nodes[(k + t * 7) % nodes.len()];
+                            ds.read_node(n).unwrap().len() as u64
+                        })
+                        .sum()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(totals, vec![60_000; 4]);
+}

@@ -78,6 +78,7 @@ fn nothing_lost_chunks_fit_and_spill_files_go() {
         chunk_points: 20_000,
         buffer_bytes: 256 << 10,
         compress_above: 0,
+        min_chunks: 1,
         temp_dir: spill.clone(),
     };
     let dist = distribute(
@@ -170,6 +171,7 @@ fn inputs_with_different_extra_bytes_are_refused() {
         chunk_points: 10,
         buffer_bytes: 1 << 16,
         compress_above: u64::MAX,
+        min_chunks: 1,
         temp_dir: d.clone(),
     };
     let err = distribute(&[las, xyz], &OpenOptions::default(), &options)
@@ -202,6 +204,7 @@ fn chunks_and_tops_form_one_nested_octree() {
             chunk_points: 15_000,
             buffer_bytes: 1 << 20,
             compress_above: u64::MAX,
+            min_chunks: 1,
             temp_dir: d.clone(),
         },
     )

@@ -375,11 +375,14 @@ impl PointBatch {
     pub fn retain_mask(&mut self, keep: &[bool]) {
         assert_eq!(keep.len(), self.len());
         fn filter<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {
-            let mut i = 0;
-            v.retain(|_| {
-                i += 1;
-                keep[i - 1]
-            });
+            let mut w = 0;
+            for r in 0..v.len() {
+                if keep[r] {
+                    v[w] = v[r];
+                    w += 1;
+                }
+            }
+            v.truncate(w);
         }
         filter(&mut self.positions, keep);
         macro_rules! ret {
