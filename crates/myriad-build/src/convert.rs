@@ -187,13 +187,18 @@ fn acquisition_order(node: &mut BuiltNode) {
     let Some(t) = &node.points.gps_time else {
         return;
     };
+    // Sort (key, index) pairs; the key orders f64 as `total_cmp` does.
+    let key = |v: f64| {
+        let b = v.to_bits();
+        b ^ (((b as i64) >> 63) as u64 | 1 << 63)
+    };
     let mut order: Vec<u32> = Vec::with_capacity(t.len());
     let mut start = 0usize;
     for &end in &node.prefix {
         let end = end as usize;
-        let mut level: Vec<u32> = (start as u32..end as u32).collect();
-        level.sort_by(|&a, &b| t[a as usize].total_cmp(&t[b as usize]));
-        order.extend(level);
+        let mut level: Vec<(u64, u32)> = (start..end).map(|i| (key(t[i]), i as u32)).collect();
+        level.sort_unstable();
+        order.extend(level.into_iter().map(|p| p.1));
         start = end;
     }
     node.points = node.points.gather(&order);
@@ -500,6 +505,34 @@ pub fn convert(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn levels_in_acquisition_order() {
+        let schema = Schema::new(vec![myriad_core::Attribute::GpsTime]);
+        let mut b = PointBatch::with_schema(&schema, 0);
+        let times = [5.0, -3.0, 1.0, 9.0, -7.5, 2.0, 0.0, -0.0];
+        for (i, &t) in times.iter().enumerate() {
+            b.positions.push([i as f64, 0.0, 0.0]);
+            b.gps_time.as_mut().unwrap().push(t);
+        }
+        let mut node = BuiltNode {
+            key: NodeKey::ROOT,
+            points: b,
+            prefix: vec![1, 4, 8],
+            spacing: vec![4.0, 2.0, 1.0],
+        };
+        acquisition_order(&mut node);
+        let t = node.points.gps_time.as_ref().unwrap();
+        // Level 0 is one point; level 1 (points 1..4) was already in order.
+        assert_eq!(&t[..4], &[5.0, -3.0, 1.0, 9.0]);
+        assert_eq!(
+            t[4..].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            [-7.5f64, -0.0, 0.0, 2.0].map(f64::to_bits)
+        );
+        // Positions moved with their times.
+        assert_eq!(node.points.positions[4][0], 4.0);
+        assert_eq!(node.points.positions[7][0], 5.0);
+    }
 
     #[test]
     fn sizes() {

@@ -211,16 +211,23 @@ pub fn build_sorted(
         current = parents;
     }
 
-    // Level order; within a level, Morton order (the stable sort keeps `sorted`'s order).
-    let mut order = sorted;
-    order.sort_by_key(|&i| level[i as usize]);
+    // Level order; within a level, Morton order: a counting sort by level keeps `sorted`'s order.
     let levels = depth as usize + 2;
     let mut prefix = vec![0u64; levels];
-    for &i in &order {
-        prefix[level[i as usize] as usize] += 1;
+    for &l in &level {
+        prefix[l as usize] += 1;
     }
     for l in 1..levels {
         prefix[l] += prefix[l - 1];
+    }
+    let mut next: Vec<usize> = std::iter::once(0)
+        .chain(prefix[..levels - 1].iter().map(|&p| p as usize))
+        .collect();
+    let mut order = vec![0u32; n];
+    for &i in &sorted {
+        let l = level[i as usize] as usize;
+        order[next[l]] = i;
+        next[l] += 1;
     }
     let spacing = (0..levels)
         .map(|l| side / (1u64 << (l.min(depth as usize))) as f64)
