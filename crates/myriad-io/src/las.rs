@@ -476,20 +476,9 @@ impl LasWriteOptions {
         b.point_format =
             las::point::Format::new(format).map_err(|e| Error::Invalid(e.to_string()))?;
         b.point_format.extra_bytes = schema.extra_bytes as u16;
-        for (i, t) in [
-            &mut b.transforms.x,
-            &mut b.transforms.y,
-            &mut b.transforms.z,
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            t.scale = scale[i];
-            t.offset = offset[i];
-        }
         b.generating_software = "myriad".into();
         let header = b.into_header().map_err(|e| Error::Invalid(e.to_string()))?;
-        Ok(LasWriteOptions { header })
+        LasWriteOptions { header }.with_transforms(scale, offset)
     }
 
     /// Sets the scale and offset of positions.

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::info::thousands;
+use crate::info::{print_bounds, print_crs, thousands};
 
 #[derive(Args)]
 pub struct ConvertArgs {
@@ -228,25 +228,11 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
     println!("  structure   {} {}", m.structure, m.parameters);
     println!("  points      {}", thousands(m.points));
     println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
-    println!(
-        "  bounds min  {:.3} {:.3} {:.3}",
-        b.min[0], b.min[1], b.min[2]
-    );
-    println!(
-        "         max  {:.3} {:.3} {:.3}",
-        b.max[0], b.max[1], b.max[2]
-    );
+    print_bounds(&b);
     println!("  attributes  {}", m.schema);
     let q = m.quantization;
     println!("  scale       {} {} {}", q.scale[0], q.scale[1], q.scale[2]);
-    match &m.crs {
-        Some(c) if c.len() > 100 => println!(
-            "  crs         {}...",
-            &c[..c.char_indices().nth(100).map_or(c.len(), |x| x.0)]
-        ),
-        Some(c) => println!("  crs         {c}"),
-        None => println!("  crs         none"),
-    }
+    print_crs(m.crs.as_deref());
     println!(
         "  file size   {} bytes, {:.2} bytes per point",
         thousands(ds.file_length),

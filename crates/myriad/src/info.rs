@@ -133,23 +133,34 @@ fn print_human(r: &Report) {
         );
     }
     if let Some(b) = r.bounds {
-        let s = b.size();
-        println!(
-            "  bounds min  {:.3} {:.3} {:.3}",
-            b.min[0], b.min[1], b.min[2]
-        );
-        println!(
-            "         max  {:.3} {:.3} {:.3}",
-            b.max[0], b.max[1], b.max[2]
-        );
-        println!("         size {:.3} x {:.3} x {:.3}", s[0], s[1], s[2]);
+        print_bounds(&b);
     }
     println!("  attributes  {}", i.schema);
     if let (Some(s), Some(o)) = (i.scale, i.offset) {
         println!("  scale       {} {} {}", s[0], s[1], s[2]);
         println!("  offset      {} {} {}", o[0], o[1], o[2]);
     }
-    match &i.crs {
+    print_crs(i.crs.as_deref());
+    println!("  file size   {} bytes", thousands(i.file_size));
+}
+
+/// The bounds lines of the human summary (files and datasets).
+pub fn print_bounds(b: &myriad_core::Aabb) {
+    let s = b.size();
+    println!(
+        "  bounds min  {:.3} {:.3} {:.3}",
+        b.min[0], b.min[1], b.min[2]
+    );
+    println!(
+        "         max  {:.3} {:.3} {:.3}",
+        b.max[0], b.max[1], b.max[2]
+    );
+    println!("         size {:.3} x {:.3} x {:.3}", s[0], s[1], s[2]);
+}
+
+/// The CRS line of the human summary, long WKT cut at 100 characters.
+pub fn print_crs(crs: Option<&str>) {
+    match crs {
         Some(c) if c.len() > 100 => println!(
             "  crs         {}...",
             &c[..c.char_indices().nth(100).map_or(c.len(), |x| x.0)]
@@ -157,5 +168,4 @@ fn print_human(r: &Report) {
         Some(c) => println!("  crs         {c}"),
         None => println!("  crs         none"),
     }
-    println!("  file size   {} bytes", thousands(i.file_size));
 }
