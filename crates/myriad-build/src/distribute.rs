@@ -71,8 +71,9 @@ pub struct Distribution {
     pub points: u64,
     /// Bounds of the points actually read.
     pub bounds: Aabb,
-    /// Points that lay outside the root cube (headers that understate their bounds) and were
-    /// put into the nearest cell; their coordinates are unchanged.
+    /// Points that lay outside the bounds the headers state. When there are any, the chunks
+    /// are scattered again over a root cube from the bounds read, so every chunk holds only
+    /// points of its own cube.
     pub clamped: u64,
     /// What each input's header said, and the points taken from it.
     pub sources: Vec<(myriad_io::SourceInfo, u64)>,
@@ -302,6 +303,15 @@ fn conform(mut b: PointBatch, schema: &Schema) -> PointBatch {
     target
 }
 
+/// The root cube around `bounds`. Headers state bounds rounded to their scale (and some are a
+/// step off): a margin of one scale `step` and 1e-5 of the extent keeps such points inside.
+fn root_cube(bounds: &Aabb, step: f64) -> Aabb {
+    let extent = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9);
+    let margin = step + extent * 1e-5;
+    let min = bounds.min.map(|m| m - margin);
+    Aabb::new(min, min.map(|m| m + extent + 2.0 * margin))
+}
+
 fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] {
     let side = root.size()[0];
     let n = (1u64 << level) as f64;
@@ -361,18 +371,12 @@ pub fn distribute_with(
         sources.push(kept);
     }
     let schema = merged_schema(&infos)?;
-    // Headers state bounds rounded to their scale (and some are a step off): a margin of one
-    // scale step and 1e-5 of the extent keeps such points inside the root cube.
-    let step = infos
+    let margin_step = infos
         .iter()
         .filter_map(|i| i.scale)
         .flatten()
         .fold(0.0f64, f64::max);
-    let extent = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9);
-    let margin = step + extent * 1e-5;
-    let side = extent + 2.0 * margin;
-    let min = bounds.min.map(|m| m - margin);
-    let root = Aabb::new(min, min.map(|m| m + side));
+    let root = root_cube(&bounds, margin_step);
     // A surface fills about 4^L of the 8^L cells of level L.
     let per_chunk = options.chunk_points.max(1) as f64;
     let chunks = (declared as f64 / per_chunk)
@@ -415,6 +419,24 @@ pub fn distribute_with(
     }
     scatter.flush()?;
     let mut chunks = scatter.chunks();
+    // Points outside the headers' bounds went to the nearest cell, whose cube does not hold
+    // them. Rare (a header not updated after editing), but the tree must contain its points:
+    // scatter the spill files again over a root cube from the bounds actually read.
+    let root = if clamped > 0 {
+        let root = root_cube(&actual, margin_step);
+        chunks = rescatter(
+            &chunks,
+            &root,
+            level + 1,
+            &schema,
+            &folder.0,
+            options.buffer_bytes,
+            compress,
+        )?;
+        root
+    } else {
+        root
+    };
 
     // Split chunks that came out too large, from their own spill files, until they fit.
     let mut done = Vec::new();
@@ -423,9 +445,10 @@ pub fn distribute_with(
             done.push(chunk);
             continue;
         }
-        chunks.extend(split(
-            &chunk,
+        chunks.extend(rescatter(
+            std::slice::from_ref(&chunk),
             &root,
+            chunk.level + 1,
             &schema,
             &folder.0,
             options.buffer_bytes,
@@ -448,35 +471,38 @@ pub fn distribute_with(
     })
 }
 
-/// Scatters a chunk's points into its eight children and removes its spill file.
-fn split(
-    chunk: &Chunk,
+/// Scatters the points of `chunks` into the cells of `level` over `root` and removes their
+/// spill files: a chunk into its eight children, or every chunk into a new root's cells.
+fn rescatter(
+    chunks: &[Chunk],
     root: &Aabb,
+    level: u32,
     schema: &Schema,
     folder: &Path,
     buffer_bytes: usize,
     compress: bool,
 ) -> Result<Vec<Chunk>> {
-    let level = chunk.level + 1;
     let mut scatter = Scatter::new(folder, level, buffer_bytes, compress);
     let row = PointBatch::with_schema(schema, 0).row_size();
-    let mut frames = Frames::open(&chunk.path)?;
-    let mut ignored = 0;
-    while let Some(rows) = frames.next_frame()? {
-        if rows.len() % row != 0 {
-            return Err(frames.error("spill frame ends inside a row"));
+    let mut outside = 0;
+    for chunk in chunks {
+        let mut frames = Frames::open(&chunk.path)?;
+        while let Some(rows) = frames.next_frame()? {
+            if rows.len() % row != 0 {
+                return Err(frames.error("spill frame ends inside a row"));
+            }
+            let mut b = PointBatch::with_schema(schema, rows.len() / row);
+            for r in rows.chunks_exact(row) {
+                b.push_row(r);
+            }
+            for i in 0..b.len() {
+                scatter.add(cell_of(root, level, b.positions[i], &mut outside), &b, i)?;
+            }
         }
-        let mut b = PointBatch::with_schema(schema, rows.len() / row);
-        for r in rows.chunks_exact(row) {
-            b.push_row(r);
-        }
-        for i in 0..b.len() {
-            scatter.add(cell_of(root, level, b.positions[i], &mut ignored), &b, i)?;
-        }
+        drop(frames);
+        std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
     }
     scatter.flush()?;
-    drop(frames);
-    std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;
     Ok(scatter.chunks())
 }
 

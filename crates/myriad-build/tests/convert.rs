@@ -406,3 +406,30 @@ fn one_dataset_read_from_many_threads() {
     });
     assert_eq!(totals, vec![60_000; 4]);
 }
+
+#[test]
+fn a_header_that_understates_its_bounds() {
+    let d = tempdir("bounds");
+    let las = synth(&d, 100_000);
+    // LAS 1.4 header: max x at byte 179, min x at 187 (f64). Claim half the x extent.
+    let mut bytes = std::fs::read(&las).unwrap();
+    let f = |b: &[u8], at: usize| f64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    let (max_x, min_x) = (f(&bytes, 179), f(&bytes, 187));
+    let half = min_x + (max_x - min_x) / 2.0;
+    bytes[179..187].copy_from_slice(&half.to_le_bytes());
+    let lying = d.join("lying.las");
+    std::fs::write(&lying, &bytes).unwrap();
+    let out = d.join("b.myr");
+    let mut o = options(&out);
+    o.params.capacity = 4096;
+    o.chunk_points = Some(20_000);
+    convert(std::slice::from_ref(&lying), &o, &Silent).unwrap();
+    let ds = Dataset::open(&out).unwrap();
+    assert!(ds.meta.root.max[0] >= max_x, "root cube {:?}", ds.meta.root);
+    // Every point inside its node's cube; nothing lost.
+    let r = verify(&ds, |_| {});
+    assert!(r.damage.is_empty(), "{:?}", r.damage);
+    let back = d.join("back.las");
+    extract(&ds, &back, &ExtractOptions::default()).unwrap();
+    assert_eq!(records(&read_all(&back)), records(&read_all(&lying)));
+}
