@@ -10,7 +10,7 @@
 set -u
 cd "$(dirname "$0")"
 secs=${1:-600}
-for t in las ply pcd e57; do
+for t in las ply pcd e57 dataset; do
   mkdir -p corpus/$t
   RUSTC_BOOTSTRAP=1 cargo fuzz run -O $t corpus/$t -- -max_total_time=$secs -rss_limit_mb=3072 -malloc_limit_mb=4200 -timeout=20 \
     > "fuzz-$t.log" 2>&1

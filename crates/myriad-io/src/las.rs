@@ -724,9 +724,15 @@ pub fn header_to_bytes(header: &las::Header) -> Result<Vec<u8>> {
     Ok(w.into_inner().map_err(invalid)?.into_inner())
 }
 
-/// The header [`header_to_bytes`] stored.
+/// The header [`header_to_bytes`] stored. The bytes come from a dataset file, so they get the
+/// same checks as a LAS file's header before the `las` crate sizes anything from them.
 pub fn header_from_bytes(bytes: &[u8]) -> Result<las::Header> {
-    let r = las::Reader::new(std::io::Cursor::new(bytes.to_vec()))
-        .map_err(|e| Error::Invalid(format!("stored LAS header: {e}")))?;
-    Ok(r.header().clone())
+    let name = Path::new("stored LAS header");
+    let raw = las::raw::Header::read_from(std::io::Cursor::new(bytes))
+        .map_err(|e| header_error(name, e))?;
+    if raw.point_data_record_format & 0xC0 != 0 {
+        return Err(Error::at_byte(name, 104, "stored LAS headers are uncompressed"));
+    }
+    check_evlr(name, &raw, bytes.len() as u64)?;
+    las::Header::new(std::io::Cursor::new(bytes)).map_err(|e| header_error(name, e))
 }
