@@ -3,8 +3,9 @@
 //!
 //! Positions are integers on the dataset's grid (`round((x - offset) / scale)`), relative to the
 //! node's smallest integer per axis, in as many bytes as the node's extent needs (the bit count
-//! per axis is recorded; whole bytes are stored because zstd compresses byte planes far better
-//! than a bit-packed stream), each axis as the zigzag difference to the previous point's. Every
+//! per axis is recorded; whole bytes are stored: on KY, byte planes through zstd take 5.78 bytes
+//! per point for positions, the same deltas bit-packed 6.39, examples/position_coding.rs), each
+//! axis as the zigzag difference to the previous point's. Every
 //! column is byte-shuffled (all first bytes of the elements, then all second bytes, ...) before
 //! zstd: neighbouring points share their high bytes. GPS time is delta coded on its bit pattern
 //! first. Builders put the points of each level of detail in acquisition order where they can, so

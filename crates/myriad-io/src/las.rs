@@ -731,7 +731,11 @@ pub fn header_from_bytes(bytes: &[u8]) -> Result<las::Header> {
     let raw = las::raw::Header::read_from(std::io::Cursor::new(bytes))
         .map_err(|e| header_error(name, e))?;
     if raw.point_data_record_format & 0xC0 != 0 {
-        return Err(Error::at_byte(name, 104, "stored LAS headers are uncompressed"));
+        return Err(Error::at_byte(
+            name,
+            104,
+            "stored LAS headers are uncompressed",
+        ));
     }
     check_evlr(name, &raw, bytes.len() as u64)?;
     las::Header::new(std::io::Cursor::new(bytes)).map_err(|e| header_error(name, e))
