@@ -62,7 +62,7 @@ impl convert::Report for Bar {
         let unit = if name == "merging" { "nodes" } else { "points" };
         b.set_style(
             ProgressStyle::with_template(&format!(
-                "{{prefix:>9}} [{{bar:40}}] {{human_pos}}/{{human_len}} {unit} {{per_sec}} ETA {{eta}}"
+                "{{prefix:>9}} [{{bar:40}}] {{human_pos}}/{{human_len}} {unit} {{per_sec:0}} ETA {{eta}}"
             ))
             .expect("valid template")
             .progress_chars("=> "),

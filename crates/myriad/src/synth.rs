@@ -71,7 +71,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
         let b = ProgressBar::new(a.points);
         b.set_style(
             ProgressStyle::with_template(
-                "synth {bar:40} {human_pos}/{human_len} points, {per_sec}, ETA {eta}",
+                "synth {bar:40} {human_pos}/{human_len} points, {per_sec:0}, ETA {eta}",
             )
             .expect("valid template"),
         );
