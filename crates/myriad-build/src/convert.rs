@@ -388,10 +388,10 @@ pub fn convert(
                 };
                 let mut top = None;
                 nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
+                    report.advance(node.points.len() as u64);
                     if node.key == key {
                         top = Some(spill(node, &spill_dir)?);
                     } else {
-                        report.advance(node.points.len() as u64);
                         write(&writer, node)?;
                     }
                     Ok::<(), Error>(())

@@ -59,7 +59,11 @@ struct Bar {
 impl convert::Report for Bar {
     fn phase(&self, name: &'static str, total: u64) {
         let b = ProgressBar::new(total);
-        let unit = if name == "merging" { "nodes" } else { "points" };
+        let unit = match name {
+            "merging" => "nodes",
+            "writing" => "steps",
+            _ => "points",
+        };
         b.set_style(
             ProgressStyle::with_template(&format!(
                 "{{prefix:>9}} [{{bar:40}}] {{human_pos}}/{{human_len}} {unit} {{per_sec:0}} ETA {{eta}}"
