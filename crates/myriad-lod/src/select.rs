@@ -1,0 +1,461 @@
+//! Selection of what to draw in a frame (Scheiblauer 2006, sections 4.3-4.4): the outer tree is
+//! traversed from the root in benefit order (projected size over the angle to the view centre),
+//! nodes outside the frustum or whose points would fall below the pixel threshold are skipped,
+//! and traversal stops at the point budget. Inside a node, the prefix of levels whose spacing
+//! still covers at least the threshold in pixels is drawn (a prefix of a node is a coarser level
+//! of detail of it). Children are visited only below a node drawn whole: they refine it.
+//!
+//! Adaptive point size (003 section 4.4, 002 section 5.1): each selected node gets the spacing
+//! of the finest level it draws; when every visible child of a node is drawn, the node takes the
+//! finest spacing of its children, pulled up the tree, so that coarse points shrink where finer
+//! points fill in between them.
+
+use crate::view::{Camera, Frustum};
+use myriad_core::{Aabb, NodeKey};
+use myriad_format::NodeEntry;
+use std::collections::{BinaryHeap, HashMap};
+
+/// The outer tree, as far as it is known (all of it, for now: the hierarchy pages are small).
+#[derive(Debug, Clone)]
+pub struct Hierarchy {
+    pub root: Aabb,
+    nodes: HashMap<NodeKey, NodeEntry>,
+}
+
+impl Hierarchy {
+    pub fn new(root: Aabb, entries: impl IntoIterator<Item = NodeEntry>) -> Hierarchy {
+        Hierarchy {
+            root,
+            nodes: entries.into_iter().map(|e| (e.key, e)).collect(),
+        }
+    }
+    pub fn get(&self, key: &NodeKey) -> Option<&NodeEntry> {
+        self.nodes.get(key)
+    }
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+    pub fn children(&self, key: &NodeKey) -> impl Iterator<Item = &NodeEntry> {
+        (0..8).filter_map(move |o| self.nodes.get(&key.child(o)))
+    }
+    /// Points in the whole tree.
+    pub fn points(&self) -> u64 {
+        self.nodes.values().map(|n| n.points as u64).sum()
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SelectOptions {
+    /// Most points drawn.
+    pub budget: u64,
+    /// Spacing, in pixels, below which a level adds nothing visible (003: usually 1 or 2).
+    pub min_pixels: f64,
+}
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        SelectOptions {
+            budget: 1_000_000,
+            min_pixels: 1.0,
+        }
+    }
+}
+
+/// A node to draw this frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selected {
+    pub key: NodeKey,
+    /// Points to draw: a prefix of the node.
+    pub points: u32,
+    /// Spacing of the finest level drawn, in world units; after [`select`] returns, pulled up
+    /// from the finest fully drawn descendants (the adaptive point size).
+    pub spacing: f64,
+    pub benefit: f64,
+    /// Smallest eye depth of the node's cube (clamped to the near plane), for point sizes.
+    pub depth: f64,
+}
+
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Selection {
+    /// In the order they were chosen (highest benefit first).
+    pub nodes: Vec<Selected>,
+    pub points: u64,
+    /// Whether the budget stopped the traversal.
+    pub budget_reached: bool,
+}
+
+struct Candidate {
+    benefit: f64,
+    key: NodeKey,
+}
+impl PartialEq for Candidate {
+    fn eq(&self, o: &Self) -> bool {
+        self.benefit == o.benefit && self.key == o.key
+    }
+}
+impl Eq for Candidate {}
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Candidate {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.benefit
+            .total_cmp(&o.benefit)
+            .then_with(|| o.key.cmp(&self.key))
+    }
+}
+
+/// The nearest eye depth of a box (its corners; clamped to the near plane).
+fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
+    b.corners()
+        .iter()
+        .map(|&p| cam.to_eye(p)[2])
+        .fold(f64::INFINITY, f64::min)
+        .max(cam.near)
+}
+
+/// 003 section 4.3: projected size over the angle between the view direction and the direction
+/// to the node's centre (the angle floored, so a node on the axis does not divide by zero).
+fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
+    let side = cube.size()[0];
+    let projected = side * cam.pixels_per_unit(depth);
+    let c = cube.center();
+    let v: [f64; 3] = std::array::from_fn(|a| c[a] - cam.position[a]);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let f = cam.forward();
+    let cos = if len > 0.0 {
+        ((v[0] * f[0] + v[1] * f[1] + v[2] * f[2]) / len).clamp(-1.0, 1.0)
+    } else {
+        1.0
+    };
+    projected / cos.acos().max(1e-3)
+}
+
+/// Chooses the nodes and prefixes to draw for `cam`.
+pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
+    let frustum = cam.frustum();
+    let mut out = Selection::default();
+    let mut queue = BinaryHeap::new();
+    let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>, frustum: &Frustum| {
+        let cube = key.bounds(&h.root);
+        if !frustum.intersects(&cube) {
+            return;
+        }
+        let depth = nearest_depth(cam, &cube);
+        queue.push(Candidate {
+            benefit: benefit(cam, &cube, depth),
+            key,
+        });
+    };
+    if h.get(&NodeKey::ROOT).is_some() {
+        consider(NodeKey::ROOT, &mut queue, &frustum);
+    }
+    while let Some(Candidate { benefit, key }) = queue.pop() {
+        let Some(e) = h.get(&key) else { continue };
+        let cube = key.bounds(&h.root);
+        let depth = nearest_depth(cam, &cube);
+        let ppu = cam.pixels_per_unit(depth);
+        // Levels whose spacing still shows; none: the node (and all below) adds nothing.
+        let levels = e
+            .spacing
+            .iter()
+            .take_while(|&&s| s * ppu >= o.min_pixels)
+            .count();
+        if levels == 0 && e.points > 0 {
+            continue;
+        }
+        let whole = levels == e.prefix.len();
+        let mut count = if e.points == 0 {
+            0
+        } else {
+            e.prefix[levels - 1] as u64
+        };
+        if out.points + count > o.budget {
+            count = o.budget - out.points;
+            out.budget_reached = true;
+        }
+        if count > 0 {
+            let drawn_level = e
+                .prefix
+                .iter()
+                .position(|&p| p as u64 >= count)
+                .unwrap_or(e.prefix.len() - 1);
+            out.points += count;
+            out.nodes.push(Selected {
+                key,
+                points: count as u32,
+                spacing: e.spacing[drawn_level],
+                benefit,
+                depth,
+            });
+        }
+        if out.budget_reached {
+            break;
+        }
+        if whole || e.points == 0 {
+            for c in h.children(&key) {
+                consider(c.key, &mut queue, &frustum);
+            }
+        }
+    }
+    pull_up_spacing(h, &frustum, &mut out);
+    out
+}
+
+/// 003 section 4.4: a node whose visible children are all drawn takes the finest spacing among
+/// them (recursively), so its points shrink to the size of the finest points around them.
+fn pull_up_spacing(h: &Hierarchy, frustum: &Frustum, s: &mut Selection) {
+    let index: HashMap<NodeKey, usize> = s
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.key, i))
+        .collect();
+    let mut order: Vec<usize> = (0..s.nodes.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(s.nodes[i].key.level));
+    for i in order {
+        let key = s.nodes[i].key;
+        let mut finest = f64::INFINITY;
+        let mut all = true;
+        let mut any = false;
+        for c in h.children(&key) {
+            if c.points == 0 || !frustum.intersects(&c.key.bounds(&h.root)) {
+                continue;
+            }
+            match index.get(&c.key) {
+                Some(&j) => {
+                    any = true;
+                    finest = finest.min(s.nodes[j].spacing);
+                }
+                None => all = false,
+            }
+        }
+        if any && all {
+            let n = &mut s.nodes[i];
+            n.spacing = n.spacing.min(finest);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use myriad_format::PageRef;
+
+    /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
+    /// `per_node` points in 3 LOD levels whose spacing follows the node size.
+    fn tree(depth: u32, side: f64, per_node: u32) -> Hierarchy {
+        let root = Aabb::new([0.0; 3], [side; 3]);
+        let mut entries = Vec::new();
+        let mut level_keys = vec![NodeKey::ROOT];
+        for level in 0..depth {
+            let mut next = Vec::new();
+            for k in level_keys {
+                let s = side / (1u64 << level) as f64;
+                entries.push(NodeEntry {
+                    key: k,
+                    page: PageRef {
+                        offset: 64,
+                        length: 100,
+                        crc: 0,
+                    },
+                    points: per_node,
+                    prefix: vec![1, per_node / 8, per_node],
+                    spacing: vec![s, s / 8.0, s / 32.0],
+                });
+                next.extend((0..8).map(|o| k.child(o)));
+            }
+            level_keys = next;
+        }
+        Hierarchy::new(root, entries)
+    }
+
+    fn looking_down(h: &Hierarchy, height: f64) -> Camera {
+        let c = h.root.center();
+        Camera {
+            position: [c[0], c[1] - 1e-3, h.root.max[2] + height],
+            target: [c[0], c[1], h.root.min[2]],
+            up: [0.0, 0.0, 1.0],
+            fov_y: 60.0,
+            width: 800,
+            height: 600,
+            near: 0.1,
+            far: 1e6,
+        }
+    }
+
+    #[test]
+    fn budget_and_parents_first() {
+        let h = tree(4, 100.0, 4000);
+        for budget in [1, 500, 20_000, 200_000, u64::MAX] {
+            let s = select(
+                &h,
+                &looking_down(&h, 50.0),
+                &SelectOptions {
+                    budget,
+                    min_pixels: 1.0,
+                },
+            );
+            assert!(s.points <= budget, "{} > {budget}", s.points);
+            assert_eq!(
+                s.points,
+                s.nodes.iter().map(|n| n.points as u64).sum::<u64>()
+            );
+            // Every selected node's parent was selected before it: no holes.
+            for (i, n) in s.nodes.iter().enumerate() {
+                if n.key.level > 0 {
+                    let p = n.key.parent();
+                    assert!(
+                        s.nodes[..i].iter().any(|m| m.key == p),
+                        "{} before its parent",
+                        n.key
+                    );
+                }
+            }
+            if budget < h.points() {
+                assert!(s.budget_reached || s.points < budget);
+            }
+        }
+    }
+
+    #[test]
+    fn frustum_culls_and_distance_coarsens() {
+        let h = tree(5, 100.0, 4000);
+        let near = select(
+            &h,
+            &looking_down(&h, 20.0),
+            &SelectOptions {
+                budget: u64::MAX,
+                min_pixels: 1.0,
+            },
+        );
+        let far = select(
+            &h,
+            &looking_down(&h, 5000.0),
+            &SelectOptions {
+                budget: u64::MAX,
+                min_pixels: 1.0,
+            },
+        );
+        assert!(
+            far.points < near.points,
+            "far {} near {}",
+            far.points,
+            near.points
+        );
+        assert!(
+            far.nodes.iter().map(|n| n.key.level).max()
+                < near.nodes.iter().map(|n| n.key.level).max()
+        );
+        // Looking away: nothing.
+        let mut away = looking_down(&h, 20.0);
+        away.target = [
+            away.position[0],
+            away.position[1] - 1.0,
+            away.position[2] + 10.0,
+        ];
+        let s = select(&h, &away, &SelectOptions::default());
+        assert!(s.nodes.is_empty());
+        // Low, at one corner, looking across: the near half is refined deeper than the far.
+        let across = Camera {
+            position: [-5.0, -5.0, 50.0],
+            target: [100.0, 100.0, 50.0],
+            ..looking_down(&h, 20.0)
+        };
+        let s = select(
+            &h,
+            &across,
+            &SelectOptions {
+                budget: u64::MAX,
+                min_pixels: 4.0,
+            },
+        );
+        let deepest = |near: bool| {
+            s.nodes
+                .iter()
+                .filter(|n| {
+                    let c = n.key.bounds(&h.root).center();
+                    (c[0] + c[1] < 100.0) == near
+                })
+                .map(|n| n.key.level)
+                .max()
+                .unwrap_or(0)
+        };
+        assert!(
+            deepest(true) > deepest(false),
+            "near {} far {}",
+            deepest(true),
+            deepest(false)
+        );
+    }
+
+    #[test]
+    fn benefit_prefers_the_view_centre_and_the_near() {
+        let cam = Camera {
+            position: [0.0, -100.0, 0.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            fov_y: 60.0,
+            width: 800,
+            height: 600,
+            near: 0.1,
+            far: 1e6,
+        };
+        let cube = |x: f64, y: f64| Aabb::new([x - 1.0, y - 1.0, -1.0], [x + 1.0, y + 1.0, 1.0]);
+        let b = |c: Aabb| benefit(&cam, &c, nearest_depth(&cam, &c));
+        assert!(b(cube(0.0, 0.0)) > b(cube(30.0, 0.0)), "on axis first");
+        assert!(
+            b(cube(10.0, -50.0)) > b(cube(20.0, 0.0)),
+            "nearer, same angle, first"
+        );
+        // With a small budget, what is drawn lies towards the view centre.
+        let h = tree(4, 100.0, 4000);
+        let top = looking_down(&h, 400.0);
+        let s = select(
+            &h,
+            &top,
+            &SelectOptions {
+                budget: 400_000,
+                min_pixels: 0.5,
+            },
+        );
+        assert!(s.budget_reached);
+        let deep: Vec<&Selected> = s.nodes.iter().filter(|n| n.key.level == 3).collect();
+        assert!(!deep.is_empty());
+        let off = |n: &Selected| {
+            let c = n.key.bounds(&h.root).center();
+            ((c[0] - 50.0).powi(2) + (c[1] - 50.0).powi(2)).sqrt()
+        };
+        let mean = deep.iter().map(|n| off(n)).sum::<f64>() / deep.len() as f64;
+        // All level-3 cells: mean distance from the centre is about 38; the chosen are central.
+        assert!(mean < 30.0, "mean off-axis distance {mean}");
+    }
+
+    #[test]
+    fn spacing_is_pulled_up_from_drawn_children() {
+        let h = tree(3, 100.0, 4000);
+        let s = select(
+            &h,
+            &looking_down(&h, 1000.0),
+            &SelectOptions {
+                budget: u64::MAX,
+                min_pixels: 1e-6,
+            },
+        );
+        let root = s.nodes.iter().find(|n| n.key == NodeKey::ROOT).unwrap();
+        let finest = s
+            .nodes
+            .iter()
+            .map(|n| n.spacing)
+            .fold(f64::INFINITY, f64::min);
+        // The whole tree is drawn: the root takes the finest spacing of all.
+        assert_eq!(s.points, h.points());
+        assert_eq!(root.spacing, finest);
+        assert!(root.spacing < 100.0 / 32.0);
+    }
+}

@@ -1,0 +1,211 @@
+//! The view: a pinhole camera (position, target, up, vertical field of view, viewport, near and
+//! far) and its frustum, in world coordinates (f64: scans live at UTM-sized coordinates).
+
+use myriad_core::Aabb;
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = dot(a, a).sqrt();
+    if l > 0.0 { a.map(|v| v / l) } else { a }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub position: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    /// Vertical field of view in degrees.
+    pub fov_y: f64,
+    pub width: u32,
+    pub height: u32,
+    pub near: f64,
+    pub far: f64,
+}
+
+impl Camera {
+    /// Looks at the whole of `bounds` from above at 45 degrees (Z up), from the south.
+    pub fn framing(bounds: &Aabb, width: u32, height: u32, fov_y: f64) -> Camera {
+        let c = bounds.center();
+        let s = bounds.size();
+        let radius = 0.5 * dot(s, s).sqrt().max(1e-9);
+        // Far enough that the bounding sphere fits the narrower field of view.
+        let aspect = width as f64 / height.max(1) as f64;
+        let half_v = (fov_y.to_radians() / 2.0).min(1.5);
+        let half = if aspect < 1.0 {
+            (half_v.tan() * aspect).atan()
+        } else {
+            half_v
+        };
+        let distance = radius / half.sin();
+        let d = distance / 2f64.sqrt();
+        Camera {
+            position: [c[0], c[1] - d, c[2] + d],
+            target: c,
+            up: [0.0, 0.0, 1.0],
+            fov_y,
+            width,
+            height,
+            near: (distance - radius).max(distance * 1e-4),
+            far: distance + radius,
+        }
+    }
+
+    /// Right, up and forward unit vectors (a right-handed eye frame looking along forward).
+    pub fn basis(&self) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let f = normalize(sub(self.target, self.position));
+        let mut r = cross(f, self.up);
+        if dot(r, r) < 1e-24 {
+            // Looking along `up`: any perpendicular will do.
+            r = cross(
+                f,
+                if f[0].abs() < 0.9 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [0.0, 1.0, 0.0]
+                },
+            );
+        }
+        let r = normalize(r);
+        let u = cross(r, f);
+        (r, u, f)
+    }
+
+    /// A point in eye coordinates: x right, y up, z the depth along the view direction.
+    pub fn to_eye(&self, p: [f64; 3]) -> [f64; 3] {
+        let (r, u, f) = self.basis();
+        let d = sub(p, self.position);
+        [dot(d, r), dot(d, u), dot(d, f)]
+    }
+
+    /// Pixels that one unit of length covers at eye depth `depth` (on the view axis).
+    pub fn pixels_per_unit(&self, depth: f64) -> f64 {
+        let focal = self.height as f64 / (2.0 * (self.fov_y.to_radians() / 2.0).tan());
+        focal / depth.max(self.near)
+    }
+
+    /// The view direction (unit).
+    pub fn forward(&self) -> [f64; 3] {
+        self.basis().2
+    }
+
+    pub fn frustum(&self) -> Frustum {
+        let (r, u, f) = self.basis();
+        let tan_v = (self.fov_y.to_radians() / 2.0).tan();
+        let tan_h = tan_v * self.width as f64 / self.height.max(1) as f64;
+        let p = self.position;
+        // Side planes through the eye, normals pointing inwards.
+        let plane = |n: [f64; 3]| {
+            let n = normalize(n);
+            (n, -dot(n, p))
+        };
+        let left = plane([
+            f[0] * tan_h + r[0],
+            f[1] * tan_h + r[1],
+            f[2] * tan_h + r[2],
+        ]);
+        let right = plane([
+            f[0] * tan_h - r[0],
+            f[1] * tan_h - r[1],
+            f[2] * tan_h - r[2],
+        ]);
+        let bottom = plane([
+            f[0] * tan_v + u[0],
+            f[1] * tan_v + u[1],
+            f[2] * tan_v + u[2],
+        ]);
+        let top = plane([
+            f[0] * tan_v - u[0],
+            f[1] * tan_v - u[1],
+            f[2] * tan_v - u[2],
+        ]);
+        let near = (f, -dot(f, p) - self.near);
+        let far = (f.map(|v| -v), dot(f, p) + self.far);
+        Frustum {
+            planes: [left, right, bottom, top, near, far],
+        }
+    }
+}
+
+/// Six planes `n · p + d >= 0` inside.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frustum {
+    pub planes: [([f64; 3], f64); 6],
+}
+
+impl Frustum {
+    /// Does the box meet the frustum? (Conservative: a box near an edge may pass.)
+    pub fn intersects(&self, b: &Aabb) -> bool {
+        self.planes.iter().all(|(n, d)| {
+            // The box corner furthest along the normal.
+            let p: [f64; 3] =
+                std::array::from_fn(|a| if n[a] >= 0.0 { b.max[a] } else { b.min[a] });
+            dot(*n, p) + d >= 0.0
+        })
+    }
+
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        self.planes.iter().all(|(n, d)| dot(*n, p) + d >= 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> Camera {
+        Camera {
+            position: [0.0, -10.0, 0.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            fov_y: 90.0,
+            width: 200,
+            height: 100,
+            near: 0.5,
+            far: 100.0,
+        }
+    }
+
+    #[test]
+    fn eye_frame_and_frustum() {
+        let c = cam();
+        assert_eq!(c.to_eye([0.0, 0.0, 0.0]), [0.0, 0.0, 10.0]);
+        let e = c.to_eye([1.0, 0.0, 2.0]);
+        assert!((e[0] - 1.0).abs() < 1e-12 && (e[1] - 2.0).abs() < 1e-12);
+        let f = c.frustum();
+        assert!(f.contains([0.0, 0.0, 0.0]));
+        assert!(!f.contains([0.0, -20.0, 0.0]), "behind the camera");
+        assert!(!f.contains([0.0, 200.0, 0.0]), "beyond far");
+        // 90 degrees vertical: at depth 10 the view reaches z = ±10, and x = ±20 (aspect 2).
+        assert!(f.contains([19.0, 0.0, 9.0]));
+        assert!(!f.contains([21.0, 0.0, 0.0]));
+        assert!(!f.contains([0.0, 0.0, 11.0]));
+        assert!(!f.contains([0.0, 0.0, -11.0]));
+        assert!(!f.intersects(&Aabb::new([22.0, -0.5, -1.0], [25.0, 0.5, 1.0])));
+        assert!(f.intersects(&Aabb::new([15.0, -0.5, -1.0], [25.0, 0.5, 1.0])));
+        // One unit at depth 10 covers 100 / (2 tan 45°) / 10 = 5 pixels.
+        assert!((c.pixels_per_unit(10.0) - 5.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn framing_sees_the_whole_box() {
+        let b = Aabb::new([500000.0, 4400000.0, 0.0], [501000.0, 4400600.0, 40.0]);
+        let c = Camera::framing(&b, 1280, 720, 60.0);
+        let f = c.frustum();
+        for p in b.corners() {
+            assert!(f.contains(p), "{p:?} outside");
+        }
+        assert!(c.position[2] > b.max[2]);
+    }
+}
