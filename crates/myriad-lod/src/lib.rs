@@ -1,9 +1,12 @@
 //! View-dependent level of detail, on the CPU alone: the camera and its frustum ([`view`]) and
-//! the per-frame selection of nodes and prefixes within a point budget ([`select`]). Loading,
-//! caches and the renderer build on these.
+//! the per-frame selection of nodes and prefixes within a point budget ([`select`]), and
+//! streaming: loader threads and an LRU cache of decoded nodes ([`stream`]). The renderer builds
+//! on these.
 
 pub mod select;
+pub mod stream;
 pub mod view;
 
 pub use select::{Hierarchy, SelectOptions, Selected, Selection, select};
+pub use stream::{Loader, PageReader};
 pub use view::{Camera, Frustum};

@@ -62,5 +62,35 @@ fn select_on_a_converted_scan() {
         },
     );
     assert!(s.points > 10_000 && s.points < 300_000, "{}", s.points);
+
+    // Streaming it: loader threads read the selected nodes from the file into the cache.
+    let ds = std::sync::Arc::new(ds);
+    let mut loader = myriad_lod::Loader::new(ds.clone(), 2, 1 << 30);
+    let s = select(
+        &h,
+        &cam,
+        &SelectOptions {
+            budget: 100_000,
+            min_pixels: 1.0,
+        },
+    );
+    let wanted: Vec<_> = s
+        .nodes
+        .iter()
+        .map(|n| h.get(&n.key).unwrap().clone())
+        .collect();
+    loader.request(&wanted);
+    while loader.in_flight() > 0 {
+        loader.poll();
+        std::thread::yield_now();
+    }
+    let mut drawn = 0;
+    for n in &s.nodes {
+        let b = loader.get(&n.key).expect("resident");
+        assert_eq!(b.len() as u32, h.get(&n.key).unwrap().points);
+        drawn += n.points as u64;
+    }
+    assert_eq!(drawn, s.points);
+    assert!(loader.failed().is_empty());
     std::fs::remove_dir_all(&d).ok();
 }

@@ -1,0 +1,393 @@
+//! Streaming (003 section 4.4): a prioritized load queue, loader threads that read and decode
+//! node pages off the frame thread, and an LRU cache of decoded nodes in RAM with a byte budget.
+//!
+//! Each frame the caller hands [`Loader::request`] the nodes it wants, best first; the queue is
+//! replaced, so requests for nodes the view has moved away from are cancelled before they are
+//! read. [`Loader::poll`] moves finished loads into the cache without ever waiting, so the frame
+//! loop draws what is resident and refines as pages land. A damaged page is reported once and
+//! not requested again.
+
+use myriad_core::{NodeKey, PointBatch};
+use myriad_format::{Dataset, NodeEntry};
+use std::collections::HashMap;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+
+/// Reads and decodes one node's page (a [`Dataset`], or anything that serves pages).
+pub trait PageReader: Send + Sync {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String>;
+}
+
+impl PageReader for Dataset {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        self.read_node(node)
+            .map_err(|d| self.damage_error(&d).to_string())
+    }
+}
+
+/// A decoded node in the cache.
+pub struct Resident {
+    pub points: Arc<PointBatch>,
+    bytes: usize,
+    last_used: u64,
+}
+
+struct Queue {
+    /// Wanted nodes, best last (popped first).
+    wanted: Vec<NodeEntry>,
+    stop: bool,
+}
+
+struct Shared {
+    queue: Mutex<Queue>,
+    ready: Condvar,
+}
+
+/// Loader threads and the RAM cache.
+pub struct Loader {
+    shared: Arc<Shared>,
+    results: Receiver<(NodeKey, Result<PointBatch, String>)>,
+    threads: Vec<JoinHandle<()>>,
+    cache: HashMap<NodeKey, Resident>,
+    /// Requested and not yet back (queued or being read).
+    pending: std::collections::HashSet<NodeKey>,
+    failed: HashMap<NodeKey, String>,
+    budget_bytes: usize,
+    bytes: usize,
+    frame: u64,
+}
+
+fn batch_bytes(b: &PointBatch) -> usize {
+    b.len() * (b.row_size() + 8)
+}
+
+impl Loader {
+    /// `threads` loader threads reading through `reader`; the cache keeps at most about
+    /// `budget_bytes` of decoded points (nodes used in the current frame are never evicted).
+    pub fn new(reader: Arc<dyn PageReader>, threads: usize, budget_bytes: usize) -> Loader {
+        let shared = Arc::new(Shared {
+            queue: Mutex::new(Queue {
+                wanted: Vec::new(),
+                stop: false,
+            }),
+            ready: Condvar::new(),
+        });
+        let (tx, results) = channel();
+        let threads = (0..threads.max(1))
+            .map(|i| {
+                let (shared, reader, tx): (_, _, Sender<_>) =
+                    (shared.clone(), reader.clone(), tx.clone());
+                std::thread::Builder::new()
+                    .name(format!("myriad-loader-{i}"))
+                    .spawn(move || {
+                        loop {
+                            let node = {
+                                let mut q = shared.queue.lock().expect("queue lock");
+                                loop {
+                                    if q.stop {
+                                        return;
+                                    }
+                                    if let Some(n) = q.wanted.pop() {
+                                        break n;
+                                    }
+                                    q = shared.ready.wait(q).expect("queue lock");
+                                }
+                            };
+                            let r = reader.read(&node);
+                            if tx.send((node.key, r)).is_err() {
+                                return;
+                            }
+                        }
+                    })
+                    .expect("spawn a loader thread")
+            })
+            .collect();
+        Loader {
+            shared,
+            results,
+            threads,
+            cache: HashMap::new(),
+            pending: Default::default(),
+            failed: HashMap::new(),
+            budget_bytes,
+            bytes: 0,
+            frame: 0,
+        }
+    }
+
+    /// Starts a frame: `wanted` lists the nodes to draw, best first. Resident ones are marked
+    /// used; missing ones replace the load queue (what is no longer wanted is cancelled).
+    pub fn request<'a>(&mut self, wanted: impl IntoIterator<Item = &'a NodeEntry>) {
+        self.frame += 1;
+        let mut missing = Vec::new();
+        for n in wanted {
+            if let Some(r) = self.cache.get_mut(&n.key) {
+                r.last_used = self.frame;
+            } else if n.points > 0 && !self.failed.contains_key(&n.key) {
+                missing.push(n.clone());
+            }
+        }
+        let mut q = self.shared.queue.lock().expect("queue lock");
+        // Queued but no longer wanted: cancelled. Being read: will land in the cache anyway.
+        for n in q.wanted.drain(..) {
+            self.pending.remove(&n.key);
+        }
+        missing.retain(|n| !self.pending.contains(&n.key));
+        missing.reverse();
+        for n in &missing {
+            self.pending.insert(n.key);
+        }
+        q.wanted = missing;
+        drop(q);
+        self.shared.ready.notify_all();
+    }
+
+    /// Moves finished loads into the cache; never waits. Returns how many landed.
+    pub fn poll(&mut self) -> usize {
+        let mut landed = 0;
+        while let Ok((key, r)) = self.results.try_recv() {
+            self.pending.remove(&key);
+            match r {
+                Ok(b) => {
+                    let bytes = batch_bytes(&b);
+                    self.bytes += bytes;
+                    if let Some(old) = self.cache.insert(
+                        key,
+                        Resident {
+                            points: Arc::new(b),
+                            bytes,
+                            last_used: self.frame,
+                        },
+                    ) {
+                        self.bytes -= old.bytes;
+                    }
+                    landed += 1;
+                }
+                Err(e) => {
+                    self.failed.insert(key, e);
+                }
+            }
+        }
+        self.evict();
+        landed
+    }
+
+    /// Drops least recently used nodes until the cache fits its budget, sparing those used in
+    /// the current frame.
+    fn evict(&mut self) {
+        if self.bytes <= self.budget_bytes {
+            return;
+        }
+        let mut by_age: Vec<(u64, NodeKey)> = self
+            .cache
+            .iter()
+            .filter(|(_, r)| r.last_used < self.frame)
+            .map(|(k, r)| (r.last_used, *k))
+            .collect();
+        by_age.sort_unstable();
+        for (_, k) in by_age {
+            if self.bytes <= self.budget_bytes {
+                break;
+            }
+            if let Some(r) = self.cache.remove(&k) {
+                self.bytes -= r.bytes;
+            }
+        }
+    }
+
+    /// A resident node's points.
+    pub fn get(&self, key: &NodeKey) -> Option<Arc<PointBatch>> {
+        self.cache.get(key).map(|r| r.points.clone())
+    }
+    pub fn is_resident(&self, key: &NodeKey) -> bool {
+        self.cache.contains_key(key)
+    }
+    /// Loads queued or being read.
+    pub fn in_flight(&self) -> usize {
+        self.pending.len()
+    }
+    /// Nodes whose page could not be read, with why.
+    pub fn failed(&self) -> &HashMap<NodeKey, String> {
+        &self.failed
+    }
+    pub fn resident_nodes(&self) -> usize {
+        self.cache.len()
+    }
+    pub fn resident_bytes(&self) -> usize {
+        self.bytes
+    }
+}
+
+impl Drop for Loader {
+    fn drop(&mut self) {
+        self.shared.queue.lock().expect("queue lock").stop = true;
+        self.shared.ready.notify_all();
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use myriad_format::PageRef;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    fn entry(i: u32, points: u32) -> NodeEntry {
+        NodeEntry {
+            key: NodeKey {
+                level: 10,
+                cell: [i, 0, 0],
+            },
+            page: PageRef {
+                offset: 64,
+                length: 1,
+                crc: 0,
+            },
+            points,
+            prefix: vec![points],
+            spacing: vec![1.0],
+        }
+    }
+
+    /// Serves pages only when the test lets it: each read waits for a permit.
+    struct Gate {
+        permits: Mutex<Receiver<()>>,
+        reads: AtomicUsize,
+        order: Mutex<Vec<u32>>,
+    }
+    impl PageReader for Gate {
+        fn read(&self, n: &NodeEntry) -> Result<PointBatch, String> {
+            self.permits
+                .lock()
+                .unwrap()
+                .recv()
+                .map_err(|e| e.to_string())?;
+            self.reads.fetch_add(1, Ordering::SeqCst);
+            self.order.lock().unwrap().push(n.key.cell[0]);
+            if n.key.cell[0] == 13 {
+                return Err("node 13 is damaged".into());
+            }
+            let mut b = PointBatch::default();
+            b.positions = vec![[0.0; 3]; n.points as usize];
+            Ok(b)
+        }
+    }
+
+    fn wait_for(l: &mut Loader, n: usize) {
+        let mut got = 0;
+        while got < n {
+            got += l.poll();
+            std::thread::yield_now();
+        }
+    }
+
+    #[test]
+    fn frames_never_wait_and_loads_land_in_priority_order() {
+        let (tx, rx) = channel();
+        let gate = Arc::new(Gate {
+            permits: Mutex::new(rx),
+            reads: AtomicUsize::new(0),
+            order: Mutex::new(Vec::new()),
+        });
+        let mut l = Loader::new(gate.clone(), 1, usize::MAX);
+        let nodes: Vec<NodeEntry> = (0..6).map(|i| entry(i, 100)).collect();
+        // The reader is blocked: frame after frame goes by, nothing lands, nothing waits.
+        for _ in 0..100 {
+            l.request(&nodes);
+            assert_eq!(l.poll(), 0);
+        }
+        assert_eq!(l.resident_nodes(), 0);
+        assert_eq!(l.in_flight(), 6);
+        // Let pages through one at a time: they land, best first (the first one was taken
+        // off the queue while blocked).
+        for _ in 0..6 {
+            tx.send(()).unwrap();
+        }
+        wait_for(&mut l, 6);
+        assert_eq!(*gate.order.lock().unwrap(), vec![0, 1, 2, 3, 4, 5]);
+        assert!(nodes.iter().all(|n| l.is_resident(&n.key)));
+        assert_eq!(l.get(&nodes[2].key).unwrap().len(), 100);
+    }
+
+    #[test]
+    fn moving_on_cancels_requests() {
+        let (tx, rx) = channel();
+        let gate = Arc::new(Gate {
+            permits: Mutex::new(rx),
+            reads: AtomicUsize::new(0),
+            order: Mutex::new(Vec::new()),
+        });
+        let mut l = Loader::new(gate.clone(), 1, usize::MAX);
+        let first: Vec<NodeEntry> = (0..5).map(|i| entry(i, 10)).collect();
+        l.request(&first);
+        // Wait until the loader holds node 0 (blocked on its permit).
+        while l.shared.queue.lock().unwrap().wanted.len() != 4 {
+            std::thread::yield_now();
+        }
+        // The view moves: nodes 20..23 instead.
+        let second: Vec<NodeEntry> = (20..23).map(|i| entry(i, 10)).collect();
+        l.request(&second);
+        for _ in 0..4 {
+            tx.send(()).unwrap();
+        }
+        wait_for(&mut l, 4);
+        // Node 0 was already being read; 1..4 were cancelled.
+        assert_eq!(*gate.order.lock().unwrap(), vec![0, 20, 21, 22]);
+        assert!(!l.is_resident(&first[1].key));
+        drop(tx);
+    }
+
+    #[test]
+    fn lru_eviction_spares_the_current_frame_and_failures_are_kept() {
+        let (tx, rx) = channel();
+        let gate = Arc::new(Gate {
+            permits: Mutex::new(rx),
+            reads: AtomicUsize::new(0),
+            order: Mutex::new(Vec::new()),
+        });
+        for _ in 0..100 {
+            tx.send(()).unwrap();
+        }
+        let one = batch_bytes(&PointBatch {
+            positions: vec![[0.0; 3]; 100],
+            ..Default::default()
+        });
+        // Room for three nodes.
+        let mut l = Loader::new(gate.clone(), 2, 3 * one);
+        let all: Vec<NodeEntry> = (0..8).map(|i| entry(i, 100)).collect();
+        l.request(&all[0..3]);
+        wait_for(&mut l, 3);
+        l.request(&all[3..5]);
+        wait_for(&mut l, 2);
+        // Frame 2 used 3 and 4; of 0, 1, 2 (frame 1) enough went to fit three nodes.
+        assert!(l.resident_bytes() <= 3 * one);
+        assert!(l.is_resident(&all[3].key) && l.is_resident(&all[4].key));
+        assert_eq!(l.resident_nodes(), 3);
+        // Nodes in use are never evicted, even over budget.
+        l.request(&all[0..6]);
+        l.poll();
+        for n in &all[3..5] {
+            assert!(l.is_resident(&n.key));
+        }
+        while l.in_flight() > 0 {
+            l.poll();
+            std::thread::yield_now();
+        }
+        // A damaged node is reported and not asked for again.
+        let bad = entry(13, 5);
+        l.request(std::slice::from_ref(&bad));
+        while l.failed().is_empty() {
+            l.poll();
+            std::thread::yield_now();
+        }
+        let reads = gate.reads.load(Ordering::SeqCst);
+        l.request(std::slice::from_ref(&bad));
+        assert_eq!(l.in_flight(), 0);
+        assert!(l.failed()[&bad.key].contains("damaged"));
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        assert_eq!(gate.reads.load(Ordering::SeqCst), reads);
+    }
+}
