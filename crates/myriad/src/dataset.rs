@@ -103,6 +103,11 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             bail!("--threads must be at least 1");
         }
         o.threads = t;
+        // LAZ decompression runs on rayon's global pool: it gets the same number of threads.
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global()
+            .ok();
     }
     o.precision = a.precision;
     o.params.capacity = a.capacity;
