@@ -100,6 +100,29 @@ impl Camera {
         self.basis().2
     }
 
+    /// The view-projection matrix (column-major, as WGSL's `mat4x4<f32>`) for positions given
+    /// relative to `origin` (f32 keeps about 7 digits: points are uploaded relative to a nearby
+    /// origin). Clip depth runs from 0 at the near plane to 1 at the far plane, as WebGPU wants.
+    pub fn view_proj(&self, origin: [f64; 3]) -> [[f32; 4]; 4] {
+        let (r, u, f) = self.basis();
+        let eye = sub(self.position, origin);
+        let fy = 1.0 / (self.fov_y.to_radians() / 2.0).tan();
+        let fx = fy * self.height as f64 / self.width.max(1) as f64;
+        let a = self.far / (self.far - self.near);
+        let rows = [
+            [fx * r[0], fx * r[1], fx * r[2], -fx * dot(r, eye)],
+            [fy * u[0], fy * u[1], fy * u[2], -fy * dot(u, eye)],
+            [
+                a * f[0],
+                a * f[1],
+                a * f[2],
+                -a * dot(f, eye) - a * self.near,
+            ],
+            [f[0], f[1], f[2], -dot(f, eye)],
+        ];
+        std::array::from_fn(|c| std::array::from_fn(|r| rows[r][c] as f32))
+    }
+
     pub fn frustum(&self) -> Frustum {
         let (r, u, f) = self.basis();
         let tan_v = (self.fov_y.to_radians() / 2.0).tan();
@@ -196,6 +219,31 @@ mod tests {
         assert!(f.intersects(&Aabb::new([15.0, -0.5, -1.0], [25.0, 0.5, 1.0])));
         // One unit at depth 10 covers 100 / (2 tan 45°) / 10 = 5 pixels.
         assert!((c.pixels_per_unit(10.0) - 5.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn view_projection_maps_to_clip_space() {
+        let c = cam();
+        let m = c.view_proj([0.0, -10.0, 0.0]);
+        let clip = |p: [f64; 3]| {
+            let q = [p[0], p[1] + 10.0, p[2], 1.0];
+            let v: [f64; 4] =
+                std::array::from_fn(|r| (0..4).map(|k| m[k][r] as f64 * q[k]).sum::<f64>());
+            [v[0] / v[3], v[1] / v[3], v[2] / v[3]]
+        };
+        let centre = clip([0.0, 0.0, 0.0]);
+        assert!(centre[0].abs() < 1e-6 && centre[1].abs() < 1e-6);
+        assert!(
+            (clip([0.0, -9.5, 0.0])[2]).abs() < 1e-5,
+            "near plane at depth 0"
+        );
+        assert!(
+            (clip([0.0, 90.0, 0.0])[2] - 1.0).abs() < 1e-5,
+            "far plane at depth 1"
+        );
+        // At depth 10 the view reaches z = ±10 (top = +1) and x = ±20 (right = +1).
+        assert!((clip([0.0, 0.0, 10.0])[1] - 1.0).abs() < 1e-5);
+        assert!((clip([20.0, 0.0, 0.0])[0] - 1.0).abs() < 1e-5);
     }
 
     #[test]
