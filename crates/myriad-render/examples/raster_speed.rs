@@ -1,0 +1,53 @@
+//! Frame time of the compute rasterizer: N random points on a terrain-like sheet, 1280 x 720,
+//! frame including the readback; median of 9 frames.
+//! `cargo run --release -p myriad-render --example raster_speed [POINTS]`
+
+use myriad_lod::Camera;
+use myriad_render::{Gpu, Points, Rasterizer};
+
+fn main() {
+    let n: usize = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5_000_000);
+    let gpu = Gpu::headless().expect("a GPU adapter with 64-bit atomics");
+    let mut s = 0x9e3779b97f4a7c15u64;
+    let mut next = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut positions = Vec::with_capacity(n);
+    let mut colours = Vec::with_capacity(n);
+    for _ in 0..n {
+        let (x, y) = (next() * 1000.0, next() * 1000.0);
+        let z = 20.0 * ((x * 0.01).sin() + (y * 0.013).cos());
+        positions.push([x, y, z]);
+        colours.push([(x / 4.0) as u8, (y / 4.0) as u8, 128, 255]);
+    }
+    let bounds = myriad_core_bounds(&positions);
+    let points = Points::upload(&gpu, [500.0, 500.0, 0.0], &positions, &colours);
+    let cam = Camera::framing(&bounds, 1280, 720, 60.0);
+    let r = Rasterizer::new(&gpu);
+    let mut times = Vec::new();
+    for _ in 0..9 {
+        let t = std::time::Instant::now();
+        let img = r.render(&gpu, &cam, &[&points], [0, 0, 0, 255]);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        std::hint::black_box(img);
+    }
+    times.sort_by(f64::total_cmp);
+    println!(
+        "{} ({:?}): {n} points, 1280x720: median frame {:.1} ms (min {:.1}, max {:.1})",
+        gpu.adapter.name, gpu.adapter.device_type, times[4], times[0], times[8]
+    );
+}
+
+fn myriad_core_bounds(p: &[[f64; 3]]) -> myriad_core::Aabb {
+    let mut b = myriad_core::Aabb::EMPTY;
+    for &q in p {
+        b.extend(q);
+    }
+    b
+}
