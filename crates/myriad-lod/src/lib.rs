@@ -8,5 +8,5 @@ pub mod stream;
 pub mod view;
 
 pub use select::{Hierarchy, SelectOptions, Selected, Selection, select};
-pub use stream::{Loader, PageReader};
+pub use stream::{Loader, PageReader, converge};
 pub use view::{Camera, Frustum};

@@ -97,6 +97,40 @@ impl Points {
     }
 }
 
+/// RGBA8 colours of a batch's first `n` points: their RGB (16-bit, scaled down; 8-bit values
+/// stored in 16-bit fields are taken as they are), else an elevation ramp over `z_range`.
+pub fn colours(b: &myriad_core::PointBatch, n: usize, z_range: (f64, f64)) -> Vec<[u8; 4]> {
+    if let Some(rgb) = &b.rgb {
+        let wide = rgb[..n].iter().any(|c| c.iter().any(|&v| v > 255));
+        return rgb[..n]
+            .iter()
+            .map(|c| {
+                let f = |v: u16| if wide { (v >> 8) as u8 } else { v as u8 };
+                [f(c[0]), f(c[1]), f(c[2]), 255]
+            })
+            .collect();
+    }
+    let (lo, hi) = z_range;
+    b.positions[..n]
+        .iter()
+        .map(|p| {
+            let t = ((p[2] - lo) / (hi - lo).max(1e-9)).clamp(0.0, 1.0);
+            // Blue, green, yellow, red.
+            let (r, g, bl) = if t < 0.5 {
+                (0.0, 2.0 * t, 1.0 - 2.0 * t)
+            } else {
+                (2.0 * t - 1.0, 2.0 - 2.0 * t, 0.0)
+            };
+            [
+                (r * 255.0) as u8,
+                (g * 255.0) as u8,
+                (bl * 255.0) as u8,
+                255,
+            ]
+        })
+        .collect()
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Uniforms {

@@ -4,6 +4,7 @@
 mod bench;
 mod dataset;
 mod info;
+mod render;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -30,6 +31,8 @@ enum Command {
     Extract(dataset::ExtractArgs),
     /// Read every page of a dataset, check checksums and invariants, name damaged nodes
     Verify(dataset::VerifyArgs),
+    /// Render a dataset to a PNG, headless (level of detail within a point budget)
+    Render(render::RenderArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
     /// Measure reading and synthesis speed (medians over several runs, with baselines)
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
         Command::Info(a) => info::run(a),
         Command::Extract(a) => dataset::extract(a),
         Command::Verify(a) => dataset::verify(a),
+        Command::Render(a) => render::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Bench(b) => bench::run(b),
     };

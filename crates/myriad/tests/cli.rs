@@ -565,3 +565,62 @@ fn a_killed_build_leaves_nothing_that_opens() {
     let r = myriad(&["verify", s(&out)]);
     assert_eq!(r.code, 0);
 }
+
+#[test]
+fn render_a_converted_scan_to_png() {
+    let d = tempdir("render");
+    let las = synth(&d, "r.las", 200_000);
+    let out = d.join("r.myr");
+    assert_eq!(myriad(&["convert", s(&las), "-o", s(&out)]).code, 0);
+    let png_path = d.join("r.png");
+    let r = myriad(&[
+        "render",
+        s(&out),
+        "-o",
+        s(&png_path),
+        "--width",
+        "320",
+        "--height",
+        "200",
+    ]);
+    if r.code != 0 && r.stderr.contains("no GPU adapter") {
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED: no Vulkan driver for `myriad render` ({})",
+            r.stderr.trim()
+        );
+        return;
+    }
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stdout.contains("points in") && r.stdout.contains("frame"),
+        "{}",
+        r.stdout
+    );
+    // A PNG of the asked size, and the scan is in it: a good part of the pixels are not black.
+    let bytes = std::fs::read(&png_path).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    assert_eq!((w, h), (320, 200));
+    let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    let mut reader = decoder.read_info().unwrap();
+    let mut img = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut img).unwrap();
+    let lit = img.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count();
+    assert!(lit > 320 * 200 / 20, "{lit} pixels show the scan");
+    // An existing image is not replaced without --force; bad values are refused.
+    let r = myriad(&["render", s(&out), "-o", s(&png_path)]);
+    assert_eq!(r.code, 1);
+    let r = myriad(&[
+        "render",
+        s(&out),
+        "-o",
+        s(&png_path),
+        "--force",
+        "--camera",
+        "1,2,3",
+    ]);
+    assert_eq!(r.code, 2);
+}
