@@ -311,6 +311,17 @@ mod tests {
         }
     }
 
+    /// A gated reader and the sender of its permits.
+    fn gate() -> (Sender<()>, Arc<Gate>) {
+        let (tx, rx) = channel();
+        let gate = Arc::new(Gate {
+            permits: Mutex::new(rx),
+            reads: AtomicUsize::new(0),
+            order: Mutex::new(Vec::new()),
+        });
+        (tx, gate)
+    }
+
     fn wait_for(l: &mut Loader, n: usize) {
         let mut got = 0;
         while got < n {
@@ -321,12 +332,7 @@ mod tests {
 
     #[test]
     fn frames_never_wait_and_loads_land_in_priority_order() {
-        let (tx, rx) = channel();
-        let gate = Arc::new(Gate {
-            permits: Mutex::new(rx),
-            reads: AtomicUsize::new(0),
-            order: Mutex::new(Vec::new()),
-        });
+        let (tx, gate) = gate();
         let mut l = Loader::new(gate.clone(), 1, usize::MAX);
         let nodes: Vec<NodeEntry> = (0..6).map(|i| entry(i, 100)).collect();
         // The reader is blocked: frame after frame goes by, nothing lands, nothing waits.
@@ -349,12 +355,7 @@ mod tests {
 
     #[test]
     fn moving_on_cancels_requests() {
-        let (tx, rx) = channel();
-        let gate = Arc::new(Gate {
-            permits: Mutex::new(rx),
-            reads: AtomicUsize::new(0),
-            order: Mutex::new(Vec::new()),
-        });
+        let (tx, gate) = gate();
         let mut l = Loader::new(gate.clone(), 1, usize::MAX);
         let first: Vec<NodeEntry> = (0..5).map(|i| entry(i, 10)).collect();
         l.request(&first);
@@ -377,12 +378,7 @@ mod tests {
 
     #[test]
     fn lru_eviction_spares_the_current_frame_and_failures_are_kept() {
-        let (tx, rx) = channel();
-        let gate = Arc::new(Gate {
-            permits: Mutex::new(rx),
-            reads: AtomicUsize::new(0),
-            order: Mutex::new(Vec::new()),
-        });
+        let (tx, gate) = gate();
         for _ in 0..100 {
             tx.send(()).unwrap();
         }
