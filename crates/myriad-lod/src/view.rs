@@ -91,8 +91,12 @@ impl Camera {
 
     /// Pixels that one unit of length covers at eye depth `depth` (on the view axis).
     pub fn pixels_per_unit(&self, depth: f64) -> f64 {
-        let focal = self.height as f64 / (2.0 * (self.fov_y.to_radians() / 2.0).tan());
-        focal / depth.max(self.near)
+        self.focal() / depth.max(self.near)
+    }
+
+    /// Pixels that one unit of length covers at depth 1 (the focal length in pixels).
+    pub fn focal(&self) -> f64 {
+        self.height as f64 / (2.0 * (self.fov_y.to_radians() / 2.0).tan())
     }
 
     /// The view direction (unit).

@@ -3,7 +3,7 @@
 //! `cargo run --release -p myriad-render --example raster_speed [POINTS]`
 
 use myriad_lod::Camera;
-use myriad_render::{Gpu, Points, Rasterizer};
+use myriad_render::{Gpu, PointSize, Points, Rasterizer};
 
 fn main() {
     let n: usize = std::env::args()
@@ -33,7 +33,13 @@ fn main() {
     let mut times = Vec::new();
     for _ in 0..9 {
         let t = std::time::Instant::now();
-        let img = r.render(&gpu, &cam, &[&points], [0, 0, 0, 255]);
+        let img = r.render(
+            &gpu,
+            &cam,
+            &[&points],
+            [0, 0, 0, 255],
+            PointSize::Fixed(1.0),
+        );
         times.push(t.elapsed().as_secs_f64() * 1e3);
         std::hint::black_box(img);
     }

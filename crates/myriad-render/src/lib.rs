@@ -60,6 +60,8 @@ pub struct Points {
     pub origin: [f64; 3],
     buffer: wgpu::Buffer,
     pub count: u32,
+    /// World spacing of these points, for adaptive point sizes.
+    pub spacing: f64,
 }
 
 impl Points {
@@ -93,6 +95,7 @@ impl Points {
             origin,
             buffer,
             count: positions.len() as u32,
+            spacing: 0.0,
         }
     }
 }
@@ -140,6 +143,20 @@ struct Uniforms {
     count: u32,
     /// The background colour for the resolve pass (RGBA8 bits).
     background: u32,
+    point_size: f32,
+    spacing: f32,
+    focal: f32,
+    max_size: f32,
+}
+
+/// How big a point is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PointSize {
+    /// This many pixels on a side.
+    Fixed(f32),
+    /// The spacing of the point's level of detail (pulled up, see `myriad_lod::select`) as seen
+    /// at the point's depth, at most `max` pixels.
+    Adaptive { max: f32 },
 }
 
 /// The compute rasterizer's pipelines.
@@ -181,13 +198,14 @@ impl Rasterizer {
     }
 
     /// Draws `sets` of points seen by `camera` into a `camera.width` x `camera.height` image and
-    /// reads it back: RGBA8, rows top to bottom. One pixel per point.
+    /// reads it back: RGBA8, rows top to bottom. Points are squares of `size`.
     pub fn render(
         &self,
         gpu: &Gpu,
         camera: &Camera,
         sets: &[&Points],
         background: [u8; 4],
+        size: PointSize,
     ) -> Vec<u8> {
         let (w, h) = (camera.width.max(1), camera.height.max(1));
         let pixels = (w * h) as u64;
@@ -222,6 +240,16 @@ impl Rasterizer {
                     height: h,
                     count: set.map_or(0, |s| s.count),
                     background: u32::from_le_bytes(background),
+                    point_size: match size {
+                        PointSize::Fixed(px) => px.max(1.0),
+                        PointSize::Adaptive { .. } => 0.0,
+                    },
+                    spacing: set.map_or(0.0, |s| s.spacing as f32),
+                    focal: camera.focal() as f32,
+                    max_size: match size {
+                        PointSize::Fixed(px) => px.max(1.0),
+                        PointSize::Adaptive { max } => max.max(1.0),
+                    },
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             })

@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, Hierarchy, Loader, SelectOptions, converge};
-use myriad_render::{Gpu, Points, Rasterizer, colours};
+use myriad_render::{Gpu, PointSize, Points, Rasterizer, colours};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -18,6 +18,17 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
         .map_err(|_| format!("\"{s}\": expected {N} comma-separated numbers"))?;
     v.try_into()
         .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
+}
+
+fn parse_point_size(s: &str) -> Result<PointSize, String> {
+    if s == "adaptive" {
+        return Ok(PointSize::Adaptive { max: 32.0 });
+    }
+    s.strip_prefix("fixed:")
+        .and_then(|v| v.parse::<f32>().ok())
+        .filter(|v| (1.0..=64.0).contains(v))
+        .map(PointSize::Fixed)
+        .ok_or_else(|| format!("\"{s}\": expected adaptive or fixed:PX with PX from 1 to 64"))
 }
 
 #[derive(Args)]
@@ -46,6 +57,9 @@ pub struct RenderArgs {
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
     full: bool,
+    /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
+    #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
+    point_size: PointSize,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -112,13 +126,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         let k = (n.points as usize).min(batch.len());
         let c = colours(&batch, k, z);
-        sets.push(Points::upload(&gpu, origin, &batch.positions[..k], &c));
+        let mut p = Points::upload(&gpu, origin, &batch.positions[..k], &c);
+        p.spacing = n.spacing;
+        sets.push(p);
     }
     let refs: Vec<&Points> = sets.iter().collect();
     // The first frame also compiles pipelines; report a second one as the frame time.
-    let img = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255]);
+    let img = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
     let t = Instant::now();
-    let img2 = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255]);
+    let img2 = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
     let frame = t.elapsed();
     debug_assert_eq!(img, img2);
     write_png(&a.output, a.width, a.height, &img2)?;

@@ -7,6 +7,12 @@ struct Uniforms {
     height: u32,
     count: u32,
     pad: u32,
+    // Fixed point size in pixels; 0: adaptive, the world `spacing` projected at each point.
+    point_size: f32,
+    spacing: f32,
+    // Pixels per unit of length at depth 1.
+    focal: f32,
+    max_size: f32,
 }
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
@@ -33,10 +39,30 @@ fn rasterize(
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < 0.0 || ndc.z > 1.0) {
         return;
     }
-    let x = min(u32((ndc.x * 0.5 + 0.5) * f32(u.width)), u.width - 1u);
-    let y = min(u32((0.5 - ndc.y * 0.5) * f32(u.height)), u.height - 1u);
+    let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
+    let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     // Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
     let depth = u32((1.0 - ndc.z) * 4294967040.0) + 1u;
     let value = (u64(depth) << 32u) | u64(bitcast<u32>(p.w));
-    atomicMax(&framebuffer[y * u.width + x], value);
+    var size = u.point_size;
+    if (size <= 0.0) {
+        size = u.spacing * u.focal / clip.w;
+    }
+    let s = i32(clamp(round(size), 1.0, u.max_size));
+    // A square of s x s pixels centred on the point.
+    let x0 = i32(floor(fx)) - (s - 1) / 2;
+    let y0 = i32(floor(fy)) - (s - 1) / 2;
+    for (var dy = 0; dy < s; dy++) {
+        let y = y0 + dy;
+        if (y < 0 || y >= i32(u.height)) {
+            continue;
+        }
+        for (var dx = 0; dx < s; dx++) {
+            let x = x0 + dx;
+            if (x < 0 || x >= i32(u.width)) {
+                continue;
+            }
+            atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
+        }
+    }
 }

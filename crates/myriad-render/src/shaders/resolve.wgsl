@@ -6,6 +6,10 @@ struct Uniforms {
     height: u32,
     count: u32,
     background: u32,
+    point_size: f32,
+    spacing: f32,
+    focal: f32,
+    max_size: f32,
 }
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
