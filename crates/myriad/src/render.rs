@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, Hierarchy, Loader, SelectOptions, converge};
-use myriad_render::{Gpu, PointSize, Points, Rasterizer, colours};
+use myriad_render::{ColorBy, Gpu, PointSize, Points, Rasterizer, colours};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -18,6 +18,12 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
         .map_err(|_| format!("\"{s}\": expected {N} comma-separated numbers"))?;
     v.try_into()
         .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
+}
+
+fn parse_color(s: &str) -> Result<ColorBy, String> {
+    ColorBy::parse(s).ok_or_else(|| {
+        format!("\"{s}\": one of rgb, intensity, elevation, classification, return, source, level")
+    })
 }
 
 fn parse_point_size(s: &str) -> Result<PointSize, String> {
@@ -57,6 +63,9 @@ pub struct RenderArgs {
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
     full: bool,
+    /// Colour: rgb, intensity, elevation, classification, return, source, level
+    #[arg(long, value_parser = parse_color, default_value = "rgb")]
+    color: ColorBy,
     /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
     #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
     point_size: PointSize,
@@ -125,7 +134,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             continue;
         };
         let k = (n.points as usize).min(batch.len());
-        let c = colours(&batch, k, z);
+        let c = colours(&batch, k, a.color, z, n.key.level);
         let mut p = Points::upload(&gpu, origin, &batch.positions[..k], &c);
         p.spacing = n.spacing;
         sets.push(p);
