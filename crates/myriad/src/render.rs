@@ -123,36 +123,60 @@ pub fn run(a: RenderArgs) -> Result<()> {
         min_pixels: if a.full { 0.0 } else { 1.0 },
     };
     let mut loader = Loader::new(ds.clone(), 2, usize::MAX);
-    let selection = converge(&mut loader, &h, &cam, &options);
-    let converged = t0.elapsed();
-    // Upload the drawn prefixes, relative to the dataset's centre.
     let origin = b.center();
     let z = (b.min[2], b.max[2]);
-    let mut sets = Vec::new();
-    for n in &selection.nodes {
-        let Some(batch) = loader.get(&n.key) else {
-            continue;
-        };
-        let k = (n.points as usize).min(batch.len());
-        let c = colours(&batch, k, a.color, z, n.key.level);
-        let mut p = Points::upload(&gpu, origin, &batch.positions[..k], &c);
-        p.spacing = n.spacing;
-        sets.push(p);
+    // The drawn prefixes of the resident selected nodes, relative to the dataset's centre.
+    let upload = |selection: &myriad_lod::Selection, loader: &Loader| -> Vec<Points> {
+        let mut sets = Vec::new();
+        for n in &selection.nodes {
+            let Some(batch) = loader.get(&n.key) else {
+                continue;
+            };
+            let k = (n.points as usize).min(batch.len());
+            let c = colours(&batch, k, a.color, z, n.key.level);
+            let mut p = Points::upload(&gpu, origin, &batch.positions[..k], &c);
+            p.spacing = n.spacing;
+            sets.push(p);
+        }
+        sets
+    };
+    // First image: as soon as the first selected node (the root) is in.
+    let first = myriad_lod::select(&h, &cam, &options);
+    let wanted: Vec<_> = first
+        .nodes
+        .iter()
+        .filter_map(|n| h.get(&n.key).cloned())
+        .collect();
+    loader.request(&wanted);
+    if let Some(root) = first.nodes.first() {
+        while !loader.is_resident(&root.key) && !loader.failed().contains_key(&root.key) {
+            if loader.poll() == 0 {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
     }
+    let sets = upload(&first, &loader);
     let refs: Vec<&Points> = sets.iter().collect();
-    // The first frame also compiles pipelines; report a second one as the frame time.
+    raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
+    let first_image = t0.elapsed();
+
+    let selection = converge(&mut loader, &h, &cam, &options);
+    let sets = upload(&selection, &loader);
+    let refs: Vec<&Points> = sets.iter().collect();
     let img = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
+    let converged = t0.elapsed();
     let t = Instant::now();
     let img2 = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
     let frame = t.elapsed();
     debug_assert_eq!(img, img2);
     write_png(&a.output, a.width, a.height, &img2)?;
     println!(
-        "{}: {} points in {} nodes, frame {:.1} ms, converged in {:.2} s ({})",
+        "{}: {} points in {} nodes, frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({})",
         a.output.display(),
         crate::info::thousands(selection.points),
         selection.nodes.len(),
         frame.as_secs_f64() * 1e3,
+        first_image.as_secs_f64(),
         converged.as_secs_f64(),
         gpu.adapter.name
     );
