@@ -18,19 +18,24 @@ fn gpu() -> Option<Gpu> {
     }
 }
 
-#[test]
-fn points_land_where_the_camera_puts_them() {
-    let Some(gpu) = gpu() else { return };
-    let cam = Camera {
-        position: [1000.0, -10.0, 0.0],
-        target: [1000.0, 0.0, 0.0],
+/// 200 x 100 pixels, 90 degrees vertically, from (x, -10, 0) towards (x, 0, 0), Z up.
+fn looking_along_y(x: f64) -> Camera {
+    Camera {
+        position: [x, -10.0, 0.0],
+        target: [x, 0.0, 0.0],
         up: [0.0, 0.0, 1.0],
         fov_y: 90.0,
         width: 200,
         height: 100,
         near: 0.5,
         far: 100.0,
-    };
+    }
+}
+
+#[test]
+fn points_land_where_the_camera_puts_them() {
+    let Some(gpu) = gpu() else { return };
+    let cam = looking_along_y(1000.0);
     let red = [255, 0, 0, 255];
     let green = [0, 255, 0, 255];
     let blue = [0, 0, 255, 255];
@@ -108,16 +113,7 @@ fn many_points_fill_a_plane() {
 #[test]
 fn point_sizes() {
     let Some(gpu) = gpu() else { return };
-    let cam = Camera {
-        position: [0.0, -10.0, 0.0],
-        target: [0.0, 0.0, 0.0],
-        up: [0.0, 0.0, 1.0],
-        fov_y: 90.0,
-        width: 200,
-        height: 100,
-        near: 0.5,
-        far: 100.0,
-    };
+    let cam = looking_along_y(0.0);
     let white = [255, 255, 255, 255];
     let bg = [0, 0, 0, 255];
     let lit = |img: &[u8]| img.chunks_exact(4).filter(|p| *p == white).count();
