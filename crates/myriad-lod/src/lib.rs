@@ -1,12 +1,14 @@
 //! View-dependent level of detail, on the CPU alone: the camera and its frustum ([`view`]) and
 //! the per-frame selection of nodes and prefixes within a point budget ([`select`]), and
-//! streaming: loader threads and an LRU cache of decoded nodes ([`stream`]). The renderer builds
+//! streaming: loader threads and an LRU cache of decoded nodes ([`stream`], [`cache`]). The renderer builds
 //! on these.
 
+pub mod cache;
 pub mod select;
 pub mod stream;
 pub mod view;
 
+pub use cache::Lru;
 pub use select::{Hierarchy, SelectOptions, Selected, Selection, select};
 pub use stream::{Loader, PageReader, converge};
-pub use view::{Camera, Frustum};
+pub use view::{Camera, Frustum, robust_bounds};

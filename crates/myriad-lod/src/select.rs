@@ -41,6 +41,10 @@ impl Hierarchy {
     pub fn children(&self, key: &NodeKey) -> impl Iterator<Item = &NodeEntry> {
         (0..8).filter_map(move |o| self.nodes.get(&key.child(o)))
     }
+    /// Every node's key, in no particular order.
+    pub fn keys(&self) -> impl Iterator<Item = NodeKey> + '_ {
+        self.nodes.keys().copied()
+    }
     /// Points in the whole tree.
     pub fn points(&self) -> u64 {
         self.nodes.values().map(|n| n.points as u64).sum()

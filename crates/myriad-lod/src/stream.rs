@@ -7,6 +7,7 @@
 //! loop draws what is resident and refines as pages land. A damaged page is reported once and
 //! not requested again.
 
+use crate::cache::Lru;
 use myriad_core::{NodeKey, PointBatch};
 use myriad_format::{Dataset, NodeEntry};
 use std::collections::HashMap;
@@ -26,13 +27,6 @@ impl PageReader for Dataset {
     }
 }
 
-/// A decoded node in the cache.
-pub struct Resident {
-    pub points: Arc<PointBatch>,
-    bytes: usize,
-    last_used: u64,
-}
-
 struct Queue {
     /// Wanted nodes, best last (popped first).
     wanted: Vec<NodeEntry>,
@@ -49,13 +43,10 @@ pub struct Loader {
     shared: Arc<Shared>,
     results: Receiver<(NodeKey, Result<PointBatch, String>)>,
     threads: Vec<JoinHandle<()>>,
-    cache: HashMap<NodeKey, Resident>,
+    cache: Lru<Arc<PointBatch>>,
     /// Requested and not yet back (queued or being read).
     pending: std::collections::HashSet<NodeKey>,
     failed: HashMap<NodeKey, String>,
-    budget_bytes: usize,
-    bytes: usize,
-    frame: u64,
 }
 
 fn batch_bytes(b: &PointBatch) -> usize {
@@ -107,24 +98,19 @@ impl Loader {
             shared,
             results,
             threads,
-            cache: HashMap::new(),
+            cache: Lru::new(budget_bytes),
             pending: Default::default(),
             failed: HashMap::new(),
-            budget_bytes,
-            bytes: 0,
-            frame: 0,
         }
     }
 
     /// Starts a frame: `wanted` lists the nodes to draw, best first. Resident ones are marked
     /// used; missing ones replace the load queue (what is no longer wanted is cancelled).
     pub fn request<'a>(&mut self, wanted: impl IntoIterator<Item = &'a NodeEntry>) {
-        self.frame += 1;
+        self.cache.next_frame();
         let mut missing = Vec::new();
         for n in wanted {
-            if let Some(r) = self.cache.get_mut(&n.key) {
-                r.last_used = self.frame;
-            } else if n.points > 0 && !self.failed.contains_key(&n.key) {
+            if !self.cache.touch(&n.key) && n.points > 0 && !self.failed.contains_key(&n.key) {
                 missing.push(n.clone());
             }
         }
@@ -151,17 +137,7 @@ impl Loader {
             match r {
                 Ok(b) => {
                     let bytes = batch_bytes(&b);
-                    self.bytes += bytes;
-                    if let Some(old) = self.cache.insert(
-                        key,
-                        Resident {
-                            points: Arc::new(b),
-                            bytes,
-                            last_used: self.frame,
-                        },
-                    ) {
-                        self.bytes -= old.bytes;
-                    }
+                    self.cache.insert(key, Arc::new(b), bytes);
                     landed += 1;
                 }
                 Err(e) => {
@@ -169,39 +145,15 @@ impl Loader {
                 }
             }
         }
-        self.evict();
         landed
-    }
-
-    /// Drops least recently used nodes until the cache fits its budget, sparing those used in
-    /// the current frame.
-    fn evict(&mut self) {
-        if self.bytes <= self.budget_bytes {
-            return;
-        }
-        let mut by_age: Vec<(u64, NodeKey)> = self
-            .cache
-            .iter()
-            .filter(|(_, r)| r.last_used < self.frame)
-            .map(|(k, r)| (r.last_used, *k))
-            .collect();
-        by_age.sort_unstable();
-        for (_, k) in by_age {
-            if self.bytes <= self.budget_bytes {
-                break;
-            }
-            if let Some(r) = self.cache.remove(&k) {
-                self.bytes -= r.bytes;
-            }
-        }
     }
 
     /// A resident node's points.
     pub fn get(&self, key: &NodeKey) -> Option<Arc<PointBatch>> {
-        self.cache.get(key).map(|r| r.points.clone())
+        self.cache.get(key).cloned()
     }
     pub fn is_resident(&self, key: &NodeKey) -> bool {
-        self.cache.contains_key(key)
+        self.cache.contains(key)
     }
     /// Loads queued or being read.
     pub fn in_flight(&self) -> usize {
@@ -215,7 +167,7 @@ impl Loader {
         self.cache.len()
     }
     pub fn resident_bytes(&self) -> usize {
-        self.bytes
+        self.cache.bytes()
     }
 }
 

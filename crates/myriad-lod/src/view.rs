@@ -165,6 +165,65 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Moves the near and far planes to just around `bounds` as seen from here (near at least
+    /// 1/10,000 of far, so that depth keeps its precision).
+    pub fn fit_depth(&mut self, bounds: &Aabb) {
+        let depths = bounds.corners().map(|p| self.to_eye(p)[2]);
+        let far = depths.iter().cloned().fold(f64::MIN, f64::max).max(1e-3) * 1.01;
+        let near = depths.iter().cloned().fold(f64::MAX, f64::min) * 0.99;
+        self.far = far;
+        self.near = near.max(far * 1e-4);
+    }
+
+    /// Three views that tests and benchmarks share: the whole of `bounds` from above at 45
+    /// degrees; straight down; and a close view across the middle from a tenth of the extent
+    /// away, slightly above (where level of detail matters most).
+    pub fn standard_views(bounds: &Aabb, width: u32, height: u32) -> [(&'static str, Camera); 3] {
+        let overview = Camera::framing(bounds, width, height, 60.0);
+        let c = bounds.center();
+        let s = bounds.size();
+        let extent = s[0].max(s[1]).max(1e-9);
+        let distance = dot(sub(overview.position, c), sub(overview.position, c)).sqrt();
+        let mut top = Camera {
+            position: [c[0], c[1], c[2] + distance],
+            target: c,
+            up: [0.0, 1.0, 0.0],
+            ..overview
+        };
+        top.fit_depth(bounds);
+        let ground = [c[0], c[1], bounds.min[2] + 0.25 * s[2]];
+        let mut close = Camera {
+            position: [
+                ground[0] - 0.06 * extent,
+                ground[1] - 0.08 * extent,
+                ground[2] + 0.03 * extent,
+            ],
+            target: ground,
+            ..overview
+        };
+        close.fit_depth(bounds);
+        [("overview", overview), ("top", top), ("close", close)]
+    }
+}
+
+/// The box holding all but `fraction` of `points` at each end of each axis (outliers, such as
+/// the stray returns far above a scan, would otherwise decide the framing and colour ramps).
+pub fn robust_bounds(points: &[[f64; 3]], fraction: f64) -> Aabb {
+    if points.is_empty() {
+        return Aabb::EMPTY;
+    }
+    let mut b = Aabb::EMPTY;
+    let k = ((points.len() as f64 * fraction) as usize).min((points.len() - 1) / 2);
+    for axis in 0..3 {
+        let mut v: Vec<f64> = points.iter().map(|p| p[axis]).collect();
+        v.sort_unstable_by(f64::total_cmp);
+        b.min[axis] = v[k];
+        b.max[axis] = v[v.len() - 1 - k];
+    }
+    b
+}
+
 /// Six planes `n · p + d >= 0` inside.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Frustum {
@@ -259,5 +318,44 @@ mod tests {
             assert!(f.contains(p), "{p:?} outside");
         }
         assert!(c.position[2] > b.max[2]);
+    }
+
+    #[test]
+    fn standard_views_look_at_the_data() {
+        let b = Aabb::new([500000.0, 4400000.0, 0.0], [501000.0, 4401000.0, 40.0]);
+        let views = Camera::standard_views(&b, 1280, 720);
+        let names: Vec<&str> = views.iter().map(|v| v.0).collect();
+        assert_eq!(names, ["overview", "top", "close"]);
+        for (name, c) in &views {
+            let f = c.frustum();
+            assert!(f.contains(b.center()), "{name}: centre in view");
+            // Near and far planes hold the whole box (no corner clipped in depth).
+            for p in b.corners() {
+                let d = c.to_eye(p)[2];
+                assert!(d <= c.far, "{name}: corner beyond far");
+            }
+        }
+        // Top: straight down; close: inside the extent, nearer than the overview.
+        assert!(views[1].1.forward()[2] < -0.999);
+        let dist = |c: &Camera| {
+            let d = sub(c.position, c.target);
+            dot(d, d).sqrt()
+        };
+        assert!(dist(&views[2].1) < dist(&views[0].1) / 5.0);
+        assert!(b.contains(views[2].1.position));
+    }
+
+    #[test]
+    fn robust_bounds_ignore_outliers() {
+        let mut p: Vec<[f64; 3]> = (0..1000)
+            .map(|i| [(i % 10) as f64, (i / 10 % 10) as f64, (i / 100) as f64])
+            .collect();
+        p.push([1e6, -1e6, 5e5]);
+        let b = robust_bounds(&p, 0.005);
+        assert_eq!((b.min, b.max), ([0.0; 3], [9.0; 3]));
+        // Without trimming: everything.
+        assert_eq!(robust_bounds(&p, 0.0).max, [1e6, 9.0, 5e5]);
+        assert_eq!(robust_bounds(&[[1.0, 2.0, 3.0]], 0.1).min, [1.0, 2.0, 3.0]);
+        assert!(robust_bounds(&[], 0.1).is_empty());
     }
 }

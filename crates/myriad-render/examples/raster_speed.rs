@@ -1,15 +1,16 @@
 //! Frame time of the compute rasterizer: N random points on a terrain-like sheet, 1280 x 720,
-//! frame including the readback; median of 9 frames.
-//! `cargo run --release -p myriad-render --example raster_speed [POINTS]`
+//! frame including the readback; median of 9 frames. The compute path unless `quads` is given.
+//! `cargo run --release -p myriad-render --example raster_speed [POINTS] [quads]`
 
 use myriad_lod::Camera;
-use myriad_render::{Gpu, PointSize, Points, Rasterizer};
+use myriad_render::{Gpu, Path, PointSize, Points, Rasterizer, Style};
 
 fn main() {
     let n: usize = std::env::args()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(5_000_000);
+    let path = std::env::args().nth(2);
     let gpu = Gpu::headless().expect("a GPU adapter with 64-bit atomics");
     let mut s = 0x9e3779b97f4a7c15u64;
     let mut next = || {
@@ -29,24 +30,25 @@ fn main() {
     let bounds = myriad_core_bounds(&positions);
     let points = Points::upload(&gpu, [500.0, 500.0, 0.0], &positions, &colours);
     let cam = Camera::framing(&bounds, 1280, 720, 60.0);
-    let r = Rasterizer::new(&gpu);
+    let r = match path.as_deref() {
+        Some("quads") => Rasterizer::with_path(&gpu, Path::Quads),
+        _ => Rasterizer::new(&gpu),
+    };
+    let style = Style {
+        size: PointSize::Fixed(1.0),
+        ..Style::default()
+    };
     let mut times = Vec::new();
     for _ in 0..9 {
         let t = std::time::Instant::now();
-        let img = r.render(
-            &gpu,
-            &cam,
-            &[&points],
-            [0, 0, 0, 255],
-            PointSize::Fixed(1.0),
-        );
+        let img = r.render(&gpu, &cam, &[points.all(0.0)], &style);
         times.push(t.elapsed().as_secs_f64() * 1e3);
         std::hint::black_box(img);
     }
     times.sort_by(f64::total_cmp);
     println!(
-        "{} ({:?}): {n} points, 1280x720: median frame {:.1} ms (min {:.1}, max {:.1})",
-        gpu.adapter.name, gpu.adapter.device_type, times[4], times[0], times[8]
+        "{} ({:?}), {:?} path: {n} points, 1280x720: median frame {:.1} ms (min {:.1}, max {:.1})",
+        gpu.adapter.name, gpu.adapter.device_type, r.path, times[4], times[0], times[8]
     );
 }
 

@@ -1,8 +1,10 @@
-//! The compute rasterizer on whatever adapter the machine has (lavapipe in CI): points land on
-//! the pixels the camera puts them, the nearest wins, the rest is background.
+//! The rasterizer on whatever adapter the machine has (lavapipe in CI), on both paths (the compute
+//! path where the adapter has 64-bit atomics, and the quad path, which any adapter runs): points
+//! land on the pixels the camera puts them, the nearest wins, sizes, shapes and eye-dome lighting
+//! cover the pixels they should, and both paths draw the same image.
 
 use myriad_lod::Camera;
-use myriad_render::{Gpu, PointSize, Points, Rasterizer};
+use myriad_render::{Edl, Gpu, Path, PointSize, Points, Rasterizer, Shape, Style};
 
 fn gpu() -> Option<Gpu> {
     match Gpu::headless() {
@@ -18,6 +20,15 @@ fn gpu() -> Option<Gpu> {
     }
 }
 
+/// Every path this adapter runs.
+fn paths(gpu: &Gpu) -> Vec<Rasterizer> {
+    let mut r = vec![Rasterizer::with_path(gpu, Path::Quads)];
+    if gpu.atomics {
+        r.insert(0, Rasterizer::with_path(gpu, Path::Compute));
+    }
+    r
+}
+
 /// 200 x 100 pixels, 90 degrees vertically, from (x, -10, 0) towards (x, 0, 0), Z up.
 fn looking_along_y(x: f64) -> Camera {
     Camera {
@@ -30,6 +41,19 @@ fn looking_along_y(x: f64) -> Camera {
         near: 0.5,
         far: 100.0,
     }
+}
+
+fn fixed(px: f32, shape: Shape) -> Style {
+    Style {
+        size: PointSize::Fixed(px),
+        shape,
+        edl: None,
+        background: [0, 0, 0, 255],
+    }
+}
+
+fn px(img: &[u8], w: usize, x: usize, y: usize) -> [u8; 4] {
+    img[(y * w + x) * 4..][..4].try_into().unwrap()
 }
 
 #[test]
@@ -48,26 +72,37 @@ fn points_land_where_the_camera_puts_them() {
     ];
     let colours = [red, green, blue, red, red];
     let points = Points::upload(&gpu, [1000.0, 0.0, 0.0], &positions, &colours);
-    let r = Rasterizer::new(&gpu);
-    let bg = [10, 20, 30, 255];
-    let img = r.render(&gpu, &cam, &[&points], bg, PointSize::Fixed(1.0));
-    assert_eq!(img.len(), 200 * 100 * 4);
-    let px = |x: usize, y: usize| -> [u8; 4] { img[(y * 200 + x) * 4..][..4].try_into().unwrap() };
-    assert_eq!(px(100, 50), green, "the nearer point wins the centre pixel");
-    assert_eq!(px(125, 50), blue);
-    let drawn = img.chunks_exact(4).filter(|p| *p != bg).count();
-    assert_eq!(drawn, 2, "two pixels drawn, the rest background");
-    // Order of submission does not matter: the same image with the points reversed.
     let rev: Vec<[f64; 3]> = positions.iter().rev().cloned().collect();
     let revc: Vec<[u8; 4]> = colours.iter().rev().cloned().collect();
     let points2 = Points::upload(&gpu, [1000.0, 0.0, 0.0], &rev, &revc);
-    assert_eq!(
-        r.render(&gpu, &cam, &[&points2], bg, PointSize::Fixed(1.0)),
-        img
-    );
+    let style = Style {
+        background: [10, 20, 30, 255],
+        ..fixed(1.0, Shape::Square)
+    };
+    for r in paths(&gpu) {
+        let img = r.render(&gpu, &cam, &[points.all(0.0)], &style);
+        assert_eq!(img.len(), 200 * 100 * 4);
+        assert_eq!(px(&img, 200, 100, 50), green, "{:?}: nearer wins", r.path);
+        assert_eq!(px(&img, 200, 125, 50), blue, "{:?}", r.path);
+        let drawn = img
+            .chunks_exact(4)
+            .filter(|p| *p != style.background)
+            .count();
+        assert_eq!(
+            drawn, 2,
+            "{:?}: two pixels drawn, the rest background",
+            r.path
+        );
+        // Order of submission does not matter: the same image with the points reversed.
+        assert_eq!(r.render(&gpu, &cam, &[points2.all(0.0)], &style), img);
+        // A prefix draws only its points: the first is red at the centre.
+        let img = r.render(&gpu, &cam, &[points.prefix(1, 0.0)], &style);
+        assert_eq!(px(&img, 200, 100, 50), red, "{:?}: prefix of one", r.path);
+        assert_eq!(px(&img, 200, 125, 50), style.background);
+    }
     eprintln!(
-        "adapter: {} ({:?})",
-        gpu.adapter.name, gpu.adapter.device_type
+        "adapter: {} ({:?}), 64-bit atomics: {}",
+        gpu.adapter.name, gpu.adapter.device_type, gpu.atomics
     );
 }
 
@@ -98,40 +133,183 @@ fn many_points_fill_a_plane() {
         near: 0.1,
         far: 10.0,
     };
-    let img = Rasterizer::new(&gpu).render(
-        &gpu,
-        &cam,
-        &[&points],
-        [0, 0, 0, 255],
-        PointSize::Fixed(1.0),
-    );
-    let drawn = img.chunks_exact(4).filter(|p| p[0] == 200).count();
-    // The plane covers the whole view (±1 at depth 1 with 90 degrees), 4 points per pixel.
-    assert_eq!(drawn, 128 * 128);
+    for r in paths(&gpu) {
+        let img = r.render(&gpu, &cam, &[points.all(0.0)], &fixed(1.0, Shape::Square));
+        let drawn = img.chunks_exact(4).filter(|p| p[0] == 200).count();
+        // The plane covers the whole view (±1 at depth 1 with 90 degrees), 4 points per pixel.
+        assert_eq!(drawn, 128 * 128, "{:?}", r.path);
+    }
 }
 
 #[test]
-fn point_sizes() {
+fn point_sizes_and_shapes() {
     let Some(gpu) = gpu() else { return };
     let cam = looking_along_y(0.0);
     let white = [255, 255, 255, 255];
-    let bg = [0, 0, 0, 255];
     let lit = |img: &[u8]| img.chunks_exact(4).filter(|p| *p == white).count();
-    let r = Rasterizer::new(&gpu);
-    let mut p = Points::upload(&gpu, [0.0; 3], &[[0.0, 0.0, 0.0]], &[white]);
-    // Fixed: 5 x 5 pixels.
-    assert_eq!(
-        lit(&r.render(&gpu, &cam, &[&p], bg, PointSize::Fixed(5.0))),
-        25
+    let p = Points::upload(&gpu, [0.0; 3], &[[0.0, 0.0, 0.0]], &[white]);
+    for r in paths(&gpu) {
+        let path = r.path;
+        let render =
+            |spacing: f64, style: Style| lit(&r.render(&gpu, &cam, &[p.all(spacing)], &style));
+        // Fixed: 5 x 5 pixels; round: without the 4 corners (their centres are 2.83 px out).
+        assert_eq!(render(0.0, fixed(5.0, Shape::Square)), 25, "{path:?}");
+        assert_eq!(render(0.0, fixed(5.0, Shape::Round)), 21, "{path:?}");
+        assert_eq!(render(0.0, fixed(5.0, Shape::Paraboloid)), 21, "{path:?}");
+        // 9 px round: the pixels within 4.5 px of the centre.
+        let disc = (-4i32..=4)
+            .flat_map(|y| (-4i32..=4).map(move |x| x * x + y * y))
+            .filter(|&d2| d2 as f64 <= 20.25)
+            .count();
+        assert_eq!(render(0.0, fixed(9.0, Shape::Round)), disc, "{path:?}");
+        // Adaptive: spacing 0.8 at depth 10 is 0.8 * 50 / 10 = 4 pixels (focal 50 for 100 px).
+        let adaptive = |max| Style {
+            size: PointSize::Adaptive { max },
+            ..fixed(1.0, Shape::Square)
+        };
+        assert_eq!(render(0.8, adaptive(64.0)), 16, "{path:?}");
+        // Capped.
+        assert_eq!(render(100.0, adaptive(3.0)), 9, "{path:?}");
+    }
+}
+
+#[test]
+fn paraboloids_meet_halfway() {
+    let Some(gpu) = gpu() else { return };
+    let cam = looking_along_y(0.0);
+    // Two 15-pixel points at the same depth, 8 pixels apart (1.6 units at 5 px per unit).
+    let (a, b) = ([255, 0, 0, 255], [0, 0, 255, 255]);
+    let p = Points::upload(
+        &gpu,
+        [0.0; 3],
+        &[[-0.8, 0.0, 0.0], [0.8, 0.0, 0.0]],
+        &[a, b],
     );
-    // Adaptive: spacing 0.8 at depth 10 is 0.8 * 50 / 10 = 4 pixels (focal 50 for 100 px at 90°).
-    p.spacing = 0.8;
-    let adaptive = PointSize::Adaptive { max: 64.0 };
-    assert_eq!(lit(&r.render(&gpu, &cam, &[&p], bg, adaptive)), 16);
-    // Capped.
-    p.spacing = 100.0;
-    assert_eq!(
-        lit(&r.render(&gpu, &cam, &[&p], bg, PointSize::Adaptive { max: 3.0 })),
-        9
-    );
+    for r in paths(&gpu) {
+        let img = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(15.0, Shape::Paraboloid));
+        // Centres at pixels 96 and 104: each point owns the overlap on its own side.
+        for x in 97..100 {
+            assert_eq!(px(&img, 200, x, 50), a, "{:?}: x {x}", r.path);
+        }
+        for x in 101..104 {
+            assert_eq!(px(&img, 200, x, 50), b, "{:?}: x {x}", r.path);
+        }
+        // Flat discs at the same depth: one of them takes the whole overlap.
+        let img = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(15.0, Shape::Round));
+        let overlap: Vec<[u8; 4]> = (97..104).map(|x| px(&img, 200, x, 50)).collect();
+        assert!(overlap.iter().all(|c| *c == overlap[0]), "{:?}", r.path);
+    }
+}
+
+#[test]
+fn eye_dome_lighting_darkens_behind_edges_only() {
+    let Some(gpu) = gpu() else { return };
+    let cam = looking_along_y(0.0);
+    // A near plane (depth 8) on the left half, a far plane (depth 12) on the right half.
+    // Both fill their half of the view without gaps at 2 px a point (6.25 and 4.17 px per unit).
+    let mut positions = Vec::new();
+    for i in 0..200 {
+        for j in 0..200 {
+            positions.push([i as f64 * 0.1 - 20.0, -2.0, j as f64 * 0.1 - 10.0]);
+        }
+    }
+    for i in 0..100 {
+        for j in 0..100 {
+            positions.push([i as f64 * 0.4, 2.0, j as f64 * 0.4 - 20.0]);
+        }
+    }
+    let grey = [200, 200, 200, 255];
+    let p = Points::upload(&gpu, [0.0; 3], &positions, &vec![grey; positions.len()]);
+    for r in paths(&gpu) {
+        let plain = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(2.0, Shape::Square));
+        let lit = r.render(
+            &gpu,
+            &cam,
+            &[p.all(0.0)],
+            &Style {
+                edl: Some(Edl::default()),
+                ..fixed(2.0, Shape::Square)
+            },
+        );
+        let path = r.path;
+        assert_eq!(px(&plain, 200, 101, 50), grey, "{path:?}");
+        // Just right of the step (x = 100), behind its neighbours: darker.
+        assert!(
+            px(&lit, 200, 101, 50)[0] < 150,
+            "{path:?}: {:?}",
+            px(&lit, 200, 101, 50)
+        );
+        // In front of the step and away from it: unchanged.
+        for x in [20, 98, 99, 150, 180] {
+            assert_eq!(px(&lit, 200, x, 50), grey, "{path:?}: x {x}");
+        }
+    }
+}
+
+#[test]
+fn both_paths_draw_the_same_image() {
+    let Some(gpu) = gpu() else { return };
+    if !gpu.atomics {
+        eprintln!("SKIPPED: this adapter has no 64-bit atomics, so only the quad path runs");
+        return;
+    }
+    // Random points in a box, random colours, seen at an angle: both paths agree on almost
+    // every pixel (they may differ only where two points reach a pixel at the same depth, or by
+    // the last bit of depth).
+    let mut s = 0x2545f4914f6cdd1du64;
+    let mut next = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let n = 20000;
+    let positions: Vec<[f64; 3]> = (0..n)
+        .map(|_| [next() * 10.0 - 5.0, next() * 10.0 - 5.0, next() * 4.0])
+        .collect();
+    let colours: Vec<[u8; 4]> = (0..n)
+        .map(|_| [(next() * 255.0) as u8, (next() * 255.0) as u8, 99, 255])
+        .collect();
+    let p = Points::upload(&gpu, [0.0; 3], &positions, &colours);
+    let cam = Camera {
+        position: [3.0, -14.0, 9.0],
+        target: [0.0, 0.0, 1.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 50.0,
+        width: 320,
+        height: 240,
+        near: 1.0,
+        far: 40.0,
+    };
+    let compute = Rasterizer::with_path(&gpu, Path::Compute);
+    let quads = Rasterizer::with_path(&gpu, Path::Quads);
+    for style in [
+        fixed(3.0, Shape::Square),
+        fixed(6.0, Shape::Round),
+        fixed(6.0, Shape::Paraboloid),
+        Style {
+            size: PointSize::Adaptive { max: 16.0 },
+            edl: Some(Edl::default()),
+            ..fixed(1.0, Shape::Round)
+        },
+    ] {
+        let a = compute.render(&gpu, &cam, &[p.all(0.15)], &style);
+        let b = quads.render(&gpu, &cam, &[p.all(0.15)], &style);
+        let pixels = a.len() / 4;
+        let drawn = a.chunks_exact(4).filter(|c| *c != [0, 0, 0, 255]).count();
+        // (Eye-dome lighting turns most of a random cloud nearly black.)
+        assert!(
+            style.edl.is_some() || drawn > pixels / 4,
+            "{style:?}: only {drawn} pixels drawn"
+        );
+        let differ = a
+            .chunks_exact(4)
+            .zip(b.chunks_exact(4))
+            .filter(|(x, y)| x.iter().zip(y.iter()).any(|(p, q)| p.abs_diff(*q) > 2))
+            .count();
+        assert!(
+            differ * 100 < pixels,
+            "{style:?}: {differ} of {pixels} pixels differ"
+        );
+    }
 }

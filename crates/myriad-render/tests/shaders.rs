@@ -1,27 +1,51 @@
 //! Every WGSL shader parses and validates with naga (no GPU needed), with the capabilities the
-//! renderer asks the device for.
+//! renderer asks the device for: 64-bit atomics for the compute path, none for the quad path.
 
-fn validate(name: &str, src: &str) {
+use naga::valid::Capabilities;
+
+fn validate(name: &str, src: &str, caps: Capabilities) {
     let module = naga::front::wgsl::parse_str(src)
         .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
-    let caps = naga::valid::Capabilities::SHADER_INT64
-        | naga::valid::Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
         .validate(&module)
         .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
 }
 
+const ATOMICS: Capabilities =
+    Capabilities::SHADER_INT64.union(Capabilities::SHADER_INT64_ATOMIC_MIN_MAX);
+
 #[test]
 fn shaders_validate() {
-    validate("raster.wgsl", myriad_render::RASTER_WGSL);
-    validate("resolve.wgsl", myriad_render::RESOLVE_WGSL);
+    validate("raster.wgsl", myriad_render::RASTER_WGSL, ATOMICS);
+    validate(
+        "resolve.wgsl + fb_atomic.wgsl",
+        myriad_render::RESOLVE_ATOMIC_WGSL,
+        ATOMICS,
+    );
+    // The quad path runs where there are no 64-bit integers at all.
+    let none = Capabilities::empty();
+    validate("quads.wgsl", myriad_render::QUADS_WGSL, none);
+    validate(
+        "resolve.wgsl + fb_quads.wgsl",
+        myriad_render::RESOLVE_QUADS_WGSL,
+        none,
+    );
 }
 
 #[test]
 fn a_broken_shader_is_caught() {
     let broken = myriad_render::RASTER_WGSL.replace("atomicMax(", "atomicMaxx(");
     assert!(
-        std::panic::catch_unwind(|| validate("broken", &broken)).is_err(),
+        std::panic::catch_unwind(|| validate("broken", &broken, ATOMICS)).is_err(),
         "the validator must reject an unknown function"
+    );
+    // The compute path's shader needs 64-bit atomics.
+    assert!(
+        std::panic::catch_unwind(|| validate(
+            "raster without atomics",
+            myriad_render::RASTER_WGSL,
+            Capabilities::empty()
+        ))
+        .is_err()
     );
 }

@@ -16,6 +16,9 @@ pub enum BenchCommand {
     /// Conversion speed, peak memory and size (each run a separate `myriad convert` process),
     /// next to the raw LAS/LAZ decode of the same file
     Convert(ConvertBenchArgs),
+    /// Image quality of the level of detail at a point budget (PSNR against every point, next
+    /// to as many random points) in three standard views, and the frame time of the pipeline
+    Render(crate::bench_render::RenderBenchArgs),
 }
 
 #[derive(Args)]
@@ -62,6 +65,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Read(a) => read(a),
         BenchCommand::Synth(a) => synth(a),
         BenchCommand::Convert(a) => convert(a),
+        BenchCommand::Render(a) => crate::bench_render::run(a),
     }
 }
 

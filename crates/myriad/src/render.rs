@@ -3,9 +3,10 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use myriad_core::Aabb;
 use myriad_format::Dataset;
-use myriad_lod::{Camera, Hierarchy, Loader, SelectOptions, converge};
-use myriad_render::{ColorBy, Gpu, PointSize, Points, Rasterizer, colours};
+use myriad_lod::{Camera, SelectOptions, converge};
+use myriad_render::{ColorBy, Edl, Gpu, Path, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -35,6 +36,18 @@ fn parse_point_size(s: &str) -> Result<PointSize, String> {
         .filter(|v| (1.0..=64.0).contains(v))
         .map(PointSize::Fixed)
         .ok_or_else(|| format!("\"{s}\": expected adaptive or fixed:PX with PX from 1 to 64"))
+}
+
+fn parse_shape(s: &str) -> Result<Shape, String> {
+    Shape::parse(s).ok_or_else(|| format!("\"{s}\": one of square, round, paraboloid"))
+}
+
+fn parse_path(s: &str) -> Result<Path, String> {
+    match s {
+        "compute" => Ok(Path::Compute),
+        "quads" => Ok(Path::Quads),
+        _ => Err(format!("\"{s}\": compute or quads")),
+    }
 }
 
 #[derive(Args)]
@@ -69,6 +82,21 @@ pub struct RenderArgs {
     /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
     #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
     point_size: PointSize,
+    /// Point shape: square, round, paraboloid
+    #[arg(long, value_parser = parse_shape, default_value = "square")]
+    shape: Shape,
+    /// Eye-dome lighting (shading from depth, for scans without colour)
+    #[arg(long)]
+    edl: bool,
+    /// Eye-dome lighting strength
+    #[arg(long, default_value_t = 1.0)]
+    edl_strength: f32,
+    /// Eye-dome lighting radius in pixels
+    #[arg(long, default_value_t = 1.4)]
+    edl_radius: f32,
+    /// Rasterizer: compute (needs 64-bit atomics) or quads [default: compute where it runs]
+    #[arg(long = "raster", value_parser = parse_path)]
+    path: Option<Path>,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -87,103 +115,122 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if !(a.fov > 0.0 && a.fov < 180.0) {
         bail!("--fov must be between 0 and 180 degrees");
     }
+    if !(a.edl_strength >= 0.0 && a.edl_strength <= 100.0) {
+        bail!("--edl-strength must be from 0 to 100");
+    }
+    if !(a.edl_radius >= 0.5 && a.edl_radius <= 32.0) {
+        bail!("--edl-radius must be from 0.5 to 32 pixels");
+    }
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&a.dataset)?);
-    let (nodes, damage) = ds.nodes();
+    let (_, damage) = ds.nodes();
     for d in &damage {
         eprintln!("warning: {}", ds.damage_error(d));
     }
-    let h = Hierarchy::new(ds.meta.root, nodes);
-    let b = ds.meta.bounds;
-    let mut cam = Camera::framing(&b, a.width, a.height, a.fov);
-    if let Some(c) = a.camera {
-        let size = b.size();
-        let reach = (size[0] * size[0] + size[1] * size[1] + size[2] * size[2]).sqrt();
-        let eye = [c[0], c[1], c[2]];
-        let far = (0..3)
-            .map(|k| (eye[k] - b.center()[k]).abs())
-            .fold(0.0, f64::max)
-            * 2.0
-            + reach;
-        cam = Camera {
-            position: eye,
-            target: [c[3], c[4], c[5]],
-            up: a.up,
-            near: (far * 1e-5).max(1e-3),
-            far,
-            ..cam
-        };
-    } else {
-        cam.up = a.up;
-    }
     let gpu = Gpu::headless().map_err(anyhow::Error::msg)?;
-    let raster = Rasterizer::new(&gpu);
+    let raster = match a.path {
+        Some(Path::Compute) if !gpu.atomics => bail!(
+            "{}: no 64-bit atomics, so no compute path (--raster quads)",
+            gpu.adapter.name
+        ),
+        Some(p) => Rasterizer::with_path(&gpu, p),
+        None => Rasterizer::new(&gpu),
+    };
+    let style = Style {
+        size: a.point_size,
+        shape: a.shape,
+        edl: a.edl.then_some(Edl {
+            strength: a.edl_strength,
+            radius: a.edl_radius,
+        }),
+        background: [0, 0, 0, 255],
+    };
     let options = SelectOptions {
         budget: if a.full { u64::MAX } else { a.budget },
         min_pixels: if a.full { 0.0 } else { 1.0 },
     };
-    let mut loader = Loader::new(ds.clone(), 2, usize::MAX);
-    let origin = b.center();
-    let z = (b.min[2], b.max[2]);
-    // The drawn prefixes of the resident selected nodes, relative to the dataset's centre.
-    let upload = |selection: &myriad_lod::Selection, loader: &Loader| -> Vec<Points> {
-        let mut sets = Vec::new();
-        for n in &selection.nodes {
-            let Some(batch) = loader.get(&n.key) else {
-                continue;
-            };
-            let k = (n.points as usize).min(batch.len());
-            let c = colours(&batch, k, a.color, z, n.key.level);
-            let mut p = Points::upload(&gpu, origin, &batch.positions[..k], &c);
-            p.spacing = n.spacing;
-            sets.push(p);
-        }
-        sets
-    };
+    let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
+    scene.set_colour(a.color);
+    let cam = camera(
+        &scene.view_bounds,
+        &ds.meta.bounds,
+        a.camera,
+        a.up,
+        a.width,
+        a.height,
+        a.fov,
+    )?;
+
     // First image: as soon as the first selected node (the root) is in.
-    let first = myriad_lod::select(&h, &cam, &options);
-    let wanted: Vec<_> = first
-        .nodes
-        .iter()
-        .filter_map(|n| h.get(&n.key).cloned())
-        .collect();
-    loader.request(&wanted);
+    let first = scene.update(&cam, &options);
     if let Some(root) = first.nodes.first() {
-        while !loader.is_resident(&root.key) && !loader.failed().contains_key(&root.key) {
-            if loader.poll() == 0 {
+        let l = &mut scene.loader;
+        while !l.is_resident(&root.key) && !l.failed().contains_key(&root.key) {
+            if l.poll() == 0 {
                 std::thread::sleep(std::time::Duration::from_millis(1));
             }
         }
     }
-    let sets = upload(&first, &loader);
-    let refs: Vec<&Points> = sets.iter().collect();
-    raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
+    scene.frame(&gpu, &raster, &cam, &options, &style);
     let first_image = t0.elapsed();
 
-    let selection = converge(&mut loader, &h, &cam, &options);
-    let sets = upload(&selection, &loader);
-    let refs: Vec<&Points> = sets.iter().collect();
-    let img = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
+    let selection = converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
+    scene.frame(&gpu, &raster, &cam, &options, &style);
     let converged = t0.elapsed();
+    // The frame as a viewer would draw it now: selection, cache lookups, drawing, readback.
     let t = Instant::now();
-    let img2 = raster.render(&gpu, &cam, &refs, [0, 0, 0, 255], a.point_size);
+    let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
     let frame = t.elapsed();
-    debug_assert_eq!(img, img2);
-    write_png(&a.output, a.width, a.height, &img2)?;
+    write_png(&a.output, a.width, a.height, &img)?;
     println!(
-        "{}: {} points in {} nodes, frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({})",
+        "{}: {} points in {} nodes, frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
         a.output.display(),
-        crate::info::thousands(selection.points),
-        selection.nodes.len(),
+        crate::info::thousands(stats.points),
+        stats.nodes,
         frame.as_secs_f64() * 1e3,
         first_image.as_secs_f64(),
         converged.as_secs_f64(),
-        gpu.adapter.name
+        gpu.adapter.name,
+        raster.path,
     );
+    debug_assert_eq!(stats.points, selection.points);
     Ok(())
 }
 
-fn write_png(path: &std::path::Path, w: u32, h: u32, rgba: &[u8]) -> Result<()> {
+/// The camera `--camera` asks for, or the data (`view`) framed from above at 45 degrees; near
+/// and far planes around everything there is (`all`).
+pub fn camera(
+    view: &Aabb,
+    all: &Aabb,
+    eye_target: Option<[f64; 6]>,
+    up: [f64; 3],
+    width: u32,
+    height: u32,
+    fov: f64,
+) -> Result<Camera> {
+    let mut cam = Camera {
+        up,
+        ..Camera::framing(view, width, height, fov)
+    };
+    if let Some(c) = eye_target {
+        cam.position = [c[0], c[1], c[2]];
+        cam.target = [c[3], c[4], c[5]];
+        if cam.position == cam.target {
+            bail!("--camera: the eye and the target are the same point");
+        }
+    }
+    let (_, _, forward) = cam.basis();
+    let side = forward[1] * up[2] - forward[2] * up[1];
+    let side2 = forward[2] * up[0] - forward[0] * up[2];
+    let side3 = forward[0] * up[1] - forward[1] * up[0];
+    if (side * side + side2 * side2 + side3 * side3).sqrt() < 1e-9 {
+        bail!("--up is parallel to the view direction: give another --up (e.g. --up 0,1,0)");
+    }
+    cam.fit_depth(all);
+    Ok(cam)
+}
+
+pub fn write_png(path: &std::path::Path, w: u32, h: u32, rgba: &[u8]) -> Result<()> {
     let file = myriad_io::atomic::AtomicFile::create(path, true)?;
     {
         let f = file.open_write()?;

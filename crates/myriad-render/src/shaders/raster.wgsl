@@ -1,24 +1,35 @@
 // Compute rasterizer (after Schütz et al. 2021): one thread per point projects it and keeps the
-// nearest point per pixel with a 64-bit atomicMax of (reversed depth << 32 | colour).
+// nearest point per pixel with a 64-bit atomicMax of (reversed linear depth << 32 | colour).
 
-struct Uniforms {
+struct Draw {
     view_proj: mat4x4<f32>,
     width: u32,
     height: u32,
     count: u32,
-    pad: u32,
+    // 0 square, 1 round, 2 paraboloid.
+    shape: u32,
     // Fixed point size in pixels; 0: adaptive, the world `spacing` projected at each point.
     point_size: f32,
     spacing: f32,
     // Pixels per unit of length at depth 1.
     focal: f32,
     max_size: f32,
+    // Depth keys are linear in eye depth over 0..far.
+    far: f32,
+    near: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
-@group(0) @binding(0) var<uniform> u: Uniforms;
+@group(0) @binding(0) var<uniform> u: Draw;
 // xyz relative to the upload origin; w: the colour, RGBA8 as bits.
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> framebuffer: array<atomic<u64>>;
+
+// Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
+fn depth_key(w: f32) -> u32 {
+    return u32(clamp(1.0 - w / u.far, 0.0, 1.0) * 4294967040.0) + 1u;
+}
 
 @compute @workgroup_size(128)
 fn rasterize(
@@ -41,9 +52,7 @@ fn rasterize(
     }
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
-    // Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
-    let depth = u32((1.0 - ndc.z) * 4294967040.0) + 1u;
-    let value = (u64(depth) << 32u) | u64(bitcast<u32>(p.w));
+    let colour = u64(bitcast<u32>(p.w));
     var size = u.point_size;
     if (size <= 0.0) {
         size = u.spacing * u.focal / clip.w;
@@ -52,6 +61,12 @@ fn rasterize(
     // A square of s x s pixels centred on the point.
     let x0 = i32(floor(fx)) - (s - 1) / 2;
     let y0 = i32(floor(fy)) - (s - 1) / 2;
+    // Round shapes keep the pixels whose centres lie within the disc of diameter s.
+    let c = f32(s - 1) * 0.5;
+    let r2 = max(f32(s * s) * 0.25, 0.5);
+    // Paraboloid: the centre stands out towards the eye by half the point's size in the world.
+    let bulge = 0.5 * f32(s) * clip.w / u.focal;
+    let flat = (u64(depth_key(clip.w)) << 32u) | colour;
     for (var dy = 0; dy < s; dy++) {
         let y = y0 + dy;
         if (y < 0 || y >= i32(u.height)) {
@@ -61,6 +76,19 @@ fn rasterize(
             let x = x0 + dx;
             if (x < 0 || x >= i32(u.width)) {
                 continue;
+            }
+            var value = flat;
+            if (u.shape != 0u) {
+                let ox = f32(dx) - c;
+                let oy = f32(dy) - c;
+                let d2 = ox * ox + oy * oy;
+                if (d2 > r2) {
+                    continue;
+                }
+                if (u.shape == 2u) {
+                    let w = clip.w - bulge * (1.0 - d2 / r2);
+                    value = (u64(depth_key(w)) << 32u) | colour;
+                }
             }
             atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
         }

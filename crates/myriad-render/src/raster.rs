@@ -1,0 +1,449 @@
+//! Drawing a frame: the compute path (64-bit atomics) or the quad path, then the resolve pass and
+//! the readback.
+
+use crate::{
+    Draw, Gpu, POINT_BYTES, PointSize, QUADS_WGSL, RASTER_WGSL, RESOLVE_ATOMIC_WGSL,
+    RESOLVE_QUADS_WGSL, Shape, Style,
+};
+use myriad_lod::Camera;
+use std::sync::Mutex;
+use wgpu::util::DeviceExt;
+
+const WORKGROUP: u32 = 128;
+
+/// Which way points reach the pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Path {
+    /// The compute rasterizer; needs 64-bit integer atomics.
+    Compute,
+    /// Instanced quads through the fixed-function pipeline, for any adapter.
+    Quads,
+}
+
+/// One draw's uniforms (as `Draw` in raster.wgsl and quads.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DrawUniforms {
+    view_proj: [[f32; 4]; 4],
+    width: u32,
+    height: u32,
+    count: u32,
+    shape: u32,
+    point_size: f32,
+    spacing: f32,
+    focal: f32,
+    max_size: f32,
+    far: f32,
+    near: f32,
+    pad: [f32; 2],
+}
+
+/// The resolve pass's uniforms (as `Resolve` in resolve.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ResolveUniforms {
+    width: u32,
+    height: u32,
+    background: u32,
+    edl: u32,
+    strength: f32,
+    radius: f32,
+    far: f32,
+    near: f32,
+}
+
+/// Buffers and textures of one image size, kept from frame to frame.
+struct Targets {
+    size: (u32, u32),
+    /// Compute path: one u64 per pixel.
+    framebuffer: Option<wgpu::Buffer>,
+    /// Quad path: colour and depth.
+    colour: Option<wgpu::TextureView>,
+    depth: Option<wgpu::TextureView>,
+    image: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+enum Pipelines {
+    Compute { raster: wgpu::ComputePipeline },
+    Quads { quads: wgpu::RenderPipeline },
+}
+
+/// The rasterizer's pipelines and frame targets.
+pub struct Rasterizer {
+    pipelines: Pipelines,
+    resolve: wgpu::ComputePipeline,
+    targets: Mutex<Option<Targets>>,
+    pub path: Path,
+}
+
+/// Workgroups for `n` threads, as a 2D dispatch within the 65535 limit per dimension.
+fn groups(n: u32) -> (u32, u32) {
+    let g = n.div_ceil(WORKGROUP).max(1);
+    let x = g.min(65535);
+    (x, g.div_ceil(x))
+}
+
+fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
+    gpu.device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        })
+}
+
+fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
+    let module = module(gpu, entry, src);
+    gpu.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: None,
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+}
+
+fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
+    let module = module(gpu, "quads", QUADS_WGSL);
+    let attributes = [
+        wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x3,
+            offset: 0,
+            shader_location: 0,
+        },
+        wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Unorm8x4,
+            offset: 12,
+            shader_location: 1,
+        },
+    ];
+    gpu.device
+        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("quads"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vertex"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: POINT_BYTES as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fragment"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba8Unorm,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+}
+
+impl Rasterizer {
+    /// The compute path where the device has 64-bit atomics, else quads.
+    pub fn new(gpu: &Gpu) -> Rasterizer {
+        Rasterizer::with_path(
+            gpu,
+            if gpu.atomics {
+                Path::Compute
+            } else {
+                Path::Quads
+            },
+        )
+    }
+
+    /// A chosen path (the compute path needs `gpu.atomics`).
+    pub fn with_path(gpu: &Gpu, path: Path) -> Rasterizer {
+        assert!(
+            path == Path::Quads || gpu.atomics,
+            "the compute path needs 64-bit atomics"
+        );
+        let (pipelines, resolve) = match path {
+            Path::Compute => (
+                Pipelines::Compute {
+                    raster: compute(gpu, RASTER_WGSL, "rasterize"),
+                },
+                compute(gpu, RESOLVE_ATOMIC_WGSL, "resolve"),
+            ),
+            Path::Quads => (
+                Pipelines::Quads {
+                    quads: quads_pipeline(gpu),
+                },
+                compute(gpu, RESOLVE_QUADS_WGSL, "resolve"),
+            ),
+        };
+        Rasterizer {
+            pipelines,
+            resolve,
+            targets: Mutex::new(None),
+            path,
+        }
+    }
+
+    fn targets(&self, gpu: &Gpu, w: u32, h: u32) -> Targets {
+        let d = &gpu.device;
+        let pixels = (w * h) as u64;
+        let buffer = |label, size, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let texture = |label, format| {
+            d.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+        };
+        let quads = self.path == Path::Quads;
+        Targets {
+            size: (w, h),
+            framebuffer: (!quads).then(|| {
+                buffer(
+                    "framebuffer",
+                    pixels * 8,
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                )
+            }),
+            colour: quads.then(|| texture("colour", wgpu::TextureFormat::Rgba8Unorm)),
+            depth: quads.then(|| texture("depth", wgpu::TextureFormat::Depth32Float)),
+            image: buffer(
+                "image",
+                pixels * 4,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "readback",
+                pixels * 4,
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+        }
+    }
+
+    /// Draws `draws` seen by `camera` into a `camera.width` x `camera.height` image and reads it
+    /// back: RGBA8, rows top to bottom.
+    pub fn render(&self, gpu: &Gpu, camera: &Camera, draws: &[Draw], style: &Style) -> Vec<u8> {
+        let (w, h) = (camera.width.max(1), camera.height.max(1));
+        let pixels = (w * h) as u64;
+        let d = &gpu.device;
+        let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.as_ref().is_none_or(|t| t.size != (w, h)) {
+            *guard = Some(self.targets(gpu, w, h));
+        }
+        let t = guard.as_ref().expect("targets made above");
+
+        // Every draw's uniforms in one buffer, each at an aligned offset.
+        let draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
+        let stride = (std::mem::size_of::<DrawUniforms>() as u64)
+            .next_multiple_of(d.limits().min_uniform_buffer_offset_alignment as u64);
+        let mut bytes = vec![0u8; (stride as usize * draws.len()).max(stride as usize)];
+        let (point_size, max_size) = match style.size {
+            PointSize::Fixed(px) => (px.max(1.0), px.max(1.0)),
+            PointSize::Adaptive { max } => (0.0, max.max(1.0)),
+        };
+        for (i, draw) in draws.iter().enumerate() {
+            let u = DrawUniforms {
+                view_proj: camera.view_proj(draw.points.origin),
+                width: w,
+                height: h,
+                count: draw.count,
+                shape: match style.shape {
+                    Shape::Square => 0,
+                    Shape::Round => 1,
+                    Shape::Paraboloid => 2,
+                },
+                point_size,
+                spacing: draw.spacing as f32,
+                focal: camera.focal() as f32,
+                max_size,
+                far: camera.far as f32,
+                near: camera.near as f32,
+                pad: [0.0; 2],
+            };
+            bytes[i * stride as usize..][..std::mem::size_of::<DrawUniforms>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+        }
+        let uniforms = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("draws"),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let uniform_at = |i: usize| {
+            wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &uniforms,
+                offset: i as u64 * stride,
+                size: wgpu::BufferSize::new(std::mem::size_of::<DrawUniforms>() as u64),
+            })
+        };
+        let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+
+        let mut enc = d.create_command_encoder(&Default::default());
+        match &self.pipelines {
+            Pipelines::Compute { raster } => {
+                let fb = t.framebuffer.as_ref().expect("compute targets");
+                enc.clear_buffer(fb, 0, None);
+                let layout = raster.get_bind_group_layout(0);
+                let binds: Vec<wgpu::BindGroup> = draws
+                    .iter()
+                    .enumerate()
+                    .map(|(i, draw)| {
+                        d.create_bind_group(&wgpu::BindGroupDescriptor {
+                            label: Some("raster"),
+                            layout: &layout,
+                            entries: &[
+                                entry(0, uniform_at(i)),
+                                entry(1, draw.points.buffer.as_entire_binding()),
+                                entry(2, fb.as_entire_binding()),
+                            ],
+                        })
+                    })
+                    .collect();
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(raster);
+                for (draw, bind) in draws.iter().zip(&binds) {
+                    pass.set_bind_group(0, bind, &[]);
+                    let (x, y) = groups(draw.count);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            }
+            Pipelines::Quads { quads } => {
+                let layout = quads.get_bind_group_layout(0);
+                let binds: Vec<wgpu::BindGroup> = (0..draws.len())
+                    .map(|i| {
+                        d.create_bind_group(&wgpu::BindGroupDescriptor {
+                            label: Some("quads"),
+                            layout: &layout,
+                            entries: &[entry(0, uniform_at(i))],
+                        })
+                    })
+                    .collect();
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("quads"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: t.colour.as_ref().expect("quad targets"),
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: t.depth.as_ref().expect("quad targets"),
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    ..Default::default()
+                });
+                pass.set_pipeline(quads);
+                for (draw, bind) in draws.iter().zip(&binds) {
+                    pass.set_bind_group(0, bind, &[]);
+                    pass.set_vertex_buffer(0, draw.points.buffer.slice(..));
+                    pass.draw(0..6, 0..draw.count);
+                }
+            }
+        }
+
+        let edl = style.edl.unwrap_or(crate::Edl {
+            strength: 0.0,
+            radius: 0.0,
+        });
+        let resolve_uniforms = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("resolve"),
+            contents: bytemuck::bytes_of(&ResolveUniforms {
+                width: w,
+                height: h,
+                background: u32::from_le_bytes(style.background),
+                edl: (style.edl.is_some() && edl.strength > 0.0) as u32,
+                strength: edl.strength,
+                radius: edl.radius,
+                far: camera.far as f32,
+                near: camera.near as f32,
+            }),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut entries = vec![
+            entry(0, resolve_uniforms.as_entire_binding()),
+            entry(3, t.image.as_entire_binding()),
+        ];
+        match &self.pipelines {
+            Pipelines::Compute { .. } => entries.push(entry(
+                2,
+                t.framebuffer
+                    .as_ref()
+                    .expect("compute targets")
+                    .as_entire_binding(),
+            )),
+            Pipelines::Quads { .. } => {
+                let (colour, depth) = (t.colour.as_ref(), t.depth.as_ref());
+                let expect = "quad targets";
+                entries.push(entry(
+                    1,
+                    wgpu::BindingResource::TextureView(colour.expect(expect)),
+                ));
+                entries.push(entry(
+                    2,
+                    wgpu::BindingResource::TextureView(depth.expect(expect)),
+                ));
+            }
+        }
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("resolve"),
+            layout: &self.resolve.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.resolve);
+            pass.set_bind_group(0, &bind, &[]);
+            let (x, y) = groups(w * h);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        enc.copy_buffer_to_buffer(&t.image, 0, &t.readback, 0, pixels * 4);
+        gpu.queue.submit([enc.finish()]);
+        let slice = t.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| {
+            r.expect("map the image for reading")
+        });
+        d.poll(wgpu::PollType::wait_indefinitely())
+            .expect("wait for the frame");
+        let out = slice.get_mapped_range().expect("mapped image").to_vec();
+        t.readback.unmap();
+        out
+    }
+}

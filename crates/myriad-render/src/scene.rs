@@ -1,0 +1,179 @@
+//! A dataset on screen: each frame selects what the view needs within the point budget, asks
+//! the loader for what is missing (never waiting for it), uploads what has landed to GPU buffers
+//! and draws every selected node that has its buffer. A node still loading is covered by its
+//! parent's points, drawn meanwhile; the image refines as pages land.
+
+use crate::{ColorBy, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
+use myriad_core::{Aabb, NodeKey};
+use myriad_format::NodeEntry;
+use myriad_lod::{
+    Camera, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds, select,
+};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+pub struct Scene {
+    pub hierarchy: Hierarchy,
+    pub loader: Loader,
+    pub buffers: NodeBuffers,
+    /// Positions are uploaded relative to this (the root cube's centre).
+    pub origin: [f64; 3],
+    /// The heights the elevation ramp spans.
+    pub z_range: (f64, f64),
+    /// Where the data is, without its outliers: for framing the view.
+    pub view_bounds: Aabb,
+    colour: ColorBy,
+}
+
+/// What a frame did.
+#[derive(Debug, Clone, Default)]
+pub struct FrameStats {
+    /// Selected nodes and their points.
+    pub selected_nodes: usize,
+    pub selected_points: u64,
+    /// Drawn (selected and on the GPU).
+    pub nodes: usize,
+    pub points: u64,
+    /// Nodes uploaded to the GPU in this frame.
+    pub uploads: usize,
+    /// Loads queued or being read after this frame.
+    pub in_flight: usize,
+    /// Every selected node drawn (or failed to load).
+    pub complete: bool,
+    pub select: Duration,
+    pub upload: Duration,
+    pub draw: Duration,
+}
+
+impl Scene {
+    /// A scene over `hierarchy` read through `reader` by `threads` loader threads, with RAM and
+    /// GPU caches of `ram_bytes` and `gpu_bytes`.
+    pub fn new(
+        reader: Arc<dyn PageReader>,
+        hierarchy: Hierarchy,
+        view_bounds: Aabb,
+        threads: usize,
+        ram_bytes: usize,
+        gpu_bytes: usize,
+    ) -> Scene {
+        Scene {
+            origin: hierarchy.root.center(),
+            hierarchy,
+            loader: Loader::new(reader, threads, ram_bytes),
+            buffers: NodeBuffers::new(gpu_bytes),
+            z_range: (view_bounds.min[2], view_bounds.max[2]),
+            view_bounds,
+            colour: ColorBy::Rgb,
+        }
+    }
+
+    /// A scene over a whole dataset. The view bounds are those of the root node's points (a
+    /// sample of the whole) without the outer 0.5 % on each side of each axis.
+    pub fn open(dataset: Arc<myriad_format::Dataset>, ram_bytes: usize, gpu_bytes: usize) -> Scene {
+        let (nodes, _damage) = dataset.nodes();
+        let mut view_bounds = dataset.meta.bounds;
+        if let Some(root) = nodes
+            .iter()
+            .find(|n| n.key == NodeKey::ROOT && n.points > 0)
+            && let Ok(b) = dataset.read_node(root)
+        {
+            let sample = robust_bounds(&b.positions, 0.005);
+            if !sample.is_empty() {
+                view_bounds = sample;
+            }
+        }
+        let h = Hierarchy::new(dataset.meta.root, nodes);
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
+        Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes)
+    }
+
+    /// Changing the scheme drops the GPU buffers (colours are baked into them).
+    pub fn set_colour(&mut self, c: ColorBy) {
+        if c != self.colour {
+            self.colour = c;
+            self.buffers.clear();
+        }
+    }
+
+    pub fn colour(&self) -> ColorBy {
+        self.colour
+    }
+
+    /// Selects for `camera`, requests what is missing and takes in what has landed, without
+    /// waiting for anything.
+    pub fn update(&mut self, camera: &Camera, options: &SelectOptions) -> Selection {
+        let selection = select(&self.hierarchy, camera, options);
+        let wanted: Vec<NodeEntry> = selection
+            .nodes
+            .iter()
+            .filter_map(|n| self.hierarchy.get(&n.key).cloned())
+            .collect();
+        self.loader.request(&wanted);
+        self.loader.poll();
+        selection
+    }
+
+    /// Uploads the selected nodes that are resident but not on the GPU; returns how many.
+    pub fn upload(&mut self, gpu: &Gpu, selection: &Selection) -> usize {
+        self.buffers.next_frame();
+        let mut uploads = 0;
+        for n in &selection.nodes {
+            if self.buffers.touch(&n.key) {
+                continue;
+            }
+            let Some(batch) = self.loader.get(&n.key) else {
+                continue;
+            };
+            let c = colours(&batch, batch.len(), self.colour, self.z_range, n.key.level);
+            let p = Points::upload(gpu, self.origin, &batch.positions, &c);
+            let bytes = p.bytes();
+            self.buffers.insert(n.key, p, bytes);
+            uploads += 1;
+        }
+        uploads
+    }
+
+    /// One frame: select, load (never waiting), upload, draw; the image and what it took.
+    pub fn frame(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        camera: &Camera,
+        options: &SelectOptions,
+        style: &Style,
+    ) -> (Vec<u8>, FrameStats) {
+        let t = Instant::now();
+        let selection = self.update(camera, options);
+        let select = t.elapsed();
+        let t = Instant::now();
+        let uploads = self.upload(gpu, &selection);
+        let upload = t.elapsed();
+        let t = Instant::now();
+        let draws: Vec<_> = selection
+            .nodes
+            .iter()
+            .filter_map(|n| {
+                let p = self.buffers.get(&n.key)?;
+                Some(p.prefix(n.points, n.spacing))
+            })
+            .collect();
+        let image = raster.render(gpu, camera, &draws, style);
+        let failed = self.loader.failed();
+        let stats = FrameStats {
+            selected_nodes: selection.nodes.len(),
+            selected_points: selection.points,
+            nodes: draws.len(),
+            points: draws.iter().map(|d| d.count as u64).sum(),
+            uploads,
+            in_flight: self.loader.in_flight(),
+            complete: selection
+                .nodes
+                .iter()
+                .all(|n| self.buffers.contains(&n.key) || failed.contains_key(&n.key)),
+            select,
+            upload,
+            draw: t.elapsed(),
+        };
+        (image, stats)
+    }
+}

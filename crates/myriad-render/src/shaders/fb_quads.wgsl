@@ -1,0 +1,19 @@
+
+// The quad path's render targets: colour, and the depth buffer (0 at the near plane, 1 at the
+// far plane and where nothing was drawn).
+@group(0) @binding(1) var colour_target: texture_2d<f32>;
+@group(0) @binding(2) var depth_target: texture_depth_2d;
+
+fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
+    let z = textureLoad(depth_target, xy, 0);
+    if (z >= 1.0) {
+        return 0.0;
+    }
+    // The projection maps eye depth w to z = a (1 - near / w), a = far / (far - near).
+    let a = r.far / (r.far - r.near);
+    return r.near / (1.0 - z / a);
+}
+
+fn colour_at(i: u32, xy: vec2<i32>) -> u32 {
+    return pack4x8unorm(textureLoad(colour_target, xy, 0));
+}

@@ -1,0 +1,101 @@
+// The fixed-function path for adapters without 64-bit atomics: each point an instanced quad of
+// the same pixels the compute rasterizer covers, the depth test keeping the nearest.
+
+struct Draw {
+    view_proj: mat4x4<f32>,
+    width: u32,
+    height: u32,
+    count: u32,
+    shape: u32,
+    point_size: f32,
+    spacing: f32,
+    focal: f32,
+    max_size: f32,
+    far: f32,
+    near: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+@group(0) @binding(0) var<uniform> u: Draw;
+
+struct Corner {
+    @builtin(position) position: vec4<f32>,
+    @location(0) colour: vec4<f32>,
+    // Pixels from the square's centre.
+    @location(1) local: vec2<f32>,
+    // Eye depth, and the paraboloid's bulge in the same units.
+    @location(2) @interpolate(flat) depth: vec2<f32>,
+    @location(3) @interpolate(flat) radius2: f32,
+}
+
+const CORNERS = array<vec2<f32>, 6>(
+    vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
+    vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
+);
+
+@vertex
+fn vertex(
+    @builtin(vertex_index) v: u32,
+    @location(0) p: vec3<f32>,
+    @location(1) colour: vec4<f32>,
+) -> Corner {
+    var out: Corner;
+    // Culled: outside every clip volume.
+    out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+    out.colour = colour;
+    out.local = vec2<f32>(0.0);
+    out.depth = vec2<f32>(0.0);
+    out.radius2 = 0.0;
+    let clip = u.view_proj * vec4<f32>(p, 1.0);
+    if (clip.w <= 0.0) {
+        return out;
+    }
+    let ndc = clip.xyz / clip.w;
+    if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < 0.0 || ndc.z > 1.0) {
+        return out;
+    }
+    let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
+    let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
+    var size = u.point_size;
+    if (size <= 0.0) {
+        size = u.spacing * u.focal / clip.w;
+    }
+    let s = clamp(round(size), 1.0, u.max_size);
+    let x0 = floor(fx) - floor((s - 1.0) * 0.5);
+    let y0 = floor(fy) - floor((s - 1.0) * 0.5);
+    let corner = CORNERS[v % 6u];
+    let px = vec2<f32>(x0, y0) + corner * s;
+    let x = px.x / f32(u.width) * 2.0 - 1.0;
+    let y = 1.0 - px.y / f32(u.height) * 2.0;
+    out.position = vec4<f32>(x, y, ndc.z, 1.0);
+    out.local = (corner - vec2<f32>(0.5)) * s;
+    out.depth = vec2<f32>(clip.w, 0.5 * s * clip.w / u.focal);
+    out.radius2 = max(s * s * 0.25, 0.5);
+    return out;
+}
+
+struct Fragment {
+    @location(0) colour: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
+
+@fragment
+fn fragment(in: Corner) -> Fragment {
+    var out: Fragment;
+    out.colour = in.colour;
+    var w = in.depth.x;
+    if (u.shape != 0u) {
+        let d2 = dot(in.local, in.local);
+        if (d2 > in.radius2) {
+            discard;
+        }
+        if (u.shape == 2u) {
+            w = w - in.depth.y * (1.0 - d2 / in.radius2);
+        }
+    }
+    // The same depth the projection gives: a (1 - near / w).
+    let a = u.far / (u.far - u.near);
+    out.depth = clamp(a * (1.0 - u.near / max(w, u.near)), 0.0, 1.0);
+    return out;
+}

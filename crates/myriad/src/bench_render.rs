@@ -1,0 +1,302 @@
+//! `myriad bench render DATASET...`: image quality of the level-of-detail selection and the frame
+//! time of the whole pipeline.
+//!
+//! Quality: for each of the three standard views, the PSNR of the image drawn at `--budget`
+//! against the image of every point (`--full`), next to a baseline that draws the same number of
+//! points picked uniformly at random from the whole dataset, with the same point size and shape
+//! (adaptive sizes: a random subset of a fraction f of the points is drawn at the finest spacing
+//! of its node over the square root of f, the spacing such a subset has on a surface).
+//! Speed: the median time of `--frames` frames at `--frame-budget` once the view has converged
+//! (selection, GPU cache lookups, drawing, resolve and readback), and its parts.
+
+use crate::render::write_png;
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_lod::{Camera, SelectOptions, converge};
+use myriad_render::{Gpu, PointSize, Points, Rasterizer, Scene, Style, colours};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RenderBenchArgs {
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// Point budget of the images compared with the full one
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    budget: u64,
+    /// Point budget of the timed frames
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    frame_budget: u64,
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Timed frames per dataset
+    #[arg(long, default_value_t = 9)]
+    frames: usize,
+    /// Seed of the random baseline
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Write every image compared into this folder (NAME-VIEW-full|lod|random-MODE.png)
+    #[arg(long)]
+    images: Option<PathBuf>,
+}
+
+/// Peak signal-to-noise ratio of RGB between two RGBA8 images, in dB (infinite when equal).
+pub fn psnr(a: &[u8], b: &[u8]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let (mut sum, mut n) = (0.0f64, 0u64);
+    for (p, q) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = p[c] as f64 - q[c] as f64;
+            sum += d * d;
+            n += 1;
+        }
+    }
+    let mse = sum / n.max(1) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    }
+}
+
+/// A small, fast, seeded generator (xorshift64*), so that baselines repeat.
+struct Rng(u64);
+impl Rng {
+    fn next_f64(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545f4914f6cdd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+pub fn run(a: RenderBenchArgs) -> Result<()> {
+    let gpu = Gpu::headless().map_err(anyhow::Error::msg)?;
+    let raster = Rasterizer::new(&gpu);
+    println!(
+        "{} ({:?}), {:?} path, {}x{}; quality at a budget of {} points against every point, \
+         baseline: as many points uniformly at random",
+        gpu.adapter.name,
+        gpu.adapter.device_type,
+        raster.path,
+        a.width,
+        a.height,
+        crate::info::thousands(a.budget)
+    );
+    if let Some(dir) = &a.images {
+        std::fs::create_dir_all(dir)?;
+    }
+    let mut lost = 0;
+    for path in &a.datasets {
+        let ds = Arc::new(Dataset::open(path)?);
+        let name = path
+            .file_stem()
+            .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
+        let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
+        let total = scene.hierarchy.points();
+        println!(
+            "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8}",
+            crate::info::thousands(total),
+            "view",
+            "size",
+            "points",
+            "ours dB",
+            "random dB",
+            "gain"
+        );
+        let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
+        for (view, mut cam) in views {
+            cam.fit_depth(&ds.meta.bounds);
+            for (mode, size) in [
+                ("fixed:1", PointSize::Fixed(1.0)),
+                ("adaptive", PointSize::Adaptive { max: 32.0 }),
+            ] {
+                let style = Style {
+                    size,
+                    ..Style::default()
+                };
+                let full_options = SelectOptions {
+                    budget: u64::MAX,
+                    min_pixels: 0.0,
+                };
+                converge(&mut scene.loader, &scene.hierarchy, &cam, &full_options);
+                let (full, _) = scene.frame(&gpu, &raster, &cam, &full_options, &style);
+                let options = SelectOptions {
+                    budget: a.budget,
+                    min_pixels: 1.0,
+                };
+                let sel = converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
+                let (lod, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+                if stats.points != sel.points {
+                    bail!(
+                        "{name}: {view}: drew {} of {} points",
+                        stats.points,
+                        sel.points
+                    );
+                }
+                let random = random_image(&gpu, &raster, &scene, &cam, &style, sel.points, a.seed)?;
+                let (ours, theirs) = (psnr(&lod, &full), psnr(&random, &full));
+                if ours <= theirs {
+                    lost += 1;
+                }
+                println!(
+                    "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2}",
+                    crate::info::thousands(sel.points),
+                    ours - theirs
+                );
+                if let Some(dir) = &a.images {
+                    for (kind, img) in [("full", &full), ("lod", &lod), ("random", &random)] {
+                        let mode = mode.replace(':', "");
+                        let file = dir.join(format!("{name}-{view}-{kind}-{mode}.png"));
+                        write_png(&file, a.width, a.height, img)?;
+                    }
+                }
+            }
+        }
+
+        // Frame time at the frame budget, in the overview, once converged.
+        let (_, cam) = views[0];
+        let mut cam = cam;
+        cam.fit_depth(&ds.meta.bounds);
+        let options = SelectOptions {
+            budget: a.frame_budget,
+            min_pixels: 1.0,
+        };
+        let style = Style::default();
+        converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
+        scene.frame(&gpu, &raster, &cam, &options, &style);
+        let mut times = Vec::new();
+        let mut points = 0;
+        for _ in 0..a.frames.max(1) {
+            let t = Instant::now();
+            let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+            times.push((
+                t.elapsed().as_secs_f64(),
+                stats.select.as_secs_f64(),
+                stats.draw.as_secs_f64(),
+            ));
+            points = stats.points;
+            std::hint::black_box(img);
+        }
+        times.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let (frame, select, draw) = times[times.len() / 2];
+        println!(
+            "frame at a budget of {}: {} points, median {:.1} ms of {} frames (selection {:.1} ms, \
+             drawing and readback {:.1} ms; min {:.1}, max {:.1}): {:.0} M points/s",
+            crate::info::thousands(a.frame_budget),
+            crate::info::thousands(points),
+            frame * 1e3,
+            times.len(),
+            select * 1e3,
+            draw * 1e3,
+            times[0].0 * 1e3,
+            times[times.len() - 1].0 * 1e3,
+            points as f64 / frame / 1e6,
+        );
+    }
+    if lost > 0 {
+        println!("\nthe random baseline was as good or better in {lost} of the views");
+    } else {
+        println!("\nlevel of detail better than the random baseline in every view");
+    }
+    Ok(())
+}
+
+/// `k` points picked uniformly at random from every point of the scene (all resident), drawn
+/// with `style`.
+fn random_image(
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    scene: &Scene,
+    cam: &Camera,
+    style: &Style,
+    k: u64,
+    seed: u64,
+) -> Result<Vec<u8>> {
+    let total = scene.hierarchy.points();
+    let mut rng = Rng(seed.wrapping_mul(0x9e3779b97f4a7c15) | 1);
+    let (mut seen, mut chosen) = (0u64, 0u64);
+    let mut keys: Vec<_> = scene.hierarchy.keys().collect();
+    keys.sort();
+    let mut sets = Vec::new();
+    let grow = (total as f64 / k.max(1) as f64).sqrt();
+    for key in keys {
+        let entry = scene.hierarchy.get(&key).expect("listed");
+        if entry.points == 0 {
+            continue;
+        }
+        let Some(batch) = scene.loader.get(&key) else {
+            bail!("node {key} not resident");
+        };
+        // Selection sampling (Knuth's algorithm S): exactly k of the total, each equally likely.
+        let mut pick = Vec::new();
+        for i in 0..batch.len() {
+            if ((total - seen) as f64) * rng.next_f64() < (k - chosen) as f64 {
+                pick.push(i);
+                chosen += 1;
+            }
+            seen += 1;
+        }
+        if pick.is_empty() {
+            continue;
+        }
+        let c = colours(
+            &batch,
+            batch.len(),
+            scene.colour(),
+            scene.z_range,
+            key.level,
+        );
+        let positions: Vec<[f64; 3]> = pick.iter().map(|&i| batch.positions[i]).collect();
+        let c: Vec<[u8; 4]> = pick.iter().map(|&i| c[i]).collect();
+        let spacing = entry.spacing.last().copied().unwrap_or(0.0) * grow;
+        sets.push((Points::upload(gpu, scene.origin, &positions, &c), spacing));
+    }
+    if chosen != k {
+        bail!("random baseline picked {chosen} of {k} points");
+    }
+    let draws: Vec<_> = sets.iter().map(|(p, s)| p.all(*s)).collect();
+    Ok(raster.render(gpu, cam, &draws, style))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psnr_of_known_differences() {
+        let a = vec![10u8, 20, 30, 255, 40, 50, 60, 255];
+        assert_eq!(psnr(&a, &a), f64::INFINITY);
+        // One channel of six off by 255: MSE 255^2 / 6, PSNR 10 log10(6).
+        let mut b = a.clone();
+        b[0] = 255;
+        let mse = (245.0f64 * 245.0) / 6.0;
+        assert!((psnr(&a, &b) - 10.0 * (255.0 * 255.0 / mse).log10()).abs() < 1e-9);
+        // Alpha is not compared.
+        let mut c = a.clone();
+        c[3] = 0;
+        assert_eq!(psnr(&a, &c), f64::INFINITY);
+    }
+
+    #[test]
+    fn selection_sampling_takes_exactly_k() {
+        let mut rng = Rng(7);
+        let (total, k) = (10_000u64, 1234u64);
+        let (mut seen, mut chosen) = (0, 0);
+        let mut first_half = 0;
+        for i in 0..total {
+            if ((total - seen) as f64) * rng.next_f64() < (k - chosen) as f64 {
+                chosen += 1;
+                first_half += (i < total / 2) as u64;
+            }
+            seen += 1;
+        }
+        assert_eq!(chosen, k);
+        // Uniform: about half from each half (±5 %).
+        assert!((first_half as f64 - k as f64 / 2.0).abs() < k as f64 * 0.05);
+    }
+}
