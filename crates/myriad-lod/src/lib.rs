@@ -9,6 +9,6 @@ pub mod stream;
 pub mod view;
 
 pub use cache::Lru;
-pub use select::{Hierarchy, SelectOptions, Selected, Selection, select};
+pub use select::{DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select};
 pub use stream::{Loader, PageReader, converge};
 pub use view::{Camera, Frustum, robust_bounds};

@@ -74,7 +74,8 @@ pub struct Selected {
     pub key: NodeKey,
     /// Points to draw: a prefix of the node.
     pub points: u32,
-    /// Spacing of the finest level drawn, in world units; after [`select`] returns, pulled up
+    /// Spacing of the finest level drawn, in world units (a point's size comes from the finest
+    /// drawn node around it: [`DrawnTree`]).
     /// from the finest fully drawn descendants (the adaptive point size).
     pub spacing: f64,
     pub benefit: f64,
@@ -123,6 +124,26 @@ fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
         .max(cam.near)
 }
 
+/// The distance between neighbouring points of each level of detail of a node. A level's cell
+/// size is that distance where the level has a point in every occupied cell, which holds for the
+/// coarse levels; the finest levels of a node hold its leftover points (few, in tiny cells), and
+/// there the cell size says nothing about their density: a level with k times the points of the
+/// level before on the same surface has points 1/sqrt(k) as far apart. The larger of the two.
+pub fn point_spacing(e: &NodeEntry) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(e.spacing.len());
+    for (l, &cell) in e.spacing.iter().enumerate() {
+        let s = match (l, out.last()) {
+            (0, _) | (_, None) => cell,
+            (_, Some(&prev)) => {
+                let k = e.prefix[l] as f64 / e.prefix[l - 1].max(1) as f64;
+                cell.max(prev / k.max(1.0).sqrt())
+            }
+        };
+        out.push(s);
+    }
+    out
+}
+
 /// 003 section 4.3: projected size over the angle between the view direction and the direction
 /// to the node's centre (the angle floored, so a node on the axis does not divide by zero).
 fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
@@ -165,8 +186,8 @@ pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
         let depth = nearest_depth(cam, &cube);
         let ppu = cam.pixels_per_unit(depth);
         // Levels whose spacing still shows; none: the node (and all below) adds nothing.
-        let levels = e
-            .spacing
+        let spacing = point_spacing(e);
+        let levels = spacing
             .iter()
             .take_while(|&&s| s * ppu >= o.min_pixels)
             .count();
@@ -193,7 +214,7 @@ pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
             out.nodes.push(Selected {
                 key,
                 points: count as u32,
-                spacing: e.spacing[drawn_level],
+                spacing: spacing[drawn_level],
                 benefit,
                 depth,
             });
@@ -207,41 +228,83 @@ pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
             }
         }
     }
-    pull_up_spacing(h, &frustum, &mut out);
     out
 }
 
-/// 003 section 4.4: a node whose visible children are all drawn takes the finest spacing among
-/// them (recursively), so its points shrink to the size of the finest points around them.
-fn pull_up_spacing(h: &Hierarchy, frustum: &Frustum, s: &mut Selection) {
-    let index: HashMap<NodeKey, usize> = s
-        .nodes
-        .iter()
-        .enumerate()
-        .map(|(i, n)| (n.key, i))
-        .collect();
-    let mut order: Vec<usize> = (0..s.nodes.len()).collect();
-    order.sort_by_key(|&i| std::cmp::Reverse(s.nodes[i].key.level));
-    for i in order {
-        let key = s.nodes[i].key;
-        let mut finest = f64::INFINITY;
-        let mut all = true;
-        let mut any = false;
-        for c in h.children(&key) {
-            if c.points == 0 || !frustum.intersects(&c.key.bounds(&h.root)) {
-                continue;
-            }
-            match index.get(&c.key) {
-                Some(&j) => {
-                    any = true;
-                    finest = finest.min(s.nodes[j].spacing);
-                }
-                None => all = false,
+/// The drawn nodes as a small octree that the GPU walks per point (adaptive point size, 003
+/// section 4.4 and 002 section 5.1, per point as Potree does): from the point's own node down
+/// through the drawn children that contain it, the spacing of the finest one is the point's. So
+/// a coarse point shrinks where finer nodes are drawn around it, and stays large where nothing
+/// finer is drawn (yet), covering the hole.
+///
+/// Entries in breadth-first order, children of a node contiguous in octant order:
+/// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DrawnTree {
+    pub entries: Vec<[u32; 4]>,
+    pub index: HashMap<NodeKey, u32>,
+}
+
+impl DrawnTree {
+    /// The nodes of `selection` for which `drawn` holds, and their ancestors (as pass-through
+    /// entries when not drawn themselves).
+    pub fn new(selection: &Selection, drawn: impl Fn(&NodeKey) -> bool) -> DrawnTree {
+        let mut spacing: HashMap<NodeKey, f32> = HashMap::new();
+        for n in selection.nodes.iter().filter(|n| drawn(&n.key)) {
+            spacing.insert(n.key, n.spacing as f32);
+            let mut k = n.key;
+            while k.level > 0 {
+                k = k.parent();
+                spacing.entry(k).or_insert(0.0);
             }
         }
-        if any && all {
-            let n = &mut s.nodes[i];
-            n.spacing = n.spacing.min(finest);
+        let mut t = DrawnTree::default();
+        if spacing.is_empty() {
+            return t;
+        }
+        let mut keys = vec![NodeKey::ROOT];
+        let mut i = 0;
+        while i < keys.len() {
+            let key = keys[i];
+            let first = keys.len() as u32;
+            let mut mask = 0u32;
+            for o in 0..8 {
+                let c = key.child(o);
+                if spacing.contains_key(&c) {
+                    mask |= 1 << o;
+                    keys.push(c);
+                }
+            }
+            t.entries.push([mask, first, spacing[&key].to_bits(), 0]);
+            t.index.insert(key, i as u32);
+            i += 1;
+        }
+        t
+    }
+
+    /// The spacing the GPU gives a point at `p` of the drawn node `key` (as the shaders walk
+    /// the tree); None when `key` is not in the tree.
+    pub fn spacing_at(&self, root: &Aabb, key: &NodeKey, p: [f64; 3]) -> Option<f64> {
+        let mut i = *self.index.get(key)? as usize;
+        let mut s = f32::from_bits(self.entries[i][2]) as f64;
+        let mut cube = key.bounds(root);
+        loop {
+            let [mask, first, _, _] = self.entries[i];
+            let c = cube.center();
+            let o = (0..3)
+                .map(|a| ((p[a] >= c[a]) as usize) << a)
+                .sum::<usize>();
+            if mask & (1 << o) == 0 {
+                return Some(s);
+            }
+            i = (first + (mask & ((1 << o) - 1)).count_ones()) as usize;
+            let min: [f64; 3] =
+                std::array::from_fn(|a| if o >> a & 1 == 1 { c[a] } else { cube.min[a] });
+            cube = Aabb::new(min, std::array::from_fn(|a| min[a] + cube.size()[a] / 2.0));
+            let cs = f32::from_bits(self.entries[i][2]) as f64;
+            if cs > 0.0 {
+                s = cs;
+            }
         }
     }
 }
@@ -252,7 +315,8 @@ mod tests {
     use myriad_format::PageRef;
 
     /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
-    /// `per_node` points in 3 LOD levels whose spacing follows the node size.
+    /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
+    /// 16 times the points at a quarter of the spacing).
     fn tree(depth: u32, side: f64, per_node: u32) -> Hierarchy {
         let root = Aabb::new([0.0; 3], [side; 3]);
         let mut entries = Vec::new();
@@ -269,8 +333,8 @@ mod tests {
                         crc: 0,
                     },
                     points: per_node,
-                    prefix: vec![1, per_node / 8, per_node],
-                    spacing: vec![s, s / 8.0, s / 32.0],
+                    prefix: vec![1, per_node / 16, per_node],
+                    spacing: vec![s, s / 4.0, s / 16.0],
                 });
                 next.extend((0..8).map(|o| k.child(o)));
             }
@@ -376,7 +440,7 @@ mod tests {
             &across,
             &SelectOptions {
                 budget: u64::MAX,
-                min_pixels: 4.0,
+                min_pixels: 8.0,
             },
         );
         let deepest = |near: bool| {
@@ -441,7 +505,29 @@ mod tests {
     }
 
     #[test]
-    fn spacing_is_pulled_up_from_drawn_children() {
+    fn point_spacing_follows_density_where_cells_stop_saying() {
+        let e = NodeEntry {
+            key: NodeKey::ROOT,
+            page: PageRef {
+                offset: 64,
+                length: 100,
+                crc: 0,
+            },
+            points: 1300,
+            // Full levels (4x points, half the cell), then leftovers: 20 % more points in
+            // cells 8 and 64 times smaller.
+            prefix: vec![1, 4, 16, 64, 256, 1024, 1229, 1300],
+            spacing: vec![64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 0.25, 0.03125],
+        };
+        let s = point_spacing(&e);
+        assert_eq!(&s[..6], &e.spacing[..6], "full levels: the cell size");
+        let want = 2.0 / (1229.0f64 / 1024.0).sqrt();
+        assert!((s[6] - want).abs() < 1e-9, "{} {want}", s[6]);
+        assert!(s[7] < s[6] && s[7] > 1.5, "{}", s[7]);
+    }
+
+    #[test]
+    fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
         let h = tree(3, 100.0, 4000);
         let s = select(
             &h,
@@ -451,15 +537,36 @@ mod tests {
                 min_pixels: 1e-6,
             },
         );
-        let root = s.nodes.iter().find(|n| n.key == NodeKey::ROOT).unwrap();
-        let finest = s
-            .nodes
-            .iter()
-            .map(|n| n.spacing)
-            .fold(f64::INFINITY, f64::min);
-        // The whole tree is drawn: the root takes the finest spacing of all.
         assert_eq!(s.points, h.points());
-        assert_eq!(root.spacing, finest);
-        assert!(root.spacing < 100.0 / 32.0);
+        let spacing = |k: &NodeKey| s.nodes.iter().find(|n| n.key == *k).unwrap().spacing;
+        // Everything drawn: a root point in the first level-2 cell takes that cell's spacing.
+        let t = DrawnTree::new(&s, |_| true);
+        assert_eq!(t.entries.len(), s.nodes.len());
+        let leaf = NodeKey::ROOT.child(0).child(0);
+        let p = [1.0, 1.0, 1.0];
+        let got = t.spacing_at(&h.root, &NodeKey::ROOT, p).unwrap();
+        assert_eq!(got, spacing(&leaf) as f32 as f64);
+        assert!(got < spacing(&NodeKey::ROOT));
+        // That leaf not drawn (still loading): its parent's spacing there, the leaf's sibling
+        // still its own.
+        let t = DrawnTree::new(&s, |k| *k != leaf);
+        let parent = NodeKey::ROOT.child(0);
+        assert_eq!(
+            t.spacing_at(&h.root, &NodeKey::ROOT, p).unwrap(),
+            spacing(&parent) as f32 as f64
+        );
+        let sibling_point = [30.0, 1.0, 1.0];
+        assert_eq!(
+            t.spacing_at(&h.root, &NodeKey::ROOT, sibling_point)
+                .unwrap(),
+            spacing(&parent.child(1)) as f32 as f64
+        );
+        assert_eq!(t.spacing_at(&h.root, &leaf, p), None);
+        // Only a deep node drawn: its ancestors pass through with no spacing of their own.
+        let t = DrawnTree::new(&s, |k| *k == leaf);
+        assert_eq!(t.entries.len(), 3);
+        assert_eq!(t.entries[0][2], 0);
+        assert_eq!(t.entries[0][0], 1, "only octant 0 below the root");
+        assert!(DrawnTree::new(&s, |_| false).entries.is_empty());
     }
 }

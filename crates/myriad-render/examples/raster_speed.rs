@@ -1,5 +1,6 @@
 //! Frame time of the compute rasterizer: N random points on a terrain-like sheet, 1280 x 720,
-//! frame including the readback; median of 9 frames. The compute path unless `quads` is given.
+//! frame including the readback; median of 9 frames. The compute path unless `quads` is given;
+//! the points in one buffer, or in PARTS buffers (environment) as a frame's nodes are.
 //! `cargo run --release -p myriad-render --example raster_speed [POINTS] [quads]`
 
 use myriad_lod::Camera;
@@ -28,7 +29,17 @@ fn main() {
         colours.push([(x / 4.0) as u8, (y / 4.0) as u8, 128, 255]);
     }
     let bounds = myriad_core_bounds(&positions);
-    let points = Points::upload(&gpu, [500.0, 500.0, 0.0], &positions, &colours);
+    // In as many buffers as PARTS says (a frame draws one per node).
+    let parts: usize = std::env::var("PARTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1);
+    let chunk = n.div_ceil(parts.max(1));
+    let sets: Vec<Points> = positions
+        .chunks(chunk)
+        .zip(colours.chunks(chunk))
+        .map(|(p, c)| Points::upload(&gpu, [500.0, 500.0, 0.0], p, c))
+        .collect();
     let cam = Camera::framing(&bounds, 1280, 720, 60.0);
     let r = match path.as_deref() {
         Some("quads") => Rasterizer::with_path(&gpu, Path::Quads),
@@ -41,7 +52,8 @@ fn main() {
     let mut times = Vec::new();
     for _ in 0..9 {
         let t = std::time::Instant::now();
-        let img = r.render(&gpu, &cam, &[points.all(0.0)], &style);
+        let draws: Vec<_> = sets.iter().map(|p| p.all(0.0)).collect();
+        let img = r.render(&gpu, &cam, &draws, &[], &style);
         times.push(t.elapsed().as_secs_f64() * 1e3);
         std::hint::black_box(img);
     }

@@ -23,8 +23,14 @@ pub type NodeBuffers = myriad_lod::Lru<Points>;
 
 use wgpu::util::DeviceExt;
 
-pub const RASTER_WGSL: &str = include_str!("shaders/raster.wgsl");
-pub const QUADS_WGSL: &str = include_str!("shaders/quads.wgsl");
+pub const RASTER_WGSL: &str = concat!(
+    include_str!("shaders/draw.wgsl"),
+    include_str!("shaders/raster.wgsl")
+);
+pub const QUADS_WGSL: &str = concat!(
+    include_str!("shaders/draw.wgsl"),
+    include_str!("shaders/quads.wgsl")
+);
 /// The resolve pass reading the compute path's framebuffer.
 pub const RESOLVE_ATOMIC_WGSL: &str = concat!(
     include_str!("shaders/resolve.wgsl"),
@@ -115,7 +121,9 @@ impl Points {
                 } else {
                     bytemuck::cast_slice(&data)
                 },
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::COPY_SRC,
             });
         Points {
             origin,
@@ -135,6 +143,7 @@ impl Points {
             points: self,
             count: count.min(self.len),
             spacing,
+            node: None,
         }
     }
 
@@ -151,6 +160,10 @@ pub struct Draw<'a> {
     pub count: u32,
     /// World spacing of these points, for adaptive point sizes.
     pub spacing: f64,
+    /// The node these points belong to, as its index in the drawn tree passed to
+    /// [`Rasterizer::render`] and its cube: each point then takes the spacing of the finest
+    /// drawn node around it ([`myriad_lod::DrawnTree`]). None: `spacing` for every point.
+    pub node: Option<(u32, myriad_core::Aabb)>,
 }
 
 /// How big a point is drawn.
@@ -159,8 +172,22 @@ pub enum PointSize {
     /// This many pixels on a side.
     Fixed(f32),
     /// The spacing of the point's level of detail (pulled up, see `myriad_lod::select`) as seen
-    /// at the point's depth, at most `max` pixels.
-    Adaptive { max: f32 },
+    /// at the point's depth, times `scale`, at most `max` pixels. Points one spacing apart
+    /// leave holes between them (a level's points are one per cell, anywhere in it): the
+    /// default scale closes them.
+    Adaptive { scale: f32, max: f32 },
+}
+
+impl PointSize {
+    pub const ADAPTIVE_SCALE: f32 = 1.5;
+
+    /// Adaptive with the default scale, at most 32 pixels.
+    pub fn adaptive() -> PointSize {
+        PointSize::Adaptive {
+            scale: PointSize::ADAPTIVE_SCALE,
+            max: 32.0,
+        }
+    }
 }
 
 /// The shape of a point on screen.
@@ -215,7 +242,7 @@ pub struct Style {
 impl Default for Style {
     fn default() -> Style {
         Style {
-            size: PointSize::Adaptive { max: 32.0 },
+            size: PointSize::adaptive(),
             shape: Shape::Square,
             edl: None,
             background: [0, 0, 0, 255],

@@ -35,7 +35,21 @@ struct DrawUniforms {
     max_size: f32,
     far: f32,
     near: f32,
-    pad: [f32; 2],
+    node: u32,
+    pad: u32,
+    cube: [f32; 4],
+}
+
+/// A draw's range in the compute path's frame buffer (as `Range` in raster.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Range {
+    cube: [f32; 4],
+    offset: [f32; 4],
+    spacing: f32,
+    node: u32,
+    start: u32,
+    count: u32,
 }
 
 /// The resolve pass's uniforms (as `Resolve` in resolve.wgsl).
@@ -62,6 +76,10 @@ struct Targets {
     depth: Option<wgpu::TextureView>,
     image: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// Compute path: the frame's points, copied from the draws' buffers.
+    merged: Option<wgpu::Buffer>,
+    /// What `merged` holds: (buffer, start, count) of each range copied.
+    copied: std::collections::HashSet<(wgpu::Buffer, u32, u32)>,
 }
 
 enum Pipelines {
@@ -249,12 +267,22 @@ impl Rasterizer {
                 pixels * 4,
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
+            merged: None,
+            copied: Default::default(),
         }
     }
 
     /// Draws `draws` seen by `camera` into a `camera.width` x `camera.height` image and reads it
-    /// back: RGBA8, rows top to bottom.
-    pub fn render(&self, gpu: &Gpu, camera: &Camera, draws: &[Draw], style: &Style) -> Vec<u8> {
+    /// back: RGBA8, rows top to bottom. `tree` is the drawn tree the draws' nodes index
+    /// (`myriad_lod::DrawnTree::entries`; empty when no draw has a node).
+    pub fn render(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        draws: &[Draw],
+        tree: &[[u32; 4]],
+        style: &Style,
+    ) -> Vec<u8> {
         let (w, h) = (camera.width.max(1), camera.height.max(1));
         let pixels = (w * h) as u64;
         let d = &gpu.device;
@@ -262,38 +290,115 @@ impl Rasterizer {
         if guard.as_ref().is_none_or(|t| t.size != (w, h)) {
             *guard = Some(self.targets(gpu, w, h));
         }
+        let draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
+        let (point_size, max_size, scale) = match style.size {
+            PointSize::Fixed(px) => (px.max(1.0), px.max(1.0), 1.0),
+            PointSize::Adaptive { scale, max } => (0.0, max.max(1.0), scale as f64),
+        };
+        let relative = |node: Option<(u32, myriad_core::Aabb)>, o: [f64; 3]| {
+            node.map_or([0.0; 4], |(_, c)| {
+                [
+                    (c.min[0] - o[0]) as f32,
+                    (c.min[1] - o[1]) as f32,
+                    (c.min[2] - o[2]) as f32,
+                    c.size()[0] as f32,
+                ]
+            })
+        };
+        let uniform = |origin: [f64; 3],
+                       count: u32,
+                       spacing: f64,
+                       node: Option<(u32, myriad_core::Aabb)>| DrawUniforms {
+            view_proj: camera.view_proj(origin),
+            width: w,
+            height: h,
+            count,
+            shape: match style.shape {
+                Shape::Square => 0,
+                Shape::Round => 1,
+                Shape::Paraboloid => 2,
+            },
+            point_size,
+            spacing: (spacing * scale) as f32,
+            focal: camera.focal() as f32,
+            max_size,
+            far: camera.far as f32,
+            near: camera.near as f32,
+            node: node.map_or(u32::MAX, |n| n.0),
+            pad: 0,
+            cube: relative(node, origin),
+        };
+        // The compute path draws batches of draws, each copied into one buffer (ranges starting
+        // on workgroup boundaries) and drawn by one dispatch: on lavapipe every dispatch costs
+        // about 2 ms of synchronisation, a frame has hundreds of nodes. A batch is as large as
+        // a storage binding may be.
+        let origin = draws.first().map_or(camera.position, |d| d.points.origin);
+        let mut batches: Vec<Vec<(usize, u32)>> = Vec::new();
+        let mut batch_points = Vec::new();
+        // Per draw in batch order: whether its points must be copied this frame.
+        let mut fresh: Vec<bool> = Vec::new();
+        let limit = d.limits().max_storage_buffer_binding_size as u64 / POINT_BYTES as u64;
+        if self.path == Path::Compute {
+            let mut total = 0u64;
+            for (i, draw) in draws.iter().enumerate() {
+                let n = (draw.count as u64).next_multiple_of(WORKGROUP as u64);
+                if batches.is_empty() || total + n > limit {
+                    batches.push(Vec::new());
+                    batch_points.push(0);
+                    total = 0;
+                }
+                batches.last_mut().expect("pushed").push((i, total as u32));
+                total += n;
+                *batch_points.last_mut().expect("pushed") = total;
+            }
+            let need = batch_points.iter().copied().max().unwrap_or(0) * POINT_BYTES as u64;
+            let t = guard.as_mut().expect("targets made above");
+            if t.merged.as_ref().is_none_or(|b| b.size() < need) {
+                t.merged = Some(
+                    d.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("frame points"),
+                        size: (need + need / 4)
+                            .min(limit * POINT_BYTES as u64)
+                            .max(need)
+                            .max(POINT_BYTES as u64 * WORKGROUP as u64),
+                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    }),
+                );
+                t.copied.clear();
+            }
+            // What the frame buffer already holds from the last frame (one batch only: with
+            // several, each overwrites the last) need not be copied again.
+            let previous = std::mem::take(&mut t.copied);
+            for batch in &batches {
+                for &(i, start) in batch {
+                    let item = (draws[i].points.buffer.clone(), start, draws[i].count);
+                    fresh.push(batches.len() > 1 || !previous.contains(&item));
+                    if batches.len() == 1 {
+                        t.copied.insert(item);
+                    }
+                }
+            }
+        }
         let t = guard.as_ref().expect("targets made above");
 
-        // Every draw's uniforms in one buffer, each at an aligned offset.
-        let draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
+        // Every draw's (quads) or batch's (compute) uniforms in one buffer, at aligned offsets.
+        let specs: Vec<DrawUniforms> = match self.path {
+            Path::Quads => draws
+                .iter()
+                .map(|d| uniform(d.points.origin, d.count, d.spacing, d.node))
+                .collect(),
+            Path::Compute => batch_points
+                .iter()
+                .map(|&n| uniform(origin, (n / WORKGROUP as u64) as u32, 0.0, None))
+                .collect(),
+        };
         let stride = (std::mem::size_of::<DrawUniforms>() as u64)
             .next_multiple_of(d.limits().min_uniform_buffer_offset_alignment as u64);
-        let mut bytes = vec![0u8; (stride as usize * draws.len()).max(stride as usize)];
-        let (point_size, max_size) = match style.size {
-            PointSize::Fixed(px) => (px.max(1.0), px.max(1.0)),
-            PointSize::Adaptive { max } => (0.0, max.max(1.0)),
-        };
-        for (i, draw) in draws.iter().enumerate() {
-            let u = DrawUniforms {
-                view_proj: camera.view_proj(draw.points.origin),
-                width: w,
-                height: h,
-                count: draw.count,
-                shape: match style.shape {
-                    Shape::Square => 0,
-                    Shape::Round => 1,
-                    Shape::Paraboloid => 2,
-                },
-                point_size,
-                spacing: draw.spacing as f32,
-                focal: camera.focal() as f32,
-                max_size,
-                far: camera.far as f32,
-                near: camera.near as f32,
-                pad: [0.0; 2],
-            };
+        let mut bytes = vec![0u8; (stride as usize * specs.len()).max(stride as usize)];
+        for (i, u) in specs.iter().enumerate() {
             bytes[i * stride as usize..][..std::mem::size_of::<DrawUniforms>()]
-                .copy_from_slice(bytemuck::bytes_of(&u));
+                .copy_from_slice(bytemuck::bytes_of(u));
         }
         let uniforms = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("draws"),
@@ -308,33 +413,88 @@ impl Rasterizer {
             })
         };
         let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+        let tree = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("drawn tree"),
+            contents: if tree.is_empty() {
+                &[0u8; 16]
+            } else {
+                bytemuck::cast_slice(tree)
+            },
+            usage: wgpu::BufferUsages::STORAGE,
+        });
 
         let mut enc = d.create_command_encoder(&Default::default());
         match &self.pipelines {
             Pipelines::Compute { raster } => {
                 let fb = t.framebuffer.as_ref().expect("compute targets");
+                let merged = t.merged.as_ref().expect("made above");
                 enc.clear_buffer(fb, 0, None);
                 let layout = raster.get_bind_group_layout(0);
-                let binds: Vec<wgpu::BindGroup> = draws
-                    .iter()
-                    .enumerate()
-                    .map(|(i, draw)| {
-                        d.create_bind_group(&wgpu::BindGroupDescriptor {
-                            label: Some("raster"),
-                            layout: &layout,
-                            entries: &[
-                                entry(0, uniform_at(i)),
-                                entry(1, draw.points.buffer.as_entire_binding()),
-                                entry(2, fb.as_entire_binding()),
+                let mut fresh = fresh.iter();
+                for (b, (batch, &total)) in batches.iter().zip(&batch_points).enumerate() {
+                    let mut ranges = Vec::with_capacity(batch.len());
+                    let mut group_range = Vec::with_capacity((total / WORKGROUP as u64) as usize);
+                    for (k, &(i, start)) in batch.iter().enumerate() {
+                        let draw = draws[i];
+                        if *fresh.next().expect("one per draw") {
+                            enc.copy_buffer_to_buffer(
+                                &draw.points.buffer,
+                                0,
+                                merged,
+                                start as u64 * POINT_BYTES as u64,
+                                draw.count as u64 * POINT_BYTES as u64,
+                            );
+                        }
+                        let o = draw.points.origin;
+                        ranges.push(Range {
+                            cube: relative(draw.node, origin),
+                            offset: [
+                                (o[0] - origin[0]) as f32,
+                                (o[1] - origin[1]) as f32,
+                                (o[2] - origin[2]) as f32,
+                                0.0,
                             ],
+                            spacing: (draw.spacing * scale) as f32,
+                            node: draw.node.map_or(u32::MAX, |n| n.0),
+                            start,
+                            count: draw.count,
+                        });
+                        let groups = draw.count.div_ceil(WORKGROUP);
+                        group_range.extend(std::iter::repeat_n(k as u32, groups as usize));
+                    }
+                    let storage = |label, contents: &[u8]| {
+                        d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some(label),
+                            contents,
+                            usage: wgpu::BufferUsages::STORAGE,
                         })
-                    })
-                    .collect();
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(raster);
-                for (draw, bind) in draws.iter().zip(&binds) {
-                    pass.set_bind_group(0, bind, &[]);
-                    let (x, y) = groups(draw.count);
+                    };
+                    let ranges = storage("ranges", bytemuck::cast_slice(&ranges));
+                    let group_range = storage("group ranges", bytemuck::cast_slice(&group_range));
+                    let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("raster"),
+                        layout: &layout,
+                        entries: &[
+                            (0, uniform_at(b)),
+                            (
+                                1,
+                                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                    buffer: merged,
+                                    offset: 0,
+                                    size: wgpu::BufferSize::new(total * POINT_BYTES as u64),
+                                }),
+                            ),
+                            (2, fb.as_entire_binding()),
+                            (3, tree.as_entire_binding()),
+                            (4, ranges.as_entire_binding()),
+                            (5, group_range.as_entire_binding()),
+                        ]
+                        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
+                    });
+                    let mut pass = enc.begin_compute_pass(&Default::default());
+                    pass.set_pipeline(raster);
+                    pass.set_bind_group(0, &bind, &[]);
+                    let (x, y) = groups(total as u32);
                     pass.dispatch_workgroups(x, y, 1);
                 }
             }
@@ -345,7 +505,7 @@ impl Rasterizer {
                         d.create_bind_group(&wgpu::BindGroupDescriptor {
                             label: Some("quads"),
                             layout: &layout,
-                            entries: &[entry(0, uniform_at(i))],
+                            entries: &[entry(0, uniform_at(i)), entry(3, tree.as_entire_binding())],
                         })
                     })
                     .collect();

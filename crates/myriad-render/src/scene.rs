@@ -7,7 +7,8 @@ use crate::{ColorBy, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
-    Camera, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds, select,
+    Camera, DrawnTree, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds,
+    select,
 };
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -149,15 +150,19 @@ impl Scene {
         let uploads = self.upload(gpu, &selection);
         let upload = t.elapsed();
         let t = Instant::now();
+        let tree = DrawnTree::new(&selection, |k| self.buffers.contains(k));
+        let root = self.hierarchy.root;
         let draws: Vec<_> = selection
             .nodes
             .iter()
             .filter_map(|n| {
                 let p = self.buffers.get(&n.key)?;
-                Some(p.prefix(n.points, n.spacing))
+                let mut d = p.prefix(n.points, n.spacing);
+                d.node = Some((tree.index[&n.key], n.key.bounds(&root)));
+                Some(d)
             })
             .collect();
-        let image = raster.render(gpu, camera, &draws, style);
+        let image = raster.render(gpu, camera, &draws, &tree.entries, style);
         let failed = self.loader.failed();
         let stats = FrameStats {
             selected_nodes: selection.nodes.len(),

@@ -80,7 +80,7 @@ fn points_land_where_the_camera_puts_them() {
         ..fixed(1.0, Shape::Square)
     };
     for r in paths(&gpu) {
-        let img = r.render(&gpu, &cam, &[points.all(0.0)], &style);
+        let img = r.render(&gpu, &cam, &[points.all(0.0)], &[], &style);
         assert_eq!(img.len(), 200 * 100 * 4);
         assert_eq!(px(&img, 200, 100, 50), green, "{:?}: nearer wins", r.path);
         assert_eq!(px(&img, 200, 125, 50), blue, "{:?}", r.path);
@@ -94,9 +94,9 @@ fn points_land_where_the_camera_puts_them() {
             r.path
         );
         // Order of submission does not matter: the same image with the points reversed.
-        assert_eq!(r.render(&gpu, &cam, &[points2.all(0.0)], &style), img);
+        assert_eq!(r.render(&gpu, &cam, &[points2.all(0.0)], &[], &style), img);
         // A prefix draws only its points: the first is red at the centre.
-        let img = r.render(&gpu, &cam, &[points.prefix(1, 0.0)], &style);
+        let img = r.render(&gpu, &cam, &[points.prefix(1, 0.0)], &[], &style);
         assert_eq!(px(&img, 200, 100, 50), red, "{:?}: prefix of one", r.path);
         assert_eq!(px(&img, 200, 125, 50), style.background);
     }
@@ -134,7 +134,13 @@ fn many_points_fill_a_plane() {
         far: 10.0,
     };
     for r in paths(&gpu) {
-        let img = r.render(&gpu, &cam, &[points.all(0.0)], &fixed(1.0, Shape::Square));
+        let img = r.render(
+            &gpu,
+            &cam,
+            &[points.all(0.0)],
+            &[],
+            &fixed(1.0, Shape::Square),
+        );
         let drawn = img.chunks_exact(4).filter(|p| p[0] == 200).count();
         // The plane covers the whole view (±1 at depth 1 with 90 degrees), 4 points per pixel.
         assert_eq!(drawn, 128 * 128, "{:?}", r.path);
@@ -151,7 +157,7 @@ fn point_sizes_and_shapes() {
     for r in paths(&gpu) {
         let path = r.path;
         let render =
-            |spacing: f64, style: Style| lit(&r.render(&gpu, &cam, &[p.all(spacing)], &style));
+            |spacing: f64, style: Style| lit(&r.render(&gpu, &cam, &[p.all(spacing)], &[], &style));
         // Fixed: 5 x 5 pixels; round: without the 4 corners (their centres are 2.83 px out).
         assert_eq!(render(0.0, fixed(5.0, Shape::Square)), 25, "{path:?}");
         assert_eq!(render(0.0, fixed(5.0, Shape::Round)), 21, "{path:?}");
@@ -164,12 +170,63 @@ fn point_sizes_and_shapes() {
         assert_eq!(render(0.0, fixed(9.0, Shape::Round)), disc, "{path:?}");
         // Adaptive: spacing 0.8 at depth 10 is 0.8 * 50 / 10 = 4 pixels (focal 50 for 100 px).
         let adaptive = |max| Style {
-            size: PointSize::Adaptive { max },
+            size: PointSize::Adaptive { scale: 1.0, max },
             ..fixed(1.0, Shape::Square)
         };
         assert_eq!(render(0.8, adaptive(64.0)), 16, "{path:?}");
         // Capped.
         assert_eq!(render(100.0, adaptive(3.0)), 9, "{path:?}");
+        // Scaled: 0.8 * 1.5 at depth 10 is 6 pixels.
+        let scaled = Style {
+            size: PointSize::adaptive(),
+            ..fixed(1.0, Shape::Square)
+        };
+        assert_eq!(render(0.8, scaled), 36, "{path:?}");
+    }
+}
+
+#[test]
+fn adaptive_sizes_come_from_the_finest_drawn_node_around_each_point() {
+    let Some(gpu) = gpu() else { return };
+    let cam = looking_along_y(0.0);
+    let (red, green) = ([255, 0, 0, 255], [0, 255, 0, 255]);
+    // A root node (cube -8..8, spacing 1.6) with one drawn child, octant 0 (spacing 0.4). Both
+    // points belong to the root, at depth 9: one inside the child's cube takes its spacing
+    // (0.4 * 50 / 9 = 2.2: 2 px), the other keeps the root's (1.6 * 50 / 9 = 8.9: 9 px).
+    let p = Points::upload(
+        &gpu,
+        [0.0; 3],
+        &[[-4.0, -1.0, -4.0], [4.0, -1.0, 4.0]],
+        &[red, green],
+    );
+    let tree = [[1, 1, 1.6f32.to_bits(), 0], [0, 0, 0.4f32.to_bits(), 0]];
+    let cube = myriad_core::Aabb::new([-8.0; 3], [8.0; 3]);
+    let style = Style {
+        size: PointSize::Adaptive {
+            scale: 1.0,
+            max: 64.0,
+        },
+        ..fixed(1.0, Shape::Square)
+    };
+    let count = |img: &[u8], c: [u8; 4]| img.chunks_exact(4).filter(|p| *p == c).count();
+    for r in paths(&gpu) {
+        let mut d = p.all(1.6);
+        d.node = Some((0, cube));
+        let img = r.render(&gpu, &cam, &[d], &tree, &style);
+        assert_eq!(
+            (count(&img, red), count(&img, green)),
+            (4, 81),
+            "{:?}",
+            r.path
+        );
+        // Without the tree: both 9 px.
+        let img = r.render(&gpu, &cam, &[p.all(1.6)], &[], &style);
+        assert_eq!(
+            (count(&img, red), count(&img, green)),
+            (81, 81),
+            "{:?}",
+            r.path
+        );
     }
 }
 
@@ -186,7 +243,13 @@ fn paraboloids_meet_halfway() {
         &[a, b],
     );
     for r in paths(&gpu) {
-        let img = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(15.0, Shape::Paraboloid));
+        let img = r.render(
+            &gpu,
+            &cam,
+            &[p.all(0.0)],
+            &[],
+            &fixed(15.0, Shape::Paraboloid),
+        );
         // Centres at pixels 96 and 104: each point owns the overlap on its own side.
         for x in 97..100 {
             assert_eq!(px(&img, 200, x, 50), a, "{:?}: x {x}", r.path);
@@ -195,7 +258,7 @@ fn paraboloids_meet_halfway() {
             assert_eq!(px(&img, 200, x, 50), b, "{:?}: x {x}", r.path);
         }
         // Flat discs at the same depth: one of them takes the whole overlap.
-        let img = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(15.0, Shape::Round));
+        let img = r.render(&gpu, &cam, &[p.all(0.0)], &[], &fixed(15.0, Shape::Round));
         let overlap: Vec<[u8; 4]> = (97..104).map(|x| px(&img, 200, x, 50)).collect();
         assert!(overlap.iter().all(|c| *c == overlap[0]), "{:?}", r.path);
     }
@@ -221,11 +284,12 @@ fn eye_dome_lighting_darkens_behind_edges_only() {
     let grey = [200, 200, 200, 255];
     let p = Points::upload(&gpu, [0.0; 3], &positions, &vec![grey; positions.len()]);
     for r in paths(&gpu) {
-        let plain = r.render(&gpu, &cam, &[p.all(0.0)], &fixed(2.0, Shape::Square));
+        let plain = r.render(&gpu, &cam, &[p.all(0.0)], &[], &fixed(2.0, Shape::Square));
         let lit = r.render(
             &gpu,
             &cam,
             &[p.all(0.0)],
+            &[],
             &Style {
                 edl: Some(Edl::default()),
                 ..fixed(2.0, Shape::Square)
@@ -288,13 +352,16 @@ fn both_paths_draw_the_same_image() {
         fixed(6.0, Shape::Round),
         fixed(6.0, Shape::Paraboloid),
         Style {
-            size: PointSize::Adaptive { max: 16.0 },
+            size: PointSize::Adaptive {
+                scale: 1.0,
+                max: 16.0,
+            },
             edl: Some(Edl::default()),
             ..fixed(1.0, Shape::Round)
         },
     ] {
-        let a = compute.render(&gpu, &cam, &[p.all(0.15)], &style);
-        let b = quads.render(&gpu, &cam, &[p.all(0.15)], &style);
+        let a = compute.render(&gpu, &cam, &[p.all(0.15)], &[], &style);
+        let b = quads.render(&gpu, &cam, &[p.all(0.15)], &[], &style);
         let pixels = a.len() / 4;
         let drawn = a.chunks_exact(4).filter(|c| *c != [0, 0, 0, 255]).count();
         // (Eye-dome lighting turns most of a random cloud nearly black.)

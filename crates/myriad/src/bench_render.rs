@@ -4,16 +4,17 @@
 //! Quality: for each of the three standard views, the PSNR of the image drawn at `--budget`
 //! against the image of every point (`--full`), next to a baseline that draws the same number of
 //! points picked uniformly at random from the whole dataset, with the same point size and shape
-//! (adaptive sizes: a random subset of a fraction f of the points is drawn at the finest spacing
-//! of its node over the square root of f, the spacing such a subset has on a surface).
+//! (adaptive sizes: a random subset of a fraction f of the points is drawn at the finest point
+//! spacing of its node over the square root of f, the spacing such a subset has on a surface).
 //! Speed: the median time of `--frames` frames at `--frame-budget` once the view has converged
-//! (selection, GPU cache lookups, drawing, resolve and readback), and its parts.
+//! (selection, GPU cache lookups, drawing, resolve and readback), and its parts; in the overview,
+//! without a pixel threshold, so that the frames draw the whole budget.
 
 use crate::render::write_png;
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
-use myriad_lod::{Camera, SelectOptions, converge};
+use myriad_lod::{Camera, SelectOptions, converge, point_spacing};
 use myriad_render::{Gpu, PointSize, Points, Rasterizer, Scene, Style, colours};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -36,6 +37,9 @@ pub struct RenderBenchArgs {
     /// Timed frames per dataset
     #[arg(long, default_value_t = 9)]
     frames: usize,
+    /// Scale of the adaptive point size
+    #[arg(long, default_value_t = PointSize::ADAPTIVE_SCALE)]
+    scale: f32,
     /// Seed of the random baseline
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -113,7 +117,13 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             cam.fit_depth(&ds.meta.bounds);
             for (mode, size) in [
                 ("fixed:1", PointSize::Fixed(1.0)),
-                ("adaptive", PointSize::Adaptive { max: 32.0 }),
+                (
+                    "adaptive",
+                    PointSize::Adaptive {
+                        scale: a.scale,
+                        max: 32.0,
+                    },
+                ),
             ] {
                 let style = Style {
                     size,
@@ -158,45 +168,54 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             }
         }
 
-        // Frame time at the frame budget, in the overview, once converged.
+        // Frame time at the frame budget, in the overview, once converged; no pixel threshold,
+        // so that the budget is what stops the selection.
         let (_, cam) = views[0];
         let mut cam = cam;
         cam.fit_depth(&ds.meta.bounds);
         let options = SelectOptions {
             budget: a.frame_budget,
-            min_pixels: 1.0,
+            min_pixels: 0.0,
         };
-        let style = Style::default();
         converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
-        scene.frame(&gpu, &raster, &cam, &options, &style);
-        let mut times = Vec::new();
-        let mut points = 0;
-        for _ in 0..a.frames.max(1) {
-            let t = Instant::now();
-            let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
-            times.push((
-                t.elapsed().as_secs_f64(),
-                stats.select.as_secs_f64(),
-                stats.draw.as_secs_f64(),
-            ));
-            points = stats.points;
-            std::hint::black_box(img);
+        for (mode, size) in [
+            ("adaptive", PointSize::adaptive()),
+            ("fixed:1", PointSize::Fixed(1.0)),
+        ] {
+            let style = Style {
+                size,
+                ..Style::default()
+            };
+            scene.frame(&gpu, &raster, &cam, &options, &style);
+            let mut times = Vec::new();
+            let mut points = 0;
+            for _ in 0..a.frames.max(1) {
+                let t = Instant::now();
+                let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+                times.push((
+                    t.elapsed().as_secs_f64(),
+                    stats.select.as_secs_f64(),
+                    stats.draw.as_secs_f64(),
+                ));
+                points = stats.points;
+                std::hint::black_box(img);
+            }
+            times.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let (frame, select, draw) = times[times.len() / 2];
+            println!(
+                "frame, {mode} size, budget {}: {} points in {} frames: median {:.1} ms (selection \
+                 {:.1} ms, drawing and readback {:.1} ms; min {:.1}, max {:.1}), {:.1} M points/s",
+                crate::info::thousands(a.frame_budget),
+                crate::info::thousands(points),
+                times.len(),
+                frame * 1e3,
+                select * 1e3,
+                draw * 1e3,
+                times[0].0 * 1e3,
+                times[times.len() - 1].0 * 1e3,
+                points as f64 / frame / 1e6,
+            );
         }
-        times.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let (frame, select, draw) = times[times.len() / 2];
-        println!(
-            "frame at a budget of {}: {} points, median {:.1} ms of {} frames (selection {:.1} ms, \
-             drawing and readback {:.1} ms; min {:.1}, max {:.1}): {:.0} M points/s",
-            crate::info::thousands(a.frame_budget),
-            crate::info::thousands(points),
-            frame * 1e3,
-            times.len(),
-            select * 1e3,
-            draw * 1e3,
-            times[0].0 * 1e3,
-            times[times.len() - 1].0 * 1e3,
-            points as f64 / frame / 1e6,
-        );
     }
     if lost > 0 {
         println!("\nthe random baseline was as good or better in {lost} of the views");
@@ -253,14 +272,14 @@ fn random_image(
         );
         let positions: Vec<[f64; 3]> = pick.iter().map(|&i| batch.positions[i]).collect();
         let c: Vec<[u8; 4]> = pick.iter().map(|&i| c[i]).collect();
-        let spacing = entry.spacing.last().copied().unwrap_or(0.0) * grow;
+        let spacing = point_spacing(entry).last().copied().unwrap_or(0.0) * grow;
         sets.push((Points::upload(gpu, scene.origin, &positions, &c), spacing));
     }
     if chosen != k {
         bail!("random baseline picked {chosen} of {k} points");
     }
     let draws: Vec<_> = sets.iter().map(|(p, s)| p.all(*s)).collect();
-    Ok(raster.render(gpu, cam, &draws, style))
+    Ok(raster.render(gpu, cam, &draws, &[], style))
 }
 
 #[cfg(test)]

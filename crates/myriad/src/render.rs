@@ -29,13 +29,26 @@ fn parse_color(s: &str) -> Result<ColorBy, String> {
 
 fn parse_point_size(s: &str) -> Result<PointSize, String> {
     if s == "adaptive" {
-        return Ok(PointSize::Adaptive { max: 32.0 });
+        return Ok(PointSize::adaptive());
+    }
+    if let Some(scale) = s.strip_prefix("adaptive:") {
+        return match scale.parse::<f32>() {
+            Ok(v) if (0.1..=10.0).contains(&v) => Ok(PointSize::Adaptive {
+                scale: v,
+                max: 32.0,
+            }),
+            _ => Err(format!(
+                "\"{s}\": the scale of adaptive:SCALE is from 0.1 to 10"
+            )),
+        };
     }
     s.strip_prefix("fixed:")
         .and_then(|v| v.parse::<f32>().ok())
         .filter(|v| (1.0..=64.0).contains(v))
         .map(PointSize::Fixed)
-        .ok_or_else(|| format!("\"{s}\": expected adaptive or fixed:PX with PX from 1 to 64"))
+        .ok_or_else(|| {
+            format!("\"{s}\": expected adaptive, adaptive:SCALE or fixed:PX with PX from 1 to 64")
+        })
 }
 
 fn parse_shape(s: &str) -> Result<Shape, String> {
@@ -64,6 +77,9 @@ pub struct RenderArgs {
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the whole dataset from above at 45 degrees]
     #[arg(long, value_parser = parse_floats::<6>)]
     camera: Option<[f64; 6]>,
+    /// One of the standard views instead of --camera: overview (the default), top, close
+    #[arg(long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
+    view: Option<String>,
     /// Up direction
     #[arg(long, value_parser = parse_floats::<3>, default_value = "0,0,1")]
     up: [f64; 3],
@@ -151,16 +167,27 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
     scene.set_colour(a.color);
-    let cam = camera(
-        &scene.view_bounds,
-        &ds.meta.bounds,
-        a.camera,
-        a.up,
-        a.width,
-        a.height,
-        a.fov,
-    )?;
-
+    let cam = match a.view.as_deref() {
+        Some(v) => {
+            let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
+            let mut cam = views.iter().find(|(n, _)| *n == v).expect("clap checked").1;
+            cam.fov_y = a.fov;
+            cam.fit_depth(&ds.meta.bounds);
+            cam
+        }
+        None => camera(
+            &scene.view_bounds,
+            &ds.meta.bounds,
+            a.camera,
+            a.up,
+            a.width,
+            a.height,
+            a.fov,
+        )?,
+    };
+    if std::env::var_os("MYRIAD_PRINT_CAMERA").is_some() {
+        eprintln!("{cam:?}");
+    }
     // First image: as soon as the first selected node (the root) is in.
     let first = scene.update(&cam, &options);
     if let Some(root) = first.nodes.first() {

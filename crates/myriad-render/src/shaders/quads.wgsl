@@ -1,24 +1,6 @@
 // The fixed-function path for adapters without 64-bit atomics: each point an instanced quad of
 // the same pixels the compute rasterizer covers, the depth test keeping the nearest.
 
-struct Draw {
-    view_proj: mat4x4<f32>,
-    width: u32,
-    height: u32,
-    count: u32,
-    shape: u32,
-    point_size: f32,
-    spacing: f32,
-    focal: f32,
-    max_size: f32,
-    far: f32,
-    near: f32,
-    pad1: f32,
-    pad2: f32,
-}
-
-@group(0) @binding(0) var<uniform> u: Draw;
-
 struct Corner {
     @builtin(position) position: vec4<f32>,
     @location(0) colour: vec4<f32>,
@@ -57,11 +39,7 @@ fn vertex(
     }
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
-    var size = u.point_size;
-    if (size <= 0.0) {
-        size = u.spacing * u.focal / clip.w;
-    }
-    let s = clamp(round(size), 1.0, u.max_size);
+    let s = point_pixels(p, clip.w, u.spacing, u.node, u.cube);
     let x0 = floor(fx) - floor((s - 1.0) * 0.5);
     let y0 = floor(fy) - floor((s - 1.0) * 0.5);
     let corner = CORNERS[v % 6u];

@@ -1,29 +1,24 @@
 // Compute rasterizer (after Schütz et al. 2021): one thread per point projects it and keeps the
 // nearest point per pixel with a 64-bit atomicMax of (reversed linear depth << 32 | colour).
+// One dispatch draws every node of a frame: their points are copied into one buffer, each
+// draw's range starting on a workgroup boundary, and each workgroup looks up its draw.
 
-struct Draw {
-    view_proj: mat4x4<f32>,
-    width: u32,
-    height: u32,
-    count: u32,
-    // 0 square, 1 round, 2 paraboloid.
-    shape: u32,
-    // Fixed point size in pixels; 0: adaptive, the world `spacing` projected at each point.
-    point_size: f32,
+// One draw's range in `points` and what its points need (`Draw`'s per-draw fields).
+struct Range {
+    // The node's cube relative to the frame's origin: min corner, side.
+    cube: vec4<f32>,
+    // Added to the draw's positions: its origin minus the frame's.
+    offset: vec4<f32>,
     spacing: f32,
-    // Pixels per unit of length at depth 1.
-    focal: f32,
-    max_size: f32,
-    // Depth keys are linear in eye depth over 0..far.
-    far: f32,
-    near: f32,
-    pad1: f32,
-    pad2: f32,
+    node: u32,
+    start: u32,
+    count: u32,
 }
 
-@group(0) @binding(0) var<uniform> u: Draw;
-// xyz relative to the upload origin; w: the colour, RGBA8 as bits.
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> ranges: array<Range>;
+// The range each workgroup draws from; `u.count` is the number of workgroups.
+@group(0) @binding(5) var<storage, read> group_range: array<u32>;
 @group(0) @binding(2) var<storage, read_write> framebuffer: array<atomic<u64>>;
 
 // Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
@@ -33,15 +28,22 @@ fn depth_key(w: f32) -> u32 {
 
 @compute @workgroup_size(128)
 fn rasterize(
-    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     // Dispatches are 2D when there are more than 65535 workgroups.
-    let i = id.y * groups.x * 128u + id.x;
-    if (i >= u.count) {
+    let g = group.y * groups.x + group.x;
+    if (g >= u.count) {
         return;
     }
-    let p = points[i];
+    let r = ranges[group_range[g]];
+    let local = g * 128u + lane - r.start;
+    if (local >= r.count) {
+        return;
+    }
+    let stored = points[r.start + local];
+    let p = vec4<f32>(stored.xyz + r.offset.xyz, stored.w);
     let clip = u.view_proj * vec4<f32>(p.xyz, 1.0);
     if (clip.w <= 0.0) {
         return;
@@ -53,11 +55,13 @@ fn rasterize(
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     let colour = u64(bitcast<u32>(p.w));
-    var size = u.point_size;
-    if (size <= 0.0) {
-        size = u.spacing * u.focal / clip.w;
+    let s = i32(point_pixels(p.xyz, clip.w, r.spacing, r.node, r.cube));
+    if (s == 1) {
+        let x = u32(fx);
+        let y = u32(fy);
+        atomicMax(&framebuffer[y * u.width + x], (u64(depth_key(clip.w)) << 32u) | colour);
+        return;
     }
-    let s = i32(clamp(round(size), 1.0, u.max_size));
     // A square of s x s pixels centred on the point.
     let x0 = i32(floor(fx)) - (s - 1) / 2;
     let y0 = i32(floor(fy)) - (s - 1) / 2;

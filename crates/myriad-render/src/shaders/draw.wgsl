@@ -1,0 +1,63 @@
+// What every draw of points shares (the compute and quad paths both start with this): the
+// draw's uniforms, and the tree of drawn nodes that adaptive point sizes walk.
+
+struct Draw {
+    view_proj: mat4x4<f32>,
+    width: u32,
+    height: u32,
+    count: u32,
+    // 0 square, 1 round, 2 paraboloid.
+    shape: u32,
+    // Fixed point size in pixels; 0: adaptive, the world `spacing` projected at each point.
+    point_size: f32,
+    spacing: f32,
+    // Pixels per unit of length at depth 1.
+    focal: f32,
+    max_size: f32,
+    // Depth keys are linear in eye depth over 0..far.
+    far: f32,
+    near: f32,
+    // This draw's node in `tree`, or 0xffffffff: its own spacing for every point.
+    node: u32,
+    pad: u32,
+    // The node's cube relative to the origin: min corner, side.
+    cube: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> u: Draw;
+// The drawn nodes (myriad_lod::DrawnTree): child mask, first child, spacing bits (0: not drawn).
+@group(0) @binding(3) var<storage, read> tree: array<vec4<u32>>;
+
+// Pixels on a side for a point at `p` (relative to the origin) at eye depth `w`: fixed, or the
+// spacing of the finest drawn node around it, as seen. `draw_spacing`, `node` and `cube` are the
+// point's draw's (as in `Draw`).
+fn point_pixels(p: vec3<f32>, w: f32, draw_spacing: f32, node: u32, cube: vec4<f32>) -> f32 {
+    if (u.point_size > 0.0) {
+        return clamp(round(u.point_size), 1.0, u.max_size);
+    }
+    var spacing = draw_spacing;
+    if (node != 0xffffffffu) {
+        var i = node;
+        var lo = cube.xyz;
+        var side = cube.w;
+        // The style's scale: the draw's spacing over its node's own.
+        let own = bitcast<f32>(tree[i].z);
+        let scale = select(1.0, draw_spacing / own, own > 0.0);
+        for (var depth = 0; depth < 32; depth++) {
+            let e = tree[i];
+            side = side * 0.5;
+            let mid = lo + vec3<f32>(side);
+            let o = select(0u, 1u, p.x >= mid.x) | select(0u, 2u, p.y >= mid.y) | select(0u, 4u, p.z >= mid.z);
+            if ((e.x & (1u << o)) == 0u) {
+                break;
+            }
+            i = e.y + countOneBits(e.x & ((1u << o) - 1u));
+            lo = lo + vec3<f32>(f32(o & 1u), f32((o >> 1u) & 1u), f32((o >> 2u) & 1u)) * side;
+            let s = bitcast<f32>(tree[i].z);
+            if (s > 0.0) {
+                spacing = s * scale;
+            }
+        }
+    }
+    return clamp(round(spacing * u.focal / w), 1.0, u.max_size);
+}
