@@ -623,4 +623,71 @@ fn render_a_converted_scan_to_png() {
         "1,2,3",
     ]);
     assert_eq!(r.code, 2);
+    for bad in [
+        &["--shape", "hexagon"][..],
+        &["--point-size", "adaptive:0"],
+        &["--view", "sideways"],
+        &["--raster", "rays"],
+    ] {
+        let mut args = vec!["render", s(&out), "-o", s(&png_path), "--force"];
+        args.extend_from_slice(bad);
+        assert_eq!(myriad(&args).code, 2, "{bad:?}");
+    }
+    let r = myriad(&[
+        "render",
+        s(&out),
+        "-o",
+        s(&png_path),
+        "--force",
+        "--camera",
+        "5,5,5,5,5,5",
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("the eye and the target"), "{}", r.stderr);
+
+    // Every option a user has: both paths, shapes, eye-dome lighting, the standard views, a
+    // colour scheme; each image shows the scan.
+    let decode = |path: &std::path::Path| {
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut img = vec![0; reader.output_buffer_size().unwrap()];
+        reader.next_frame(&mut img).unwrap();
+        img
+    };
+    for extra in [
+        &["--raster", "quads"][..],
+        &["--shape", "round", "--edl"],
+        &["--shape", "paraboloid", "--point-size", "fixed:3"],
+        &["--view", "top", "--color", "classification"],
+        &[
+            "--view",
+            "close",
+            "--point-size",
+            "adaptive:1",
+            "--budget",
+            "50k",
+        ],
+    ] {
+        let mut args = vec![
+            "render",
+            s(&out),
+            "-o",
+            s(&png_path),
+            "--force",
+            "--width",
+            "320",
+            "--height",
+            "200",
+        ];
+        args.extend_from_slice(extra);
+        let r = myriad(&args);
+        assert_eq!(r.code, 0, "{extra:?}: {}", r.stderr);
+        let img = decode(&png_path);
+        let lit = img.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count();
+        assert!(
+            lit > 320 * 200 / 20,
+            "{extra:?}: {lit} pixels show the scan"
+        );
+    }
 }

@@ -1,0 +1,165 @@
+//! The whole frame pipeline with a page reader that only answers when the test lets it: frames
+//! keep coming while pages are out (the frame loop never waits for I/O), nothing is drawn where
+//! nothing has landed, and the image refines as pages land: first the root, then its children.
+
+use myriad_core::{Aabb, Attribute, NodeKey, PointBatch, Schema};
+use myriad_format::{NodeEntry, PageRef};
+use myriad_lod::{Camera, Hierarchy, PageReader, SelectOptions};
+use myriad_render::{ColorBy, Gpu, PointSize, Rasterizer, Scene, Style};
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// A flat square 0..64 x 0..64 at z = 0: the root holds a coarse grid (spacing 8), each of the
+/// four children of the bottom layer a fine grid (spacing 1) over its quarter.
+fn node_points(key: &NodeKey) -> Vec<[f64; 3]> {
+    let (step, x0, y0, side) = if key.level == 0 {
+        (8.0, 0.0, 0.0, 64.0)
+    } else {
+        (
+            1.0,
+            key.cell[0] as f64 * 32.0,
+            key.cell[1] as f64 * 32.0,
+            32.0,
+        )
+    };
+    let n = (side / step) as usize;
+    (0..n * n)
+        .map(|i| {
+            [
+                x0 + (i % n) as f64 * step + step / 2.0,
+                y0 + (i / n) as f64 * step + step / 2.0,
+                0.0,
+            ]
+        })
+        .collect()
+}
+
+fn entry(key: NodeKey) -> NodeEntry {
+    let n = node_points(&key).len() as u32;
+    let spacing = if key.level == 0 { 8.0 } else { 1.0 };
+    NodeEntry {
+        key,
+        page: PageRef {
+            offset: 64,
+            length: 100,
+            crc: 0,
+        },
+        points: n,
+        prefix: vec![n],
+        spacing: vec![spacing],
+    }
+}
+
+/// Answers one read per permit.
+struct Gated {
+    permits: Mutex<Receiver<()>>,
+}
+
+impl PageReader for Gated {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        self.permits
+            .lock()
+            .unwrap()
+            .recv()
+            .map_err(|_| "closed".to_string())?;
+        let schema = Schema::new(vec![Attribute::Rgb]);
+        let points = node_points(&node.key);
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        for p in points {
+            b.positions.push(p);
+            b.rgb.as_mut().unwrap().push([255, 255, 255]);
+        }
+        Ok(b)
+    }
+}
+
+#[test]
+fn frames_keep_coming_while_pages_load_and_the_image_refines() {
+    let gpu = match Gpu::headless() {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("SKIPPED: {e}; rendering tests need a Vulkan driver (CI installs lavapipe)");
+            return;
+        }
+    };
+    let root = Aabb::new([0.0; 3], [64.0; 3]);
+    let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+    let h = Hierarchy::new(root, keys.map(entry));
+    let (permit, permits): (Sender<()>, _) = channel();
+    let reader = Arc::new(Gated {
+        permits: Mutex::new(permits),
+    });
+    let mut scene = Scene::new(reader, h, root, 1, usize::MAX, usize::MAX);
+    // Declared after the scene, so dropped before it: a loader thread waiting for a permit
+    // then ends (and a failing test does not hang).
+    let permit = permit;
+    scene.set_colour(ColorBy::Rgb);
+    let raster = Rasterizer::new(&gpu);
+    // Straight down on the square, which fills most of the view.
+    let cam = Camera {
+        position: [32.0, 32.0, 80.0],
+        target: [32.0, 32.0, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 60.0,
+        width: 160,
+        height: 160,
+        near: 1.0,
+        far: 200.0,
+    };
+    let options = SelectOptions {
+        budget: 1_000_000,
+        min_pixels: 0.5,
+    };
+    let style = Style {
+        size: PointSize::Fixed(1.0),
+        ..Style::default()
+    };
+    let lit = |img: &[u8]| img.chunks_exact(4).filter(|p| p[0] == 255).count();
+    let frame = |scene: &mut Scene| {
+        let t = Instant::now();
+        let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+        (lit(&img), stats, t.elapsed())
+    };
+
+    // Nothing has landed: frames come anyway, empty.
+    for _ in 0..3 {
+        let (pixels, stats, took) = frame(&mut scene);
+        assert_eq!(pixels, 0);
+        assert_eq!(stats.points, 0);
+        assert!(!stats.complete);
+        assert!(took < Duration::from_secs(5), "a frame took {took:?}");
+    }
+    // The root lands: its coarse grid is drawn; the children are still out.
+    permit.send(()).unwrap();
+    let mut coarse = (0, Default::default(), Duration::ZERO);
+    let t = Instant::now();
+    while coarse.0 == 0 && t.elapsed() < Duration::from_secs(30) {
+        coarse = frame(&mut scene);
+    }
+    assert_eq!(coarse.0, 64, "the root's 8 x 8 grid");
+    assert_eq!(coarse.1.points, 64);
+    assert!(coarse.1.in_flight > 0 && !coarse.1.complete);
+    // More frames while the children are blocked: the same image, no waiting.
+    for _ in 0..3 {
+        let (pixels, stats, _) = frame(&mut scene);
+        assert_eq!((pixels, stats.points), (64, 64));
+    }
+    // The children land one by one: more points each time, then complete.
+    let mut last = 64;
+    for landed in 1..=4 {
+        permit.send(()).unwrap();
+        let t = Instant::now();
+        let mut now = frame(&mut scene);
+        let want = 64 + landed * 1024;
+        while now.1.points < want && t.elapsed() < Duration::from_secs(30) {
+            now = frame(&mut scene);
+        }
+        assert_eq!(now.1.points, want, "after {landed} children landed");
+        assert!(now.0 > last, "the image refines: {} -> {}", last, now.0);
+        last = now.0;
+        if landed == 4 {
+            assert!(now.1.complete && now.1.in_flight == 0);
+        }
+    }
+}
