@@ -1,7 +1,7 @@
 //! Frame time of the compute rasterizer: N random points on a terrain-like sheet, 1280 x 720,
-//! frame including the readback; median of 9 frames. The compute path unless `quads` is given;
+//! frame including the readback; median of 9 frames. The compute path unless `quads` (or `cpu`) is given;
 //! the points in one buffer, or in PARTS buffers (environment) as a frame's nodes are.
-//! `cargo run --release -p myriad-render --example raster_speed [POINTS] [quads]`
+//! `cargo run --release -p myriad-render --example raster_speed [POINTS] [quads|cpu]`
 
 use myriad_lod::Camera;
 use myriad_render::{Gpu, Path, PointSize, Points, Rasterizer, Style};
@@ -12,7 +12,10 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(5_000_000);
     let path = std::env::args().nth(2);
-    let gpu = Gpu::headless().expect("a GPU adapter with 64-bit atomics");
+    let gpu = match std::env::args().nth(2).as_deref() {
+        Some("cpu") => Gpu::cpu(),
+        _ => Gpu::headless().expect("a GPU adapter"),
+    };
     let mut s = 0x9e3779b97f4a7c15u64;
     let mut next = || {
         s ^= s << 13;
@@ -59,8 +62,8 @@ fn main() {
     }
     times.sort_by(f64::total_cmp);
     println!(
-        "{} ({:?}), {:?} path: {n} points, 1280x720: median frame {:.1} ms (min {:.1}, max {:.1})",
-        gpu.adapter.name, gpu.adapter.device_type, r.path, times[4], times[0], times[8]
+        "{}, {:?} path: {n} points, 1280x720: median frame {:.1} ms (min {:.1}, max {:.1})",
+        gpu.name, r.path, times[4], times[0], times[8]
     );
 }
 

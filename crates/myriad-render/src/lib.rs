@@ -11,6 +11,7 @@
 //! whole pipeline (selection, loading, upload, drawing).
 
 mod colour;
+mod cpu;
 mod raster;
 mod scene;
 
@@ -42,13 +43,15 @@ pub const RESOLVE_QUADS_WGSL: &str = concat!(
     include_str!("shaders/fb_quads.wgsl")
 );
 
-/// A device and queue, without a window.
+/// Where frames are drawn: a GPU device and queue (without a window), or the CPU.
 pub struct Gpu {
-    pub device: wgpu::Device,
-    pub queue: wgpu::Queue,
-    pub adapter: wgpu::AdapterInfo,
+    wgpu: Option<(wgpu::Device, wgpu::Queue)>,
+    /// The adapter's name and type, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) (Cpu)".
+    pub name: String,
     /// The device has 64-bit integer atomics (the compute path).
     pub atomics: bool,
+    /// A software rasterizer (lavapipe, llvmpipe, SwiftShader, WARP).
+    pub software: bool,
 }
 
 impl Gpu {
@@ -78,22 +81,72 @@ impl Gpu {
         }))
         .map_err(|e| format!("{}: {e}", info.name))?;
         Ok(Gpu {
-            device,
-            queue,
-            adapter: info,
+            wgpu: Some((device, queue)),
+            name: format!("{} ({:?})", info.name, info.device_type),
             atomics,
+            software: info.device_type == wgpu::DeviceType::Cpu,
         })
+    }
+
+    /// The CPU: the compute path's algorithm on all cores.
+    pub fn cpu() -> Gpu {
+        Gpu {
+            wgpu: None,
+            name: format!(
+                "CPU ({} threads)",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            ),
+            atomics: false,
+            software: true,
+        }
+    }
+
+    /// For headless images: a hardware GPU if there is one, else the CPU, with why there is no
+    /// adapter at all. A software adapter is passed over: on the 2-core machines here the CPU
+    /// path draws the same frames in half of lavapipe's time (`myriad bench render --cpu`).
+    pub fn best() -> (Gpu, Option<String>) {
+        match Gpu::headless() {
+            Ok(g) if !g.software => (g, None),
+            Ok(_) => (Gpu::cpu(), None),
+            // wgpu's reason lists every backend; its first clause says it.
+            Err(e) => (
+                Gpu::cpu(),
+                Some(e.split(';').next().unwrap_or(&e).trim().to_string()),
+            ),
+        }
+    }
+
+    pub fn is_cpu(&self) -> bool {
+        self.wgpu.is_none()
+    }
+
+    /// The wgpu device and queue; None on the CPU.
+    pub fn wgpu(&self) -> Option<(&wgpu::Device, &wgpu::Queue)> {
+        self.wgpu.as_ref().map(|(d, q)| (d, q))
+    }
+
+    fn device(&self) -> &wgpu::Device {
+        &self.wgpu.as_ref().expect("a GPU path on a GPU").0
+    }
+    fn queue(&self) -> &wgpu::Queue {
+        &self.wgpu.as_ref().expect("a GPU path on a GPU").1
     }
 }
 
 /// Bytes per point on the GPU: position relative to the origin (3 x f32) and RGBA8.
 pub const POINT_BYTES: usize = 16;
 
-/// Points on the GPU: positions relative to `origin` (f32) and an RGBA8 colour each.
+/// Points to draw: positions relative to `origin` (f32) and an RGBA8 colour each, in a GPU
+/// buffer (or in memory, for the CPU).
 pub struct Points {
     pub origin: [f64; 3],
-    buffer: wgpu::Buffer,
+    storage: Storage,
     pub len: u32,
+}
+
+enum Storage {
+    Gpu(wgpu::Buffer),
+    Cpu(Vec<[f32; 4]>),
 }
 
 impl Points {
@@ -111,30 +164,52 @@ impl Points {
                 ]
             })
             .collect();
-        let buffer = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("points"),
-                // An empty storage binding is not allowed: keep one dummy element.
-                contents: if data.is_empty() {
-                    &[0u8; POINT_BYTES]
-                } else {
-                    bytemuck::cast_slice(&data)
-                },
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::VERTEX
-                    | wgpu::BufferUsages::COPY_SRC,
-            });
+        let storage = match gpu.wgpu() {
+            None => Storage::Cpu(data),
+            Some((device, _)) => {
+                Storage::Gpu(
+                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("points"),
+                        // An empty storage binding is not allowed: keep one dummy element.
+                        contents: if data.is_empty() {
+                            &[0u8; POINT_BYTES]
+                        } else {
+                            bytemuck::cast_slice(&data)
+                        },
+                        usage: wgpu::BufferUsages::STORAGE
+                            | wgpu::BufferUsages::VERTEX
+                            | wgpu::BufferUsages::COPY_SRC,
+                    }),
+                )
+            }
+        };
         Points {
             origin,
-            buffer,
+            storage,
             len: positions.len() as u32,
         }
     }
 
-    /// Bytes this takes on the GPU.
+    /// Bytes this takes (on the GPU, or in memory for the CPU).
     pub fn bytes(&self) -> usize {
-        self.buffer.size() as usize
+        match &self.storage {
+            Storage::Gpu(b) => b.size() as usize,
+            Storage::Cpu(v) => v.len() * POINT_BYTES,
+        }
+    }
+
+    fn buffer(&self) -> &wgpu::Buffer {
+        match &self.storage {
+            Storage::Gpu(b) => b,
+            Storage::Cpu(_) => panic!("points in memory drawn by a GPU path"),
+        }
+    }
+
+    fn cpu_points(&self) -> &[[f32; 4]] {
+        match &self.storage {
+            Storage::Cpu(v) => v,
+            Storage::Gpu(_) => panic!("points on a GPU drawn by the CPU path"),
+        }
     }
 
     /// Draw the first `count` points, `spacing` apart in the world (for adaptive sizes).

@@ -18,6 +18,8 @@ pub enum Path {
     Compute,
     /// Instanced quads through the fixed-function pipeline, for any adapter.
     Quads,
+    /// No GPU: the compute path's algorithm on the CPU.
+    Cpu,
 }
 
 /// One draw's uniforms (as `Draw` in raster.wgsl and quads.wgsl).
@@ -83,14 +85,20 @@ struct Targets {
 }
 
 enum Pipelines {
-    Compute { raster: wgpu::ComputePipeline },
-    Quads { quads: wgpu::RenderPipeline },
+    Compute {
+        raster: wgpu::ComputePipeline,
+        resolve: wgpu::ComputePipeline,
+    },
+    Quads {
+        quads: wgpu::RenderPipeline,
+        resolve: wgpu::ComputePipeline,
+    },
+    Cpu,
 }
 
 /// The rasterizer's pipelines and frame targets.
 pub struct Rasterizer {
     pipelines: Pipelines,
-    resolve: wgpu::ComputePipeline,
     targets: Mutex<Option<Targets>>,
     pub path: Path,
 }
@@ -103,7 +111,7 @@ fn groups(n: u32) -> (u32, u32) {
 }
 
 fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
-    gpu.device
+    gpu.device()
         .create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
             source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -112,7 +120,7 @@ fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
 
 fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
     let module = module(gpu, entry, src);
-    gpu.device
+    gpu.device()
         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(entry),
             layout: None,
@@ -137,7 +145,7 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
             shader_location: 1,
         },
     ];
-    gpu.device
+    gpu.device()
         .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("quads"),
             layout: None,
@@ -176,11 +184,14 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
 }
 
 impl Rasterizer {
-    /// The compute path where the device has 64-bit atomics, else quads.
+    /// The compute path where the device has 64-bit atomics, else quads; the CPU path on the
+    /// CPU.
     pub fn new(gpu: &Gpu) -> Rasterizer {
         Rasterizer::with_path(
             gpu,
-            if gpu.atomics {
+            if gpu.is_cpu() {
+                Path::Cpu
+            } else if gpu.atomics {
                 Path::Compute
             } else {
                 Path::Quads
@@ -188,36 +199,37 @@ impl Rasterizer {
         )
     }
 
-    /// A chosen path (the compute path needs `gpu.atomics`).
+    /// A chosen path (the compute path needs `gpu.atomics`; the CPU path is the CPU's only).
     pub fn with_path(gpu: &Gpu, path: Path) -> Rasterizer {
         assert!(
-            path == Path::Quads || gpu.atomics,
+            path != Path::Compute || gpu.atomics,
             "the compute path needs 64-bit atomics"
         );
-        let (pipelines, resolve) = match path {
-            Path::Compute => (
-                Pipelines::Compute {
-                    raster: compute(gpu, RASTER_WGSL, "rasterize"),
-                },
-                compute(gpu, RESOLVE_ATOMIC_WGSL, "resolve"),
-            ),
-            Path::Quads => (
-                Pipelines::Quads {
-                    quads: quads_pipeline(gpu),
-                },
-                compute(gpu, RESOLVE_QUADS_WGSL, "resolve"),
-            ),
+        assert_eq!(
+            path == Path::Cpu,
+            gpu.is_cpu(),
+            "the CPU path is for the CPU only"
+        );
+        let pipelines = match path {
+            Path::Compute => Pipelines::Compute {
+                raster: compute(gpu, RASTER_WGSL, "rasterize"),
+                resolve: compute(gpu, RESOLVE_ATOMIC_WGSL, "resolve"),
+            },
+            Path::Quads => Pipelines::Quads {
+                quads: quads_pipeline(gpu),
+                resolve: compute(gpu, RESOLVE_QUADS_WGSL, "resolve"),
+            },
+            Path::Cpu => Pipelines::Cpu,
         };
         Rasterizer {
             pipelines,
-            resolve,
             targets: Mutex::new(None),
             path,
         }
     }
 
     fn targets(&self, gpu: &Gpu, w: u32, h: u32) -> Targets {
-        let d = &gpu.device;
+        let d = gpu.device();
         let pixels = (w * h) as u64;
         let buffer = |label, size, usage| {
             d.create_buffer(&wgpu::BufferDescriptor {
@@ -283,9 +295,12 @@ impl Rasterizer {
         tree: &[[u32; 4]],
         style: &Style,
     ) -> Vec<u8> {
+        if self.path == Path::Cpu {
+            return crate::cpu::render(camera, draws, tree, style);
+        }
         let (w, h) = (camera.width.max(1), camera.height.max(1));
         let pixels = (w * h) as u64;
-        let d = &gpu.device;
+        let d = gpu.device();
         let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
         if guard.as_ref().is_none_or(|t| t.size != (w, h)) {
             *guard = Some(self.targets(gpu, w, h));
@@ -372,7 +387,7 @@ impl Rasterizer {
             let previous = std::mem::take(&mut t.copied);
             for batch in &batches {
                 for &(i, start) in batch {
-                    let item = (draws[i].points.buffer.clone(), start, draws[i].count);
+                    let item = (draws[i].points.buffer().clone(), start, draws[i].count);
                     fresh.push(batches.len() > 1 || !previous.contains(&item));
                     if batches.len() == 1 {
                         t.copied.insert(item);
@@ -388,6 +403,7 @@ impl Rasterizer {
                 .iter()
                 .map(|d| uniform(d.points.origin, d.count, d.spacing, d.node))
                 .collect(),
+            Path::Cpu => unreachable!("drawn above"),
             Path::Compute => batch_points
                 .iter()
                 .map(|&n| uniform(origin, (n / WORKGROUP as u64) as u32, 0.0, None))
@@ -425,7 +441,8 @@ impl Rasterizer {
 
         let mut enc = d.create_command_encoder(&Default::default());
         match &self.pipelines {
-            Pipelines::Compute { raster } => {
+            Pipelines::Cpu => unreachable!("drawn above"),
+            Pipelines::Compute { raster, .. } => {
                 let fb = t.framebuffer.as_ref().expect("compute targets");
                 let merged = t.merged.as_ref().expect("made above");
                 enc.clear_buffer(fb, 0, None);
@@ -438,7 +455,7 @@ impl Rasterizer {
                         let draw = draws[i];
                         if *fresh.next().expect("one per draw") {
                             enc.copy_buffer_to_buffer(
-                                &draw.points.buffer,
+                                draw.points.buffer(),
                                 0,
                                 merged,
                                 start as u64 * POINT_BYTES as u64,
@@ -498,7 +515,7 @@ impl Rasterizer {
                     pass.dispatch_workgroups(x, y, 1);
                 }
             }
-            Pipelines::Quads { quads } => {
+            Pipelines::Quads { quads, .. } => {
                 let layout = quads.get_bind_group_layout(0);
                 let binds: Vec<wgpu::BindGroup> = (0..draws.len())
                     .map(|i| {
@@ -533,7 +550,7 @@ impl Rasterizer {
                 pass.set_pipeline(quads);
                 for (draw, bind) in draws.iter().zip(&binds) {
                     pass.set_bind_group(0, bind, &[]);
-                    pass.set_vertex_buffer(0, draw.points.buffer.slice(..));
+                    pass.set_vertex_buffer(0, draw.points.buffer().slice(..));
                     pass.draw(0..6, 0..draw.count);
                 }
             }
@@ -562,6 +579,7 @@ impl Rasterizer {
             entry(3, t.image.as_entire_binding()),
         ];
         match &self.pipelines {
+            Pipelines::Cpu => unreachable!("drawn above"),
             Pipelines::Compute { .. } => entries.push(entry(
                 2,
                 t.framebuffer
@@ -582,20 +600,24 @@ impl Rasterizer {
                 ));
             }
         }
+        let resolve = match &self.pipelines {
+            Pipelines::Compute { resolve, .. } | Pipelines::Quads { resolve, .. } => resolve,
+            Pipelines::Cpu => unreachable!("drawn above"),
+        };
         let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("resolve"),
-            layout: &self.resolve.get_bind_group_layout(0),
+            layout: &resolve.get_bind_group_layout(0),
             entries: &entries,
         });
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.resolve);
+            pass.set_pipeline(resolve);
             pass.set_bind_group(0, &bind, &[]);
             let (x, y) = groups(w * h);
             pass.dispatch_workgroups(x, y, 1);
         }
         enc.copy_buffer_to_buffer(&t.image, 0, &t.readback, 0, pixels * 4);
-        gpu.queue.submit([enc.finish()]);
+        gpu.queue().submit([enc.finish()]);
         let slice = t.readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |r| {
             r.expect("map the image for reading")

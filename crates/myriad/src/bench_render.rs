@@ -43,6 +43,12 @@ pub struct RenderBenchArgs {
     /// Seed of the random baseline
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Draw on the CPU even where there is a hardware GPU
+    #[arg(long, conflicts_with = "gpu")]
+    cpu: bool,
+    /// Draw on the GPU adapter even where it is a software one (lavapipe)
+    #[arg(long)]
+    gpu: bool,
     /// Write every image compared into this folder (NAME-VIEW-full|lod|random-MODE.png)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -79,13 +85,21 @@ impl Rng {
 }
 
 pub fn run(a: RenderBenchArgs) -> Result<()> {
-    let gpu = Gpu::headless().map_err(anyhow::Error::msg)?;
+    let (gpu, why) = if a.cpu {
+        (Gpu::cpu(), None)
+    } else if a.gpu {
+        (Gpu::headless().map_err(anyhow::Error::msg)?, None)
+    } else {
+        Gpu::best()
+    };
+    if let Some(why) = why {
+        eprintln!("warning: {why}: drawing on the CPU");
+    }
     let raster = Rasterizer::new(&gpu);
     println!(
-        "{} ({:?}), {:?} path, {}x{}; quality at a budget of {} points against every point, \
+        "{}, {:?} path, {}x{}; quality at a budget of {} points against every point, \
          baseline: as many points uniformly at random",
-        gpu.adapter.name,
-        gpu.adapter.device_type,
+        gpu.name,
         raster.path,
         a.width,
         a.height,

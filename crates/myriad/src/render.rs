@@ -59,7 +59,8 @@ fn parse_path(s: &str) -> Result<Path, String> {
     match s {
         "compute" => Ok(Path::Compute),
         "quads" => Ok(Path::Quads),
-        _ => Err(format!("\"{s}\": compute or quads")),
+        "cpu" => Ok(Path::Cpu),
+        _ => Err(format!("\"{s}\": compute, quads or cpu")),
     }
 }
 
@@ -110,7 +111,8 @@ pub struct RenderArgs {
     /// Eye-dome lighting radius in pixels
     #[arg(long, default_value_t = 1.4)]
     edl_radius: f32,
-    /// Rasterizer: compute (needs 64-bit atomics) or quads [default: compute where it runs]
+    /// Rasterizer: compute (needs 64-bit atomics), quads, or cpu [default: compute on a
+    /// hardware GPU, quads on one without 64-bit atomics; cpu without one]
     #[arg(long = "raster", value_parser = parse_path)]
     path: Option<Path>,
     /// Replace an existing output
@@ -143,11 +145,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
     for d in &damage {
         eprintln!("warning: {}", ds.damage_error(d));
     }
-    let gpu = Gpu::headless().map_err(anyhow::Error::msg)?;
+    let (gpu, why) = match a.path {
+        Some(Path::Cpu) => (Gpu::cpu(), None),
+        // A GPU path asked for: any adapter, a software one too.
+        Some(_) => (Gpu::headless().map_err(anyhow::Error::msg)?, None),
+        None => Gpu::best(),
+    };
+    if let Some(why) = why {
+        eprintln!("warning: {why}: drawing on the CPU");
+    }
     let raster = match a.path {
         Some(Path::Compute) if !gpu.atomics => bail!(
-            "{}: no 64-bit atomics, so no compute path (--raster quads)",
-            gpu.adapter.name
+            "{}: no 64-bit atomics, so no compute path (--raster quads or cpu)",
+            gpu.name
         ),
         Some(p) => Rasterizer::with_path(&gpu, p),
         None => Rasterizer::new(&gpu),
@@ -217,7 +227,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         frame.as_secs_f64() * 1e3,
         first_image.as_secs_f64(),
         converged.as_secs_f64(),
-        gpu.adapter.name,
+        gpu.name,
         raster.path,
     );
     debug_assert_eq!(stats.points, selection.points);

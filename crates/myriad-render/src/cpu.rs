@@ -1,0 +1,227 @@
+//! The rasterizer on the CPU, for machines without any Vulkan, Metal or DX12 driver: the compute
+//! path's algorithm (each point projected, the nearest per pixel kept by a 64-bit atomic max of
+//! depth and colour, then the resolve with eye-dome lighting) over all cores with rayon, in f32
+//! as the shaders compute, so that it draws the same images. It is the reference the GPU paths
+//! are tested against, and what `myriad render` uses when there is no GPU adapter.
+
+use crate::{Draw, PointSize, Shape, Style};
+use myriad_lod::Camera;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// As `depth_key` in raster.wgsl.
+fn depth_key(w: f32, far: f32) -> u32 {
+    ((1.0 - w / far).clamp(0.0, 1.0) * 4294967040.0) as u32 + 1
+}
+
+/// As `point_pixels` in draw.wgsl.
+#[allow(clippy::too_many_arguments)]
+fn point_pixels(
+    p: [f32; 3],
+    w: f32,
+    draw_spacing: f32,
+    node: u32,
+    cube: [f32; 4],
+    tree: &[[u32; 4]],
+    style: &Style,
+    focal: f32,
+) -> f32 {
+    let (point_size, max_size) = match style.size {
+        PointSize::Fixed(px) => (px.max(1.0), px.max(1.0)),
+        PointSize::Adaptive { max, .. } => (0.0, max.max(1.0)),
+    };
+    if point_size > 0.0 {
+        return point_size.round().clamp(1.0, max_size);
+    }
+    let mut spacing = draw_spacing;
+    if node != u32::MAX {
+        let mut i = node as usize;
+        let mut lo = [cube[0], cube[1], cube[2]];
+        let mut side = cube[3];
+        let own = f32::from_bits(tree[i][2]);
+        let scale = if own > 0.0 { draw_spacing / own } else { 1.0 };
+        for _ in 0..32 {
+            let [mask, first, _, _] = tree[i];
+            side *= 0.5;
+            let o = (0..3)
+                .map(|a| ((p[a] >= lo[a] + side) as u32) << a)
+                .sum::<u32>();
+            if mask & (1 << o) == 0 {
+                break;
+            }
+            i = (first + (mask & ((1 << o) - 1)).count_ones()) as usize;
+            for (a, l) in lo.iter_mut().enumerate() {
+                *l += ((o >> a) & 1) as f32 * side;
+            }
+            let s = f32::from_bits(tree[i][2]);
+            if s > 0.0 {
+                spacing = s * scale;
+            }
+        }
+    }
+    (spacing * focal / w).round().clamp(1.0, max_size)
+}
+
+fn mul(m: &[[f32; 4]; 4], p: [f32; 3]) -> [f32; 4] {
+    std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r])
+}
+
+/// Draws and resolves, as [`crate::Rasterizer::render`] does.
+pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: &Style) -> Vec<u8> {
+    let (w, h) = (camera.width.max(1), camera.height.max(1));
+    let fb: Vec<AtomicU64> = (0..w as usize * h as usize)
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let (far, focal) = (camera.far as f32, camera.focal() as f32);
+    let scale = match style.size {
+        PointSize::Adaptive { scale, .. } => scale as f64,
+        PointSize::Fixed(_) => 1.0,
+    };
+    for draw in draws.iter().filter(|d| d.count > 0) {
+        let m = camera.view_proj(draw.points.origin);
+        let o = draw.points.origin;
+        let spacing = (draw.spacing * scale) as f32;
+        let node = draw.node.map_or(u32::MAX, |n| n.0);
+        let cube = draw.node.map_or([0.0; 4], |(_, c)| {
+            [
+                (c.min[0] - o[0]) as f32,
+                (c.min[1] - o[1]) as f32,
+                (c.min[2] - o[2]) as f32,
+                c.size()[0] as f32,
+            ]
+        });
+        let points = &draw.points.cpu_points()[..draw.count as usize];
+        points.par_chunks(4096).for_each(|chunk| {
+            for q in chunk {
+                let p = [q[0], q[1], q[2]];
+                let clip = mul(&m, p);
+                if clip[3] <= 0.0 {
+                    continue;
+                }
+                let ndc = [clip[0] / clip[3], clip[1] / clip[3], clip[2] / clip[3]];
+                if ndc[0] < -1.0
+                    || ndc[0] >= 1.0
+                    || ndc[1] <= -1.0
+                    || ndc[1] > 1.0
+                    || ndc[2] < 0.0
+                    || ndc[2] > 1.0
+                {
+                    continue;
+                }
+                let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
+                let fy = (0.5 - ndc[1] * 0.5) * h as f32;
+                let colour = q[3].to_bits() as u64;
+                let s = point_pixels(p, clip[3], spacing, node, cube, tree, style, focal) as i32;
+                let x0 = fx.floor() as i32 - (s - 1) / 2;
+                let y0 = fy.floor() as i32 - (s - 1) / 2;
+                let c = (s - 1) as f32 * 0.5;
+                let r2 = ((s * s) as f32 * 0.25).max(0.5);
+                let bulge = 0.5 * s as f32 * clip[3] / focal;
+                let flat = ((depth_key(clip[3], far) as u64) << 32) | colour;
+                for dy in 0..s {
+                    let y = y0 + dy;
+                    if y < 0 || y >= h as i32 {
+                        continue;
+                    }
+                    for dx in 0..s {
+                        let x = x0 + dx;
+                        if x < 0 || x >= w as i32 {
+                            continue;
+                        }
+                        let mut value = flat;
+                        if style.shape != Shape::Square {
+                            let (ox, oy) = (dx as f32 - c, dy as f32 - c);
+                            let d2 = ox * ox + oy * oy;
+                            if d2 > r2 {
+                                continue;
+                            }
+                            if style.shape == Shape::Paraboloid {
+                                let wp = clip[3] - bulge * (1.0 - d2 / r2);
+                                value = ((depth_key(wp, far) as u64) << 32) | colour;
+                            }
+                        }
+                        // Most points are hidden behind nearer ones: a plain load first
+                        // spares their read-modify-write.
+                        let px = &fb[y as usize * w as usize + x as usize];
+                        if px.load(Ordering::Relaxed) < value {
+                            px.fetch_max(value, Ordering::Relaxed);
+                        }
+                    }
+                }
+            }
+        });
+    }
+    resolve(&fb, w, h, far, style)
+}
+
+/// As resolve.wgsl with fb_atomic.wgsl.
+fn resolve(fb: &[AtomicU64], w: u32, h: u32, far: f32, style: &Style) -> Vec<u8> {
+    let depth = |x: i32, y: i32| -> f32 {
+        if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+            return 0.0;
+        }
+        let key = (fb[y as usize * w as usize + x as usize].load(Ordering::Relaxed) >> 32) as u32;
+        if key == 0 {
+            0.0
+        } else {
+            (1.0 - (key - 1) as f32 / 4294967040.0) * far
+        }
+    };
+    const AROUND: [[f32; 2]; 8] = [
+        [1.0, 0.0],
+        [
+            std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [0.0, 1.0],
+        [
+            -std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [-1.0, 0.0],
+        [
+            -std::f32::consts::FRAC_1_SQRT_2,
+            -std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [0.0, -1.0],
+        [
+            std::f32::consts::FRAC_1_SQRT_2,
+            -std::f32::consts::FRAC_1_SQRT_2,
+        ],
+    ];
+    let mut out = vec![0u8; w as usize * h as usize * 4];
+    out.par_chunks_mut(w as usize * 4)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..w as usize {
+                let i = y * w as usize + x;
+                let d = depth(x as i32, y as i32);
+                let px = &mut row[x * 4..x * 4 + 4];
+                if d <= 0.0 {
+                    px.copy_from_slice(&style.background);
+                    continue;
+                }
+                let colour = (fb[i].load(Ordering::Relaxed) & 0xffff_ffff) as u32;
+                let mut c = colour.to_le_bytes();
+                if let Some(edl) = style.edl.filter(|e| e.strength > 0.0) {
+                    let l = d.log2();
+                    let mut sum = 0.0;
+                    for a in AROUND {
+                        let n = depth(
+                            x as i32 + (a[0] * edl.radius).round() as i32,
+                            y as i32 + (a[1] * edl.radius).round() as i32,
+                        );
+                        if n > 0.0 {
+                            sum += (l - n.log2()).max(0.0);
+                        }
+                    }
+                    let shade = (-sum / 8.0 * 300.0 * edl.strength).exp();
+                    for v in &mut c[..3] {
+                        *v = (*v as f32 / 255.0 * shade * 255.0).round() as u8;
+                    }
+                }
+                px.copy_from_slice(&c);
+            }
+        });
+    out
+}
