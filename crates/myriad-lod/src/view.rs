@@ -48,18 +48,40 @@ impl Camera {
         } else {
             half_v
         };
-        let distance = radius / half.sin();
-        let d = distance / 2f64.sqrt();
-        Camera {
-            position: [c[0], c[1] - d, c[2] + d],
-            target: c,
-            up: [0.0, 0.0, 1.0],
-            fov_y,
-            width,
-            height,
-            near: (distance - radius).max(distance * 1e-4),
-            far: distance + radius,
+        let at = |distance: f64| {
+            let d = distance / 2f64.sqrt();
+            Camera {
+                position: [c[0], c[1] - d, c[2] + d],
+                target: c,
+                up: [0.0, 0.0, 1.0],
+                fov_y,
+                width,
+                height,
+                near: (distance - radius).max(distance * 1e-4),
+                far: distance + radius,
+            }
+        };
+        // The bounding sphere fits at this distance; the box itself usually fits much nearer:
+        // the nearest distance at which every corner is inside the view with a 5 % margin.
+        let sphere = radius / half.sin();
+        let fits = |distance: f64| {
+            let cam = at(distance);
+            let (tan_v, aspect) = ((fov_y.to_radians() / 2.0).tan() * 0.95, aspect);
+            bounds.corners().iter().all(|&p| {
+                let e = cam.to_eye(p);
+                e[2] > 0.0 && e[0].abs() <= e[2] * tan_v * aspect && e[1].abs() <= e[2] * tan_v
+            })
+        };
+        let (mut lo, mut hi) = (sphere * 0.05, sphere);
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if fits(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
         }
+        at(hi)
     }
 
     /// Right, up and forward unit vectors (a right-handed eye frame looking along forward).

@@ -41,6 +41,25 @@ enum Command {
     Bench(bench::BenchCommand),
 }
 
+/// Mesa's Vulkan drivers print "error: XDG_RUNTIME_DIR is invalid or not set" when probed in a
+/// session without one (a server, a container, CI), which reads like an error of ours. Give them
+/// a private one under the temporary folder, as a login session would have.
+fn quiet_mesa() {
+    #[cfg(target_os = "linux")]
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+        // SAFETY: getuid has no preconditions.
+        let uid = unsafe { libc::getuid() };
+        let dir = std::env::temp_dir().join(format!("myriad-runtime-{uid}"));
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        let ours = std::fs::metadata(&dir).is_ok_and(|m| m.is_dir() && m.uid() == uid);
+        if ours {
+            // SAFETY: called first thing in main, before any thread exists.
+            unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+        }
+    }
+}
+
 fn main() -> ExitCode {
     // Output piped into `head` and closed early ends the program quietly, as for other Unix
     // tools, instead of a panic in `println!`.
@@ -49,6 +68,7 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    quiet_mesa();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Convert(a) => dataset::convert(a),
