@@ -13,6 +13,18 @@ use myriad_lod::{
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+/// A point found under the cursor.
+#[derive(Clone)]
+pub struct Picked {
+    pub position: [f64; 3],
+    /// Eye depth.
+    pub depth: f64,
+    pub node: NodeKey,
+    /// Its node's points (all its attributes), and its index there.
+    pub batch: Arc<myriad_core::PointBatch>,
+    pub index: usize,
+}
+
 pub struct Scene {
     pub hierarchy: Hierarchy,
     pub loader: Loader,
@@ -23,6 +35,8 @@ pub struct Scene {
     pub z_range: (f64, f64),
     /// Where the data is, without its outliers: for framing the view.
     pub view_bounds: Aabb,
+    /// The last frame's selection (what picking searches).
+    pub last: Selection,
     colour: ColorBy,
 }
 
@@ -64,6 +78,7 @@ impl Scene {
             buffers: NodeBuffers::new(gpu_bytes),
             z_range: (view_bounds.min[2], view_bounds.max[2]),
             view_bounds,
+            last: Selection::default(),
             colour: ColorBy::Rgb,
         }
     }
@@ -94,6 +109,43 @@ impl Scene {
             self.colour = c;
             self.buffers.clear();
         }
+    }
+
+    /// The point drawn nearest the eye within `radius` pixels of pixel (`x`, `y`) of the last
+    /// frame seen by `camera`, searched among the resident nodes it drew.
+    pub fn pick(&self, camera: &Camera, x: f64, y: f64, radius: f64) -> Option<Picked> {
+        let focal = camera.focal();
+        let (cx, cy) = (camera.width as f64 / 2.0, camera.height as f64 / 2.0);
+        let mut best: Option<Picked> = None;
+        for n in &self.last.nodes {
+            let Some(batch) = self.loader.get(&n.key) else {
+                continue;
+            };
+            for (i, &p) in batch.positions[..(n.points as usize).min(batch.len())]
+                .iter()
+                .enumerate()
+            {
+                let e = camera.to_eye(p);
+                if e[2] <= camera.near {
+                    continue;
+                }
+                let dx = cx + e[0] * focal / e[2] - x;
+                let dy = cy - e[1] * focal / e[2] - y;
+                if dx * dx + dy * dy > radius * radius {
+                    continue;
+                }
+                if best.as_ref().is_none_or(|b| e[2] < b.depth) {
+                    best = Some(Picked {
+                        position: p,
+                        depth: e[2],
+                        node: n.key,
+                        batch: batch.clone(),
+                        index: i,
+                    });
+                }
+            }
+        }
+        best
     }
 
     pub fn colour(&self) -> ColorBy {
@@ -163,12 +215,14 @@ impl Scene {
             })
             .collect();
         let image = raster.render(gpu, camera, &draws, &tree.entries, style);
+        let (nodes, points) = (draws.len(), draws.iter().map(|d| d.count as u64).sum());
+        drop(draws);
         let failed = self.loader.failed();
         let stats = FrameStats {
             selected_nodes: selection.nodes.len(),
             selected_points: selection.points,
-            nodes: draws.len(),
-            points: draws.iter().map(|d| d.count as u64).sum(),
+            nodes,
+            points,
             uploads,
             in_flight: self.loader.in_flight(),
             complete: selection
@@ -179,6 +233,7 @@ impl Scene {
             upload,
             draw: t.elapsed(),
         };
+        self.last = selection;
         (image, stats)
     }
 }

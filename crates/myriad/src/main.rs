@@ -7,6 +7,7 @@ mod dataset;
 mod info;
 mod render;
 mod synth;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -34,6 +35,8 @@ enum Command {
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
     Render(render::RenderArgs),
+    /// Open datasets in a window: navigate, measure, clip (level of detail while you move)
+    View(view::ViewArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
     /// Measure reading and synthesis speed (medians over several runs, with baselines)
@@ -76,6 +79,7 @@ fn main() -> ExitCode {
         Command::Extract(a) => dataset::extract(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
+        Command::View(a) => view::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Bench(b) => bench::run(b),
     };

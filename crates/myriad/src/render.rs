@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
+pub(crate) fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| t.trim().parse::<f64>())
@@ -21,13 +21,13 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
         .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
 }
 
-fn parse_color(s: &str) -> Result<ColorBy, String> {
+pub(crate) fn parse_color(s: &str) -> Result<ColorBy, String> {
     ColorBy::parse(s).ok_or_else(|| {
         format!("\"{s}\": one of rgb, intensity, elevation, classification, return, source, level")
     })
 }
 
-fn parse_point_size(s: &str) -> Result<PointSize, String> {
+pub(crate) fn parse_point_size(s: &str) -> Result<PointSize, String> {
     if s == "adaptive" {
         return Ok(PointSize::adaptive());
     }
@@ -51,7 +51,7 @@ fn parse_point_size(s: &str) -> Result<PointSize, String> {
         })
 }
 
-fn parse_shape(s: &str) -> Result<Shape, String> {
+pub(crate) fn parse_shape(s: &str) -> Result<Shape, String> {
     Shape::parse(s).ok_or_else(|| format!("\"{s}\": one of square, round, paraboloid"))
 }
 

@@ -1,0 +1,588 @@
+//! `myriad view`: a window (eframe: winit, wgpu, egui) showing datasets through the myriad-render
+//! pipeline, with navigation, panels and tools. It owns no rendering or level-of-detail logic:
+//! each frame a [`Scene`] selects, streams and draws into an image (on the GPU, or on the CPU where
+//! the only adapter is a software one), which is shown as a texture under the panels.
+//!
+//! Navigation lives in [`nav`] (no window needed, tested alone).
+
+pub mod nav;
+
+use eframe::egui;
+use myriad_core::Aabb;
+use myriad_format::Dataset;
+use myriad_lod::{Camera, SelectOptions};
+use myriad_render::{ColorBy, Edl, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
+use nav::{Nav, View};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What the command line gives the viewer.
+pub struct ViewOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Eye and target; None: the data framed from above at 45 degrees.
+    pub camera: Option<([f64; 3], [f64; 3])>,
+    pub fov: f64,
+    pub budget: u64,
+    pub style: Style,
+    pub colour: ColorBy,
+    /// Write the window to this PNG once the view has converged.
+    pub screenshot: Option<PathBuf>,
+    /// Close the window after that screenshot.
+    pub exit_after_converged: bool,
+    /// Scripted navigation first: orbit this many frames (8 pixels of drag each), then print the
+    /// frame times seen while moving.
+    pub orbit_frames: u32,
+}
+
+struct Layer {
+    name: String,
+    scene: Scene,
+    visible: bool,
+}
+
+/// Frame time, smoothed.
+#[derive(Default)]
+struct Timing {
+    frame_ms: f64,
+    fps: f64,
+    last: Option<Instant>,
+}
+
+struct App {
+    gpu: Gpu,
+    raster: Rasterizer,
+    layers: Vec<Layer>,
+    nav: Nav,
+    options: SelectOptions,
+    style: Style,
+    colour: ColorBy,
+    /// The data's extent, for framing.
+    bounds: Aabb,
+    texture: Option<egui::TextureHandle>,
+    stats: Vec<FrameStats>,
+    timing: Timing,
+    help: bool,
+    picked: Option<String>,
+    screenshot: Option<PathBuf>,
+    exit_after: bool,
+    /// Frames drawn since everything selected was in (the screenshot waits for two).
+    settled: u32,
+    shot_requested: bool,
+    /// The view is framed on the first frame, when the view's size is known.
+    framed: bool,
+    orbit_left: u32,
+    /// Frame intervals and drawing times (ms) while orbiting.
+    orbit_times: Vec<(f64, f64)>,
+}
+
+/// Opens the window and runs until it is closed.
+pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), String> {
+    let (gpu, _) = Gpu::best();
+    let raster = Rasterizer::new(&gpu);
+    let ram = 2usize << 30;
+    let gpu_bytes = 1usize << 30;
+    let mut layers = Vec::new();
+    let mut bounds = Aabb::EMPTY;
+    let mut all = Aabb::EMPTY;
+    for (name, ds) in datasets {
+        let mut scene = Scene::open(ds.clone(), ram / 2, gpu_bytes / 2);
+        scene.set_colour(o.colour);
+        bounds.extend(scene.view_bounds.min);
+        bounds.extend(scene.view_bounds.max);
+        all.extend(ds.meta.bounds.min);
+        all.extend(ds.meta.bounds.max);
+        layers.push(Layer {
+            name,
+            scene,
+            visible: true,
+        });
+    }
+    if layers.is_empty() {
+        return Err("no dataset to view".into());
+    }
+    let mut nav = Nav::framing(&bounds, &all, o.fov);
+    if let Some((eye, target)) = o.camera {
+        nav.look(eye, target);
+    }
+    let app = App {
+        gpu,
+        raster,
+        layers,
+        nav,
+        options: SelectOptions {
+            budget: o.budget,
+            min_pixels: 1.0,
+        },
+        style: o.style,
+        colour: o.colour,
+        bounds,
+        texture: None,
+        stats: Vec::new(),
+        timing: Timing::default(),
+        help: false,
+        picked: None,
+        screenshot: o.screenshot,
+        exit_after: o.exit_after_converged,
+        settled: 0,
+        shot_requested: false,
+        framed: o.camera.is_some(),
+        orbit_left: o.orbit_frames,
+        orbit_times: Vec::new(),
+    };
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size([o.width as f32, o.height as f32])
+            .with_title("Myriad"),
+        ..Default::default()
+    };
+    eframe::run_native("Myriad", native, Box::new(|_| Ok(Box::new(app))))
+        .map_err(|e| format!("window: {e}"))
+}
+
+const HELP: &[(&str, &str)] = &[
+    ("left drag", "orbit around the point under the cursor"),
+    ("right or middle drag", "pan"),
+    ("wheel", "zoom towards the cursor (fly mode: speed)"),
+    ("double click", "pick a point: coordinates and attributes"),
+    (
+        "G",
+        "fly mode on/off: W A S D to move, Q E down/up, drag to look",
+    ),
+    ("F", "frame all"),
+    ("1 / 2 / 3", "top / front / side view"),
+    ("H", "this help"),
+];
+
+impl App {
+    fn settings(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Myriad");
+        let mut budget = self.options.budget as f64 / 1e6;
+        ui.add(
+            egui::Slider::new(&mut budget, 0.1..=20.0)
+                .logarithmic(true)
+                .text("budget (M points)"),
+        );
+        self.options.budget = (budget * 1e6) as u64;
+        ui.add(
+            egui::Slider::new(&mut self.options.min_pixels, 0.25..=8.0)
+                .logarithmic(true)
+                .text("LOD threshold (px)"),
+        );
+        ui.separator();
+        let adaptive = matches!(self.style.size, PointSize::Adaptive { .. });
+        ui.horizontal(|ui| {
+            if ui.radio(adaptive, "adaptive").clicked() && !adaptive {
+                self.style.size = PointSize::adaptive();
+            }
+            if ui.radio(!adaptive, "fixed").clicked() && adaptive {
+                self.style.size = PointSize::Fixed(2.0);
+            }
+        });
+        match &mut self.style.size {
+            PointSize::Adaptive { scale, .. } => {
+                ui.add(egui::Slider::new(scale, 0.25..=4.0).text("size scale"));
+            }
+            PointSize::Fixed(px) => {
+                ui.add(egui::Slider::new(px, 1.0..=16.0).text("size (px)"));
+            }
+        }
+        egui::ComboBox::from_label("shape")
+            .selected_text(format!("{:?}", self.style.shape))
+            .show_ui(ui, |ui| {
+                for s in [Shape::Square, Shape::Round, Shape::Paraboloid] {
+                    ui.selectable_value(&mut self.style.shape, s, format!("{s:?}"));
+                }
+            });
+        let before = self.colour;
+        egui::ComboBox::from_label("colour")
+            .selected_text(format!("{:?}", self.colour))
+            .show_ui(ui, |ui| {
+                for c in [
+                    ColorBy::Rgb,
+                    ColorBy::Intensity,
+                    ColorBy::Elevation,
+                    ColorBy::Classification,
+                    ColorBy::ReturnNumber,
+                    ColorBy::PointSource,
+                    ColorBy::Level,
+                ] {
+                    ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
+                }
+            });
+        if self.colour != before {
+            for l in &mut self.layers {
+                l.scene.set_colour(self.colour);
+            }
+        }
+        let mut edl = self.style.edl.is_some();
+        ui.checkbox(&mut edl, "eye-dome lighting");
+        match (edl, &mut self.style.edl) {
+            (true, Some(e)) => {
+                ui.add(egui::Slider::new(&mut e.strength, 0.0..=4.0).text("strength"));
+                ui.add(egui::Slider::new(&mut e.radius, 0.5..=4.0).text("radius (px)"));
+            }
+            (true, None) => self.style.edl = Some(Edl::default()),
+            (false, _) => self.style.edl = None,
+        }
+        ui.separator();
+        ui.label("datasets");
+        for l in &mut self.layers {
+            ui.checkbox(&mut l.visible, &l.name);
+        }
+        ui.separator();
+        let points: u64 = self.stats.iter().map(|s| s.points).sum();
+        let nodes: usize = self.stats.iter().map(|s| s.nodes).sum();
+        let loading: usize = self.stats.iter().map(|s| s.in_flight).sum();
+        let ram: usize = self
+            .layers
+            .iter()
+            .map(|l| l.scene.loader.resident_bytes())
+            .sum();
+        let vram: usize = self.layers.iter().map(|l| l.scene.buffers.bytes()).sum();
+        ui.label(format!(
+            "{:.1} fps, frame {:.0} ms",
+            self.timing.fps, self.timing.frame_ms
+        ));
+        ui.label(format!("{points} points in {nodes} nodes"));
+        ui.label(format!(
+            "cache: {:.0} MB decoded, {:.0} MB of point buffers",
+            ram as f64 / 1e6,
+            vram as f64 / 1e6
+        ));
+        ui.horizontal(|ui| {
+            if loading > 0 {
+                ui.spinner();
+                ui.label(format!("loading {loading} nodes"));
+            } else {
+                ui.label("all loaded");
+            }
+        });
+        ui.label(format!(
+            "drawn by: {} ({:?})",
+            self.gpu.name, self.raster.path
+        ));
+        if let Some(p) = &self.picked {
+            ui.separator();
+            ui.label("picked point");
+            ui.monospace(p);
+        }
+        ui.separator();
+        if ui.button("help (H)").clicked() {
+            self.help = !self.help;
+        }
+    }
+
+    /// Mouse and keyboard over the view.
+    fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let scale = ui.ctx().pixels_per_point() as f64;
+        let (dt, keys) = ui.input(|i| {
+            let k = |key| i.key_down(key);
+            (
+                i.stable_dt.min(0.1) as f64,
+                [
+                    k(egui::Key::W),
+                    k(egui::Key::S),
+                    k(egui::Key::A),
+                    k(egui::Key::D),
+                    k(egui::Key::Q),
+                    k(egui::Key::E),
+                ],
+            )
+        });
+        let pressed = |key| ui.input(|i| i.key_pressed(key));
+        if pressed(egui::Key::H) {
+            self.help = !self.help;
+        }
+        if pressed(egui::Key::G) {
+            self.nav.fly = !self.nav.fly;
+        }
+        if pressed(egui::Key::F) {
+            self.nav.frame(&self.bounds);
+        }
+        for (key, view) in [
+            (egui::Key::Num1, View::Top),
+            (egui::Key::Num2, View::Front),
+            (egui::Key::Num3, View::Side),
+        ] {
+            if pressed(key) {
+                self.nav.standard(view, &self.bounds);
+            }
+        }
+        let cursor = response.hover_pos().map(|p| {
+            (
+                ((p.x - rect.min.x) as f64) * scale,
+                ((p.y - rect.min.y) as f64) * scale,
+            )
+        });
+        let cam = self.nav.camera;
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !self.nav.fly
+            && let Some((x, y)) = cursor
+            && let Some(p) = self.pick(&cam, x, y)
+        {
+            self.nav.pivot = p.position;
+        }
+        let d = response.drag_delta();
+        let (dx, dy) = (d.x as f64 * scale, d.y as f64 * scale);
+        if response.dragged_by(egui::PointerButton::Primary) {
+            if self.nav.fly {
+                self.nav.look_around(dx, dy);
+            } else {
+                self.nav.orbit(dx, dy);
+            }
+        }
+        if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+        {
+            self.nav.pan(dx, dy);
+        }
+        let scroll = if response.hovered() {
+            ui.input(|i| i.smooth_scroll_delta.y) as f64
+        } else {
+            0.0
+        };
+        if scroll != 0.0 {
+            if self.nav.fly {
+                self.nav.speed *= (1.0 + scroll / 200.0).clamp(0.5, 2.0);
+            } else if let Some((x, y)) = cursor {
+                self.nav.zoom_towards(x, y, scroll);
+            }
+        }
+        if self.nav.fly {
+            self.nav.fly_step(keys, dt);
+        }
+        if response.double_clicked()
+            && let Some((x, y)) = cursor
+        {
+            self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
+        }
+    }
+
+    fn pick(&self, cam: &Camera, x: f64, y: f64) -> Option<myriad_render::Picked> {
+        self.layers
+            .iter()
+            .filter(|l| l.visible)
+            .filter_map(|l| l.scene.pick(cam, x, y, 6.0))
+            .min_by(|a, b| a.depth.total_cmp(&b.depth))
+    }
+
+    /// Draws the visible datasets (each through its scene; images composited by depth would
+    /// need one joint frame: until then the first visible dataset is drawn over the others).
+    fn draw(&mut self, width: u32, height: u32) -> Vec<u8> {
+        self.nav.camera.width = width.max(1);
+        self.nav.camera.height = height.max(1);
+        if !self.framed {
+            self.framed = true;
+            self.nav.frame(&self.bounds);
+        }
+        let cam = self.nav.camera;
+        self.stats.clear();
+        let mut image: Option<Vec<u8>> = None;
+        let per_layer = SelectOptions {
+            budget: self.options.budget
+                / self.layers.iter().filter(|l| l.visible).count().max(1) as u64,
+            ..self.options
+        };
+        for l in self.layers.iter_mut().filter(|l| l.visible) {
+            let (img, stats) =
+                l.scene
+                    .frame(&self.gpu, &self.raster, &cam, &per_layer, &self.style);
+            self.stats.push(stats);
+            match &mut image {
+                None => image = Some(img),
+                Some(base) => {
+                    for (b, p) in base.chunks_exact_mut(4).zip(img.chunks_exact(4)) {
+                        if b[..3] == self.style.background[..3] {
+                            b.copy_from_slice(p);
+                        }
+                    }
+                }
+            }
+        }
+        image.unwrap_or_else(|| {
+            self.style
+                .background
+                .iter()
+                .copied()
+                .cycle()
+                .take(width as usize * height as usize * 4)
+                .collect()
+        })
+    }
+}
+
+/// A picked point as lines of text: coordinates and every attribute.
+fn describe(p: &myriad_render::Picked) -> String {
+    let b = &p.batch;
+    let i = p.index;
+    let mut s = format!(
+        "x {:.3}\ny {:.3}\nz {:.3}\nnode {}",
+        p.position[0], p.position[1], p.position[2], p.node
+    );
+    if let Some(v) = &b.intensity {
+        s += &format!("\nintensity {}", v[i]);
+    }
+    if let Some(v) = &b.classification {
+        s += &format!("\nclass {}", v[i]);
+    }
+    if let Some(v) = &b.return_number {
+        s += &format!("\nreturn {}", v[i]);
+    }
+    if let Some(v) = &b.point_source_id {
+        s += &format!("\nsource {}", v[i]);
+    }
+    if let Some(v) = &b.gps_time {
+        s += &format!("\ngps time {:.6}", v[i]);
+    }
+    if let Some(v) = &b.rgb {
+        s += &format!("\nrgb {} {} {}", v[i][0], v[i][1], v[i][2]);
+    }
+    s
+}
+
+impl eframe::App for App {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        egui::Panel::left("settings")
+            .default_size(230.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.settings(ui));
+            });
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| {
+                let rect = ui.max_rect();
+                let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+                self.navigate(ui, &response, rect);
+                let ppp = ctx.pixels_per_point();
+                let (w, h) = (
+                    (rect.width() * ppp).round().max(1.0) as u32,
+                    (rect.height() * ppp).round().max(1.0) as u32,
+                );
+                if self.orbit_left > 0 {
+                    self.nav.orbit(8.0, 0.0);
+                }
+                let t = Instant::now();
+                let image = self.draw(w, h);
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                let now = Instant::now();
+                if let Some(last) = self.timing.last {
+                    let interval = now.duration_since(last).as_secs_f64().max(1e-6);
+                    self.timing.fps = 0.8 * self.timing.fps + 0.2 / interval;
+                    if self.orbit_left > 0 {
+                        self.orbit_times.push((interval * 1e3, ms));
+                        self.orbit_left -= 1;
+                        if self.orbit_left == 0 {
+                            report_orbit(&mut self.orbit_times, &self.stats);
+                        }
+                    }
+                }
+                self.timing.last = Some(now);
+                self.timing.frame_ms = 0.8 * self.timing.frame_ms + 0.2 * ms;
+                let colour =
+                    egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &image);
+                match &mut self.texture {
+                    Some(t) => t.set(colour, egui::TextureOptions::NEAREST),
+                    None => {
+                        self.texture =
+                            Some(ctx.load_texture("view", colour, egui::TextureOptions::NEAREST))
+                    }
+                }
+                let texture = self.texture.as_ref().expect("set above");
+                ui.painter().image(
+                    texture.id(),
+                    rect,
+                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                    egui::Color32::WHITE,
+                );
+                if self.stats.iter().any(|s| s.in_flight > 0) {
+                    ui.painter().text(
+                        rect.right_top() + egui::vec2(-10.0, 10.0),
+                        egui::Align2::RIGHT_TOP,
+                        "loading…",
+                        egui::FontId::proportional(14.0),
+                        egui::Color32::LIGHT_GRAY,
+                    );
+                }
+            });
+        if self.help {
+            egui::Window::new("Shortcuts")
+                .collapsible(false)
+                .show(&ctx, |ui| {
+                    egui::Grid::new("keys").show(ui, |ui| {
+                        for (k, v) in HELP {
+                            ui.strong(*k);
+                            ui.label(*v);
+                            ui.end_row();
+                        }
+                    });
+                });
+        }
+        // Converged: every selected node drawn, nothing loading.
+        let converged = self.orbit_left == 0
+            && !self.stats.is_empty()
+            && self.stats.iter().all(|s| s.complete && s.in_flight == 0);
+        self.settled = if converged { self.settled + 1 } else { 0 };
+        if self.settled >= 2
+            && !self.shot_requested
+            && let Some(path) = self.screenshot.clone()
+        {
+            self.shot_requested = true;
+            let exit = self.exit_after;
+            let c = ctx.clone();
+            ctx.request_screenshot(move |image| {
+                if let Err(e) = write_png(&path, &image) {
+                    eprintln!("error: {}: {e}", path.display());
+                } else {
+                    println!("{}: screenshot written", path.display());
+                }
+                if exit {
+                    c.send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+                c.request_repaint();
+            });
+        }
+        ctx.request_repaint();
+    }
+}
+
+/// Prints the frame times seen while orbiting: the interval between frames (what input waits
+/// for at most twice: an event arriving during one frame is drawn by the next) and the drawing.
+fn report_orbit(times: &mut [(f64, f64)], stats: &[FrameStats]) {
+    if times.is_empty() {
+        return;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mut interval: Vec<f64> = times.iter().map(|t| t.0).collect();
+    let mut draw: Vec<f64> = times.iter().map(|t| t.1).collect();
+    let points: u64 = stats.iter().map(|s| s.points).sum();
+    println!(
+        "orbiting {} frames: median frame interval {:.1} ms (max {:.1}), drawing {:.1} ms, {} points in the last",
+        times.len(),
+        median(&mut interval),
+        interval.last().copied().unwrap_or(0.0),
+        median(&mut draw),
+        points
+    );
+}
+
+fn write_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
+    let [w, h] = image.size;
+    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    let tmp = path.with_extension("png.partial");
+    {
+        let f = std::fs::File::create(&tmp).map_err(|e| e.to_string())?;
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w as u32, h as u32);
+        enc.set_color(png::ColorType::Rgba);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header().map_err(|e| e.to_string())?;
+        writer.write_image_data(&rgba).map_err(|e| e.to_string())?;
+        writer.finish().map_err(|e| e.to_string())?;
+    }
+    std::fs::rename(&tmp, path).map_err(|e| e.to_string())
+}

@@ -1,0 +1,94 @@
+//! `myriad view DATASET...`: the interactive viewer (crate myriad-viewer).
+
+use crate::render::{parse_color, parse_floats, parse_point_size, parse_shape};
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_render::{ColorBy, Edl, PointSize, Shape, Style};
+use myriad_viewer::ViewOptions;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Args)]
+pub struct ViewArgs {
+    /// Datasets (.myr), shown together
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// Window size in pixels
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 800)]
+    height: u32,
+    /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the data from above at 45 degrees]
+    #[arg(long, value_parser = parse_floats::<6>)]
+    camera: Option<[f64; 6]>,
+    /// Vertical field of view in degrees
+    #[arg(long, default_value_t = 60.0)]
+    fov: f64,
+    /// Most points drawn, shared by all datasets
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "2M")]
+    budget: u64,
+    /// Point size: fixed:PX, adaptive or adaptive:SCALE
+    #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
+    point_size: PointSize,
+    /// Point shape: square, round, paraboloid
+    #[arg(long, value_parser = parse_shape, default_value = "square")]
+    shape: Shape,
+    /// Eye-dome lighting
+    #[arg(long)]
+    edl: bool,
+    /// Colour: rgb, intensity, elevation, classification, return, source, level
+    #[arg(long, value_parser = parse_color, default_value = "rgb")]
+    color: ColorBy,
+    /// Once the view has converged, write the window to this PNG
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// Close the window after the screenshot
+    #[arg(long, requires = "screenshot")]
+    exit_after_converged: bool,
+    /// Scripted navigation before converging: orbit for this many frames and print the frame
+    /// times seen while moving
+    #[arg(long, default_value_t = 0)]
+    orbit_frames: u32,
+}
+
+pub fn run(a: ViewArgs) -> Result<()> {
+    if !(a.fov > 0.0 && a.fov < 180.0) {
+        bail!("--fov must be between 0 and 180 degrees");
+    }
+    if a.width < 64 || a.height < 64 || a.width > 16384 || a.height > 16384 {
+        bail!("--width and --height must be 64 to 16384");
+    }
+    let mut datasets = Vec::new();
+    for p in &a.datasets {
+        let ds = Dataset::open(p)?;
+        let name = p.file_name().map_or_else(
+            || p.display().to_string(),
+            |n| n.to_string_lossy().to_string(),
+        );
+        datasets.push((name, Arc::new(ds)));
+    }
+    if let Some(c) = a.camera
+        && c[..3] == c[3..]
+    {
+        bail!("--camera: the eye and the target are the same point");
+    }
+    let options = ViewOptions {
+        width: a.width,
+        height: a.height,
+        camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),
+        fov: a.fov,
+        budget: a.budget,
+        style: Style {
+            size: a.point_size,
+            shape: a.shape,
+            edl: a.edl.then(Edl::default),
+            background: [0, 0, 0, 255],
+        },
+        colour: a.color,
+        screenshot: a.screenshot,
+        exit_after_converged: a.exit_after_converged,
+        orbit_frames: a.orbit_frames,
+    };
+    myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
+}

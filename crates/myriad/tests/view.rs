@@ -1,0 +1,127 @@
+//! `myriad view` in a real window: under Xvfb (a virtual X server) the viewer opens on a converted
+//! scan, orbits a few frames, waits until the view has converged, writes a screenshot of the
+//! window and exits; the scan is in the screenshot. Skipped with a message where `xvfb-run` is
+//! missing (CI installs it, see .ci/run).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn myriad() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_myriad"))
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-view-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut img = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut img).unwrap();
+    (info.width, info.height, img)
+}
+
+#[test]
+fn the_viewer_opens_converges_and_shows_the_scan() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("xvfb");
+    let las = d.join("s.las");
+    let st = myriad()
+        .args([
+            "synth",
+            "-o",
+            las.to_str().unwrap(),
+            "--points",
+            "300k",
+            "--seed",
+            "3",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let ds = d.join("s.myr");
+    let st = myriad()
+        .args(["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let shot = d.join("shot.png");
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_myriad"))
+        .args([
+            "view",
+            ds.to_str().unwrap(),
+            "--width",
+            "900",
+            "--height",
+            "600",
+            "--orbit-frames",
+            "10",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--exit-after-converged",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The viewer exits by itself; a hang fails the test instead of blocking CI.
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t.elapsed() > Duration::from_secs(240) {
+            let _ = child.kill();
+            panic!("the viewer did not exit within 240 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !status.success() && stderr.contains("No suitable graphics adapter") {
+        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+        return;
+    }
+    assert!(status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
+    assert!(stdout.contains("screenshot written"), "{stdout}");
+    // The window as shown: panels on the left, the scan in the view. The view (right of the
+    // panel) is mostly the scan: not black.
+    let (w, h, img) = decode(&shot);
+    assert!(w >= 800 && h >= 500, "{w}x{h}");
+    let mut lit = 0;
+    let mut total = 0;
+    for y in 0..h as usize {
+        for x in (w as usize / 2)..w as usize {
+            let p = &img[(y * w as usize + x) * 4..][..3];
+            total += 1;
+            if p != [0, 0, 0] {
+                lit += 1;
+            }
+        }
+    }
+    assert!(
+        lit * 4 > total,
+        "{lit} of {total} pixels of the view show the scan"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
