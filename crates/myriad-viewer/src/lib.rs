@@ -5,9 +5,11 @@
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
+pub mod measure;
 pub mod nav;
 
 use eframe::egui;
+use measure::{Kind, Measurement};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
@@ -75,6 +77,14 @@ struct App {
     orbit_left: u32,
     /// Frame intervals and drawing times (ms) while orbiting.
     orbit_times: Vec<(f64, f64)>,
+    /// The measuring tool in use, if any.
+    tool: Option<Kind>,
+    /// Measurements, the one being made last.
+    measurements: Vec<Measurement>,
+    /// Saved views: name, camera, pivot.
+    bookmarks: Vec<(String, Camera, [f64; 3])>,
+    /// Screenshots saved from the panel.
+    shots: u32,
 }
 
 /// Opens the window and runs until it is closed.
@@ -130,6 +140,10 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         framed: o.camera.is_some(),
         orbit_left: o.orbit_frames,
         orbit_times: Vec::new(),
+        tool: None,
+        measurements: Vec::new(),
+        bookmarks: Vec::new(),
+        shots: 0,
     };
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
@@ -146,6 +160,11 @@ const HELP: &[(&str, &str)] = &[
     ("right or middle drag", "pan"),
     ("wheel", "zoom towards the cursor (fly mode: speed)"),
     ("double click", "pick a point: coordinates and attributes"),
+    (
+        "M / N / A",
+        "measure distance / height / area: click points, right click ends",
+    ),
+    ("Esc", "stop measuring"),
     (
         "G",
         "fly mode on/off: W A S D to move, Q E down/up, drag to look",
@@ -269,8 +288,116 @@ impl App {
             ui.monospace(p);
         }
         ui.separator();
+        ui.label("measure");
+        ui.horizontal(|ui| {
+            for (kind, name) in [
+                (Kind::Distance, "distance"),
+                (Kind::Height, "height"),
+                (Kind::Area, "area"),
+            ] {
+                if ui.selectable_label(self.tool == Some(kind), name).clicked() {
+                    self.start_measuring(kind);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui.button("stop").clicked() {
+                self.tool = None;
+            }
+            if ui.button("clear").clicked() {
+                self.measurements.clear();
+            }
+        });
+        for m in &self.measurements {
+            if let Some(l) = m.label() {
+                ui.monospace(l);
+            }
+        }
+        ui.separator();
+        ui.label("views");
+        if ui.button("save this view").clicked() {
+            let n = self.bookmarks.len() + 1;
+            self.bookmarks
+                .push((format!("view {n}"), self.nav.camera, self.nav.pivot));
+        }
+        let mut go = None;
+        for (i, (name, _, _)) in self.bookmarks.iter().enumerate() {
+            if ui.button(name).clicked() {
+                go = Some(i);
+            }
+        }
+        if let Some(i) = go {
+            let (_, cam, pivot) = self.bookmarks[i];
+            self.nav.camera = Camera {
+                width: self.nav.camera.width,
+                height: self.nav.camera.height,
+                ..cam
+            };
+            self.nav.pivot = pivot;
+        }
+        if ui.button("screenshot").clicked() {
+            self.shots += 1;
+            let path = PathBuf::from(format!("myriad-screenshot-{}.png", self.shots));
+            ui.ctx()
+                .request_screenshot(move |image| match write_png(&path, &image) {
+                    Ok(()) => println!("{}: screenshot written", path.display()),
+                    Err(e) => eprintln!("error: {}: {e}", path.display()),
+                });
+        }
+        ui.separator();
         if ui.button("help (H)").clicked() {
             self.help = !self.help;
+        }
+    }
+
+    fn start_measuring(&mut self, kind: Kind) {
+        self.tool = Some(kind);
+        if self
+            .measurements
+            .last()
+            .is_none_or(|m| m.kind != kind || !m.points.is_empty())
+        {
+            self.measurements.push(Measurement::new(kind));
+        }
+    }
+
+    /// The measurements drawn over the view: lines between their points, the figure by the last.
+    fn draw_measurements(&self, painter: &egui::Painter, rect: egui::Rect, ppp: f32) {
+        let cam = &self.nav.camera;
+        let focal = cam.focal();
+        let screen = |p: [f64; 3]| -> Option<egui::Pos2> {
+            let e = cam.to_eye(p);
+            if e[2] <= 1e-9 {
+                return None;
+            }
+            let x = cam.width as f64 / 2.0 + e[0] * focal / e[2];
+            let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
+            Some(rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp))
+        };
+        let colour = egui::Color32::from_rgb(255, 210, 0);
+        for m in &self.measurements {
+            let pts: Vec<Option<egui::Pos2>> = m.points.iter().map(|&p| screen(p)).collect();
+            let mut pairs: Vec<(usize, usize)> = (1..pts.len()).map(|i| (i - 1, i)).collect();
+            if m.kind == Kind::Area && pts.len() >= 3 {
+                pairs.push((pts.len() - 1, 0));
+            }
+            for (a, b) in pairs {
+                if let (Some(a), Some(b)) = (pts[a], pts[b]) {
+                    painter.line_segment([a, b], egui::Stroke::new(2.0, colour));
+                }
+            }
+            for p in pts.iter().flatten() {
+                painter.circle_filled(*p, 4.0, colour);
+            }
+            if let (Some(label), Some(Some(at))) = (m.label(), pts.last()) {
+                painter.text(
+                    *at + egui::vec2(8.0, -8.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    label,
+                    egui::FontId::monospace(14.0),
+                    colour,
+                );
+            }
         }
     }
 
@@ -297,6 +424,18 @@ impl App {
         }
         if pressed(egui::Key::G) {
             self.nav.fly = !self.nav.fly;
+        }
+        if pressed(egui::Key::Escape) {
+            self.tool = None;
+        }
+        for (key, kind) in [
+            (egui::Key::M, Kind::Distance),
+            (egui::Key::N, Kind::Height),
+            (egui::Key::A, Kind::Area),
+        ] {
+            if pressed(key) && !self.nav.fly {
+                self.start_measuring(kind);
+            }
         }
         if pressed(egui::Key::F) {
             self.nav.frame(&self.bounds);
@@ -357,6 +496,23 @@ impl App {
             && let Some((x, y)) = cursor
         {
             self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
+        }
+        if let Some(kind) = self.tool {
+            if response.clicked()
+                && let Some((x, y)) = cursor
+                && let Some(p) = self.pick(&cam, x, y)
+            {
+                if self.measurements.last().is_none_or(|m| m.kind != kind) {
+                    self.measurements.push(Measurement::new(kind));
+                }
+                self.measurements
+                    .last_mut()
+                    .expect("pushed above")
+                    .add(p.position);
+            }
+            if response.secondary_clicked() {
+                self.measurements.push(Measurement::new(kind));
+            }
         }
     }
 
@@ -497,6 +653,7 @@ impl eframe::App for App {
                     egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
                     egui::Color32::WHITE,
                 );
+                self.draw_measurements(ui.painter(), rect, ppp);
                 if self.stats.iter().any(|s| s.in_flight > 0) {
                     ui.painter().text(
                         rect.right_top() + egui::vec2(-10.0, 10.0),
