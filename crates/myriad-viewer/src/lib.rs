@@ -171,6 +171,7 @@ const HELP: &[(&str, &str)] = &[
     ),
     ("F", "frame all"),
     ("1 / 2 / 3", "top / front / side view"),
+    ("P", "screenshot (myriad-screenshot-N.png)"),
     ("H", "this help"),
 ];
 
@@ -335,19 +336,23 @@ impl App {
             };
             self.nav.pivot = pivot;
         }
-        if ui.button("screenshot").clicked() {
-            self.shots += 1;
-            let path = PathBuf::from(format!("myriad-screenshot-{}.png", self.shots));
-            ui.ctx()
-                .request_screenshot(move |image| match write_png(&path, &image) {
-                    Ok(()) => println!("{}: screenshot written", path.display()),
-                    Err(e) => eprintln!("error: {}: {e}", path.display()),
-                });
+        if ui.button("screenshot (P)").clicked() {
+            self.screenshot_now(ui.ctx());
         }
         ui.separator();
         if ui.button("help (H)").clicked() {
             self.help = !self.help;
         }
+    }
+
+    /// Saves the window as myriad-screenshot-N.png in the current folder.
+    fn screenshot_now(&mut self, ctx: &egui::Context) {
+        self.shots += 1;
+        let path = PathBuf::from(format!("myriad-screenshot-{}.png", self.shots));
+        ctx.request_screenshot(move |image| match write_png(&path, &image) {
+            Ok(()) => println!("{}: screenshot written", path.display()),
+            Err(e) => eprintln!("error: {}: {e}", path.display()),
+        });
     }
 
     fn start_measuring(&mut self, kind: Kind) {
@@ -424,6 +429,9 @@ impl App {
         }
         if pressed(egui::Key::G) {
             self.nav.fly = !self.nav.fly;
+        }
+        if pressed(egui::Key::P) {
+            self.screenshot_now(ui.ctx());
         }
         if pressed(egui::Key::Escape) {
             self.tool = None;
