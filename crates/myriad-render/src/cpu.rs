@@ -91,9 +91,17 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
             ]
         });
         let points = &draw.points.cpu_points()[..draw.count as usize];
+        let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
         points.par_chunks(4096).for_each(|chunk| {
             for q in chunk {
                 let p = [q[0], q[1], q[2]];
+                // As `clipped` in draw.wgsl.
+                if clip_min[3] != 0.0 {
+                    let inside = (0..3).all(|a| p[a] >= clip_min[a] && p[a] <= clip_max[a]);
+                    if inside == (clip_min[3] == 2.0) {
+                        continue;
+                    }
+                }
                 let clip = mul(&m, p);
                 if clip[3] <= 0.0 {
                     continue;

@@ -305,6 +305,33 @@ impl Default for Edl {
     }
 }
 
+/// A clipping box: only the points inside it are drawn, or only those outside.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clip {
+    pub bounds: myriad_core::Aabb,
+    /// Keep the inside (else the outside).
+    pub inside: bool,
+}
+
+impl Clip {
+    /// The box relative to `origin` as the shaders take it: min with the mode (1 inside,
+    /// 2 outside), max; all zero without a box.
+    pub fn uniforms(clip: Option<Clip>, origin: [f64; 3]) -> [[f32; 4]; 2] {
+        match clip {
+            None => [[0.0; 4]; 2],
+            Some(c) => {
+                let r =
+                    |v: [f64; 3]| std::array::from_fn::<f32, 3, _>(|a| (v[a] - origin[a]) as f32);
+                let (lo, hi) = (r(c.bounds.min), r(c.bounds.max));
+                [
+                    [lo[0], lo[1], lo[2], if c.inside { 1.0 } else { 2.0 }],
+                    [hi[0], hi[1], hi[2], 0.0],
+                ]
+            }
+        }
+    }
+}
+
 /// How points are drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Style {
@@ -312,6 +339,7 @@ pub struct Style {
     pub shape: Shape,
     pub edl: Option<Edl>,
     pub background: [u8; 4],
+    pub clip: Option<Clip>,
 }
 
 impl Default for Style {
@@ -321,6 +349,7 @@ impl Default for Style {
             shape: Shape::Square,
             edl: None,
             background: [0, 0, 0, 255],
+            clip: None,
         }
     }
 }

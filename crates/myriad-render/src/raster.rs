@@ -40,6 +40,7 @@ struct DrawUniforms {
     node: u32,
     pad: u32,
     cube: [f32; 4],
+    clip: [[f32; 4]; 2],
 }
 
 /// A draw's range in the compute path's frame buffer (as `Range` in raster.wgsl).
@@ -342,6 +343,7 @@ impl Rasterizer {
             node: node.map_or(u32::MAX, |n| n.0),
             pad: 0,
             cube: relative(node, origin),
+            clip: crate::Clip::uniforms(style.clip, origin),
         };
         // The compute path draws batches of draws, each copied into one buffer (ranges starting
         // on workgroup boundaries) and drawn by one dispatch: on lavapipe every dispatch costs

@@ -49,6 +49,7 @@ fn fixed(px: f32, shape: Shape) -> Style {
         shape,
         edl: None,
         background: [0, 0, 0, 255],
+        clip: None,
     }
 }
 
@@ -226,6 +227,35 @@ fn adaptive_sizes_come_from_the_finest_drawn_node_around_each_point() {
             "{:?}",
             r.path
         );
+    }
+}
+
+#[test]
+fn the_clipping_box_keeps_the_inside_or_the_outside() {
+    let cam = looking_along_y(1000.0);
+    let white = [255, 255, 255, 255];
+    // Five points across the view at depth 10, x = 990, 995, 1000, 1005, 1010.
+    let positions: Vec<[f64; 3]> = (0..5).map(|i| [990.0 + 5.0 * i as f64, 0.0, 0.0]).collect();
+    let lit = |img: &[u8]| img.chunks_exact(4).filter(|p| *p == white).count();
+    let box_ = myriad_core::Aabb::new([994.0, -1.0, -1.0], [1006.0, 1.0, 1.0]);
+    for (gpu, r) in &paths() {
+        let p = Points::upload(gpu, [1000.0, 0.0, 0.0], &positions, &[white; 5]);
+        let style = |clip| Style {
+            clip,
+            ..fixed(1.0, Shape::Square)
+        };
+        let render = |clip| lit(&r.render(gpu, &cam, &[p.all(0.0)], &[], &style(clip)));
+        assert_eq!(render(None), 5, "{:?}", r.path);
+        let inside = myriad_render::Clip {
+            bounds: box_,
+            inside: true,
+        };
+        assert_eq!(render(Some(inside)), 3, "{:?}: 995, 1000, 1005", r.path);
+        let outside = myriad_render::Clip {
+            inside: false,
+            ..inside
+        };
+        assert_eq!(render(Some(outside)), 2, "{:?}: 990 and 1010", r.path);
     }
 }
 

@@ -85,6 +85,11 @@ struct App {
     bookmarks: Vec<(String, Camera, [f64; 3])>,
     /// Screenshots saved from the panel.
     shots: u32,
+    /// The clipping box as fractions of the data's extent per axis (min, max), whether it is
+    /// on, and whether it keeps the inside.
+    clip: [[f64; 2]; 3],
+    clip_on: bool,
+    clip_inside: bool,
 }
 
 /// Opens the window and runs until it is closed.
@@ -144,6 +149,9 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         measurements: Vec::new(),
         bookmarks: Vec::new(),
         shots: 0,
+        clip: [[0.25, 0.75]; 3],
+        clip_on: false,
+        clip_inside: true,
     };
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
@@ -315,6 +323,26 @@ impl App {
             }
         }
         ui.separator();
+        ui.checkbox(&mut self.clip_on, "clipping box");
+        if self.clip_on {
+            ui.horizontal(|ui| {
+                ui.radio_value(&mut self.clip_inside, true, "show inside");
+                ui.radio_value(&mut self.clip_inside, false, "outside");
+            });
+            for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+                let [lo, hi] = &mut self.clip[axis];
+                ui.add(egui::Slider::new(lo, 0.0..=1.0).text(format!("{name} from")));
+                ui.add(egui::Slider::new(hi, 0.0..=1.0).text(format!("{name} to")));
+                if *lo > *hi {
+                    std::mem::swap(lo, hi);
+                }
+            }
+        }
+        self.style.clip = self.clip_on.then(|| myriad_render::Clip {
+            bounds: self.clip_box(),
+            inside: self.clip_inside,
+        });
+        ui.separator();
         ui.label("views");
         if ui.button("save this view").clicked() {
             let n = self.bookmarks.len() + 1;
@@ -343,6 +371,16 @@ impl App {
         if ui.button("help (H)").clicked() {
             self.help = !self.help;
         }
+    }
+
+    /// The clipping box in world coordinates.
+    fn clip_box(&self) -> Aabb {
+        let b = &self.bounds;
+        let at = |axis: usize, f: f64| b.min[axis] + f * (b.max[axis] - b.min[axis]);
+        Aabb::new(
+            std::array::from_fn(|a| at(a, self.clip[a][0])),
+            std::array::from_fn(|a| at(a, self.clip[a][1])),
+        )
     }
 
     /// Saves the window as myriad-screenshot-N.png in the current folder.
@@ -380,6 +418,23 @@ impl App {
             Some(rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp))
         };
         let colour = egui::Color32::from_rgb(255, 210, 0);
+        if self.clip_on {
+            let c = self.clip_box().corners();
+            // Corners differ in one axis bit along each of the 12 edges.
+            for i in 0..8usize {
+                for bit in [1usize, 2, 4] {
+                    let j = i ^ bit;
+                    if j > i
+                        && let (Some(a), Some(b)) = (screen(c[i]), screen(c[j]))
+                    {
+                        painter.line_segment(
+                            [a, b],
+                            egui::Stroke::new(1.0, egui::Color32::LIGHT_BLUE),
+                        );
+                    }
+                }
+            }
+        }
         for m in &self.measurements {
             let pts: Vec<Option<egui::Pos2>> = m.points.iter().map(|&p| screen(p)).collect();
             let mut pairs: Vec<(usize, usize)> = (1..pts.len()).map(|i| (i - 1, i)).collect();

@@ -111,6 +111,12 @@ pub struct RenderArgs {
     /// Eye-dome lighting radius in pixels
     #[arg(long, default_value_t = 1.4)]
     edl_radius: f32,
+    /// Draw only the points in this box: MINX,MINY,MINZ,MAXX,MAXY,MAXZ
+    #[arg(long, value_parser = parse_floats::<6>)]
+    clip: Option<[f64; 6]>,
+    /// With --clip: draw only the points outside the box
+    #[arg(long, requires = "clip")]
+    clip_outside: bool,
     /// Rasterizer: compute (needs 64-bit atomics), quads, or cpu [default: compute on a
     /// hardware GPU, quads on one without 64-bit atomics; cpu without one]
     #[arg(long = "raster", value_parser = parse_path)]
@@ -132,6 +138,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if !(a.fov > 0.0 && a.fov < 180.0) {
         bail!("--fov must be between 0 and 180 degrees");
+    }
+    if let Some(c) = a.clip
+        && !(c[0] <= c[3] && c[1] <= c[4] && c[2] <= c[5])
+    {
+        bail!("--clip: each minimum must be at most its maximum");
     }
     if !(a.edl_strength >= 0.0 && a.edl_strength <= 100.0) {
         bail!("--edl-strength must be from 0 to 100");
@@ -170,6 +181,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
             radius: a.edl_radius,
         }),
         background: [0, 0, 0, 255],
+        clip: a.clip.map(|c| myriad_render::Clip {
+            bounds: Aabb::new([c[0], c[1], c[2]], [c[3], c[4], c[5]]),
+            inside: !a.clip_outside,
+        }),
     };
     let options = SelectOptions {
         budget: if a.full { u64::MAX } else { a.budget },

@@ -84,6 +84,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             shape: a.shape,
             edl: a.edl.then(Edl::default),
             background: [0, 0, 0, 255],
+            clip: None,
         },
         colour: a.color,
         screenshot: a.screenshot,

@@ -22,11 +22,24 @@ struct Draw {
     pad: u32,
     // The node's cube relative to the origin: min corner, side.
     cube: vec4<f32>,
+    // Clipping box relative to the origin; clip_min.w: 0 none, 1 keep inside, 2 keep outside.
+    clip_min: vec4<f32>,
+    clip_max: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> u: Draw;
 // The drawn nodes (myriad_lod::DrawnTree): child mask, first child, spacing bits (0: not drawn).
 @group(0) @binding(3) var<storage, read> tree: array<vec4<u32>>;
+
+// Whether the clipping box hides the point at `p` (relative to the origin).
+fn clipped(p: vec3<f32>) -> bool {
+    let mode = u.clip_min.w;
+    if (mode == 0.0) {
+        return false;
+    }
+    let inside = all(p >= u.clip_min.xyz) && all(p <= u.clip_max.xyz);
+    return inside == (mode == 2.0);
+}
 
 // Pixels on a side for a point at `p` (relative to the origin) at eye depth `w`: fixed, or the
 // spacing of the finest drawn node around it, as seen. `draw_spacing`, `node` and `cube` are the

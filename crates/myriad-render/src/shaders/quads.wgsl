@@ -29,6 +29,9 @@ fn vertex(
     out.local = vec2<f32>(0.0);
     out.depth = vec2<f32>(0.0);
     out.radius2 = 0.0;
+    if (clipped(p)) {
+        return out;
+    }
     let clip = u.view_proj * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0) {
         return out;

@@ -44,6 +44,9 @@ fn rasterize(
     }
     let stored = points[r.start + local];
     let p = vec4<f32>(stored.xyz + r.offset.xyz, stored.w);
+    if (clipped(p.xyz)) {
+        return;
+    }
     let clip = u.view_proj * vec4<f32>(p.xyz, 1.0);
     if (clip.w <= 0.0) {
         return;
