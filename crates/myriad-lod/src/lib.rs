@@ -9,6 +9,8 @@ pub mod stream;
 pub mod view;
 
 pub use cache::Lru;
-pub use select::{DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select};
+pub use select::{
+    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select, select_many,
+};
 pub use stream::{Loader, PageReader, converge};
 pub use view::{Camera, Frustum, robust_bounds};

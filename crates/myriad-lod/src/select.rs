@@ -238,6 +238,53 @@ pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
     out
 }
 
+/// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
+/// alone with the whole budget, then their nodes are taken in one benefit order (each dataset's
+/// own order kept, so parents still come before children) until the budget is spent.
+pub fn select_many(hs: &[&Hierarchy], cam: &Camera, o: &SelectOptions) -> Vec<Selection> {
+    let alone: Vec<Selection> = hs.iter().map(|h| select(h, cam, o)).collect();
+    let mut out: Vec<Selection> = vec![Selection::default(); hs.len()];
+    let mut next = vec![0usize; hs.len()];
+    let mut total = 0u64;
+    loop {
+        // The dataset whose next node has the highest benefit.
+        let Some(k) = (0..hs.len())
+            .filter(|&k| next[k] < alone[k].nodes.len())
+            .max_by(|&a, &b| {
+                alone[a].nodes[next[a]]
+                    .benefit
+                    .total_cmp(&alone[b].nodes[next[b]].benefit)
+            })
+        else {
+            break;
+        };
+        let mut n = alone[k].nodes[next[k]].clone();
+        next[k] += 1;
+        let room = o.budget - total;
+        let cut = (n.points as u64) > room;
+        if cut {
+            n.points = room as u32;
+        }
+        if n.points > 0 {
+            total += n.points as u64;
+            out[k].points += n.points as u64;
+            out[k].nodes.push(n);
+        }
+        if cut {
+            for s in &mut out {
+                s.budget_reached = true;
+            }
+            break;
+        }
+    }
+    if !out.iter().any(|s| s.budget_reached) {
+        for (s, a) in out.iter_mut().zip(&alone) {
+            s.budget_reached = a.budget_reached;
+        }
+    }
+    out
+}
+
 /// The drawn nodes as a small octree that the GPU walks per point (adaptive point size, 003
 /// section 4.4 and 002 section 5.1, per point as Potree does): from the point's own node down
 /// through the drawn children that contain it, the spacing of the finest one is the point's. So
@@ -510,6 +557,48 @@ mod tests {
         let mean = deep.iter().map(|n| off(n)).sum::<f64>() / deep.len() as f64;
         // All level-3 cells: mean distance from the centre is about 38; the chosen are central.
         assert!(mean < 30.0, "mean off-axis distance {mean}");
+    }
+
+    #[test]
+    fn several_datasets_share_one_budget() {
+        let a = tree(4, 100.0, 4000);
+        // The same tree 1000 units further away along the view.
+        let far_root = Aabb::new([0.0, 0.0, -1100.0], [100.0, 100.0, -1000.0]);
+        let b = Hierarchy::new(far_root, a.nodes.values().cloned().collect::<Vec<_>>());
+        let cam = looking_down(&a, 100.0);
+        let o = SelectOptions {
+            budget: 200_000,
+            min_pixels: 0.5,
+        };
+        let s = select_many(&[&a, &b], &cam, &o);
+        let total = s[0].points + s[1].points;
+        assert!(total <= o.budget && s[0].budget_reached);
+        assert_eq!(total, o.budget);
+        // The near dataset gets most of it; each keeps its parents before its children.
+        assert!(
+            s[0].points > 3 * s[1].points,
+            "{} {}",
+            s[0].points,
+            s[1].points
+        );
+        for sel in &s {
+            assert_eq!(
+                sel.points,
+                sel.nodes.iter().map(|n| n.points as u64).sum::<u64>()
+            );
+            for (i, n) in sel.nodes.iter().enumerate() {
+                if n.key.level > 0 {
+                    let p = n.key.parent();
+                    assert!(
+                        sel.nodes[..i].iter().any(|m| m.key == p),
+                        "{} before its parent",
+                        n.key
+                    );
+                }
+            }
+        }
+        // One dataset alone: the same as select.
+        assert_eq!(select_many(&[&a], &cam, &o)[0], select(&a, &cam, &o));
     }
 
     #[test]

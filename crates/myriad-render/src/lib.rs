@@ -17,7 +17,7 @@ mod scene;
 
 pub use colour::{ColorBy, class_colour, colours};
 pub use raster::{Path, Rasterizer};
-pub use scene::{FrameStats, Picked, Scene};
+pub use scene::{FrameStats, Picked, Scene, frame_many};
 
 /// GPU buffers of nodes, least recently used evicted beyond a byte budget.
 pub type NodeBuffers = myriad_lod::Lru<Points>;

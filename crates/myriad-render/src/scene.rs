@@ -3,12 +3,12 @@
 //! and draws every selected node that has its buffer. A node still loading is covered by its
 //! parent's points, drawn meanwhile; the image refines as pages land.
 
-use crate::{ColorBy, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
+use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
     Camera, DrawnTree, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds,
-    select,
+    select, select_many,
 };
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -156,6 +156,12 @@ impl Scene {
     /// waiting for anything.
     pub fn update(&mut self, camera: &Camera, options: &SelectOptions) -> Selection {
         let selection = select(&self.hierarchy, camera, options);
+        self.take(&selection);
+        selection
+    }
+
+    /// Requests what `selection` needs and takes in what has landed, without waiting.
+    pub fn take(&mut self, selection: &Selection) {
         let wanted: Vec<NodeEntry> = selection
             .nodes
             .iter()
@@ -163,7 +169,46 @@ impl Scene {
             .collect();
         self.loader.request(&wanted);
         self.loader.poll();
-        selection
+    }
+
+    /// The draws of `selection` whose buffers are on the GPU, and the drawn tree they index,
+    /// its entries numbered from `base` (for a frame of several scenes).
+    fn draws(&self, selection: &Selection, base: u32) -> (Vec<Draw<'_>>, Vec<[u32; 4]>) {
+        let tree = DrawnTree::new(selection, |k| self.buffers.contains(k));
+        let root = self.hierarchy.root;
+        let draws = selection
+            .nodes
+            .iter()
+            .filter_map(|n| {
+                let p = self.buffers.get(&n.key)?;
+                let mut d = p.prefix(n.points, n.spacing);
+                d.node = Some((tree.index[&n.key] + base, n.key.bounds(&root)));
+                Some(d)
+            })
+            .collect();
+        let entries = tree
+            .entries
+            .iter()
+            .map(|&[mask, first, spacing, pad]| [mask, first + base, spacing, pad])
+            .collect();
+        (draws, entries)
+    }
+
+    /// What a frame of `selection` did, given what was drawn.
+    fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
+        let failed = self.loader.failed();
+        FrameStats {
+            selected_nodes: selection.nodes.len(),
+            selected_points: selection.points,
+            nodes: draws.len(),
+            points: draws.iter().map(|d| d.count as u64).sum(),
+            in_flight: self.loader.in_flight(),
+            complete: selection
+                .nodes
+                .iter()
+                .all(|n| self.buffers.contains(&n.key) || failed.contains_key(&n.key)),
+            ..Default::default()
+        }
     }
 
     /// Uploads the selected nodes that are resident but not on the GPU; returns how many.
@@ -202,38 +247,65 @@ impl Scene {
         let uploads = self.upload(gpu, &selection);
         let upload = t.elapsed();
         let t = Instant::now();
-        let tree = DrawnTree::new(&selection, |k| self.buffers.contains(k));
-        let root = self.hierarchy.root;
-        let draws: Vec<_> = selection
-            .nodes
-            .iter()
-            .filter_map(|n| {
-                let p = self.buffers.get(&n.key)?;
-                let mut d = p.prefix(n.points, n.spacing);
-                d.node = Some((tree.index[&n.key], n.key.bounds(&root)));
-                Some(d)
-            })
-            .collect();
-        let image = raster.render(gpu, camera, &draws, &tree.entries, style);
-        let (nodes, points) = (draws.len(), draws.iter().map(|d| d.count as u64).sum());
-        drop(draws);
-        let failed = self.loader.failed();
+        let (draws, tree) = self.draws(&selection, 0);
+        let image = raster.render(gpu, camera, &draws, &tree, style);
         let stats = FrameStats {
-            selected_nodes: selection.nodes.len(),
-            selected_points: selection.points,
-            nodes,
-            points,
             uploads,
-            in_flight: self.loader.in_flight(),
-            complete: selection
-                .nodes
-                .iter()
-                .all(|n| self.buffers.contains(&n.key) || failed.contains_key(&n.key)),
             select,
             upload,
             draw: t.elapsed(),
+            ..self.stats(&selection, &draws)
         };
+        drop(draws);
         self.last = selection;
         (image, stats)
     }
+}
+
+/// One frame of several scenes seen together: one point budget over all of them (`select_many`),
+/// drawn into one image with one depth buffer.
+pub fn frame_many(
+    scenes: &mut [&mut Scene],
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    camera: &Camera,
+    options: &SelectOptions,
+    style: &Style,
+) -> (Vec<u8>, Vec<FrameStats>) {
+    let t = Instant::now();
+    let hierarchies: Vec<&Hierarchy> = scenes.iter().map(|s| &s.hierarchy).collect();
+    let selections = select_many(&hierarchies, camera, options);
+    let select = t.elapsed();
+    let t = Instant::now();
+    let mut uploads = Vec::new();
+    for (scene, selection) in scenes.iter_mut().zip(&selections) {
+        scene.take(selection);
+        uploads.push(scene.upload(gpu, selection));
+    }
+    let upload = t.elapsed();
+    let t = Instant::now();
+    let mut all_draws = Vec::new();
+    let mut tree = Vec::new();
+    let mut stats = Vec::new();
+    for ((scene, selection), uploads) in scenes.iter().zip(&selections).zip(uploads) {
+        let (draws, entries) = scene.draws(selection, tree.len() as u32);
+        stats.push(FrameStats {
+            uploads,
+            select,
+            upload,
+            ..scene.stats(selection, &draws)
+        });
+        tree.extend(entries);
+        all_draws.extend(draws);
+    }
+    let image = raster.render(gpu, camera, &all_draws, &tree, style);
+    drop(all_draws);
+    let draw = t.elapsed();
+    for s in &mut stats {
+        s.draw = draw;
+    }
+    for (scene, selection) in scenes.iter_mut().zip(selections) {
+        scene.last = selection;
+    }
+    (image, stats)
 }

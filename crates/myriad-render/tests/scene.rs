@@ -165,3 +165,102 @@ fn frames_refine_on(gpu: Gpu) {
         }
     }
 }
+
+/// Answers at once: a grid over the node's square at height `z`, in one colour.
+struct Flat {
+    z: f64,
+    rgb: [u16; 3],
+}
+
+impl PageReader for Flat {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        let schema = Schema::new(vec![Attribute::Rgb]);
+        let points = node_points(&node.key);
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        for p in points {
+            b.positions.push([p[0], p[1], self.z]);
+            b.rgb.as_mut().unwrap().push(self.rgb);
+        }
+        Ok(b)
+    }
+}
+
+#[test]
+fn several_datasets_share_the_budget_and_the_depth_buffer() {
+    // Two copies of the square, one 10 units above the other; seen from above, the upper one
+    // (red) hides the lower one (green) where both are drawn, whichever comes first.
+    let keys = || std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+    let make = |z: f64, rgb: [u16; 3]| {
+        let root = Aabb::new([0.0, 0.0, z], [64.0, 64.0, z + 64.0]);
+        let h = Hierarchy::new(root, keys().map(entry));
+        Scene::new(
+            Arc::new(Flat { z, rgb }),
+            h,
+            root,
+            1,
+            usize::MAX,
+            usize::MAX,
+        )
+    };
+    for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
+        let raster = Rasterizer::new(&gpu);
+        let (mut low, mut high) = (make(0.0, [0, 255, 0]), make(10.0, [255, 0, 0]));
+        let cam = Camera {
+            position: [32.0, 32.0, 80.0],
+            target: [32.0, 32.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 60.0,
+            width: 160,
+            height: 160,
+            near: 1.0,
+            far: 200.0,
+        };
+        let style = Style {
+            size: PointSize::Fixed(3.0),
+            ..Style::default()
+        };
+        let options = SelectOptions {
+            budget: 1_000_000,
+            min_pixels: 0.5,
+        };
+        let count = |img: &[u8], c: [u8; 3]| img.chunks_exact(4).filter(|p| p[..3] == c).count();
+        let t = Instant::now();
+        let (mut img, mut stats);
+        loop {
+            (img, stats) = myriad_render::frame_many(
+                &mut [&mut low, &mut high],
+                &gpu,
+                &raster,
+                &cam,
+                &options,
+                &style,
+            );
+            if stats.iter().all(|s| s.complete) || t.elapsed() > Duration::from_secs(30) {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(stats.iter().all(|s| s.complete), "{}", gpu.name);
+        assert_eq!(stats[0].points + stats[1].points, 2 * (64 + 4 * 1024));
+        let (red, green) = (count(&img, [255, 0, 0]), count(&img, [0, 255, 0]));
+        assert!(red > 5000, "{}: {red} red pixels", gpu.name);
+        // The lower square peeks out only around the upper one's edge (it is further, so it
+        // looks smaller: none of it at all).
+        assert!(green < red / 20, "{}: {green} green pixels", gpu.name);
+        // A budget for about half: shared, and the nearer square gets more.
+        let half = SelectOptions {
+            budget: 4000,
+            ..options
+        };
+        let (_, stats) = myriad_render::frame_many(
+            &mut [&mut low, &mut high],
+            &gpu,
+            &raster,
+            &cam,
+            &half,
+            &style,
+        );
+        assert_eq!(stats[0].selected_points + stats[1].selected_points, 4000);
+        assert!(stats[1].selected_points > stats[0].selected_points);
+    }
+}

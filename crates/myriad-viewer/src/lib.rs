@@ -587,8 +587,7 @@ impl App {
             .min_by(|a, b| a.depth.total_cmp(&b.depth))
     }
 
-    /// Draws the visible datasets (each through its scene; images composited by depth would
-    /// need one joint frame: until then the first visible dataset is drawn over the others).
+    /// Draws the visible datasets in one frame: one budget, one depth buffer.
     fn draw(&mut self, width: u32, height: u32) -> Vec<u8> {
         self.nav.camera.width = width.max(1);
         self.nav.camera.height = height.max(1);
@@ -597,38 +596,22 @@ impl App {
             self.nav.frame(&self.bounds);
         }
         let cam = self.nav.camera;
-        self.stats.clear();
-        let mut image: Option<Vec<u8>> = None;
-        let per_layer = SelectOptions {
-            budget: self.options.budget
-                / self.layers.iter().filter(|l| l.visible).count().max(1) as u64,
-            ..self.options
-        };
-        for l in self.layers.iter_mut().filter(|l| l.visible) {
-            let (img, stats) =
-                l.scene
-                    .frame(&self.gpu, &self.raster, &cam, &per_layer, &self.style);
-            self.stats.push(stats);
-            match &mut image {
-                None => image = Some(img),
-                Some(base) => {
-                    for (b, p) in base.chunks_exact_mut(4).zip(img.chunks_exact(4)) {
-                        if b[..3] == self.style.background[..3] {
-                            b.copy_from_slice(p);
-                        }
-                    }
-                }
-            }
-        }
-        image.unwrap_or_else(|| {
-            self.style
-                .background
-                .iter()
-                .copied()
-                .cycle()
-                .take(width as usize * height as usize * 4)
-                .collect()
-        })
+        let mut scenes: Vec<&mut Scene> = self
+            .layers
+            .iter_mut()
+            .filter(|l| l.visible)
+            .map(|l| &mut l.scene)
+            .collect();
+        let (image, stats) = myriad_render::frame_many(
+            &mut scenes,
+            &self.gpu,
+            &self.raster,
+            &cam,
+            &self.options,
+            &self.style,
+        );
+        self.stats = stats;
+        image
     }
 }
 
