@@ -96,13 +96,15 @@ struct App {
 pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), String> {
     let (gpu, _) = Gpu::best();
     let raster = Rasterizer::new(&gpu);
-    let ram = 2usize << 30;
-    let gpu_bytes = 1usize << 30;
+    // One memory budget for all datasets, in equal shares.
+    let shares = datasets.len().max(1);
+    let ram = (2usize << 30) / shares;
+    let gpu_bytes = (1usize << 30) / shares;
     let mut layers = Vec::new();
     let mut bounds = Aabb::EMPTY;
     let mut all = Aabb::EMPTY;
     for (name, ds) in datasets {
-        let mut scene = Scene::open(ds.clone(), ram / 2, gpu_bytes / 2);
+        let mut scene = Scene::open(ds.clone(), ram, gpu_bytes);
         scene.set_colour(o.colour);
         bounds.extend(scene.view_bounds.min);
         bounds.extend(scene.view_bounds.max);
