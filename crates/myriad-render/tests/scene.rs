@@ -51,6 +51,20 @@ fn entry(key: NodeKey) -> NodeEntry {
     }
 }
 
+/// Straight down on the square, which fills most of the view.
+fn above() -> Camera {
+    Camera {
+        position: [32.0, 32.0, 80.0],
+        target: [32.0, 32.0, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 60.0,
+        width: 160,
+        height: 160,
+        near: 1.0,
+        far: 200.0,
+    }
+}
+
 /// Answers one read per permit.
 struct Gated {
     permits: Mutex<Receiver<()>>,
@@ -98,17 +112,7 @@ fn frames_refine_on(gpu: Gpu) {
     let permit = permit;
     scene.set_colour(ColorBy::Rgb);
     let raster = Rasterizer::new(&gpu);
-    // Straight down on the square, which fills most of the view.
-    let cam = Camera {
-        position: [32.0, 32.0, 80.0],
-        target: [32.0, 32.0, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_y: 60.0,
-        width: 160,
-        height: 160,
-        near: 1.0,
-        far: 200.0,
-    };
+    let cam = above();
     let options = SelectOptions {
         budget: 1_000_000,
         min_pixels: 0.5,
@@ -205,16 +209,7 @@ fn several_datasets_share_the_budget_and_the_depth_buffer() {
     for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
         let raster = Rasterizer::new(&gpu);
         let (mut low, mut high) = (make(0.0, [0, 255, 0]), make(10.0, [255, 0, 0]));
-        let cam = Camera {
-            position: [32.0, 32.0, 80.0],
-            target: [32.0, 32.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y: 60.0,
-            width: 160,
-            height: 160,
-            near: 1.0,
-            far: 200.0,
-        };
+        let cam = above();
         let style = Style {
             size: PointSize::Fixed(3.0),
             ..Style::default()

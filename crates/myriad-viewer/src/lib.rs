@@ -779,15 +779,19 @@ fn report_orbit(times: &mut [(f64, f64)], stats: &[FrameStats]) {
 fn write_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
     let [w, h] = image.size;
     let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-    let tmp = path.with_extension("png.partial");
-    {
-        let f = std::fs::File::create(&tmp).map_err(|e| e.to_string())?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w as u32, h as u32);
-        enc.set_color(png::ColorType::Rgba);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc.write_header().map_err(|e| e.to_string())?;
-        writer.write_image_data(&rgba).map_err(|e| e.to_string())?;
-        writer.finish().map_err(|e| e.to_string())?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| e.to_string())
+    let write = || -> Result<(), Box<dyn std::error::Error>> {
+        let file = myriad_io::atomic::AtomicFile::create(path, true)?;
+        {
+            let f = file.open_write()?;
+            let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w as u32, h as u32);
+            enc.set_color(png::ColorType::Rgba);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut writer = enc.write_header()?;
+            writer.write_image_data(&rgba)?;
+            writer.finish()?;
+        }
+        file.commit()?;
+        Ok(())
+    };
+    write().map_err(|e| e.to_string())
 }
