@@ -210,9 +210,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
             a.fov,
         )?,
     };
-    if std::env::var_os("MYRIAD_PRINT_CAMERA").is_some() {
-        eprintln!("{cam:?}");
-    }
     // First image: as soon as the first selected node (the root) is in.
     let first = scene.update(&cam, &options);
     if let Some(root) = first.nodes.first() {
