@@ -11,6 +11,7 @@ pub mod view;
 pub use cache::Lru;
 pub use select::{
     DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select, select_many,
+    select_where,
 };
 pub use stream::{Loader, PageReader, converge};
 pub use view::{Camera, Frustum, robust_bounds};

@@ -170,12 +170,23 @@ fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
 
 /// Chooses the nodes and prefixes to draw for `cam`.
 pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
+    select_where(h, cam, o, &|_| true)
+}
+
+/// [`select`] among the nodes whose cube `keep` accepts (a clipping box: nodes it hides entirely
+/// take no budget).
+pub fn select_where(
+    h: &Hierarchy,
+    cam: &Camera,
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
+) -> Selection {
     let frustum = cam.frustum();
     let mut out = Selection::default();
     let mut queue = BinaryHeap::new();
     let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>, frustum: &Frustum| {
         let cube = key.bounds(&h.root);
-        if !frustum.intersects(&cube) {
+        if !frustum.intersects(&cube) || !keep(&cube) {
             return;
         }
         let depth = nearest_depth(cam, &cube);
@@ -241,8 +252,13 @@ pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
 /// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
 /// alone with the whole budget, then their nodes are taken in one benefit order (each dataset's
 /// own order kept, so parents still come before children) until the budget is spent.
-pub fn select_many(hs: &[&Hierarchy], cam: &Camera, o: &SelectOptions) -> Vec<Selection> {
-    let alone: Vec<Selection> = hs.iter().map(|h| select(h, cam, o)).collect();
+pub fn select_many(
+    hs: &[&Hierarchy],
+    cam: &Camera,
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
+) -> Vec<Selection> {
+    let alone: Vec<Selection> = hs.iter().map(|h| select_where(h, cam, o, keep)).collect();
     let mut out: Vec<Selection> = vec![Selection::default(); hs.len()];
     let mut next = vec![0usize; hs.len()];
     let mut total = 0u64;
@@ -570,7 +586,7 @@ mod tests {
             budget: 200_000,
             min_pixels: 0.5,
         };
-        let s = select_many(&[&a, &b], &cam, &o);
+        let s = select_many(&[&a, &b], &cam, &o, &|_| true);
         let total = s[0].points + s[1].points;
         assert!(total <= o.budget && s[0].budget_reached);
         assert_eq!(total, o.budget);
@@ -598,7 +614,15 @@ mod tests {
             }
         }
         // One dataset alone: the same as select.
-        assert_eq!(select_many(&[&a], &cam, &o)[0], select(&a, &cam, &o));
+        assert_eq!(
+            select_many(&[&a], &cam, &o, &|_| true)[0],
+            select(&a, &cam, &o)
+        );
+        // A filter that keeps only the near dataset's cubes: the far one gets nothing.
+        let near_only = |c: &Aabb| c.min[2] >= -1.0;
+        let s = select_many(&[&a, &b], &cam, &o, &near_only);
+        assert_eq!(s[1].points, 0);
+        assert_eq!(s[0].points, o.budget);
     }
 
     #[test]

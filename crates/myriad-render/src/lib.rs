@@ -314,6 +314,18 @@ pub struct Clip {
 }
 
 impl Clip {
+    /// Whether a node's cube can hold points the box lets through (for the selection: nodes it
+    /// hides entirely take no budget).
+    pub fn keeps(clip: Option<Clip>, cube: &myriad_core::Aabb) -> bool {
+        let Some(c) = clip else { return true };
+        let b = &c.bounds;
+        if c.inside {
+            (0..3).all(|a| cube.max[a] >= b.min[a] && cube.min[a] <= b.max[a])
+        } else {
+            !(0..3).all(|a| cube.min[a] >= b.min[a] && cube.max[a] <= b.max[a])
+        }
+    }
+
     /// The box relative to `origin` as the shaders take it: min with the mode (1 inside,
     /// 2 outside), max; all zero without a box.
     pub fn uniforms(clip: Option<Clip>, origin: [f64; 3]) -> [[f32; 4]; 2] {
@@ -351,5 +363,32 @@ impl Default for Style {
             background: [0, 0, 0, 255],
             clip: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use myriad_core::Aabb;
+
+    #[test]
+    fn a_clipping_box_keeps_the_cubes_that_can_show_through_it() {
+        let b = Aabb::new([0.0; 3], [10.0; 3]);
+        let inside = Some(Clip {
+            bounds: b,
+            inside: true,
+        });
+        let outside = Some(Clip {
+            bounds: b,
+            inside: false,
+        });
+        let within = Aabb::new([2.0; 3], [4.0; 3]);
+        let across = Aabb::new([8.0; 3], [12.0; 3]);
+        let away = Aabb::new([20.0; 3], [30.0; 3]);
+        assert!(Clip::keeps(None, &away));
+        assert!(Clip::keeps(inside, &within) && Clip::keeps(inside, &across));
+        assert!(!Clip::keeps(inside, &away));
+        assert!(!Clip::keeps(outside, &within));
+        assert!(Clip::keeps(outside, &across) && Clip::keeps(outside, &away));
     }
 }

@@ -8,7 +8,7 @@ use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
     Camera, DrawnTree, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds,
-    select, select_many,
+    select_many, select_where,
 };
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -155,7 +155,18 @@ impl Scene {
     /// Selects for `camera`, requests what is missing and takes in what has landed, without
     /// waiting for anything.
     pub fn update(&mut self, camera: &Camera, options: &SelectOptions) -> Selection {
-        let selection = select(&self.hierarchy, camera, options);
+        self.update_clipped(camera, options, None)
+    }
+
+    /// [`Scene::update`] skipping the nodes a clipping box hides entirely.
+    pub fn update_clipped(
+        &mut self,
+        camera: &Camera,
+        options: &SelectOptions,
+        clip: Option<crate::Clip>,
+    ) -> Selection {
+        let keep = |cube: &Aabb| crate::Clip::keeps(clip, cube);
+        let selection = select_where(&self.hierarchy, camera, options, &keep);
         self.take(&selection);
         selection
     }
@@ -241,7 +252,7 @@ impl Scene {
         style: &Style,
     ) -> (Vec<u8>, FrameStats) {
         let t = Instant::now();
-        let selection = self.update(camera, options);
+        let selection = self.update_clipped(camera, options, style.clip);
         let select = t.elapsed();
         let t = Instant::now();
         let uploads = self.upload(gpu, &selection);
@@ -274,7 +285,8 @@ pub fn frame_many(
 ) -> (Vec<u8>, Vec<FrameStats>) {
     let t = Instant::now();
     let hierarchies: Vec<&Hierarchy> = scenes.iter().map(|s| &s.hierarchy).collect();
-    let selections = select_many(&hierarchies, camera, options);
+    let keep = |cube: &Aabb| crate::Clip::keeps(style.clip, cube);
+    let selections = select_many(&hierarchies, camera, options, &keep);
     let select = t.elapsed();
     let t = Instant::now();
     let mut uploads = Vec::new();
