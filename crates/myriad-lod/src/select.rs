@@ -384,6 +384,24 @@ mod tests {
     use super::*;
     use myriad_format::PageRef;
 
+    /// The selection's point count is its nodes' and each node comes after its parent.
+    fn assert_counted_parents_first(s: &Selection) {
+        assert_eq!(
+            s.points,
+            s.nodes.iter().map(|n| n.points as u64).sum::<u64>()
+        );
+        for (i, n) in s.nodes.iter().enumerate() {
+            if n.key.level > 0 {
+                let p = n.key.parent();
+                assert!(
+                    s.nodes[..i].iter().any(|m| m.key == p),
+                    "{} before its parent",
+                    n.key
+                );
+            }
+        }
+    }
+
     /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
     /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
     /// 16 times the points at a quarter of the spacing).
@@ -440,21 +458,8 @@ mod tests {
                 },
             );
             assert!(s.points <= budget, "{} > {budget}", s.points);
-            assert_eq!(
-                s.points,
-                s.nodes.iter().map(|n| n.points as u64).sum::<u64>()
-            );
             // Every selected node's parent was selected before it: no holes.
-            for (i, n) in s.nodes.iter().enumerate() {
-                if n.key.level > 0 {
-                    let p = n.key.parent();
-                    assert!(
-                        s.nodes[..i].iter().any(|m| m.key == p),
-                        "{} before its parent",
-                        n.key
-                    );
-                }
-            }
+            assert_counted_parents_first(&s);
             if budget < h.points() {
                 assert!(s.budget_reached || s.points < budget);
             }
@@ -598,20 +603,7 @@ mod tests {
             s[1].points
         );
         for sel in &s {
-            assert_eq!(
-                sel.points,
-                sel.nodes.iter().map(|n| n.points as u64).sum::<u64>()
-            );
-            for (i, n) in sel.nodes.iter().enumerate() {
-                if n.key.level > 0 {
-                    let p = n.key.parent();
-                    assert!(
-                        sel.nodes[..i].iter().any(|m| m.key == p),
-                        "{} before its parent",
-                        n.key
-                    );
-                }
-            }
+            assert_counted_parents_first(sel);
         }
         // One dataset alone: the same as select.
         assert_eq!(

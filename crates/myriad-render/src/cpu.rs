@@ -14,25 +14,18 @@ fn depth_key(w: f32, far: f32) -> u32 {
     ((1.0 - w / far).clamp(0.0, 1.0) * 4294967040.0) as u32 + 1
 }
 
-/// As `point_pixels` in draw.wgsl.
+/// As `point_pixels` in draw.wgsl for adaptive sizes (fixed sizes are decided once per frame).
 #[allow(clippy::too_many_arguments)]
-fn point_pixels(
+fn adaptive_pixels(
     p: [f32; 3],
     w: f32,
     draw_spacing: f32,
     node: u32,
     cube: [f32; 4],
     tree: &[[u32; 4]],
-    style: &Style,
+    max_size: f32,
     focal: f32,
 ) -> f32 {
-    let (point_size, max_size) = match style.size {
-        PointSize::Fixed(px) => (px.max(1.0), px.max(1.0)),
-        PointSize::Adaptive { max, .. } => (0.0, max.max(1.0)),
-    };
-    if point_size > 0.0 {
-        return point_size.round().clamp(1.0, max_size);
-    }
     let mut spacing = draw_spacing;
     if node != u32::MAX {
         let mut i = node as usize;
@@ -73,9 +66,10 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
         .map(|_| AtomicU64::new(0))
         .collect();
     let (far, focal) = (camera.far as f32, camera.focal() as f32);
-    let scale = match style.size {
-        PointSize::Adaptive { scale, .. } => scale as f64,
-        PointSize::Fixed(_) => 1.0,
+    // Fixed sizes are the same for every point.
+    let (scale, fixed, max_size) = match style.size {
+        PointSize::Adaptive { scale, max } => (scale as f64, None, max.max(1.0)),
+        PointSize::Fixed(px) => (1.0, Some(px.max(1.0).round()), px.max(1.0)),
     };
     for draw in draws.iter().filter(|d| d.count > 0) {
         let m = camera.view_proj(draw.points.origin);
@@ -119,7 +113,10 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                 let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
                 let fy = (0.5 - ndc[1] * 0.5) * h as f32;
                 let colour = q[3].to_bits() as u64;
-                let s = point_pixels(p, clip[3], spacing, node, cube, tree, style, focal) as i32;
+                let s = match fixed {
+                    Some(px) => px,
+                    None => adaptive_pixels(p, clip[3], spacing, node, cube, tree, max_size, focal),
+                } as i32;
                 let x0 = fx.floor() as i32 - (s - 1) / 2;
                 let y0 = fy.floor() as i32 - (s - 1) / 2;
                 let c = (s - 1) as f32 * 0.5;
