@@ -15,9 +15,10 @@
 //! `capacity` points). [`plan`] sizes both from `--memory`.
 
 use crate::distribute::{self, DistributeOptions, SPILL_PREFIX};
+use crate::kd;
 use crate::nested::{self, BuiltNode, NestedParams};
 use myriad_core::{Error, NodeKey, PointBatch, Result, Schema};
-use myriad_format::{DatasetWriter, Metadata, Quantization};
+use myriad_format::{DatasetWriter, Metadata, NodeShape, Quantization};
 use myriad_io::OpenOptions;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -30,8 +31,40 @@ pub const DEFAULT_MAX_LEVEL: u32 = 20;
 /// Spill files are compressed when they would exceed this (8 GB, about 150 M points).
 pub const SPILL_COMPRESS_ABOVE: u64 = 8 << 30;
 
+/// The hierarchy a dataset is built as (`convert --structure`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Structure {
+    /// Nested octree of MOSPTs (Scheiblauer 2006, 003).
+    Octree,
+    /// Octree whose nodes' representatives come from an adaptive n-tree, with contours (000).
+    Layered,
+    /// Balanced binary kd-tree with median splits (002).
+    Kd,
+}
+
+impl Structure {
+    pub const ALL: [Structure; 3] = [Structure::Octree, Structure::Layered, Structure::Kd];
+
+    /// The name `--structure` takes and the metadata stores.
+    pub fn name(self) -> &'static str {
+        match self {
+            Structure::Octree => "octree",
+            Structure::Layered => "layered",
+            Structure::Kd => "kd",
+        }
+    }
+
+    pub fn parse(s: &str) -> std::result::Result<Structure, String> {
+        Structure::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("unknown structure {s:?} (octree, layered, kd)"))
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct ConvertOptions {
+    pub structure: Structure,
     pub output: PathBuf,
     pub force: bool,
     /// Memory budget in bytes.
@@ -50,6 +83,7 @@ pub struct ConvertOptions {
 impl ConvertOptions {
     pub fn new(output: &Path) -> ConvertOptions {
         ConvertOptions {
+            structure: Structure::Octree,
             output: output.to_path_buf(),
             force: false,
             memory: default_memory(),
@@ -59,6 +93,7 @@ impl ConvertOptions {
                 capacity: DEFAULT_CAPACITY,
                 inner_depth: DEFAULT_INNER_DEPTH,
                 max_level: DEFAULT_MAX_LEVEL,
+                ntree: false,
             },
             open: OpenOptions {
                 sidecar_placements: true,
@@ -177,6 +212,7 @@ struct Pending {
     points: usize,
     prefix: Vec<u64>,
     spacing: Vec<f64>,
+    shape: NodeShape,
 }
 
 /// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
@@ -206,7 +242,13 @@ fn acquisition_order(node: &mut BuiltNode) {
 
 fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
     acquisition_order(&mut node);
-    writer.write_node(node.key, &node.points, &node.prefix, &node.spacing)
+    writer.write_node(
+        node.key,
+        &node.points,
+        &node.prefix,
+        &node.spacing,
+        node.shape,
+    )
 }
 
 fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
@@ -222,6 +264,7 @@ fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
         points: node.points.len(),
         prefix: node.prefix,
         spacing: node.spacing,
+        shape: node.shape,
     })
 }
 
@@ -245,6 +288,7 @@ fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
         points: b,
         prefix: p.prefix,
         spacing: p.spacing,
+        shape: p.shape,
     })
 }
 
@@ -329,7 +373,11 @@ pub fn convert(
         ));
     }
     remove_stale(out);
-    let params = options.params;
+    let structure = options.structure;
+    let params = NestedParams {
+        ntree: structure == Structure::Layered,
+        ..options.params
+    };
     let plan = plan(options.memory, options.threads.max(1), &params);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(plan.threads)
@@ -373,33 +421,66 @@ pub fn convert(
     let schema = dist.schema.clone();
     let spill_dir = dist.spill_dir().to_path_buf();
 
-    // 2. Chunks, in parallel, largest first (they take longest).
+    // 2. Chunks (kd: groups of chunks), in parallel, largest first (they take longest).
     report.phase("building", dist.points);
-    let mut chunks = dist.chunks.clone();
-    chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
-    let pending: Vec<Pending> = pool.install(|| {
-        chunks
-            .par_iter()
-            .map(|chunk| -> Result<Pending> {
-                let batch = dist.load(chunk)?;
-                let key = NodeKey {
-                    level: chunk.level,
-                    cell: chunk.cell,
-                };
-                let mut top = None;
-                nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
-                    report.advance(node.points.len() as u64);
-                    if node.key == key {
-                        top = Some(spill(node, &spill_dir)?);
-                    } else {
-                        write(&writer, node)?;
+    let pending: Vec<Pending> = if structure == Structure::Kd {
+        let boxes: Vec<_> = dist
+            .chunks
+            .iter()
+            .map(|c| (dist.cell_bounds(c), c.points))
+            .collect();
+        let mut groups =
+            kd::group_chunks(&boxes, options.chunk_points.unwrap_or(plan.chunk_points));
+        groups.sort_by_key(|g| std::cmp::Reverse(g.points));
+        pool.install(|| {
+            groups
+                .par_iter()
+                .map(|g| -> Result<Pending> {
+                    let mut batch = PointBatch::with_schema(&schema, g.points as usize);
+                    for &i in &g.chunks {
+                        batch.append(&dist.load(&dist.chunks[i])?);
                     }
-                    Ok::<(), Error>(())
-                })?;
-                Ok(top.expect("a chunk has points, so its subtree has a root"))
-            })
-            .collect::<Result<Vec<_>>>()
-    })?;
+                    let mut top = None;
+                    kd::build_subtree_with(batch, g.key, &params, &mut |node| {
+                        report.advance(node.points.len() as u64);
+                        if node.key == g.key {
+                            top = Some(spill(node, &spill_dir)?);
+                        } else {
+                            write(&writer, node)?;
+                        }
+                        Ok::<(), Error>(())
+                    })?;
+                    Ok(top.expect("a group has points, so its subtree has a root"))
+                })
+                .collect::<Result<Vec<_>>>()
+        })?
+    } else {
+        let mut chunks = dist.chunks.clone();
+        chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
+        pool.install(|| {
+            chunks
+                .par_iter()
+                .map(|chunk| -> Result<Pending> {
+                    let batch = dist.load(chunk)?;
+                    let key = NodeKey {
+                        level: chunk.level,
+                        cell: chunk.cell,
+                    };
+                    let mut top = None;
+                    nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
+                        report.advance(node.points.len() as u64);
+                        if node.key == key {
+                            top = Some(spill(node, &spill_dir)?);
+                        } else {
+                            write(&writer, node)?;
+                        }
+                        Ok::<(), Error>(())
+                    })?;
+                    Ok(top.expect("a chunk has points, so its subtree has a root"))
+                })
+                .collect::<Result<Vec<_>>>()
+        })?
+    };
     phases.push(("building", t.elapsed().as_secs_f64()));
     t = Instant::now();
 
@@ -430,7 +511,10 @@ pub fn convert(
                         .into_iter()
                         .map(|p| unspill(p, &schema))
                         .collect::<Result<Vec<_>>>()?;
-                    let (top, children) = nested::take_up(parent, children, &root, &params);
+                    let (top, children) = match structure {
+                        Structure::Kd => kd::take_up(parent, children, &params),
+                        _ => nested::take_up(parent, children, &root, &params),
+                    };
                     for c in children {
                         write(&writer, c)?;
                     }
@@ -447,7 +531,10 @@ pub fn convert(
     // 4. Hierarchy, metadata, header.
     report.phase("writing", 1);
     let meta = Metadata {
-        structure: "nested-octree".into(),
+        structure: match structure {
+            Structure::Octree => "nested-octree".into(),
+            s => s.name().into(),
+        },
         parameters: serde_json::json!({
             "capacity": params.capacity,
             "inner_depth": params.inner_depth,
@@ -520,6 +607,7 @@ mod tests {
             points: b,
             prefix: vec![1, 4, 8],
             spacing: vec![4.0, 2.0, 1.0],
+            shape: NodeShape::default(),
         };
         acquisition_order(&mut node);
         let t = node.points.gps_time.as_ref().unwrap();
@@ -552,6 +640,7 @@ mod tests {
             capacity: DEFAULT_CAPACITY,
             inner_depth: DEFAULT_INNER_DEPTH,
             max_level: DEFAULT_MAX_LEVEL,
+            ntree: false,
         };
         for memory in [MIN_MEMORY, 512 << 20, 2 << 30, 8 << 30] {
             for threads in [1, 2, 8, 64] {

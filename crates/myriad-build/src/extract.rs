@@ -63,7 +63,7 @@ fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEn
     nodes
         .into_iter()
         .filter(|n| {
-            let cube = n.key.bounds(&ds.meta.root);
+            let cube = n.bounds_in(&ds.meta.root);
             let meets = o
                 .bbox
                 .is_none_or(|b| (0..3).all(|a| cube.min[a] <= b.max[a] && b.min[a] <= cube.max[a]));
@@ -187,8 +187,9 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
         };
         report.points += batch.len() as u64;
         report.pages_bytes += n.page.length as u64;
-        // Points lie in the node's cube, give or take half a quantization step.
-        let cube = n.key.bounds(&root);
+        // Points lie in the node's cube (or stored bounds), give or take half a quantization
+        // step, and in its contour.
+        let cube = n.bounds_in(&root);
         let slack: [f64; 3] = std::array::from_fn(|a| q.scale[a] + cube.size()[a] * 1e-9);
         let outside = batch.positions.iter().position(|p| {
             (0..3).any(|a| p[a] < cube.min[a] - slack[a] || p[a] > cube.max[a] + slack[a])
@@ -201,6 +202,23 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                     batch.positions[i]
                 ),
             ));
+        }
+        if let Some(c) = &n.contour {
+            let slack = q.scale.into_iter().fold(0.0, f64::max)
+                + c.half_extents.into_iter().fold(0.0, f64::max) * 1e-9;
+            let loose = myriad_core::Obb {
+                half_extents: c.half_extents.map(|h| h + slack),
+                ..*c
+            };
+            if let Some(i) = batch.positions.iter().position(|&p| !loose.contains(p)) {
+                damage.push(node_damage(
+                    n,
+                    format!(
+                        "point {i} {:?} lies outside the node's contour",
+                        batch.positions[i]
+                    ),
+                ));
+            }
         }
     }
     if damage.is_empty() && report.points != ds.meta.points {

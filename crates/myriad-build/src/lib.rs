@@ -7,5 +7,7 @@
 pub mod convert;
 pub mod distribute;
 pub mod extract;
+pub mod kd;
 pub mod mospt;
 pub mod nested;
+pub mod ntree;

@@ -8,9 +8,10 @@
 //! point ends in exactly one node; a node's points are stored in MOSPT order, so a prefix of a node
 //! is a coarser level of detail of that node.
 
-use crate::mospt;
+use crate::{mospt, ntree};
 pub use myriad_core::NodeKey;
 use myriad_core::{Aabb, PointBatch};
+use myriad_format::NodeShape;
 
 #[derive(Debug, Clone, Copy)]
 pub struct NestedParams {
@@ -20,6 +21,9 @@ pub struct NestedParams {
     pub inner_depth: u32,
     /// Deepest outer level; nodes there keep every point they get.
     pub max_level: u32,
+    /// The `layered` structure (000): representatives from the adaptive n-tree
+    /// ([`crate::ntree`]) and a contour per node, instead of the MOSPT.
+    pub ntree: bool,
 }
 
 /// A built node: its points in MOSPT order, with the prefix count and spacing of each level.
@@ -29,12 +33,14 @@ pub struct BuiltNode {
     pub points: PointBatch,
     pub prefix: Vec<u64>,
     pub spacing: Vec<f64>,
+    /// Stored bounds and contour (kd and layered structures).
+    pub shape: NodeShape,
 }
 
 /// How many points of a MOSPT a node with at most `capacity` points keeps: the prefix of the
 /// deepest inner level that fits (at least the root point). The last prefix entry is the rest
 /// that no inner level separates, so it is never taken here.
-fn fitting_prefix(m: &mospt::Mospt, capacity: usize) -> usize {
+pub(crate) fn fitting_prefix(m: &mospt::Mospt, capacity: usize) -> usize {
     let inner_levels = m.prefix.len() - 1;
     let l = (0..inner_levels)
         .rev()
@@ -44,7 +50,12 @@ fn fitting_prefix(m: &mospt::Mospt, capacity: usize) -> usize {
 }
 
 /// The node holding the first `keep` points of `batch`'s MOSPT `m`, with the levels they span.
-fn node_from_prefix(key: NodeKey, batch: &PointBatch, m: &mospt::Mospt, keep: usize) -> BuiltNode {
+pub(crate) fn node_from_prefix(
+    key: NodeKey,
+    batch: &PointBatch,
+    m: &mospt::Mospt,
+    keep: usize,
+) -> BuiltNode {
     let kept_levels = m
         .prefix
         .iter()
@@ -59,6 +70,7 @@ fn node_from_prefix(key: NodeKey, batch: &PointBatch, m: &mospt::Mospt, keep: us
             .map(|&p| p.min(keep as u64))
             .collect(),
         spacing: m.spacing[..kept_levels].to_vec(),
+        shape: NodeShape::default(),
     }
 }
 
@@ -111,13 +123,21 @@ pub fn build_subtree_with<E>(
         } else {
             params.inner_depth
         };
-        let m = mospt::build_sorted(&batch, (0..n as u32).collect(), &codes, &cube, depth);
-        let keep = if leaf {
-            n
+        let (m, keep, contour) = if params.ntree {
+            let (m, pca) = ntree::build(&batch, params.capacity, leaf);
+            let keep = m.order.len();
+            (m, keep, Some(ntree::contour(&batch.positions, &pca)))
         } else {
-            fitting_prefix(&m, params.capacity)
+            let m = mospt::build_sorted(&batch, (0..n as u32).collect(), &codes, &cube, depth);
+            let keep = if leaf {
+                n
+            } else {
+                fitting_prefix(&m, params.capacity)
+            };
+            (m, keep, None)
         };
-        let node = node_from_prefix(key, &batch, &m, keep);
+        let mut node = node_from_prefix(key, &batch, &m, keep);
+        node.shape.contour = contour;
         if keep < n {
             // The rest goes down; in Morton order each child's points are one run, whose
             // octant is the top three bits of the code.
@@ -162,14 +182,19 @@ pub fn build_subtree_with<E>(
     Ok(())
 }
 
-/// The node of `batch` at `key`: all of it in MOSPT order (a leaf's content).
-fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb) -> BuiltNode {
-    let m = mospt::build(&batch, &key.bounds(root), 21);
+/// The node of `batch` at `key`: all of it in level order (a leaf's content).
+fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb, params: &NestedParams) -> BuiltNode {
+    let m = if params.ntree {
+        ntree::build(&batch, batch.len(), true).0
+    } else {
+        mospt::build(&batch, &key.bounds(root), 21)
+    };
     BuiltNode {
         key,
         points: batch.gather(&m.order),
         prefix: m.prefix,
         spacing: m.spacing,
+        shape: NodeShape::default(),
     }
 }
 
@@ -191,8 +216,23 @@ pub fn take_up(
         }
     }
     let union = union.unwrap_or_default();
-    let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
-    let keep = fitting_prefix(&m, params.capacity).min(union.len());
+    let (m, keep, contour) = if params.ntree {
+        let (m, _) = ntree::build(&union, params.capacity, false);
+        // The contour holds the children's contours, hence the whole subtree.
+        let mut outline = union.positions.clone();
+        for c in &children {
+            if let Some(o) = &c.shape.contour {
+                outline.extend(o.corners());
+            }
+        }
+        let pca = ntree::pca(&outline);
+        let keep = m.order.len();
+        (m, keep, Some(ntree::contour(&outline, &pca)))
+    } else {
+        let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
+        let keep = fitting_prefix(&m, params.capacity).min(union.len());
+        (m, keep, None)
+    };
     let mut moved = vec![false; union.len()];
     m.order[..keep]
         .iter()
@@ -205,11 +245,15 @@ pub fn take_up(
             .filter(|&i| !moved[start + i as usize])
             .collect();
         if stay.len() != n {
-            *child = leaf_node(child.key, child.points.gather(&stay), root);
+            let shape = child.shape;
+            *child = leaf_node(child.key, child.points.gather(&stay), root, params);
+            child.shape = shape;
         }
         start += n;
     }
-    (node_from_prefix(parent, &union, &m, keep), children)
+    let mut top = node_from_prefix(parent, &union, &m, keep);
+    top.shape.contour = contour;
+    (top, children)
 }
 
 /// Builds the levels above the chunks. `chunk_roots` are the roots of the chunks' subtrees (the
@@ -298,6 +342,7 @@ mod tests {
             capacity: 3000,
             inner_depth: 5,
             max_level: 8,
+            ntree: false,
         };
         let input = random_batch(60_000, 9);
         let nodes = build_subtree(input.clone(), &root, NodeKey::ROOT, &params);
@@ -387,6 +432,7 @@ mod tests {
                 capacity: 1000,
                 inner_depth: 6,
                 max_level: 8,
+                ntree: false,
             },
         );
         assert_eq!(nodes.len(), 1);

@@ -1,7 +1,7 @@
 //! `convert` end to end: nothing lost (every field of every point survives convert then
 //! extract), the dataset's invariants, box and spacing queries, damaged pages caught and named.
 
-use myriad_build::convert::{ConvertOptions, Silent, convert};
+use myriad_build::convert::{ConvertOptions, Silent, Structure, convert};
 use myriad_build::extract::{ExtractOptions, extract, verify};
 use myriad_core::{Aabb, PointBatch};
 use myriad_format::Dataset;
@@ -119,6 +119,122 @@ fn nothing_lost_many_chunks_and_nodes() {
     let err = convert(std::slice::from_ref(&las), &o, &Silent).unwrap_err();
     assert!(err.to_string().contains("--force"), "{err}");
     assert_eq!(std::fs::read(&out).unwrap(), before);
+}
+
+/// Every structure over many chunks (so kd groups them and every structure builds levels above
+/// them): nothing lost, invariants hold, the stored shapes are those of the structure.
+#[test]
+fn every_structure_many_chunks() {
+    let d = tempdir("structures");
+    let las = synth(&d, 200_000);
+    let input = records(&read_all(&las));
+    for structure in Structure::ALL {
+        let out = d.join(format!("{}.myr", structure.name()));
+        let mut o = options(&out);
+        o.structure = structure;
+        o.memory = myriad_build::convert::MIN_MEMORY;
+        o.chunk_points = Some(30_000);
+        o.params.capacity = 4096;
+        o.threads = 2;
+        let s = convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+        assert!(s.chunks >= 4 && s.depth >= 3, "{structure:?}: {s:?}");
+        let ds = Dataset::open(&out).unwrap();
+        let r = verify(&ds, |_| {});
+        assert!(r.damage.is_empty(), "{structure:?}: {:?}", r.damage);
+        let back = d.join(format!("{}.las", structure.name()));
+        extract(&ds, &back, &ExtractOptions::default()).unwrap();
+        assert!(
+            records(&read_all(&back)) == input,
+            "{structure:?}: points differ"
+        );
+        let (nodes, _) = ds.nodes();
+        let kd = structure == Structure::Kd;
+        let layered = structure == Structure::Layered;
+        assert!(
+            nodes.iter().all(|n| n.bounds.is_some() == kd),
+            "{structure:?}"
+        );
+        assert!(
+            nodes.iter().all(|n| n.contour.is_some() == layered),
+            "{structure:?}"
+        );
+        if kd {
+            // Binary: only the first two octants of a key are used.
+            assert!(
+                nodes
+                    .iter()
+                    .all(|n| n.key.cell[1] == 0 && n.key.cell[2] == 0)
+            );
+        }
+        if layered {
+            // Roof tops and streets of the synthetic city are flat: some contours are tilted or
+            // thin boxes, not all axis-aligned.
+            let oriented = nodes
+                .iter()
+                .filter(|n| n.contour.unwrap().axes[0] != [1.0, 0.0, 0.0])
+                .count();
+            assert!(oriented > 0, "no flat node among {}", nodes.len());
+        }
+        assert_eq!(
+            ds.meta.structure,
+            if structure == Structure::Octree {
+                "nested-octree"
+            } else {
+                structure.name()
+            }
+        );
+    }
+}
+
+/// Every file of ../shared/data, in every format, with the layered and kd structures: the points
+/// read back from the nodes are the input's, every field (positions on the dataset's
+/// quantization grid), and the dataset verifies. (The octree's test goes through extraction:
+/// `nothing_lost_for_every_las_file_in_shared_data`.)
+#[test]
+fn nothing_lost_for_every_file_and_structure() {
+    let Some(dir) = data_dir() else { return };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| myriad_io::detect(p).is_ok())
+        .collect();
+    files.sort();
+    assert!(files.len() >= 30, "{} point cloud files", files.len());
+    let d = tempdir("every");
+    for f in &files {
+        let mut input = read_all(f);
+        for structure in [Structure::Layered, Structure::Kd] {
+            let out = d.join("a.myr");
+            let mut o = options(&out);
+            o.structure = structure;
+            o.force = true;
+            o.params.capacity = 16_384;
+            let s = convert(std::slice::from_ref(f), &o, &Silent)
+                .unwrap_or_else(|e| panic!("{} {structure:?}: {e}", f.display()));
+            let ds = Dataset::open(&out).unwrap();
+            let r = verify(&ds, |_| {});
+            assert!(
+                r.damage.is_empty(),
+                "{} {structure:?}: {:?}",
+                f.display(),
+                r.damage
+            );
+            assert_eq!(s.points as usize, input.len(), "{}", f.display());
+            let q = ds.meta.quantization;
+            for p in &mut input.positions {
+                *p = q.to_world(q.to_int(*p));
+            }
+            let mut stored = PointBatch::with_schema(&ds.meta.schema, 0);
+            for n in ds.nodes().0 {
+                stored.append(&ds.read_node(&n).unwrap());
+            }
+            assert!(
+                records(&stored) == records(&input),
+                "{} {structure:?}: the stored points differ from the input's",
+                f.display()
+            );
+        }
+    }
 }
 
 #[test]

@@ -214,6 +214,7 @@ fn chunks_and_tops_form_one_nested_octree() {
         capacity: 4000,
         inner_depth: 6,
         max_level: 16,
+        ntree: false,
     };
     let mut nodes = Vec::new();
     let mut chunk_roots = Vec::new();

@@ -3,7 +3,7 @@
 //! reader of a dataset of any size opens it by reading the root page alone, and walks down only
 //! where it needs to. Byte layout: docs/format.md.
 
-use myriad_core::NodeKey;
+use myriad_core::{Aabb, NodeKey, Obb};
 
 pub const HIERARCHY_MAGIC: &[u8; 4] = b"MYRH";
 /// Levels of nodes per hierarchy page.
@@ -29,6 +29,49 @@ pub struct NodeEntry {
     pub prefix: Vec<u32>,
     /// Point spacing of each level of detail.
     pub spacing: Vec<f64>,
+    /// Where the node's subtree lies, for structures whose nodes are not the cells of their
+    /// key's octree (kd-trees); `None`: the key's cube.
+    pub bounds: Option<Aabb>,
+    /// A tighter outline of the subtree (000's contour: an oriented box for flat nodes).
+    pub contour: Option<Obb>,
+}
+
+impl NodeEntry {
+    /// An entry for a node of the key's octree (no stored bounds or contour).
+    pub fn new(
+        key: NodeKey,
+        page: PageRef,
+        points: u32,
+        prefix: Vec<u32>,
+        spacing: Vec<f64>,
+    ) -> NodeEntry {
+        NodeEntry {
+            key,
+            page,
+            points,
+            prefix,
+            spacing,
+            bounds: None,
+            contour: None,
+        }
+    }
+}
+
+impl NodeEntry {
+    /// Where the node's subtree lies: its stored bounds, else its key's cube under `root`.
+    pub fn bounds_in(&self, root: &Aabb) -> Aabb {
+        self.bounds.unwrap_or_else(|| self.key.bounds(root))
+    }
+}
+
+/// Flags of an entry's optional parts.
+const HAS_BOUNDS: u8 = 1;
+const HAS_CONTOUR: u8 = 2;
+
+fn put_f64s(out: &mut Vec<u8>, v: impl IntoIterator<Item = f64>) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
 }
 
 /// A reference to the page of the subtree rooted at `key`.
@@ -81,6 +124,21 @@ impl HierarchyPage {
                 out.extend_from_slice(&p.to_le_bytes());
                 out.extend_from_slice(&s.to_le_bytes());
             }
+            let flags = if n.bounds.is_some() { HAS_BOUNDS } else { 0 }
+                | if n.contour.is_some() { HAS_CONTOUR } else { 0 };
+            out.push(flags);
+            if let Some(b) = &n.bounds {
+                put_f64s(&mut out, b.min.into_iter().chain(b.max));
+            }
+            if let Some(c) = &n.contour {
+                put_f64s(
+                    &mut out,
+                    c.center
+                        .into_iter()
+                        .chain(c.axes.into_iter().flatten())
+                        .chain(c.half_extents),
+                );
+            }
         }
         for c in &self.children {
             put_key(&mut out, c.key);
@@ -96,9 +154,9 @@ impl HierarchyPage {
             return Err((0, "not a hierarchy page (wrong magic)".into()));
         }
         let (nodes, children) = (r.u32()? as usize, r.u32()? as usize);
-        // Each entry takes at least 34 bytes, each reference 29: counts beyond that are damage.
+        // Each entry takes at least 35 bytes, each reference 29: counts beyond that are damage.
         if nodes
-            .saturating_mul(34)
+            .saturating_mul(35)
             .saturating_add(children.saturating_mul(29))
             > b.len()
         {
@@ -117,15 +175,27 @@ impl HierarchyPage {
             let mut spacing = Vec::with_capacity(levels);
             for _ in 0..levels {
                 prefix.push(r.u32()?);
-                spacing.push(f64::from_le_bytes(r.bytes(8)?.try_into().unwrap()));
+                spacing.push(r.f64()?);
             }
-            page.nodes.push(NodeEntry {
-                key,
-                page: pr,
-                points,
-                prefix,
-                spacing,
-            });
+            let at = r.at;
+            let flags = r.bytes(1)?[0];
+            if flags & !(HAS_BOUNDS | HAS_CONTOUR) != 0 {
+                return Err((at, format!("unknown entry flags {flags:#x}")));
+            }
+            let mut e = NodeEntry::new(key, pr, points, prefix, spacing);
+            if flags & HAS_BOUNDS != 0 {
+                let v = r.f64s::<6>()?;
+                e.bounds = Some(Aabb::new([v[0], v[1], v[2]], [v[3], v[4], v[5]]));
+            }
+            if flags & HAS_CONTOUR != 0 {
+                let v = r.f64s::<15>()?;
+                e.contour = Some(Obb {
+                    center: [v[0], v[1], v[2]],
+                    axes: [[v[3], v[4], v[5]], [v[6], v[7], v[8]], [v[9], v[10], v[11]]],
+                    half_extents: [v[12], v[13], v[14]],
+                });
+            }
+            page.nodes.push(e);
         }
         for _ in 0..children {
             let key = r.key()?;
@@ -154,6 +224,21 @@ impl<'a> Cursor<'a> {
     }
     fn u32(&mut self) -> Result<u32, (usize, String)> {
         Ok(u32::from_le_bytes(self.bytes(4)?.try_into().unwrap()))
+    }
+    fn f64(&mut self) -> Result<f64, (usize, String)> {
+        Ok(f64::from_le_bytes(self.bytes(8)?.try_into().unwrap()))
+    }
+    /// `N` finite numbers (a box or contour).
+    fn f64s<const N: usize>(&mut self) -> Result<[f64; N], (usize, String)> {
+        let at = self.at;
+        let mut v = [0.0; N];
+        for x in &mut v {
+            *x = self.f64()?;
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err((at, "node bounds are not finite".into()));
+        }
+        Ok(v)
     }
     fn key(&mut self) -> Result<NodeKey, (usize, String)> {
         let at = self.at;
@@ -201,6 +286,12 @@ mod tests {
                 points: 99,
                 prefix: vec![1, 8, 99],
                 spacing: vec![4.0, 2.0, 1.0],
+                bounds: Some(Aabb::new([0.5, 1.0, -2.0], [3.0, 4.0, 5.0])),
+                contour: Some(Obb {
+                    center: [1.0, 2.0, 3.0],
+                    axes: [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+                    half_extents: [1.0, 0.5, 0.01],
+                }),
             }],
             children: vec![ChildPage {
                 key: k(5, 4, 8, 31),

@@ -14,7 +14,7 @@ pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
 pub use page::Quantization;
 
 use myriad_core::{
-    Aabb, Attribute, Error, ExtraDim, ExtraType, NodeKey, PointBatch, Result, Schema,
+    Aabb, Attribute, Error, ExtraDim, ExtraType, NodeKey, Obb, PointBatch, Result, Schema,
 };
 use myriad_io::atomic::AtomicFile;
 use serde_json::{Value, json};
@@ -25,7 +25,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
-pub const FORMAT_VERSION: u32 = 1;
+/// 2: hierarchy entries carry optional node bounds and contours (the kd and layered structures).
+pub const FORMAT_VERSION: u32 = 2;
 pub const HEADER_LEN: usize = 64;
 
 /// What the dataset holds, stored as JSON after the node pages.
@@ -244,7 +245,9 @@ impl Header {
         if version != FORMAT_VERSION {
             return Err((
                 8,
-                format!("format version {version}; this build reads {FORMAT_VERSION}"),
+                format!(
+                    "format version {version}; this build reads {FORMAT_VERSION} (convert the input again)"
+                ),
             ));
         }
         let r = |at: usize| PageRef {
@@ -293,6 +296,14 @@ impl ByteSource for FileBytes {
     }
 }
 
+/// A node's stored outline: bounds for nodes that are not their key's octree cell, a contour
+/// where the structure has one.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NodeShape {
+    pub bounds: Option<Aabb>,
+    pub contour: Option<Obb>,
+}
+
 /// Writes a dataset: node pages appended by any thread as they are built, then
 /// [`DatasetWriter::finish`] writes the hierarchy pages, the metadata and the header, and moves
 /// the file to its name. Until then the file has a zeroed header, under a temporary name.
@@ -339,6 +350,7 @@ impl DatasetWriter {
         batch: &PointBatch,
         prefix: &[u64],
         spacing: &[f64],
+        shape: NodeShape,
     ) -> Result<u64> {
         if batch.len() > u32::MAX as usize {
             return Err(Error::Invalid(format!(
@@ -361,17 +373,20 @@ impl DatasetWriter {
             out.pos += bytes.len() as u64;
             at
         };
-        self.entries.lock().expect("entries lock").push(NodeEntry {
+        let mut entry = NodeEntry::new(
             key,
-            page: PageRef {
+            PageRef {
                 offset: if bytes.is_empty() { 0 } else { offset },
                 length: bytes.len() as u32,
                 crc,
             },
-            points: batch.len() as u32,
-            prefix: prefix.iter().map(|&p| p as u32).collect(),
-            spacing: spacing.to_vec(),
-        });
+            batch.len() as u32,
+            prefix.iter().map(|&p| p as u32).collect(),
+            spacing.to_vec(),
+        );
+        entry.bounds = shape.bounds;
+        entry.contour = shape.contour;
+        self.entries.lock().expect("entries lock").push(entry);
         Ok(bytes.len() as u64)
     }
 

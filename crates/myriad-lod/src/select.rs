@@ -11,7 +11,7 @@
 //! points fill in between them.
 
 use crate::view::{Camera, Frustum};
-use myriad_core::{Aabb, NodeKey};
+use myriad_core::{Aabb, NodeKey, Obb};
 use myriad_format::NodeEntry;
 use std::collections::{BinaryHeap, HashMap};
 
@@ -20,13 +20,27 @@ use std::collections::{BinaryHeap, HashMap};
 pub struct Hierarchy {
     pub root: Aabb,
     nodes: HashMap<NodeKey, NodeEntry>,
+    /// Whether every node is its key's octree cell (no stored bounds): then points lie in their
+    /// key's cube and the drawn tree can size them per point.
+    cells: bool,
 }
 
 impl Hierarchy {
     pub fn new(root: Aabb, entries: impl IntoIterator<Item = NodeEntry>) -> Hierarchy {
-        Hierarchy {
-            root,
-            nodes: entries.into_iter().map(|e| (e.key, e)).collect(),
+        let nodes: HashMap<NodeKey, NodeEntry> = entries.into_iter().map(|e| (e.key, e)).collect();
+        let cells = nodes.values().all(|e| e.bounds.is_none());
+        Hierarchy { root, nodes, cells }
+    }
+    /// Whether nodes are the cells of their keys' octree (octree and layered structures; kd-trees
+    /// store their bounds instead).
+    pub fn cells(&self) -> bool {
+        self.cells
+    }
+    /// Where a node's subtree lies: its stored bounds, else its key's cube.
+    pub fn bounds(&self, key: &NodeKey) -> Aabb {
+        match self.nodes.get(key).and_then(|e| e.bounds) {
+            Some(b) => b,
+            None => key.bounds(&self.root),
         }
     }
     pub fn get(&self, key: &NodeKey) -> Option<&NodeEntry> {
@@ -117,7 +131,11 @@ impl Ord for Candidate {
 
 /// The nearest eye depth of a box (its corners; clamped to the near plane).
 fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
-    b.corners()
+    nearest_depth_of(cam, &b.corners())
+}
+
+fn nearest_depth_of(cam: &Camera, corners: &[[f64; 3]; 8]) -> f64 {
+    corners
         .iter()
         .map(|&p| cam.to_eye(p)[2])
         .fold(f64::INFINITY, f64::min)
@@ -168,6 +186,31 @@ fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
     projected / cos.acos().max(CENTRAL_ANGLE)
 }
 
+/// [`benefit`] for a box of any orientation: the square root of its area projected along the
+/// line of sight to its centre (a flat contour seen edge-on is small, 000 section 3.1), in
+/// pixels at its nearest depth, over the angle to the view axis.
+fn benefit_of_box(cam: &Camera, b: &Obb) -> f64 {
+    let depth = nearest_depth_of(cam, &b.corners());
+    let v: [f64; 3] = std::array::from_fn(|a| b.center[a] - cam.position[a]);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let dir = if len > 0.0 {
+        v.map(|x| x / len)
+    } else {
+        cam.forward()
+    };
+    let h = b.half_extents;
+    let d = |i: usize| (0..3).map(|k| b.axes[i][k] * dir[k]).sum::<f64>().abs();
+    let area = 4.0 * (h[1] * h[2] * d(0) + h[0] * h[2] * d(1) + h[0] * h[1] * d(2));
+    let projected = area.sqrt() * cam.pixels_per_unit(depth);
+    let f = cam.forward();
+    let cos = if len > 0.0 {
+        (dir[0] * f[0] + dir[1] * f[1] + dir[2] * f[2]).clamp(-1.0, 1.0)
+    } else {
+        1.0
+    };
+    projected / cos.acos().max(CENTRAL_ANGLE)
+}
+
 /// Chooses the nodes and prefixes to draw for `cam`.
 pub fn select(h: &Hierarchy, cam: &Camera, o: &SelectOptions) -> Selection {
     select_where(h, cam, o, &|_| true)
@@ -185,23 +228,33 @@ pub fn select_where(
     let mut out = Selection::default();
     let mut queue = BinaryHeap::new();
     let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>, frustum: &Frustum| {
-        let cube = key.bounds(&h.root);
-        if !frustum.intersects(&cube) || !keep(&cube) {
+        let cube = h.bounds(&key);
+        let contour = h.get(&key).and_then(|e| e.contour);
+        let visible = match &contour {
+            Some(c) => frustum.intersects_obb(c),
+            None => frustum.intersects(&cube),
+        };
+        if !visible || !keep(&cube) {
             return;
         }
-        let depth = nearest_depth(cam, &cube);
-        queue.push(Candidate {
-            benefit: benefit(cam, &cube, depth),
-            key,
-        });
+        let benefit = match &contour {
+            // An octree cell: its side (003).
+            None if h.cells => benefit(cam, &cube, nearest_depth(cam, &cube)),
+            // A contour (000) or a kd box (002): the square root of its projected area.
+            Some(c) => benefit_of_box(cam, c),
+            None => benefit_of_box(cam, &Obb::from_aabb(&cube)),
+        };
+        queue.push(Candidate { benefit, key });
     };
     if h.get(&NodeKey::ROOT).is_some() {
         consider(NodeKey::ROOT, &mut queue, &frustum);
     }
     while let Some(Candidate { benefit, key }) = queue.pop() {
         let Some(e) = h.get(&key) else { continue };
-        let cube = key.bounds(&h.root);
-        let depth = nearest_depth(cam, &cube);
+        let depth = match &e.contour {
+            Some(c) => nearest_depth_of(cam, &c.corners()),
+            None => nearest_depth(cam, &h.bounds(&key)),
+        };
         let ppu = cam.pixels_per_unit(depth);
         // Levels whose spacing still shows; none: the node (and all below) adds nothing.
         let spacing = point_spacing(e);
@@ -246,7 +299,47 @@ pub fn select_where(
             }
         }
     }
+    if !h.cells {
+        pull_up_spacing(h, &mut out, &frustum);
+    }
     out
+}
+
+/// Adaptive point size per node for trees whose nodes are not octree cells (002 section 5.1):
+/// a node drawn whole, all of whose children in view are drawn, takes the finest spacing among
+/// them (pulled up from the deepest drawn descendants), so its points shrink where its children
+/// fill in between them. A node with a child in view that is not drawn keeps its own spacing:
+/// there its points are all there is.
+fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
+    let index: HashMap<NodeKey, usize> = s
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.key, i))
+        .collect();
+    // Children are selected after their parents: walk backwards.
+    for i in (0..s.nodes.len()).rev() {
+        let key = s.nodes[i].key;
+        let mut finest = f64::INFINITY;
+        let mut all = true;
+        for c in h.children(&key) {
+            match index.get(&c.key) {
+                Some(&j) => finest = finest.min(s.nodes[j].spacing),
+                None => {
+                    let visible = match &c.contour {
+                        Some(o) => frustum.intersects_obb(o),
+                        None => frustum.intersects(&h.bounds(&c.key)),
+                    };
+                    if visible && c.points > 0 {
+                        all = false;
+                    }
+                }
+            }
+        }
+        if all && finest.is_finite() {
+            s.nodes[i].spacing = s.nodes[i].spacing.min(finest);
+        }
+    }
 }
 
 /// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
@@ -402,6 +495,130 @@ mod tests {
         }
     }
 
+    fn entry(key: NodeKey, points: u32, spacing: f64) -> NodeEntry {
+        NodeEntry::new(
+            key,
+            PageRef {
+                offset: 64,
+                length: 100,
+                crc: 0,
+            },
+            points,
+            vec![points],
+            vec![spacing],
+        )
+    }
+
+    fn looking_down_x() -> Camera {
+        Camera {
+            position: [-20.0, 0.5, 0.5],
+            target: [0.0, 0.5, 0.5],
+            up: [0.0, 0.0, 1.0],
+            fov_y: 60.0,
+            width: 400,
+            height: 400,
+            near: 0.01,
+            far: 1000.0,
+        }
+    }
+
+    /// A kd-tree: two children splitting x in [0, 1] and [1, 10]; bounds come from the entries,
+    /// not the keys (whose cubes would put both children in the first octants of the root cube).
+    #[test]
+    fn kd_nodes_are_selected_by_their_stored_bounds() {
+        let root = Aabb::new([0.0; 3], [10.0; 3]);
+        let mut r = entry(NodeKey::ROOT, 100, 1.0);
+        r.bounds = Some(Aabb::new([0.0; 3], [10.0, 1.0, 1.0]));
+        let mut near = entry(NodeKey::ROOT.child(0), 100, 0.1);
+        near.bounds = Some(Aabb::new([0.0; 3], [1.0, 1.0, 1.0]));
+        let mut far = entry(NodeKey::ROOT.child(1), 100, 0.5);
+        far.bounds = Some(Aabb::new([1.0, 0.0, 0.0], [10.0, 1.0, 1.0]));
+        let h = Hierarchy::new(root, [r, near.clone(), far.clone()]);
+        assert!(!h.cells());
+        assert_eq!(h.bounds(&near.key), near.bounds.unwrap());
+        let cam = looking_down_x();
+        let o = SelectOptions {
+            budget: 1000,
+            min_pixels: 0.0,
+        };
+        let s = select(&h, &cam, &o);
+        assert_counted_parents_first(&s);
+        assert_eq!(s.nodes.len(), 3);
+        // Both children drawn: the root takes the finest spacing among them (002 5.1).
+        assert_eq!(s.nodes[0].key, NodeKey::ROOT);
+        assert_eq!(s.nodes[0].spacing, 0.1);
+        // Looking along +x from x = -20: the near child [0, 1] has the larger benefit.
+        assert_eq!(s.nodes[1].key, near.key);
+        // A camera at x = 5.5 looking along +x culls the near child by its bounds; a child out
+        // of view does not stop the pull-up, so the root takes the far child's spacing.
+        let mut cam2 = cam.clone();
+        cam2.position = [5.5, 0.5, 0.5];
+        cam2.target = [9.0, 0.5, 0.5];
+        let s = select(&h, &cam2, &o);
+        let keys: Vec<NodeKey> = s.nodes.iter().map(|n| n.key).collect();
+        assert_eq!(keys, vec![NodeKey::ROOT, far.key]);
+        assert_eq!(s.nodes[0].spacing, 0.5);
+        // When the budget ends before the far child, the root keeps its own spacing there.
+        let s = select(&h, &cam, &SelectOptions { budget: 150, ..o });
+        assert_eq!(s.nodes[0].spacing, 1.0);
+    }
+
+    /// 000 section 3.1: a flat node's contour is its oriented box; outside the frustum it is
+    /// culled even though its cube is in view, and seen edge-on it is worth less than face-on.
+    #[test]
+    fn contours_cull_and_weigh_flat_nodes() {
+        let root = Aabb::new([0.0; 3], [1.0; 3]);
+        let plate = |z: f64| Obb {
+            center: [0.5, 0.5, z],
+            axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            half_extents: [0.5, 0.5, 0.001],
+        };
+        let mut r = entry(NodeKey::ROOT, 100, 0.01);
+        r.contour = Some(plate(0.999));
+        let h = Hierarchy::new(root, [r.clone()]);
+        assert!(h.cells());
+        // From inside the cube, below the plate, looking down: the plate is behind the eye.
+        let cam = Camera {
+            position: [0.5, 0.5, 0.9],
+            target: [0.5, 0.5, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 60.0,
+            width: 100,
+            height: 100,
+            near: 0.01,
+            far: 100.0,
+        };
+        let o = SelectOptions {
+            budget: 1000,
+            min_pixels: 0.0,
+        };
+        assert!(
+            select(&h, &cam, &o).nodes.is_empty(),
+            "the plate is behind the eye"
+        );
+        let no_contour = Hierarchy::new(root, [entry(NodeKey::ROOT, 100, 0.01)]);
+        assert_eq!(
+            select(&no_contour, &cam, &o).nodes.len(),
+            1,
+            "the cube is in view"
+        );
+        // Face-on versus edge-on, same distance: the projected area decides.
+        let face = Camera {
+            position: [0.5, 0.5, 20.0],
+            target: [0.5, 0.5, 0.5],
+            up: [0.0, 1.0, 0.0],
+            ..cam.clone()
+        };
+        let edge = Camera {
+            position: [0.5, -19.0, 0.999],
+            target: [0.5, 0.5, 0.999],
+            up: [0.0, 0.0, 1.0],
+            ..cam
+        };
+        let b = |c: &Camera| select(&h, c, &o).nodes[0].benefit;
+        assert!(b(&face) > 10.0 * b(&edge), "{} {}", b(&face), b(&edge));
+    }
+
     /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
     /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
     /// 16 times the points at a quarter of the spacing).
@@ -423,6 +640,8 @@ mod tests {
                     points: per_node,
                     prefix: vec![1, per_node / 16, per_node],
                     spacing: vec![s, s / 4.0, s / 16.0],
+                    bounds: None,
+                    contour: None,
                 });
                 next.extend((0..8).map(|o| k.child(o)));
             }
@@ -631,6 +850,8 @@ mod tests {
             // cells 8 and 64 times smaller.
             prefix: vec![1, 4, 16, 64, 256, 1024, 1229, 1300],
             spacing: vec![64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 0.25, 0.03125],
+            bounds: None,
+            contour: None,
         };
         let s = point_spacing(&e);
         assert_eq!(&s[..6], &e.spacing[..6], "full levels: the cell size");

@@ -236,6 +236,8 @@ mod tests {
             points,
             prefix: vec![points],
             spacing: vec![1.0],
+            bounds: None,
+            contour: None,
         }
     }
 

@@ -266,6 +266,14 @@ impl Frustum {
     pub fn contains(&self, p: [f64; 3]) -> bool {
         self.planes.iter().all(|(n, d)| dot(*n, p) + d >= 0.0)
     }
+
+    /// Whether an oriented box may be in view (no plane has all its corners outside).
+    pub fn intersects_obb(&self, b: &myriad_core::Obb) -> bool {
+        let corners = b.corners();
+        self.planes
+            .iter()
+            .all(|(n, d)| corners.iter().any(|&p| dot(*n, p) + d >= 0.0))
+    }
 }
 
 #[cfg(test)]

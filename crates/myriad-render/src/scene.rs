@@ -185,15 +185,23 @@ impl Scene {
     /// The draws of `selection` whose buffers are on the GPU, and the drawn tree they index,
     /// its entries numbered from `base` (for a frame of several scenes).
     fn draws(&self, selection: &Selection, base: u32) -> (Vec<Draw<'_>>, Vec<[u32; 4]>) {
-        let tree = DrawnTree::new(selection, |k| self.buffers.contains(k));
-        let root = self.hierarchy.root;
+        // Points sized per point from the drawn tree where nodes are octree cells; per node
+        // (the selection's spacing) in kd-trees.
+        let cells = self.hierarchy.cells();
+        let tree = if cells {
+            DrawnTree::new(selection, |k| self.buffers.contains(k))
+        } else {
+            DrawnTree::default()
+        };
         let draws = selection
             .nodes
             .iter()
             .filter_map(|n| {
                 let p = self.buffers.get(&n.key)?;
                 let mut d = p.prefix(n.points, n.spacing);
-                d.node = Some((tree.index[&n.key] + base, n.key.bounds(&root)));
+                if cells {
+                    d.node = Some((tree.index[&n.key] + base, self.hierarchy.bounds(&n.key)));
+                }
                 Some(d)
             })
             .collect();

@@ -48,6 +48,8 @@ fn entry(key: NodeKey) -> NodeEntry {
         points: n,
         prefix: vec![n],
         spacing: vec![spacing],
+        bounds: None,
+        contour: None,
     }
 }
 

@@ -22,8 +22,9 @@ pub struct ConvertArgs {
     /// The dataset to write (.myr)
     #[arg(short, long)]
     output: PathBuf,
-    /// Hierarchy to build (nested-octree: 003, Scheiblauer)
-    #[arg(long, default_value = "nested-octree")]
+    /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
+    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002)
+    #[arg(long, default_value = "octree")]
     structure: String,
     /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
     #[arg(long, value_parser = convert::parse_size)]
@@ -84,17 +85,17 @@ impl convert::Report for Bar {
 }
 
 pub fn convert(a: ConvertArgs) -> Result<()> {
-    if a.structure != "nested-octree" {
-        bail!(
-            "--structure {}: this build has nested-octree (layered, mwkd and kd are planned)",
-            a.structure
-        );
-    }
+    let structure = match a.structure.as_str() {
+        "nested-octree" => convert::Structure::Octree,
+        "mwkd" => bail!("--structure mwkd: not built yet (octree, layered, kd are)"),
+        s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
+    };
     if a.capacity < 64 {
         bail!("--capacity {} is too small (at least 64)", a.capacity);
     }
     let mut o = ConvertOptions::new(&a.output);
     o.force = a.force;
+    o.structure = structure;
     if let Some(m) = a.memory {
         o.memory = m;
     }
