@@ -40,10 +40,17 @@ pub enum Structure {
     Layered,
     /// Balanced binary kd-tree with median splits (002).
     Kd,
+    /// Multi-way kd-tree of aggregates drawn as splats (004).
+    Mwkd,
 }
 
 impl Structure {
-    pub const ALL: [Structure; 3] = [Structure::Octree, Structure::Layered, Structure::Kd];
+    pub const ALL: [Structure; 4] = [
+        Structure::Octree,
+        Structure::Layered,
+        Structure::Kd,
+        Structure::Mwkd,
+    ];
 
     /// The name `--structure` takes and the metadata stores.
     pub fn name(self) -> &'static str {
@@ -51,6 +58,7 @@ impl Structure {
             Structure::Octree => "octree",
             Structure::Layered => "layered",
             Structure::Kd => "kd",
+            Structure::Mwkd => "mwkd",
         }
     }
 
@@ -58,7 +66,7 @@ impl Structure {
         Structure::ALL
             .into_iter()
             .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown structure {s:?} (octree, layered, kd)"))
+            .ok_or_else(|| format!("unknown structure {s:?} (octree, layered, kd, mwkd)"))
     }
 }
 
@@ -213,6 +221,8 @@ struct Pending {
     prefix: Vec<u64>,
     spacing: Vec<f64>,
     shape: NodeShape,
+    /// Normals and radii spilled next to the rows (`mwkd`), and whether they are aggregates.
+    splats: Option<(PathBuf, bool)>,
 }
 
 /// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
@@ -238,17 +248,26 @@ fn acquisition_order(node: &mut BuiltNode) {
         start = end;
     }
     node.points = node.points.gather(&order);
+    if let Some((s, _)) = &mut node.splats {
+        s.normals = order.iter().map(|&i| s.normals[i as usize]).collect();
+        s.radii = order.iter().map(|&i| s.radii[i as usize]).collect();
+    }
 }
 
 fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
     acquisition_order(&mut node);
-    writer.write_node(
+    let mut bytes = writer.write_node(
         node.key,
         &node.points,
         &node.prefix,
         &node.spacing,
         node.shape,
-    )
+    )?;
+    if let Some((s, aggregate)) = &node.splats {
+        let cone = crate::mwkd::MwNode::cone_of(&s.normals);
+        bytes += writer.write_splats(node.key, s, cone, *aggregate)?;
+    }
+    Ok(bytes)
 }
 
 fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
@@ -258,6 +277,20 @@ fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
         node.points.put_row(i, &mut bytes);
     }
     std::fs::write(&path, &bytes).map_err(|e| Error::io(&path, e))?;
+    let splats = match &node.splats {
+        Some((s, aggregate)) => {
+            let sp = dir.join(format!("node-{}.splats", node.key));
+            let mut b = Vec::with_capacity(s.radii.len() * 16);
+            for (n, r) in s.normals.iter().zip(&s.radii) {
+                for v in n.iter().chain(std::iter::once(r)) {
+                    b.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            std::fs::write(&sp, &b).map_err(|e| Error::io(&sp, e))?;
+            Some((sp, *aggregate))
+        }
+        None => None,
+    };
     Ok(Pending {
         key: node.key,
         path,
@@ -265,6 +298,7 @@ fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
         prefix: node.prefix,
         spacing: node.spacing,
         shape: node.shape,
+        splats,
     })
 }
 
@@ -283,12 +317,34 @@ fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
         b.push_row(r);
     }
     std::fs::remove_file(&p.path).map_err(|e| Error::io(&p.path, e))?;
+    let splats = match p.splats {
+        Some((sp, aggregate)) => {
+            let bytes = std::fs::read(&sp).map_err(|e| Error::io(&sp, e))?;
+            if bytes.len() != 16 * p.points {
+                return Err(Error::at_byte(
+                    &sp,
+                    bytes.len() as u64,
+                    "spilled splats have the wrong size",
+                ));
+            }
+            let mut s = myriad_format::splat::Splats::default();
+            for r in bytes.chunks_exact(16) {
+                let f = |i: usize| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap());
+                s.normals.push([f(0), f(1), f(2)]);
+                s.radii.push(f(3));
+            }
+            std::fs::remove_file(&sp).map_err(|e| Error::io(&sp, e))?;
+            Some((s, aggregate))
+        }
+        None => None,
+    };
     Ok(BuiltNode {
         key: p.key,
         points: b,
         prefix: p.prefix,
         spacing: p.spacing,
         shape: p.shape,
+        splats,
     })
 }
 
@@ -423,14 +479,26 @@ pub fn convert(
 
     // 2. Chunks (kd: groups of chunks), in parallel, largest first (they take longest).
     report.phase("building", dist.points);
-    let pending: Vec<Pending> = if structure == Structure::Kd {
+    let mw = crate::mwkd::MwkdParams {
+        fanout: crate::mwkd::fanout_for(dist.points, params.capacity),
+        capacity: params.capacity,
+    };
+    let pending: Vec<Pending> = if matches!(structure, Structure::Kd | Structure::Mwkd) {
         let boxes: Vec<_> = dist
             .chunks
             .iter()
             .map(|c| (dist.cell_bounds(c), c.points))
             .collect();
-        let mut groups =
-            kd::group_chunks(&boxes, options.chunk_points.unwrap_or(plan.chunk_points));
+        let arity = if structure == Structure::Mwkd {
+            mw.fanout
+        } else {
+            2
+        };
+        let mut groups = kd::group_chunks(
+            &boxes,
+            options.chunk_points.unwrap_or(plan.chunk_points),
+            arity,
+        );
         groups.sort_by_key(|g| std::cmp::Reverse(g.points));
         pool.install(|| {
             groups
@@ -439,6 +507,15 @@ pub fn convert(
                     let mut batch = PointBatch::with_schema(&schema, g.points as usize);
                     for &i in &g.chunks {
                         batch.append(&dist.load(&dist.chunks[i])?);
+                    }
+                    if structure == Structure::Mwkd {
+                        let n = batch.len() as u64;
+                        let top =
+                            crate::mwkd::build_subtree_with(batch, g.key, &mw, &mut |node| {
+                                write(&writer, node.into_built()).map(|_| ())
+                            })?;
+                        report.advance(n);
+                        return spill(top.into_built(), &spill_dir);
                     }
                     let mut top = None;
                     kd::build_subtree_with(batch, g.key, &params, &mut |node| {
@@ -513,6 +590,14 @@ pub fn convert(
                         .collect::<Result<Vec<_>>>()?;
                     let (top, children) = match structure {
                         Structure::Kd => kd::take_up(parent, children, &params),
+                        Structure::Mwkd => {
+                            let kids = children.into_iter().map(crate::mwkd::MwNode::from_built);
+                            let (top, kids) = crate::mwkd::take_up(parent, kids.collect(), &mw);
+                            (
+                                top.into_built(),
+                                kids.into_iter().map(|k| k.into_built()).collect(),
+                            )
+                        }
                         _ => nested::take_up(parent, children, &root, &params),
                     };
                     for c in children {
@@ -536,6 +621,13 @@ pub fn convert(
             s => s.name().into(),
         },
         parameters: serde_json::json!({
+            "fanout": if structure == Structure::Mwkd { Some(mw.fanout) } else { None },
+            // Normals from the input have a sign; estimated ones were turned up (mwkd).
+            "normals": match structure {
+                Structure::Mwkd if schema.has(&myriad_core::Attribute::Normal) => Some("input"),
+                Structure::Mwkd => Some("estimated"),
+                _ => None,
+            },
             "capacity": params.capacity,
             "inner_depth": params.inner_depth,
             "max_level": params.max_level,
@@ -608,6 +700,7 @@ mod tests {
             prefix: vec![1, 4, 8],
             spacing: vec![4.0, 2.0, 1.0],
             shape: NodeShape::default(),
+            splats: None,
         };
         acquisition_order(&mut node);
         let t = node.points.gps_time.as_ref().unwrap();

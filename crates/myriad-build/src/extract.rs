@@ -71,7 +71,8 @@ fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEn
                 Some(s) => n.spacing.first().is_some_and(|&top| top >= s),
                 None => true,
             };
-            meets && coarse_enough && n.points > 0
+            // Aggregates (mwkd's inner nodes) were made for drawing: not the user's points.
+            meets && coarse_enough && n.points > 0 && !n.aggregate()
         })
         .collect()
 }
@@ -185,7 +186,20 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                 continue;
             }
         };
-        report.points += batch.len() as u64;
+        if !n.aggregate() {
+            report.points += batch.len() as u64;
+        }
+        match ds.read_splats(n) {
+            Err(d) => damage.push(d),
+            Ok(Some(s))
+                if s.normals
+                    .iter()
+                    .any(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2] - 1.0).abs() > 1e-3) =>
+            {
+                damage.push(node_damage(n, "a splat normal is not a unit vector".into()))
+            }
+            Ok(_) => {}
+        }
         report.pages_bytes += n.page.length as u64;
         // Points lie in the node's cube (or stored bounds), give or take half a quantization
         // step, and in its contour.

@@ -39,12 +39,30 @@ fn longest_axis(b: &Aabb) -> usize {
     (0..3).max_by(|&i, &j| s[i].total_cmp(&s[j])).unwrap_or(0)
 }
 
+/// 002 section 5.1 sizes points "based on a node's bounding box rather than its LoD": the
+/// spacing of the first `p` points of a node is that of `p` points spread over its box's two
+/// largest extents (the area of the surface the box can hold).
+fn box_spacing(bounds: &Aabb, prefix: &[u64]) -> Vec<f64> {
+    let mut s = bounds.size();
+    s.sort_by(|a, b| b.total_cmp(a));
+    let area = (s[0] * s[1].max(s[0] * 1e-3)).max(1e-12);
+    prefix
+        .iter()
+        .map(|&p| (area / p.max(1) as f64).sqrt())
+        .collect()
+}
+
+/// Finishes a built node: its bounds, and its spacing from them.
+fn with_bounds(mut node: BuiltNode, bounds: Aabb) -> BuiltNode {
+    node.spacing = box_spacing(&bounds, &node.prefix);
+    node.shape.bounds = Some(bounds);
+    node
+}
+
 /// A node holding all of `batch` in MOSPT order (a leaf).
 fn leaf(key: NodeKey, batch: &PointBatch, bounds: Aabb) -> BuiltNode {
     let m = mospt::build(batch, &cube_around(&bounds), mospt::CODE_LEVELS);
-    let mut node = node_from_prefix(key, batch, &m, batch.len());
-    node.shape.bounds = Some(bounds);
-    node
+    with_bounds(node_from_prefix(key, batch, &m, batch.len()), bounds)
 }
 
 /// Builds the kd subtree rooted at `key` over `batch`, handing each node to `emit` as it is
@@ -68,8 +86,7 @@ pub fn build_subtree_with<E>(
         }
         let m = mospt::build(&batch, &cube_around(&bounds), params.inner_depth);
         let keep = fitting_prefix(&m, params.capacity);
-        let mut node = node_from_prefix(key, &batch, &m, keep);
-        node.shape.bounds = Some(bounds);
+        let node = with_bounds(node_from_prefix(key, &batch, &m, keep), bounds);
         let mut rest_mask = vec![true; n];
         for &i in &m.order[..keep] {
             rest_mask[i as usize] = false;
@@ -105,10 +122,10 @@ pub struct Group {
     pub points: u64,
 }
 
-/// Splits `chunks` (box, points) at the count-weighted median of their centres along the
-/// longest axis of their boxes, recursively, until a group holds at most `limit` points or one
-/// chunk.
-pub fn group_chunks(chunks: &[(Aabb, u64)], limit: u64) -> Vec<Group> {
+/// Splits `chunks` (box, points) into `arity` parts of about equal count by their centres along
+/// the longest axis of their boxes (the count-weighted median for 2), recursively, until a group
+/// holds at most `limit` points or one chunk. Part `i` of a group is its key's child `i`.
+pub fn group_chunks(chunks: &[(Aabb, u64)], limit: u64, arity: usize) -> Vec<Group> {
     let mut out = Vec::new();
     let mut work = vec![(NodeKey::ROOT, (0..chunks.len()).collect::<Vec<_>>())];
     while let Some((key, mut idx)) = work.pop() {
@@ -124,18 +141,29 @@ pub fn group_chunks(chunks: &[(Aabb, u64)], limit: u64) -> Vec<Group> {
         let b = idx.iter().fold(Aabb::EMPTY, |b, &i| b.union(&chunks[i].0));
         let axis = longest_axis(&b);
         idx.sort_by(|&i, &j| chunks[i].0.center()[axis].total_cmp(&chunks[j].0.center()[axis]));
+        // Part j ends where the running count first reaches (j + 1) / arity of the whole;
+        // every part keeps at least one chunk.
+        let parts = arity.clamp(2, 8).min(idx.len());
+        let mut cuts: Vec<usize> = Vec::with_capacity(parts);
         let mut below = 0;
-        let mut cut = 1;
         for (k, &i) in idx.iter().enumerate() {
             below += chunks[i].1;
-            if 2 * below >= points {
-                cut = (k + 1).clamp(1, idx.len() - 1);
-                break;
+            let j = cuts.len();
+            if j + 1 < parts && below * parts as u64 >= points * (j as u64 + 1) {
+                let first = cuts.last().map_or(1, |&c| c + 1);
+                cuts.push((k + 1).max(first).min(idx.len() - (parts - 1 - j)));
             }
         }
-        let upper = idx.split_off(cut);
-        work.push((key.child(1), upper));
-        work.push((key.child(0), idx));
+        while cuts.len() + 1 < parts {
+            let next = cuts.last().map_or(1, |&c| c + 1);
+            cuts.push(next);
+        }
+        cuts.push(idx.len());
+        let mut start = 0;
+        for (j, &end) in cuts.iter().enumerate() {
+            work.push((key.child(j), idx[start..end].to_vec()));
+            start = end;
+        }
     }
     out.sort_by_key(|g| g.key);
     out
@@ -179,9 +207,10 @@ pub fn take_up(
         }
         start += n;
     }
-    let mut top = node_from_prefix(parent, &union, &m, keep);
-    top.shape.bounds = Some(bounds);
-    (top, children)
+    (
+        with_bounds(node_from_prefix(parent, &union, &m, keep), bounds),
+        children,
+    )
 }
 
 #[cfg(test)]
@@ -289,13 +318,22 @@ mod tests {
                 )
             })
             .collect();
-        let groups = group_chunks(&chunks, 1000);
+        let groups = group_chunks(&chunks, 1000, 2);
         assert_eq!(groups.len(), 2);
         assert_eq!(groups[0].chunks, vec![0]);
         assert_eq!(groups[0].key, NodeKey::ROOT.child(0));
         assert_eq!(groups[1].points, 900);
         let all: u64 = groups.iter().map(|g| g.points).sum();
         assert_eq!(all, 1800);
+        // Five ways: every chunk in one part, parts in order along x, about 1800 / 5 each
+        // where the chunks allow.
+        let groups = group_chunks(&chunks, 500, 5);
+        let mut seen: Vec<usize> = groups.iter().flat_map(|g| g.chunks.clone()).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..10).collect::<Vec<_>>());
+        assert_eq!(groups[0].chunks, vec![0]);
+        assert!(groups.iter().all(|g| g.points <= 900));
+        assert_eq!(groups.len(), 5);
     }
 
     #[test]

@@ -9,5 +9,6 @@ pub mod distribute;
 pub mod extract;
 pub mod kd;
 pub mod mospt;
+pub mod mwkd;
 pub mod nested;
 pub mod ntree;

@@ -12,6 +12,7 @@ use crate::{mospt, ntree};
 pub use myriad_core::NodeKey;
 use myriad_core::{Aabb, PointBatch};
 use myriad_format::NodeShape;
+use myriad_format::splat::Splats;
 
 #[derive(Debug, Clone, Copy)]
 pub struct NestedParams {
@@ -35,6 +36,8 @@ pub struct BuiltNode {
     pub spacing: Vec<f64>,
     /// Stored bounds and contour (kd and layered structures).
     pub shape: NodeShape,
+    /// Normals and radii of the points, and whether they are aggregates (`mwkd`).
+    pub splats: Option<(Splats, bool)>,
 }
 
 /// How many points of a MOSPT a node with at most `capacity` points keeps: the prefix of the
@@ -71,6 +74,7 @@ pub(crate) fn node_from_prefix(
             .collect(),
         spacing: m.spacing[..kept_levels].to_vec(),
         shape: NodeShape::default(),
+        splats: None,
     }
 }
 
@@ -195,6 +199,7 @@ fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb, params: &NestedParams
         prefix: m.prefix,
         spacing: m.spacing,
         shape: NodeShape::default(),
+        splats: None,
     }
 }
 

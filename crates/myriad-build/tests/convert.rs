@@ -149,15 +149,30 @@ fn every_structure_many_chunks() {
         );
         let (nodes, _) = ds.nodes();
         let kd = structure == Structure::Kd;
+        let mwkd = structure == Structure::Mwkd;
         let layered = structure == Structure::Layered;
         assert!(
-            nodes.iter().all(|n| n.bounds.is_some() == kd),
+            nodes.iter().all(|n| n.bounds.is_some() == (kd || mwkd)),
             "{structure:?}"
         );
         assert!(
             nodes.iter().all(|n| n.contour.is_some() == layered),
             "{structure:?}"
         );
+        assert!(
+            nodes.iter().all(|n| n.splats.is_some() == mwkd),
+            "{structure:?}"
+        );
+        if mwkd {
+            // Inner nodes are aggregates, leaves the original points; every splat page reads.
+            let inner = nodes.iter().filter(|n| n.aggregate()).count();
+            assert!(inner > 0 && inner < nodes.len());
+            for n in &nodes {
+                let s = ds.read_splats(n).unwrap().unwrap();
+                assert_eq!(s.radii.len(), n.points as usize);
+                assert!(s.radii.iter().all(|&r| r > 0.0));
+            }
+        }
         if kd {
             // Binary: only the first two octants of a key are used.
             assert!(
@@ -186,9 +201,10 @@ fn every_structure_many_chunks() {
     }
 }
 
-/// Every file of ../shared/data, in every format, with the layered and kd structures: the points
-/// read back from the nodes are the input's, every field (positions on the dataset's
-/// quantization grid), and the dataset verifies. (The octree's test goes through extraction:
+/// Every file of ../shared/data, in every format, with the layered, kd and mwkd structures: the
+/// points read back from the nodes (mwkd: its leaves; its inner nodes hold aggregates) are the
+/// input's, every field (positions on the dataset's quantization grid), and the dataset
+/// verifies. (The octree's test goes through extraction:
 /// `nothing_lost_for_every_las_file_in_shared_data`.)
 #[test]
 fn nothing_lost_for_every_file_and_structure() {
@@ -203,7 +219,7 @@ fn nothing_lost_for_every_file_and_structure() {
     let d = tempdir("every");
     for f in &files {
         let mut input = read_all(f);
-        for structure in [Structure::Layered, Structure::Kd] {
+        for structure in [Structure::Layered, Structure::Kd, Structure::Mwkd] {
             let out = d.join("a.myr");
             let mut o = options(&out);
             o.structure = structure;
@@ -225,8 +241,8 @@ fn nothing_lost_for_every_file_and_structure() {
                 *p = q.to_world(q.to_int(*p));
             }
             let mut stored = PointBatch::with_schema(&ds.meta.schema, 0);
-            for n in ds.nodes().0 {
-                stored.append(&ds.read_node(&n).unwrap());
+            for n in ds.nodes().0.iter().filter(|n| !n.aggregate()) {
+                stored.append(&ds.read_node(n).unwrap());
             }
             assert!(
                 records(&stored) == records(&input),

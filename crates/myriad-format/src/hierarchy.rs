@@ -3,6 +3,7 @@
 //! reader of a dataset of any size opens it by reading the root page alone, and walks down only
 //! where it needs to. Byte layout: docs/format.md.
 
+use crate::splat::SplatInfo;
 use myriad_core::{Aabb, NodeKey, Obb};
 
 pub const HIERARCHY_MAGIC: &[u8; 4] = b"MYRH";
@@ -34,6 +35,8 @@ pub struct NodeEntry {
     pub bounds: Option<Aabb>,
     /// A tighter outline of the subtree (000's contour: an oriented box for flat nodes).
     pub contour: Option<Obb>,
+    /// The splat page of an `mwkd` node.
+    pub splats: Option<SplatInfo>,
 }
 
 impl NodeEntry {
@@ -53,7 +56,13 @@ impl NodeEntry {
             spacing,
             bounds: None,
             contour: None,
+            splats: None,
         }
+    }
+
+    /// Whether the node holds aggregates made for drawing rather than original points.
+    pub fn aggregate(&self) -> bool {
+        self.splats.is_some_and(|s| s.aggregate)
     }
 }
 
@@ -67,6 +76,7 @@ impl NodeEntry {
 /// Flags of an entry's optional parts.
 const HAS_BOUNDS: u8 = 1;
 const HAS_CONTOUR: u8 = 2;
+const HAS_SPLATS: u8 = 4;
 
 fn put_f64s(out: &mut Vec<u8>, v: impl IntoIterator<Item = f64>) {
     for x in v {
@@ -125,7 +135,8 @@ impl HierarchyPage {
                 out.extend_from_slice(&s.to_le_bytes());
             }
             let flags = if n.bounds.is_some() { HAS_BOUNDS } else { 0 }
-                | if n.contour.is_some() { HAS_CONTOUR } else { 0 };
+                | if n.contour.is_some() { HAS_CONTOUR } else { 0 }
+                | if n.splats.is_some() { HAS_SPLATS } else { 0 };
             out.push(flags);
             if let Some(b) = &n.bounds {
                 put_f64s(&mut out, b.min.into_iter().chain(b.max));
@@ -138,6 +149,13 @@ impl HierarchyPage {
                         .chain(c.axes.into_iter().flatten())
                         .chain(c.half_extents),
                 );
+            }
+            if let Some(sp) = &n.splats {
+                put_ref(&mut out, sp.page);
+                for v in sp.radius.iter().chain(&sp.cone) {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+                out.push(sp.aggregate as u8);
             }
         }
         for c in &self.children {
@@ -179,7 +197,7 @@ impl HierarchyPage {
             }
             let at = r.at;
             let flags = r.bytes(1)?[0];
-            if flags & !(HAS_BOUNDS | HAS_CONTOUR) != 0 {
+            if flags & !(HAS_BOUNDS | HAS_CONTOUR | HAS_SPLATS) != 0 {
                 return Err((at, format!("unknown entry flags {flags:#x}")));
             }
             let mut e = NodeEntry::new(key, pr, points, prefix, spacing);
@@ -193,6 +211,23 @@ impl HierarchyPage {
                     center: [v[0], v[1], v[2]],
                     axes: [[v[3], v[4], v[5]], [v[6], v[7], v[8]], [v[9], v[10], v[11]]],
                     half_extents: [v[12], v[13], v[14]],
+                });
+            }
+            if flags & HAS_SPLATS != 0 {
+                let page = r.page_ref()?;
+                let at = r.at;
+                let mut v = [0f32; 6];
+                for x in &mut v {
+                    *x = f32::from_le_bytes(r.bytes(4)?.try_into().unwrap());
+                }
+                if v.iter().any(|x| !x.is_finite()) || v[0] > v[1] || v[0] < 0.0 {
+                    return Err((at, "invalid splat radii or normal cone".into()));
+                }
+                e.splats = Some(SplatInfo {
+                    page,
+                    radius: [v[0], v[1]],
+                    cone: [v[2], v[3], v[4], v[5]],
+                    aggregate: r.bytes(1)?[0] != 0,
                 });
             }
             page.nodes.push(e);
@@ -291,6 +326,16 @@ mod tests {
                     center: [1.0, 2.0, 3.0],
                     axes: [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
                     half_extents: [1.0, 0.5, 0.01],
+                }),
+                splats: Some(SplatInfo {
+                    page: PageRef {
+                        offset: 1064,
+                        length: 77,
+                        crc: 5,
+                    },
+                    radius: [0.25, 3.0],
+                    cone: [0.0, 0.0, 1.0, 0.5],
+                    aggregate: true,
                 }),
             }],
             children: vec![ChildPage {

@@ -9,6 +9,7 @@
 
 pub mod hierarchy;
 pub mod page;
+pub mod splat;
 
 pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
 pub use page::Quantization;
@@ -25,7 +26,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
-/// 2: hierarchy entries carry optional node bounds and contours (the kd and layered structures).
+/// 2: hierarchy entries carry optional node bounds, contours and splat pages (the kd, layered and
+/// mwkd structures).
 pub const FORMAT_VERSION: u32 = 2;
 pub const HEADER_LEN: usize = 64;
 
@@ -313,6 +315,7 @@ pub struct DatasetWriter {
     path: PathBuf,
     quant: Quantization,
     entries: Mutex<Vec<NodeEntry>>,
+    splats: Mutex<HashMap<NodeKey, splat::SplatInfo>>,
 }
 
 struct Out {
@@ -335,6 +338,7 @@ impl DatasetWriter {
             path: path.to_path_buf(),
             quant,
             entries: Mutex::new(Vec::new()),
+            splats: Mutex::new(HashMap::new()),
         })
     }
 
@@ -390,11 +394,49 @@ impl DatasetWriter {
         Ok(bytes.len() as u64)
     }
 
-    /// Points, nodes and deepest level written so far.
+    /// Appends the splat page of node `key` (normals and radii of its points, `mwkd`), to be
+    /// joined to its entry. `aggregate`: its points are aggregates, not original points.
+    pub fn write_splats(
+        &self,
+        key: NodeKey,
+        s: &splat::Splats,
+        cone: [f32; 4],
+        aggregate: bool,
+    ) -> Result<u64> {
+        let (bytes, radius) = splat::encode(s);
+        let crc = crc32fast::hash(&bytes);
+        let offset = {
+            let mut out = self.out.lock().expect("writer lock");
+            let at = out.pos;
+            out.w
+                .write_all(&bytes)
+                .map_err(|e| Error::io(&self.path, e))?;
+            out.pos += bytes.len() as u64;
+            at
+        };
+        let info = splat::SplatInfo {
+            page: PageRef {
+                offset,
+                length: bytes.len() as u32,
+                crc,
+            },
+            radius,
+            cone,
+            aggregate,
+        };
+        self.splats.lock().expect("splats lock").insert(key, info);
+        Ok(bytes.len() as u64)
+    }
+
+    /// Original points (aggregates not counted), nodes and deepest level written so far.
     pub fn totals(&self) -> (u64, u64, u32) {
         let e = self.entries.lock().expect("entries lock");
+        let sp = self.splats.lock().expect("splats lock");
         (
-            e.iter().map(|n| n.points as u64).sum(),
+            e.iter()
+                .filter(|n| !sp.get(&n.key).is_some_and(|s| s.aggregate))
+                .map(|n| n.points as u64)
+                .sum(),
             e.len() as u64,
             e.iter().map(|n| n.key.level).max().unwrap_or(0),
         )
@@ -411,11 +453,19 @@ impl DatasetWriter {
     pub fn finish(self, mut meta: Metadata) -> Result<u64> {
         let path = self.path.clone();
         let io = |e| Error::io(&path, e);
-        let entries = self.entries.into_inner().expect("entries lock");
+        let mut entries = self.entries.into_inner().expect("entries lock");
+        let mut splats = self.splats.into_inner().expect("splats lock");
+        for e in &mut entries {
+            e.splats = splats.remove(&e.key);
+        }
         let mut out = self.out.into_inner().expect("writer lock");
         meta.nodes = entries.len() as u64;
         meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
-        meta.points = entries.iter().map(|e| e.points as u64).sum();
+        meta.points = entries
+            .iter()
+            .filter(|e| !e.aggregate())
+            .map(|e| e.points as u64)
+            .sum();
         // Group entries by page; pages by their parent page.
         let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
         for e in entries {
@@ -642,6 +692,28 @@ impl Dataset {
     /// Reads and decodes a node's points, with every column of the dataset.
     pub fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
         self.read_node_columns(e, &self.meta.schema)
+    }
+
+    /// Reads and decodes a node's splat page (`mwkd`); `None` for nodes without one.
+    pub fn read_splats(&self, e: &NodeEntry) -> std::result::Result<Option<splat::Splats>, Damage> {
+        let Some(info) = e.splats else {
+            return Ok(None);
+        };
+        let damage = |offset: u64, message: String| Damage {
+            key: e.key,
+            offset,
+            message,
+            subtree: false,
+        };
+        if e.points == 0 {
+            return Ok(Some(splat::Splats::default()));
+        }
+        let b = self
+            .read_checked(info.page)
+            .map_err(|m| damage(info.page.offset, m))?;
+        splat::decode(&b, e.points as usize, info.radius)
+            .map(Some)
+            .map_err(|m| damage(info.page.offset, m))
     }
 
     /// Reads and decodes a node's points with the columns of `schema` only.

@@ -9,6 +9,7 @@
 
 use crate::cache::Lru;
 use myriad_core::{NodeKey, PointBatch};
+use myriad_format::splat::Splats;
 use myriad_format::{Dataset, NodeEntry};
 use std::collections::HashMap;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -18,12 +19,33 @@ use std::thread::JoinHandle;
 /// Reads and decodes one node's page (a [`Dataset`], or anything that serves pages).
 pub trait PageReader: Send + Sync {
     fn read(&self, node: &NodeEntry) -> Result<PointBatch, String>;
+    /// The node's splats (`mwkd`), where it has them.
+    fn read_splats(&self, _node: &NodeEntry) -> Result<Option<Splats>, String> {
+        Ok(None)
+    }
 }
 
 impl PageReader for Dataset {
     fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
         self.read_node(node)
             .map_err(|d| self.damage_error(&d).to_string())
+    }
+    fn read_splats(&self, node: &NodeEntry) -> Result<Option<Splats>, String> {
+        Dataset::read_splats(self, node).map_err(|d| self.damage_error(&d).to_string())
+    }
+}
+
+/// A resident node: its points (what it derefs to) and, in `mwkd` datasets, their splats.
+#[derive(Debug, Clone, Default)]
+pub struct Loaded {
+    pub points: PointBatch,
+    pub splats: Option<Splats>,
+}
+
+impl std::ops::Deref for Loaded {
+    type Target = PointBatch;
+    fn deref(&self) -> &PointBatch {
+        &self.points
     }
 }
 
@@ -41,9 +63,9 @@ struct Shared {
 /// Loader threads and the RAM cache.
 pub struct Loader {
     shared: Arc<Shared>,
-    results: Receiver<(NodeKey, Result<PointBatch, String>)>,
+    results: Receiver<(NodeKey, Result<Loaded, String>)>,
     threads: Vec<JoinHandle<()>>,
-    cache: Lru<Arc<PointBatch>>,
+    cache: Lru<Arc<Loaded>>,
     /// Requested and not yet back (queued or being read).
     pending: std::collections::HashSet<NodeKey>,
     failed: HashMap<NodeKey, String>,
@@ -85,7 +107,12 @@ impl Loader {
                                     q = shared.ready.wait(q).expect("queue lock");
                                 }
                             };
-                            let r = reader.read(&node);
+                            let r = reader.read(&node).and_then(|points| {
+                                Ok(Loaded {
+                                    splats: reader.read_splats(&node)?,
+                                    points,
+                                })
+                            });
                             if tx.send((node.key, r)).is_err() {
                                 return;
                             }
@@ -136,7 +163,8 @@ impl Loader {
             self.pending.remove(&key);
             match r {
                 Ok(b) => {
-                    let bytes = batch_bytes(&b);
+                    let bytes =
+                        batch_bytes(&b) + b.splats.as_ref().map_or(0, |s| s.radii.len() * 16);
                     self.cache.insert(key, Arc::new(b), bytes);
                     landed += 1;
                 }
@@ -149,7 +177,7 @@ impl Loader {
     }
 
     /// A resident node's points.
-    pub fn get(&self, key: &NodeKey) -> Option<Arc<PointBatch>> {
+    pub fn get(&self, key: &NodeKey) -> Option<Arc<Loaded>> {
         self.cache.get(key).cloned()
     }
     pub fn is_resident(&self, key: &NodeKey) -> bool {
@@ -238,6 +266,7 @@ mod tests {
             spacing: vec![1.0],
             bounds: None,
             contour: None,
+            splats: None,
         }
     }
 

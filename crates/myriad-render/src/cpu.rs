@@ -55,6 +55,32 @@ fn adaptive_pixels(
     (spacing * focal / w).round().clamp(1.0, max_size)
 }
 
+/// As `splat_shape` in draw.wgsl: radius in pixels and the eye normal of a splat at depth `w`.
+fn splat_shape(
+    code: u32,
+    range: [f32; 2],
+    w: f32,
+    eye: &[[f32; 3]; 3],
+    focal: f32,
+    max_size: f32,
+) -> [f32; 4] {
+    let n = myriad_format::splat::normal_from_code((code & 0xffff) as u16);
+    let r = range[0] + (range[1] - range[0]) * ((code >> 16) & 0xff) as f32 / 255.0;
+    let dot = |v: &[f32; 3]| n[0] * v[0] + n[1] * v[1] + n[2] * v[2];
+    let mut nf = dot(&eye[2]);
+    if nf.abs() < 0.05 {
+        nf = if nf < 0.0 { -0.05 } else { 0.05 };
+    }
+    let rho = (r * focal / w).min((max_size - 1.0) * 0.5);
+    [rho, dot(&eye[0]), dot(&eye[1]), nf]
+}
+
+/// As `splat_pixels` in draw.wgsl.
+fn splat_pixels(rho: f32, max_size: f32) -> i32 {
+    let s = (2.0 * rho.round() + 1.0).clamp(1.0, max_size) as i32;
+    s - 1 + (s & 1)
+}
+
 fn mul(m: &[[f32; 4]; 4], p: [f32; 3]) -> [f32; 4] {
     std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r])
 }
@@ -85,9 +111,18 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
             ]
         });
         let points = &draw.points.cpu_points()[..draw.count as usize];
+        // Oriented splats (as raster.wgsl) where the draw has them and sizes are adaptive.
+        let splats = match (draw.points.cpu_splats(), draw.points.splat_range(), fixed) {
+            (Some(codes), Some(range), None) => Some((&codes[..draw.count as usize], range)),
+            _ => None,
+        };
+        let eye = {
+            let (r, u, f) = camera.basis();
+            [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
+        };
         let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
-        points.par_chunks(4096).for_each(|chunk| {
-            for q in chunk {
+        points.par_chunks(4096).enumerate().for_each(|(ci, chunk)| {
+            for (qi, q) in chunk.iter().enumerate() {
                 let p = [q[0], q[1], q[2]];
                 // As `clipped` in draw.wgsl.
                 if clip_min[3] != 0.0 {
@@ -113,6 +148,38 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                 let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
                 let fy = (0.5 - ndc[1] * 0.5) * h as f32;
                 let colour = q[3].to_bits() as u64;
+                if let Some((codes, range)) = splats {
+                    let code = codes[ci * 4096 + qi];
+                    let sp = splat_shape(code, range, clip[3], &eye, focal, max_size);
+                    let s = splat_pixels(sp[0], max_size);
+                    let x0 = fx.floor() as i32 - (s - 1) / 2;
+                    let y0 = fy.floor() as i32 - (s - 1) / 2;
+                    let c = (s - 1) as f32 * 0.5;
+                    let k = clip[3] / focal;
+                    for dy in 0..s {
+                        let y = y0 + dy;
+                        if y < 0 || y >= h as i32 {
+                            continue;
+                        }
+                        for dx in 0..s {
+                            let x = x0 + dx;
+                            if x < 0 || x >= w as i32 {
+                                continue;
+                            }
+                            let (a, b) = (dx as f32 - c, dy as f32 - c);
+                            let e = (a * sp[1] - b * sp[2]) / sp[3];
+                            if a * a + b * b + e * e > sp[0] * sp[0] {
+                                continue;
+                            }
+                            let value = ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour;
+                            let px = &fb[y as usize * w as usize + x as usize];
+                            if px.load(Ordering::Relaxed) < value {
+                                px.fetch_max(value, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    continue;
+                }
                 let s = match fixed {
                     Some(px) => px,
                     None => adaptive_pixels(p, clip[3], spacing, node, cube, tree, max_size, focal),

@@ -142,11 +142,27 @@ pub struct Points {
     pub origin: [f64; 3],
     storage: Storage,
     pub len: u32,
+    /// Splats (`mwkd`): per point a normal's cube-map code and an 8-bit radius
+    /// ([`splat_code`]), and the radius range the codes span.
+    splats: Option<(Storage32, [f32; 2])>,
 }
 
 enum Storage {
     Gpu(wgpu::Buffer),
     Cpu(Vec<[f32; 4]>),
+}
+
+enum Storage32 {
+    Gpu(wgpu::Buffer),
+    Cpu(Vec<u32>),
+}
+
+/// A splat's normal and radius in one word: the normal's cube-map index
+/// (`myriad_format::splat::normal_code`) in the low 16 bits, the radius in 8 bits above, from
+/// `range[0]` (0) to `range[1]` (255).
+pub fn splat_code(normal: [f32; 3], radius: f32, range: [f32; 2]) -> u32 {
+    use myriad_format::splat::{normal_code, radius_code};
+    normal_code(normal) as u32 | (radius_code(radius, range[0], range[1]) as u32) << 16
 }
 
 impl Points {
@@ -187,15 +203,81 @@ impl Points {
             origin,
             storage,
             len: positions.len() as u32,
+            splats: None,
+        }
+    }
+
+    /// [`Points::upload`] of splats: each point also has a normal and a radius (world units).
+    pub fn upload_splats(
+        gpu: &Gpu,
+        origin: [f64; 3],
+        positions: &[[f64; 3]],
+        rgba: &[[u8; 4]],
+        normals: &[[f32; 3]],
+        radii: &[f32],
+    ) -> Points {
+        assert!(normals.len() == positions.len() && radii.len() == positions.len());
+        let mut p = Points::upload(gpu, origin, positions, rgba);
+        let lo = radii.iter().copied().fold(f32::INFINITY, f32::min);
+        let range = if lo.is_finite() {
+            [lo, radii.iter().copied().fold(lo, f32::max)]
+        } else {
+            [0.0, 0.0]
+        };
+        let codes: Vec<u32> = normals
+            .iter()
+            .zip(radii)
+            .map(|(&n, &r)| splat_code(n, r, range))
+            .collect();
+        let storage = match gpu.wgpu() {
+            None => Storage32::Cpu(codes),
+            Some((device, _)) => Storage32::Gpu(device.create_buffer_init(
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some("splats"),
+                    contents: if codes.is_empty() {
+                        &[0u8; 4]
+                    } else {
+                        bytemuck::cast_slice(&codes)
+                    },
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                },
+            )),
+        };
+        p.splats = Some((storage, range));
+        p
+    }
+
+    /// The radius range of a splat upload.
+    pub fn splat_range(&self) -> Option<[f32; 2]> {
+        self.splats.as_ref().map(|s| s.1)
+    }
+
+    fn splat_buffer(&self) -> Option<&wgpu::Buffer> {
+        match &self.splats {
+            Some((Storage32::Gpu(b), _)) => Some(b),
+            _ => None,
+        }
+    }
+
+    fn cpu_splats(&self) -> Option<&[u32]> {
+        match &self.splats {
+            Some((Storage32::Cpu(v), _)) => Some(v),
+            _ => None,
         }
     }
 
     /// Bytes this takes (on the GPU, or in memory for the CPU).
     pub fn bytes(&self) -> usize {
-        match &self.storage {
-            Storage::Gpu(b) => b.size() as usize,
-            Storage::Cpu(v) => v.len() * POINT_BYTES,
-        }
+        let splats = match &self.splats {
+            Some((Storage32::Gpu(b), _)) => b.size() as usize,
+            Some((Storage32::Cpu(v), _)) => v.len() * 4,
+            None => 0,
+        };
+        splats
+            + match &self.storage {
+                Storage::Gpu(b) => b.size() as usize,
+                Storage::Cpu(v) => v.len() * POINT_BYTES,
+            }
     }
 
     fn buffer(&self) -> &wgpu::Buffer {

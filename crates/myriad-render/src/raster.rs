@@ -41,6 +41,8 @@ struct DrawUniforms {
     pad: u32,
     cube: [f32; 4],
     clip: [[f32; 4]; 2],
+    eye: [[f32; 4]; 3],
+    radius: [f32; 4],
 }
 
 /// A draw's range in the compute path's frame buffer (as `Range` in raster.wgsl).
@@ -53,6 +55,7 @@ struct Range {
     node: u32,
     start: u32,
     count: u32,
+    radius: [f32; 4],
 }
 
 /// The resolve pass's uniforms (as `Resolve` in resolve.wgsl).
@@ -81,6 +84,8 @@ struct Targets {
     readback: wgpu::Buffer,
     /// Compute path: the frame's points, copied from the draws' buffers.
     merged: Option<wgpu::Buffer>,
+    /// And their splat codes (only splat draws' are copied), at the same indices.
+    merged_splats: Option<wgpu::Buffer>,
     /// What `merged` holds: (buffer, start, count) of each range copied.
     copied: std::collections::HashSet<(wgpu::Buffer, u32, u32)>,
 }
@@ -281,6 +286,7 @@ impl Rasterizer {
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
             merged: None,
+            merged_splats: None,
             copied: Default::default(),
         }
     }
@@ -321,10 +327,19 @@ impl Rasterizer {
                 ]
             })
         };
+        let eye = {
+            let (r, u, f) = camera.basis();
+            [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0])
+        };
+        let radius_of = |p: &crate::Points| {
+            p.splat_range()
+                .map_or([0.0; 4], |[lo, hi]| [lo, hi, 1.0, 0.0])
+        };
         let uniform = |origin: [f64; 3],
                        count: u32,
                        spacing: f64,
-                       node: Option<(u32, myriad_core::Aabb)>| DrawUniforms {
+                       node: Option<(u32, myriad_core::Aabb)>,
+                       radius: [f32; 4]| DrawUniforms {
             view_proj: camera.view_proj(origin),
             width: w,
             height: h,
@@ -344,6 +359,8 @@ impl Rasterizer {
             pad: 0,
             cube: relative(node, origin),
             clip: crate::Clip::uniforms(style.clip, origin),
+            eye,
+            radius,
         };
         // The compute path draws batches of draws, each copied into one buffer (ranges starting
         // on workgroup boundaries) and drawn by one dispatch: on lavapipe every dispatch costs
@@ -382,6 +399,12 @@ impl Rasterizer {
                         mapped_at_creation: false,
                     }),
                 );
+                t.merged_splats = Some(d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("frame splats"),
+                    size: t.merged.as_ref().expect("made above").size() / POINT_BYTES as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }));
                 t.copied.clear();
             }
             // What the frame buffer already holds from the last frame (one batch only: with
@@ -403,12 +426,20 @@ impl Rasterizer {
         let specs: Vec<DrawUniforms> = match self.path {
             Path::Quads => draws
                 .iter()
-                .map(|d| uniform(d.points.origin, d.count, d.spacing, d.node))
+                .map(|d| {
+                    uniform(
+                        d.points.origin,
+                        d.count,
+                        d.spacing,
+                        d.node,
+                        radius_of(d.points),
+                    )
+                })
                 .collect(),
             Path::Cpu => unreachable!("drawn above"),
             Path::Compute => batch_points
                 .iter()
-                .map(|&n| uniform(origin, (n / WORKGROUP as u64) as u32, 0.0, None))
+                .map(|&n| uniform(origin, (n / WORKGROUP as u64) as u32, 0.0, None, [0.0; 4]))
                 .collect(),
         };
         let stride = (std::mem::size_of::<DrawUniforms>() as u64)
@@ -440,6 +471,13 @@ impl Rasterizer {
             },
             usage: wgpu::BufferUsages::STORAGE,
         });
+        // Bound where a draw has no splats (never read then).
+        let no_splats = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("no splats"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
 
         let mut enc = d.create_command_encoder(&Default::default());
         match &self.pipelines {
@@ -447,6 +485,7 @@ impl Rasterizer {
             Pipelines::Compute { raster, .. } => {
                 let fb = t.framebuffer.as_ref().expect("compute targets");
                 let merged = t.merged.as_ref().expect("made above");
+                let merged_splats = t.merged_splats.as_ref().expect("made with merged");
                 enc.clear_buffer(fb, 0, None);
                 let layout = raster.get_bind_group_layout(0);
                 let mut fresh = fresh.iter();
@@ -463,6 +502,15 @@ impl Rasterizer {
                                 start as u64 * POINT_BYTES as u64,
                                 draw.count as u64 * POINT_BYTES as u64,
                             );
+                            if let Some(sb) = draw.points.splat_buffer() {
+                                enc.copy_buffer_to_buffer(
+                                    sb,
+                                    0,
+                                    merged_splats,
+                                    start as u64 * 4,
+                                    draw.count as u64 * 4,
+                                );
+                            }
                         }
                         let o = draw.points.origin;
                         ranges.push(Range {
@@ -477,6 +525,7 @@ impl Rasterizer {
                             node: draw.node.map_or(u32::MAX, |n| n.0),
                             start,
                             count: draw.count,
+                            radius: radius_of(draw.points),
                         });
                         let groups = draw.count.div_ceil(WORKGROUP);
                         group_range.extend(std::iter::repeat_n(k as u32, groups as usize));
@@ -507,6 +556,14 @@ impl Rasterizer {
                             (3, tree.as_entire_binding()),
                             (4, ranges.as_entire_binding()),
                             (5, group_range.as_entire_binding()),
+                            (
+                                6,
+                                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                    buffer: merged_splats,
+                                    offset: 0,
+                                    size: wgpu::BufferSize::new(total * 4),
+                                }),
+                            ),
                         ]
                         .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
                     });
@@ -521,10 +578,15 @@ impl Rasterizer {
                 let layout = quads.get_bind_group_layout(0);
                 let binds: Vec<wgpu::BindGroup> = (0..draws.len())
                     .map(|i| {
+                        let splats = draws[i].points.splat_buffer().unwrap_or(&no_splats);
                         d.create_bind_group(&wgpu::BindGroupDescriptor {
                             label: Some("quads"),
                             layout: &layout,
-                            entries: &[entry(0, uniform_at(i)), entry(3, tree.as_entire_binding())],
+                            entries: &[
+                                entry(0, uniform_at(i)),
+                                entry(3, tree.as_entire_binding()),
+                                entry(6, splats.as_entire_binding()),
+                            ],
                         })
                     })
                     .collect();

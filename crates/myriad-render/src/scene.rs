@@ -10,6 +10,7 @@ use myriad_lod::{
     Camera, DrawnTree, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds,
     select_many, select_where,
 };
+use std::collections::HashSet;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -21,7 +22,7 @@ pub struct Picked {
     pub depth: f64,
     pub node: NodeKey,
     /// Its node's points (all its attributes), and its index there.
-    pub batch: Arc<myriad_core::PointBatch>,
+    pub batch: Arc<myriad_lod::stream::Loaded>,
     pub index: usize,
 }
 
@@ -37,6 +38,9 @@ pub struct Scene {
     pub view_bounds: Aabb,
     /// The last frame's selection (what picking searches).
     pub last: Selection,
+    /// The nodes drawn in the last frame (`mwkd` draws them again in place of front nodes not
+    /// yet on the GPU).
+    drawn: HashSet<NodeKey>,
     colour: ColorBy,
 }
 
@@ -79,6 +83,7 @@ impl Scene {
             z_range: (view_bounds.min[2], view_bounds.max[2]),
             view_bounds,
             last: Selection::default(),
+            drawn: HashSet::new(),
             colour: ColorBy::Rgb,
         }
     }
@@ -98,7 +103,15 @@ impl Scene {
                 view_bounds = sample;
             }
         }
-        let h = Hierarchy::new(dataset.meta.root, nodes);
+        let mut h = Hierarchy::new(dataset.meta.root, nodes);
+        // Normal cones cull only where normals have a sign (the input's): estimated normals
+        // were turned up, so a ceiling's face its room from behind.
+        h.cull_backfaces = dataset
+            .meta
+            .parameters
+            .get("normals")
+            .and_then(|v| v.as_str())
+            == Some("input");
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
         Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes)
     }
@@ -182,9 +195,59 @@ impl Scene {
         self.loader.poll();
     }
 
-    /// The draws of `selection` whose buffers are on the GPU, and the drawn tree they index,
-    /// its entries numbered from `base` (for a frame of several scenes).
-    fn draws(&self, selection: &Selection, base: u32) -> (Vec<Draw<'_>>, Vec<[u32; 4]>) {
+    /// `mwkd` (004 section IV, transitions): for each front node not on the GPU yet, what was
+    /// drawn in the last frame in its place and still is on the GPU: its nearest such ancestor
+    /// (the front refined), else such descendants (the front coarsened). Until the node lands,
+    /// they are drawn instead, so the view never has a hole where it had points.
+    fn stand_ins(&self, selection: &Selection) -> Vec<NodeKey> {
+        if !self.hierarchy.splats() {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        let mut seen = HashSet::new();
+        let usable = |k: &NodeKey| self.drawn.contains(k) && self.buffers.contains(k);
+        for n in &selection.nodes {
+            if self.buffers.contains(&n.key) {
+                continue;
+            }
+            let mut k = n.key;
+            let mut found = false;
+            while k.level > 0 {
+                k = k.parent();
+                if usable(&k) {
+                    found = true;
+                    if seen.insert(k) {
+                        out.push(k);
+                    }
+                    break;
+                }
+            }
+            if !found {
+                let mut below: Vec<NodeKey> = self
+                    .drawn
+                    .iter()
+                    .filter(|d| d.level > n.key.level && d.is_within(&n.key) && usable(d))
+                    .copied()
+                    .collect();
+                below.sort();
+                for d in below {
+                    if seen.insert(d) {
+                        out.push(d);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The draws of `selection` whose buffers are on the GPU (and, `mwkd`, the stand-ins of
+    /// those that are not), the keys drawn, and the drawn tree they index, its entries numbered
+    /// from `base` (for a frame of several scenes).
+    fn draws(
+        &self,
+        selection: &Selection,
+        base: u32,
+    ) -> (Vec<Draw<'_>>, Vec<[u32; 4]>, HashSet<NodeKey>) {
         // Points sized per point from the drawn tree where nodes are octree cells; per node
         // (the selection's spacing) in kd-trees.
         let cells = self.hierarchy.cells();
@@ -202,15 +265,22 @@ impl Scene {
                 if cells {
                     d.node = Some((tree.index[&n.key] + base, self.hierarchy.bounds(&n.key)));
                 }
-                Some(d)
+                Some((n.key, d))
             })
-            .collect();
+            .chain(self.stand_ins(selection).into_iter().filter_map(|k| {
+                let p = self.buffers.get(&k)?;
+                let spacing = self.hierarchy.get(&k)?.spacing.first().copied()?;
+                Some((k, p.all(spacing)))
+            }))
+            .collect::<Vec<_>>();
+        let keys = draws.iter().map(|(k, _)| *k).collect();
+        let draws = draws.into_iter().map(|(_, d)| d).collect();
         let entries = tree
             .entries
             .iter()
             .map(|&[mask, first, spacing, pad]| [mask, first + base, spacing, pad])
             .collect();
-        (draws, entries)
+        (draws, entries, keys)
     }
 
     /// What a frame of `selection` did, given what was drawn.
@@ -233,6 +303,10 @@ impl Scene {
     /// Uploads the selected nodes that are resident but not on the GPU; returns how many.
     pub fn upload(&mut self, gpu: &Gpu, selection: &Selection) -> usize {
         self.buffers.next_frame();
+        // Stand-ins stay on the GPU while they are needed.
+        for k in self.stand_ins(selection) {
+            self.buffers.touch(&k);
+        }
         let mut uploads = 0;
         for n in &selection.nodes {
             if self.buffers.touch(&n.key) {
@@ -242,7 +316,17 @@ impl Scene {
                 continue;
             };
             let c = colours(&batch, batch.len(), self.colour, self.z_range, n.key.level);
-            let p = Points::upload(gpu, self.origin, &batch.positions, &c);
+            let p = match &batch.splats {
+                Some(s) => Points::upload_splats(
+                    gpu,
+                    self.origin,
+                    &batch.positions,
+                    &c,
+                    &s.normals,
+                    &s.radii,
+                ),
+                None => Points::upload(gpu, self.origin, &batch.positions, &c),
+            };
             let bytes = p.bytes();
             self.buffers.insert(n.key, p, bytes);
             uploads += 1;
@@ -266,7 +350,7 @@ impl Scene {
         let uploads = self.upload(gpu, &selection);
         let upload = t.elapsed();
         let t = Instant::now();
-        let (draws, tree) = self.draws(&selection, 0);
+        let (draws, tree, keys) = self.draws(&selection, 0);
         let image = raster.render(gpu, camera, &draws, &tree, style);
         let stats = FrameStats {
             uploads,
@@ -276,6 +360,7 @@ impl Scene {
             ..self.stats(&selection, &draws)
         };
         drop(draws);
+        self.drawn = keys;
         self.last = selection;
         (image, stats)
     }
@@ -307,8 +392,10 @@ pub fn frame_many(
     let mut all_draws = Vec::new();
     let mut tree = Vec::new();
     let mut stats = Vec::new();
+    let mut drawn = Vec::new();
     for ((scene, selection), uploads) in scenes.iter().zip(&selections).zip(uploads) {
-        let (draws, entries) = scene.draws(selection, tree.len() as u32);
+        let (draws, entries, keys) = scene.draws(selection, tree.len() as u32);
+        drawn.push(keys);
         stats.push(FrameStats {
             uploads,
             select,
@@ -324,8 +411,9 @@ pub fn frame_many(
     for s in &mut stats {
         s.draw = draw;
     }
-    for (scene, selection) in scenes.iter_mut().zip(selections) {
+    for ((scene, selection), keys) in scenes.iter_mut().zip(selections).zip(drawn) {
         scene.last = selection;
+        scene.drawn = keys;
     }
     (image, stats)
 }

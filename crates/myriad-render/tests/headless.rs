@@ -365,11 +365,26 @@ fn every_path_draws_the_cpus_image() {
         far: 40.0,
     };
     let paths = paths();
+    // The last run draws the points as splats of random normals and radii.
+    let normals: Vec<[f32; 3]> = (0..n)
+        .map(|_| {
+            let v = [next() - 0.5, next() - 0.5, next() - 0.5].map(|x| x as f32);
+            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-3);
+            v.map(|x| x / l)
+        })
+        .collect();
+    let radii: Vec<f32> = (0..n).map(|_| (0.02 + next() * 0.1) as f32).collect();
+    let splats: Vec<Points> = paths
+        .iter()
+        .map(|(gpu, _)| {
+            Points::upload_splats(gpu, [0.0; 3], &positions, &colours, &normals, &radii)
+        })
+        .collect();
     let uploaded: Vec<Points> = paths
         .iter()
         .map(|(gpu, _)| Points::upload(gpu, [0.0; 3], &positions, &colours))
         .collect();
-    for style in [
+    for (style, uploaded) in [
         fixed(3.0, Shape::Square),
         fixed(6.0, Shape::Round),
         fixed(6.0, Shape::Paraboloid),
@@ -381,10 +396,19 @@ fn every_path_draws_the_cpus_image() {
             edl: Some(Edl::default()),
             ..fixed(1.0, Shape::Round)
         },
-    ] {
+    ]
+    .into_iter()
+    .map(|s| (s, &uploaded))
+    .chain([(
+        Style {
+            size: PointSize::adaptive(),
+            ..fixed(1.0, Shape::Square)
+        },
+        &splats,
+    )]) {
         let images: Vec<Vec<u8>> = paths
             .iter()
-            .zip(&uploaded)
+            .zip(uploaded)
             .map(|((gpu, r), p)| r.render(gpu, &cam, &[p.all(0.15)], &[], &style))
             .collect();
         let a = &images[0];
@@ -409,5 +433,79 @@ fn every_path_draws_the_cpus_image() {
                 r.path
             );
         }
+    }
+}
+
+#[test]
+fn splats_are_oriented_discs_on_every_path() {
+    // One splat of radius 1 at depth 10 (focal 50 pixels: a disc of 5 pixels' radius), seen
+    // face-on, tilted by 60 degrees about the vertical (an ellipse half as wide), and edge-on.
+    let cam = looking_along_y(0.0);
+    let white = [[255, 255, 255, 255]];
+    let adaptive = Style {
+        size: PointSize::adaptive(),
+        ..fixed(1.0, Shape::Square)
+    };
+    let paths = paths();
+    let t = 60f32.to_radians();
+    for (normal, want) in [
+        ([0.0, -1.0, 0.0], std::f32::consts::PI * 25.0),
+        ([t.sin(), -t.cos(), 0.0], std::f32::consts::PI * 25.0 * 0.5),
+    ] {
+        for (gpu, r) in &paths {
+            let p = Points::upload_splats(gpu, [0.0; 3], &[[0.0; 3]], &white, &[normal], &[1.0]);
+            let img = r.render(gpu, &cam, &[p.all(0.0)], &[], &adaptive);
+            let drawn = img.chunks_exact(4).filter(|c| c[0] == 255).count() as f32;
+            assert!(
+                (drawn - want).abs() < want * 0.2 + 4.0,
+                "{:?} {normal:?}: {drawn} pixels, about {want} expected",
+                r.path
+            );
+            // Tilted about the vertical: narrower than high.
+            let row = |y: usize| (0..200).filter(|&x| px(&img, 200, x, y)[0] == 255).count();
+            let col = |x: usize| (0..100).filter(|&y| px(&img, 200, x, y)[0] == 255).count();
+            if normal[0] != 0.0 {
+                assert!(
+                    row(50) * 3 < col(100) * 2,
+                    "{:?}: {} {}",
+                    r.path,
+                    row(50),
+                    col(100)
+                );
+            } else {
+                assert_eq!(row(50), col(100), "{:?}", r.path);
+            }
+        }
+    }
+    // A tilted splat's depth follows its plane: two splats crossing at right angles at the
+    // same centre, each wins on the side where it is nearer.
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    for (gpu, r) in &paths {
+        let p = Points::upload_splats(
+            gpu,
+            [0.0; 3],
+            &[[0.0; 3], [0.0; 3]],
+            &[[255, 0, 0, 255], [0, 0, 255, 255]],
+            &[[s, -s, 0.0], [-s, -s, 0.0]],
+            &[1.0, 1.0],
+        );
+        let img = r.render(gpu, &cam, &[p.all(0.0)], &[], &adaptive);
+        // The first lies in the plane y = x (farther to the right), the second in y = -x
+        // (nearer to the right): blue on the right, red on the left.
+        assert_eq!(px(&img, 200, 102, 50), [0, 0, 255, 255], "{:?}", r.path);
+        assert_eq!(px(&img, 200, 97, 50), [255, 0, 0, 255], "{:?}", r.path);
+    }
+    // Fixed sizes ignore the splats: one pixel.
+    for (gpu, r) in &paths {
+        let p = Points::upload_splats(
+            gpu,
+            [0.0; 3],
+            &[[0.0; 3]],
+            &white,
+            &[[0.0, -1.0, 0.0]],
+            &[1.0],
+        );
+        let img = r.render(gpu, &cam, &[p.all(0.0)], &[], &fixed(1.0, Shape::Square));
+        assert_eq!(img.chunks_exact(4).filter(|c| c[0] == 255).count(), 1);
     }
 }

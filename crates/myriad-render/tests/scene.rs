@@ -50,6 +50,7 @@ fn entry(key: NodeKey) -> NodeEntry {
         spacing: vec![spacing],
         bounds: None,
         contour: None,
+        splats: None,
     }
 }
 
@@ -259,5 +260,104 @@ fn several_datasets_share_the_budget_and_the_depth_buffer() {
         );
         assert_eq!(stats[0].selected_points + stats[1].selected_points, 4000);
         assert!(stats[1].selected_points > stats[0].selected_points);
+    }
+}
+
+/// As `Gated`, with splats (normals up, radius 0.5), for an `mwkd` tree.
+struct GatedSplats(Gated);
+
+impl PageReader for GatedSplats {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        self.0.read(node)
+    }
+    fn read_splats(
+        &self,
+        node: &NodeEntry,
+    ) -> Result<Option<myriad_format::splat::Splats>, String> {
+        let n = node.points as usize;
+        Ok(Some(myriad_format::splat::Splats {
+            normals: vec![[0.0, 0.0, 1.0]; n],
+            radii: vec![0.5; n],
+        }))
+    }
+}
+
+/// 004 section IV: when the front moves, what was drawn before stays on screen until the new
+/// nodes land: the root in place of its children while they load, the children in place of the
+/// root when the front goes back up.
+#[test]
+fn the_front_moves_without_holes() {
+    for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
+        let root = Aabb::new([0.0; 3], [64.0; 3]);
+        let splat_entry = |key: NodeKey| {
+            let mut e = entry(key);
+            e.bounds = Some(if key.level == 0 {
+                Aabb::new([0.0; 3], [64.0, 64.0, 0.0])
+            } else {
+                let (x, y) = (key.cell[0] as f64 * 32.0, key.cell[1] as f64 * 32.0);
+                Aabb::new([x, y, 0.0], [x + 32.0, y + 32.0, 0.0])
+            });
+            e.splats = Some(myriad_format::splat::SplatInfo {
+                page: PageRef {
+                    offset: 64,
+                    length: 10,
+                    crc: 0,
+                },
+                radius: [0.5, 0.5],
+                cone: [0.0, 0.0, 1.0, 1.0],
+                aggregate: key.level == 0,
+            });
+            e
+        };
+        let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+        let h = Hierarchy::new(root, keys.map(splat_entry));
+        assert!(h.splats());
+        let (permit, permits): (Sender<()>, _) = channel();
+        let reader = Arc::new(GatedSplats(Gated {
+            permits: Mutex::new(permits),
+        }));
+        let mut scene = Scene::new(reader, h, root, 1, usize::MAX, usize::MAX);
+        let permit = permit;
+        let raster = Rasterizer::new(&gpu);
+        let cam = above();
+        let style = Style {
+            size: PointSize::Fixed(1.0),
+            ..Style::default()
+        };
+        let budget = |b| SelectOptions {
+            budget: b,
+            min_pixels: 0.0,
+        };
+        let mut frame = |scene: &mut Scene, b: u64, want: u64| {
+            let t = Instant::now();
+            loop {
+                let (_, stats) = scene.frame(&gpu, &raster, &cam, &budget(b), &style);
+                if stats.points == want || t.elapsed() > Duration::from_secs(30) {
+                    return stats;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        };
+        // The children fill the budget: they load, and are all that is drawn.
+        for _ in 0..4 {
+            permit.send(()).unwrap();
+        }
+        let s = frame(&mut scene, 5000, 4096);
+        assert_eq!((s.points, s.selected_nodes), (4096, 4));
+        // The budget drops below them: the front is the root, which has not landed; the
+        // children stay on screen meanwhile, frame after frame.
+        for _ in 0..3 {
+            let s = frame(&mut scene, 100, 4096);
+            assert_eq!((s.points, s.selected_nodes), (4096, 1), "children stand in");
+            assert!(!s.complete);
+        }
+        // The root lands: it alone is drawn.
+        permit.send(()).unwrap();
+        let s = frame(&mut scene, 100, 64);
+        assert_eq!((s.points, s.nodes), (64, 1));
+        assert!(s.complete);
+        // And back down: the children are on the GPU still, drawn at once.
+        let s = frame(&mut scene, 5000, 4096);
+        assert_eq!(s.nodes, 4);
     }
 }

@@ -19,6 +19,9 @@ pub enum BenchCommand {
     /// Image quality of the level of detail at a point budget (PSNR against every point, next
     /// to as many random points) in three standard views, and the frame time of the pipeline
     Render(crate::bench_render::RenderBenchArgs),
+    /// One file converted with every structure (octree, layered, kd): build speed, peak memory,
+    /// bytes per point, nodes, depth, PSNR at a budget in three views, frame time
+    Structures(crate::bench_structures::StructuresBenchArgs),
 }
 
 #[derive(Args)]
@@ -66,6 +69,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Synth(a) => synth(a),
         BenchCommand::Convert(a) => convert(a),
         BenchCommand::Render(a) => crate::bench_render::run(a),
+        BenchCommand::Structures(a) => crate::bench_structures::run(a),
     }
 }
 

@@ -143,33 +143,17 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                     size,
                     ..Style::default()
                 };
-                let full_options = SelectOptions {
-                    budget: u64::MAX,
-                    min_pixels: 0.0,
-                };
-                converge(&mut scene.loader, &scene.hierarchy, &cam, &full_options);
-                let (full, _) = scene.frame(&gpu, &raster, &cam, &full_options, &style);
-                let options = SelectOptions {
-                    budget: a.budget,
-                    min_pixels: 1.0,
-                };
-                let sel = converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
-                let (lod, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
-                if stats.points != sel.points {
-                    bail!(
-                        "{name}: {view}: drew {} of {} points",
-                        stats.points,
-                        sel.points
-                    );
-                }
-                let random = random_image(&gpu, &raster, &scene, &cam, &style, sel.points, a.seed)?;
-                let (ours, theirs) = (psnr(&lod, &full), psnr(&random, &full));
+                let q = quality(&mut scene, &gpu, &raster, &cam, &style, a.budget)
+                    .map_err(|e| anyhow::anyhow!("{name}: {view}: {e}"))?;
+                let (full, lod, points) = (q.full, q.lod, q.points);
+                let random = random_image(&gpu, &raster, &scene, &cam, &style, points, a.seed)?;
+                let (ours, theirs) = (q.psnr, psnr(&random, &full));
                 if ours <= theirs {
                     lost += 1;
                 }
                 println!(
                     "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2}",
-                    crate::info::thousands(sel.points),
+                    crate::info::thousands(points),
                     ours - theirs
                 );
                 if let Some(dir) = &a.images {
@@ -187,11 +171,6 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
         let (_, cam) = views[0];
         let mut cam = cam;
         cam.fit_depth(&ds.meta.bounds);
-        let options = SelectOptions {
-            budget: a.frame_budget,
-            min_pixels: 0.0,
-        };
-        converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
         for (mode, size) in [
             ("adaptive", PointSize::adaptive()),
             ("fixed:1", PointSize::Fixed(1.0)),
@@ -200,21 +179,15 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                 size,
                 ..Style::default()
             };
-            scene.frame(&gpu, &raster, &cam, &options, &style);
-            let mut times = Vec::new();
-            let mut points = 0;
-            for _ in 0..a.frames.max(1) {
-                let t = Instant::now();
-                let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
-                times.push((
-                    t.elapsed().as_secs_f64(),
-                    stats.select.as_secs_f64(),
-                    stats.draw.as_secs_f64(),
-                ));
-                points = stats.points;
-                std::hint::black_box(img);
-            }
-            times.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let (times, points) = frame_times(
+                &mut scene,
+                &gpu,
+                &raster,
+                &cam,
+                &style,
+                a.frame_budget,
+                a.frames,
+            );
             let (frame, select, draw) = times[times.len() / 2];
             println!(
                 "frame, {mode} size, budget {}: {} points in {} frames: median {:.1} ms (selection \
@@ -237,6 +210,84 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
         println!("\nlevel of detail better than the random baseline in every view");
     }
     Ok(())
+}
+
+/// A view's image at a point budget next to its image of every point.
+pub struct Quality {
+    pub full: Vec<u8>,
+    pub lod: Vec<u8>,
+    /// Points drawn at the budget.
+    pub points: u64,
+    /// Of `lod` against `full`, dB.
+    pub psnr: f64,
+}
+
+/// Draws `cam`'s view with every point and at `budget` (both converged) and compares them.
+pub fn quality(
+    scene: &mut Scene,
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    cam: &Camera,
+    style: &Style,
+    budget: u64,
+) -> Result<Quality> {
+    let full_options = SelectOptions {
+        budget: u64::MAX,
+        min_pixels: 0.0,
+    };
+    converge(&mut scene.loader, &scene.hierarchy, cam, &full_options);
+    let (full, _) = scene.frame(gpu, raster, cam, &full_options, style);
+    let options = SelectOptions {
+        budget,
+        min_pixels: 1.0,
+    };
+    let sel = converge(&mut scene.loader, &scene.hierarchy, cam, &options);
+    let (lod, stats) = scene.frame(gpu, raster, cam, &options, style);
+    if stats.points != sel.points {
+        bail!("drew {} of {} points", stats.points, sel.points);
+    }
+    let psnr = psnr(&lod, &full);
+    Ok(Quality {
+        full,
+        lod,
+        points: sel.points,
+        psnr,
+    })
+}
+
+/// Times `frames` frames of `cam`'s view at `budget` once converged, with no pixel threshold (so
+/// that the budget is what stops the selection): (whole frame, selection, drawing and readback)
+/// in seconds, sorted by the whole frame; and the points drawn.
+pub fn frame_times(
+    scene: &mut Scene,
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    cam: &Camera,
+    style: &Style,
+    budget: u64,
+    frames: usize,
+) -> (Vec<(f64, f64, f64)>, u64) {
+    let options = SelectOptions {
+        budget,
+        min_pixels: 0.0,
+    };
+    converge(&mut scene.loader, &scene.hierarchy, cam, &options);
+    scene.frame(gpu, raster, cam, &options, style);
+    let mut times = Vec::new();
+    let mut points = 0;
+    for _ in 0..frames.max(1) {
+        let t = Instant::now();
+        let (img, stats) = scene.frame(gpu, raster, cam, &options, style);
+        times.push((
+            t.elapsed().as_secs_f64(),
+            stats.select.as_secs_f64(),
+            stats.draw.as_secs_f64(),
+        ));
+        points = stats.points;
+        std::hint::black_box(img);
+    }
+    times.sort_by(|x, y| x.0.total_cmp(&y.0));
+    (times, points)
 }
 
 /// `k` points picked uniformly at random from every point of the scene (all resident), drawn

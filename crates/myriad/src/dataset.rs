@@ -23,7 +23,8 @@ pub struct ConvertArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
-    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002)
+    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
+    /// kd-tree of aggregates drawn as splats, 004)
     #[arg(long, default_value = "octree")]
     structure: String,
     /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
@@ -87,7 +88,6 @@ impl convert::Report for Bar {
 pub fn convert(a: ConvertArgs) -> Result<()> {
     let structure = match a.structure.as_str() {
         "nested-octree" => convert::Structure::Octree,
-        "mwkd" => bail!("--structure mwkd: not built yet (octree, layered, kd are)"),
         s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
     };
     if a.capacity < 64 {

@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_render;
+mod bench_structures;
 mod dataset;
 mod info;
 mod render;

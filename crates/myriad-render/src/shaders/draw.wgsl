@@ -25,11 +25,59 @@ struct Draw {
     // Clipping box relative to the origin; clip_min.w: 0 none, 1 keep inside, 2 keep outside.
     clip_min: vec4<f32>,
     clip_max: vec4<f32>,
+    // The eye's right, up and forward unit vectors (world), for oriented splats.
+    eye_right: vec4<f32>,
+    eye_up: vec4<f32>,
+    eye_forward: vec4<f32>,
+    // Quad path, this draw's splats: smallest and largest radius, z 1 when it has splats.
+    radius: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> u: Draw;
 // The drawn nodes (myriad_lod::DrawnTree): child mask, first child, spacing bits (0: not drawn).
 @group(0) @binding(3) var<storage, read> tree: array<vec4<u32>>;
+// Splats (mwkd): per point, a normal's cube-map index (low 16 bits) and an 8-bit radius code.
+@group(0) @binding(6) var<storage, read> splat_codes: array<u32>;
+
+// The unit direction at the centre of a cube-map cell (104 x 104 per face), as
+// myriad_format::splat::normal_from_code.
+fn splat_normal(code: u32) -> vec3<f32> {
+    let c = code & 0xffffu;
+    let face = min(c / 10816u, 5u);
+    let rest = c % 10816u;
+    let cu = (f32(rest % 104u) + 0.5) / 104.0 * 2.0 - 1.0;
+    let cv = (f32(rest / 104u) + 0.5) / 104.0 * 2.0 - 1.0;
+    let s = select(1.0, -1.0, (face % 2u) == 1u);
+    let axis = face / 2u;
+    var n = vec3<f32>(cu, cv, s);
+    if (axis == 0u) {
+        n = vec3<f32>(s, cu, cv);
+    } else if (axis == 1u) {
+        n = vec3<f32>(cv, s, cu);
+    }
+    return n / sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+}
+
+// A splat at eye depth `w`: its radius in pixels (at most what the largest point size holds, so
+// that a near splat shrinks rather than being cut square) and its normal in eye coordinates
+// (right, up, forward; the forward part kept at least 0.05 from zero so that edge-on splats stay
+// thin ellipses).
+fn splat_shape(code: u32, range: vec2<f32>, w: f32) -> vec4<f32> {
+    let n = splat_normal(code);
+    let r = range.x + (range.y - range.x) * f32((code >> 16u) & 0xffu) / 255.0;
+    var nf = dot(n, u.eye_forward.xyz);
+    if (abs(nf) < 0.05) {
+        nf = select(0.05, -0.05, nf < 0.0);
+    }
+    let rho = min(r * u.focal / w, (u.max_size - 1.0) * 0.5);
+    return vec4<f32>(rho, dot(n, u.eye_right.xyz), dot(n, u.eye_up.xyz), nf);
+}
+
+// The odd side of the square of pixels a splat of `rho` pixels' radius may cover.
+fn splat_pixels(rho: f32) -> i32 {
+    let s = i32(clamp(2.0 * round(rho) + 1.0, 1.0, u.max_size));
+    return s - 1 + (s & 1);
+}
 
 // Whether the clipping box hides the point at `p` (relative to the origin).
 fn clipped(p: vec3<f32>) -> bool {

@@ -9,6 +9,8 @@ struct Corner {
     // Eye depth, and the paraboloid's bulge in the same units.
     @location(2) @interpolate(flat) depth: vec2<f32>,
     @location(3) @interpolate(flat) radius2: f32,
+    // A splat's radius in pixels and its eye normal (splat_shape); x < 0: not a splat.
+    @location(4) @interpolate(flat) splat: vec4<f32>,
 }
 
 const CORNERS = array<vec2<f32>, 6>(
@@ -19,6 +21,7 @@ const CORNERS = array<vec2<f32>, 6>(
 @vertex
 fn vertex(
     @builtin(vertex_index) v: u32,
+    @builtin(instance_index) instance: u32,
     @location(0) p: vec3<f32>,
     @location(1) colour: vec4<f32>,
 ) -> Corner {
@@ -29,6 +32,7 @@ fn vertex(
     out.local = vec2<f32>(0.0);
     out.depth = vec2<f32>(0.0);
     out.radius2 = 0.0;
+    out.splat = vec4<f32>(-1.0, 0.0, 0.0, 1.0);
     if (clipped(p)) {
         return out;
     }
@@ -42,7 +46,11 @@ fn vertex(
     }
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
-    let s = point_pixels(p, clip.w, u.spacing, u.node, u.cube);
+    var s = point_pixels(p, clip.w, u.spacing, u.node, u.cube);
+    if (u.radius.z > 0.0 && u.point_size == 0.0) {
+        out.splat = splat_shape(splat_codes[instance], u.radius.xy, clip.w);
+        s = f32(splat_pixels(out.splat.x));
+    }
     let x0 = floor(fx) - floor((s - 1.0) * 0.5);
     let y0 = floor(fy) - floor((s - 1.0) * 0.5);
     let corner = CORNERS[v % 6u];
@@ -66,7 +74,13 @@ fn fragment(in: Corner) -> Fragment {
     var out: Fragment;
     out.colour = in.colour;
     var w = in.depth.x;
-    if (u.shape != 0u) {
+    if (in.splat.x >= 0.0) {
+        let e = (in.local.x * in.splat.y - in.local.y * in.splat.z) / in.splat.w;
+        if (dot(in.local, in.local) + e * e > in.splat.x * in.splat.x) {
+            discard;
+        }
+        w = w - w / u.focal * e;
+    } else if (u.shape != 0u) {
         let d2 = dot(in.local, in.local);
         if (d2 > in.radius2) {
             discard;

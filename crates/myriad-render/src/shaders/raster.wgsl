@@ -13,6 +13,8 @@ struct Range {
     node: u32,
     start: u32,
     count: u32,
+    // Splats: smallest and largest radius; z 1 when this draw has them.
+    radius: vec4<f32>,
 }
 
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
@@ -58,6 +60,37 @@ fn rasterize(
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     let colour = u64(bitcast<u32>(p.w));
+    if (r.radius.z > 0.0 && u.point_size == 0.0) {
+        // An oriented disc: the pixels whose ray meets it within its radius, each at the depth
+        // where it does (the splat seen in a small neighbourhood as in parallel projection).
+        let sp = splat_shape(splat_codes[r.start + local], r.radius.xy, clip.w);
+        let s = splat_pixels(sp.x);
+        let x0 = i32(floor(fx)) - (s - 1) / 2;
+        let y0 = i32(floor(fy)) - (s - 1) / 2;
+        let c = f32(s - 1) * 0.5;
+        let k = clip.w / u.focal;
+        for (var dy = 0; dy < s; dy++) {
+            let y = y0 + dy;
+            if (y < 0 || y >= i32(u.height)) {
+                continue;
+            }
+            for (var dx = 0; dx < s; dx++) {
+                let x = x0 + dx;
+                if (x < 0 || x >= i32(u.width)) {
+                    continue;
+                }
+                let a = f32(dx) - c;
+                let b = f32(dy) - c;
+                let e = (a * sp.y - b * sp.z) / sp.w;
+                if (a * a + b * b + e * e > sp.x * sp.x) {
+                    continue;
+                }
+                let value = (u64(depth_key(clip.w - k * e)) << 32u) | colour;
+                atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
+            }
+        }
+        return;
+    }
     let s = i32(point_pixels(p.xyz, clip.w, r.spacing, r.node, r.cube));
     if (s == 1) {
         let x = u32(fx);
