@@ -72,6 +72,18 @@ fn fix_root_page(b: &mut Vec<u8>, r: std::ops::Range<usize>) {
         if node {
             let Some(&levels) = b.get(at + 33) else { return };
             at += 34 + 12 * levels as usize;
+            // Format 2: a flags byte, then bounds (48 bytes), contour (120), splats (41, whose
+            // page's CRC is fixed too).
+            let Some(&flags) = b.get(at) else { return };
+            at += 1 + if flags & 1 != 0 { 48 } else { 0 } + if flags & 2 != 0 { 120 } else { 0 };
+            if flags & 4 != 0 {
+                let (Some(off), Some(len)) = (u64_at(b, at), u32_at(b, at + 8)) else { return };
+                if let Some(pr) = range(b, off, len) {
+                    let v = crc(&b[pr]);
+                    put(b, at + 12, v);
+                }
+                at += 41;
+            }
         } else {
             at += 29;
         }
@@ -110,6 +122,7 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     let (nodes, _damage) = ds.nodes();
     let mut points = 0usize;
     for n in nodes.iter().take(64) {
+        let _ = ds.read_splats(n);
         if let Ok(b) = ds.read_node(n) {
             assert!(b.is_consistent());
             assert_eq!(b.len(), n.points as usize);

@@ -699,3 +699,80 @@ fn render_a_converted_scan_to_png() {
         );
     }
 }
+
+/// `convert --structure` builds each hierarchy; each verifies, gives every point back, shows in
+/// `info`, and renders an image of the scan (mwkd's with splats).
+#[test]
+fn every_structure_converts_verifies_extracts_and_renders() {
+    let d = tempdir("structures");
+    let las = synth(&d, "c.las", 150_000);
+    for structure in ["octree", "layered", "kd", "mwkd"] {
+        let out = d.join(format!("{structure}.myr"));
+        let r = myriad(&[
+            "convert",
+            s(&las),
+            "-o",
+            s(&out),
+            "--structure",
+            structure,
+            "--capacity",
+            "8192",
+        ]);
+        assert_eq!(r.code, 0, "{structure}: {}", r.stderr);
+        let r = myriad(&["info", s(&out)]);
+        let name = if structure == "octree" {
+            "nested-octree"
+        } else {
+            structure
+        };
+        assert!(
+            r.stdout.contains(&format!("structure   {name}")),
+            "{structure}: {}",
+            r.stdout
+        );
+        let r = myriad(&["verify", s(&out)]);
+        assert_eq!(r.code, 0, "{structure}: {}", r.stderr);
+        assert!(r.stdout.contains("150,000 points"), "{}", r.stdout);
+        let back = d.join(format!("{structure}.las"));
+        let r = myriad(&["extract", s(&out), "-o", s(&back)]);
+        assert_eq!(r.code, 0, "{structure}: {}", r.stderr);
+        // Every original point, no aggregate (the record-by-record check is in myriad-build's
+        // tests): the LAS header counts the input's points.
+        let r = myriad(&["info", s(&back)]);
+        assert!(r.stdout.contains("150,000"), "{structure}: {}", r.stdout);
+        let png_path = d.join(format!("{structure}.png"));
+        let r = myriad(&[
+            "render",
+            s(&out),
+            "-o",
+            s(&png_path),
+            "--width",
+            "240",
+            "--height",
+            "160",
+            "--raster",
+            "cpu",
+        ]);
+        assert_eq!(r.code, 0, "{structure}: {}", r.stderr);
+        let decoder = png::Decoder::new(std::io::Cursor::new(std::fs::read(&png_path).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut img = vec![0; reader.output_buffer_size().unwrap()];
+        reader.next_frame(&mut img).unwrap();
+        let lit = img.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count();
+        assert!(
+            lit > 240 * 160 / 10,
+            "{structure}: {lit} pixels show the scan"
+        );
+    }
+    let r = myriad(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&d.join("x.myr")),
+        "--structure",
+        "bsp",
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("unknown structure"), "{}", r.stderr);
+    assert!(!d.join("x.myr").exists());
+}
