@@ -310,7 +310,8 @@ fn random_image(
     let grow = (total as f64 / k.max(1) as f64).sqrt();
     for key in keys {
         let entry = scene.hierarchy.get(&key).expect("listed");
-        if entry.points == 0 {
+        // Original points only (mwkd's aggregates are not among them).
+        if entry.points == 0 || entry.aggregate() {
             continue;
         }
         let Some(batch) = scene.loader.get(&key) else {
