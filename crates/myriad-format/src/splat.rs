@@ -92,7 +92,13 @@ pub fn encode(s: &Splats) -> (Vec<u8>, [f32; 2]) {
 
 /// Decodes a page of `n` splats; an error says what is wrong.
 pub fn decode(page: &[u8], n: usize, radius: [f32; 2]) -> Result<Splats, String> {
-    let raw = zstd::bulk::decompress(page, n * 3).map_err(|e| format!("splat page: {e}"))?;
+    // Streamed, so that memory follows what the page really holds rather than the count its
+    // entry claims (a damaged count asked for 7.7 GB up front under the fuzzer).
+    use std::io::Read;
+    let mut raw = Vec::new();
+    zstd::stream::read::Decoder::new(page)
+        .and_then(|d| d.take(n as u64 * 3 + 1).read_to_end(&mut raw))
+        .map_err(|e| format!("splat page: {e}"))?;
     if raw.len() != n * 3 {
         return Err(format!(
             "splat page holds {} bytes, {n} splats need {}",
@@ -161,6 +167,8 @@ mod tests {
         assert_eq!(back.radii[1], 2.0);
         assert!((back.radii[2] - 1.0).abs() <= 1.5 / 255.0);
         assert!(decode(&page, 4, range).is_err());
+        // A damaged count far beyond what the page holds: an error, with no allocation of it.
+        assert!(decode(&page, u32::MAX as usize, range).is_err());
         assert!(decode(&page[..page.len() - 1], 3, range).is_err());
     }
 }
