@@ -1,14 +1,18 @@
 //! View-dependent level of detail, on the CPU alone: the camera and its frustum ([`view`]) and
-//! the per-frame selection of nodes and prefixes within a point budget ([`select`]), and
+//! the per-frame selection of nodes and prefixes within a point budget ([`select`]; for mwkd
+//! trees, whose nodes replace their parents, the rendering front: [`front`]), and
 //! streaming: loader threads and an LRU cache of decoded nodes ([`stream`], [`cache`]). The renderer builds
 //! on these.
 
 pub mod cache;
+pub mod drawn;
+pub mod front;
 pub mod select;
 pub mod stream;
 pub mod view;
 
 pub use cache::Lru;
+pub use front::{backfacing, select_front};
 pub use select::{
     DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select, select_many,
     select_where,

@@ -10,6 +10,7 @@
 //! finest spacing of its children, pulled up the tree, so that coarse points shrink where finer
 //! points fill in between them.
 
+pub use crate::drawn::DrawnTree;
 use crate::view::{Camera, Frustum};
 use myriad_core::{Aabb, NodeKey, Obb};
 use myriad_format::NodeEntry;
@@ -25,7 +26,7 @@ pub struct Hierarchy {
     cells: bool,
     /// `mwkd`: nodes hold splats, inner nodes aggregates that their children replace.
     splats: bool,
-    max_level: u32,
+    pub(crate) max_level: u32,
     /// Cull nodes whose normal cone faces away (only where normals have a sign: the input's).
     pub cull_backfaces: bool,
 }
@@ -129,9 +130,9 @@ pub struct Selection {
     pub budget_reached: bool,
 }
 
-struct Candidate {
-    benefit: f64,
-    key: NodeKey,
+pub(crate) struct Candidate {
+    pub(crate) benefit: f64,
+    pub(crate) key: NodeKey,
 }
 impl PartialEq for Candidate {
     fn eq(&self, o: &Self) -> bool {
@@ -153,7 +154,7 @@ impl Ord for Candidate {
 }
 
 /// The nearest eye depth of a box (its corners; clamped to the near plane).
-fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
+pub(crate) fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
     nearest_depth_of(cam, &b.corners())
 }
 
@@ -248,7 +249,7 @@ pub fn select_where(
     keep: &dyn Fn(&Aabb) -> bool,
 ) -> Selection {
     if h.splats {
-        return select_front(h, cam, o, keep);
+        return crate::front::select_front(h, cam, o, keep);
     }
     let frustum = cam.frustum();
     let mut out = Selection::default();
@@ -368,128 +369,6 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
     }
 }
 
-/// Whether a node's normals all face away from the eye (004 section IV, normal-cone culling):
-/// the angle between the cone's axis and the direction to the eye exceeds 90 degrees plus the
-/// cone's half angle plus the angle the node's bounding sphere subtends.
-pub fn backfacing(cam: &Camera, bounds: &Aabb, cone: [f32; 4]) -> bool {
-    if cone[3] <= 0.0 {
-        return false;
-    }
-    let c = bounds.center();
-    let s = bounds.size();
-    let radius = 0.5 * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
-    let v: [f64; 3] = std::array::from_fn(|a| cam.position[a] - c[a]);
-    let dist = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if dist <= radius {
-        return false;
-    }
-    let cos = (0..3).map(|a| cone[a] as f64 * v[a]).sum::<f64>() / dist;
-    let phi = cos.clamp(-1.0, 1.0).acos();
-    let alpha = (cone[3] as f64).clamp(-1.0, 1.0).acos();
-    let beta = (radius / dist).asin();
-    phi > std::f64::consts::FRAC_PI_2 + alpha + beta
-}
-
-/// The rendering front of a tree whose nodes replace their parents (`mwkd`, 004 section IV,
-/// Figure 5): from the root, the node with the highest LOD metric is replaced by its children
-/// in view while the count stays within the budget; the first node that cannot be refined
-/// ends the refinement, and the front is every node reached. The metric is 004's
-/// `(l_max - l + 1) / d^2` (their `c0 = c2 = 1, c1 = 0`), `d` the distance to the node's box; a
-/// node whose splats are smaller than `min_pixels` on screen is not refined; nodes outside the
-/// frustum, rejected by `keep`, or (with [`Hierarchy::cull_backfaces`]) facing away are left
-/// out, their budget reclaimed.
-pub fn select_front(
-    h: &Hierarchy,
-    cam: &Camera,
-    o: &SelectOptions,
-    keep: &dyn Fn(&Aabb) -> bool,
-) -> Selection {
-    let frustum = cam.frustum();
-    let mut out = Selection::default();
-    let visible = |e: &NodeEntry| {
-        let b = h.bounds(&e.key);
-        frustum.intersects(&b)
-            && keep(&b)
-            && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
-    };
-    let distance = |b: &Aabb| {
-        let d: f64 = (0..3)
-            .map(|a| {
-                (b.min[a] - cam.position[a])
-                    .max(cam.position[a] - b.max[a])
-                    .max(0.0)
-                    .powi(2)
-            })
-            .sum();
-        d.sqrt().max(cam.near)
-    };
-    let metric = |e: &NodeEntry| {
-        let d = distance(&h.bounds(&e.key));
-        (h.max_level - e.key.level + 1) as f64 / (d * d)
-    };
-    let Some(root) = h.get(&NodeKey::ROOT).filter(|e| visible(e)) else {
-        return out;
-    };
-    let mut queue = BinaryHeap::new();
-    queue.push(Candidate {
-        benefit: metric(root),
-        key: root.key,
-    });
-    let mut count = root.points as u64;
-    let mut front: Vec<(NodeKey, f64)> = Vec::new();
-    while let Some(top) = queue.peek() {
-        let e = h.get(&top.key).expect("queued nodes exist");
-        let kids: Vec<&NodeEntry> = h.children(&e.key).filter(|c| visible(c)).collect();
-        let leaf = h.children(&e.key).next().is_none();
-        let depth = nearest_depth(cam, &h.bounds(&e.key));
-        let radius = e.spacing.first().copied().unwrap_or(0.0);
-        let fine = 2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels;
-        if leaf || fine {
-            let c = queue.pop().expect("peeked");
-            front.push((c.key, c.benefit));
-            continue;
-        }
-        let after = count - e.points as u64 + kids.iter().map(|c| c.points as u64).sum::<u64>();
-        if after > o.budget {
-            out.budget_reached = true;
-            break;
-        }
-        queue.pop();
-        count = after;
-        for c in kids {
-            queue.push(Candidate {
-                benefit: metric(c),
-                key: c.key,
-            });
-        }
-    }
-    front.extend(
-        queue
-            .into_sorted_vec()
-            .into_iter()
-            .rev()
-            .map(|c| (c.key, c.benefit)),
-    );
-    for (key, benefit) in front {
-        let e = h.get(&key).expect("front nodes exist");
-        let room = o.budget.saturating_sub(out.points);
-        let points = (e.points as u64).min(room);
-        if points == 0 {
-            out.budget_reached = true;
-            continue;
-        }
-        out.points += points;
-        out.nodes.push(Selected {
-            key,
-            points: points as u32,
-            spacing: e.spacing.first().copied().unwrap_or(0.0),
-            benefit,
-            depth: nearest_depth(cam, &h.bounds(&key)),
-        });
-    }
-    out
-}
-
 /// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
 /// alone with the whole budget, then their nodes are taken in one benefit order (each dataset's
 /// own order kept, so parents still come before children) until the budget is spent.
@@ -540,84 +419,6 @@ pub fn select_many(
         }
     }
     out
-}
-
-/// The drawn nodes as a small octree that the GPU walks per point (adaptive point size, 003
-/// section 4.4 and 002 section 5.1, per point as Potree does): from the point's own node down
-/// through the drawn children that contain it, the spacing of the finest one is the point's. So
-/// a coarse point shrinks where finer nodes are drawn around it, and stays large where nothing
-/// finer is drawn (yet), covering the hole.
-///
-/// Entries in breadth-first order, children of a node contiguous in octant order:
-/// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct DrawnTree {
-    pub entries: Vec<[u32; 4]>,
-    pub index: HashMap<NodeKey, u32>,
-}
-
-impl DrawnTree {
-    /// The nodes of `selection` for which `drawn` holds, and their ancestors (as pass-through
-    /// entries when not drawn themselves).
-    pub fn new(selection: &Selection, drawn: impl Fn(&NodeKey) -> bool) -> DrawnTree {
-        let mut spacing: HashMap<NodeKey, f32> = HashMap::new();
-        for n in selection.nodes.iter().filter(|n| drawn(&n.key)) {
-            spacing.insert(n.key, n.spacing as f32);
-            let mut k = n.key;
-            while k.level > 0 {
-                k = k.parent();
-                spacing.entry(k).or_insert(0.0);
-            }
-        }
-        let mut t = DrawnTree::default();
-        if spacing.is_empty() {
-            return t;
-        }
-        let mut keys = vec![NodeKey::ROOT];
-        let mut i = 0;
-        while i < keys.len() {
-            let key = keys[i];
-            let first = keys.len() as u32;
-            let mut mask = 0u32;
-            for o in 0..8 {
-                let c = key.child(o);
-                if spacing.contains_key(&c) {
-                    mask |= 1 << o;
-                    keys.push(c);
-                }
-            }
-            t.entries.push([mask, first, spacing[&key].to_bits(), 0]);
-            t.index.insert(key, i as u32);
-            i += 1;
-        }
-        t
-    }
-
-    /// The spacing the GPU gives a point at `p` of the drawn node `key` (as the shaders walk
-    /// the tree); None when `key` is not in the tree.
-    pub fn spacing_at(&self, root: &Aabb, key: &NodeKey, p: [f64; 3]) -> Option<f64> {
-        let mut i = *self.index.get(key)? as usize;
-        let mut s = f32::from_bits(self.entries[i][2]) as f64;
-        let mut cube = key.bounds(root);
-        loop {
-            let [mask, first, _, _] = self.entries[i];
-            let c = cube.center();
-            let o = (0..3)
-                .map(|a| ((p[a] >= c[a]) as usize) << a)
-                .sum::<usize>();
-            if mask & (1 << o) == 0 {
-                return Some(s);
-            }
-            i = (first + (mask & ((1 << o) - 1)).count_ones()) as usize;
-            let min: [f64; 3] =
-                std::array::from_fn(|a| if o >> a & 1 == 1 { c[a] } else { cube.min[a] });
-            cube = Aabb::new(min, std::array::from_fn(|a| min[a] + cube.size()[a] / 2.0));
-            let cs = f32::from_bits(self.entries[i][2]) as f64;
-            if cs > 0.0 {
-                s = cs;
-            }
-        }
-    }
 }
 
 #[cfg(test)]
@@ -709,91 +510,6 @@ mod tests {
         // When the budget ends before the far child, the root keeps its own spacing there.
         let s = select(&h, &cam, &SelectOptions { budget: 150, ..o });
         assert_eq!(s.nodes[0].spacing, 1.0);
-    }
-
-    /// 004 section IV: a multi-way kd-tree's front refines a node only when its children fit
-    /// the budget in its place; children out of view give their share back; normal cones cull
-    /// nodes that face away.
-    #[test]
-    fn the_front_replaces_parents_within_the_budget() {
-        let root = Aabb::new([0.0; 3], [10.0; 3]);
-        let splat = |aggregate, cone: [f32; 4]| myriad_format::splat::SplatInfo {
-            page: PageRef {
-                offset: 64,
-                length: 10,
-                crc: 0,
-            },
-            radius: [0.01, 0.02],
-            cone,
-            aggregate,
-        };
-        let up = [0.0, 0.0, 1.0, 0.9];
-        let node = |key: NodeKey, b: Aabb, aggregate| {
-            let mut e = entry(key, 100, 0.01);
-            e.bounds = Some(b);
-            e.splats = Some(splat(aggregate, up));
-            e
-        };
-        let r = node(NodeKey::ROOT, Aabb::new([0.0; 3], [10.0, 1.0, 1.0]), true);
-        let a = node(
-            NodeKey::ROOT.child(0),
-            Aabb::new([0.0; 3], [5.0, 1.0, 1.0]),
-            false,
-        );
-        let b = node(
-            NodeKey::ROOT.child(1),
-            Aabb::new([5.0, 0.0, 0.0], [10.0, 1.0, 1.0]),
-            false,
-        );
-        let mut h = Hierarchy::new(root, [r, a.clone(), b.clone()]);
-        assert!(h.splats());
-        let above = Camera {
-            position: [5.0, 0.5, 30.0],
-            target: [5.0, 0.5, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y: 60.0,
-            width: 400,
-            height: 400,
-            near: 0.01,
-            far: 1000.0,
-        };
-        let keys = |s: &Selection| s.nodes.iter().map(|n| n.key).collect::<Vec<_>>();
-        let o = |budget| SelectOptions {
-            budget,
-            min_pixels: 0.0,
-        };
-        // 150: the children (200 points) do not fit in the root's place.
-        let s = select(&h, &above, &o(150));
-        assert_eq!(keys(&s), vec![NodeKey::ROOT]);
-        assert!(s.budget_reached);
-        // 250: they do; the root is not drawn with them.
-        let s = select(&h, &above, &o(250));
-        let mut k = keys(&s);
-        k.sort();
-        assert_eq!(k, vec![a.key, b.key]);
-        assert_eq!(s.points, 200);
-        // Only the second child in view: it alone replaces the root, within 100.
-        let right = Camera {
-            position: [8.0, 0.5, 3.0],
-            target: [8.0, 0.5, 0.0],
-            ..above.clone()
-        };
-        assert_eq!(keys(&select(&h, &right, &o(100))), vec![b.key]);
-        // Seen from below, the up-facing nodes are culled, when culling is on.
-        let below = Camera {
-            position: [5.0, 0.5, -30.0],
-            ..above.clone()
-        };
-        assert_eq!(select(&h, &below, &o(250)).nodes.len(), 2);
-        h.cull_backfaces = true;
-        assert!(select(&h, &below, &o(250)).nodes.is_empty());
-        assert_eq!(select(&h, &above, &o(250)).nodes.len(), 2);
-        assert!(backfacing(&below, &h.bounds(&a.key), up));
-        assert!(!backfacing(
-            &below,
-            &h.bounds(&a.key),
-            [0.0, 0.0, 1.0, -0.5]
-        ));
     }
 
     /// 000 section 3.1: a flat node's contour is its oriented box; outside the frustum it is

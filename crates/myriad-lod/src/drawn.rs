@@ -1,0 +1,84 @@
+//! The drawn nodes of a frame as a small array octree that the shaders walk per point, for
+//! adaptive point sizes (003 section 4.4, 002 section 5.1).
+
+use crate::select::Selection;
+use myriad_core::{Aabb, NodeKey};
+use std::collections::HashMap;
+
+/// The drawn nodes as a small octree that the GPU walks per point (adaptive point size, 003
+/// section 4.4 and 002 section 5.1, per point as Potree does): from the point's own node down
+/// through the drawn children that contain it, the spacing of the finest one is the point's. So
+/// a coarse point shrinks where finer nodes are drawn around it, and stays large where nothing
+/// finer is drawn (yet), covering the hole.
+///
+/// Entries in breadth-first order, children of a node contiguous in octant order:
+/// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DrawnTree {
+    pub entries: Vec<[u32; 4]>,
+    pub index: HashMap<NodeKey, u32>,
+}
+
+impl DrawnTree {
+    /// The nodes of `selection` for which `drawn` holds, and their ancestors (as pass-through
+    /// entries when not drawn themselves).
+    pub fn new(selection: &Selection, drawn: impl Fn(&NodeKey) -> bool) -> DrawnTree {
+        let mut spacing: HashMap<NodeKey, f32> = HashMap::new();
+        for n in selection.nodes.iter().filter(|n| drawn(&n.key)) {
+            spacing.insert(n.key, n.spacing as f32);
+            let mut k = n.key;
+            while k.level > 0 {
+                k = k.parent();
+                spacing.entry(k).or_insert(0.0);
+            }
+        }
+        let mut t = DrawnTree::default();
+        if spacing.is_empty() {
+            return t;
+        }
+        let mut keys = vec![NodeKey::ROOT];
+        let mut i = 0;
+        while i < keys.len() {
+            let key = keys[i];
+            let first = keys.len() as u32;
+            let mut mask = 0u32;
+            for o in 0..8 {
+                let c = key.child(o);
+                if spacing.contains_key(&c) {
+                    mask |= 1 << o;
+                    keys.push(c);
+                }
+            }
+            t.entries.push([mask, first, spacing[&key].to_bits(), 0]);
+            t.index.insert(key, i as u32);
+            i += 1;
+        }
+        t
+    }
+
+    /// The spacing the GPU gives a point at `p` of the drawn node `key` (as the shaders walk
+    /// the tree); None when `key` is not in the tree.
+    pub fn spacing_at(&self, root: &Aabb, key: &NodeKey, p: [f64; 3]) -> Option<f64> {
+        let mut i = *self.index.get(key)? as usize;
+        let mut s = f32::from_bits(self.entries[i][2]) as f64;
+        let mut cube = key.bounds(root);
+        loop {
+            let [mask, first, _, _] = self.entries[i];
+            let c = cube.center();
+            let o = (0..3)
+                .map(|a| ((p[a] >= c[a]) as usize) << a)
+                .sum::<usize>();
+            if mask & (1 << o) == 0 {
+                return Some(s);
+            }
+            i = (first + (mask & ((1 << o) - 1)).count_ones()) as usize;
+            let min: [f64; 3] =
+                std::array::from_fn(|a| if o >> a & 1 == 1 { c[a] } else { cube.min[a] });
+            cube = Aabb::new(min, std::array::from_fn(|a| min[a] + cube.size()[a] / 2.0));
+            let cs = f32::from_bits(self.entries[i][2]) as f64;
+            if cs > 0.0 {
+                s = cs;
+            }
+        }
+    }
+}
