@@ -14,7 +14,9 @@
 //! ([`take_up`]).
 
 use crate::mospt;
-use crate::nested::{BuiltNode, NestedParams, fitting_prefix, node_from_prefix};
+use crate::nested::{
+    BuiltNode, NestedParams, fitting_prefix, keep_rest, node_from_prefix, union_of,
+};
 use myriad_core::{Aabb, NodeKey, PointBatch};
 
 /// Deepest kd level (node keys have 31 levels; a balanced tree of 2^16-point leaves reaches 31
@@ -177,36 +179,16 @@ pub fn take_up(
     mut children: Vec<BuiltNode>,
     params: &NestedParams,
 ) -> (BuiltNode, Vec<BuiltNode>) {
-    let mut union = PointBatch::default();
-    let mut bounds = Aabb::EMPTY;
-    for (i, c) in children.iter().enumerate() {
-        if i == 0 {
-            union = c.points.clone();
-        } else {
-            union.append(&c.points);
-        }
-        if let Some(b) = c.shape.bounds {
-            bounds = bounds.union(&b);
-        }
-    }
+    let union = union_of(&children);
+    let bounds = children
+        .iter()
+        .filter_map(|c| c.shape.bounds)
+        .fold(Aabb::EMPTY, |a, b| a.union(&b));
     let m = mospt::build(&union, &cube_around(&bounds), params.inner_depth);
     let keep = fitting_prefix(&m, params.capacity).min(union.len());
-    let mut moved = vec![false; union.len()];
-    m.order[..keep]
-        .iter()
-        .for_each(|&i| moved[i as usize] = true);
-    let mut start = 0;
-    for child in children.iter_mut() {
-        let n = child.points.len();
-        let stay: Vec<u32> = (0..n as u32)
-            .filter(|&i| !moved[start + i as usize])
-            .collect();
-        if stay.len() != n {
-            let b = child.shape.bounds.unwrap_or(bounds);
-            *child = leaf(child.key, &child.points.gather(&stay), b);
-        }
-        start += n;
-    }
+    keep_rest(&mut children, &m.order[..keep], &|child, stay| {
+        leaf(child.key, &stay, child.shape.bounds.unwrap_or(bounds))
+    });
     (
         with_bounds(node_from_prefix(parent, &union, &m, keep), bounds),
         children,

@@ -203,6 +203,41 @@ fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb, params: &NestedParams
     }
 }
 
+/// Every child's points, child after child: what a parent takes its representatives from.
+pub(crate) fn union_of(children: &[BuiltNode]) -> PointBatch {
+    let mut union: Option<PointBatch> = None;
+    for child in children {
+        match &mut union {
+            Some(u) => u.append(&child.points),
+            None => union = Some(child.points.clone()),
+        }
+    }
+    union.unwrap_or_default()
+}
+
+/// After a parent took the points `up` (indices into [`union_of`] the children), each child that
+/// lost some is rebuilt by `rebuild` from the points it keeps.
+pub(crate) fn keep_rest(
+    children: &mut [BuiltNode],
+    up: &[u32],
+    rebuild: &dyn Fn(&BuiltNode, PointBatch) -> BuiltNode,
+) {
+    let total: usize = children.iter().map(|c| c.points.len()).sum();
+    let mut moved = vec![false; total];
+    up.iter().for_each(|&i| moved[i as usize] = true);
+    let mut start = 0;
+    for child in children.iter_mut() {
+        let n = child.points.len();
+        let stay: Vec<u32> = (0..n as u32)
+            .filter(|&i| !moved[start + i as usize])
+            .collect();
+        if stay.len() != n {
+            *child = rebuild(child, child.points.gather(&stay));
+        }
+        start += n;
+    }
+}
+
 /// One step of [`build_tops`]: the node `parent` takes one point per occupied cell of its inner
 /// grid from its `children`'s points (the deepest MOSPT prefix within `capacity`); each child
 /// keeps the rest, in a rebuilt MOSPT. Returns the parent and the children as they are now.
@@ -212,15 +247,7 @@ pub fn take_up(
     root: &Aabb,
     params: &NestedParams,
 ) -> (BuiltNode, Vec<BuiltNode>) {
-    // Candidates: every child's points, child after child.
-    let mut union: Option<PointBatch> = None;
-    for child in &children {
-        match &mut union {
-            Some(u) => u.append(&child.points),
-            None => union = Some(child.points.clone()),
-        }
-    }
-    let union = union.unwrap_or_default();
+    let union = union_of(&children);
     let (m, keep, contour) = if params.ntree {
         let (m, _) = ntree::build(&union, params.capacity, false);
         // The contour holds the children's contours, hence the whole subtree.
@@ -238,24 +265,11 @@ pub fn take_up(
         let keep = fitting_prefix(&m, params.capacity).min(union.len());
         (m, keep, None)
     };
-    let mut moved = vec![false; union.len()];
-    m.order[..keep]
-        .iter()
-        .for_each(|&i| moved[i as usize] = true);
-    // Children keep what did not move up, in a rebuilt MOSPT.
-    let mut start = 0;
-    for child in children.iter_mut() {
-        let n = child.points.len();
-        let stay: Vec<u32> = (0..n as u32)
-            .filter(|&i| !moved[start + i as usize])
-            .collect();
-        if stay.len() != n {
-            let shape = child.shape;
-            *child = leaf_node(child.key, child.points.gather(&stay), root, params);
-            child.shape = shape;
-        }
-        start += n;
-    }
+    keep_rest(&mut children, &m.order[..keep], &|child, stay| {
+        let mut c = leaf_node(child.key, stay, root, params);
+        c.shape = child.shape;
+        c
+    });
     let mut top = node_from_prefix(parent, &union, &m, keep);
     top.shape.contour = contour;
     (top, children)

@@ -6,9 +6,13 @@
 //! of detail of it). Children are visited only below a node drawn whole: they refine it.
 //!
 //! Adaptive point size (003 section 4.4, 002 section 5.1): each selected node gets the spacing
-//! of the finest level it draws; when every visible child of a node is drawn, the node takes the
-//! finest spacing of its children, pulled up the tree, so that coarse points shrink where finer
-//! points fill in between them.
+//! of the finest level it draws; where nodes are octree cells, the shaders then size each point
+//! from the finest drawn node around it ([`DrawnTree`]); in kd-trees, a node all of whose
+//! children in view are drawn takes their finest spacing, pulled up the tree.
+//!
+//! The structures whose nodes are not plain octree cells: layered nodes carry a contour, kd
+//! nodes their box; both are culled by it and weighed by its projected area. mwkd trees, whose
+//! nodes replace their parents, are selected as a front ([`crate::front`]).
 
 pub use crate::drawn::DrawnTree;
 use crate::view::{Camera, Frustum};
@@ -193,46 +197,49 @@ pub fn point_spacing(e: &NodeEntry) -> Vec<f64> {
 /// by more than 0.06 dB; ignoring the angle altogether (3.2) loses 0.8 dB looking straight down.
 const CENTRAL_ANGLE: f64 = 0.3;
 
-/// 003 section 4.3: projected size over the angle between the view direction and the direction
-/// to the node's centre (the angle floored at [`CENTRAL_ANGLE`]).
-fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
-    let side = cube.size()[0];
-    let projected = side * cam.pixels_per_unit(depth);
-    let c = cube.center();
-    let v: [f64; 3] = std::array::from_fn(|a| c[a] - cam.position[a]);
+/// The unit direction from the eye to `p` (the view direction when they coincide).
+fn sight(cam: &Camera, p: [f64; 3]) -> [f64; 3] {
+    let v: [f64; 3] = std::array::from_fn(|a| p[a] - cam.position[a]);
     let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let f = cam.forward();
-    let cos = if len > 0.0 {
-        ((v[0] * f[0] + v[1] * f[1] + v[2] * f[2]) / len).clamp(-1.0, 1.0)
-    } else {
-        1.0
-    };
-    projected / cos.acos().max(CENTRAL_ANGLE)
-}
-
-/// [`benefit`] for a box of any orientation: the square root of its area projected along the
-/// line of sight to its centre (a flat contour seen edge-on is small, 000 section 3.1), in
-/// pixels at its nearest depth, over the angle to the view axis.
-fn benefit_of_box(cam: &Camera, b: &Obb) -> f64 {
-    let depth = nearest_depth_of(cam, &b.corners());
-    let v: [f64; 3] = std::array::from_fn(|a| b.center[a] - cam.position[a]);
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let dir = if len > 0.0 {
+    if len > 0.0 {
         v.map(|x| x / len)
     } else {
         cam.forward()
-    };
+    }
+}
+
+/// 003 section 4.3: a projected size over the angle between the view direction and `dir` (the
+/// direction to the node's centre), the angle floored at [`CENTRAL_ANGLE`].
+fn over_angle(cam: &Camera, projected: f64, dir: [f64; 3]) -> f64 {
+    let f = cam.forward();
+    let cos = (dir[0] * f[0] + dir[1] * f[1] + dir[2] * f[2]).clamp(-1.0, 1.0);
+    projected / cos.acos().max(CENTRAL_ANGLE)
+}
+
+/// An octree cell's benefit: its side as seen at its nearest depth.
+fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
+    let projected = cube.size()[0] * cam.pixels_per_unit(depth);
+    over_angle(cam, projected, sight(cam, cube.center()))
+}
+
+/// A box of any orientation (a contour, 000 section 3.1; a kd box): the square root of its area
+/// projected along the line of sight to its centre (a flat contour seen edge-on is small), in
+/// pixels at its nearest depth.
+fn benefit_of_box(cam: &Camera, b: &Obb) -> f64 {
+    let depth = nearest_depth_of(cam, &b.corners());
+    let dir = sight(cam, b.center);
     let h = b.half_extents;
     let d = |i: usize| (0..3).map(|k| b.axes[i][k] * dir[k]).sum::<f64>().abs();
     let area = 4.0 * (h[1] * h[2] * d(0) + h[0] * h[2] * d(1) + h[0] * h[1] * d(2));
-    let projected = area.sqrt() * cam.pixels_per_unit(depth);
-    let f = cam.forward();
-    let cos = if len > 0.0 {
-        (dir[0] * f[0] + dir[1] * f[1] + dir[2] * f[2]).clamp(-1.0, 1.0)
-    } else {
-        1.0
-    };
-    projected / cos.acos().max(CENTRAL_ANGLE)
+    over_angle(cam, area.sqrt() * cam.pixels_per_unit(depth), dir)
+}
+
+/// Whether a node may be in view: its contour, else its box, against the frustum.
+fn in_view(h: &Hierarchy, frustum: &Frustum, e: &NodeEntry) -> bool {
+    match &e.contour {
+        Some(c) => frustum.intersects_obb(c),
+        None => frustum.intersects(&h.bounds(&e.key)),
+    }
 }
 
 /// Chooses the nodes and prefixes to draw for `cam`.
@@ -255,13 +262,10 @@ pub fn select_where(
     let mut out = Selection::default();
     let mut queue = BinaryHeap::new();
     let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>, frustum: &Frustum| {
+        let Some(e) = h.get(&key) else { return };
         let cube = h.bounds(&key);
-        let contour = h.get(&key).and_then(|e| e.contour);
-        let visible = match &contour {
-            Some(c) => frustum.intersects_obb(c),
-            None => frustum.intersects(&cube),
-        };
-        if !visible || !keep(&cube) {
+        let contour = e.contour;
+        if !in_view(h, frustum, e) || !keep(&cube) {
             return;
         }
         let benefit = match &contour {
@@ -353,11 +357,7 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
             match index.get(&c.key) {
                 Some(&j) => finest = finest.min(s.nodes[j].spacing),
                 None => {
-                    let visible = match &c.contour {
-                        Some(o) => frustum.intersects_obb(o),
-                        None => frustum.intersects(&h.bounds(&c.key)),
-                    };
-                    if visible && c.points > 0 {
+                    if c.points > 0 && in_view(h, frustum, c) {
                         all = false;
                     }
                 }
