@@ -1,18 +1,20 @@
-//! `convert`: the whole out-of-core build of a `nested-octree` dataset.
+//! `convert`: the whole out-of-core build of a dataset, in any [`Structure`].
 //!
 //! 1. [`distribute`](crate::distribute): every input read once, points scattered to chunks on disk.
-//! 2. Chunks built in parallel (one per thread): each chunk's subtree ([`nested::build_subtree_with`]);
-//!    every node but the chunk's root is compressed and appended to the dataset as soon as it is
-//!    built. The chunk roots are spilled to disk, because the levels above may still take points
-//!    from them.
-//! 3. The levels above the chunks, bottom-up, families in parallel: a parent takes its
-//!    representatives from its children ([`nested::take_up`]); the children are then final and
-//!    written; the parent is spilled and becomes a child one level up.
+//! 2. Chunks built in parallel (one per thread): each chunk's subtree ([`nested::build_subtree_with`];
+//!    kd and mwkd first group the chunks by count ([`kd::group_chunks`]) and build each group's
+//!    subtree: [`kd::build_subtree_with`], [`crate::mwkd::build_subtree_with`]); every node but
+//!    the subtree's root is compressed and appended to the dataset as soon as it is built. The
+//!    roots are spilled to disk, because the levels above may still take points from them.
+//! 3. The levels above, bottom-up, families in parallel: a parent takes its representatives from
+//!    its children ([`nested::take_up`], [`kd::take_up`]; mwkd: aggregates of them,
+//!    [`crate::mwkd::take_up`]); the children are then final and written; the parent is spilled
+//!    and becomes a child one level up.
 //! 4. The writer adds the hierarchy pages, metadata and header, and renames the file.
 //!
-//! Memory: the distribution's write buffers, then per thread one chunk (at most `chunk_points`
-//! points, several copies while its subtree is built) or one family (nine nodes of at most
-//! `capacity` points). [`plan`] sizes both from `--memory`.
+//! Memory: the distribution's write buffers, then per thread one chunk or group (at most
+//! `chunk_points` points, several copies while its subtree is built) or one family (at most nine
+//! nodes of at most `capacity` points). [`plan`] sizes both from `--memory`.
 
 use crate::distribute::{self, DistributeOptions, SPILL_PREFIX};
 use crate::kd;
@@ -477,7 +479,7 @@ pub fn convert(
     let schema = dist.schema.clone();
     let spill_dir = dist.spill_dir().to_path_buf();
 
-    // 2. Chunks (kd: groups of chunks), in parallel, largest first (they take longest).
+    // 2. Chunks (kd, mwkd: groups of chunks), in parallel, largest first (they take longest).
     report.phase("building", dist.points);
     let mw = crate::mwkd::MwkdParams {
         fanout: crate::mwkd::fanout_for(dist.points, params.capacity),

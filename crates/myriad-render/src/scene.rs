@@ -105,7 +105,7 @@ impl Scene {
         }
         let mut h = Hierarchy::new(dataset.meta.root, nodes);
         // Normal cones cull only where normals have a sign (the input's): estimated normals
-        // were turned up, so a ceiling's face its room from behind.
+        // were turned up, so a ceiling would face its room from behind.
         h.cull_backfaces = dataset
             .meta
             .parameters
