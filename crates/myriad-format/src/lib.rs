@@ -367,16 +367,7 @@ impl DatasetWriter {
         } else {
             page::encode(batch, &self.quant)
         };
-        let crc = crc32fast::hash(&bytes);
-        let offset = {
-            let mut out = self.out.lock().expect("writer lock");
-            let at = out.pos;
-            out.w
-                .write_all(&bytes)
-                .map_err(|e| Error::io(&self.path, e))?;
-            out.pos += bytes.len() as u64;
-            at
-        };
+        let (offset, crc) = self.append(&bytes)?;
         let mut entry = NodeEntry::new(
             key,
             PageRef {
@@ -394,6 +385,18 @@ impl DatasetWriter {
         Ok(bytes.len() as u64)
     }
 
+    /// Appends a page (only the append is serialized); its offset and CRC-32.
+    fn append(&self, bytes: &[u8]) -> Result<(u64, u32)> {
+        let crc = crc32fast::hash(bytes);
+        let mut out = self.out.lock().expect("writer lock");
+        let at = out.pos;
+        out.w
+            .write_all(bytes)
+            .map_err(|e| Error::io(&self.path, e))?;
+        out.pos += bytes.len() as u64;
+        Ok((at, crc))
+    }
+
     /// Appends the splat page of node `key` (normals and radii of its points, `mwkd`), to be
     /// joined to its entry. `aggregate`: its points are aggregates, not original points.
     pub fn write_splats(
@@ -404,16 +407,7 @@ impl DatasetWriter {
         aggregate: bool,
     ) -> Result<u64> {
         let (bytes, radius) = splat::encode(s);
-        let crc = crc32fast::hash(&bytes);
-        let offset = {
-            let mut out = self.out.lock().expect("writer lock");
-            let at = out.pos;
-            out.w
-                .write_all(&bytes)
-                .map_err(|e| Error::io(&self.path, e))?;
-            out.pos += bytes.len() as u64;
-            at
-        };
+        let (offset, crc) = self.append(&bytes)?;
         let info = splat::SplatInfo {
             page: PageRef {
                 offset,

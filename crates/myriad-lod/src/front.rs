@@ -134,21 +134,8 @@ pub fn select_front(
 mod tests {
     use super::*;
     use crate::select::select;
+    use crate::select::tests::entry;
     use myriad_format::PageRef;
-
-    fn entry(key: NodeKey, points: u32, spacing: f64) -> NodeEntry {
-        NodeEntry::new(
-            key,
-            PageRef {
-                offset: 64,
-                length: 100,
-                crc: 0,
-            },
-            points,
-            vec![points],
-            vec![spacing],
-        )
-    }
 
     /// 004 section IV: a multi-way kd-tree's front refines a node only when its children fit
     /// the budget in its place; children out of view give their share back; normal cones cull

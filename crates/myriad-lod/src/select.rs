@@ -422,7 +422,7 @@ pub fn select_many(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use myriad_format::PageRef;
 
@@ -444,7 +444,8 @@ mod tests {
         }
     }
 
-    fn entry(key: NodeKey, points: u32, spacing: f64) -> NodeEntry {
+    /// A node entry with one level of detail (shared with the front's tests).
+    pub(crate) fn entry(key: NodeKey, points: u32, spacing: f64) -> NodeEntry {
         NodeEntry::new(
             key,
             PageRef {

@@ -121,6 +121,14 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
             [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
         };
         let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
+        // Keeps the nearest at a pixel (in the frame: the callers check). Most points are hidden
+        // behind nearer ones: a plain load first spares their read-modify-write.
+        let plot = |x: i32, y: i32, value: u64| {
+            let px = &fb[y as usize * w as usize + x as usize];
+            if px.load(Ordering::Relaxed) < value {
+                px.fetch_max(value, Ordering::Relaxed);
+            }
+        };
         points.par_chunks(4096).enumerate().for_each(|(ci, chunk)| {
             for (qi, q) in chunk.iter().enumerate() {
                 let p = [q[0], q[1], q[2]];
@@ -171,11 +179,11 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                             if a * a + b * b + e * e > sp[0] * sp[0] {
                                 continue;
                             }
-                            let value = ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour;
-                            let px = &fb[y as usize * w as usize + x as usize];
-                            if px.load(Ordering::Relaxed) < value {
-                                px.fetch_max(value, Ordering::Relaxed);
-                            }
+                            plot(
+                                x,
+                                y,
+                                ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour,
+                            );
                         }
                     }
                     continue;
@@ -212,12 +220,7 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                                 value = ((depth_key(wp, far) as u64) << 32) | colour;
                             }
                         }
-                        // Most points are hidden behind nearer ones: a plain load first
-                        // spares their read-modify-write.
-                        let px = &fb[y as usize * w as usize + x as usize];
-                        if px.load(Ordering::Relaxed) < value {
-                            px.fetch_max(value, Ordering::Relaxed);
-                        }
+                        plot(x, y, value);
                     }
                 }
             }

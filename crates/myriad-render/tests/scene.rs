@@ -328,7 +328,7 @@ fn the_front_moves_without_holes() {
             budget: b,
             min_pixels: 0.0,
         };
-        let mut frame = |scene: &mut Scene, b: u64, want: u64| {
+        let frame = |scene: &mut Scene, b: u64, want: u64| {
             let t = Instant::now();
             loop {
                 let (_, stats) = scene.frame(&gpu, &raster, &cam, &budget(b), &style);

@@ -28,6 +28,14 @@ fn depth_key(w: f32) -> u32 {
     return u32(clamp(1.0 - w / u.far, 0.0, 1.0) * 4294967040.0) + 1u;
 }
 
+// Keeps the nearest at pixel (x, y); nothing outside the frame.
+fn plot(x: i32, y: i32, value: u64) {
+    if (x < 0 || y < 0 || x >= i32(u.width) || y >= i32(u.height)) {
+        return;
+    }
+    atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
+}
+
 @compute @workgroup_size(128)
 fn rasterize(
     @builtin(workgroup_id) group: vec3<u32>,
@@ -70,23 +78,13 @@ fn rasterize(
         let c = f32(s - 1) * 0.5;
         let k = clip.w / u.focal;
         for (var dy = 0; dy < s; dy++) {
-            let y = y0 + dy;
-            if (y < 0 || y >= i32(u.height)) {
-                continue;
-            }
             for (var dx = 0; dx < s; dx++) {
-                let x = x0 + dx;
-                if (x < 0 || x >= i32(u.width)) {
-                    continue;
-                }
                 let a = f32(dx) - c;
                 let b = f32(dy) - c;
                 let e = (a * sp.y - b * sp.z) / sp.w;
-                if (a * a + b * b + e * e > sp.x * sp.x) {
-                    continue;
+                if (a * a + b * b + e * e <= sp.x * sp.x) {
+                    plot(x0 + dx, y0 + dy, (u64(depth_key(clip.w - k * e)) << 32u) | colour);
                 }
-                let value = (u64(depth_key(clip.w - k * e)) << 32u) | colour;
-                atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
             }
         }
         return;
@@ -108,15 +106,7 @@ fn rasterize(
     let bulge = 0.5 * f32(s) * clip.w / u.focal;
     let flat = (u64(depth_key(clip.w)) << 32u) | colour;
     for (var dy = 0; dy < s; dy++) {
-        let y = y0 + dy;
-        if (y < 0 || y >= i32(u.height)) {
-            continue;
-        }
         for (var dx = 0; dx < s; dx++) {
-            let x = x0 + dx;
-            if (x < 0 || x >= i32(u.width)) {
-                continue;
-            }
             var value = flat;
             if (u.shape != 0u) {
                 let ox = f32(dx) - c;
@@ -130,7 +120,7 @@ fn rasterize(
                     value = (u64(depth_key(w)) << 32u) | colour;
                 }
             }
-            atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
+            plot(x0 + dx, y0 + dy, value);
         }
     }
 }
