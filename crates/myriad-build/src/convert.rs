@@ -388,12 +388,21 @@ pub fn remove_stale(output: &Path) {
 /// The integer grid of the dataset: the finest input scale per axis (LAS/LAZ inputs keep their
 /// coordinates exactly), `precision` for inputs of float coordinates; the first LAS input's
 /// offset, else the root cube's corner on a whole unit.
-fn quantization(dist: &distribute::Distribution, precision: f64) -> Quantization {
+///
+/// Node pages store positions as integers on this grid: the grid must number the whole root cube
+/// within 2^53 steps per axis (where f64 still counts every step), or positions would be clamped.
+/// A scale that fine for the extent is refused, naming the input it came from.
+fn quantization(dist: &distribute::Distribution, precision: f64) -> Result<Quantization> {
     let mut scale = [f64::INFINITY; 3];
+    let mut finest: [Option<&Path>; 3] = [None; 3];
     for (info, _) in &dist.sources {
-        let s = info.scale.unwrap_or([precision; 3]);
+        // A negative LAS scale mirrors the records, not the coordinates: the grid step is its size.
+        let s = info.scale.map_or([precision; 3], |s| s.map(f64::abs));
         for a in 0..3 {
-            scale[a] = scale[a].min(s[a]);
+            if s[a] < scale[a] {
+                scale[a] = s[a];
+                finest[a] = info.scale.map(|_| info.path.as_path());
+            }
         }
     }
     let offset = dist
@@ -401,7 +410,26 @@ fn quantization(dist: &distribute::Distribution, precision: f64) -> Quantization
         .iter()
         .find_map(|(i, _)| i.offset)
         .unwrap_or(dist.root.min.map(f64::floor));
-    Quantization { scale, offset }
+    for a in 0..3 {
+        let reach = (dist.root.max[a] - offset[a])
+            .abs()
+            .max((dist.root.min[a] - offset[a]).abs());
+        if !(reach / scale[a] < 2f64.powi(53)) {
+            let axis = ["X", "Y", "Z"][a];
+            let what = format!(
+                "a grid step of {} cannot number coordinates {reach:e} from the offset {} on {axis} (more than 2^53 steps)",
+                scale[a], offset[a]
+            );
+            return Err(match finest[a] {
+                Some(p) => Error::unsupported(
+                    p,
+                    format!("{what}: its {axis} scale is too fine for the data's extent"),
+                ),
+                None => Error::Invalid(format!("{what}: use a coarser --precision")),
+            });
+        }
+    }
+    Ok(Quantization { scale, offset })
 }
 
 /// Converts `inputs` into a dataset at `options.output`.
@@ -473,7 +501,7 @@ pub fn convert(
     phases.push(("reading", t.elapsed().as_secs_f64()));
     t = Instant::now();
 
-    let quant = quantization(&dist, options.precision);
+    let quant = quantization(&dist, options.precision)?;
     let writer = DatasetWriter::create(out, options.force, quant)?;
     let root = dist.root;
     let schema = dist.schema.clone();

@@ -421,8 +421,12 @@ pub fn distribute_with(
     let mut chunks = scatter.chunks();
     // Points outside the headers' bounds went to the nearest cell, whose cube does not hold
     // them. Rare (a header not updated after editing), but the tree must contain its points:
-    // scatter the spill files again over a root cube from the bounds actually read.
-    let root = if clamped > 0 {
+    // scatter the spill files again over a root cube from the bounds actually read. So too when
+    // the headers overstate the bounds by far (a damaged header: 1e300): the points would share
+    // one chunk and the tree would spend its levels on empty space.
+    let overstated =
+        !actual.is_empty() && root.size()[0] > 16.0 * root_cube(&actual, margin_step).size()[0];
+    let root = if clamped > 0 || overstated {
         let root = root_cube(&actual, margin_step);
         chunks = rescatter(
             &chunks,

@@ -114,6 +114,42 @@ impl Metadata {
         })
     }
 
+    /// Every number that JSON must carry is finite (JSON has no NaN or infinity: serde_json
+    /// writes them as null, which would leave a dataset that does not open). Names the field.
+    pub fn check_finite(&self) -> std::result::Result<(), String> {
+        let q = &self.quantization;
+        let fields = [
+            ("bounds.min", self.bounds.min),
+            ("bounds.max", self.bounds.max),
+            ("root.min", self.root.min),
+            ("root.max", self.root.max),
+            ("scale", q.scale),
+            ("offset", q.offset),
+        ];
+        for (name, v) in fields {
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(format!("{name} is {v:?}, not finite"));
+            }
+        }
+        if q.scale.iter().any(|s| *s <= 0.0) {
+            return Err(format!("scale is {:?}, not positive", q.scale));
+        }
+        for a in &self.schema.attributes {
+            if let Attribute::Extra(d) = a
+                && [d.scale, d.add_offset]
+                    .iter()
+                    .flatten()
+                    .any(|v| !v.is_finite())
+            {
+                return Err(format!(
+                    "extra dimension \"{}\" has a scale or offset that is not finite",
+                    d.name
+                ));
+            }
+        }
+        Ok(())
+    }
+
     pub fn from_json(v: &Value) -> std::result::Result<Metadata, String> {
         let field = |k: &str| v.get(k).ok_or_else(|| format!("metadata lacks \"{k}\""));
         let f3 = |x: &Value| -> std::result::Result<[f64; 3], String> {
@@ -503,7 +539,20 @@ impl DatasetWriter {
             Ok(r)
         }
         let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, &mut out).map_err(io)?;
-        let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
+        meta.check_finite().map_err(|m| {
+            Error::Invalid(format!(
+                "{}: metadata: {m}; no dataset written",
+                path.display()
+            ))
+        })?;
+        let value = meta.to_json();
+        if Metadata::from_json(&value).as_ref() != Ok(&meta) {
+            return Err(Error::Invalid(format!(
+                "{}: metadata does not read back as written; no dataset written",
+                path.display()
+            )));
+        }
+        let json = serde_json::to_vec_pretty(&value).expect("JSON of plain values");
         let metadata = PageRef {
             offset: out.pos,
             length: json.len() as u32,
@@ -525,6 +574,27 @@ impl DatasetWriter {
         f.write_all(&header.encode()).map_err(io)?;
         f.sync_all().map_err(io)?;
         drop(f);
+        // What is renamed into place opens, with this metadata and every hierarchy page intact.
+        let reopened = Dataset::open(self.file.temp_path()).and_then(|ds| {
+            if ds.meta != meta {
+                return Err(Error::Invalid(
+                    "its metadata differs from what was written".into(),
+                ));
+            }
+            match ds.nodes() {
+                (nodes, damage) if damage.is_empty() && nodes.len() as u64 == meta.nodes => Ok(()),
+                (_, damage) => Err(match damage.first() {
+                    Some(d) => ds.damage_error(d),
+                    None => Error::Invalid("its hierarchy lacks nodes".into()),
+                }),
+            }
+        });
+        if let Err(e) = reopened {
+            return Err(Error::Invalid(format!(
+                "{}: the dataset written does not open again ({e}); no dataset written",
+                path.display()
+            )));
+        }
         self.file.commit()?;
         Ok(header.file_length)
     }
@@ -754,5 +824,75 @@ impl Dataset {
             format!("node {}: {}", d.key, d.message)
         };
         Error::at_byte(&self.path, d.offset, msg)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, bounds: Aabb) -> (PathBuf, Result<u64>) {
+        let path = dir.join(name);
+        let quant = Quantization {
+            scale: [0.01; 3],
+            offset: [0.0; 3],
+        };
+        let w = DatasetWriter::create(&path, true, quant).unwrap();
+        let schema = Schema::new(vec![]);
+        let mut batch = PointBatch::with_schema(&schema, 2);
+        batch.positions = vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]];
+        w.write_node(NodeKey::ROOT, &batch, &[2], &[1.0], NodeShape::default())
+            .unwrap();
+        let meta = Metadata {
+            structure: "nested-octree".into(),
+            parameters: json!({}),
+            points: 2,
+            nodes: 0,
+            depth: 0,
+            bounds,
+            root: Aabb::new([0.0; 3], [8.0; 3]),
+            quantization: quant,
+            crs: None,
+            schema,
+            sources: vec![],
+            las_header: None,
+            software: "test".into(),
+        };
+        let r = w.finish(meta);
+        (path, r)
+    }
+
+    /// Metadata with a number JSON cannot hold is refused before the rename: nothing appears
+    /// under the output's name, no temporary file stays, and a good dataset opens as written.
+    #[test]
+    fn finish_refuses_metadata_that_would_not_read_back() {
+        let dir = std::env::temp_dir().join(format!("myriad-format-finish-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (good, r) = write(
+            &dir,
+            "good.myr",
+            Aabb::new([1.0, 2.0, 3.0], [4.0, 5.0, 6.0]),
+        );
+        r.unwrap();
+        let ds = Dataset::open(&good).unwrap();
+        assert_eq!(ds.meta.bounds.max, [4.0, 5.0, 6.0]);
+        assert_eq!(ds.meta.points, 2);
+        let (bad, r) = write(
+            &dir,
+            "bad.myr",
+            Aabb::new([f64::NAN, 2.0, 3.0], [4.0, 5.0, 6.0]),
+        );
+        let e = r.unwrap_err().to_string();
+        assert!(
+            e.contains("metadata: bounds.min is [NaN, 2.0, 3.0], not finite"),
+            "{e}"
+        );
+        assert!(!bad.exists());
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("good.myr")]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -13,7 +13,10 @@
 //! | 16 | 8 | physical file length (u64) |
 //! | 24 | 8 | XML section offset (u64) |
 //! | 32 | 8 | XML section length (u64) |
-//! | 40 | 8 | page size (u64) |
+//! | 40 | 8 | page size (u64; each page ends in a 4-byte CRC) |
+//!
+//! Each scan's pose and the scale and offset of scaled-integer coordinates are checked too
+//! (`check_scans`), named at their XML element's byte offset.
 
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Attribute, Error, PointBatch, Result, Schema};
@@ -44,12 +47,19 @@ fn check_header(path: &Path, file_size: u64) -> Result<u64> {
         ));
     }
     let u = |o: usize| u64::from_le_bytes(h[o..o + 8].try_into().unwrap());
-    let (len, xml_off, xml_len) = (u(16), u(24), u(32));
+    let (len, xml_off, xml_len, page) = (u(16), u(24), u(32), u(40));
     if len > file_size {
         return Err(Error::at_byte(
             path,
             file_size,
             format!("file is truncated: header declares {len} bytes"),
+        ));
+    }
+    if xml_off >= file_size {
+        return Err(Error::at_byte(
+            path,
+            24,
+            format!("XML section offset {xml_off} lies outside the file ({file_size} bytes)"),
         ));
     }
     if xml_off
@@ -58,11 +68,109 @@ fn check_header(path: &Path, file_size: u64) -> Result<u64> {
     {
         return Err(Error::at_byte(
             path,
-            24,
-            "XML section lies outside the file",
+            32,
+            format!("XML section length {xml_len} runs past the end of the file"),
+        ));
+    }
+    // Pages end in a 4-byte checksum; the e57 crate reads pages of at most 1 MiB.
+    if !(8..=1 << 20).contains(&page) || file_size % page != 0 {
+        return Err(Error::at_byte(
+            path,
+            40,
+            format!(
+                "page size {page} (must be 8 bytes to 1 MiB and divide the file's {file_size} bytes)"
+            ),
         ));
     }
     Ok(xml_off)
+}
+
+/// How far a pose's rotation quaternion may be from unit length: files write each component to
+/// 6-17 significant digits, and a quaternion of another length also scales the scan.
+const QUATERNION_TOLERANCE: f64 = 1e-4;
+
+/// Checks, scan by scan, the XML values that coordinates are computed from: the pose (finite
+/// translation, finite unit rotation quaternion) and the scale and offset of scaled-integer
+/// coordinates (finite, scale non-zero). A bad value is named at its element's byte offset.
+fn check_scans(path: &Path, clouds: &[e57::PointCloud], xml_off: u64) -> Result<()> {
+    for (i, pc) in clouds.iter().enumerate() {
+        let bad = |element: &[&str], m: String| {
+            let at = xml_element_offset(path, i, element).unwrap_or(xml_off);
+            Error::at_byte(path, at, format!("scan {i}: {m}"))
+        };
+        if let Some(t) = &pc.transform {
+            let (q, v) = (&t.rotation, &t.translation);
+            let quat = [q.w, q.x, q.y, q.z];
+            if quat.iter().any(|c| !c.is_finite()) {
+                return Err(bad(
+                    &["pose", "rotation"],
+                    format!("pose rotation {quat:?} is not finite"),
+                ));
+            }
+            let norm = quat.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > QUATERNION_TOLERANCE {
+                return Err(bad(
+                    &["pose", "rotation"],
+                    format!("pose rotation quaternion has length {norm}, not 1 (not a rotation)"),
+                ));
+            }
+            if [v.x, v.y, v.z].iter().any(|c| !c.is_finite()) {
+                return Err(bad(
+                    &["pose", "translation"],
+                    format!("pose translation [{}, {}, {}] is not finite", v.x, v.y, v.z),
+                ));
+            }
+        }
+        for r in &pc.prototype {
+            use e57::RecordName as N;
+            let name = match r.name {
+                N::CartesianX => "cartesianX",
+                N::CartesianY => "cartesianY",
+                N::CartesianZ => "cartesianZ",
+                N::SphericalRange => "sphericalRange",
+                N::SphericalAzimuth => "sphericalAzimuth",
+                N::SphericalElevation => "sphericalElevation",
+                _ => continue,
+            };
+            if let e57::RecordDataType::ScaledInteger { scale, offset, .. } = r.data_type {
+                if !scale.is_finite() || scale == 0.0 {
+                    return Err(bad(
+                        &["points", "prototype", name],
+                        format!("{name} scale is {scale}: no coordinate can be computed from it"),
+                    ));
+                }
+                if !offset.is_finite() {
+                    return Err(bad(
+                        &["points", "prototype", name],
+                        format!("{name} offset is {offset}"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The byte offset in the file of an element of scan `scan`'s description (`element`: the tag
+/// path below the scan's node in `data3D`), from its position in the XML text. The XML section
+/// is stored in pages whose last 4 bytes are a checksum, so positions are mapped page by page.
+fn xml_element_offset(path: &Path, scan: usize, element: &[&str]) -> Option<u64> {
+    let mut h = [0u8; 48];
+    crate::read_util::read_prefix(path, &mut h).ok()?;
+    let u = |o: usize| u64::from_le_bytes(h[o..o + 8].try_into().unwrap());
+    let (xml_off, page) = (u(24), u(40));
+    let data = page.checked_sub(4).filter(|d| *d > 0)?;
+    let file = std::fs::File::open(path).ok()?;
+    let xml = e57::E57Reader::raw_xml(std::io::BufReader::new(file)).ok()?;
+    let text = std::str::from_utf8(&xml).ok()?;
+    let doc = roxmltree::Document::parse(text).ok()?;
+    let data3d = doc.descendants().find(|n| n.has_tag_name("data3D"))?;
+    let mut node = data3d.children().filter(|n| n.is_element()).nth(scan)?;
+    for tag in element {
+        node = node.children().find(|n| n.has_tag_name(*tag))?;
+    }
+    let logical = xml_off / page * data + xml_off % page + node.range().start as u64;
+    Some(logical / data * page + logical % data)
 }
 
 fn e57_error(path: &Path, at: u64, e: e57::Error) -> Error {
@@ -77,6 +185,7 @@ impl E57Source {
         let xml_off = check_header(path, file_size)?;
         let reader = e57::E57Reader::from_file(path).map_err(|e| e57_error(path, xml_off, e))?;
         let clouds = reader.pointclouds();
+        check_scans(path, &clouds, xml_off)?;
         let points = clouds.iter().map(|c| c.records).sum();
         let mut attributes = Vec::new();
         if clouds.iter().any(|c| c.has_intensity()) {

@@ -3,7 +3,10 @@
 //! (`las_records`), which is several times faster than materializing `las::Point`s.
 
 use crate::atomic::AtomicFile;
-use crate::las_guard::{check_evlr, check_laz_chunk_table, check_laz_layers};
+use crate::las_guard::{
+    HEADER_PREFIX, check_evlr, check_header, check_laz_chunk_table, check_laz_layers, check_vlrs,
+    header_bounds,
+};
 use crate::las_records::{self, Layout, Quantization};
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Aabb, Attribute, Error, ExtraDim, ExtraType, PointBatch, Result, Schema};
@@ -46,6 +49,8 @@ pub struct LasSource {
     layout: Layout,
     quant: Quantization,
     record_len: usize,
+    /// Offset of the point data.
+    data_at: u64,
     remaining: u64,
     stream: Option<RecordStream>,
 }
@@ -95,20 +100,14 @@ impl LasSource {
                 "file ends inside the 227-byte LAS header",
             ));
         }
+        let mut head = [0u8; HEADER_PREFIX];
+        crate::read_util::read_prefix(path, &mut head)?;
+        check_header(path, &head, file_size)?;
         let raw = las::raw::Header::read_from(BufReader::new(
             File::open(path).map_err(|e| Error::io(path, e))?,
         ))
         .map_err(|e| header_error(path, e))?;
-        if raw.offset_to_point_data as u64 > file_size {
-            return Err(Error::at_byte(
-                path,
-                96,
-                format!(
-                    "offset to point data {} is past the end of the file ({file_size} bytes)",
-                    raw.offset_to_point_data
-                ),
-            ));
-        }
+        check_vlrs(path, &raw)?;
         check_evlr(path, &raw, file_size)?;
         if raw.point_data_record_format & 0xC0 != 0 {
             check_laz_chunk_table(path, &raw, file_size)?;
@@ -119,8 +118,10 @@ impl LasSource {
             pos: pos.clone(),
         };
         // The header and VLRs only: the producer thread opens its own reader (`las::Reader` is
-        // not `Send`), and the LAZ chunk table was checked above.
-        let header = las::Header::new(BufReader::with_capacity(1 << 20, tracked)).map_err(|e| {
+        // not `Send`), and the LAZ chunk table was checked above. Unbuffered, so that the
+        // position an error is reported at is the reader's, not a buffer's end (a few hundred
+        // small reads).
+        let header = las::Header::new(tracked).map_err(|e| {
             let at = pos.load(Ordering::Relaxed).min(file_size);
             if is_eof(&e) {
                 Error::at_byte(
@@ -144,8 +145,10 @@ impl LasSource {
         let count = header.number_of_points();
         let compressed = fmt.is_compressed;
         if !compressed {
-            let needed = raw.offset_to_point_data as u64 + count * record_len as u64;
-            if needed > file_size {
+            let needed = (record_len as u64)
+                .checked_mul(count)
+                .and_then(|b| b.checked_add(raw.offset_to_point_data as u64));
+            if needed.is_none_or(|n| n > file_size) {
                 let holds = (file_size - raw.offset_to_point_data as u64) / record_len as u64;
                 return Err(Error::at_byte(
                     path,
@@ -161,7 +164,7 @@ impl LasSource {
             scale: [t.x.scale, t.y.scale, t.z.scale],
             offset: [t.x.offset, t.y.offset, t.z.offset],
         };
-        let b = header.bounds();
+        let bounds = header_bounds(&head).map(|(min, max)| Aabb::new(min, max));
         let is_copc = header.all_vlrs().any(|v| v.user_id == "copc");
         let version = format!(
             "{}.{} point format {format_id}{}",
@@ -179,8 +182,7 @@ impl LasSource {
             format: if compressed { Format::Laz } else { Format::Las },
             version,
             points: Some(count),
-            bounds: (count > 0)
-                .then(|| Aabb::new([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z])),
+            bounds: bounds.filter(|_| count > 0),
             schema,
             scale: Some(quant.scale),
             offset: Some(quant.offset),
@@ -193,6 +195,7 @@ impl LasSource {
             layout,
             quant,
             record_len,
+            data_at: raw.offset_to_point_data as u64,
             remaining: count,
             stream: None,
         })
@@ -223,8 +226,87 @@ fn read_error(path: &Path, at: u64, read: u64, total: u64, e: las::Error) -> Err
     }
 }
 
+/// The byte offset of the first LAZ chunk among points `first..first + count` that does not
+/// decompress on its own, found by decompressing them chunk by chunk, and what is wrong with it.
+/// `None` when the file is not LAZ, has no chunk table, or every chunk decompresses (the failure
+/// lay elsewhere). The last chunk holds the points the header has left for it: when it fails,
+/// its data may be damaged or the header's count may exceed what the chunks hold.
+fn locate_laz_damage(
+    path: &Path,
+    header: &las::Header,
+    data_at: u64,
+    first: u64,
+    count: u64,
+) -> Option<(u64, String)> {
+    if !header.point_format().is_compressed {
+        return None;
+    }
+    let vlr = header.laz_vlr().ok()?;
+    let mut f = BufReader::new(File::open(path).ok()?);
+    f.seek(SeekFrom::Start(data_at)).ok()?;
+    let table = laz::laszip::ChunkTable::read_from(&mut f, &vlr).ok()?;
+    let file_size = f.get_ref().metadata().ok()?.len();
+    let record_len = header.point_format().len() as usize;
+    let (mut point, mut byte) = (0u64, data_at + 8);
+    let total = header.number_of_points();
+    let chunks = table.as_ref().len();
+    for (i, chunk) in table.as_ref().iter().enumerate() {
+        let last = i + 1 == chunks;
+        let n = if last {
+            total.saturating_sub(point)
+        } else {
+            chunk.point_count.min(total.saturating_sub(point))
+        };
+        if byte
+            .checked_add(chunk.byte_count)
+            .is_none_or(|end| end > file_size)
+        {
+            return Some((
+                byte,
+                format!(
+                    "LAZ chunk {i} ({} bytes) runs past the end of the file",
+                    chunk.byte_count
+                ),
+            ));
+        }
+        if point + n > first && point < first + count && n > 0 {
+            // The chunk's own bytes alone, as the parallel decoder sees them: a decoder that
+            // runs past its chunk fails here too.
+            let ok = (|| -> Option<()> {
+                let n = n.min(crate::MAX_BATCH as u64);
+                let len = usize::try_from(chunk.byte_count).ok()?;
+                let mut bytes = vec![0u8; len];
+                f.seek(SeekFrom::Start(byte)).ok()?;
+                f.read_exact(&mut bytes).ok()?;
+                let mut out = vec![0u8; n as usize * record_len];
+                let entry = laz::laszip::ChunkTableEntry {
+                    point_count: n,
+                    byte_count: chunk.byte_count,
+                };
+                laz::par_decompress(&bytes, &mut out, &vlr, &[entry]).ok()
+            })();
+            if ok.is_none() {
+                let what = if last {
+                    format!(
+                        "the last LAZ chunk ({i}) does not hold the {n} points the header's count of {total} leaves for it"
+                    )
+                } else {
+                    format!(
+                        "LAZ chunk {i} (points {point}..{}) does not decompress",
+                        point + n
+                    )
+                };
+                return Some((byte, what));
+            }
+        }
+        point += n;
+        byte += chunk.byte_count;
+    }
+    None
+}
+
 /// The producer thread: reads `total` records in blocks and sends them, or the first error.
-fn produce_records(path: PathBuf, total: u64, tx: SyncSender<Result<Vec<u8>>>) {
+fn produce_records(path: PathBuf, data_at: u64, total: u64, tx: SyncSender<Result<Vec<u8>>>) {
     let pos = Arc::new(AtomicU64::new(0));
     let opened = File::open(&path)
         .map_err(|e| Error::io(&path, e))
@@ -253,19 +335,27 @@ fn produce_records(path: PathBuf, total: u64, tx: SyncSender<Result<Vec<u8>>>) {
             Ok(got) if got == want => Ok(data.raw_bytes().to_vec()),
             Ok(got) => Err(Error::at_byte(
                 &path,
-                pos.load(Ordering::Relaxed),
+                if reader.header().point_format().is_compressed {
+                    pos.load(Ordering::Relaxed)
+                } else {
+                    data_at + (read + got) * reader.header().point_format().len() as u64
+                },
                 format!(
                     "file ends after {} of the {total} points its header declares",
                     read + got
                 ),
             )),
-            Err(e) => Err(read_error(
-                &path,
-                pos.load(Ordering::Relaxed),
-                read,
-                total,
-                e,
-            )),
+            // The reader's position is where a block of chunks ended: name the chunk.
+            Err(e) => match locate_laz_damage(&path, reader.header(), data_at, read, want) {
+                Some((at, what)) => Err(Error::at_byte(&path, at, format!("{what}: {e}"))),
+                None => Err(read_error(
+                    &path,
+                    pos.load(Ordering::Relaxed),
+                    read,
+                    total,
+                    e,
+                )),
+            },
         };
         let failed = block.is_err();
         if tx.send(block).is_err() || failed {
@@ -291,9 +381,10 @@ impl PointSource for LasSource {
         let stream = self.stream.get_or_insert_with(|| {
             let (tx, rx) = sync_channel(1);
             let (path, total) = (self.info.path.clone(), self.remaining);
+            let data_at = self.data_at;
             std::thread::Builder::new()
                 .name("las-reader".into())
-                .spawn(move || produce_records(path, total, tx))
+                .spawn(move || produce_records(path, data_at, total, tx))
                 .expect("spawn LAS reader thread");
             RecordStream {
                 rx,
@@ -412,8 +503,14 @@ pub fn extra_dims(header: &las::Header) -> Vec<ExtraDim> {
             data_type,
             offset,
             description: text(&d[160..192]),
-            scale: (options & 0x08 != 0).then(|| f(112)),
-            add_offset: (options & 0x10 != 0).then(|| f(136)),
+            // A scale or offset that is not finite is dropped: the raw values are kept either
+            // way, and metadata (JSON) cannot hold it.
+            scale: (options & 0x08 != 0)
+                .then(|| f(112))
+                .filter(|v| v.is_finite()),
+            add_offset: (options & 0x10 != 0)
+                .then(|| f(136))
+                .filter(|v| v.is_finite()),
         });
         offset += data_type.size();
     }

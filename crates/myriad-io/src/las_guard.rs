@@ -9,6 +9,170 @@ use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
+/// The fixed LAS header fields this module checks, with their offsets (LAS 1.4 R15, table 3).
+///
+/// | offset | size | field |
+/// |---|---|---|
+/// | 24 | 2 | version major, minor |
+/// | 94 | 2 | u16 header size |
+/// | 96 | 4 | u32 offset to point data |
+/// | 100 | 4 | u32 number of VLRs |
+/// | 104 | 1 | u8 point data format (bits 6-7: LAZ) |
+/// | 105 | 2 | u16 point data record length |
+/// | 131 | 24 | f64 x3 scale factors |
+/// | 155 | 24 | f64 x3 offsets |
+/// | 179 | 48 | f64 max x, min x, max y, min y, max z, min z |
+pub(crate) const HEADER_PREFIX: usize = 227;
+const SCALE_AT: u64 = 131;
+const OFFSET_AT: u64 = 155;
+
+/// Record length of each point format's standard fields, formats 0-10.
+const BASE_LEN: [u16; 11] = [20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67];
+
+/// Checks the header fields that coordinates and record boundaries are computed from, where they
+/// are: `head` holds the file's first [`HEADER_PREFIX`] bytes. A scale of zero or NaN would make
+/// every coordinate meaningless (zero flattens the scan, NaN makes it unplaceable), and the `las`
+/// crate's own errors about sizes carry no offset.
+pub(crate) fn check_header(path: &Path, head: &[u8], file_size: u64) -> Result<()> {
+    let bad = |at: u64, m: String| Error::at_byte(path, at, m);
+    let u16_at = |o: usize| u16::from_le_bytes([head[o], head[o + 1]]);
+    let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap());
+    let f64_at = |o: u64| f64::from_le_bytes(head[o as usize..o as usize + 8].try_into().unwrap());
+    let (major, minor) = (head[24], head[25]);
+    if major != 1 {
+        return Err(bad(
+            24,
+            format!("LAS major version {major} (only 1.x exists)"),
+        ));
+    }
+    // Each version's header holds at least its own fields.
+    let minimum = match minor {
+        0..=2 => 227,
+        3 => 235,
+        _ => 375,
+    };
+    let header_size = u16_at(94) as u64;
+    if header_size < minimum {
+        return Err(bad(
+            94,
+            format!("header size {header_size} is smaller than LAS 1.{minor}'s {minimum} bytes"),
+        ));
+    }
+    if header_size > file_size {
+        return Err(bad(
+            94,
+            format!("header size {header_size} is larger than the file ({file_size} bytes)"),
+        ));
+    }
+    let data_at = u32_at(96) as u64;
+    if data_at < header_size {
+        return Err(bad(
+            96,
+            format!("offset to point data {data_at} lies inside the {header_size}-byte header"),
+        ));
+    }
+    if data_at > file_size {
+        return Err(bad(
+            96,
+            format!(
+                "offset to point data {data_at} is past the end of the file ({file_size} bytes)"
+            ),
+        ));
+    }
+    let format = head[104] & 0x3F;
+    if format > 10 {
+        return Err(bad(104, format!("unknown point format {format}")));
+    }
+    let record_len = u16_at(105);
+    if record_len < BASE_LEN[format as usize] {
+        return Err(bad(
+            105,
+            format!(
+                "point record length {record_len} is shorter than point format {format}'s {} bytes",
+                BASE_LEN[format as usize]
+            ),
+        ));
+    }
+    for (a, axis) in ["X", "Y", "Z"].into_iter().enumerate() {
+        let (s_at, o_at) = (SCALE_AT + 8 * a as u64, OFFSET_AT + 8 * a as u64);
+        let (scale, offset) = (f64_at(s_at), f64_at(o_at));
+        if !scale.is_finite() || scale == 0.0 {
+            return Err(bad(
+                s_at,
+                format!("{axis} scale factor is {scale}: no coordinate can be computed from it"),
+            ));
+        }
+        if !offset.is_finite() {
+            return Err(bad(o_at, format!("{axis} offset is {offset}")));
+        }
+        // The largest record value must still give a finite coordinate.
+        if !(scale.abs() * 2f64.powi(31) + offset.abs()).is_finite() {
+            return Err(bad(
+                s_at,
+                format!("{axis} scale factor {scale:e} with offset {offset} overflows coordinates"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The header's bounds (min, max per axis), or `None` when they cannot be bounds: a value that is
+/// not finite, or a minimum above its maximum. Nothing is computed from them but the first plan
+/// of a build, which reads the points for their bounds when the header has none.
+pub(crate) fn header_bounds(head: &[u8]) -> Option<([f64; 3], [f64; 3])> {
+    let f = |o: usize| f64::from_le_bytes(head[o..o + 8].try_into().unwrap());
+    let min = [f(187), f(203), f(219)];
+    let max = [f(179), f(195), f(211)];
+    (0..3)
+        .all(|a| min[a].is_finite() && max[a].is_finite() && min[a] <= max[a])
+        .then_some((min, max))
+}
+
+/// Walks the VLR headers between the file header and the point data, so that a record length
+/// that runs past the point data is named at its own offset (the `las` crate reports it as an
+/// offset to point data that is too small, without a position).
+///
+/// | offset in the VLR | size | field |
+/// |---|---|---|
+/// | 0 | 2 | reserved |
+/// | 2 | 16 | user id |
+/// | 18 | 2 | record id |
+/// | 20 | 2 | u16 record length after header |
+/// | 22 | 32 | description |
+pub(crate) fn check_vlrs(path: &Path, raw: &las::raw::Header) -> Result<()> {
+    let data_at = raw.offset_to_point_data as u64;
+    let mut at = raw.header_size as u64;
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    for i in 0..raw.number_of_variable_length_records {
+        if at + 54 > data_at {
+            return Err(Error::at_byte(
+                path,
+                at,
+                format!(
+                    "VLR {i} of {} starts at byte {at}, where its 54-byte header runs into the point data at byte {data_at}",
+                    raw.number_of_variable_length_records
+                ),
+            ));
+        }
+        let mut len = [0u8; 2];
+        f.seek(SeekFrom::Start(at + 20))
+            .and_then(|_| f.read_exact(&mut len))
+            .map_err(|e| Error::io(path, e))?;
+        let len = u16::from_le_bytes(len) as u64;
+        if at + 54 + len > data_at {
+            return Err(Error::at_byte(
+                path,
+                at + 20,
+                format!(
+                    "VLR {i}'s length {len} runs past the start of the point data at byte {data_at}"
+                ),
+            ));
+        }
+        at += 54 + len;
+    }
+    Ok(())
+}
+
 /// Checks that the first EVLR lies inside the file before the `las` crate reads it: las 0.11
 /// sizes a vector from its u64 length unchecked (a panic or gigabytes of memory; found by fuzzing).
 ///

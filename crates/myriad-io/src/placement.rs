@@ -65,6 +65,7 @@ impl Placement {
 
     pub fn parse(path: &Path, text: &str) -> Result<Placement> {
         let (mut matrix, mut rotate, mut translate, mut trim) = (None, None, None, None);
+        let combined = "TRANSFORM cannot be combined with ROTATE-DEG or TRANSLATE";
         for (i, raw) in text.lines().enumerate() {
             let line_no = i as u64 + 1;
             let bad = |m: String| Error::at_line(path, line_no, m);
@@ -108,16 +109,35 @@ impl Placement {
             match key.as_str() {
                 "TRANSFORM" => {
                     want(12)?;
-                    matrix = Some(Affine {
+                    let m = Affine {
                         rows: std::array::from_fn(|r| std::array::from_fn(|c| nums[r * 4 + c])),
-                    });
+                    };
+                    let l = m.linear();
+                    let det = dot(l[0], cross(l[1], l[2]));
+                    // Relative to the rows' lengths, so that the test does not depend on units.
+                    let size = (0..3).map(|r| dot(l[r], l[r]).sqrt()).product::<f64>();
+                    if !(det.abs() > 1e-9 * size) || !det.is_finite() {
+                        return Err(bad(format!(
+                            "TRANSFORM is not invertible (determinant {det:e}): it would flatten the scan"
+                        )));
+                    }
+                    if rotate.is_some() || translate.is_some() {
+                        return Err(bad(combined.into()));
+                    }
+                    matrix = Some(m);
                 }
                 "ROTATE-DEG" => {
                     want(3)?;
+                    if matrix.is_some() {
+                        return Err(bad(combined.into()));
+                    }
                     rotate = Some(Affine::rotation_xyz_degrees(v3(0)));
                 }
                 "TRANSLATE" => {
                     want(3)?;
+                    if matrix.is_some() {
+                        return Err(bad(combined.into()));
+                    }
                     translate = Some(Affine::translation(v3(0)));
                 }
                 "OBB-ANGLES" | "OBB-NORMALS" => {
@@ -161,13 +181,6 @@ impl Placement {
                 other => return Err(bad(format!("unknown keyword \"{other}\""))),
             }
         }
-        if matrix.is_some() && (rotate.is_some() || translate.is_some()) {
-            return Err(Error::at_line(
-                path,
-                1,
-                "TRANSFORM cannot be combined with ROTATE-DEG or TRANSLATE",
-            ));
-        }
         let project_from_scanner = matrix.unwrap_or_else(|| {
             translate
                 .unwrap_or(Affine::IDENTITY)
@@ -188,6 +201,8 @@ pub struct Placed {
     placement: Placement,
     info: SourceInfo,
     trimmed: u64,
+    /// Points whose transformed coordinates overflowed.
+    non_finite: u64,
 }
 
 impl Placed {
@@ -203,6 +218,7 @@ impl Placed {
             placement,
             info,
             trimmed: 0,
+            non_finite: 0,
         }
     }
 
@@ -242,6 +258,17 @@ impl PointSource for Placed {
             for p in &mut b.positions {
                 *p = t.apply(*p);
             }
+            // A transform of huge (finite) numbers can still overflow a coordinate.
+            if b.positions.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+                let keep: Vec<bool> = b
+                    .positions
+                    .iter()
+                    .map(|p| p.iter().all(|c| c.is_finite()))
+                    .collect();
+                let before = b.len();
+                b.retain_mask(&keep);
+                self.non_finite += (before - b.len()) as u64;
+            }
             if let Some(normals) = &mut b.normal {
                 for n in normals {
                     *n = t.apply_vector(n.map(f64::from)).map(|c| c as f32);
@@ -255,7 +282,7 @@ impl PointSource for Placed {
     }
 
     fn skipped_non_finite(&self) -> u64 {
-        self.inner.skipped_non_finite()
+        self.inner.skipped_non_finite() + self.non_finite
     }
 
     fn trimmed(&self) -> u64 {

@@ -97,6 +97,7 @@ impl PlySource {
         let mut line_no = 0u64;
         let mut encoding = None;
         let mut elements: Vec<Element> = Vec::new();
+        let mut vertex_list_line = None;
         loop {
             let start = reader.offset;
             if !reader.read_line(&mut line)? {
@@ -145,6 +146,9 @@ impl PlySource {
                     let list_count =
                         scalar_of(ct).ok_or_else(|| bad(format!("unknown type \"{ct}\"")))?;
                     let ty = scalar_of(it).ok_or_else(|| bad(format!("unknown type \"{it}\"")))?;
+                    if e.name == "vertex" {
+                        vertex_list_line.get_or_insert(line_no);
+                    }
                     e.props.push(Property {
                         name: name.to_string(),
                         ty,
@@ -163,7 +167,13 @@ impl PlySource {
                     });
                 }
                 ["end_header"] => break,
-                _ => return Err(bad(format!("unexpected header line \"{}\"", text.trim()))),
+                _ => {
+                    let shown: String = text.trim().chars().take(40).collect();
+                    return Err(bad(format!(
+                        "unexpected header line \"{}\"",
+                        shown.escape_debug()
+                    )));
+                }
             }
         }
         let encoding = encoding
@@ -186,11 +196,11 @@ impl PlySource {
                 ));
             }
         }
-        let has_list = vertex.props.iter().any(|p| p.list_count.is_some());
-        if has_list && encoding != Encoding::Ascii {
-            return Err(Error::unsupported(
+        if let Some(at) = vertex_list_line.filter(|_| encoding != Encoding::Ascii) {
+            return Err(Error::at_line(
                 path,
-                "binary PLY vertex element with list properties",
+                at,
+                "list property in a binary PLY vertex element (not supported)",
             ));
         }
         let stride = vertex.props.iter().map(|p| p.ty.size()).sum();

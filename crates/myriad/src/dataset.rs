@@ -317,11 +317,13 @@ pub fn extract(a: ExtractArgs) -> Result<()> {
         thousands(s.points),
         thousands(s.nodes_read)
     );
-    if !s.damage.is_empty() {
+    if let Some(d) = s.damage.first() {
         bail!(
-            "{}: {} damaged pages skipped; the output lacks their points",
-            a.dataset.display(),
-            s.damage.len()
+            "{} ({} damaged page{} skipped; {} lacks their points)",
+            ds.damage_error(d),
+            s.damage.len(),
+            if s.damage.len() == 1 { "" } else { "s" },
+            a.output.display()
         );
     }
     Ok(())
@@ -336,6 +338,7 @@ pub struct VerifyArgs {
 
 pub fn verify(a: VerifyArgs) -> Result<()> {
     let mut bad = 0;
+    let mut first = None;
     for path in &a.datasets {
         let ds = Dataset::open(path)?;
         let bar = ProgressBar::new(ds.meta.points);
@@ -354,10 +357,15 @@ pub fn verify(a: VerifyArgs) -> Result<()> {
         } else {
             println!("{}: {} damaged", path.display(), r.damage.len());
             bad += 1;
+            first.get_or_insert((ds.damage_error(&r.damage[0]), r.damage.len()));
         }
     }
-    if bad > 0 {
-        bail!("{bad} of {} datasets damaged", a.datasets.len());
+    // The error line names the first damaged page; stdout lists them all.
+    if let Some((e, n)) = first {
+        bail!(
+            "{e} ({n} damaged in this dataset; {bad} of {} datasets damaged)",
+            a.datasets.len()
+        );
     }
     Ok(())
 }

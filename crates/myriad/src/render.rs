@@ -152,7 +152,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&a.dataset)?);
-    let (_, damage) = ds.nodes();
+    let (nodes, damage) = ds.nodes();
+    if let (true, Some(d)) = (nodes.is_empty(), damage.first()) {
+        // The root's hierarchy page is damaged: nothing can be drawn.
+        bail!("{} (nothing left to draw)", ds.damage_error(d));
+    }
     for d in &damage {
         eprintln!("warning: {}", ds.damage_error(d));
     }
