@@ -67,7 +67,31 @@ struct RecordStream {
 const PRODUCER_BLOCK: u64 = 1 << 19;
 
 fn header_error(path: &Path, e: las::Error) -> Error {
-    Error::at_byte(path, 0, format!("invalid LAS header: {e}"))
+    Error::at_byte(
+        path,
+        header_field(&e).unwrap_or(0),
+        format!("invalid LAS header: {e}"),
+    )
+}
+
+/// The header field a `las` crate error is about (LAS 1.4 R15, table 3), where it names one.
+fn header_field(e: &las::Error) -> Option<u64> {
+    use las::Error as E;
+    Some(match e {
+        E::InvalidFileSignature(_) => 0,
+        E::UnsupportedFeature { .. } => 24,
+        E::OffsetToPointDataTooSmall(_) | E::OffsetToPointDataTooLarge(_) => 96,
+        E::TooManyVlrs(_) => 100,
+        E::InvalidPointFormatNumber(_) | E::UnsupportedFormat { .. } | E::InvalidPointFormat(_) => {
+            104
+        }
+        E::PointDataRecordLengthTooLarge { .. } => 105,
+        E::ReturnNumber { .. } => 111,
+        E::OffsetToEvlrsTooSmall(_) => 235,
+        E::TooManyEvlrs(_) => 243,
+        E::TooManyPoints { .. } => 247,
+        _ => return None,
+    })
 }
 
 /// Did reading stop at the end of the file? (`laz` wraps I/O errors without exposing a source.)
@@ -130,6 +154,7 @@ impl LasSource {
                     "unexpected end of file in the header or VLRs (truncated file?)",
                 )
             } else {
+                let at = header_field(&e).unwrap_or(at);
                 Error::at_byte(path, at, format!("invalid LAS/LAZ header data: {e}"))
             }
         })?;

@@ -115,6 +115,8 @@ impl PcdSource {
         let (mut names, mut sizes, mut types, mut counts) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let (mut width, mut height, mut points) = (None, None, None);
+        // Lines of the keys checked after the header, so that errors name them.
+        let (mut size_line, mut count_line, mut height_line) = (0, 0, 0);
         let data;
         loop {
             if !reader.read_line(&mut line)? {
@@ -137,11 +139,20 @@ impl PcdSource {
                 k if k.starts_with('#') => {}
                 "VERSION" | "VIEWPOINT" => {}
                 "FIELDS" | "COLUMNS" => names = rest.to_vec(),
-                "SIZE" => sizes = rest.to_vec(),
+                "SIZE" => {
+                    sizes = rest.to_vec();
+                    size_line = line_no;
+                }
                 "TYPE" => types = rest.to_vec(),
-                "COUNT" => counts = rest.iter().map(|s| num(s)).collect::<Result<Vec<_>>>()?,
+                "COUNT" => {
+                    counts = rest.iter().map(|s| num(s)).collect::<Result<Vec<_>>>()?;
+                    count_line = line_no;
+                }
                 "WIDTH" => width = Some(num(rest.first().map_or("", |s| s))?),
-                "HEIGHT" => height = Some(num(rest.first().map_or("", |s| s))?),
+                "HEIGHT" => {
+                    height = Some(num(rest.first().map_or("", |s| s))?);
+                    height_line = line_no;
+                }
                 "POINTS" => points = Some(num(rest.first().map_or("", |s| s))?),
                 "DATA" => {
                     data = match rest.first().map(|s| s.as_str()) {
@@ -185,12 +196,12 @@ impl PcdSource {
             counts = vec![1; names.len()];
         }
         if counts.contains(&0) {
-            return Err(Error::at_line(path, line_no, "a field has COUNT 0"));
+            return Err(Error::at_line(path, count_line, "a field has COUNT 0"));
         }
         if counts.len() != names.len() {
             return Err(Error::at_line(
                 path,
-                line_no,
+                count_line,
                 "COUNT line differs in length from FIELDS",
             ));
         }
@@ -198,7 +209,7 @@ impl PcdSource {
         for i in 0..names.len() {
             fields.push(Field {
                 target: target_of(&names[i]),
-                ty: parse_type(path, line_no, &types[i], &sizes[i])?,
+                ty: parse_type(path, size_line, &types[i], &sizes[i])?,
                 count: counts[i] as usize,
             });
         }
@@ -213,7 +224,9 @@ impl PcdSource {
         }
         let total = match (points, width, height) {
             (Some(p), _, _) => p,
-            (None, Some(w), Some(h)) => w * h,
+            (None, Some(w), Some(h)) => w.checked_mul(h).ok_or_else(|| {
+                Error::at_line(path, height_line, "WIDTH x HEIGHT overflows 64 bits")
+            })?,
             _ => {
                 return Err(Error::at_line(
                     path,

@@ -123,6 +123,13 @@ fn las(c: &mut Corpus, tmp: &Path) {
         INPUT,
         "byte 131: X scale factor 1e300 with offset",
     );
+    // A negative scale mirrors the records, not the coordinates: nothing is wrong.
+    c.reads(
+        "las/scale-x-negative.las",
+        &with(131, &f64le(-0.001)),
+        INPUT,
+        "\"scale\":[-0.001,",
+    );
     c.fails(
         "las/offset-x-nan.las",
         &with(155, &f64le(f64::NAN)),
@@ -857,7 +864,22 @@ fn pcd(c: &mut Corpus) {
         "file ends before the 4 points",
     );
     let size = PCD_HEAD.replace("SIZE 4 4 4", "SIZE 4 4 3");
-    c.fails("pcd/size-3.pcd", &bin(&size, &pts), INPUT, "line ");
+    c.fails(
+        "pcd/size-3.pcd",
+        &bin(&size, &pts),
+        INPUT,
+        "line 3: unsupported field type F of size 3",
+    );
+    let wh = PCD_HEAD
+        .replace("WIDTH 4", "WIDTH 4294967296")
+        .replace("HEIGHT 1", "HEIGHT 8589934592")
+        .replace("POINTS 4\n", "");
+    c.fails(
+        "pcd/width-height-overflow.pcd",
+        &bin(&wh, &pts),
+        INPUT,
+        "line 7: WIDTH x HEIGHT overflows 64 bits",
+    );
     let mut nan = pts;
     nan[0][1] = f32::NAN;
     c.reads(

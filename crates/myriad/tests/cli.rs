@@ -217,7 +217,7 @@ fn binary_formats_name_the_byte() {
     // A field of COUNT 0 occupies no bytes (found by fuzzing).
     bad(
         &write(&d, "count0.pcd", b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 0\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n12345678"),
-        "line 9: a field has COUNT 0",
+        "line 5: a field has COUNT 0",
     );
     bad(
         &write(&d, "garbage.pcd", b"\x00\x01\x02garbage\n"),
