@@ -671,6 +671,10 @@ fn e57(c: &mut Corpus, tmp: &Path) {
         INPUT,
         "invalid E57 data",
     );
+    let fewer = e57_file(tmp, "records-fewer.e57", false, |s| {
+        s.replace("recordCount=\"20\"", "recordCount=\"10\"")
+    });
+    c.reads("e57/record-count-fewer.e57", &fewer, INPUT, "\"points\":10");
     let nan = e57_file(tmp, "nan.e57", true, |s| s);
     c.reads("e57/nan-points.e57", &nan, INPUT, "\"points\":18");
 }

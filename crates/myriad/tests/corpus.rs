@@ -2,7 +2,8 @@
 //! lists the classes): every file through each command that `cases.tsv` names, as a user runs
 //! the binary. Each run must give the exit code and the text the case expects (a failure: exactly
 //! one `error:` line naming the file), never panic, stay under a memory and a time cap, leave the
-//! input byte for byte as it was, and leave no output behind when it fails.
+//! input byte for byte as it was, and leave no output behind when it fails. A dataset that
+//! `convert` made of an odd input must then verify, extract and render.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -166,6 +167,27 @@ fn check(corpus: &Path, c: &Case, scratch: &Path) -> Result<(), String> {
         }
         if c.command != "info" && c.command != "verify" && !out.exists() {
             return Err(format!("succeeded without writing {}", out.display()));
+        }
+        if c.command == "convert" {
+            // What convert made of an odd but readable input works like any dataset.
+            let (las, png) = (scratch.join("back.las"), scratch.join("back.png"));
+            let (las, png) = (las.to_str().unwrap(), png.to_str().unwrap());
+            for args in [
+                &["verify", outs][..],
+                &["extract", outs, "-o", las],
+                &["render", outs, "-o", png, "--raster", "cpu", "--width", "64", "--height", "48"],
+            ] {
+                let r = run(args, corpus)?;
+                if r.code != 0 || r.max_rss_kb > MEMORY_CAP_KB {
+                    return Err(format!(
+                        "{} of the converted dataset: exit {}, {} MB: {}",
+                        args[0],
+                        r.code,
+                        r.max_rss_kb / 1024,
+                        r.stderr.trim()
+                    ));
+                }
+            }
         }
     } else {
         let lines: Vec<&str> = o
