@@ -175,7 +175,9 @@ fn check(corpus: &Path, c: &Case, scratch: &Path) -> Result<(), String> {
             for args in [
                 &["verify", outs][..],
                 &["extract", outs, "-o", las],
-                &["render", outs, "-o", png, "--raster", "cpu", "--width", "64", "--height", "48"],
+                &[
+                    "render", outs, "-o", png, "--raster", "cpu", "--width", "64", "--height", "48",
+                ],
             ] {
                 let r = run(args, corpus)?;
                 if r.code != 0 || r.max_rss_kb > MEMORY_CAP_KB {

@@ -1,7 +1,8 @@
-//! Replays the fuzz targets' committed corpora (`fuzz/seeds/TARGET/`, kept by `fuzz/run-all.sh`:
-//! the inputs that reached new code, findings included) and the crafted corpus
-//! (`tests/corpus/`) through the fuzz targets' own code (`fuzz/support.rs`), so that a finding
-//! stays fixed without cargo fuzz: every input must give points or a clean error, never a panic.
+//! Replays the fuzz targets' committed corpora (`fuzz/seeds/TARGET.tar.zst`, kept by
+//! `fuzz/run-all.sh`: the inputs that reached new code, findings included; packed, as they are
+//! thousands of near-identical files) and the crafted corpus (`tests/corpus/`) through the fuzz
+//! targets' own code (`fuzz/support.rs`), so that a finding stays fixed without cargo fuzz: every
+//! input must give points or a clean error, never a panic.
 
 use std::path::{Path, PathBuf};
 
@@ -17,6 +18,26 @@ const TARGETS: &[(&str, &[&str])] = &[
     ("e57", &["e57"]),
     ("dataset", &["myr"]),
 ];
+
+/// The inputs packed in `fuzz/seeds/TARGET.tar.zst` (none when the target has no packed corpus).
+fn packed(path: &Path) -> Vec<(String, Vec<u8>)> {
+    let Ok(file) = std::fs::File::open(path) else {
+        return Vec::new();
+    };
+    let mut archive = tar::Archive::new(zstd::Decoder::new(file).expect("zstd stream"));
+    let mut out = Vec::new();
+    for entry in archive.entries().expect("tar entries") {
+        let mut entry = entry.expect("tar entry");
+        if !entry.header().entry_type().is_file() {
+            continue;
+        }
+        let name = format!("{}:{}", path.display(), entry.path().unwrap().display());
+        let mut data = Vec::new();
+        std::io::Read::read_to_end(&mut entry, &mut data).unwrap();
+        out.push((name, data));
+    }
+    out
+}
 
 fn files(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -37,23 +58,24 @@ fn fuzz_corpora_replay_without_a_panic() {
     let mut failures = Vec::new();
     let mut counts = Vec::new();
     for (target, crafted) in TARGETS {
-        let mut inputs = files(&seeds.join(target));
+        let mut inputs = packed(&seeds.join(format!("{target}.tar.zst")));
         let from_seeds = inputs.len();
         for c in *crafted {
-            inputs.extend(files(&root.join("tests/corpus").join(c)));
+            for f in files(&root.join("tests/corpus").join(c)) {
+                inputs.push((f.display().to_string(), std::fs::read(&f).unwrap()));
+            }
         }
         assert!(
             inputs.len() > from_seeds,
             "{target}: no crafted inputs found"
         );
-        for input in &inputs {
-            let data = std::fs::read(input).unwrap();
+        for (name, data) in &inputs {
             let run = std::panic::catch_unwind(|| match *target {
-                "dataset" => support::read_dataset(&data),
-                ext => support::read_all(&data, ext),
+                "dataset" => support::read_dataset(data),
+                ext => support::read_all(data, ext),
             });
             if run.is_err() {
-                failures.push(input.display().to_string());
+                failures.push(name.clone());
             }
         }
         counts.push(format!(
