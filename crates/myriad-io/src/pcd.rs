@@ -262,11 +262,31 @@ impl PcdSource {
                 attributes.push(a);
             }
         }
-        let stride = fields.iter().map(|f| f.ty.size() * f.count).sum();
         let file_size = std::fs::metadata(path)
             .map_err(|e| Error::io(path, e))?
             .len();
-        if data == Data::Binary && reader.offset + stride as u64 * total > file_size {
+        // One point's bytes (binary) and values (ascii: each takes at least two bytes) must fit
+        // the file: COUNT comes from the file, and buffers are sized from it.
+        let stride = fields
+            .iter()
+            .try_fold(0usize, |a, f| {
+                a.checked_add(f.ty.size().checked_mul(f.count)?)
+            })
+            .filter(|&b| b as u64 <= file_size);
+        let values = fields.iter().map(|f| f.count as u64).sum::<u64>();
+        let Some(stride) = stride.filter(|_| values.saturating_mul(2) <= file_size + 1) else {
+            return Err(Error::at_line(
+                path,
+                count_line.max(size_line),
+                format!(
+                    "SIZE and COUNT make a point larger than the whole file ({file_size} bytes)"
+                ),
+            ));
+        };
+        let needed = (stride as u64)
+            .checked_mul(total)
+            .and_then(|b| b.checked_add(reader.offset));
+        if data == Data::Binary && needed.is_none_or(|n| n > file_size) {
             return Err(Error::at_byte(
                 path,
                 file_size,
@@ -345,7 +365,7 @@ impl PcdSource {
             .read_exact(&mut head, "the binary_compressed size fields")?;
         let csize = u32::from_le_bytes(head[..4].try_into().unwrap()) as usize;
         let usize_ = u32::from_le_bytes(head[4..].try_into().unwrap()) as usize;
-        if usize_ != self.stride * self.total as usize {
+        if Some(usize_ as u64) != (self.stride as u64).checked_mul(self.total) {
             return Err(Error::at_byte(
                 &self.info.path,
                 at + 4,
@@ -448,7 +468,7 @@ impl PointSource for PcdSource {
         match self.data {
             Data::Ascii => {
                 let mut line = Vec::new();
-                let mut row = Vec::with_capacity(width);
+                let mut row = Vec::new();
                 for _ in 0..n {
                     if !self.reader.read_line(&mut line)? {
                         return Err(Error::at_line(

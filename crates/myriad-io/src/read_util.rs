@@ -68,6 +68,21 @@ impl OffsetReader {
         Ok(())
     }
 
+    /// Skips `n` bytes, or fails naming the offset where the file ended.
+    pub fn skip(&mut self, n: u64) -> Result<()> {
+        let got = std::io::copy(&mut (&mut self.inner).take(n), &mut std::io::sink())
+            .map_err(|e| Error::io(&self.path, e))?;
+        self.offset += got;
+        if got < n {
+            return Err(Error::at_byte(
+                &self.path,
+                self.offset,
+                "unexpected end of file in a skipped element",
+            ));
+        }
+        Ok(())
+    }
+
     /// Reads up to `buf.len()` bytes, fewer only at end of file.
     pub fn read_up_to(&mut self, buf: &mut [u8]) -> Result<usize> {
         let mut got = 0;

@@ -720,7 +720,7 @@ fn ply(c: &mut Corpus) {
             &pts,
         ),
         INPUT,
-        "file ends after 4 of 18446744073709551615 vertices",
+        "byte 182: file ends before the 18446744073709551615 vertices its header declares",
     );
     c.fails(
         "ply/count-overflows-u64.ply",
@@ -794,6 +794,30 @@ fn ply(c: &mut Corpus) {
         INPUT,
         "line 4: list property in a binary PLY vertex element",
     );
+    // Elements before the vertices are skipped: one of no properties takes no bytes however
+    // many it declares (found by fuzzing: counting 1.7e15 of them took minutes); one whose
+    // records run past the end is an error.
+    let empty = PLY_HEAD.replace(
+        "element vertex 4",
+        "element nothing 1744073709551616\nelement vertex 4",
+    );
+    c.reads(
+        "ply/empty-element-huge-count.ply",
+        &ply_binary(&empty, &pts),
+        INPUT,
+        "\"points\":4",
+    );
+    let before = PLY_HEAD.replace(
+        "element vertex 4",
+        "element face 1000000\nproperty int a\nelement vertex 4",
+    );
+    let end = before.len() + 48;
+    c.fails(
+        "ply/element-past-end.ply",
+        &ply_binary(&before, &pts),
+        INPUT,
+        &format!("byte {end}: file ends inside element \"face\" (1000000 declared)"),
+    );
     let cut = PLY_HEAD.len() + 12 + 5;
     c.fails(
         "ply/cut-in-record.ply",
@@ -843,7 +867,7 @@ fn pcd(c: &mut Corpus) {
         "pcd/points-u64-max.pcd",
         &bin(&max, &pts),
         INPUT,
-        "unexpected end of file in point records",
+        "byte 207: file ends before the 18446744073709551615 points its header declares",
     );
     let over = PCD_HEAD.replace("POINTS 4", "POINTS 99999999999999999999");
     c.fails(
@@ -865,7 +889,17 @@ fn pcd(c: &mut Corpus) {
         "pcd/count-huge.pcd",
         &bin(&count, &pts),
         INPUT,
-        "file ends before the 4 points",
+        "line 5: SIZE and COUNT make a point larger than the whole file",
+    );
+    // Found by fuzzing: an ascii file whose COUNT asked for a 222-billion-value row buffer.
+    let ascii_count = PCD_HEAD
+        .replace("COUNT 1 1 1", "COUNT 1 222222222221 1")
+        .replace("DATA binary", "DATA ascii");
+    c.fails(
+        "pcd/count-huge-ascii.pcd",
+        format!("{ascii_count}1 2 3\n4 5 6\n7 8 9\n1 1 1\n").as_bytes(),
+        INPUT,
+        "line 5: SIZE and COUNT make a point larger than the whole file",
     );
     let size = PCD_HEAD.replace("SIZE 4 4 4", "SIZE 4 4 3");
     c.fails(
