@@ -9,8 +9,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Peak resident memory allowed to one command on these small files.
+/// Peak resident memory allowed to one command on these small files (measured by `wait4`).
 const MEMORY_CAP_KB: i64 = 512 * 1024;
+/// Address space allowed to one command (`RLIMIT_AS`): an allocation sized from a damaged
+/// header fails at once instead of being reserved and touched lazily.
+const ADDRESS_SPACE_CAP: u64 = 4 << 30;
 /// Wall time allowed to one command (they take milliseconds; this catches hangs).
 const TIME_CAP: Duration = Duration::from_secs(30);
 
@@ -47,7 +50,21 @@ struct Outcome {
 
 /// Runs the binary, killing it at the time cap; reads its peak memory from `wait4`.
 fn run(args: &[&str], cwd: &Path) -> Result<Outcome, String> {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_myriad"));
+    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut command, || {
+            let cap = libc::rlimit {
+                rlim_cur: ADDRESS_SPACE_CAP,
+                rlim_max: ADDRESS_SPACE_CAP,
+            };
+            if libc::setrlimit(libc::RLIMIT_AS, &cap) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let mut child = command
         .args(args)
         .current_dir(cwd)
         .stdin(Stdio::null())
