@@ -60,6 +60,10 @@ fn fuzz_corpora_replay_without_a_panic() {
     for (target, crafted) in TARGETS {
         let mut inputs = packed(&seeds.join(format!("{target}.tar.zst")));
         let from_seeds = inputs.len();
+        assert!(
+            from_seeds > 0,
+            "{target}: fuzz/seeds/{target}.tar.zst is missing or empty"
+        );
         for c in *crafted {
             for f in files(&root.join("tests/corpus").join(c)) {
                 inputs.push((f.display().to_string(), std::fs::read(&f).unwrap()));
