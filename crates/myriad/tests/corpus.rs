@@ -1,4 +1,4 @@
-//! The corpus of crafted inputs (`tests/corpus/`, made by `examples/make_corpus.rs`; its README
+//! The corpus of crafted inputs (`tests/corpus/`, made by `examples/make_corpus/`; its README
 //! lists the classes): every file through each command that `cases.tsv` names, as a user runs
 //! the binary. Each run must give the exit code and the text the case expects (a failure: exactly
 //! one `error:` line naming the file), never panic, stay under a memory and a time cap, leave the
