@@ -45,6 +45,16 @@ pub(super) fn las(c: &mut Corpus, tmp: &Path) {
         INPUT,
         "\"scale\":[-0.001,",
     );
+    // A scale so fine that the dataset's integer grid cannot number the data's extent: the file
+    // reads (every X is its offset), the build refuses it.
+    let tiny = c.file("las/scale-x-tiny.las", &with(131, &f64le(1e-300)));
+    c.expect(&tiny, "info", 0, "\"points\":300");
+    c.expect(
+        &tiny,
+        "convert",
+        1,
+        "its X scale is too fine for the data's extent",
+    );
     c.fails(
         "las/offset-x-nan.las",
         &with(155, &f64le(f64::NAN)),
