@@ -417,7 +417,7 @@ fn quantization(dist: &distribute::Distribution, precision: f64) -> Result<Quant
         if !(reach / scale[a] < 2f64.powi(53)) {
             let axis = ["X", "Y", "Z"][a];
             let what = format!(
-                "a grid step of {} cannot number coordinates {reach:e} from the offset {} on {axis} (more than 2^53 steps)",
+                "a grid step of {:e} cannot number coordinates {reach:e} from the offset {} on {axis} (more than 2^53 steps)",
                 scale[a], offset[a]
             );
             return Err(match finest[a] {
