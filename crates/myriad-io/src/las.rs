@@ -189,7 +189,7 @@ impl LasSource {
             scale: [t.x.scale, t.y.scale, t.z.scale],
             offset: [t.x.offset, t.y.offset, t.z.offset],
         };
-        let bounds = header_bounds(&head).map(|(min, max)| Aabb::new(min, max));
+        let bounds = header_bounds(&raw).map(|(min, max)| Aabb::new(min, max));
         let is_copc = header.all_vlrs().any(|v| v.user_id == "copc");
         let version = format!(
             "{}.{} point format {format_id}{}",

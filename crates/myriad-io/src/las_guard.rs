@@ -119,10 +119,9 @@ pub(crate) fn check_header(path: &Path, head: &[u8], file_size: u64) -> Result<(
 /// The header's bounds (min, max per axis), or `None` when they cannot be bounds: a value that is
 /// not finite, or a minimum above its maximum. Nothing is computed from them but the first plan
 /// of a build, which reads the points for their bounds when the header has none.
-pub(crate) fn header_bounds(head: &[u8]) -> Option<([f64; 3], [f64; 3])> {
-    let f = |o: usize| f64::from_le_bytes(head[o..o + 8].try_into().unwrap());
-    let min = [f(187), f(203), f(219)];
-    let max = [f(179), f(195), f(211)];
+pub(crate) fn header_bounds(raw: &las::raw::Header) -> Option<([f64; 3], [f64; 3])> {
+    let min = [raw.min_x, raw.min_y, raw.min_z];
+    let max = [raw.max_x, raw.max_y, raw.max_z];
     (0..3)
         .all(|a| min[a].is_finite() && max[a].is_finite() && min[a] <= max[a])
         .then_some((min, max))

@@ -273,7 +273,9 @@ impl PcdSource {
                 a.checked_add(f.ty.size().checked_mul(f.count)?)
             })
             .filter(|&b| b as u64 <= file_size);
-        let values = fields.iter().map(|f| f.count as u64).sum::<u64>();
+        let values = fields
+            .iter()
+            .fold(0u64, |a, f| a.saturating_add(f.count as u64));
         let Some(stride) = stride.filter(|_| values.saturating_mul(2) <= file_size + 1) else {
             return Err(Error::at_line(
                 path,
