@@ -19,6 +19,8 @@ pub enum ColorBy {
     PointSource,
     /// The node's level in the tree.
     Level,
+    /// One light grey for every point, whatever its attributes: with shading on, the shape alone.
+    Uniform,
 }
 
 impl ColorBy {
@@ -31,6 +33,7 @@ impl ColorBy {
             "return" | "return-number" => ColorBy::ReturnNumber,
             "source" | "point-source" => ColorBy::PointSource,
             "level" | "lod" => ColorBy::Level,
+            "uniform" | "none" => ColorBy::Uniform,
             _ => return None,
         })
     }
@@ -143,6 +146,7 @@ pub fn colours(
             None => elevation(),
         },
         ColorBy::Level => vec![rgba(palette(level)); n],
+        ColorBy::Uniform => vec![[210, 210, 210, 255]; n],
     }
 }
 

@@ -1,13 +1,14 @@
 //! The rasterizer on the CPU, for machines without any Vulkan, Metal or DX12 driver: the compute
 //! path's algorithm (each point projected, the nearest per pixel kept by a 64-bit atomic max of
-//! depth and colour, then the resolve with eye-dome lighting) over all cores with rayon, in f32
-//! as the shaders compute, so that it draws the same images. It is the reference the GPU paths
-//! are tested against, and what `myriad render` uses when there is no GPU adapter.
+//! depth and colour; splats' normals by a second pass where a splat's value won; then the
+//! g-buffer for the post passes, `post`) over all cores with rayon, in f32 as the shaders
+//! compute, so that it draws the same images. It is the reference the GPU paths are tested
+//! against, and what `myriad render` uses when there is no GPU adapter.
 
 use crate::{Draw, PointSize, Shape, Style};
 use myriad_lod::Camera;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 /// As `depth_key` in raster.wgsl.
 fn depth_key(w: f32, far: f32) -> u32 {
@@ -85,12 +86,66 @@ fn mul(m: &[[f32; 4]; 4], p: [f32; 3]) -> [f32; 4] {
     std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r])
 }
 
-/// Draws and resolves, as [`crate::Rasterizer::render`] does.
-pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: &Style) -> Vec<u8> {
+/// The eye normal of a splat (`splat_shape`'s) facing the eye, packed, as `splat_normal_code` in
+/// raster.wgsl.
+fn splat_normal_code(sp: [f32; 4]) -> u32 {
+    let len = (sp[1] * sp[1] + sp[2] * sp[2] + sp[3] * sp[3]).sqrt();
+    let k = if sp[3] > 0.0 { -1.0 } else { 1.0 } / len;
+    crate::post::pack_normal([sp[1] * k, sp[2] * k, sp[3] * k])
+}
+
+/// Draws the points into a g-buffer, as [`crate::Rasterizer::render`]'s point pass and
+/// gbuffer.wgsl do; `normals`: with the splats' normals.
+pub(crate) fn gbuffer(
+    camera: &Camera,
+    draws: &[Draw],
+    tree: &[[u32; 4]],
+    style: &Style,
+    normals: bool,
+) -> crate::post::GBuffer {
     let (w, h) = (camera.width.max(1), camera.height.max(1));
     let fb: Vec<AtomicU64> = (0..w as usize * h as usize)
         .map(|_| AtomicU64::new(0))
         .collect();
+    let normal_fb: Vec<AtomicU32> = (0..if normals { fb.len() } else { 0 })
+        .map(|_| AtomicU32::new(0))
+        .collect();
+    let splat_draws = draws.iter().any(|d| d.points.cpu_splats().is_some());
+    let modes: &[u32] = if normals && splat_draws {
+        &[0, 1]
+    } else {
+        &[0]
+    };
+    for &mode in modes {
+        points_pass(camera, draws, tree, style, mode, &fb, &normal_fb);
+    }
+    let far = camera.far as f32;
+    let mut g = crate::post::GBuffer::new(w, h);
+    for (i, px) in fb.iter().enumerate() {
+        let v = px.load(Ordering::Relaxed);
+        let key = (v >> 32) as u32;
+        if key != 0 {
+            // As `depth_at` in fb_atomic.wgsl.
+            g.depth[i] = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
+            g.colour[i] = v as u32;
+            g.normal[i] = normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
+        }
+    }
+    g
+}
+
+/// One pass over the points: `mode` 0 keeps the nearest value per pixel in `fb`; 1 (splats
+/// only) writes a splat's normal into `normal_fb` where its value is the one kept.
+fn points_pass(
+    camera: &Camera,
+    draws: &[Draw],
+    tree: &[[u32; 4]],
+    style: &Style,
+    mode: u32,
+    fb: &[AtomicU64],
+    normal_fb: &[AtomicU32],
+) {
+    let (w, h) = (camera.width.max(1), camera.height.max(1));
     let (far, focal) = (camera.far as f32, camera.focal() as f32);
     // Fixed sizes are the same for every point.
     let (scale, fixed, max_size) = match style.size {
@@ -121,11 +176,19 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
             [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
         };
         let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
+        if mode == 1 && splats.is_none() {
+            continue;
+        }
         // Keeps the nearest at a pixel (in the frame: the callers check). Most points are hidden
         // behind nearer ones: a plain load first spares their read-modify-write.
-        let plot = |x: i32, y: i32, value: u64| {
-            let px = &fb[y as usize * w as usize + x as usize];
-            if px.load(Ordering::Relaxed) < value {
+        let plot = |x: i32, y: i32, value: u64, normal: u32| {
+            let i = y as usize * w as usize + x as usize;
+            let px = &fb[i];
+            if mode == 1 {
+                if px.load(Ordering::Relaxed) == value {
+                    normal_fb[i].store(normal, Ordering::Relaxed);
+                }
+            } else if px.load(Ordering::Relaxed) < value {
                 px.fetch_max(value, Ordering::Relaxed);
             }
         };
@@ -159,6 +222,7 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                 if let Some((codes, range)) = splats {
                     let code = codes[ci * 4096 + qi];
                     let sp = splat_shape(code, range, clip[3], &eye, focal, max_size);
+                    let normal = splat_normal_code(sp);
                     let s = splat_pixels(sp[0], max_size);
                     let x0 = fx.floor() as i32 - (s - 1) / 2;
                     let y0 = fy.floor() as i32 - (s - 1) / 2;
@@ -183,6 +247,7 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                                 x,
                                 y,
                                 ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour,
+                                normal,
                             );
                         }
                     }
@@ -220,83 +285,10 @@ pub(crate) fn render(camera: &Camera, draws: &[Draw], tree: &[[u32; 4]], style: 
                                 value = ((depth_key(wp, far) as u64) << 32) | colour;
                             }
                         }
-                        plot(x, y, value);
+                        plot(x, y, value, 0);
                     }
                 }
             }
         });
     }
-    resolve(&fb, w, h, far, style)
-}
-
-/// As resolve.wgsl with fb_atomic.wgsl.
-fn resolve(fb: &[AtomicU64], w: u32, h: u32, far: f32, style: &Style) -> Vec<u8> {
-    let depth = |x: i32, y: i32| -> f32 {
-        if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
-            return 0.0;
-        }
-        let key = (fb[y as usize * w as usize + x as usize].load(Ordering::Relaxed) >> 32) as u32;
-        if key == 0 {
-            0.0
-        } else {
-            (1.0 - (key - 1) as f32 / 4294967040.0) * far
-        }
-    };
-    const AROUND: [[f32; 2]; 8] = [
-        [1.0, 0.0],
-        [
-            std::f32::consts::FRAC_1_SQRT_2,
-            std::f32::consts::FRAC_1_SQRT_2,
-        ],
-        [0.0, 1.0],
-        [
-            -std::f32::consts::FRAC_1_SQRT_2,
-            std::f32::consts::FRAC_1_SQRT_2,
-        ],
-        [-1.0, 0.0],
-        [
-            -std::f32::consts::FRAC_1_SQRT_2,
-            -std::f32::consts::FRAC_1_SQRT_2,
-        ],
-        [0.0, -1.0],
-        [
-            std::f32::consts::FRAC_1_SQRT_2,
-            -std::f32::consts::FRAC_1_SQRT_2,
-        ],
-    ];
-    let mut out = vec![0u8; w as usize * h as usize * 4];
-    out.par_chunks_mut(w as usize * 4)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for x in 0..w as usize {
-                let i = y * w as usize + x;
-                let d = depth(x as i32, y as i32);
-                let px = &mut row[x * 4..x * 4 + 4];
-                if d <= 0.0 {
-                    px.copy_from_slice(&style.background);
-                    continue;
-                }
-                let colour = (fb[i].load(Ordering::Relaxed) & 0xffff_ffff) as u32;
-                let mut c = colour.to_le_bytes();
-                if let Some(edl) = style.edl.filter(|e| e.strength > 0.0) {
-                    let l = d.log2();
-                    let mut sum = 0.0;
-                    for a in AROUND {
-                        let n = depth(
-                            x as i32 + (a[0] * edl.radius).round() as i32,
-                            y as i32 + (a[1] * edl.radius).round() as i32,
-                        );
-                        if n > 0.0 {
-                            sum += (l - n.log2()).max(0.0);
-                        }
-                    }
-                    let shade = (-sum / 8.0 * 300.0 * edl.strength).exp();
-                    for v in &mut c[..3] {
-                        *v = (*v as f32 / 255.0 * shade * 255.0).round() as u8;
-                    }
-                }
-                px.copy_from_slice(&c);
-            }
-        });
-    out
 }

@@ -2,9 +2,11 @@
 //! per pixel kept by a 64-bit `atomicMax` of depth and colour, then a resolve pass; Schütz et al.
 //! 2021), which PLATFORM.md measured 20-40x faster than fixed-function points on lavapipe. Adapters
 //! without 64-bit atomics get instanced quads covering the same pixels, with a depth test. Both
-//! draw square, round or paraboloid points of fixed or adaptive size and end in the same resolve
-//! pass (background, eye-dome lighting), on a headless target read back to RGBA. Shaders are in
-//! `src/shaders/*.wgsl`, validated by a naga test that needs no GPU.
+//! draw square, round or paraboloid points of fixed or adaptive size into a g-buffer (depth,
+//! colour, splat normals), and the same post passes follow (`post`: hole filling, normals,
+//! shading, SSAO, eye-dome lighting, blur, supersampling), on a headless target read back to
+//! RGBA. Shaders are in `src/shaders/*.wgsl` and `src/post/*.wgsl`, validated by a naga test that
+//! needs no GPU.
 //!
 //! Reads no files: points arrive as [`Points`] (positions relative to an origin, RGBA8 colour);
 //! [`NodeBuffers`] keeps them per node under a byte budget, and a [`Scene`] runs frames of the
@@ -12,10 +14,15 @@
 
 mod colour;
 mod cpu;
+mod post;
 mod raster;
 mod scene;
 
 pub use colour::{ColorBy, class_colour, colours};
+pub use post::gpu::{PASS_SOURCES, gbuffer_source};
+pub use post::{
+    Blur, DEFAULT_PASSES, Fill, PASS_NAMES, Passes, Shade, Ssao, pack_normal, unpack_normal,
+};
 pub use raster::{Path, Rasterizer};
 pub use scene::{FrameStats, Picked, Scene, frame_many};
 
@@ -32,16 +39,10 @@ pub const QUADS_WGSL: &str = concat!(
     include_str!("shaders/draw.wgsl"),
     include_str!("shaders/quads.wgsl")
 );
-/// The resolve pass reading the compute path's framebuffer.
-pub const RESOLVE_ATOMIC_WGSL: &str = concat!(
-    include_str!("shaders/resolve.wgsl"),
-    include_str!("shaders/fb_atomic.wgsl")
-);
-/// The resolve pass reading the quad path's render targets.
-pub const RESOLVE_QUADS_WGSL: &str = concat!(
-    include_str!("shaders/resolve.wgsl"),
-    include_str!("shaders/fb_quads.wgsl")
-);
+/// The compute path's framebuffer as the g-buffer pass reads it ([`gbuffer_source`]).
+pub const FB_ATOMIC_WGSL: &str = include_str!("shaders/fb_atomic.wgsl");
+/// The quad path's render targets as the g-buffer pass reads them.
+pub const FB_QUADS_WGSL: &str = include_str!("shaders/fb_quads.wgsl");
 
 /// Where frames are drawn: a GPU device and queue (without a window), or the CPU.
 pub struct Gpu {
@@ -86,6 +87,22 @@ impl Gpu {
             atomics,
             software: info.device_type == wgpu::DeviceType::Cpu,
         })
+    }
+
+    /// The features the compute path needs (64-bit integer atomics), for a device made elsewhere.
+    pub fn atomics_features() -> wgpu::Features {
+        wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX
+    }
+
+    /// A device made elsewhere (a window's), with the features it was made with.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: &wgpu::AdapterInfo) -> Gpu {
+        let atomics = device.features().contains(Gpu::atomics_features());
+        Gpu {
+            wgpu: Some((device, queue)),
+            name: format!("{} ({:?})", info.name, info.device_type),
+            atomics,
+            software: info.device_type == wgpu::DeviceType::Cpu,
+        }
     }
 
     /// The CPU: the compute path's algorithm on all cores.
@@ -431,7 +448,8 @@ impl Clip {
 pub struct Style {
     pub size: PointSize,
     pub shape: Shape,
-    pub edl: Option<Edl>,
+    /// The post passes over the g-buffer (eye-dome lighting among them).
+    pub passes: Passes,
     pub background: [u8; 4],
     pub clip: Option<Clip>,
 }
@@ -441,7 +459,7 @@ impl Default for Style {
         Style {
             size: PointSize::adaptive(),
             shape: Shape::Square,
-            edl: None,
+            passes: Passes::default(),
             background: [0, 0, 0, 255],
             clip: None,
         }

@@ -1,15 +1,15 @@
-//! Drawing a frame: the compute path (64-bit atomics) or the quad path, then the resolve pass and
-//! the readback.
+//! Drawing a frame: the compute path (64-bit atomics) or the quad path into a g-buffer, then the
+//! post passes (`post`) and the readback.
 
-use crate::{
-    Draw, Gpu, POINT_BYTES, PointSize, QUADS_WGSL, RASTER_WGSL, RESOLVE_ATOMIC_WGSL,
-    RESOLVE_QUADS_WGSL, Shape, Style,
-};
+use crate::post::gpu::{Buffers, Chain};
+use crate::post::{Passes, View};
+use crate::{Draw, Gpu, POINT_BYTES, PointSize, QUADS_WGSL, RASTER_WGSL, Shape, Style};
 use myriad_lod::Camera;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 const WORKGROUP: u32 = 128;
+const COMPUTE: &str = "compute targets";
 
 /// Which way points reach the pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,7 +38,7 @@ struct DrawUniforms {
     far: f32,
     near: f32,
     node: u32,
-    pad: u32,
+    mode: u32,
     cube: [f32; 4],
     clip: [[f32; 4]; 2],
     eye: [[f32; 4]; 3],
@@ -58,29 +58,19 @@ struct Range {
     radius: [f32; 4],
 }
 
-/// The resolve pass's uniforms (as `Resolve` in resolve.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct ResolveUniforms {
-    width: u32,
-    height: u32,
-    background: u32,
-    edl: u32,
-    strength: f32,
-    radius: f32,
-    far: f32,
-    near: f32,
-}
-
 /// Buffers and textures of one image size, kept from frame to frame.
 struct Targets {
-    size: (u32, u32),
-    /// Compute path: one u64 per pixel.
+    /// The g-buffer's size and the supersampling factor.
+    size: (u32, u32, u32),
+    /// Compute path: one u64 per pixel, and the splats' normals.
     framebuffer: Option<wgpu::Buffer>,
-    /// Quad path: colour and depth.
+    normal_fb: Option<wgpu::Buffer>,
+    /// Quad path: colour, splat normals and depth.
     colour: Option<wgpu::TextureView>,
+    normal: Option<wgpu::TextureView>,
     depth: Option<wgpu::TextureView>,
-    image: wgpu::Buffer,
+    /// The post passes' g-buffers and the image.
+    post: Buffers,
     readback: wgpu::Buffer,
     /// Compute path: the frame's points, copied from the draws' buffers.
     merged: Option<wgpu::Buffer>,
@@ -93,11 +83,11 @@ struct Targets {
 enum Pipelines {
     Compute {
         raster: wgpu::ComputePipeline,
-        resolve: wgpu::ComputePipeline,
+        chain: Chain,
     },
     Quads {
         quads: wgpu::RenderPipeline,
-        resolve: wgpu::ComputePipeline,
+        chain: Chain,
     },
     Cpu,
 }
@@ -106,11 +96,13 @@ enum Pipelines {
 pub struct Rasterizer {
     pipelines: Pipelines,
     targets: Mutex<Option<Targets>>,
+    /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
+    present: Mutex<Option<wgpu::TextureView>>,
     pub path: Path,
 }
 
 /// Workgroups for `n` threads, as a 2D dispatch within the 65535 limit per dimension.
-fn groups(n: u32) -> (u32, u32) {
+pub(crate) fn groups(n: u32) -> (u32, u32) {
     let g = n.div_ceil(WORKGROUP).max(1);
     let x = g.min(65535);
     (x, g.div_ceil(x))
@@ -124,7 +116,7 @@ fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
         })
 }
 
-fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
+pub(crate) fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
     let module = module(gpu, entry, src);
     gpu.device()
         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -178,11 +170,18 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
                 module: &module,
                 entry_point: Some("fragment"),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: wgpu::TextureFormat::Rgba8Unorm,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
+                targets: &[
+                    Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                ],
             }),
             multiview_mask: None,
             cache: None,
@@ -219,24 +218,26 @@ impl Rasterizer {
         let pipelines = match path {
             Path::Compute => Pipelines::Compute {
                 raster: compute(gpu, RASTER_WGSL, "rasterize"),
-                resolve: compute(gpu, RESOLVE_ATOMIC_WGSL, "resolve"),
+                chain: Chain::new(gpu, include_str!("shaders/fb_atomic.wgsl")),
             },
             Path::Quads => Pipelines::Quads {
                 quads: quads_pipeline(gpu),
-                resolve: compute(gpu, RESOLVE_QUADS_WGSL, "resolve"),
+                chain: Chain::new(gpu, include_str!("shaders/fb_quads.wgsl")),
             },
             Path::Cpu => Pipelines::Cpu,
         };
         Rasterizer {
             pipelines,
             targets: Mutex::new(None),
+            present: Mutex::new(None),
             path,
         }
     }
 
-    fn targets(&self, gpu: &Gpu, w: u32, h: u32) -> Targets {
+    fn targets(&self, gpu: &Gpu, w: u32, h: u32, f: u32) -> Targets {
         let d = gpu.device();
         let pixels = (w * h) as u64;
+        let out_pixels = ((w / f) * (h / f)) as u64;
         let buffer = |label, size, usage| {
             d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -265,7 +266,7 @@ impl Rasterizer {
         };
         let quads = self.path == Path::Quads;
         Targets {
-            size: (w, h),
+            size: (w, h, f),
             framebuffer: (!quads).then(|| {
                 buffer(
                     "framebuffer",
@@ -273,22 +274,34 @@ impl Rasterizer {
                     wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 )
             }),
+            normal_fb: (!quads).then(|| {
+                buffer(
+                    "splat normals",
+                    pixels * 4,
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                )
+            }),
             colour: quads.then(|| texture("colour", wgpu::TextureFormat::Rgba8Unorm)),
+            normal: quads.then(|| texture("normal", wgpu::TextureFormat::Rgba8Unorm)),
             depth: quads.then(|| texture("depth", wgpu::TextureFormat::Depth32Float)),
-            image: buffer(
-                "image",
-                pixels * 4,
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            ),
+            post: Buffers::new(gpu, pixels, out_pixels),
             readback: buffer(
                 "readback",
-                pixels * 4,
+                out_pixels * 4,
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
             merged: None,
             merged_splats: None,
             copied: Default::default(),
         }
+    }
+
+    /// From now on, GPU paths draw each frame into `texture` (a view of an `Rgba8Unorm` texture
+    /// with `STORAGE_BINDING` usage, on this device, of the camera's size) and return an empty
+    /// image: no readback, for a window that shows the texture. None: read back again. The CPU
+    /// path always returns its image.
+    pub fn present_to(&self, texture: Option<wgpu::TextureView>) {
+        *self.present.lock().unwrap_or_else(|e| e.into_inner()) = texture;
     }
 
     /// Draws `draws` seen by `camera` into a `camera.width` x `camera.height` image and reads it
@@ -302,15 +315,24 @@ impl Rasterizer {
         tree: &[[u32; 4]],
         style: &Style,
     ) -> Vec<u8> {
+        let passes = style.passes;
+        let f = self.factor(gpu, camera, &passes);
+        let (camera, style) = &supersampled(camera, style, f);
+        let view = View {
+            factor: f,
+            ..View::new(camera, &passes, style.background)
+        };
+        let normals = passes.normals();
         if self.path == Path::Cpu {
-            return crate::cpu::render(camera, draws, tree, style);
+            let g = crate::cpu::gbuffer(camera, draws, tree, style, normals);
+            return crate::post::run(g, &passes, &view);
         }
         let (w, h) = (camera.width.max(1), camera.height.max(1));
-        let pixels = (w * h) as u64;
+        let out_pixels = ((w / f) * (h / f)) as u64;
         let d = gpu.device();
         let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
-        if guard.as_ref().is_none_or(|t| t.size != (w, h)) {
-            *guard = Some(self.targets(gpu, w, h));
+        if guard.as_ref().is_none_or(|t| t.size != (w, h, f)) {
+            *guard = Some(self.targets(gpu, w, h, f));
         }
         let draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
         let (point_size, max_size, scale) = match style.size {
@@ -339,7 +361,8 @@ impl Rasterizer {
                        count: u32,
                        spacing: f64,
                        node: Option<(u32, myriad_core::Aabb)>,
-                       radius: [f32; 4]| DrawUniforms {
+                       radius: [f32; 4],
+                       mode: u32| DrawUniforms {
             view_proj: camera.view_proj(origin),
             width: w,
             height: h,
@@ -356,7 +379,7 @@ impl Rasterizer {
             far: camera.far as f32,
             near: camera.near as f32,
             node: node.map_or(u32::MAX, |n| n.0),
-            pad: 0,
+            mode,
             cube: relative(node, origin),
             clip: crate::Clip::uniforms(style.clip, origin),
             eye,
@@ -421,6 +444,9 @@ impl Rasterizer {
             }
         }
         let t = guard.as_ref().expect("targets made above");
+        // The compute path's second pass, for the splats' normals where the passes need them.
+        let splats = draws.iter().any(|d| d.points.splat_buffer().is_some());
+        let modes: &[u32] = if normals && splats { &[0, 1] } else { &[0] };
 
         // Every draw's (quads) or batch's (compute) uniforms in one buffer, at aligned offsets.
         let specs: Vec<DrawUniforms> = match self.path {
@@ -433,13 +459,25 @@ impl Rasterizer {
                         d.spacing,
                         d.node,
                         radius_of(d.points),
+                        0,
                     )
                 })
                 .collect(),
             Path::Cpu => unreachable!("drawn above"),
-            Path::Compute => batch_points
+            Path::Compute => modes
                 .iter()
-                .map(|&n| uniform(origin, (n / WORKGROUP as u64) as u32, 0.0, None, [0.0; 4]))
+                .flat_map(|&mode| {
+                    batch_points.iter().map(move |&n| {
+                        uniform(
+                            origin,
+                            (n / WORKGROUP as u64) as u32,
+                            0.0,
+                            None,
+                            [0.0; 4],
+                            mode,
+                        )
+                    })
+                })
                 .collect(),
         };
         let stride = (std::mem::size_of::<DrawUniforms>() as u64)
@@ -483,18 +521,32 @@ impl Rasterizer {
         match &self.pipelines {
             Pipelines::Cpu => unreachable!("drawn above"),
             Pipelines::Compute { raster, .. } => {
-                let fb = t.framebuffer.as_ref().expect("compute targets");
+                let fb = t.framebuffer.as_ref().expect(COMPUTE);
                 let merged = t.merged.as_ref().expect("made above");
                 let merged_splats = t.merged_splats.as_ref().expect("made with merged");
+                let normal_fb = t.normal_fb.as_ref().expect(COMPUTE);
                 enc.clear_buffer(fb, 0, None);
+                enc.clear_buffer(normal_fb, 0, None);
                 let layout = raster.get_bind_group_layout(0);
                 let mut fresh = fresh.iter();
-                for (b, (batch, &total)) in batches.iter().zip(&batch_points).enumerate() {
+                for (u, (&mode, b)) in modes
+                    .iter()
+                    .flat_map(|m| std::iter::repeat(m).zip(0..batches.len()))
+                    .enumerate()
+                {
+                    let (batch, total) = (&batches[b], batch_points[b]);
                     let mut ranges = Vec::with_capacity(batch.len());
                     let mut group_range = Vec::with_capacity((total / WORKGROUP as u64) as usize);
                     for (k, &(i, start)) in batch.iter().enumerate() {
                         let draw = draws[i];
-                        if *fresh.next().expect("one per draw") {
+                        // Mode 1 finds the points where mode 0 left them, unless later batches
+                        // overwrote them.
+                        let copy = if mode == 0 {
+                            *fresh.next().expect("one per draw")
+                        } else {
+                            batches.len() > 1
+                        };
+                        if copy {
                             enc.copy_buffer_to_buffer(
                                 draw.points.buffer(),
                                 0,
@@ -543,7 +595,7 @@ impl Rasterizer {
                         label: Some("raster"),
                         layout: &layout,
                         entries: &[
-                            (0, uniform_at(b)),
+                            (0, uniform_at(u)),
                             (
                                 1,
                                 wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -564,6 +616,7 @@ impl Rasterizer {
                                     size: wgpu::BufferSize::new(total * 4),
                                 }),
                             ),
+                            (7, normal_fb.as_entire_binding()),
                         ]
                         .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
                     });
@@ -592,15 +645,17 @@ impl Rasterizer {
                     .collect();
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("quads"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: t.colour.as_ref().expect("quad targets"),
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
+                    color_attachments: &[t.colour.as_ref(), t.normal.as_ref()].map(|view| {
+                        Some(wgpu::RenderPassColorAttachment {
+                            view: view.expect("quad targets"),
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })
+                    }),
                     depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                         view: t.depth.as_ref().expect("quad targets"),
                         depth_ops: Some(wgpu::Operations {
@@ -620,67 +675,53 @@ impl Rasterizer {
             }
         }
 
-        let edl = style.edl.unwrap_or(crate::Edl {
-            strength: 0.0,
-            radius: 0.0,
-        });
-        let resolve_uniforms = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("resolve"),
-            contents: bytemuck::bytes_of(&ResolveUniforms {
-                width: w,
-                height: h,
-                background: u32::from_le_bytes(style.background),
-                edl: (style.edl.is_some() && edl.strength > 0.0) as u32,
-                strength: edl.strength,
-                radius: edl.radius,
-                far: camera.far as f32,
-                near: camera.near as f32,
-            }),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let mut entries = vec![
-            entry(0, resolve_uniforms.as_entire_binding()),
-            entry(3, t.image.as_entire_binding()),
-        ];
-        match &self.pipelines {
+        let present = self
+            .present
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let (framebuffer, chain) = match &self.pipelines {
             Pipelines::Cpu => unreachable!("drawn above"),
-            Pipelines::Compute { .. } => entries.push(entry(
-                2,
-                t.framebuffer
-                    .as_ref()
-                    .expect("compute targets")
-                    .as_entire_binding(),
-            )),
-            Pipelines::Quads { .. } => {
-                let (colour, depth) = (t.colour.as_ref(), t.depth.as_ref());
-                let expect = "quad targets";
-                entries.push(entry(
-                    1,
-                    wgpu::BindingResource::TextureView(colour.expect(expect)),
-                ));
-                entries.push(entry(
-                    2,
-                    wgpu::BindingResource::TextureView(depth.expect(expect)),
-                ));
+            Pipelines::Compute { chain, .. } => (
+                vec![
+                    entry(
+                        2,
+                        t.framebuffer.as_ref().expect(COMPUTE).as_entire_binding(),
+                    ),
+                    entry(4, t.normal_fb.as_ref().expect(COMPUTE).as_entire_binding()),
+                ],
+                chain,
+            ),
+            Pipelines::Quads { chain, .. } => {
+                fn view(v: &Option<wgpu::TextureView>) -> wgpu::BindingResource<'_> {
+                    wgpu::BindingResource::TextureView(v.as_ref().expect("quad targets"))
+                }
+                (
+                    vec![
+                        entry(1, view(&t.colour)),
+                        entry(2, view(&t.depth)),
+                        entry(4, view(&t.normal)),
+                    ],
+                    chain,
+                )
             }
-        }
-        let resolve = match &self.pipelines {
-            Pipelines::Compute { resolve, .. } | Pipelines::Quads { resolve, .. } => resolve,
-            Pipelines::Cpu => unreachable!("drawn above"),
         };
-        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("resolve"),
-            layout: &resolve.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(resolve);
-            pass.set_bind_group(0, &bind, &[]);
-            let (x, y) = groups(w * h);
-            pass.dispatch_workgroups(x, y, 1);
+        chain.encode(
+            gpu,
+            &mut enc,
+            &t.post,
+            framebuffer,
+            &passes,
+            &view,
+            camera.far as f32,
+            camera.near as f32,
+            present.as_ref(),
+        );
+        if present.is_some() {
+            gpu.queue().submit([enc.finish()]);
+            return Vec::new();
         }
-        enc.copy_buffer_to_buffer(&t.image, 0, &t.readback, 0, pixels * 4);
+        enc.copy_buffer_to_buffer(&t.post.image, 0, &t.readback, 0, out_pixels * 4);
         gpu.queue().submit([enc.finish()]);
         let slice = t.readback.slice(..);
         slice.map_async(wgpu::MapMode::Read, |r| {
@@ -691,5 +732,43 @@ impl Rasterizer {
         let out = slice.get_mapped_range().expect("mapped image").to_vec();
         t.readback.unmap();
         out
+    }
+}
+
+/// The camera and style of a frame supersampled `f` times: `f` times the pixels on each side,
+/// fixed point sizes and the largest adaptive size `f` times as many pixels.
+fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
+    let mut c = camera.clone();
+    c.width = camera.width.max(1) * f;
+    c.height = camera.height.max(1) * f;
+    let mut s = *style;
+    let k = f as f32;
+    s.size = match style.size {
+        PointSize::Fixed(px) => PointSize::Fixed(px * k),
+        PointSize::Adaptive { scale, max } => PointSize::Adaptive {
+            scale,
+            max: max * k,
+        },
+    };
+    (c, s)
+}
+
+impl Rasterizer {
+    /// The supersampling factor a frame gets: what the passes ask for, less where the GPU's
+    /// framebuffer would not fit one storage binding or texture.
+    fn factor(&self, gpu: &Gpu, camera: &Camera, passes: &Passes) -> u32 {
+        let mut f = passes.factor();
+        if let Some((d, _)) = gpu.wgpu() {
+            let limits = d.limits();
+            let (w, h) = (camera.width.max(1) as u64, camera.height.max(1) as u64);
+            let fits = |f: u64| {
+                w * h * f * f * 8 <= limits.max_storage_buffer_binding_size as u64
+                    && (w.max(h) * f) <= limits.max_texture_dimension_2d as u64
+            };
+            while f > 1 && !fits(f as u64) {
+                f -= 1;
+            }
+        }
+        f
     }
 }

@@ -18,18 +18,22 @@ const ATOMICS: Capabilities =
 fn shaders_validate() {
     validate("raster.wgsl", myriad_render::RASTER_WGSL, ATOMICS);
     validate(
-        "resolve.wgsl + fb_atomic.wgsl",
-        myriad_render::RESOLVE_ATOMIC_WGSL,
+        "gbuffer.wgsl + fb_atomic.wgsl",
+        &myriad_render::gbuffer_source(myriad_render::FB_ATOMIC_WGSL),
         ATOMICS,
     );
     // The quad path runs where there are no 64-bit integers at all.
     let none = Capabilities::empty();
     validate("quads.wgsl", myriad_render::QUADS_WGSL, none);
     validate(
-        "resolve.wgsl + fb_quads.wgsl",
-        myriad_render::RESOLVE_QUADS_WGSL,
+        "gbuffer.wgsl + fb_quads.wgsl",
+        &myriad_render::gbuffer_source(myriad_render::FB_QUADS_WGSL),
         none,
     );
+    // The post passes need nothing beyond WebGPU.
+    for (entry, src) in myriad_render::PASS_SOURCES {
+        validate(entry, src, none);
+    }
 }
 
 #[test]

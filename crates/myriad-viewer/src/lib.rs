@@ -1,20 +1,25 @@
 //! `myriad view`: a window (eframe: winit, wgpu, egui) showing datasets through the myriad-render
 //! pipeline, with navigation, panels and tools. It owns no rendering or level-of-detail logic:
-//! each frame a [`Scene`] selects, streams and draws into an image (on the GPU, or on the CPU where
-//! the only adapter is a software one), which is shown as a texture under the panels.
+//! each frame a [`Scene`] selects, streams and draws (on the window's GPU straight into the
+//! texture it shows, `present.rs`; or on the CPU where the only adapter is a software one, into an
+//! image uploaded as a texture), shown under the panels.
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
 pub mod measure;
 pub mod nav;
+mod present;
 
 use eframe::egui;
+use eframe::egui_wgpu;
+use eframe::wgpu;
 use measure::{Kind, Measurement};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
-use myriad_render::{ColorBy, Edl, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
+use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
+use present::{Presented, passes_panel};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -36,6 +41,12 @@ pub struct ViewOptions {
     /// Scripted navigation first: orbit this many frames (8 pixels of drag each), then print the
     /// frame times seen while moving.
     pub orbit_frames: u32,
+    /// Draw on the window's GPU adapter even where it is a software one (lavapipe), which the
+    /// CPU path otherwise replaces.
+    pub gpu: bool,
+    /// On a GPU, read each frame back and upload it as an egui texture (as before the frame
+    /// went straight to the window), to compare.
+    pub readback: bool,
 }
 
 struct Layer {
@@ -63,6 +74,8 @@ struct App {
     /// The data's extent, for framing.
     bounds: Aabb,
     texture: Option<egui::TextureHandle>,
+    /// GPU frames drawn into the window's texture: the render state and the texture.
+    present: Option<(egui_wgpu::RenderState, Option<Presented>)>,
     stats: Vec<FrameStats>,
     timing: Timing,
     help: bool,
@@ -136,6 +149,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         colour: o.colour,
         bounds,
         texture: None,
+        present: None,
         stats: Vec::new(),
         timing: Timing::default(),
         help: false,
@@ -155,14 +169,55 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         clip_on: false,
         clip_inside: true,
     };
+    // The window's device is asked for what the compute path needs, so that frames drawn on it
+    // go to the screen without a readback.
+    let setup = egui_wgpu::WgpuSetupCreateNew {
+        device_descriptor: std::sync::Arc::new(|adapter: &wgpu::Adapter| {
+            let atomics = Gpu::atomics_features();
+            wgpu::DeviceDescriptor {
+                label: Some("myriad view"),
+                required_features: if adapter.features().contains(atomics) {
+                    atomics
+                } else {
+                    wgpu::Features::empty()
+                },
+                required_limits: adapter.limits(),
+                ..Default::default()
+            }
+        }),
+        ..egui_wgpu::WgpuSetupCreateNew::without_display_handle()
+    };
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_inner_size([o.width as f32, o.height as f32])
             .with_title("Myriad"),
+        wgpu_options: egui_wgpu::WgpuConfiguration {
+            wgpu_setup: egui_wgpu::WgpuSetup::CreateNew(setup),
+            ..Default::default()
+        },
         ..Default::default()
     };
-    eframe::run_native("Myriad", native, Box::new(|_| Ok(Box::new(app))))
-        .map_err(|e| format!("window: {e}"))
+    let (want_gpu, readback) = (o.gpu, o.readback);
+    eframe::run_native(
+        "Myriad",
+        native,
+        Box::new(move |cc| {
+            let mut app = app;
+            // The window's adapter draws where it is a hardware GPU (or asked for); else the CPU.
+            if let Some(rs) = &cc.wgpu_render_state {
+                let info = rs.adapter.get_info();
+                if want_gpu || info.device_type != wgpu::DeviceType::Cpu {
+                    app.gpu = Gpu::from_device(rs.device.clone(), rs.queue.clone(), &info);
+                    app.raster = Rasterizer::new(&app.gpu);
+                    if !readback {
+                        app.present = Some((rs.clone(), None));
+                    }
+                }
+            }
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| format!("window: {e}"))
 }
 
 const HELP: &[(&str, &str)] = &[
@@ -237,6 +292,7 @@ impl App {
                     ColorBy::ReturnNumber,
                     ColorBy::PointSource,
                     ColorBy::Level,
+                    ColorBy::Uniform,
                 ] {
                     ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
                 }
@@ -246,16 +302,7 @@ impl App {
                 l.scene.set_colour(self.colour);
             }
         }
-        let mut edl = self.style.edl.is_some();
-        ui.checkbox(&mut edl, "eye-dome lighting");
-        match (edl, &mut self.style.edl) {
-            (true, Some(e)) => {
-                ui.add(egui::Slider::new(&mut e.strength, 0.0..=4.0).text("strength"));
-                ui.add(egui::Slider::new(&mut e.radius, 0.5..=4.0).text("radius (px)"));
-            }
-            (true, None) => self.style.edl = Some(Edl::default()),
-            (false, _) => self.style.edl = None,
-        }
+        passes_panel(ui, &mut self.style.passes);
         ui.separator();
         ui.label("datasets");
         for l in &mut self.layers {
@@ -669,6 +716,7 @@ impl eframe::App for App {
                     self.nav.orbit(8.0, 0.0);
                 }
                 let t = Instant::now();
+                let shown = self.present_texture(w, h);
                 let image = self.draw(w, h);
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 let now = Instant::now();
@@ -685,18 +733,28 @@ impl eframe::App for App {
                 }
                 self.timing.last = Some(now);
                 self.timing.frame_ms = 0.8 * self.timing.frame_ms + 0.2 * ms;
-                let colour =
-                    egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &image);
-                match &mut self.texture {
-                    Some(t) => t.set(colour, egui::TextureOptions::NEAREST),
+                let id = match shown {
+                    Some(id) => id,
                     None => {
-                        self.texture =
-                            Some(ctx.load_texture("view", colour, egui::TextureOptions::NEAREST))
+                        let colour = egui::ColorImage::from_rgba_unmultiplied(
+                            [w as usize, h as usize],
+                            &image,
+                        );
+                        match &mut self.texture {
+                            Some(t) => t.set(colour, egui::TextureOptions::NEAREST),
+                            None => {
+                                self.texture = Some(ctx.load_texture(
+                                    "view",
+                                    colour,
+                                    egui::TextureOptions::NEAREST,
+                                ))
+                            }
+                        }
+                        self.texture.as_ref().expect("set above").id()
                     }
-                }
-                let texture = self.texture.as_ref().expect("set above");
+                };
                 ui.painter().image(
-                    texture.id(),
+                    id,
                     rect,
                     egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
                     egui::Color32::WHITE,

@@ -19,6 +19,10 @@ pub enum BenchCommand {
     /// Image quality of the level of detail at a point budget (PSNR against every point, next
     /// to as many random points) in three standard views, and the frame time of the pipeline
     Render(crate::bench_render::RenderBenchArgs),
+    /// The cost of each post pass (fill, shade, ssao, edl, blur, aa) at 1280x720 and
+    /// 2160x2160, and the PSNR of no pass, fill, fill+blur and the default chain at 250 k and
+    /// 1 M points against every point
+    Passes(crate::bench_passes::PassesBenchArgs),
     /// One file converted with every structure (octree, layered, kd): build speed, peak memory,
     /// bytes per point, nodes, depth, PSNR at a budget in three views, frame time
     Structures(crate::bench_structures::StructuresBenchArgs),
@@ -70,6 +74,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Convert(a) => convert(a),
         BenchCommand::Render(a) => crate::bench_render::run(a),
         BenchCommand::Structures(a) => crate::bench_structures::run(a),
+        BenchCommand::Passes(a) => crate::bench_passes::run(a),
     }
 }
 

@@ -2,6 +2,7 @@
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
 mod bench;
+mod bench_passes;
 mod bench_render;
 mod bench_structures;
 mod dataset;

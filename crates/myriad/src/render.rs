@@ -6,7 +6,7 @@ use clap::Args;
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions, converge};
-use myriad_render::{ColorBy, Edl, Gpu, Path, PointSize, Rasterizer, Scene, Shape, Style};
+use myriad_render::{ColorBy, Edl, Gpu, Passes, Path, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -23,8 +23,12 @@ pub(crate) fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> 
 
 pub(crate) fn parse_color(s: &str) -> Result<ColorBy, String> {
     ColorBy::parse(s).ok_or_else(|| {
-        format!("\"{s}\": one of rgb, intensity, elevation, classification, return, source, level")
+        format!("\"{s}\": one of rgb, intensity, elevation, classification, return, source, level, uniform")
     })
+}
+
+pub(crate) fn parse_passes(s: &str) -> Result<Passes, String> {
+    Passes::parse(s)
 }
 
 pub(crate) fn parse_point_size(s: &str) -> Result<PointSize, String> {
@@ -93,7 +97,8 @@ pub struct RenderArgs {
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
     full: bool,
-    /// Colour: rgb, intensity, elevation, classification, return, source, level
+    /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform (one
+    /// grey: the shape by shading alone)
     #[arg(long, value_parser = parse_color, default_value = "rgb")]
     color: ColorBy,
     /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
@@ -102,7 +107,12 @@ pub struct RenderArgs {
     /// Point shape: square, round, paraboloid
     #[arg(long, value_parser = parse_shape, default_value = "square")]
     shape: Shape,
-    /// Eye-dome lighting (shading from depth, for scans without colour)
+    /// Post passes over the frame, comma-separated, run in the pipeline's order whatever the
+    /// order given: fill (hole filling), shade (headlight on normals), ssao (ambient
+    /// occlusion), edl (eye-dome lighting), blur, aa (2x2 supersampling); or none
+    #[arg(long, value_parser = parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
+    passes: Passes,
+    /// Eye-dome lighting: adds edl to --passes
     #[arg(long)]
     edl: bool,
     /// Eye-dome lighting strength
@@ -180,10 +190,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let style = Style {
         size: a.point_size,
         shape: a.shape,
-        edl: a.edl.then_some(Edl {
-            strength: a.edl_strength,
-            radius: a.edl_radius,
-        }),
+        passes: Passes {
+            edl: (a.edl || a.passes.edl.is_some()).then_some(Edl {
+                strength: a.edl_strength,
+                radius: a.edl_radius,
+            }),
+            ..a.passes
+        },
         background: [0, 0, 0, 255],
         clip: a.clip.map(|c| myriad_render::Clip {
             bounds: Aabb::new([c[0], c[1], c[2]], [c[3], c[4], c[5]]),

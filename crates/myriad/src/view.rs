@@ -4,7 +4,7 @@ use crate::render::{parse_color, parse_floats, parse_point_size, parse_shape};
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
-use myriad_render::{ColorBy, Edl, PointSize, Shape, Style};
+use myriad_render::{ColorBy, Edl, Passes, PointSize, Shape, Style};
 use myriad_viewer::ViewOptions;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -34,12 +34,24 @@ pub struct ViewArgs {
     /// Point shape: square, round, paraboloid
     #[arg(long, value_parser = parse_shape, default_value = "square")]
     shape: Shape,
-    /// Eye-dome lighting
+    /// Post passes: fill, shade, ssao, edl, blur, aa, or none (as render's; also checkboxes
+    /// in the window)
+    #[arg(long, value_parser = crate::render::parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
+    passes: Passes,
+    /// Eye-dome lighting: adds edl to --passes
     #[arg(long)]
     edl: bool,
-    /// Colour: rgb, intensity, elevation, classification, return, source, level
+    /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform
     #[arg(long, value_parser = parse_color, default_value = "rgb")]
     color: ColorBy,
+    /// Draw on the window's GPU adapter even where it is a software one (lavapipe); without
+    /// it, a software adapter leaves the drawing to the CPU path
+    #[arg(long)]
+    gpu: bool,
+    /// On a GPU: read each frame back and upload it, instead of drawing into the window's
+    /// texture (for comparing frame intervals)
+    #[arg(long)]
+    readback: bool,
     /// Once the view has converged, write the window to this PNG
     #[arg(long)]
     screenshot: Option<PathBuf>,
@@ -82,7 +94,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
         style: Style {
             size: a.point_size,
             shape: a.shape,
-            edl: a.edl.then(Edl::default),
+            passes: Passes {
+                edl: a.passes.edl.or(a.edl.then(Edl::default)),
+                ..a.passes
+            },
             background: [0, 0, 0, 255],
             clip: None,
         },
@@ -90,6 +105,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
         screenshot: a.screenshot,
         exit_after_converged: a.exit_after_converged,
         orbit_frames: a.orbit_frames,
+        gpu: a.gpu,
+        readback: a.readback,
     };
     myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
 }

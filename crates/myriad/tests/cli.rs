@@ -698,6 +698,50 @@ fn render_a_converted_scan_to_png() {
             "{extra:?}: {lit} pixels show the scan"
         );
     }
+
+    // Post passes: one uniform grey shows nothing of the shape without shading, and its shape in
+    // many shades with it; an unknown pass is a usage error naming it.
+    let greys = |passes: &str| {
+        let r = myriad(&[
+            "render",
+            s(&out),
+            "-o",
+            s(&png_path),
+            "--force",
+            "--width",
+            "320",
+            "--height",
+            "200",
+            "--raster",
+            "cpu",
+            "--color",
+            "uniform",
+            "--passes",
+            passes,
+        ]);
+        assert_eq!(r.code, 0, "{passes}: {}", r.stderr);
+        let img = decode(&png_path);
+        let mut levels: Vec<u8> = img
+            .chunks_exact(4)
+            .filter(|p| p[..3] != [0, 0, 0])
+            .map(|p| p[0])
+            .collect();
+        levels.sort();
+        levels.dedup();
+        levels.len()
+    };
+    assert_eq!(greys("none"), 1, "one colour without shading");
+    assert!(greys("shade") > 20, "shading shows the shape");
+    let r = myriad(&[
+        "render",
+        s(&out),
+        "-o",
+        s(&png_path),
+        "--passes",
+        "fill,glow",
+    ]);
+    assert_eq!(r.code, 2);
+    assert!(r.stderr.contains("glow"), "{}", r.stderr);
 }
 
 /// `convert --structure` builds each hierarchy; each verifies, gives every point back, shows in

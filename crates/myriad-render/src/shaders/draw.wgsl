@@ -19,7 +19,8 @@ struct Draw {
     near: f32,
     // This draw's node in `tree`, or 0xffffffff: its own spacing for every point.
     node: u32,
-    pad: u32,
+    // 0: the point pass; 1 (compute path): splats write their normal where their value won.
+    mode: u32,
     // The node's cube relative to the origin: min corner, side.
     cube: vec4<f32>,
     // Clipping box relative to the origin; clip_min.w: 0 none, 1 keep inside, 2 keep outside.

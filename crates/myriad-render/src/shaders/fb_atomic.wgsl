@@ -1,6 +1,7 @@
-
-// The compute path's framebuffer: (reversed linear depth << 32 | colour) per pixel, 0 when empty.
+// The compute path's framebuffer: (reversed linear depth << 32 | colour) per pixel, 0 when empty,
+// and the splats' normals (0: none).
 @group(0) @binding(2) var<storage, read> framebuffer: array<u64>;
+@group(0) @binding(4) var<storage, read> normal_fb: array<u32>;
 
 fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
     let key = u32(framebuffer[i] >> 32u);
@@ -12,4 +13,8 @@ fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
 
 fn colour_at(i: u32, xy: vec2<i32>) -> u32 {
     return u32(framebuffer[i] & 0xfffffffflu);
+}
+
+fn normal_at(i: u32, xy: vec2<i32>) -> u32 {
+    return normal_fb[i];
 }

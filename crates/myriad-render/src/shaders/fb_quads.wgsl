@@ -1,8 +1,9 @@
-
-// The quad path's render targets: colour, and the depth buffer (0 at the near plane, 1 at the
-// far plane and where nothing was drawn).
+// The quad path's render targets: colour, the splats' normals (n * 0.5 + 0.5, alpha 1 where
+// there is one), and the depth buffer (0 at the near plane, 1 at the far plane and where nothing
+// was drawn).
 @group(0) @binding(1) var colour_target: texture_2d<f32>;
 @group(0) @binding(2) var depth_target: texture_depth_2d;
+@group(0) @binding(4) var normal_target: texture_2d<f32>;
 
 fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
     let z = textureLoad(depth_target, xy, 0);
@@ -16,4 +17,12 @@ fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
 
 fn colour_at(i: u32, xy: vec2<i32>) -> u32 {
     return pack4x8unorm(textureLoad(colour_target, xy, 0));
+}
+
+fn normal_at(i: u32, xy: vec2<i32>) -> u32 {
+    let n = textureLoad(normal_target, xy, 0);
+    if (n.a < 0.5) {
+        return 0u;
+    }
+    return pack4x8snorm(vec4<f32>(n.rgb * 2.0 - 1.0, 1.0));
 }

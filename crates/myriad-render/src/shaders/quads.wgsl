@@ -66,6 +66,8 @@ fn vertex(
 
 struct Fragment {
     @location(0) colour: vec4<f32>,
+    // A splat's eye normal facing the eye, as n * 0.5 + 0.5, alpha 1; all 0 for other points.
+    @location(1) normal: vec4<f32>,
     @builtin(frag_depth) depth: f32,
 }
 
@@ -73,6 +75,7 @@ struct Fragment {
 fn fragment(in: Corner) -> Fragment {
     var out: Fragment;
     out.colour = in.colour;
+    out.normal = vec4<f32>(0.0);
     var w = in.depth.x;
     if (in.splat.x >= 0.0) {
         let e = (in.local.x * in.splat.y - in.local.y * in.splat.z) / in.splat.w;
@@ -80,6 +83,8 @@ fn fragment(in: Corner) -> Fragment {
             discard;
         }
         w = w - w / u.focal * e;
+        let n = in.splat.yzw / sqrt(dot(in.splat.yzw, in.splat.yzw));
+        out.normal = vec4<f32>(select(n, -n, n.z > 0.0) * 0.5 + 0.5, 1.0);
     } else if (u.shape != 0u) {
         let d2 = dot(in.local, in.local);
         if (d2 > in.radius2) {

@@ -22,6 +22,9 @@ struct Range {
 // The range each workgroup draws from; `u.count` is the number of workgroups.
 @group(0) @binding(5) var<storage, read> group_range: array<u32>;
 @group(0) @binding(2) var<storage, read_write> framebuffer: array<atomic<u64>>;
+// Mode 1: the normal (pack4x8snorm, eye coordinates) of the splat whose value each pixel kept.
+@group(0) @binding(7) var<storage, read_write> normal_fb: array<u32>;
+var<private> normal_code: u32;
 
 // Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
 fn depth_key(w: f32) -> u32 {
@@ -33,7 +36,20 @@ fn plot(x: i32, y: i32, value: u64) {
     if (x < 0 || y < 0 || x >= i32(u.width) || y >= i32(u.height)) {
         return;
     }
-    atomicMax(&framebuffer[u32(y) * u.width + u32(x)], value);
+    let i = u32(y) * u.width + u32(x);
+    if (u.mode == 1u) {
+        if (atomicLoad(&framebuffer[i]) == value) {
+            normal_fb[i] = normal_code;
+        }
+        return;
+    }
+    atomicMax(&framebuffer[i], value);
+}
+
+// A splat's eye normal (`splat_shape`'s yzw) facing the eye, packed.
+fn splat_normal_code(sp: vec4<f32>) -> u32 {
+    let n = sp.yzw / sqrt(dot(sp.yzw, sp.yzw));
+    return pack4x8snorm(vec4<f32>(select(n, -n, n.z > 0.0), 1.0));
 }
 
 @compute @workgroup_size(128)
@@ -68,10 +84,15 @@ fn rasterize(
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     let colour = u64(bitcast<u32>(p.w));
-    if (r.radius.z > 0.0 && u.point_size == 0.0) {
+    let splat = r.radius.z > 0.0 && u.point_size == 0.0;
+    if (u.mode == 1u && !splat) {
+        return;
+    }
+    if (splat) {
         // An oriented disc: the pixels whose ray meets it within its radius, each at the depth
         // where it does (the splat seen in a small neighbourhood as in parallel projection).
         let sp = splat_shape(splat_codes[r.start + local], r.radius.xy, clip.w);
+        normal_code = splat_normal_code(sp);
         let s = splat_pixels(sp.x);
         let x0 = i32(floor(fx)) - (s - 1) / 2;
         let y0 = i32(floor(fy)) - (s - 1) / 2;

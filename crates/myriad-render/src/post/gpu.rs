@@ -1,0 +1,244 @@
+//! The post passes on the GPU: one compute dispatch per pass over the g-buffer, ping-ponging
+//! between two sets of buffers (depth, colour, normal: one array each, so that a g-buffer of
+//! 2160 x 2160 supersampled twice still fits a storage binding), then the finish pass into the
+//! image. The same passes as `mod.rs` runs on the CPU.
+
+use super::{Passes, View};
+use crate::Gpu;
+
+macro_rules! pass_source {
+    ($file:literal) => {
+        concat!(include_str!("common.wgsl"), include_str!($file))
+    };
+}
+
+/// The WGSL of every pass (common.wgsl with the pass), by entry point; the g-buffer pass is
+/// [`gbuffer_source`].
+pub const PASS_SOURCES: [(&str, &str); 9] = [
+    ("fill_rows", pass_source!("fill.wgsl")),
+    ("fill_columns", pass_source!("fill.wgsl")),
+    ("normals", pass_source!("normals.wgsl")),
+    ("shade", pass_source!("shade.wgsl")),
+    ("ssao", pass_source!("ssao.wgsl")),
+    ("edl", pass_source!("edl.wgsl")),
+    ("blur", pass_source!("blur.wgsl")),
+    ("finish", pass_source!("finish.wgsl")),
+    ("finish_texture", pass_source!("finish.wgsl")),
+];
+
+/// The g-buffer pass reading a path's framebuffer (`fb_atomic.wgsl` or `fb_quads.wgsl`).
+pub fn gbuffer_source(framebuffer: &str) -> String {
+    concat!(include_str!("common.wgsl"), include_str!("gbuffer.wgsl")).to_string() + framebuffer
+}
+
+/// As `Post` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Uniforms {
+    width: u32,
+    height: u32,
+    out_width: u32,
+    out_height: u32,
+    background: u32,
+    factor: u32,
+    fill_radius: u32,
+    fill_min: u32,
+    fill_threshold: f32,
+    focal: f32,
+    far: f32,
+    near: f32,
+    ambient: f32,
+    headlight: f32,
+    sun: f32,
+    ssao_radius: f32,
+    sun_eye: [f32; 4],
+    ssao_strength: f32,
+    edl_strength: f32,
+    edl_radius: f32,
+    blur_threshold: f32,
+}
+
+/// The compute pipelines of the chain.
+pub(crate) struct Chain {
+    gbuffer: wgpu::ComputePipeline,
+    passes: Vec<(&'static str, wgpu::ComputePipeline)>,
+}
+
+/// The g-buffer's two sets of (depth, colour, normal) arrays and the image.
+pub(crate) struct Buffers {
+    sets: [[wgpu::Buffer; 3]; 2],
+    pub image: wgpu::Buffer,
+}
+
+impl Buffers {
+    /// For a g-buffer of `pixels` and an image of `out_pixels`.
+    pub fn new(gpu: &Gpu, pixels: u64, out_pixels: u64) -> Buffers {
+        let d = gpu.device();
+        let buffer = |label, size: u64, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let set = || {
+            ["g-buffer depth", "g-buffer colour", "g-buffer normal"]
+                .map(|l| buffer(l, pixels * 4, wgpu::BufferUsages::STORAGE))
+        };
+        Buffers {
+            sets: [set(), set()],
+            image: buffer(
+                "image",
+                out_pixels * 4,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
+        }
+    }
+}
+
+impl Chain {
+    pub fn new(gpu: &Gpu, framebuffer: &str) -> Chain {
+        let pipeline = |src: &str, entry: &str| crate::raster::compute(gpu, src, entry);
+        Chain {
+            gbuffer: pipeline(&gbuffer_source(framebuffer), "gbuffer"),
+            passes: PASS_SOURCES
+                .iter()
+                .map(|&(entry, src)| (entry, pipeline(src, entry)))
+                .collect(),
+        }
+    }
+
+    fn pass(&self, name: &str) -> &wgpu::ComputePipeline {
+        &self.passes.iter().find(|p| p.0 == name).expect("a pass").1
+    }
+
+    /// Records the g-buffer pass (reading the framebuffer bound by `framebuffer`, entries at
+    /// bindings 1, 2 and 4), every pass that is on, and the finish pass into `buffers.image`,
+    /// or into `texture` (RGBA8 storage, the image's size) when given.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        buffers: &Buffers,
+        framebuffer: Vec<wgpu::BindGroupEntry>,
+        passes: &Passes,
+        view: &View,
+        far: f32,
+        near: f32,
+        texture: Option<&wgpu::TextureView>,
+    ) {
+        let d = gpu.device();
+        let f = view.factor;
+        let fill = passes.fill.unwrap_or_default();
+        let shade = passes.shade.unwrap_or_default();
+        let ssao = passes.ssao.unwrap_or_default();
+        let edl = passes.edl.unwrap_or_default();
+        let uniforms = Uniforms {
+            width: view.width,
+            height: view.height,
+            out_width: view.width / f,
+            out_height: view.height / f,
+            background: u32::from_le_bytes(view.background),
+            factor: f,
+            fill_radius: fill.radius * f,
+            fill_min: fill.min,
+            fill_threshold: fill.threshold,
+            focal: view.focal,
+            far,
+            near,
+            ambient: shade.ambient,
+            headlight: shade.headlight,
+            sun: shade.sun,
+            ssao_radius: ssao.radius * f as f32,
+            sun_eye: [view.sun[0], view.sun[1], view.sun[2], 0.0],
+            ssao_strength: ssao.strength,
+            edl_strength: edl.strength,
+            edl_radius: edl.radius * f as f32,
+            blur_threshold: passes.blur.unwrap_or_default().threshold,
+        };
+        let uniforms = wgpu::util::DeviceExt::create_buffer_init(
+            d,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("post"),
+                contents: bytemuck::bytes_of(&uniforms),
+                usage: wgpu::BufferUsages::UNIFORM,
+            },
+        );
+        fn entry(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry { binding, resource }
+        }
+        fn set_entries(
+            set: &[wgpu::Buffer; 3],
+            first: u32,
+            n: usize,
+        ) -> Vec<wgpu::BindGroupEntry<'_>> {
+            set.iter()
+                .take(n)
+                .enumerate()
+                .map(|(k, b)| entry(first + k as u32, b.as_entire_binding()))
+                .collect()
+        }
+        let dispatch = |enc: &mut wgpu::CommandEncoder,
+                        pipeline: &wgpu::ComputePipeline,
+                        entries: Vec<wgpu::BindGroupEntry>,
+                        pixels: u32| {
+            let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("post"),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            let (x, y) = crate::raster::groups(pixels);
+            pass.dispatch_workgroups(x, y, 1);
+        };
+        let pixels = view.width * view.height;
+        let mut entries = vec![entry(0, uniforms.as_entire_binding())];
+        entries.extend(framebuffer);
+        entries.extend(set_entries(&buffers.sets[0], 13, 3));
+        dispatch(enc, &self.gbuffer, entries, pixels);
+        let mut names = Vec::new();
+        if passes.fill.is_some() {
+            names.extend(["fill_rows", "fill_columns"]);
+        }
+        if passes.normals() {
+            names.push("normals");
+        }
+        for (name, on) in [
+            ("shade", passes.shade.is_some()),
+            ("ssao", passes.ssao.is_some()),
+            ("edl", passes.edl.is_some_and(|e| e.strength > 0.0)),
+            ("blur", passes.blur.is_some()),
+        ] {
+            if on {
+                names.push(name);
+            }
+        }
+        let mut current = 0;
+        for name in names {
+            let mut entries = vec![entry(0, uniforms.as_entire_binding())];
+            entries.extend(set_entries(&buffers.sets[current], 10, 3));
+            entries.extend(set_entries(&buffers.sets[1 - current], 13, 3));
+            dispatch(enc, self.pass(name), entries, pixels);
+            current = 1 - current;
+        }
+        let (finish, out) = match texture {
+            None => ("finish", entry(3, buffers.image.as_entire_binding())),
+            Some(t) => (
+                "finish_texture",
+                entry(5, wgpu::BindingResource::TextureView(t)),
+            ),
+        };
+        let mut entries = vec![entry(0, uniforms.as_entire_binding()), out];
+        entries.extend(set_entries(&buffers.sets[current], 10, 2));
+        dispatch(
+            enc,
+            self.pass(finish),
+            entries,
+            (view.width / f) * (view.height / f),
+        );
+    }
+}

@@ -1,0 +1,206 @@
+//! `myriad bench passes DATASET...`: what each post pass costs and what the chains buy.
+//!
+//! Cost: the median frame time of `--frames` converged frames of the overview at
+//! `--frame-budget` points with no pass, each pass alone and the default chain, at each
+//! `--sizes` (1280x720 and 2160x2160, one eye of a current headset, by default); a pass's cost
+//! is its median minus the median without passes, measured in the same run.
+//! Quality: for each dataset and standard view, the PSNR of the image at each `--budgets` against
+//! the image of every point drawn with the same passes, for no pass, fill, fill+blur and the
+//! default chain.
+
+use crate::bench_render::{frame_times, psnr, quality};
+use crate::render::write_png;
+use anyhow::Result;
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_lod::Camera;
+use myriad_render::{ColorBy, DEFAULT_PASSES, Gpu, Passes, Rasterizer, Scene, Style};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Args)]
+pub struct PassesBenchArgs {
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// Image sizes of the timed frames: WxH,...
+    #[arg(long, default_value = "1280x720,2160x2160")]
+    sizes: String,
+    /// Point budget of the timed frames
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    frame_budget: u64,
+    /// Timed frames per configuration
+    #[arg(long, default_value_t = 7)]
+    frames: usize,
+    /// Point budgets of the quality images, comma-separated
+    #[arg(long, default_value = "250k,1M")]
+    budgets: String,
+    /// Size of the quality images
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Colour scheme of every image
+    #[arg(long, value_parser = crate::render::parse_color, default_value = "rgb")]
+    color: ColorBy,
+    /// Skip the timing (quality only)
+    #[arg(long)]
+    no_timing: bool,
+    /// Skip the quality table (timing only)
+    #[arg(long)]
+    no_quality: bool,
+    /// Draw on the CPU even where there is a hardware GPU
+    #[arg(long, conflicts_with = "gpu")]
+    cpu: bool,
+    /// Draw on the GPU adapter even where it is a software one (lavapipe)
+    #[arg(long)]
+    gpu: bool,
+    /// Write the quality images into this folder (NAME-VIEW-BUDGET-CHAIN.png and -full)
+    #[arg(long)]
+    images: Option<PathBuf>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| anyhow::anyhow!("--sizes: {s:?} is not WxH"))?;
+    Ok((w.trim().parse()?, h.trim().parse()?))
+}
+
+pub fn run(a: PassesBenchArgs) -> Result<()> {
+    let (gpu, why) = if a.cpu {
+        (Gpu::cpu(), None)
+    } else if a.gpu {
+        (Gpu::headless().map_err(anyhow::Error::msg)?, None)
+    } else {
+        Gpu::best()
+    };
+    if let Some(why) = why {
+        eprintln!("warning: {why}: drawing on the CPU");
+    }
+    let raster = Rasterizer::new(&gpu);
+    let sizes = a
+        .sizes
+        .split(',')
+        .map(parse_size)
+        .collect::<Result<Vec<_>>>()?;
+    let budgets = a
+        .budgets
+        .split(',')
+        .map(|b| crate::synth::parse_count(b.trim()).map_err(anyhow::Error::msg))
+        .collect::<Result<Vec<_>>>()?;
+    println!("{}, {:?} path", gpu.name, raster.path);
+    if let Some(dir) = &a.images {
+        std::fs::create_dir_all(dir)?;
+    }
+    let timed: Vec<(&str, String)> = [
+        ("none", "none"),
+        ("fill", "fill"),
+        ("shade", "shade"),
+        ("ssao", "ssao"),
+        ("edl", "edl"),
+        ("blur", "blur"),
+        ("aa", "aa"),
+        ("default", DEFAULT_PASSES),
+        ("all", "fill,shade,ssao,edl,blur,aa"),
+    ]
+    .into_iter()
+    .map(|(n, p)| (n, p.to_string()))
+    .collect();
+    let chains = [
+        ("none", "none"),
+        ("fill", "fill"),
+        ("fill+blur", "fill,blur"),
+        ("default", DEFAULT_PASSES),
+    ];
+    for path in &a.datasets {
+        let ds = Arc::new(Dataset::open(path)?);
+        let name = path
+            .file_stem()
+            .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
+        let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
+        scene.set_colour(a.color);
+        println!(
+            "\n{name}: {} points",
+            crate::info::thousands(scene.hierarchy.points())
+        );
+        if !a.no_timing {
+            println!(
+                "frame time, overview, budget {}, median of {} frames; cost = median - median of none",
+                crate::info::thousands(a.frame_budget),
+                a.frames
+            );
+            for &(w, h) in &sizes {
+                let mut cam = Camera::standard_views(&scene.view_bounds, w, h)[0].1;
+                cam.fit_depth(&ds.meta.bounds);
+                let mut base = 0.0;
+                for (label, chain) in &timed {
+                    let style = Style {
+                        passes: Passes::parse(chain).map_err(anyhow::Error::msg)?,
+                        ..Style::default()
+                    };
+                    let (times, points) = frame_times(
+                        &mut scene,
+                        &gpu,
+                        &raster,
+                        &cam,
+                        &style,
+                        a.frame_budget,
+                        a.frames,
+                    );
+                    let median = times[times.len() / 2].0 * 1e3;
+                    if *label == "none" {
+                        base = median;
+                    }
+                    println!(
+                        "{w}x{h} {label:<8} {:>9} points  median {median:>8.1} ms  cost {:>+8.1} ms  (min {:.1}, max {:.1})",
+                        crate::info::thousands(points),
+                        median - base,
+                        times[0].0 * 1e3,
+                        times[times.len() - 1].0 * 1e3,
+                    );
+                }
+            }
+        }
+        if a.no_quality {
+            continue;
+        }
+        println!(
+            "PSNR (dB) against every point drawn with the same passes, {}x{}",
+            a.width, a.height
+        );
+        print!("{:<10} {:>9}", "view", "budget");
+        for (label, _) in &chains {
+            print!(" {label:>10}");
+        }
+        println!("  fill gain");
+        let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
+        for (view, mut cam) in views {
+            cam.fit_depth(&ds.meta.bounds);
+            for &budget in &budgets {
+                print!("{view:<10} {:>9}", crate::info::thousands(budget));
+                let mut values = Vec::new();
+                for (label, chain) in &chains {
+                    let style = Style {
+                        passes: Passes::parse(chain).map_err(anyhow::Error::msg)?,
+                        ..Style::default()
+                    };
+                    let q = quality(&mut scene, &gpu, &raster, &cam, &style, budget)
+                        .map_err(|e| anyhow::anyhow!("{name}: {view}: {e}"))?;
+                    debug_assert_eq!(q.psnr, psnr(&q.lod, &q.full));
+                    print!(" {:>10.2}", q.psnr);
+                    values.push(q.psnr);
+                    if let Some(dir) = &a.images {
+                        let chain = label.replace('+', "-");
+                        let b = crate::info::thousands(budget).replace(',', "");
+                        let file = dir.join(format!("{name}-{view}-{b}-{chain}.png"));
+                        write_png(&file, a.width, a.height, &q.lod)?;
+                        let file = dir.join(format!("{name}-{view}-full-{chain}.png"));
+                        write_png(&file, a.width, a.height, &q.full)?;
+                    }
+                }
+                println!("  {:>+8.2}", values[1] - values[0]);
+            }
+        }
+    }
+    Ok(())
+}
