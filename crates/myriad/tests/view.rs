@@ -61,67 +61,76 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
-    let shot = d.join("shot.png");
-    let mut child = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_myriad"))
-        .args([
-            "view",
-            ds.to_str().unwrap(),
-            "--width",
-            "900",
-            "--height",
-            "600",
-            "--orbit-frames",
-            "10",
-            "--screenshot",
-            shot.to_str().unwrap(),
-            "--exit-after-converged",
-        ])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // The viewer exits by itself; a hang fails the test instead of blocking CI.
-    let t = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
+    // As a user opens it (on this machine the CPU path draws), then on the window's own GPU
+    // adapter (lavapipe: `--gpu`), drawing straight into the window's texture.
+    let run = |extra: &[&str]| -> bool {
+        let shot = d.join(format!("shot{}.png", extra.len()));
+        let mut child = Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 1024x768x24"])
+            .arg(env!("CARGO_BIN_EXE_myriad"))
+            .args([
+                "view",
+                ds.to_str().unwrap(),
+                "--width",
+                "900",
+                "--height",
+                "600",
+                "--orbit-frames",
+                "10",
+                "--screenshot",
+                shot.to_str().unwrap(),
+                "--exit-after-converged",
+            ])
+            .args(extra)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The viewer exits by itself; a hang fails the test instead of blocking CI.
+        let t = Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if t.elapsed() > Duration::from_secs(240) {
+                let _ = child.kill();
+                panic!("the viewer did not exit within 240 s");
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let out = child.wait_with_output().unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if !status.success() && stderr.contains("No suitable graphics adapter") {
+            eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+            return false;
         }
-        if t.elapsed() > Duration::from_secs(240) {
-            let _ = child.kill();
-            panic!("the viewer did not exit within 240 s");
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !status.success() && stderr.contains("No suitable graphics adapter") {
-        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
-        return;
-    }
-    assert!(status.success(), "{stdout}\n{stderr}");
-    assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
-    assert!(stdout.contains("screenshot written"), "{stdout}");
-    // The window as shown: panels on the left, the scan in the view. The view (right of the
-    // panel) is mostly the scan: not black.
-    let (w, h, img) = decode(&shot);
-    assert!(w >= 800 && h >= 500, "{w}x{h}");
-    let mut lit = 0;
-    let mut total = 0;
-    for y in 0..h as usize {
-        for x in (w as usize / 2)..w as usize {
-            let p = &img[(y * w as usize + x) * 4..][..3];
-            total += 1;
-            if p != [0, 0, 0] {
-                lit += 1;
+        assert!(status.success(), "{extra:?}: {stdout}\n{stderr}");
+        assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
+        assert!(stdout.contains("screenshot written"), "{stdout}");
+        // The window as shown: panels on the left, the scan in the view. The view (right of the
+        // panel) is mostly the scan: not black.
+        let (w, h, img) = decode(&shot);
+        assert!(w >= 800 && h >= 500, "{w}x{h}");
+        let mut lit = 0;
+        let mut total = 0;
+        for y in 0..h as usize {
+            for x in (w as usize / 2)..w as usize {
+                let p = &img[(y * w as usize + x) * 4..][..3];
+                total += 1;
+                if p != [0, 0, 0] {
+                    lit += 1;
+                }
             }
         }
+        assert!(
+            lit * 4 > total,
+            "{extra:?}: {lit} of {total} pixels of the view show the scan"
+        );
+        true
+    };
+    if run(&[]) {
+        run(&["--gpu"]);
     }
-    assert!(
-        lit * 4 > total,
-        "{lit} of {total} pixels of the view show the scan"
-    );
     let _ = std::fs::remove_dir_all(&d);
 }
