@@ -121,16 +121,21 @@ pub(crate) fn gbuffer(
     }
     let far = camera.far as f32;
     let mut g = crate::post::GBuffer::new(w, h);
-    for (i, px) in fb.iter().enumerate() {
-        let v = px.load(Ordering::Relaxed);
-        let key = (v >> 32) as u32;
-        if key != 0 {
-            // As `depth_at` in fb_atomic.wgsl.
-            g.depth[i] = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
-            g.colour[i] = v as u32;
-            g.normal[i] = normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
-        }
-    }
+    g.depth
+        .par_iter_mut()
+        .zip(g.colour.par_iter_mut())
+        .zip(g.normal.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, ((depth, colour), normal))| {
+            let v = fb[i].load(Ordering::Relaxed);
+            let key = (v >> 32) as u32;
+            if key != 0 {
+                // As `depth_at` in fb_atomic.wgsl.
+                *depth = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
+                *colour = v as u32;
+                *normal = normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
+            }
+        });
     g
 }
 

@@ -108,7 +108,7 @@ pub(crate) fn groups(n: u32) -> (u32, u32) {
     (x, g.div_ceil(x))
 }
 
-fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
+pub(crate) fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
     gpu.device()
         .create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
@@ -117,12 +117,20 @@ fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
 }
 
 pub(crate) fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
-    let module = module(gpu, entry, src);
+    compute_in(gpu, &module(gpu, entry, src), entry)
+}
+
+/// The pipeline of one entry point of a compiled module.
+pub(crate) fn compute_in(
+    gpu: &Gpu,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     gpu.device()
         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(entry),
             layout: None,
-            module: &module,
+            module,
             entry_point: Some(entry),
             compilation_options: Default::default(),
             cache: None,
@@ -143,6 +151,11 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
             shader_location: 1,
         },
     ];
+    let target = Some(wgpu::ColorTargetState {
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
+    });
     gpu.device()
         .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("quads"),
@@ -170,18 +183,8 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
                 module: &module,
                 entry_point: Some("fragment"),
                 compilation_options: Default::default(),
-                targets: &[
-                    Some(wgpu::ColorTargetState {
-                        format: wgpu::TextureFormat::Rgba8Unorm,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(wgpu::ColorTargetState {
-                        format: wgpu::TextureFormat::Rgba8Unorm,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                ],
+                // Colour and the splats' normals.
+                targets: &[target.clone(), target],
             }),
             multiview_mask: None,
             cache: None,
@@ -318,10 +321,7 @@ impl Rasterizer {
         let passes = style.passes;
         let f = self.factor(gpu, camera, &passes);
         let (camera, style) = &supersampled(camera, style, f);
-        let view = View {
-            factor: f,
-            ..View::new(camera, &passes, style.background)
-        };
+        let view = View::new(camera, &passes, style.background, f);
         let normals = passes.normals();
         if self.path == Path::Cpu {
             let g = crate::cpu::gbuffer(camera, draws, tree, style, normals);

@@ -84,10 +84,12 @@ impl Rng {
     }
 }
 
-pub fn run(a: RenderBenchArgs) -> Result<()> {
-    let (gpu, why) = if a.cpu {
+/// Where a benchmark draws: the CPU (`cpu`), the GPU adapter even if a software one (`gpu`), or
+/// the best there is (a warning when that is the CPU for want of an adapter).
+pub fn bench_gpu(cpu: bool, gpu: bool) -> Result<Gpu> {
+    let (gpu, why) = if cpu {
         (Gpu::cpu(), None)
-    } else if a.gpu {
+    } else if gpu {
         (Gpu::headless().map_err(anyhow::Error::msg)?, None)
     } else {
         Gpu::best()
@@ -95,6 +97,11 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
     if let Some(why) = why {
         eprintln!("warning: {why}: drawing on the CPU");
     }
+    Ok(gpu)
+}
+
+pub fn run(a: RenderBenchArgs) -> Result<()> {
+    let gpu = bench_gpu(a.cpu, a.gpu)?;
     let raster = Rasterizer::new(&gpu);
     println!(
         "{}, {:?} path, {}x{}; quality at a budget of {} points against every point, \

@@ -99,13 +99,24 @@ impl Buffers {
 
 impl Chain {
     pub fn new(gpu: &Gpu, framebuffer: &str) -> Chain {
-        let pipeline = |src: &str, entry: &str| crate::raster::compute(gpu, src, entry);
-        Chain {
-            gbuffer: pipeline(&gbuffer_source(framebuffer), "gbuffer"),
-            passes: PASS_SOURCES
+        use crate::raster::{compute, compute_in, module};
+        // One module per source: fill.wgsl and finish.wgsl hold two entry points each.
+        let mut modules: Vec<(&str, wgpu::ShaderModule)> = Vec::new();
+        let mut passes = Vec::new();
+        for &(entry, src) in &PASS_SOURCES {
+            if !modules.iter().any(|m| m.0 == src) {
+                modules.push((src, module(gpu, entry, src)));
+            }
+            let m = &modules
                 .iter()
-                .map(|&(entry, src)| (entry, pipeline(src, entry)))
-                .collect(),
+                .find(|m| m.0 == src)
+                .expect("compiled above")
+                .1;
+            passes.push((entry, compute_in(gpu, m, entry)));
+        }
+        Chain {
+            gbuffer: compute(gpu, &gbuffer_source(framebuffer), "gbuffer"),
+            passes,
         }
     }
 
@@ -200,25 +211,8 @@ impl Chain {
         entries.extend(framebuffer);
         entries.extend(set_entries(&buffers.sets[0], 13, 3));
         dispatch(enc, &self.gbuffer, entries, pixels);
-        let mut names = Vec::new();
-        if passes.fill.is_some() {
-            names.extend(["fill_rows", "fill_columns"]);
-        }
-        if passes.normals() {
-            names.push("normals");
-        }
-        for (name, on) in [
-            ("shade", passes.shade.is_some()),
-            ("ssao", passes.ssao.is_some()),
-            ("edl", passes.edl.is_some_and(|e| e.strength > 0.0)),
-            ("blur", passes.blur.is_some()),
-        ] {
-            if on {
-                names.push(name);
-            }
-        }
         let mut current = 0;
-        for name in names {
+        for name in passes.steps() {
             let mut entries = vec![entry(0, uniforms.as_entire_binding())];
             entries.extend(set_entries(&buffers.sets[current], 10, 3));
             entries.extend(set_entries(&buffers.sets[1 - current], 13, 3));

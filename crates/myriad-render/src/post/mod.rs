@@ -153,22 +153,27 @@ impl Passes {
         Ok(p)
     }
 
-    /// The names of the passes that are on, in the pipeline's order.
-    pub fn names(&self) -> Vec<&'static str> {
-        let on = [
-            self.fill.is_some(),
-            self.shade.is_some(),
-            self.ssao.is_some(),
-            self.edl.is_some_and(|e| e.strength > 0.0),
-            self.blur.is_some(),
-            self.aa > 1,
-        ];
-        PASS_NAMES
-            .iter()
-            .zip(on)
-            .filter(|(_, on)| *on)
-            .map(|(n, _)| *n)
-            .collect()
+    /// The passes' dispatches in the pipeline's order, by their entry points' names (the
+    /// g-buffer's and the finish pass around them): one list for the CPU and the GPU.
+    pub(crate) fn steps(&self) -> Vec<&'static str> {
+        let mut steps = Vec::new();
+        if self.fill.is_some() {
+            steps.extend(["fill_rows", "fill_columns"]);
+        }
+        if self.normals() {
+            steps.push("normals");
+        }
+        for (name, on) in [
+            ("shade", self.shade.is_some()),
+            ("ssao", self.ssao.is_some()),
+            ("edl", self.edl.is_some_and(|e| e.strength > 0.0)),
+            ("blur", self.blur.is_some()),
+        ] {
+            if on {
+                steps.push(name);
+            }
+        }
+        steps
     }
 
     /// Whether a pass needs normals.
@@ -197,7 +202,13 @@ pub(crate) struct View {
 }
 
 impl View {
-    pub fn new(camera: &myriad_lod::Camera, passes: &Passes, background: [u8; 4]) -> View {
+    /// The view of a g-buffer drawn by `camera` (already supersampled `factor` times).
+    pub fn new(
+        camera: &myriad_lod::Camera,
+        passes: &Passes,
+        background: [u8; 4],
+        factor: u32,
+    ) -> View {
         let (r, u, f) = camera.basis();
         let s = passes.shade.map_or([0.0, 0.0, 1.0], |s| s.sun_direction);
         let len = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt().max(1e-30);
@@ -205,7 +216,7 @@ impl View {
         View {
             width: camera.width.max(1),
             height: camera.height.max(1),
-            factor: passes.factor(),
+            factor,
             focal: camera.focal() as f32,
             sun: [dot(r), dot(u), dot(f)],
             background,
@@ -288,38 +299,34 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// g-buffer's size divided by the supersampling factor.
 pub(crate) fn run(mut g: GBuffer, passes: &Passes, v: &View) -> Vec<u8> {
     let mut scratch = GBuffer::new(g.width, g.height);
-    let f = v.factor as f32;
-    let mut step = |pass: &(dyn Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync), g: &mut GBuffer| {
-        each_pixel(g, &mut scratch, pass);
-        std::mem::swap(g, &mut scratch);
-    };
-    if let Some(fill) = passes.fill {
-        let radius = fill.radius * v.factor;
-        step(&|g, i| fill_pixel(g, i, 0, radius, &fill), &mut g);
-        step(&|g, i| fill_pixel(g, i, 1, radius, &fill), &mut g);
-    }
-    if passes.normals() {
-        step(&|g, i| normal_pixel(g, i, v), &mut g);
-    }
-    if let Some(s) = passes.shade {
-        step(&|g, i| shade_pixel(g, i, v, &s), &mut g);
-    }
-    if let Some(s) = passes.ssao {
-        let s = Ssao {
-            radius: s.radius * f,
-            ..s
+    // Pixel sizes scale with the supersampling, as in gpu.rs's uniforms.
+    let f = v.factor;
+    let fill = passes.fill.unwrap_or_default();
+    let radius = fill.radius * f;
+    let shade = passes.shade.unwrap_or_default();
+    let ssao = passes.ssao.map_or_else(Ssao::default, |s| Ssao {
+        radius: s.radius * f as f32,
+        ..s
+    });
+    let edl = passes.edl.map_or_else(Edl::default, |e| Edl {
+        radius: e.radius * f as f32,
+        ..e
+    });
+    let blur = passes.blur.unwrap_or_default();
+    type Pass<'a> = Box<dyn Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync + 'a>;
+    for step in passes.steps() {
+        let pass: Pass = match step {
+            "fill_rows" => Box::new(|g, i| fill_pixel(g, i, 0, radius, &fill)),
+            "fill_columns" => Box::new(|g, i| fill_pixel(g, i, 1, radius, &fill)),
+            "normals" => Box::new(|g, i| normal_pixel(g, i, v)),
+            "shade" => Box::new(|g, i| shade_pixel(g, i, v, &shade)),
+            "ssao" => Box::new(|g, i| ssao_pixel(g, i, v, &ssao)),
+            "edl" => Box::new(|g, i| edl_pixel(g, i, &edl)),
+            "blur" => Box::new(|g, i| blur_pixel(g, i, &blur)),
+            _ => unreachable!("a step of Passes::steps"),
         };
-        step(&|g, i| ssao_pixel(g, i, v, &s), &mut g);
-    }
-    if let Some(e) = passes.edl.filter(|e| e.strength > 0.0) {
-        let e = Edl {
-            radius: e.radius * f,
-            ..e
-        };
-        step(&|g, i| edl_pixel(g, i, &e), &mut g);
-    }
-    if let Some(b) = passes.blur {
-        step(&|g, i| blur_pixel(g, i, &b), &mut g);
+        each_pixel(&g, &mut scratch, &pass);
+        std::mem::swap(&mut g, &mut scratch);
     }
     finish(&g, v)
 }

@@ -45,10 +45,29 @@ fn only(p: &str) -> Passes {
 #[test]
 fn passes_parse_in_any_order_and_reject_unknown_names() {
     let p = Passes::parse("aa,blur, edl,ssao,shade,fill").unwrap();
-    assert_eq!(p.names(), PASS_NAMES);
+    assert_eq!(p, Passes::parse(&PASS_NAMES.join(",")).unwrap());
+    assert!(p.fill.is_some() && p.shade.is_some() && p.ssao.is_some());
+    assert!(p.edl.is_some() && p.blur.is_some() && p.factor() == 2);
+    // The pipeline's order, whatever the order given; normals for shade and ssao.
+    assert_eq!(
+        p.steps(),
+        [
+            "fill_rows",
+            "fill_columns",
+            "normals",
+            "shade",
+            "ssao",
+            "edl",
+            "blur"
+        ]
+    );
+    assert_eq!(
+        Passes::parse("blur,fill").unwrap().steps(),
+        ["fill_rows", "fill_columns", "blur"]
+    );
     assert_eq!(Passes::parse("none").unwrap(), Passes::default());
+    assert!(Passes::parse("none").unwrap().steps().is_empty());
     assert!(Passes::parse("fill,glow").unwrap_err().contains("glow"));
-    assert_eq!(Passes::default_chain().names(), ["fill", "blur"]);
 }
 
 #[test]
