@@ -128,3 +128,17 @@ fn sidecar_placement_is_found_next_to_the_scan() {
             .ends_with("side.xyz.placement")
     );
 }
+
+/// Local scanner coordinates are often negative: every number of a placement takes a sign.
+#[test]
+fn negative_numbers_are_read() {
+    let p = Placement::parse(
+        Path::new("p.placement"),
+        "TRANSLATE -10 -2.5 -1e3\nOBB-ANGLES SOCS -1 -2 -3  0.5 0.5 0.5  -90 0 -45\n",
+    )
+    .unwrap();
+    let t = p.project_from_scanner.rows.map(|r| r[3]);
+    assert_eq!(t, [-10.0, -2.5, -1000.0]);
+    let (obb, _) = p.trim.unwrap();
+    assert_eq!(obb.center, [-1.0, -2.0, -3.0]);
+}

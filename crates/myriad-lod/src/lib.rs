@@ -7,15 +7,19 @@
 pub mod cache;
 pub mod drawn;
 pub mod front;
+pub mod occlusion;
+pub mod pace;
 pub mod select;
 pub mod stream;
 pub mod view;
 
 pub use cache::Lru;
 pub use front::{backfacing, select_front};
+pub use occlusion::{DepthMap, Occluder, Occlusion};
+pub use pace::Pace;
 pub use select::{
-    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, point_spacing, select, select_many,
-    select_where,
+    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, select,
+    select_many, select_occluded, select_where,
 };
-pub use stream::{Loader, PageReader, converge};
+pub use stream::{Loader, PageReader};
 pub use view::{Camera, Frustum, robust_bounds};

@@ -15,6 +15,7 @@
 //! nodes replace their parents, are selected as a front ([`crate::front`]).
 
 pub use crate::drawn::DrawnTree;
+use crate::occlusion::Occluder;
 use crate::view::{Camera, Frustum};
 use myriad_core::{Aabb, NodeKey, Obb};
 use myriad_format::NodeEntry;
@@ -132,6 +133,8 @@ pub struct Selection {
     pub points: u64,
     /// Whether the budget stopped the traversal.
     pub budget_reached: bool,
+    /// Nodes culled as hidden ([`crate::occlusion`]; their subtrees not visited).
+    pub culled: usize,
 }
 
 pub(crate) struct Candidate {
@@ -255,6 +258,18 @@ pub fn select_where(
     o: &SelectOptions,
     keep: &dyn Fn(&Aabb) -> bool,
 ) -> Selection {
+    select_occluded(h, cam, o, keep, None)
+}
+
+/// [`select_where`] culling the nodes hidden behind those selected before them, where an
+/// occluder is given ([`crate::occlusion`]; not for `mwkd` fronts).
+pub fn select_occluded(
+    h: &Hierarchy,
+    cam: &Camera,
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
+    mut occluder: Option<&mut Occluder>,
+) -> Selection {
     if h.splats {
         return crate::front::select_front(h, cam, o, keep);
     }
@@ -282,10 +297,17 @@ pub fn select_where(
     }
     while let Some(Candidate { benefit, key }) = queue.pop() {
         let Some(e) = h.get(&key) else { continue };
-        let depth = match &e.contour {
-            Some(c) => nearest_depth_of(cam, &c.corners()),
-            None => nearest_depth(cam, &h.bounds(&key)),
+        let corners = match &e.contour {
+            Some(c) => c.corners(),
+            None => h.bounds(&key).corners(),
         };
+        if let Some(occ) = occluder.as_deref_mut()
+            && occ.map.hides(&corners)
+        {
+            out.culled += 1;
+            continue;
+        }
+        let depth = nearest_depth_of(cam, &corners);
         let ppu = cam.pixels_per_unit(depth);
         // Levels whose spacing still shows; none: the node (and all below) adds nothing.
         let spacing = point_spacing(e);
@@ -313,6 +335,11 @@ pub fn select_where(
                 .position(|&p| p as u64 >= count)
                 .unwrap_or(e.prefix.len() - 1);
             out.points += count;
+            if let Some(occ) = occluder.as_deref_mut()
+                && let Some(b) = (occ.points)(&key)
+            {
+                occ.map.cover(e, &b.positions, count as usize);
+            }
             out.nodes.push(Selected {
                 key,
                 points: count as u32,
@@ -379,12 +406,19 @@ pub fn select_many(
     keep: &dyn Fn(&Aabb) -> bool,
 ) -> Vec<Selection> {
     let alone: Vec<Selection> = hs.iter().map(|h| select_where(h, cam, o, keep)).collect();
-    let mut out: Vec<Selection> = vec![Selection::default(); hs.len()];
-    let mut next = vec![0usize; hs.len()];
+    merge(alone, o.budget)
+}
+
+/// Selections made alone (each with the whole budget), taken in one benefit order until the
+/// budget is spent ([`select_many`]). A node a dataset culled as hidden came after the nodes
+/// that hid it in that dataset's order, so it would have been cut with them.
+pub fn merge(alone: Vec<Selection>, budget: u64) -> Vec<Selection> {
+    let mut out: Vec<Selection> = vec![Selection::default(); alone.len()];
+    let mut next = vec![0usize; alone.len()];
     let mut total = 0u64;
     loop {
         // The dataset whose next node has the highest benefit.
-        let Some(k) = (0..hs.len())
+        let Some(k) = (0..alone.len())
             .filter(|&k| next[k] < alone[k].nodes.len())
             .max_by(|&a, &b| {
                 alone[a].nodes[next[a]]
@@ -396,7 +430,7 @@ pub fn select_many(
         };
         let mut n = alone[k].nodes[next[k]].clone();
         next[k] += 1;
-        let room = o.budget - total;
+        let room = budget - total;
         let cut = (n.points as u64) > room;
         if cut {
             n.points = room as u32;
@@ -417,6 +451,9 @@ pub fn select_many(
         for (s, a) in out.iter_mut().zip(&alone) {
             s.budget_reached = a.budget_reached;
         }
+    }
+    for (s, a) in out.iter_mut().zip(&alone) {
+        s.culled = a.culled;
     }
     out
 }

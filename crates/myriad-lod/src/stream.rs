@@ -199,41 +199,6 @@ impl Loader {
     }
 }
 
-/// For headless images: selects, requests and waits until every selected node is resident
-/// (or failed), reselecting as nodes land. Returns the selection and the number of rounds.
-pub fn converge(
-    loader: &mut Loader,
-    h: &crate::Hierarchy,
-    cam: &crate::Camera,
-    o: &crate::SelectOptions,
-) -> crate::Selection {
-    loop {
-        let s = crate::select(h, cam, o);
-        let wanted: Vec<NodeEntry> = s
-            .nodes
-            .iter()
-            .filter_map(|n| h.get(&n.key).cloned())
-            .collect();
-        loader.request(&wanted);
-        let missing = |l: &Loader| {
-            wanted
-                .iter()
-                .filter(|n| {
-                    n.points > 0 && !l.is_resident(&n.key) && !l.failed.contains_key(&n.key)
-                })
-                .count()
-        };
-        if missing(loader) == 0 {
-            return s;
-        }
-        while loader.in_flight() > 0 && missing(loader) > 0 {
-            if loader.poll() == 0 {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
-        }
-    }
-}
-
 impl Drop for Loader {
     fn drop(&mut self) {
         self.shared.queue.lock().expect("queue lock").stop = true;

@@ -7,8 +7,8 @@ use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours}
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
-    Camera, DrawnTree, Hierarchy, Loader, PageReader, SelectOptions, Selection, robust_bounds,
-    select_many, select_where,
+    Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageReader, SelectOptions,
+    Selection, merge, robust_bounds, select_occluded,
 };
 use std::collections::HashSet;
 use std::sync::Arc;
@@ -42,6 +42,10 @@ pub struct Scene {
     /// yet on the GPU).
     drawn: HashSet<NodeKey>,
     colour: ColorBy,
+    /// How hidden nodes are culled during selection.
+    pub occlusion: Occlusion,
+    /// Cells per side of the coarse depth buffer of software occlusion culling.
+    pub occlusion_size: u32,
 }
 
 /// What a frame did.
@@ -59,6 +63,8 @@ pub struct FrameStats {
     pub in_flight: usize,
     /// Every selected node drawn (or failed to load).
     pub complete: bool,
+    /// Nodes culled as hidden.
+    pub culled: usize,
     pub select: Duration,
     pub upload: Duration,
     pub draw: Duration,
@@ -85,6 +91,8 @@ impl Scene {
             last: Selection::default(),
             drawn: HashSet::new(),
             colour: ColorBy::Rgb,
+            occlusion: Occlusion::Software,
+            occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
         }
     }
 
@@ -178,10 +186,54 @@ impl Scene {
         options: &SelectOptions,
         clip: Option<crate::Clip>,
     ) -> Selection {
-        let keep = |cube: &Aabb| crate::Clip::keeps(clip, cube);
-        let selection = select_where(&self.hierarchy, camera, options, &keep);
+        let selection = self.select(camera, options, clip);
         self.take(&selection);
         selection
+    }
+
+    /// This scene's selection alone, culling hidden nodes as [`Scene::occlusion`] says (the
+    /// resident nodes hide those behind them).
+    pub fn select(
+        &self,
+        camera: &Camera,
+        options: &SelectOptions,
+        clip: Option<crate::Clip>,
+    ) -> Selection {
+        let keep = |cube: &Aabb| crate::Clip::keeps(clip, cube);
+        let points = |k: &NodeKey| self.loader.get(k);
+        let mut occluder = (self.occlusion == Occlusion::Software)
+            .then(|| Occluder::new(camera, self.occlusion_size, &points));
+        select_occluded(&self.hierarchy, camera, options, &keep, occluder.as_mut())
+    }
+
+    /// Selects and waits until every selected node is in (or failed to load), selecting again
+    /// as pages land (resident nodes hide others, finer nodes become wanted): the converged
+    /// view's selection.
+    pub fn converge(
+        &mut self,
+        camera: &Camera,
+        options: &SelectOptions,
+        clip: Option<crate::Clip>,
+    ) -> Selection {
+        loop {
+            let s = self.select(camera, options, clip);
+            self.take(&s);
+            let missing = |scene: &Scene| {
+                s.nodes.iter().any(|n| {
+                    scene.hierarchy.get(&n.key).is_some_and(|e| e.points > 0)
+                        && !scene.loader.is_resident(&n.key)
+                        && !scene.loader.failed().contains_key(&n.key)
+                })
+            };
+            if !missing(self) {
+                return s;
+            }
+            while self.loader.in_flight() > 0 && missing(self) {
+                if self.loader.poll() == 0 {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            }
+        }
     }
 
     /// Requests what `selection` needs and takes in what has landed, without waiting.
@@ -289,6 +341,7 @@ impl Scene {
         FrameStats {
             selected_nodes: selection.nodes.len(),
             selected_points: selection.points,
+            culled: selection.culled,
             nodes: draws.len(),
             points: draws.iter().map(|d| d.count as u64).sum(),
             in_flight: self.loader.in_flight(),
@@ -377,9 +430,11 @@ pub fn frame_many(
     style: &Style,
 ) -> (Vec<u8>, Vec<FrameStats>) {
     let t = Instant::now();
-    let hierarchies: Vec<&Hierarchy> = scenes.iter().map(|s| &s.hierarchy).collect();
-    let keep = |cube: &Aabb| crate::Clip::keeps(style.clip, cube);
-    let selections = select_many(&hierarchies, camera, options, &keep);
+    let alone = scenes
+        .iter()
+        .map(|s| s.select(camera, options, style.clip))
+        .collect();
+    let selections = merge(alone, options.budget);
     let select = t.elapsed();
     let t = Instant::now();
     let mut uploads = Vec::new();

@@ -9,6 +9,7 @@
 pub mod measure;
 pub mod nav;
 mod present;
+mod report;
 
 use eframe::egui;
 use eframe::egui_wgpu;
@@ -20,6 +21,7 @@ use myriad_lod::{Camera, SelectOptions};
 use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
 use present::{Presented, passes_panel};
+use report::{report_orbit, write_png};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -47,6 +49,11 @@ pub struct ViewOptions {
     /// On a GPU, read each frame back and upload it as an egui texture (as before the frame
     /// went straight to the window), to compare.
     pub readback: bool,
+    /// Hold this frame rate by adjusting the budget (`budget` is then its most).
+    pub target_fps: Option<f64>,
+    pub occlusion: myriad_lod::Occlusion,
+    /// Pixels a level's spacing must cover to be drawn.
+    pub lod_threshold: f64,
 }
 
 struct Layer {
@@ -69,6 +76,8 @@ struct App {
     layers: Vec<Layer>,
     nav: Nav,
     options: SelectOptions,
+    /// The budget following the frame rate, if held (its maximum is the budget slider's).
+    pace: Option<myriad_lod::Pace>,
     style: Style,
     colour: ColorBy,
     /// The data's extent, for framing.
@@ -119,6 +128,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     for (name, ds) in datasets {
         let mut scene = Scene::open(ds.clone(), ram, gpu_bytes);
         scene.set_colour(o.colour);
+        scene.occlusion = o.occlusion;
         bounds.extend(scene.view_bounds.min);
         bounds.extend(scene.view_bounds.max);
         all.extend(ds.meta.bounds.min);
@@ -143,8 +153,11 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         nav,
         options: SelectOptions {
             budget: o.budget,
-            min_pixels: 1.0,
+            min_pixels: o.lod_threshold,
         },
+        pace: o
+            .target_fps
+            .map(|fps| myriad_lod::Pace::new(fps, o.budget, 100_000, o.budget)),
         style: o.style,
         colour: o.colour,
         bounds,
@@ -243,13 +256,39 @@ const HELP: &[(&str, &str)] = &[
 impl App {
     fn settings(&mut self, ui: &mut egui::Ui) {
         ui.heading("Myriad");
-        let mut budget = self.options.budget as f64 / 1e6;
+        let most = self.pace.as_ref().map_or(self.options.budget, |p| p.max);
+        let mut budget = most as f64 / 1e6;
         ui.add(
             egui::Slider::new(&mut budget, 0.1..=20.0)
                 .logarithmic(true)
-                .text("budget (M points)"),
+                .text(if self.pace.is_some() {
+                    "most points (M)"
+                } else {
+                    "budget (M points)"
+                }),
         );
-        self.options.budget = (budget * 1e6) as u64;
+        let budget = (budget * 1e6) as u64;
+        let mut hold = self.pace.is_some();
+        ui.checkbox(&mut hold, "hold the frame rate");
+        match (&mut self.pace, hold) {
+            (Some(p), true) => {
+                p.max = budget;
+                let mut fps = 1.0 / p.target;
+                ui.add(egui::Slider::new(&mut fps, 1.0..=120.0).text("target fps"));
+                p.target = 1.0 / fps;
+                ui.label(format!(
+                    "budget now {:.2} M points",
+                    self.options.budget as f64 / 1e6
+                ));
+            }
+            (None, true) => {
+                self.pace = Some(myriad_lod::Pace::new(30.0, budget, 100_000, budget));
+            }
+            (_, false) => {
+                self.pace = None;
+                self.options.budget = budget;
+            }
+        }
         ui.add(
             egui::Slider::new(&mut self.options.min_pixels, 0.25..=8.0)
                 .logarithmic(true)
@@ -723,11 +762,21 @@ impl eframe::App for App {
                 if let Some(last) = self.timing.last {
                     let interval = now.duration_since(last).as_secs_f64().max(1e-6);
                     self.timing.fps = 0.8 * self.timing.fps + 0.2 / interval;
+                    if let Some(p) = &mut self.pace {
+                        let drawn: u64 = self.stats.iter().map(|s| s.points).sum();
+                        let selected: u64 = self.stats.iter().map(|s| s.selected_points).sum();
+                        let limited = selected as f64 >= 0.98 * self.options.budget as f64;
+                        self.options.budget = p.frame(interval, drawn, limited);
+                    }
                     if self.orbit_left > 0 {
                         self.orbit_times.push((interval * 1e3, ms));
                         self.orbit_left -= 1;
                         if self.orbit_left == 0 {
-                            report_orbit(&mut self.orbit_times, &self.stats);
+                            let target = self.pace.as_ref().map(|p| p.target);
+                            report_orbit(&mut self.orbit_times, &self.stats, target);
+                            if self.pace.is_some() {
+                                println!("budget settled on {} points", self.options.budget);
+                            }
                         }
                     }
                 }
@@ -809,47 +858,4 @@ impl eframe::App for App {
         }
         ctx.request_repaint();
     }
-}
-
-/// Prints the frame times seen while orbiting: the interval between frames (what input waits
-/// for at most twice: an event arriving during one frame is drawn by the next) and the drawing.
-fn report_orbit(times: &mut [(f64, f64)], stats: &[FrameStats]) {
-    if times.is_empty() {
-        return;
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let mut interval: Vec<f64> = times.iter().map(|t| t.0).collect();
-    let mut draw: Vec<f64> = times.iter().map(|t| t.1).collect();
-    let points: u64 = stats.iter().map(|s| s.points).sum();
-    println!(
-        "orbiting {} frames: median frame interval {:.1} ms (max {:.1}), drawing {:.1} ms, {} points in the last",
-        times.len(),
-        median(&mut interval),
-        interval.last().copied().unwrap_or(0.0),
-        median(&mut draw),
-        points
-    );
-}
-
-fn write_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
-    let [w, h] = image.size;
-    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-    let write = || -> Result<(), Box<dyn std::error::Error>> {
-        let file = myriad_io::atomic::AtomicFile::create(path, true)?;
-        {
-            let f = file.open_write()?;
-            let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w as u32, h as u32);
-            enc.set_color(png::ColorType::Rgba);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut writer = enc.write_header()?;
-            writer.write_image_data(&rgba)?;
-            writer.finish()?;
-        }
-        file.commit()?;
-        Ok(())
-    };
-    write().map_err(|e| e.to_string())
 }

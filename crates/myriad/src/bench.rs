@@ -26,6 +26,9 @@ pub enum BenchCommand {
     /// One file converted with every structure (octree, layered, kd): build speed, peak memory,
     /// bytes per point, nodes, depth, PSNR at a budget in three views, frame time
     Structures(crate::bench_structures::StructuresBenchArgs),
+    /// Occlusion culling from a view inside and one outside each dataset: nodes and points
+    /// selected, nodes culled, selection and frame time, PSNR against every point unculled
+    Culling(crate::bench_culling::CullingBenchArgs),
 }
 
 #[derive(Args)]
@@ -75,6 +78,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Render(a) => crate::bench_render::run(a),
         BenchCommand::Structures(a) => crate::bench_structures::run(a),
         BenchCommand::Passes(a) => crate::bench_passes::run(a),
+        BenchCommand::Culling(a) => crate::bench_culling::run(a),
     }
 }
 

@@ -14,7 +14,7 @@ use crate::render::write_png;
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
-use myriad_lod::{Camera, SelectOptions, converge, point_spacing};
+use myriad_lod::{Camera, SelectOptions, point_spacing};
 use myriad_render::{Gpu, PointSize, Points, Rasterizer, Scene, Style, colours};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -242,13 +242,16 @@ pub fn quality(
         budget: u64::MAX,
         min_pixels: 0.0,
     };
-    converge(&mut scene.loader, &scene.hierarchy, cam, &full_options);
+    // The reference: every point, nothing culled.
+    let occlusion = std::mem::replace(&mut scene.occlusion, myriad_lod::Occlusion::Off);
+    scene.converge(cam, &full_options, style.clip);
     let (full, _) = scene.frame(gpu, raster, cam, &full_options, style);
+    scene.occlusion = occlusion;
     let options = SelectOptions {
         budget,
         min_pixels: 1.0,
     };
-    let sel = converge(&mut scene.loader, &scene.hierarchy, cam, &options);
+    let sel = scene.converge(cam, &options, style.clip);
     let (lod, stats) = scene.frame(gpu, raster, cam, &options, style);
     if stats.points != sel.points {
         bail!("drew {} of {} points", stats.points, sel.points);
@@ -278,7 +281,7 @@ pub fn frame_times(
         budget,
         min_pixels: 0.0,
     };
-    converge(&mut scene.loader, &scene.hierarchy, cam, &options);
+    scene.converge(cam, &options, style.clip);
     scene.frame(gpu, raster, cam, &options, style);
     let mut times = Vec::new();
     let mut points = 0;

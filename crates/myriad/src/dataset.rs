@@ -282,7 +282,7 @@ pub struct ExtractArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Only points in this box: minx,miny,minz,maxx,maxy,maxz
-    #[arg(long = "box", value_parser = parse_box)]
+    #[arg(long = "box", value_parser = parse_box, allow_hyphen_values = true)]
     bbox: Option<Aabb>,
     /// Level of detail: points at about this spacing [default: every original point]
     #[arg(long)]

@@ -2,6 +2,7 @@
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
 mod bench;
+mod bench_culling;
 mod bench_passes;
 mod bench_render;
 mod bench_structures;
@@ -92,5 +93,37 @@ fn main() -> ExitCode {
             eprintln!("error: {msg}");
             ExitCode::from(1)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parses(args: &[&str]) -> bool {
+        Cli::try_parse_from(std::iter::once("myriad").chain(args.iter().copied())).is_ok()
+    }
+
+    /// Local scanner coordinates are often negative: every option that takes numbers accepts a
+    /// leading minus (as the first of its numbers, too).
+    #[test]
+    fn numbers_take_a_minus_sign() {
+        let render = ["render", "ky.myr", "-o", "x.png"];
+        let with = |extra: &[&str]| parses(&[&render[..], extra].concat());
+        assert!(with(&["--camera", "-4,-1,6,30,30,0"]));
+        assert!(with(&["--camera=-4,-1,6,30,30,0"]));
+        assert!(with(&["--up", "-1,0,0"]));
+        assert!(with(&["--clip", "-5,-5,-5,-1,-1,-1"]));
+        assert!(parses(&["view", "a.myr", "--camera", "-1,-2,-3,0,0,0"]));
+        assert!(parses(&[
+            "extract",
+            "a.myr",
+            "-o",
+            "b.las",
+            "--box",
+            "-10,-10,-1,0,0,0"
+        ]));
+        // The value is still checked: a flag where numbers belong is a usage error.
+        assert!(!with(&["--camera", "--full"]));
     }
 }

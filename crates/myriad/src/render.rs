@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use myriad_core::Aabb;
 use myriad_format::Dataset;
-use myriad_lod::{Camera, SelectOptions, converge};
+use myriad_lod::{Camera, Occlusion, SelectOptions};
 use myriad_render::{ColorBy, Edl, Gpu, Passes, Path, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -80,13 +80,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 720)]
     height: u32,
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the whole dataset from above at 45 degrees]
-    #[arg(long, value_parser = parse_floats::<6>)]
+    #[arg(long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     camera: Option<[f64; 6]>,
     /// One of the standard views instead of --camera: overview (the default), top, close
     #[arg(long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
     view: Option<String>,
     /// Up direction
-    #[arg(long, value_parser = parse_floats::<3>, default_value = "0,0,1")]
+    #[arg(long, value_parser = parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
     up: [f64; 3],
     /// Vertical field of view in degrees
     #[arg(long, default_value_t = 60.0)]
@@ -122,7 +122,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1.4)]
     edl_radius: f32,
     /// Draw only the points in this box: MINX,MINY,MINZ,MAXX,MAXY,MAXZ
-    #[arg(long, value_parser = parse_floats::<6>)]
+    #[arg(long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     clip: Option<[f64; 6]>,
     /// With --clip: draw only the points outside the box
     #[arg(long, requires = "clip")]
@@ -131,6 +131,17 @@ pub struct RenderArgs {
     /// hardware GPU, quads on one without 64-bit atomics; cpu without one]
     #[arg(long = "raster", value_parser = parse_path)]
     path: Option<Path>,
+    /// Cull nodes hidden behind nearer ones: software (a coarse depth buffer filled by the
+    /// nodes already selected, seed 000) or off
+    #[arg(long, value_parser = Occlusion::parse, default_value = "software")]
+    occlusion: Occlusion,
+    /// Cells per side of the occlusion depth buffer
+    #[arg(long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
+          value_parser = clap::value_parser!(u32).range(8..=1024))]
+    occlusion_size: u32,
+    /// Pixels a level's point spacing must cover to be drawn (003's tables use 1 and 2)
+    #[arg(long, default_value_t = 1.0)]
+    lod_threshold: f64,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -153,6 +164,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         && !(c[0] <= c[3] && c[1] <= c[4] && c[2] <= c[5])
     {
         bail!("--clip: each minimum must be at most its maximum");
+    }
+    if !(a.lod_threshold > 0.0 && a.lod_threshold <= 64.0) {
+        bail!("--lod-threshold must be above 0 and at most 64 pixels");
     }
     if !(a.edl_strength >= 0.0 && a.edl_strength <= 100.0) {
         bail!("--edl-strength must be from 0 to 100");
@@ -205,10 +219,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let options = SelectOptions {
         budget: if a.full { u64::MAX } else { a.budget },
-        min_pixels: if a.full { 0.0 } else { 1.0 },
+        min_pixels: if a.full { 0.0 } else { a.lod_threshold },
     };
-    let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
+    // Caches as the viewer's: 2 GiB of decoded points, 1 GiB on the GPU (what a frame uses is
+    // kept even beyond them).
+    let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
     scene.set_colour(a.color);
+    scene.occlusion = a.occlusion;
+    scene.occlusion_size = a.occlusion_size;
     let cam = match a.view.as_deref() {
         Some(v) => {
             let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
@@ -240,7 +258,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     scene.frame(&gpu, &raster, &cam, &options, &style);
     let first_image = t0.elapsed();
 
-    let selection = converge(&mut scene.loader, &scene.hierarchy, &cam, &options);
+    let selection = scene.converge(&cam, &options, style.clip);
     scene.frame(&gpu, &raster, &cam, &options, &style);
     let converged = t0.elapsed();
     // The frame as a viewer would draw it now: selection, cache lookups, drawing, readback.
@@ -249,10 +267,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let frame = t.elapsed();
     write_png(&a.output, a.width, a.height, &img)?;
     println!(
-        "{}: {} points in {} nodes, frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
+        "{}: {} points in {} nodes ({} hidden nodes culled), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
         a.output.display(),
         crate::info::thousands(stats.points),
         stats.nodes,
+        stats.culled,
         frame.as_secs_f64() * 1e3,
         first_image.as_secs_f64(),
         converged.as_secs_f64(),

@@ -20,7 +20,7 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 800)]
     height: u32,
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the data from above at 45 degrees]
-    #[arg(long, value_parser = parse_floats::<6>)]
+    #[arg(long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     camera: Option<[f64; 6]>,
     /// Vertical field of view in degrees
     #[arg(long, default_value_t = 60.0)]
@@ -62,6 +62,16 @@ pub struct ViewArgs {
     /// times seen while moving
     #[arg(long, default_value_t = 0)]
     orbit_frames: u32,
+    /// Hold this frame rate by adjusting the point budget each frame (--budget is then the
+    /// most it may grow to); 0: a fixed budget
+    #[arg(long, default_value_t = 30.0)]
+    target_fps: f64,
+    /// Cull nodes hidden behind nearer ones: software or off
+    #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
+    occlusion: myriad_lod::Occlusion,
+    /// Pixels a level's point spacing must cover to be drawn
+    #[arg(long, default_value_t = 1.0)]
+    lod_threshold: f64,
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
@@ -70,6 +80,12 @@ pub fn run(a: ViewArgs) -> Result<()> {
     }
     if a.width < 64 || a.height < 64 || a.width > 16384 || a.height > 16384 {
         bail!("--width and --height must be 64 to 16384");
+    }
+    if !(a.target_fps == 0.0 || (1.0..=240.0).contains(&a.target_fps)) {
+        bail!("--target-fps must be 0 (off) or from 1 to 240");
+    }
+    if !(a.lod_threshold > 0.0 && a.lod_threshold <= 64.0) {
+        bail!("--lod-threshold must be above 0 and at most 64 pixels");
     }
     let mut datasets = Vec::new();
     for p in &a.datasets {
@@ -107,6 +123,9 @@ pub fn run(a: ViewArgs) -> Result<()> {
         orbit_frames: a.orbit_frames,
         gpu: a.gpu,
         readback: a.readback,
+        target_fps: (a.target_fps > 0.0).then_some(a.target_fps),
+        occlusion: a.occlusion,
+        lod_threshold: a.lod_threshold,
     };
     myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
 }
