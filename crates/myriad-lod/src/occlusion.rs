@@ -172,9 +172,15 @@ impl DepthMap {
     }
 
     /// Adds the first `count` points of a node (its drawn prefix), as far as their levels'
-    /// spacing shows at the buffer's resolution; returns how many points it splatted.
-    pub fn cover(&mut self, e: &NodeEntry, positions: &[[f64; 3]], count: usize) -> usize {
-        let spacing = crate::select::point_spacing(e);
+    /// spacing (`spacing`: [`crate::select::point_spacing`]) shows at the buffer's resolution;
+    /// returns how many points it splatted.
+    pub fn cover(
+        &mut self,
+        e: &NodeEntry,
+        spacing: &[f64],
+        positions: &[[f64; 3]],
+        count: usize,
+    ) -> usize {
         let count = count.min(positions.len());
         if count == 0 || spacing.is_empty() {
             return 0;
@@ -242,8 +248,9 @@ impl DepthMap {
         (cy0..cy1).all(|cy| (cx0..cx1).all(|cx| self.cell(cx, cy) < nearest))
     }
 
-    /// The share of cells that hide something (a depth is set), for reports.
-    pub fn filled(&mut self) -> f64 {
+    /// The share of cells that hide something (a depth is set).
+    #[cfg(test)]
+    fn filled(&mut self) -> f64 {
         let n = self.size;
         let set = (0..n * n)
             .filter(|i| self.cell(i % n, i / n).is_finite())
@@ -314,7 +321,8 @@ mod tests {
     fn covered(points: &[[f64; 3]]) -> DepthMap {
         let mut map = DepthMap::new(&camera(), DEFAULT_SIZE);
         let e = entry(NodeKey::ROOT, points.len() as u32, 0.2);
-        assert_eq!(map.cover(&e, points, points.len()), points.len());
+        let n = map.cover(&e, &e.spacing, points, points.len());
+        assert_eq!(n, points.len());
         map
     }
 
@@ -358,7 +366,7 @@ mod tests {
         let pts: Vec<[f64; 3]> = wall(None).into_iter().step_by(97).collect();
         let mut map = DepthMap::new(&camera(), DEFAULT_SIZE);
         let e = entry(NodeKey::ROOT, pts.len() as u32, 0.2);
-        map.cover(&e, &pts, pts.len());
+        map.cover(&e, &e.spacing, &pts, pts.len());
         let behind = Aabb::new([6.0, 4.0, 4.0], [8.0, 6.0, 6.0]);
         assert!(!map.hides(&behind.corners()));
     }

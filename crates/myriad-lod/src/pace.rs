@@ -43,6 +43,8 @@ impl Pace {
     /// A frame took `seconds`, drew `points`; `limited`: the budget stopped its selection.
     /// Returns the next budget.
     pub fn frame(&mut self, seconds: f64, points: u64, limited: bool) -> u64 {
+        // `min` and `max` may have moved since (the panel's slider).
+        self.budget = self.budget.clamp(self.min, self.max.max(self.min));
         if !(seconds > 0.0 && seconds.is_finite()) {
             return self.budget;
         }
@@ -139,5 +141,9 @@ mod tests {
         assert_eq!(pace.budget(), 200_000);
         // A bad measurement changes nothing.
         assert_eq!(pace.frame(f64::NAN, 1, true), 200_000);
+        // A lower most (the panel's slider) holds even on a frame right on target.
+        let mut pace = Pace::new(10.0, 4_000_000, 100_000, 5_000_000);
+        pace.max = 1_000_000;
+        assert_eq!(pace.frame(0.1, 4_000_000, true), 1_000_000);
     }
 }

@@ -338,7 +338,7 @@ pub fn select_occluded(
             if let Some(occ) = occluder.as_deref_mut()
                 && let Some(b) = (occ.points)(&key)
             {
-                occ.map.cover(e, &b.positions, count as usize);
+                occ.map.cover(e, &spacing, &b.positions, count as usize);
             }
             out.nodes.push(Selected {
                 key,

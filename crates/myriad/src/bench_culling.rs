@@ -36,12 +36,8 @@ pub struct CullingBenchArgs {
     /// Colour scheme of every image (elevation: scans without colours still show)
     #[arg(long, value_parser = crate::render::parse_color, default_value = "elevation")]
     color: ColorBy,
-    /// Draw on the CPU even where there is a hardware GPU
-    #[arg(long, conflicts_with = "gpu")]
-    cpu: bool,
-    /// Draw on the GPU adapter even where it is a software one (lavapipe)
-    #[arg(long)]
-    gpu: bool,
+    #[command(flatten)]
+    device: crate::bench_render::Device,
     /// Write the images into this folder (NAME-VIEW-METHOD-BUDGET.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -69,7 +65,7 @@ pub fn inside_view(b: &myriad_core::Aabb, width: u32, height: u32) -> Camera {
 }
 
 pub fn run(a: CullingBenchArgs) -> Result<()> {
-    let gpu = crate::bench_render::bench_gpu(a.cpu, a.gpu)?;
+    let gpu = a.device.gpu()?;
     let raster = Rasterizer::new(&gpu);
     let mut budgets: Vec<u64> = a
         .budgets
@@ -143,7 +139,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                     scene.converge(&cam, &o, None);
                     let mut frames = Vec::new();
                     let mut image = Vec::new();
-                    let mut stats = Default::default();
+                    let mut stats = myriad_render::FrameStats::default();
                     for _ in 0..a.frames.max(1) {
                         let t = Instant::now();
                         (image, stats) = scene.frame(&gpu, &raster, &cam, &o, &style);
@@ -159,7 +155,6 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                     } else {
                         crate::info::thousands(budget)
                     };
-                    let stats: myriad_render::FrameStats = stats;
                     println!(
                         "{view:<8} {method:<9} {b:>9} {:>7} {:>11} {:>7} {:>10.2} {:>9.1} {:>7.2}",
                         stats.nodes,

@@ -48,12 +48,8 @@ pub struct PassesBenchArgs {
     /// Skip the quality table (timing only)
     #[arg(long)]
     no_quality: bool,
-    /// Draw on the CPU even where there is a hardware GPU
-    #[arg(long, conflicts_with = "gpu")]
-    cpu: bool,
-    /// Draw on the GPU adapter even where it is a software one (lavapipe)
-    #[arg(long)]
-    gpu: bool,
+    #[command(flatten)]
+    device: crate::bench_render::Device,
     /// Write the quality images into this folder (NAME-VIEW-BUDGET-CHAIN.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -67,7 +63,7 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
 }
 
 pub fn run(a: PassesBenchArgs) -> Result<()> {
-    let gpu = crate::bench_render::bench_gpu(a.cpu, a.gpu)?;
+    let gpu = a.device.gpu()?;
     let raster = Rasterizer::new(&gpu);
     let sizes = a
         .sizes

@@ -43,12 +43,8 @@ pub struct RenderBenchArgs {
     /// Seed of the random baseline
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Draw on the CPU even where there is a hardware GPU
-    #[arg(long, conflicts_with = "gpu")]
-    cpu: bool,
-    /// Draw on the GPU adapter even where it is a software one (lavapipe)
-    #[arg(long)]
-    gpu: bool,
+    #[command(flatten)]
+    device: crate::bench_render::Device,
     /// Write every image compared into this folder (NAME-VIEW-full|lod|random-MODE.png)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -84,24 +80,37 @@ impl Rng {
     }
 }
 
-/// Where a benchmark draws: the CPU (`cpu`), the GPU adapter even if a software one (`gpu`), or
-/// the best there is (a warning when that is the CPU for want of an adapter).
-pub fn bench_gpu(cpu: bool, gpu: bool) -> Result<Gpu> {
-    let (gpu, why) = if cpu {
-        (Gpu::cpu(), None)
-    } else if gpu {
-        (Gpu::headless().map_err(anyhow::Error::msg)?, None)
-    } else {
-        Gpu::best()
-    };
-    if let Some(why) = why {
-        eprintln!("warning: {why}: drawing on the CPU");
+/// Where a benchmark draws (its `--cpu` and `--gpu`).
+#[derive(Args)]
+pub struct Device {
+    /// Draw on the CPU even where there is a hardware GPU
+    #[arg(long, conflicts_with = "gpu")]
+    cpu: bool,
+    /// Draw on the GPU adapter even where it is a software one (lavapipe)
+    #[arg(long)]
+    gpu: bool,
+}
+
+impl Device {
+    /// The CPU (`--cpu`), the GPU adapter even if a software one (`--gpu`), or the best there is
+    /// (a warning when that is the CPU for want of an adapter).
+    pub fn gpu(&self) -> Result<Gpu> {
+        let (gpu, why) = if self.cpu {
+            (Gpu::cpu(), None)
+        } else if self.gpu {
+            (Gpu::headless().map_err(anyhow::Error::msg)?, None)
+        } else {
+            Gpu::best()
+        };
+        if let Some(why) = why {
+            eprintln!("warning: {why}: drawing on the CPU");
+        }
+        Ok(gpu)
     }
-    Ok(gpu)
 }
 
 pub fn run(a: RenderBenchArgs) -> Result<()> {
-    let gpu = bench_gpu(a.cpu, a.gpu)?;
+    let gpu = a.device.gpu()?;
     let raster = Rasterizer::new(&gpu);
     println!(
         "{}, {:?} path, {}x{}; quality at a budget of {} points against every point, \

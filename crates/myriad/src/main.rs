@@ -126,4 +126,14 @@ mod tests {
         // The value is still checked: a flag where numbers belong is a usage error.
         assert!(!with(&["--camera", "--full"]));
     }
+
+    #[test]
+    fn the_lod_threshold_is_a_positive_pixel_count() {
+        let render = ["render", "ky.myr", "-o", "x.png", "--lod-threshold"];
+        assert!(parses(&[&render[..], &["2"]].concat()));
+        for bad in ["0", "-1", "65", "x"] {
+            assert!(!parses(&[&render[..], &[bad]].concat()), "{bad}");
+        }
+        assert!(!parses(&["view", "a.myr", "--lod-threshold", "0"]));
+    }
 }

@@ -55,6 +55,13 @@ pub(crate) fn parse_point_size(s: &str) -> Result<PointSize, String> {
         })
 }
 
+pub(crate) fn parse_lod_threshold(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|v| *v > 0.0 && *v <= 64.0)
+        .ok_or_else(|| format!("\"{s}\": pixels above 0 and at most 64"))
+}
+
 pub(crate) fn parse_shape(s: &str) -> Result<Shape, String> {
     Shape::parse(s).ok_or_else(|| format!("\"{s}\": one of square, round, paraboloid"))
 }
@@ -140,7 +147,7 @@ pub struct RenderArgs {
           value_parser = clap::value_parser!(u32).range(8..=1024))]
     occlusion_size: u32,
     /// Pixels a level's point spacing must cover to be drawn (003's tables use 1 and 2)
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, value_parser = parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
     /// Replace an existing output
     #[arg(long)]
@@ -164,9 +171,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         && !(c[0] <= c[3] && c[1] <= c[4] && c[2] <= c[5])
     {
         bail!("--clip: each minimum must be at most its maximum");
-    }
-    if !(a.lod_threshold > 0.0 && a.lod_threshold <= 64.0) {
-        bail!("--lod-threshold must be above 0 and at most 64 pixels");
     }
     if !(a.edl_strength >= 0.0 && a.edl_strength <= 100.0) {
         bail!("--edl-strength must be from 0 to 100");

@@ -70,7 +70,7 @@ pub struct ViewArgs {
     #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
     occlusion: myriad_lod::Occlusion,
     /// Pixels a level's point spacing must cover to be drawn
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, value_parser = crate::render::parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
 }
 
@@ -83,9 +83,6 @@ pub fn run(a: ViewArgs) -> Result<()> {
     }
     if !(a.target_fps == 0.0 || (1.0..=240.0).contains(&a.target_fps)) {
         bail!("--target-fps must be 0 (off) or from 1 to 240");
-    }
-    if !(a.lod_threshold > 0.0 && a.lod_threshold <= 64.0) {
-        bail!("--lod-threshold must be above 0 and at most 64 pixels");
     }
     let mut datasets = Vec::new();
     for p in &a.datasets {
