@@ -33,7 +33,7 @@ enum Sink {
 
 /// The LAS format to write: the input's own (from the stored header) when it holds every
 /// attribute of the dataset, else the smallest LAS 1.4 format that does.
-fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
+pub(crate) fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
     let m = &ds.meta;
     let q = m.quantization;
     if let Some(bytes) = &m.las_header {
@@ -59,7 +59,7 @@ fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
 
 /// The nodes a query touches, in key order: those whose cube meets the box and whose coarsest
 /// level is not finer than the spacing.
-fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEntry> {
+pub(crate) fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEntry> {
     nodes
         .into_iter()
         .filter(|n| {
@@ -78,7 +78,7 @@ fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEn
 }
 
 /// How many of a node's points (a prefix) have spacing at least `spacing`.
-fn prefix_for(n: &NodeEntry, spacing: Option<f64>) -> usize {
+pub(crate) fn prefix_for(n: &NodeEntry, spacing: Option<f64>) -> usize {
     match spacing {
         None => n.points as usize,
         Some(s) => n

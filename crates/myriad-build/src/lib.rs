@@ -6,6 +6,7 @@
 
 pub mod convert;
 pub mod distribute;
+pub mod export;
 pub mod extract;
 pub mod kd;
 pub mod mospt;

@@ -542,6 +542,38 @@ pub fn extra_dims(header: &las::Header) -> Vec<ExtraDim> {
     dims
 }
 
+/// The extra-bytes VLR (LASF_Spec / 4) describing `dims`, in their order: the inverse of
+/// [`extra_dims`], with the same 192-byte descriptors.
+pub fn extra_bytes_vlr(dims: &[ExtraDim]) -> las::Vlr {
+    let mut data = Vec::with_capacity(dims.len() * 192);
+    for d in dims {
+        let mut b = [0u8; 192];
+        let (code, len) = d.data_type.las_code();
+        b[2] = code;
+        let mut options = len;
+        if let Some(s) = d.scale {
+            options |= 0x08;
+            b[112..120].copy_from_slice(&s.to_le_bytes());
+        }
+        if let Some(o) = d.add_offset {
+            options |= 0x10;
+            b[136..144].copy_from_slice(&o.to_le_bytes());
+        }
+        b[3] = options;
+        let name = d.name.as_bytes();
+        b[4..4 + name.len().min(32)].copy_from_slice(&name[..name.len().min(32)]);
+        let text = d.description.as_bytes();
+        b[160..160 + text.len().min(32)].copy_from_slice(&text[..text.len().min(32)]);
+        data.extend_from_slice(&b);
+    }
+    las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "extra bytes".into(),
+        data,
+    }
+}
+
 /// What to write: point format, version, scaling, VLRs.
 #[derive(Debug, Clone)]
 pub struct LasWriteOptions {

@@ -11,6 +11,7 @@
 //! appears under its name only when complete.
 
 pub mod atomic;
+pub mod copc;
 pub mod e57;
 pub mod las;
 mod las_guard;
@@ -18,6 +19,7 @@ mod las_records;
 pub mod pcd;
 pub mod placement;
 pub mod ply;
+pub mod potree;
 mod read_util;
 pub mod text;
 

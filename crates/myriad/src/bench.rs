@@ -29,6 +29,9 @@ pub enum BenchCommand {
     /// Occlusion culling from a view inside and one outside each dataset: nodes and points
     /// selected, nodes culled, selection and frame time, PSNR against every point unculled
     Culling(crate::bench_culling::CullingBenchArgs),
+    /// Export speed and peak memory (COPC, Potree) next to PotreeConverter 2 converting the
+    /// dataset's input in the same run
+    Export(crate::bench_export::ExportBenchArgs),
 }
 
 #[derive(Args)]
@@ -79,6 +82,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Structures(a) => crate::bench_structures::run(a),
         BenchCommand::Passes(a) => crate::bench_passes::run(a),
         BenchCommand::Culling(a) => crate::bench_culling::run(a),
+        BenchCommand::Export(a) => crate::bench_export::run(a),
     }
 }
 

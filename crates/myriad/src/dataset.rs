@@ -54,8 +54,22 @@ pub struct ConvertArgs {
 }
 
 /// A progress bar per phase on a terminal (indicatif draws nothing when stderr is not one).
-struct Bar {
+pub(crate) struct Bar {
     bar: Mutex<Option<ProgressBar>>,
+}
+
+impl Bar {
+    pub(crate) fn new() -> Bar {
+        Bar {
+            bar: Mutex::new(None),
+        }
+    }
+
+    pub(crate) fn clear(&self) {
+        if let Some(b) = self.bar.lock().unwrap().take() {
+            b.finish_and_clear();
+        }
+    }
 }
 
 impl convert::Report for Bar {
@@ -114,9 +128,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     o.params.capacity = a.capacity;
     o.open.columns = a.columns;
     o.open.sidecar_placements = !a.no_placement;
-    let bar = Bar {
-        bar: Mutex::new(None),
-    };
+    let bar = Bar::new();
     let s = convert::convert(&a.inputs, &o, &bar)?;
     if let Some(b) = bar.bar.lock().unwrap().take() {
         b.finish_and_clear();
@@ -259,7 +271,7 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
     Ok(())
 }
 
-fn parse_box(s: &str) -> Result<Aabb, String> {
+pub(crate) fn parse_box(s: &str) -> Result<Aabb, String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| t.trim().parse::<f64>())

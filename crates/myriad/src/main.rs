@@ -3,10 +3,12 @@
 
 mod bench;
 mod bench_culling;
+mod bench_export;
 mod bench_passes;
 mod bench_render;
 mod bench_structures;
 mod dataset;
+mod export;
 mod info;
 mod render;
 mod synth;
@@ -34,6 +36,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Write a dataset's points (in a box, at a level of detail) to LAS, LAZ or PLY
     Extract(dataset::ExtractArgs),
+    /// Write a dataset as COPC or Potree 2.0 (for other viewers and tools), or LAS/LAZ
+    Export(export::ExportArgs),
     /// Read every page of a dataset, check checksums and invariants, name damaged nodes
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
@@ -80,6 +84,7 @@ fn main() -> ExitCode {
         Command::Convert(a) => dataset::convert(a),
         Command::Info(a) => info::run(a),
         Command::Extract(a) => dataset::extract(a),
+        Command::Export(a) => export::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
         Command::View(a) => view::run(a),

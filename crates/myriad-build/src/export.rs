@@ -1,0 +1,371 @@
+//! `export`: a dataset in the formats other tools read, COPC 1.0 and Potree 2.0 (or LAS/LAZ, as
+//! `extract`), with the same box and spacing as `extract`.
+//!
+//! A dataset whose nodes are the cells of an octree (octree, layered) is exported node for node:
+//! each node's page is decoded and written as a COPC chunk or Potree node of the same key, the
+//! tree is never rebuilt. The other structures (kd, mwkd) are first re-placed: their original
+//! points (never mwkd's aggregates) are extracted to a temporary LAS file, built into an octree
+//! with `convert`'s out-of-core pipeline, and that is exported. Memory is bounded by the group of
+//! nodes in flight ([`GROUP_POINTS`]) and, when re-placing, by `convert`'s budget.
+
+use crate::convert::{self, ConvertOptions, Report};
+use crate::extract::{self, ExtractOptions};
+use myriad_core::{Aabb, Attribute, Error, NodeKey, PointBatch, Result};
+use myriad_format::{Damage, Dataset, NodeEntry};
+use myriad_io::copc::CopcSink;
+use myriad_io::potree::{Frame, PotreeSink};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Points decoded at once (the nodes of one group are read and encoded in parallel).
+pub const GROUP_POINTS: u64 = 4_000_000;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    Copc,
+    Potree,
+    Las,
+    Laz,
+}
+
+impl Target {
+    pub fn parse(s: &str) -> std::result::Result<Target, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "copc" => Ok(Target::Copc),
+            "potree" => Ok(Target::Potree),
+            "las" => Ok(Target::Las),
+            "laz" => Ok(Target::Laz),
+            _ => Err(format!("\"{s}\": expected copc, potree, las or laz")),
+        }
+    }
+
+    /// The target an output's name implies: `.copc.laz` COPC, `.las`/`.laz` LAS/LAZ, a name
+    /// without an extension (a folder) Potree.
+    pub fn from_output(out: &Path) -> Option<Target> {
+        let name = out.file_name()?.to_string_lossy().to_ascii_lowercase();
+        if name.ends_with(".copc.laz") {
+            Some(Target::Copc)
+        } else if name.ends_with(".laz") {
+            Some(Target::Laz)
+        } else if name.ends_with(".las") {
+            Some(Target::Las)
+        } else if out.is_dir() || !name.contains('.') {
+            Some(Target::Potree)
+        } else {
+            None
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct ExportOptions {
+    pub target: Target,
+    /// Only points inside this box (bounds inclusive).
+    pub bbox: Option<Aabb>,
+    /// Only the levels of detail whose spacing is at least this.
+    pub spacing: Option<f64>,
+    pub force: bool,
+    /// Memory budget of the re-placing build (kd, mwkd), in bytes.
+    pub memory: u64,
+    pub threads: usize,
+    /// Levels per COPC hierarchy page (tests use few, to make many pages).
+    pub copc_page_levels: u32,
+}
+
+impl ExportOptions {
+    pub fn new(target: Target) -> ExportOptions {
+        ExportOptions {
+            target,
+            bbox: None,
+            spacing: None,
+            force: false,
+            memory: convert::default_memory(),
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            copc_page_levels: myriad_io::copc::PAGE_LEVELS,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct ExportSummary {
+    pub points: u64,
+    /// Nodes written (with points).
+    pub nodes: u64,
+    /// Bytes written.
+    pub bytes: u64,
+    /// Damaged pages met: their nodes were left out.
+    pub damage: Vec<Damage>,
+    /// What the target could not hold, one line each.
+    pub not_kept: Vec<String>,
+    /// Whether the points were re-placed into an octree (kd, mwkd).
+    pub replaced: bool,
+}
+
+/// Whether the dataset's nodes are the cells of an octree holding original points.
+pub fn is_octree(nodes: &[NodeEntry]) -> bool {
+    nodes.iter().all(|n| n.bounds.is_none() && !n.aggregate())
+}
+
+/// Writes the points of `ds` that the options select to `out` in the target format. Damaged
+/// nodes are left out and listed in the summary.
+pub fn export(
+    ds: &Dataset,
+    out: &Path,
+    o: &ExportOptions,
+    report: &dyn Report,
+) -> Result<ExportSummary> {
+    if matches!(o.target, Target::Las | Target::Laz) {
+        let want = if o.target == Target::Las {
+            "las"
+        } else {
+            "laz"
+        };
+        let ext = out
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if ext.as_deref() != Some(want) {
+            return Err(Error::unsupported(
+                out,
+                format!("--to {want} writes a .{want} file"),
+            ));
+        }
+        report.phase("exporting", ds.meta.points);
+        let s = extract::extract(
+            ds,
+            out,
+            &ExtractOptions {
+                bbox: o.bbox,
+                spacing: o.spacing,
+                force: o.force,
+            },
+        )?;
+        report.advance(s.points);
+        return Ok(ExportSummary {
+            points: s.points,
+            nodes: s.nodes_read,
+            bytes: std::fs::metadata(out).map_or(0, |m| m.len()),
+            damage: s.damage,
+            ..Default::default()
+        });
+    }
+    if !o.force && out.exists() {
+        return Err(Error::Invalid(format!(
+            "{}: output exists (use --force to replace it)",
+            out.display()
+        )));
+    }
+    let (nodes, damage) = ds.nodes();
+    if is_octree(&nodes) {
+        let mut s = export_octree(ds, nodes, out, o, report)?;
+        s.damage.splice(0..0, damage);
+        Ok(s)
+    } else {
+        replace(ds, damage, out, o, report)
+    }
+}
+
+/// Temporary files beside the output, removed when dropped.
+struct Temps(Vec<PathBuf>);
+
+impl Drop for Temps {
+    fn drop(&mut self) {
+        for p in &self.0 {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// kd and mwkd: the selected original points to a temporary LAS file, built into an octree,
+/// exported.
+fn replace(
+    ds: &Dataset,
+    mut damage: Vec<Damage>,
+    out: &Path,
+    o: &ExportOptions,
+    report: &dyn Report,
+) -> Result<ExportSummary> {
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let stem = out
+        .file_name()
+        .map_or_else(|| "export".into(), |n| n.to_string_lossy().into_owned());
+    let pid = std::process::id();
+    let las = dir.join(format!(".{stem}.{pid}.points.las"));
+    let myr = dir.join(format!(".{stem}.{pid}.octree.myr"));
+    let temps = Temps(vec![las.clone(), myr.clone()]);
+    report.phase("extracting", ds.meta.points);
+    let s = extract::extract(
+        ds,
+        &las,
+        &ExtractOptions {
+            bbox: o.bbox,
+            spacing: o.spacing,
+            force: true,
+        },
+    )?;
+    report.advance(s.points);
+    let damaged: std::collections::HashSet<NodeKey> = damage.iter().map(|d| d.key).collect();
+    damage.extend(s.damage.into_iter().filter(|d| !damaged.contains(&d.key)));
+    let mut co = ConvertOptions::new(&myr);
+    co.force = true;
+    co.memory = o.memory;
+    co.threads = o.threads;
+    convert::convert(std::slice::from_ref(&las), &co, report)?;
+    let _ = std::fs::remove_file(&las);
+    let octree = Dataset::open(&myr)?;
+    let (nodes, more) = octree.nodes();
+    damage.extend(more);
+    let inner = ExportOptions {
+        bbox: None,
+        spacing: None,
+        ..o.clone()
+    };
+    let mut summary = export_octree(&octree, nodes, out, &inner, report)?;
+    drop(temps);
+    summary.damage.splice(0..0, damage);
+    summary.replaced = true;
+    if ds.meta.schema.has(&Attribute::Normal) {
+        summary.not_kept.push(format!(
+            "normals (the {} structure's points are re-placed into an octree through LAS)",
+            ds.meta.structure
+        ));
+    }
+    Ok(summary)
+}
+
+/// Either sink.
+enum Sink {
+    Copc(Box<CopcSink>),
+    Potree(Box<PotreeSink>),
+}
+
+/// Normals as three f32 extra dimensions after the others (COPC: extra bytes).
+fn normals_as_extra(b: &mut PointBatch) {
+    let Some(normals) = b.normal.take() else {
+        return;
+    };
+    let old = b.extra_stride;
+    let stride = old + 12;
+    let mut bytes = Vec::with_capacity(normals.len() * stride);
+    for (i, n) in normals.iter().enumerate() {
+        if let Some(e) = &b.extra_bytes {
+            bytes.extend_from_slice(&e[i * old..(i + 1) * old]);
+        } else {
+            bytes.resize(bytes.len() + old, 0);
+        }
+        for v in n {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b.extra_bytes = Some(bytes);
+    b.extra_stride = stride;
+}
+
+/// An octree dataset, node for node.
+fn export_octree(
+    ds: &Dataset,
+    nodes: Vec<NodeEntry>,
+    out: &Path,
+    o: &ExportOptions,
+    report: &dyn Report,
+) -> Result<ExportSummary> {
+    let m = &ds.meta;
+    let cube = m.root;
+    let spacing = nodes
+        .iter()
+        .find(|n| n.key == NodeKey::ROOT)
+        .and_then(|n| n.spacing.last().copied())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .unwrap_or(cube.size()[0] / 128.0);
+    let mut summary = ExportSummary::default();
+    let mut sink = match o.target {
+        Target::Copc => {
+            let q = m.quantization;
+            let (options, lost) = myriad_io::copc::header_for(
+                &m.schema,
+                (q.scale, q.offset),
+                m.las_header.as_deref(),
+                m.crs.as_deref(),
+            )?;
+            summary.not_kept.extend(lost);
+            Sink::Copc(Box::new(
+                CopcSink::create(out, options, cube, spacing, o.force)?
+                    .with_page_levels(o.copc_page_levels),
+            ))
+        }
+        _ => {
+            let frame = Frame {
+                cube,
+                scale: m.quantization.scale,
+                grid_offset: m.quantization.offset,
+                spacing,
+                crs: m.crs.clone(),
+            };
+            let (s, lost) = PotreeSink::create(out, &m.schema, frame, o.force)?;
+            summary.not_kept.extend(lost);
+            Sink::Potree(Box::new(s))
+        }
+    };
+    let extract_options = ExtractOptions {
+        bbox: o.bbox,
+        spacing: o.spacing,
+        force: o.force,
+    };
+    let wanted = extract::wanted(ds, nodes, &extract_options);
+    report.phase("exporting", wanted.iter().map(|n| n.points as u64).sum());
+    let mut group: Vec<NodeEntry> = Vec::new();
+    let mut in_group = 0u64;
+    let copc = matches!(sink, Sink::Copc(_));
+    let mut flush = |group: &mut Vec<NodeEntry>, summary: &mut ExportSummary| -> Result<()> {
+        let read: Vec<(NodeEntry, std::result::Result<PointBatch, Damage>)> = group
+            .par_drain(..)
+            .map(|n| {
+                let b = ds.read_node(&n).map(|mut b| {
+                    b.truncate(extract::prefix_for(&n, o.spacing));
+                    if let Some(bx) = &o.bbox {
+                        let keep: Vec<bool> = b.positions.iter().map(|&p| bx.contains(p)).collect();
+                        b.retain_mask(&keep);
+                    }
+                    if copc {
+                        normals_as_extra(&mut b);
+                    }
+                    b
+                });
+                (n, b)
+            })
+            .collect();
+        let mut batches = Vec::with_capacity(read.len());
+        for (n, b) in read {
+            report.advance(n.points as u64);
+            match b {
+                Ok(b) if !b.is_empty() => {
+                    summary.points += b.len() as u64;
+                    summary.nodes += 1;
+                    batches.push((n.key, b));
+                }
+                Ok(_) => {}
+                Err(d) => summary.damage.push(d),
+            }
+        }
+        match &mut sink {
+            Sink::Copc(s) => s.write_nodes(&batches),
+            Sink::Potree(s) => s.write_nodes(&batches),
+        }
+    };
+    for n in wanted {
+        in_group += n.points as u64;
+        group.push(n);
+        if in_group >= GROUP_POINTS {
+            flush(&mut group, &mut summary)?;
+            in_group = 0;
+        }
+    }
+    flush(&mut group, &mut summary)?;
+    summary.bytes = match sink {
+        Sink::Copc(s) => s.finish()?.bytes,
+        Sink::Potree(s) => s.finish()?.bytes,
+    };
+    Ok(summary)
+}

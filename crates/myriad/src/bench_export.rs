@@ -1,0 +1,168 @@
+//! `myriad bench export DATASET --input FILE`: export speed and peak memory (COPC and Potree,
+//! each run a separate `myriad export` process, its peak read by `wait4`), next to
+//! PotreeConverter 2 converting the dataset's input in the same run, alternating, so that the
+//! machine's drift between minutes falls on both.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_format::Dataset;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct ExportBenchArgs {
+    /// The dataset (.myr)
+    dataset: PathBuf,
+    /// The file the dataset was built from, for PotreeConverter
+    #[arg(long)]
+    input: Option<PathBuf>,
+    /// PotreeConverter 2 [default: ../shared/peers/potreeconverter/PotreeConverter when present]
+    #[arg(long)]
+    peer: Option<PathBuf>,
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Folder for the outputs (removed at the end)
+    #[arg(long, default_value = "myriad-bench-export")]
+    scratch: PathBuf,
+}
+
+/// Runs `cmd` to the end; returns its wall time and peak resident memory in bytes.
+fn measured(cmd: &mut Command) -> Result<(f64, u64)> {
+    let start = Instant::now();
+    let child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).spawn()?;
+    let pid = child.id() as libc::pid_t;
+    let mut status = 0;
+    // SAFETY: rusage is plain data (all zeros is valid); wait4 fills it for our own child.
+    let (r, usage) = unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        (libc::wait4(pid, &mut status, 0, &mut usage), usage)
+    };
+    let secs = start.elapsed().as_secs_f64();
+    if r != pid || !libc::WIFEXITED(status) || libc::WEXITSTATUS(status) != 0 {
+        let mut err = String::new();
+        if let Some(mut e) = child.stderr {
+            std::io::Read::read_to_string(&mut e, &mut err).ok();
+        }
+        bail!("{:?} failed: {}", cmd.get_program(), err.trim());
+    }
+    Ok((secs, usage.ru_maxrss as u64 * 1024))
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn default_peer() -> Option<PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    exe.ancestors()
+        .map(|a| a.join("shared/peers/potreeconverter/PotreeConverter"))
+        .chain(std::iter::once(PathBuf::from(
+            "../shared/peers/potreeconverter/PotreeConverter",
+        )))
+        .find(|p| p.is_file())
+}
+
+pub fn run(a: ExportBenchArgs) -> Result<()> {
+    let exe = std::env::current_exe()?;
+    let points = Dataset::open(&a.dataset)?.meta.points;
+    std::fs::create_dir_all(&a.scratch)?;
+    let peer = a.peer.clone().or_else(default_peer);
+    let copc = a.scratch.join("export.copc.laz");
+    let potree = a.scratch.join("potree");
+    let peer_out = a.scratch.join("potreeconverter");
+    let mut rows: Vec<(&str, Vec<f64>, Vec<f64>)> = vec![
+        ("export copc", vec![], vec![]),
+        ("export potree", vec![], vec![]),
+    ];
+    let with_peer = match (&peer, &a.input) {
+        (Some(_), Some(_)) => {
+            rows.push(("PotreeConverter (from the input)", vec![], vec![]));
+            true
+        }
+        _ => {
+            println!("no PotreeConverter run: give --input (and --peer where it is not found)");
+            false
+        }
+    };
+    for _ in 0..a.runs.max(1) {
+        let targets: [&Path; 2] = [&copc, &potree];
+        for (i, out) in targets.iter().enumerate() {
+            let (t, m) = measured(
+                Command::new(&exe)
+                    .arg("export")
+                    .arg(&a.dataset)
+                    .arg("-o")
+                    .arg(out)
+                    .arg("--force"),
+            )?;
+            rows[i].1.push(t);
+            rows[i].2.push(m as f64);
+        }
+        if with_peer {
+            let _ = std::fs::remove_dir_all(&peer_out);
+            let (t, m) = measured(
+                Command::new(peer.as_ref().unwrap())
+                    .arg(a.input.as_ref().unwrap())
+                    .arg("-o")
+                    .arg(&peer_out),
+            )?;
+            rows[2].1.push(t);
+            rows[2].2.push(m as f64);
+        }
+    }
+    let size = |p: &Path| -> u64 {
+        if p.is_dir() {
+            std::fs::read_dir(p)
+                .map(|d| {
+                    d.flatten()
+                        .filter_map(|e| e.metadata().ok())
+                        .map(|m| m.len())
+                        .sum()
+                })
+                .unwrap_or(0)
+        } else {
+            std::fs::metadata(p).map_or(0, |m| m.len())
+        }
+    };
+    let sizes = [size(&copc), size(&potree), size(&peer_out)];
+    println!(
+        "{}: {} points, medians of {} runs",
+        a.dataset.display(),
+        crate::info::thousands(points),
+        a.runs.max(1)
+    );
+    println!(
+        "{:<34} {:>9} {:>10} {:>9} {:>10} {:>8}",
+        "", "seconds", "M pts/s", "peak MB", "MB out", "B/pt"
+    );
+    let mut base = None;
+    for (i, (name, secs, peaks)) in rows.iter_mut().enumerate() {
+        let t = median(secs);
+        let peak = peaks.iter().cloned().fold(0.0, f64::max);
+        println!(
+            "{:<34} {:>9.2} {:>10.2} {:>9.0} {:>10.1} {:>8.2}",
+            name,
+            t,
+            points as f64 / t / 1e6,
+            peak / 1e6,
+            sizes[i] as f64 / 1e6,
+            sizes[i] as f64 / points.max(1) as f64
+        );
+        if i == 2 {
+            base = Some(t);
+        }
+    }
+    if let Some(b) = base {
+        let c = median(&mut rows[0].1);
+        let p = median(&mut rows[1].1);
+        println!(
+            "speed against PotreeConverter: COPC export {:.1}x, Potree export {:.1}x",
+            b / c,
+            b / p
+        );
+    }
+    let _ = std::fs::remove_dir_all(&a.scratch);
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! `myriad export`: a dataset as COPC, Potree 2.0, LAS or LAZ.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_build::export::{self, ExportOptions, Target};
+use myriad_core::Aabb;
+use myriad_format::Dataset;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use crate::dataset::{Bar, parse_box};
+use crate::info::thousands;
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The dataset (.myr)
+    dataset: PathBuf,
+    /// Output: a .copc.laz file (COPC), a folder (Potree 2.0), or a .las/.laz file
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Format: copc, potree, las or laz [default: from the output's name]
+    #[arg(long = "to", value_parser = Target::parse)]
+    target: Option<Target>,
+    /// Only points in this box: minx,miny,minz,maxx,maxy,maxz
+    #[arg(long = "box", value_parser = parse_box, allow_hyphen_values = true)]
+    bbox: Option<Aabb>,
+    /// Level of detail: points at about this spacing [default: every original point]
+    #[arg(long)]
+    spacing: Option<f64>,
+    /// Memory budget of the octree build that kd and mwkd datasets go through: 512MB, 2GB
+    #[arg(long, value_parser = myriad_build::convert::parse_size)]
+    memory: Option<u64>,
+    /// Replace an existing output (a folder only when it holds a Potree dataset)
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn run(a: ExportArgs) -> Result<()> {
+    if a.spacing.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
+        bail!("--spacing must be a positive length");
+    }
+    let Some(target) = a.target.or_else(|| Target::from_output(&a.output)) else {
+        bail!(
+            "{}: cannot tell the format from the name; give --to copc|potree|las|laz",
+            a.output.display()
+        );
+    };
+    let ds = Dataset::open(&a.dataset)?;
+    let mut o = ExportOptions::new(target);
+    o.bbox = a.bbox;
+    o.spacing = a.spacing;
+    o.force = a.force;
+    if let Some(m) = a.memory {
+        o.memory = m;
+    }
+    let bar = Bar::new();
+    let t = Instant::now();
+    let s = export::export(&ds, &a.output, &o, &bar)?;
+    bar.clear();
+    let secs = t.elapsed().as_secs_f64();
+    for d in &s.damage {
+        eprintln!("warning: {}", ds.damage_error(d));
+    }
+    for l in &s.not_kept {
+        eprintln!("warning: not kept: {l}");
+    }
+    println!(
+        "{}: {} points in {} nodes{}, {:.1} MB, {:.1} s ({:.2} M points/s)",
+        a.output.display(),
+        thousands(s.points),
+        thousands(s.nodes),
+        if s.replaced {
+            format!(
+                " (re-placed from the {} structure into an octree)",
+                ds.meta.structure
+            )
+        } else {
+            String::new()
+        },
+        s.bytes as f64 / 1e6,
+        secs,
+        s.points as f64 / secs.max(1e-9) / 1e6
+    );
+    if let Some(p) = crate::bench::peak_rss_bytes() {
+        println!("peak resident memory: {:.0} MB", p as f64 / 1e6);
+    }
+    if let Some(d) = s.damage.first() {
+        bail!(
+            "{} ({} damaged page{} left out; {} lacks node{} {})",
+            ds.damage_error(d),
+            s.damage.len(),
+            if s.damage.len() == 1 { "" } else { "s" },
+            a.output.display(),
+            if s.damage.len() == 1 { "" } else { "s" },
+            s.damage
+                .iter()
+                .map(|d| format!(
+                    "{}-{}-{}-{}",
+                    d.key.level, d.key.cell[0], d.key.cell[1], d.key.cell[2]
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,367 @@
+//! `myriad export` as a user runs it, read back by the field's own readers: COPC by laspy's
+//! CopcReader and copclib (Python; `MYRIAD_PYTHON` or `python3` with both installed, as `.ci/run`
+//! sets up), Potree 2.0 by the Potree 1.8 viewer of ../shared/peers in headless Chromium. Each
+//! prints SKIPPED when its reader is missing. Also the errors: a damaged node, a bad target.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn myriad(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
+        .args(args)
+        .output()
+        .expect("run myriad");
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn ok(args: &[&str]) -> Run {
+    let r = myriad(args);
+    assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+    r
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-export-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn skipped(why: &str) {
+    let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
+}
+
+/// A synthetic scan of `points` converted with small nodes (a deep tree, many hierarchy pages).
+fn dataset(d: &Path, points: &str) -> PathBuf {
+    let las = d.join("scan.laz");
+    let myr = d.join("scan.myr");
+    ok(&["synth", "-o", s(&las), "--points", points, "--force"]);
+    ok(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&myr),
+        "--capacity",
+        "500",
+        "--force",
+    ]);
+    myr
+}
+
+fn python() -> Option<String> {
+    let candidates = std::env::var("MYRIAD_PYTHON")
+        .into_iter()
+        .chain(["python3".to_string()]);
+    for py in candidates {
+        let ok = Command::new(&py)
+            .args(["-c", "import laspy, copclib, lazrs"])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            return Some(py);
+        }
+    }
+    None
+}
+
+#[test]
+fn copc_is_read_by_laspy_and_copclib() {
+    let Some(py) = python() else {
+        return skipped(
+            "no Python with laspy[lazrs] and copclib (MYRIAD_PYTHON); .ci/run installs them",
+        );
+    };
+    let d = tempdir("copc");
+    let myr = dataset(&d, "200k");
+    let copc = d.join("scan.copc.laz");
+    let r = ok(&["export", s(&myr), "-o", s(&copc)]);
+    assert!(r.stdout.contains("200,000 points"), "{}", r.stdout);
+    // Boxes as a user draws them: one inside, one across the edge, one outside.
+    let ds = myriad_format::Dataset::open(&myr).unwrap();
+    let b = ds.meta.bounds;
+    // On the coordinates' grid: laspy rounds a box to it, extract compares the coordinates.
+    let q = ds.meta.quantization;
+    let at = |f: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|a| {
+            let x = b.min[a] + (b.max[a] - b.min[a]) * f[a];
+            q.offset[a] + ((x - q.offset[a]) / q.scale[a]).round() * q.scale[a]
+        })
+    };
+    let boxes: Vec<[f64; 6]> = [
+        (at([0.2, 0.3, 0.0]), at([0.5, 0.6, 1.0])),
+        (at([-0.1, 0.7, 0.0]), at([0.15, 1.2, 1.0])),
+        (at([1.1, 1.1, 0.0]), at([1.3, 1.3, 1.0])),
+    ]
+    .iter()
+    .map(|(lo, hi)| [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]])
+    .collect();
+    let arg = serde_json::to_string(&boxes).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/readers/copc_check.py");
+    let out = Command::new(&py)
+        .arg(&script)
+        .arg(&copc)
+        .arg(&arg)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["header_points"], 200_000, "{v}");
+    assert_eq!(v["all"], 200_000, "{v}");
+    let levels: u64 = v["levels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_u64().unwrap())
+        .sum();
+    assert_eq!(levels, 200_000, "every level's points add up: {v}");
+    assert!(v["levels"].as_array().unwrap().len() > 4, "{v}");
+    assert_eq!(v["copclib_points"], 200_000, "{v}");
+    assert_eq!(v["copclib_bad_counts"], 0, "{v}");
+    assert_eq!(
+        v["copclib_outside"], 0,
+        "every point in its node's cube: {v}"
+    );
+    assert_eq!(v["copclib_nodes"].as_u64(), Some(ds.meta.nodes), "{v}");
+    assert_eq!(v["wkt"], true, "{v}");
+    for (i, bx) in boxes.iter().enumerate() {
+        let las = d.join(format!("box{i}.las"));
+        let spec = bx.map(|x| x.to_string()).join(",");
+        let e = ok(&["extract", s(&myr), "-o", s(&las), "--box", &spec, "--force"]);
+        let n: u64 = e
+            .stdout
+            .split(": ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .replace(',', "")
+            .parse()
+            .unwrap();
+        assert_eq!(
+            v["boxes"][i].as_u64(),
+            Some(n),
+            "box {i}: laspy against extract --box: {v}"
+        );
+    }
+    assert!(v["boxes"][1].as_u64().unwrap() > 0, "{v}");
+    assert_eq!(v["boxes"][2], 0);
+}
+
+#[test]
+fn errors_name_the_node_and_the_option() {
+    let d = tempdir("errors");
+    let myr = dataset(&d, "30k");
+    let r = myriad(&["export", s(&myr), "-o", s(&d.join("x.txt"))]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("--to"), "{}", r.stderr);
+    let r = myriad(&["export", s(&myr), "-o", s(&d.join("x")), "--to", "e57"]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    // A damaged node: the export goes on without it, names it and exits 1.
+    let ds = myriad_format::Dataset::open(&myr).unwrap();
+    let victim = ds
+        .nodes()
+        .0
+        .into_iter()
+        .find(|n| n.points > 100 && n.key.level > 0)
+        .unwrap();
+    drop(ds);
+    let mut bytes = std::fs::read(&myr).unwrap();
+    bytes[(victim.page.offset + 12) as usize] ^= 0x40;
+    std::fs::write(&myr, &bytes).unwrap();
+    let copc = d.join("d.copc.laz");
+    let r = myriad(&["export", s(&myr), "-o", s(&copc)]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(!r.stderr.contains("panicked"));
+    let k = victim.key;
+    let name = format!("{}-{}-{}-{}", k.level, k.cell[0], k.cell[1], k.cell[2]);
+    let last = r.stderr.lines().last().unwrap();
+    assert!(
+        last.starts_with("error: ") && last.contains(&name),
+        "{last}"
+    );
+    assert!(copc.exists(), "the rest was written");
+}
+
+/// Serves `routes` (URL prefix, folder) over HTTP/1.1 with single byte ranges, as a static web
+/// server does, until the test ends.
+fn serve(routes: Vec<(String, PathBuf)>) -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            let routes = routes.clone();
+            std::thread::spawn(move || answer(stream, &routes));
+        }
+    });
+    port
+}
+
+fn answer(mut stream: TcpStream, routes: &[(String, PathBuf)]) {
+    let mut reader = BufReader::new(stream.try_clone().unwrap());
+    let mut line = String::new();
+    if reader.read_line(&mut line).is_err() {
+        return;
+    }
+    let mut range = None;
+    loop {
+        let mut h = String::new();
+        if reader.read_line(&mut h).is_err() || h.trim().is_empty() {
+            break;
+        }
+        let lower = h.to_ascii_lowercase();
+        if let Some(r) = lower.strip_prefix("range: bytes=") {
+            let (a, b) = r.trim().split_once('-').unwrap_or(("0", ""));
+            range = Some((a.parse::<u64>().unwrap_or(0), b.parse::<u64>().ok()));
+        }
+    }
+    let url = line
+        .split_whitespace()
+        .nth(1)
+        .unwrap_or("/")
+        .split('?')
+        .next()
+        .unwrap()
+        .to_string();
+    let file = routes
+        .iter()
+        .find(|(p, _)| url.starts_with(p.as_str()))
+        .map(|(p, dir)| dir.join(&url[p.len()..]))
+        .filter(|f| !url.contains("..") && f.is_file());
+    let Some(file) = file else {
+        let _ = stream
+            .write_all(b"HTTP/1.1 404 Not Found\r\nContent-Length: 0\r\nConnection: close\r\n\r\n");
+        return;
+    };
+    let mut body = Vec::new();
+    std::fs::File::open(&file)
+        .unwrap()
+        .read_to_end(&mut body)
+        .unwrap();
+    let total = body.len() as u64;
+    let kind = match file.extension().and_then(|e| e.to_str()) {
+        Some("html") => "text/html",
+        Some("js") => "application/javascript",
+        Some("json") => "application/json",
+        Some("css") => "text/css",
+        _ => "application/octet-stream",
+    };
+    let head = match range {
+        Some((a, b)) => {
+            let b = b.unwrap_or(total - 1).min(total - 1);
+            body = body[a as usize..=b as usize].to_vec();
+            format!("HTTP/1.1 206 Partial Content\r\nContent-Range: bytes {a}-{b}/{total}\r\n")
+        }
+        None => "HTTP/1.1 200 OK\r\n".to_string(),
+    };
+    let _ = stream.write_all(
+        format!(
+            "{head}Content-Type: {kind}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            body.len()
+        )
+        .as_bytes(),
+    );
+    let _ = stream.write_all(&body);
+}
+
+#[test]
+fn potree_opens_in_the_potree_viewer() {
+    let viewer = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/peers/potree-viewer");
+    if !viewer.join("libs/potree/potree.js").is_file() {
+        return skipped("../shared/peers/potree-viewer not found");
+    }
+    let chromium = ["chromium", "chromium-browser"].into_iter().find(|c| {
+        Command::new(c)
+            .arg("--version")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    let Some(chromium) = chromium else {
+        return skipped("no Chromium (apt-get install chromium; .ci/run installs it)");
+    };
+    let d = tempdir("potree");
+    let myr = dataset(&d, "300k");
+    let cloud = d.join("cloud");
+    let r = ok(&["export", s(&myr), "-o", s(&cloud)]);
+    assert!(r.stdout.contains("300,000 points"), "{}", r.stdout);
+    let page = d.join("page");
+    std::fs::create_dir_all(&page).unwrap();
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/readers/potree_check.html"),
+        page.join("index.html"),
+    )
+    .unwrap();
+    let port = serve(vec![
+        ("/libs/".into(), viewer.join("libs")),
+        ("/cloud/".into(), cloud.clone()),
+        ("/".into(), page),
+    ]);
+    let mut child = Command::new(chromium)
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--virtual-time-budget=60000",
+            "--window-size=800,600",
+            "--dump-dom",
+        ])
+        .arg(format!("http://127.0.0.1:{port}/index.html"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(180) {
+            let _ = child.kill();
+            panic!("Chromium did not finish in 180 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let mut dom = String::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut dom)
+        .unwrap();
+    let result = dom
+        .split("<pre id=\"result\">")
+        .nth(1)
+        .and_then(|r| r.split("</pre>").next())
+        .unwrap_or("")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&amp;", "&");
+    let v: serde_json::Value = serde_json::from_str(&result)
+        .unwrap_or_else(|_| panic!("the page did not report: {result:?}"));
+    assert_eq!(v["errors"].as_array().map(|e| e.len()), Some(0), "{v}");
+    assert!(v["points"].as_u64().unwrap() > 1000, "points visible: {v}");
+    assert!(v["loaded"].as_u64().unwrap() >= 1, "{v}");
+    assert!(v["lit"].as_u64().unwrap() > 500, "lit pixels: {v}");
+}

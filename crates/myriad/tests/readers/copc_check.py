@@ -1,0 +1,54 @@
+"""Reads a COPC file with laspy's CopcReader and with copclib, as other tools would, and prints
+what they found as one JSON object (for crates/myriad/tests/export.rs).
+
+usage: copc_check.py FILE.copc.laz '[[minx,miny,minz,maxx,maxy,maxz], ...]'
+"""
+import json
+import sys
+
+import numpy as np
+import laspy
+from laspy.copc import Bounds
+import copclib
+
+path, boxes = sys.argv[1], json.loads(sys.argv[2])
+out = {}
+with laspy.CopcReader.open(path) as r:
+    out["header_points"] = r.header.point_count
+    out["format"] = r.header.point_format.id
+    out["all"] = len(r.query())
+    levels = []
+    while sum(levels) < out["header_points"] and len(levels) < 32:
+        levels.append(len(r.query(level=len(levels))))
+    out["levels"] = levels
+    out["boxes"] = [
+        len(r.query(bounds=Bounds(mins=np.array(b[:3]), maxs=np.array(b[3:])))) for b in boxes
+    ]
+    wkt = [v for v in r.header.vlrs if v.user_id == "LASF_Projection" and v.record_id == 2112]
+    out["wkt"] = bool(wkt) and r.header.global_encoding.wkt
+
+reader = copclib.FileReader(path)
+info = reader.copc_config.copc_info
+scale = reader.copc_config.las_header.scale
+half = info.halfsize
+nodes = reader.GetAllNodes()
+points = outside = bad_counts = 0
+for n in nodes:
+    pts = reader.GetPoints(n)
+    if len(pts) != n.point_count:
+        bad_counts += 1
+    points += len(pts)
+    side = 2 * half / (1 << n.key.d)
+    lo = [
+        info.center_x - half + n.key.x * side,
+        info.center_y - half + n.key.y * side,
+        info.center_z - half + n.key.z * side,
+    ]
+    for axis, (coords, s) in enumerate(zip((pts.x, pts.y, pts.z), (scale.x, scale.y, scale.z))):
+        c = np.asarray(coords)
+        outside += int(np.count_nonzero((c < lo[axis] - s) | (c > lo[axis] + side + s)))
+out["copclib_nodes"] = len(nodes)
+out["copclib_points"] = points
+out["copclib_bad_counts"] = bad_counts
+out["copclib_outside"] = outside
+print(json.dumps(out))
