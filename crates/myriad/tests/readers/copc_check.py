@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import laspy
-from laspy.copc import Bounds
+from laspy.copc import Bounds, load_octree_for_query
 import copclib
 
 path, boxes = sys.argv[1], json.loads(sys.argv[2])
@@ -24,6 +24,23 @@ with laspy.CopcReader.open(path) as r:
     out["boxes"] = [
         len(r.query(bounds=Bounds(mins=np.array(b[:3]), maxs=np.array(b[3:])))) for b in boxes
     ]
+    # Every node as laspy walks the hierarchy pages: its chunk holds its count, inside its cube.
+    nodes = load_octree_for_query(r.source, r.copc_info, r.root_page)
+    slack = np.asarray(r.header.scales)
+    node_points = node_outside = node_bad = 0
+    for n in nodes:
+        if n.point_count == 0:
+            continue
+        pts = r._fetch_and_decompress_points_of_nodes([n])
+        node_bad += int(len(pts) != n.point_count)
+        node_points += len(pts)
+        xyz = np.stack([np.asarray(pts.x), np.asarray(pts.y), np.asarray(pts.z)], axis=1)
+        out_of = (xyz < n.bounds.mins - slack) | (xyz > n.bounds.maxs + slack)
+        node_outside += int(np.count_nonzero(out_of.any(axis=1)))
+    out["laspy_nodes"] = len(nodes)
+    out["laspy_node_points"] = node_points
+    out["laspy_bad_counts"] = node_bad
+    out["laspy_outside"] = node_outside
     wkt = [v for v in r.header.vlrs if v.user_id == "LASF_Projection" and v.record_id == 2112]
     out["wkt"] = bool(wkt) and r.header.global_encoding.wkt
 
