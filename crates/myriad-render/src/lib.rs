@@ -17,6 +17,7 @@ mod cpu;
 mod post;
 mod raster;
 mod scene;
+pub mod selector;
 
 pub use colour::{ColorBy, class_colour, colours};
 pub use post::gpu::{PASS_SOURCES, gbuffer_source};
@@ -24,7 +25,7 @@ pub use post::{
     Blur, DEFAULT_PASSES, Fill, PASS_NAMES, Passes, Shade, Ssao, pack_normal, unpack_normal,
 };
 pub use raster::{Path, Rasterizer};
-pub use scene::{FrameStats, Picked, Scene, frame_many};
+pub use scene::{FrameStats, Picked, Scene, frame_many, frame_many_threaded};
 
 /// GPU buffers of nodes, least recently used evicted beyond a byte budget.
 pub type NodeBuffers = myriad_lod::Lru<Points>;

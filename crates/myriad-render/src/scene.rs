@@ -3,6 +3,7 @@
 //! and draws every selected node that has its buffer. A node still loading is covered by its
 //! parent's points, drawn meanwhile; the image refines as pages land.
 
+use crate::selector::{Request, Selector};
 use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
@@ -10,7 +11,7 @@ use myriad_lod::{
     Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageReader, SelectOptions,
     Selection, merge, robust_bounds, select_occluded,
 };
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -27,7 +28,8 @@ pub struct Picked {
 }
 
 pub struct Scene {
-    pub hierarchy: Hierarchy,
+    /// Shared with the selection thread ([`Scene::frame_threaded`]).
+    pub hierarchy: Arc<Hierarchy>,
     pub loader: Loader,
     pub buffers: NodeBuffers,
     /// Positions are uploaded relative to this (the root cube's centre).
@@ -46,6 +48,12 @@ pub struct Scene {
     pub occlusion: Occlusion,
     /// Cells per side of the coarse depth buffer of software occlusion culling.
     pub occlusion_size: u32,
+    /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
+    pub upload_limit: usize,
+    /// The selection thread, started by the first threaded frame.
+    selector: Option<Selector>,
+    /// The newest answer of the selection thread for this scene alone (before a shared budget).
+    alone: Option<crate::selector::Answer>,
 }
 
 /// What a frame did.
@@ -65,7 +73,17 @@ pub struct FrameStats {
     pub complete: bool,
     /// Nodes culled as hidden.
     pub culled: usize,
+    /// On the frame thread: selecting (or, threaded, asking and taking the answer).
     pub select: Duration,
+    /// Threaded frames: how long the traversal drawn took on the selection thread (zero before
+    /// the first answer), how many requests are newer than it, and whether it was made for this
+    /// frame's camera (always, unthreaded).
+    pub select_thread: Duration,
+    pub select_lag: u64,
+    pub select_current: bool,
+    /// The point budget the drawn selection was made with (a threaded frame's may be an
+    /// earlier frame's budget).
+    pub select_budget: u64,
     pub upload: Duration,
     pub draw: Duration,
 }
@@ -83,7 +101,7 @@ impl Scene {
     ) -> Scene {
         Scene {
             origin: hierarchy.root.center(),
-            hierarchy,
+            hierarchy: Arc::new(hierarchy),
             loader: Loader::new(reader, threads, ram_bytes),
             buffers: NodeBuffers::new(gpu_bytes),
             z_range: (view_bounds.min[2], view_bounds.max[2]),
@@ -93,6 +111,9 @@ impl Scene {
             colour: ColorBy::Rgb,
             occlusion: Occlusion::Software,
             occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
+            upload_limit: usize::MAX,
+            selector: None,
+            alone: None,
         }
     }
 
@@ -361,8 +382,9 @@ impl Scene {
             self.buffers.touch(&k);
         }
         let mut uploads = 0;
+        let mut bytes_up = 0;
         for n in &selection.nodes {
-            if self.buffers.touch(&n.key) {
+            if self.buffers.touch(&n.key) || bytes_up >= self.upload_limit {
                 continue;
             }
             let Some(batch) = self.loader.get(&n.key) else {
@@ -381,10 +403,51 @@ impl Scene {
                 None => Points::upload(gpu, self.origin, &batch.positions, &c),
             };
             let bytes = p.bytes();
+            bytes_up += bytes;
             self.buffers.insert(n.key, p, bytes);
             uploads += 1;
         }
         uploads
+    }
+
+    /// What the selection thread needs to select for `camera`: the options, and the resident
+    /// points of the nodes selected last (what occlusion culling splats).
+    fn request(
+        &self,
+        camera: &Camera,
+        options: &SelectOptions,
+        clip: Option<crate::Clip>,
+    ) -> Request {
+        let resident: HashMap<NodeKey, Arc<myriad_lod::stream::Loaded>> = self
+            .last
+            .nodes
+            .iter()
+            .map(|n| n.key)
+            .chain(self.drawn.iter().copied())
+            .filter_map(|k| Some((k, self.loader.get(&k)?)))
+            .collect();
+        Request {
+            camera: *camera,
+            options: options.clone(),
+            clip,
+            occlusion: self.occlusion,
+            occlusion_size: self.occlusion_size,
+            resident,
+        }
+    }
+
+    /// [`Scene::frame`] with the selection on its own thread ([`frame_many_threaded`]).
+    pub fn frame_threaded(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        camera: &Camera,
+        options: &SelectOptions,
+        style: &Style,
+    ) -> (Vec<u8>, FrameStats) {
+        let (image, mut stats) =
+            frame_many_threaded(&mut [self], gpu, raster, camera, options, style);
+        (image, stats.remove(0))
     }
 
     /// One frame: select, load (never waiting), upload, draw; the image and what it took.
@@ -408,6 +471,8 @@ impl Scene {
         let stats = FrameStats {
             uploads,
             select,
+            select_current: true,
+            select_budget: options.budget,
             upload,
             draw: t.elapsed(),
             ..self.stats(&selection, &draws)
@@ -436,6 +501,78 @@ pub fn frame_many(
         .collect();
     let selections = merge(alone, options.budget);
     let select = t.elapsed();
+    let (image, mut stats) = draw_many(scenes, selections, gpu, raster, camera, style);
+    for s in &mut stats {
+        s.select = select;
+        s.select_current = true;
+        s.select_budget = options.budget;
+    }
+    (image, stats)
+}
+
+/// [`frame_many`] with each scene's selection on its own thread ([`crate::selector`]): asks for
+/// this camera's selections and draws the newest ones finished (the last ones while none has),
+/// with uploads bounded by each scene's [`Scene::upload_limit`]. Never waits for selection,
+/// disk or uploads; the first frames, before any selection is in, are empty.
+pub fn frame_many_threaded(
+    scenes: &mut [&mut Scene],
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    camera: &Camera,
+    options: &SelectOptions,
+    style: &Style,
+) -> (Vec<u8>, Vec<FrameStats>) {
+    let t = Instant::now();
+    let mut serials = Vec::new();
+    for scene in scenes.iter_mut() {
+        let request = scene.request(camera, options, style.clip);
+        let h = scene.hierarchy.clone();
+        let selector = scene.selector.get_or_insert_with(|| Selector::new(h));
+        let serial = selector.ask(request);
+        if let Some(a) = selector.take() {
+            scene.alone = Some(a);
+        }
+        serials.push(serial);
+    }
+    let alone = scenes
+        .iter()
+        .map(|s| {
+            s.alone
+                .as_ref()
+                .map(|a| a.selection.clone())
+                .unwrap_or_default()
+        })
+        .collect();
+    let selections = merge(alone, options.budget);
+    let select = t.elapsed();
+    let (image, mut stats) = draw_many(scenes, selections, gpu, raster, camera, style);
+    for ((s, scene), serial) in stats.iter_mut().zip(scenes.iter()).zip(serials) {
+        s.select = select;
+        match &scene.alone {
+            Some(a) => {
+                s.select_budget = a.budget;
+                s.select_thread = a.took;
+                s.select_lag = serial - a.serial;
+                s.select_current = a.camera == *camera;
+            }
+            None => {
+                s.select_lag = serial;
+                s.select_current = false;
+            }
+        }
+    }
+    (image, stats)
+}
+
+/// Loads, uploads and draws the given selections of `scenes` in one image.
+fn draw_many(
+    scenes: &mut [&mut Scene],
+    selections: Vec<Selection>,
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    camera: &Camera,
+    style: &Style,
+) -> (Vec<u8>, Vec<FrameStats>) {
     let t = Instant::now();
     let mut uploads = Vec::new();
     for (scene, selection) in scenes.iter_mut().zip(&selections) {
@@ -453,7 +590,6 @@ pub fn frame_many(
         drawn.push(keys);
         stats.push(FrameStats {
             uploads,
-            select,
             upload,
             ..scene.stats(selection, &draws)
         });

@@ -361,3 +361,114 @@ fn the_front_moves_without_holes() {
         assert_eq!(s.nodes, 4);
     }
 }
+
+/// Every cell of the bottom layer of a full octree over the square down to `depth`, each with a
+/// few points at a spacing a fine threshold wants refined: a selection without a budget visits
+/// them all (hundreds of thousands of nodes: a hierarchy too big to traverse within a frame).
+fn huge(depth: u32) -> Hierarchy {
+    let root = Aabb::new([0.0; 3], [64.0; 3]);
+    let mut entries = Vec::new();
+    for level in 0..=depth {
+        let n = 1u32 << level;
+        for x in 0..n {
+            for y in 0..n {
+                let mut e = entry(NodeKey::ROOT);
+                e.key = NodeKey {
+                    level,
+                    cell: [x, y, 0],
+                };
+                e.points = 4;
+                e.prefix = vec![4];
+                e.spacing = vec![64.0 / n as f64 / 2.0];
+                entries.push(e);
+            }
+        }
+    }
+    Hierarchy::new(root, entries)
+}
+
+#[test]
+fn frames_keep_coming_while_a_huge_selection_runs_on_its_thread() {
+    let gpu = Gpu::cpu();
+    let (permit, permits): (Sender<()>, _) = channel();
+    let reader = Arc::new(Gated {
+        permits: Mutex::new(permits),
+    });
+    let mut scene = Scene::new(
+        reader,
+        huge(9),
+        Aabb::new([0.0; 3], [64.0; 3]),
+        1,
+        usize::MAX,
+        usize::MAX,
+    );
+    // Declared after the scene, so dropped before it: the loader thread waiting for a permit
+    // then ends.
+    let _permit = permit;
+    let raster = Rasterizer::new(&gpu);
+    let cam = above();
+    let options = SelectOptions {
+        budget: u64::MAX,
+        min_pixels: 0.01,
+    };
+    let style = Style {
+        size: PointSize::Fixed(1.0),
+        ..Style::default()
+    };
+    // What a frame would wait for with the selection on the frame thread.
+    let t = Instant::now();
+    let alone = scene.select(&cam, &options, None);
+    let traversal = t.elapsed();
+    assert!(
+        alone.nodes.len() > 300_000,
+        "{} nodes selected",
+        alone.nodes.len()
+    );
+    assert!(
+        traversal > Duration::from_millis(100),
+        "the traversal took only {traversal:?}"
+    );
+
+    // Threaded: frames come at their interval while the traversal runs (with the selection on
+    // the frame thread, one frame would last the whole traversal); its answer is drawn when in.
+    let start = Instant::now();
+    let mut before_answer = 0;
+    let mut slowest = Duration::ZERO;
+    let mut answered = None;
+    while start.elapsed() < traversal * 4 + Duration::from_secs(2) {
+        let t = Instant::now();
+        let (_, stats) = scene.frame_threaded(&gpu, &raster, &cam, &options, &style);
+        if stats.select_thread == Duration::ZERO {
+            // Not counted: the frame that takes the answer in, which then loads and draws
+            // 350,000 nodes (work of the frame, not waiting).
+            slowest = slowest.max(t.elapsed());
+            before_answer += 1;
+        } else {
+            answered = Some(stats);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let stats = answered.expect("the selection thread answered");
+    eprintln!(
+        "traversal {traversal:?}; {before_answer} frames meanwhile, the slowest {slowest:?}; on its thread {:?}",
+        stats.select_thread
+    );
+    assert!(
+        before_answer >= 3,
+        "{before_answer} frames before the answer"
+    );
+    assert!(
+        slowest < traversal / 3,
+        "a frame took {slowest:?}, the traversal {traversal:?}"
+    );
+    assert_eq!(stats.selected_nodes, alone.nodes.len());
+    assert!(
+        stats.select_thread > traversal / 3,
+        "{:?}",
+        stats.select_thread
+    );
+    // Meanwhile the camera's newer requests wait: the drawn selection is behind by some.
+    assert!(stats.select_lag >= 1, "lag {}", stats.select_lag);
+    assert!(stats.select_current, "the camera did not move");
+}

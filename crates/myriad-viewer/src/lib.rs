@@ -129,6 +129,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         let mut scene = Scene::open(ds.clone(), ram, gpu_bytes);
         scene.set_colour(o.colour);
         scene.occlusion = o.occlusion;
+        // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
+        scene.upload_limit = (64 << 20) / shares;
         bounds.extend(scene.view_bounds.min);
         bounds.extend(scene.view_bounds.max);
         all.extend(ds.meta.bounds.min);
@@ -362,6 +364,16 @@ impl App {
             self.timing.fps, self.timing.frame_ms
         ));
         ui.label(format!("{points} points in {nodes} nodes"));
+        let select = self
+            .stats
+            .iter()
+            .map(|s| s.select_thread)
+            .max()
+            .unwrap_or_default();
+        ui.label(format!(
+            "selection {:.1} ms (own thread)",
+            select.as_secs_f64() * 1e3
+        ));
         ui.label(format!(
             "cache: {:.0} MB decoded, {:.0} MB of point buffers",
             ram as f64 / 1e6,
@@ -675,7 +687,10 @@ impl App {
             .min_by(|a, b| a.depth.total_cmp(&b.depth))
     }
 
-    /// Draws the visible datasets in one frame: one budget, one depth buffer.
+    /// Draws the visible datasets in one frame: one budget, one depth buffer. Drawing on a GPU,
+    /// selection runs on its own thread per dataset and the frame draws the newest selection in
+    /// (never waits for it); drawing on the CPU, the cores that would select are the cores that
+    /// draw, and the frame selects itself (the frame-rate budget then sees its own selection).
     fn draw(&mut self, width: u32, height: u32) -> Vec<u8> {
         self.nav.camera.width = width.max(1);
         self.nav.camera.height = height.max(1);
@@ -690,7 +705,12 @@ impl App {
             .filter(|l| l.visible)
             .map(|l| &mut l.scene)
             .collect();
-        let (image, stats) = myriad_render::frame_many(
+        let frame = if self.raster.path == myriad_render::Path::Cpu {
+            myriad_render::frame_many
+        } else {
+            myriad_render::frame_many_threaded
+        };
+        let (image, stats) = frame(
             &mut scenes,
             &self.gpu,
             &self.raster,
@@ -762,7 +782,14 @@ impl eframe::App for App {
                 if let Some(last) = self.timing.last {
                     let interval = now.duration_since(last).as_secs_f64().max(1e-6);
                     self.timing.fps = 0.8 * self.timing.fps + 0.2 / interval;
-                    if let Some(p) = &mut self.pace {
+                    // The budget follows the frames drawn with it: a threaded frame may still
+                    // draw a selection made with an earlier budget (a feedback loop with a
+                    // delay in it oscillates).
+                    let current = self
+                        .stats
+                        .iter()
+                        .all(|s| s.select_budget == self.options.budget);
+                    if let Some(p) = self.pace.as_mut().filter(|_| current) {
                         let drawn: u64 = self.stats.iter().map(|s| s.points).sum();
                         let selected: u64 = self.stats.iter().map(|s| s.selected_points).sum();
                         let limited = selected as f64 >= 0.98 * self.options.budget as f64;
@@ -832,10 +859,13 @@ impl eframe::App for App {
                     });
                 });
         }
-        // Converged: every selected node drawn, nothing loading.
+        // Converged: the selection of this view in, every node of it drawn, nothing loading.
         let converged = self.orbit_left == 0
             && !self.stats.is_empty()
-            && self.stats.iter().all(|s| s.complete && s.in_flight == 0);
+            && self
+                .stats
+                .iter()
+                .all(|s| s.select_current && s.complete && s.in_flight == 0);
         self.settled = if converged { self.settled + 1 } else { 0 };
         if self.settled >= 2
             && !self.shot_requested

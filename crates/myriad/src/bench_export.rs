@@ -1,7 +1,8 @@
 //! `myriad bench export DATASET --input FILE`: export speed and peak memory (COPC and Potree,
-//! each run a separate `myriad export` process, its peak read by `wait4`), next to
-//! PotreeConverter 2 converting the dataset's input in the same run, alternating, so that the
-//! machine's drift between minutes falls on both.
+//! each run a separate `myriad export` process, its peak read by `wait4`), next to a baseline
+//! (`extract` of every point to one LAZ file: the same decoding and LAZ compression without a
+//! tree) and to PotreeConverter 2 converting the dataset's input, in the same run, alternating,
+//! so that the machine's drift between minutes falls on all of them.
 
 use anyhow::{Result, bail};
 use clap::Args;
@@ -72,9 +73,11 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
     let copc = a.scratch.join("export.copc.laz");
     let potree = a.scratch.join("potree");
     let peer_out = a.scratch.join("potreeconverter");
+    let laz = a.scratch.join("extract.laz");
     let mut rows: Vec<(&str, Vec<f64>, Vec<f64>)> = vec![
         ("export copc", vec![], vec![]),
         ("export potree", vec![], vec![]),
+        ("extract to LAZ (baseline)", vec![], vec![]),
     ];
     let with_peer = match (&peer, &a.input) {
         (Some(_), Some(_)) => {
@@ -87,11 +90,12 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
         }
     };
     for _ in 0..a.runs.max(1) {
-        let targets: [&Path; 2] = [&copc, &potree];
-        for (i, out) in targets.iter().enumerate() {
+        let targets: [(&str, &Path); 3] =
+            [("export", &copc), ("export", &potree), ("extract", &laz)];
+        for (i, (command, out)) in targets.iter().enumerate() {
             let (t, m) = measured(
                 Command::new(&exe)
-                    .arg("export")
+                    .arg(command)
                     .arg(&a.dataset)
                     .arg("-o")
                     .arg(out)
@@ -108,8 +112,8 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
                     .arg("-o")
                     .arg(&peer_out),
             )?;
-            rows[2].1.push(t);
-            rows[2].2.push(m as f64);
+            rows[3].1.push(t);
+            rows[3].2.push(m as f64);
         }
     }
     let size = |p: &Path| -> u64 {
@@ -126,7 +130,7 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
             std::fs::metadata(p).map_or(0, |m| m.len())
         }
     };
-    let sizes = [size(&copc), size(&potree), size(&peer_out)];
+    let sizes = [size(&copc), size(&potree), size(&laz), size(&peer_out)];
     println!(
         "{}: {} points, medians of {} runs",
         a.dataset.display(),
@@ -150,13 +154,18 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
             sizes[i] as f64 / 1e6,
             sizes[i] as f64 / points.max(1) as f64
         );
-        if i == 2 {
+        if i == 3 {
             base = Some(t);
         }
     }
+    let c = median(&mut rows[0].1);
+    let p = median(&mut rows[1].1);
+    let e = median(&mut rows[2].1);
+    println!(
+        "COPC export at {:.0} % of the speed of extract to LAZ",
+        100.0 * e / c
+    );
     if let Some(b) = base {
-        let c = median(&mut rows[0].1);
-        let p = median(&mut rows[1].1);
         println!(
             "speed against PotreeConverter: COPC export {:.1}x, Potree export {:.1}x",
             b / c,

@@ -139,7 +139,10 @@ fn copc_is_read_by_laspy_and_copclib() {
     assert!(v["levels"].as_array().unwrap().len() > 4, "{v}");
     assert_eq!(v["laspy_node_points"], 200_000, "{v}");
     assert_eq!(v["laspy_bad_counts"], 0, "{v}");
-    assert_eq!(v["laspy_outside"], 0, "every point in its node's cube (laspy): {v}");
+    assert_eq!(
+        v["laspy_outside"], 0,
+        "every point in its node's cube (laspy): {v}"
+    );
     assert_eq!(v["laspy_nodes"].as_u64(), Some(ds.meta.nodes), "{v}");
     assert_eq!(v["copclib_points"], 200_000, "{v}");
     assert_eq!(v["copclib_bad_counts"], 0, "{v}");

@@ -1,0 +1,160 @@
+//! Selection on its own thread (000 section 3.4: the frame is split into selection, loading and
+//! drawing threads, so that drawing never waits for the others).
+//!
+//! The frame thread asks for the selection of its camera ([`Selector::ask`]) and draws the newest
+//! one that has finished ([`Selector::take`]), the one before while none has: a frame never waits
+//! for a traversal, however large the hierarchy. A request asked for while the thread is busy
+//! replaces any older one not yet started (the camera moved on); answers come back double
+//! buffered (the frame thread holds one selection while the thread fills the next). Occlusion
+//! culling needs the resident points of the nodes already selected: the request carries them
+//! (shared, not copied), as the frame thread's loader saw them.
+
+use crate::Clip;
+use myriad_core::{Aabb, NodeKey};
+use myriad_lod::occlusion::Occluder;
+use myriad_lod::stream::Loaded;
+use myriad_lod::{Camera, Hierarchy, Occlusion, SelectOptions, Selection, select_occluded};
+use std::collections::HashMap;
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// What to select for.
+#[derive(Clone)]
+pub struct Request {
+    pub camera: Camera,
+    pub options: SelectOptions,
+    pub clip: Option<Clip>,
+    pub occlusion: Occlusion,
+    pub occlusion_size: u32,
+    /// Resident points the occluder may splat (those of the nodes selected last).
+    pub resident: HashMap<NodeKey, Arc<Loaded>>,
+}
+
+/// A finished selection.
+#[derive(Debug, Clone)]
+pub struct Answer {
+    pub selection: Selection,
+    /// The camera and point budget it was made for.
+    pub camera: Camera,
+    pub budget: u64,
+    /// How long the traversal took on the selection thread.
+    pub took: Duration,
+    /// The number [`Selector::ask`] gave its request.
+    pub serial: u64,
+}
+
+#[derive(Default)]
+struct State {
+    next: Option<(u64, Request)>,
+    done: Option<Answer>,
+    busy: bool,
+    stop: bool,
+}
+
+type Shared = Arc<(Mutex<State>, Condvar)>;
+
+/// The selection thread of one hierarchy.
+pub struct Selector {
+    shared: Shared,
+    thread: Option<JoinHandle<()>>,
+    serial: u64,
+}
+
+impl Selector {
+    pub fn new(hierarchy: Arc<Hierarchy>) -> Selector {
+        let shared: Shared = Arc::new((Mutex::new(State::default()), Condvar::new()));
+        let s = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("myriad-select".into())
+            .spawn(move || run(&hierarchy, &s))
+            .expect("spawn the selection thread");
+        Selector {
+            shared,
+            thread: Some(thread),
+            serial: 0,
+        }
+    }
+
+    /// Asks for a selection, replacing one asked for earlier and not started; never waits.
+    /// Returns the request's serial number.
+    pub fn ask(&mut self, request: Request) -> u64 {
+        self.serial += 1;
+        let (lock, ready) = &*self.shared;
+        lock.lock().expect("selector lock").next = Some((self.serial, request));
+        ready.notify_all();
+        self.serial
+    }
+
+    /// The newest finished selection not taken yet; never waits.
+    pub fn take(&self) -> Option<Answer> {
+        self.shared.0.lock().expect("selector lock").done.take()
+    }
+
+    /// Whether a request is waiting or being worked on.
+    pub fn busy(&self) -> bool {
+        let s = self.shared.0.lock().expect("selector lock");
+        s.busy || s.next.is_some()
+    }
+
+    /// Waits until the answer to request `serial` (or a later one) is in, then takes it (for
+    /// callers that converge, and tests).
+    pub fn wait_for(&self, serial: u64) -> Answer {
+        let (lock, ready) = &*self.shared;
+        let mut s = lock.lock().expect("selector lock");
+        loop {
+            if s.done.as_ref().is_some_and(|a| a.serial >= serial) {
+                return s.done.take().expect("checked");
+            }
+            s = ready.wait(s).expect("selector lock");
+        }
+    }
+}
+
+fn run(h: &Hierarchy, shared: &Shared) {
+    let (lock, ready) = &**shared;
+    loop {
+        let (serial, r) = {
+            let mut s = lock.lock().expect("selector lock");
+            loop {
+                if s.stop {
+                    return;
+                }
+                if let Some(next) = s.next.take() {
+                    s.busy = true;
+                    break next;
+                }
+                s = ready.wait(s).expect("selector lock");
+            }
+        };
+        let t = Instant::now();
+        let keep = |cube: &Aabb| Clip::keeps(r.clip, cube);
+        let points = |k: &NodeKey| r.resident.get(k).cloned();
+        let mut occluder = (r.occlusion == Occlusion::Software)
+            .then(|| Occluder::new(&r.camera, r.occlusion_size, &points));
+        let selection = select_occluded(h, &r.camera, &r.options, &keep, occluder.as_mut());
+        let answer = Answer {
+            selection,
+            camera: r.camera,
+            budget: r.options.budget,
+            took: t.elapsed(),
+            serial,
+        };
+        let mut s = lock.lock().expect("selector lock");
+        s.done = Some(answer);
+        s.busy = false;
+        drop(s);
+        ready.notify_all();
+    }
+}
+
+impl Drop for Selector {
+    fn drop(&mut self) {
+        let (lock, ready) = &*self.shared;
+        lock.lock().unwrap_or_else(|e| e.into_inner()).stop = true;
+        ready.notify_all();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
