@@ -334,7 +334,19 @@ impl Rasterizer {
         if guard.as_ref().is_none_or(|t| t.size != (w, h, f)) {
             *guard = Some(self.targets(gpu, w, h, f));
         }
-        let draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
+        let mut draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
+        if self.path == Path::Quads && draws.iter().all(|d| d.node.is_some()) {
+            // Front to back by node (002's reverse painter's order): the depth test then rejects
+            // the fragments of what lies behind before they are shaded. Ties keep their order.
+            let e = camera.position;
+            let distance = |d: &Draw| {
+                let b = d.node.expect("checked").1;
+                (0..3)
+                    .map(|a| (b.min[a] - e[a]).max(e[a] - b.max[a]).max(0.0).powi(2))
+                    .sum::<f64>()
+            };
+            draws.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+        }
         let (point_size, max_size, scale) = match style.size {
             PointSize::Fixed(px) => (px.max(1.0), px.max(1.0), 1.0),
             PointSize::Adaptive { scale, max } => (0.0, max.max(1.0), scale as f64),
