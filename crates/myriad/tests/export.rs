@@ -367,8 +367,11 @@ fn potree_opens_in_the_potree_viewer() {
         .replace("&amp;", "&");
     let v: serde_json::Value = serde_json::from_str(&result)
         .unwrap_or_else(|_| panic!("the page did not report: {result:?}"));
+    eprintln!("the Potree viewer: {v}");
     assert_eq!(v["errors"].as_array().map(|e| e.len()), Some(0), "{v}");
-    assert!(v["points"].as_u64().unwrap() > 1000, "points visible: {v}");
-    assert!(v["loaded"].as_u64().unwrap() >= 1, "{v}");
-    assert!(v["lit"].as_u64().unwrap() > 500, "lit pixels: {v}");
+    // The root (at most 500 points here) and nodes below it loaded and drawn (here: 17 nodes,
+    // 4,996 points, 13,364 lit pixels, busy machine or not: the page steps the viewer itself).
+    assert!(v["points"].as_u64().unwrap() >= 1000, "points visible: {v}");
+    assert!(v["loaded"].as_u64().unwrap() >= 2, "{v}");
+    assert!(v["lit"].as_u64().unwrap() >= 1000, "lit pixels: {v}");
 }
