@@ -1,6 +1,9 @@
 //! `convert` end to end: nothing lost (every field of every point survives convert then
 //! extract), the dataset's invariants, box and spacing queries, damaged pages caught and named.
 
+mod common;
+use common::{read_all, records, synth, tempdir};
+
 use myriad_build::convert::{ConvertOptions, Silent, Structure, convert};
 use myriad_build::export::{ExportOptions, Target, export};
 use myriad_build::extract::{ExtractOptions, extract, verify};
@@ -8,13 +11,6 @@ use myriad_core::{Aabb, PointBatch};
 use myriad_format::Dataset;
 use myriad_io::OpenOptions;
 use std::path::{Path, PathBuf};
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("myriad-convert-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn data_dir() -> Option<PathBuf> {
     let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
@@ -31,49 +27,16 @@ fn data_dir() -> Option<PathBuf> {
     }
 }
 
-fn read_all(path: &Path) -> PointBatch {
-    let mut src = myriad_io::open(path, &OpenOptions::default()).unwrap();
-    let mut all = PointBatch::with_schema(&src.info().schema, 0);
-    while let Some(b) = src.read_batch(1 << 16).unwrap() {
-        all.append(&b);
-    }
-    all
-}
-
-/// Every point as the bytes of all its fields, sorted: a multiset.
-fn records(b: &PointBatch) -> Vec<Vec<u8>> {
-    let mut rows: Vec<Vec<u8>> = (0..b.len())
-        .map(|i| {
-            let mut r = Vec::new();
-            b.put_row(i, &mut r);
-            r
-        })
-        .collect();
-    rows.sort_unstable();
-    rows
-}
-
 fn options(out: &Path) -> ConvertOptions {
     let mut o = ConvertOptions::new(out);
     o.open = OpenOptions::default();
     o
 }
 
-fn synth(dir: &Path, points: u64) -> PathBuf {
-    let las = dir.join("city.las");
-    let opts = myriad_synth::SynthOptions {
-        points,
-        scene: myriad_synth::SceneKind::City,
-        seed: 5,
-    };
-    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
-    las
-}
-
 #[test]
 fn nothing_lost_many_chunks_and_nodes() {
-    let d = tempdir("synth");
-    let las = synth(&d, 400_000);
+    let d = tempdir("convert-synth");
+    let las = synth(&d, 400_000, 5);
     let out = d.join("city.myr");
     let mut o = options(&out);
     // The smallest budget, and chunks of 30 000 points, so the build runs on many chunks and
@@ -126,8 +89,8 @@ fn nothing_lost_many_chunks_and_nodes() {
 /// them): nothing lost, invariants hold, the stored shapes are those of the structure.
 #[test]
 fn every_structure_many_chunks() {
-    let d = tempdir("structures");
-    let las = synth(&d, 200_000);
+    let d = tempdir("convert-structures");
+    let las = synth(&d, 200_000, 5);
     let input = records(&read_all(&las));
     for structure in Structure::ALL {
         let out = d.join(format!("{}.myr", structure.name()));
@@ -217,7 +180,7 @@ fn nothing_lost_for_every_file_and_structure() {
         .collect();
     files.sort();
     assert!(files.len() >= 30, "{} point cloud files", files.len());
-    let d = tempdir("every");
+    let d = tempdir("convert-every");
     for f in &files {
         let mut input = read_all(f);
         for structure in [Structure::Layered, Structure::Kd, Structure::Mwkd] {
@@ -256,8 +219,8 @@ fn nothing_lost_for_every_file_and_structure() {
 
 #[test]
 fn box_and_spacing_queries() {
-    let d = tempdir("query");
-    let las = synth(&d, 200_000);
+    let d = tempdir("convert-query");
+    let las = synth(&d, 200_000, 5);
     let out = d.join("q.myr");
     let mut o = options(&out);
     o.params.capacity = 4096;
@@ -332,8 +295,8 @@ fn box_and_spacing_queries() {
 
 #[test]
 fn damaged_pages_are_named_and_skipped() {
-    let d = tempdir("damage");
-    let las = synth(&d, 100_000);
+    let d = tempdir("convert-damage");
+    let las = synth(&d, 100_000, 5);
     let out = d.join("d.myr");
     let mut o = options(&out);
     o.params.capacity = 4096;
@@ -406,8 +369,8 @@ fn damaged_pages_are_named_and_skipped() {
 
 #[test]
 fn inputs_of_several_formats_merge() {
-    let d = tempdir("merge");
-    let las = synth(&d, 50_000);
+    let d = tempdir("convert-merge");
+    let las = synth(&d, 50_000, 5);
     let all = read_all(&las);
     // The same area as PLY (float coordinates, colour only) from the first points.
     let ply = d.join("part.ply");
@@ -461,7 +424,7 @@ fn nothing_lost_for_every_las_file_in_shared_data() {
         .collect();
     files.sort();
     assert!(files.len() >= 20, "{} LAS/LAZ files", files.len());
-    let d = tempdir("real");
+    let d = tempdir("convert-real");
     for f in &files {
         let name = f.file_stem().unwrap().to_str().unwrap();
         let out = d.join(format!("{name}.myr"));
@@ -556,8 +519,8 @@ fn nothing_lost_for_every_las_file_in_shared_data() {
 #[test]
 fn one_dataset_read_from_many_threads() {
     fn shareable<T: Send + Sync>(_: &T) {}
-    let d = tempdir("threads");
-    let las = synth(&d, 60_000);
+    let d = tempdir("convert-threads");
+    let las = synth(&d, 60_000, 5);
     let out = d.join("t.myr");
     let mut o = options(&out);
     o.params.capacity = 2048;
@@ -588,8 +551,8 @@ fn one_dataset_read_from_many_threads() {
 
 #[test]
 fn a_header_that_understates_its_bounds() {
-    let d = tempdir("bounds");
-    let las = synth(&d, 100_000);
+    let d = tempdir("convert-bounds");
+    let las = synth(&d, 100_000, 5);
     // LAS 1.4 header: max x at byte 179, min x at 187 (f64). Claim half the x extent.
     let mut bytes = std::fs::read(&las).unwrap();
     let f = |b: &[u8], at: usize| f64::from_le_bytes(b[at..at + 8].try_into().unwrap());

@@ -2,29 +2,16 @@
 //! with boxes and spacings, for every structure; every point lies in its node's cube; the
 //! hierarchies reach every node as their readers walk them; damaged nodes are left out and named.
 
+mod common;
+use common::{read_all, records, synth, tempdir};
+
 use myriad_build::convert::{ConvertOptions, Silent, Structure, convert};
 use myriad_build::export::{ExportOptions, ExportSummary, Target, export};
 use myriad_build::extract::{ExtractOptions, extract};
 use myriad_core::{Aabb, Attribute, NodeKey, PointBatch, Schema};
 use myriad_format::Dataset;
 use myriad_io::OpenOptions;
-use std::path::{Path, PathBuf};
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("myriad-export-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn read_all(path: &Path) -> PointBatch {
-    let mut src = myriad_io::open(path, &OpenOptions::default()).unwrap();
-    let mut all = PointBatch::with_schema(&src.info().schema, 0);
-    while let Some(b) = src.read_batch(1 << 16).unwrap() {
-        all.append(&b);
-    }
-    all
-}
+use std::path::Path;
 
 /// The columns of `schema` only (a COPC file is LAS 1.4 format 6-8: it reads back with a
 /// scanner channel a legacy input did not have), without wave packets (COPC cannot hold them).
@@ -46,30 +33,6 @@ fn whole_degrees(b: &mut PointBatch) {
     for a in b.scan_angle.iter_mut().flatten() {
         *a = a.round();
     }
-}
-
-/// Every point as the bytes of all its fields, sorted: a multiset.
-fn records(b: &PointBatch) -> Vec<Vec<u8>> {
-    let mut rows: Vec<Vec<u8>> = (0..b.len())
-        .map(|i| {
-            let mut r = Vec::new();
-            b.put_row(i, &mut r);
-            r
-        })
-        .collect();
-    rows.sort_unstable();
-    rows
-}
-
-fn synth(dir: &Path, points: u64) -> PathBuf {
-    let las = dir.join("city.las");
-    let opts = myriad_synth::SynthOptions {
-        points,
-        scene: myriad_synth::SceneKind::City,
-        seed: 7,
-    };
-    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
-    las
 }
 
 fn build(input: &Path, out: &Path, structure: Structure, capacity: usize) -> Dataset {
@@ -201,8 +164,8 @@ fn sorted_positions(p: &[[f64; 3]], scale: [f64; 3]) -> Vec<[i64; 3]> {
 
 #[test]
 fn copc_and_potree_hold_what_extract_gives() {
-    let d = tempdir("octree");
-    let las = synth(&d, 150_000);
+    let d = tempdir("export-octree");
+    let las = synth(&d, 150_000, 7);
     let ds = build(&las, &d.join("c.myr"), Structure::Octree, 250);
     let root = ds.meta.root;
     let q = ds.meta.quantization;
@@ -295,8 +258,8 @@ fn copc_and_potree_hold_what_extract_gives() {
 
 #[test]
 fn kd_and_mwkd_export_their_original_points() {
-    let d = tempdir("kd");
-    let las = synth(&d, 60_000);
+    let d = tempdir("export-kd");
+    let las = synth(&d, 60_000, 7);
     for structure in [Structure::Kd, Structure::Mwkd, Structure::Layered] {
         let ds = build(&las, &d.join("k.myr"), structure, 2000);
         let mut want = extracted(&ds, &d, None, None);
@@ -325,8 +288,8 @@ fn kd_and_mwkd_export_their_original_points() {
 
 #[test]
 fn a_damaged_node_is_left_out_and_named() {
-    let d = tempdir("damage");
-    let las = synth(&d, 60_000);
+    let d = tempdir("export-damage");
+    let las = synth(&d, 60_000, 7);
     let out = d.join("d.myr");
     let ds = build(&las, &out, Structure::Octree, 2000);
     let (nodes, _) = ds.nodes();
@@ -362,8 +325,8 @@ fn a_damaged_node_is_left_out_and_named() {
 
 #[test]
 fn outputs_are_atomic_and_never_clobber_a_folder() {
-    let d = tempdir("atomic");
-    let las = synth(&d, 20_000);
+    let d = tempdir("export-atomic");
+    let las = synth(&d, 20_000, 7);
     let ds = build(&las, &d.join("a.myr"), Structure::Octree, 2000);
     let pot = d.join("pot");
     std::fs::create_dir_all(&pot).unwrap();

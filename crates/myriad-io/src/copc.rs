@@ -147,11 +147,7 @@ impl CopcSink {
         let header = b.into_header().map_err(|e| invalid(path, e))?;
         let fmt = *header.point_format();
         let layout = Layout::new(format).expect("formats 6-8 have a layout");
-        let t = header.transforms();
-        let quant = Quantization {
-            scale: [t.x.scale, t.y.scale, t.z.scale],
-            offset: [t.x.offset, t.y.offset, t.z.offset],
-        };
+        let quant = Quantization::of(&header);
         let file = AtomicFile::create(path, force)?;
         let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
         header
@@ -378,15 +374,7 @@ impl CopcSink {
     /// node entries). Every ancestor of a node with points is listed (with 0 points when it has
     /// none), so that a reader walking down from the root reaches every node.
     fn hierarchy(&self, base: u64) -> (Vec<u8>, (u64, u64), u64) {
-        let mut nodes: BTreeMap<NodeKey, Chunk> = self.chunks.clone();
-        nodes.entry(NodeKey::ROOT).or_default();
-        for k in self.chunks.keys() {
-            let mut k = *k;
-            while k.level > 0 {
-                k = k.parent();
-                nodes.entry(k).or_default();
-            }
-        }
+        let nodes = crate::with_ancestors(&self.chunks);
         let mut children: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
         for k in nodes.keys().filter(|k| k.level > 0) {
             children.entry(k.parent()).or_default().push(*k);

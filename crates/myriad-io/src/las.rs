@@ -184,11 +184,7 @@ impl LasSource {
                 ));
             }
         }
-        let t = header.transforms();
-        let quant = Quantization {
-            scale: [t.x.scale, t.y.scale, t.z.scale],
-            offset: [t.x.offset, t.y.offset, t.z.offset],
-        };
+        let quant = Quantization::of(&header);
         let bounds = header_bounds(&raw).map(|(min, max)| Aabb::new(min, max));
         let is_copc = header.all_vlrs().any(|v| v.user_id == "copc");
         let version = format!(
@@ -706,11 +702,7 @@ impl LasSink {
         let fmt = *header.point_format();
         let format_id = fmt.to_u8().map_err(invalid)?;
         let layout = Layout::new(format_id).expect("las crate accepted the format");
-        let t = header.transforms();
-        let quant = Quantization {
-            scale: [t.x.scale, t.y.scale, t.z.scale],
-            offset: [t.x.offset, t.y.offset, t.z.offset],
-        };
+        let quant = Quantization::of(&header);
         let file = AtomicFile::create(path, force)?;
         let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
         header

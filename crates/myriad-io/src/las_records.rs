@@ -81,6 +81,17 @@ pub struct Quantization {
     pub offset: [f64; 3],
 }
 
+impl Quantization {
+    /// A LAS header's scales and offsets.
+    pub fn of(header: &las::Header) -> Quantization {
+        let t = header.transforms();
+        Quantization {
+            scale: [t.x.scale, t.y.scale, t.z.scale],
+            offset: [t.x.offset, t.y.offset, t.z.offset],
+        }
+    }
+}
+
 fn u16_at(r: &[u8], o: usize) -> u16 {
     u16::from_le_bytes([r[o], r[o + 1]])
 }

@@ -26,6 +26,27 @@ pub mod text;
 use myriad_core::{Aabb, Error, PointBatch, Result, Schema};
 use std::path::{Path, PathBuf};
 
+/// An octree's `nodes` with every missing ancestor added as `T::default()`, the root included:
+/// what a reader walking down from the root needs to reach every node (COPC, Potree).
+pub(crate) fn with_ancestors<T: Default + Clone>(
+    nodes: &std::collections::BTreeMap<myriad_core::NodeKey, T>,
+) -> std::collections::BTreeMap<myriad_core::NodeKey, T> {
+    let mut all = nodes.clone();
+    all.entry(myriad_core::NodeKey::ROOT).or_default();
+    // Keys in order, parents before children: an ancestor already there has its own.
+    for k in nodes.keys() {
+        let mut k = *k;
+        while k.level > 0 {
+            k = k.parent();
+            if all.contains_key(&k) {
+                break;
+            }
+            all.insert(k, T::default());
+        }
+    }
+    all
+}
+
 /// Points a reader yields per batch unless asked otherwise.
 pub const DEFAULT_BATCH: usize = 1 << 16;
 /// Readers never yield more than this many points at once, whatever they are asked for, so a

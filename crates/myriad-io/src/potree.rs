@@ -612,15 +612,7 @@ impl PotreeSink {
 
     /// hierarchy.bin: (bytes, size of the root's chunk, depth, records of real nodes, chunks).
     fn hierarchy(&self) -> (Vec<u8>, u64, u32, u64, u64) {
-        let mut nodes = self.nodes.clone();
-        nodes.entry(NodeKey::ROOT).or_default();
-        for k in self.nodes.keys() {
-            let mut k = *k;
-            while k.level > 0 {
-                k = k.parent();
-                nodes.entry(k).or_default();
-            }
-        }
+        let nodes = crate::with_ancestors(&self.nodes);
         let mut children: HashMap<NodeKey, Vec<(usize, NodeKey)>> = HashMap::new();
         for k in nodes.keys().filter(|k| k.level > 0) {
             let c = (0..3).fold(0, |m, a| m | ((k.cell[a] & 1) as usize) << (2 - a));

@@ -90,25 +90,6 @@ impl Selector {
     pub fn take(&self) -> Option<Answer> {
         self.shared.0.lock().expect("selector lock").done.take()
     }
-
-    /// Whether a request is waiting or being worked on.
-    pub fn busy(&self) -> bool {
-        let s = self.shared.0.lock().expect("selector lock");
-        s.busy || s.next.is_some()
-    }
-
-    /// Waits until the answer to request `serial` (or a later one) is in, then takes it (for
-    /// callers that converge, and tests).
-    pub fn wait_for(&self, serial: u64) -> Answer {
-        let (lock, ready) = &*self.shared;
-        let mut s = lock.lock().expect("selector lock");
-        loop {
-            if s.done.as_ref().is_some_and(|a| a.serial >= serial) {
-                return s.done.take().expect("checked");
-            }
-            s = ready.wait(s).expect("selector lock");
-        }
-    }
 }
 
 fn run(h: &Hierarchy, shared: &Shared) {

@@ -1,37 +1,10 @@
 //! The `myriad` binary as a user runs it: exit codes, one-line errors naming the file and the
 //! byte offset or line, and the synth -> info path. Needs no shared data.
 
+mod common;
+use common::{myriad, s, tempdir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-struct Run {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn myriad(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
-        .args(args)
-        .output()
-        .expect("run myriad");
-    Run {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("myriad-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// `info` on `path` must fail with exit code 1 and one line `error: <path>: <where>...`
 /// containing `expect`.

@@ -3,45 +3,18 @@
 //! sets up), Potree 2.0 by the Potree 1.8 viewer of ../shared/peers in headless Chromium. Each
 //! prints SKIPPED when its reader is missing. Also the errors: a damaged node, a bad target.
 
+mod common;
+use common::{Run, myriad, s, tempdir};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-struct Run {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn myriad(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
-        .args(args)
-        .output()
-        .expect("run myriad");
-    Run {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
-
 fn ok(args: &[&str]) -> Run {
     let r = myriad(args);
     assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
     r
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("myriad-export-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn skipped(why: &str) {
@@ -89,7 +62,7 @@ fn copc_is_read_by_laspy_and_copclib() {
             "no Python with laspy[lazrs] and copclib (MYRIAD_PYTHON); .ci/run installs them",
         );
     };
-    let d = tempdir("copc");
+    let d = tempdir("export-copc");
     let myr = dataset(&d, "200k");
     let copc = d.join("scan.copc.laz");
     let r = ok(&["export", s(&myr), "-o", s(&copc)]);
@@ -179,7 +152,7 @@ fn copc_is_read_by_laspy_and_copclib() {
 
 #[test]
 fn errors_name_the_node_and_the_option() {
-    let d = tempdir("errors");
+    let d = tempdir("export-errors");
     let myr = dataset(&d, "30k");
     let r = myriad(&["export", s(&myr), "-o", s(&d.join("x.txt"))]);
     assert_eq!(r.code, 1);
@@ -310,7 +283,7 @@ fn potree_opens_in_the_potree_viewer() {
     let Some(chromium) = chromium else {
         return skipped("no Chromium (apt-get install chromium; .ci/run installs it)");
     };
-    let d = tempdir("potree");
+    let d = tempdir("export-potree");
     let myr = dataset(&d, "300k");
     let cloud = d.join("cloud");
     let r = ok(&["export", s(&myr), "-o", s(&cloud)]);
