@@ -683,6 +683,7 @@ pub fn convert(
             })
             .collect(),
         las_header: dist.las_header.clone(),
+        levels: Vec::new(),
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
     };
     let (written, nodes, depth) = writer.totals();

@@ -246,6 +246,15 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
             subtree: true,
         });
     }
+    let levels = myriad_format::Level::table(&nodes);
+    if damage.is_empty() && !ds.meta.levels.is_empty() && ds.meta.levels != levels {
+        damage.push(Damage {
+            key: NodeKey::ROOT,
+            offset: 0,
+            message: "the metadata's per-level table does not match the hierarchy".into(),
+            subtree: true,
+        });
+    }
     report.damage = damage;
     report
 }

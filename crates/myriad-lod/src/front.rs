@@ -80,10 +80,15 @@ pub fn select_front(
     while let Some(top) = queue.peek() {
         let e = h.get(&top.key).expect("queued nodes exist");
         let kids: Vec<&NodeEntry> = h.children(&e.key).filter(|c| visible(c)).collect();
-        let leaf = h.children(&e.key).next().is_none();
         let depth = nearest_depth(cam, &h.bounds(&e.key));
         let radius = e.spacing.first().copied().unwrap_or(0.0);
         let fine = 2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels;
+        // Children on pages not loaded yet: the node stays in the front until they are.
+        let unloaded = h.unloaded_below(&e.key).next().is_some();
+        if unloaded && !fine {
+            out.pages.extend(h.unloaded_below(&e.key));
+        }
+        let leaf = unloaded || h.children(&e.key).next().is_none();
         if leaf || fine {
             let c = queue.pop().expect("peeked");
             front.push((c.key, c.benefit));

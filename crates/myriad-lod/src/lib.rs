@@ -7,6 +7,7 @@
 pub mod cache;
 pub mod drawn;
 pub mod front;
+pub mod hierarchy;
 pub mod occlusion;
 pub mod pace;
 pub mod select;
@@ -15,6 +16,7 @@ pub mod view;
 
 pub use cache::Lru;
 pub use front::{backfacing, select_front};
+pub use hierarchy::PageCache;
 pub use occlusion::{DepthMap, Occluder, Occlusion};
 pub use pace::Pace;
 pub use select::{

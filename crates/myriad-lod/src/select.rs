@@ -15,84 +15,13 @@
 //! nodes replace their parents, are selected as a front ([`crate::front`]).
 
 pub use crate::drawn::DrawnTree;
+pub use crate::hierarchy::Hierarchy;
 use crate::occlusion::Occluder;
 use crate::view::{Camera, Frustum};
 use myriad_core::{Aabb, NodeKey, Obb};
-use myriad_format::NodeEntry;
+use myriad_format::hierarchy::PAGE_LEVELS;
+use myriad_format::{ChildPage, NodeEntry};
 use std::collections::{BinaryHeap, HashMap};
-
-/// The outer tree, as far as it is known (all of it, for now: the hierarchy pages are small).
-#[derive(Debug, Clone)]
-pub struct Hierarchy {
-    pub root: Aabb,
-    nodes: HashMap<NodeKey, NodeEntry>,
-    /// Whether every node is its key's octree cell (no stored bounds): then points lie in their
-    /// key's cube and the drawn tree can size them per point.
-    cells: bool,
-    /// `mwkd`: nodes hold splats, inner nodes aggregates that their children replace.
-    splats: bool,
-    pub(crate) max_level: u32,
-    /// Cull nodes whose normal cone faces away (only where normals have a sign: the input's).
-    pub cull_backfaces: bool,
-}
-
-impl Hierarchy {
-    pub fn new(root: Aabb, entries: impl IntoIterator<Item = NodeEntry>) -> Hierarchy {
-        let nodes: HashMap<NodeKey, NodeEntry> = entries.into_iter().map(|e| (e.key, e)).collect();
-        let cells = nodes.values().all(|e| e.bounds.is_none());
-        let splats = nodes.values().any(|e| e.splats.is_some());
-        let max_level = nodes.keys().map(|k| k.level).max().unwrap_or(0);
-        Hierarchy {
-            root,
-            nodes,
-            cells,
-            splats,
-            max_level,
-            cull_backfaces: false,
-        }
-    }
-    /// Whether nodes hold splats that replace their parents' when drawn (`mwkd`, 004): select
-    /// with [`select_front`].
-    pub fn splats(&self) -> bool {
-        self.splats
-    }
-    /// Whether nodes are the cells of their keys' octree (octree and layered structures; kd-trees
-    /// store their bounds instead).
-    pub fn cells(&self) -> bool {
-        self.cells
-    }
-    /// Where a node's subtree lies: its stored bounds, else its key's cube.
-    pub fn bounds(&self, key: &NodeKey) -> Aabb {
-        match self.nodes.get(key).and_then(|e| e.bounds) {
-            Some(b) => b,
-            None => key.bounds(&self.root),
-        }
-    }
-    pub fn get(&self, key: &NodeKey) -> Option<&NodeEntry> {
-        self.nodes.get(key)
-    }
-    pub fn len(&self) -> usize {
-        self.nodes.len()
-    }
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-    pub fn children(&self, key: &NodeKey) -> impl Iterator<Item = &NodeEntry> {
-        (0..8).filter_map(move |o| self.nodes.get(&key.child(o)))
-    }
-    /// Every node's key, in no particular order.
-    pub fn keys(&self) -> impl Iterator<Item = NodeKey> + '_ {
-        self.nodes.keys().copied()
-    }
-    /// Original points in the whole tree (aggregates made for drawing not counted).
-    pub fn points(&self) -> u64 {
-        self.nodes
-            .values()
-            .filter(|n| !n.aggregate())
-            .map(|n| n.points as u64)
-            .sum()
-    }
-}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SelectOptions {
@@ -135,6 +64,11 @@ pub struct Selection {
     pub budget_reached: bool,
     /// Nodes culled as hidden ([`crate::occlusion`]; their subtrees not visited).
     pub culled: usize,
+    /// Hierarchy pages not loaded yet below nodes the traversal would have refined, best first:
+    /// what to load so that the view refines ([`crate::hierarchy`]).
+    pub pages: Vec<ChildPage>,
+    /// The loaded pages (by their root's key) whose root the traversal reached.
+    pub used_pages: Vec<NodeKey>,
 }
 
 pub(crate) struct Candidate {
@@ -270,7 +204,7 @@ pub fn select_occluded(
     keep: &dyn Fn(&Aabb) -> bool,
     mut occluder: Option<&mut Occluder>,
 ) -> Selection {
-    if h.splats {
+    if h.splats() {
         return crate::front::select_front(h, cam, o, keep);
     }
     let frustum = cam.frustum();
@@ -285,7 +219,7 @@ pub fn select_occluded(
         }
         let benefit = match &contour {
             // An octree cell: its side (003).
-            None if h.cells => benefit(cam, &cube, nearest_depth(cam, &cube)),
+            None if h.cells() => benefit(cam, &cube, nearest_depth(cam, &cube)),
             // A contour (000) or a kd box (002): the square root of its projected area.
             Some(c) => benefit_of_box(cam, c),
             None => benefit_of_box(cam, &Obb::from_aabb(&cube)),
@@ -297,6 +231,9 @@ pub fn select_occluded(
     }
     while let Some(Candidate { benefit, key }) = queue.pop() {
         let Some(e) = h.get(&key) else { continue };
+        if key.level % PAGE_LEVELS == 0 {
+            out.used_pages.push(key);
+        }
         let corners = match &e.contour {
             Some(c) => c.corners(),
             None => h.bounds(&key).corners(),
@@ -355,9 +292,10 @@ pub fn select_occluded(
             for c in h.children(&key) {
                 consider(c.key, &mut queue, &frustum);
             }
+            out.pages.extend(h.unloaded_below(&key));
         }
     }
-    if !h.cells {
+    if !h.cells() {
         pull_up_spacing(h, &mut out, &frustum);
     }
     out
@@ -452,8 +390,10 @@ pub fn merge(alone: Vec<Selection>, budget: u64) -> Vec<Selection> {
             s.budget_reached = a.budget_reached;
         }
     }
-    for (s, a) in out.iter_mut().zip(&alone) {
+    for (s, a) in out.iter_mut().zip(alone) {
         s.culled = a.culled;
+        s.pages = a.pages;
+        s.used_pages = a.used_pages;
     }
     out
 }
@@ -792,7 +732,7 @@ pub(crate) mod tests {
         let a = tree(4, 100.0, 4000);
         // The same tree 1000 units further away along the view.
         let far_root = Aabb::new([0.0, 0.0, -1100.0], [100.0, 100.0, -1000.0]);
-        let b = Hierarchy::new(far_root, a.nodes.values().cloned().collect::<Vec<_>>());
+        let b = Hierarchy::new(far_root, a.entries().cloned().collect::<Vec<_>>());
         let cam = looking_down(&a, 100.0);
         let o = SelectOptions {
             budget: 200_000,

@@ -5,13 +5,15 @@
 //! replaced, so requests for nodes the view has moved away from are cancelled before they are
 //! read. [`Loader::poll`] moves finished loads into the cache without ever waiting, so the frame
 //! loop draws what is resident and refines as pages land. A damaged page is reported once and
-//! not requested again.
+//! not requested again. Hierarchy pages the selection wants ([`Loader::request_with_pages`])
+//! go through the same queue ahead of the nodes (they are small, and the view refines only
+//! once they are in); [`Loader::take_pages`] hands over those that landed.
 
 use crate::cache::Lru;
 use myriad_core::{NodeKey, PointBatch};
 use myriad_format::splat::Splats;
-use myriad_format::{Dataset, NodeEntry};
-use std::collections::HashMap;
+use myriad_format::{ChildPage, Dataset, HierarchyPage, NodeEntry};
+use std::collections::{HashMap, HashSet};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
@@ -23,6 +25,13 @@ pub trait PageReader: Send + Sync {
     fn read_splats(&self, _node: &NodeEntry) -> Result<Option<Splats>, String> {
         Ok(None)
     }
+    /// Reads and decodes one hierarchy page.
+    fn read_hierarchy(&self, page: &ChildPage) -> Result<HierarchyPage, String> {
+        Err(format!(
+            "hierarchy page of subtree {}: this reader serves none",
+            page.key
+        ))
+    }
 }
 
 impl PageReader for Dataset {
@@ -32,6 +41,10 @@ impl PageReader for Dataset {
     }
     fn read_splats(&self, node: &NodeEntry) -> Result<Option<Splats>, String> {
         Dataset::read_splats(self, node).map_err(|d| self.damage_error(&d).to_string())
+    }
+    fn read_hierarchy(&self, page: &ChildPage) -> Result<HierarchyPage, String> {
+        self.hierarchy_page(page)
+            .map_err(|d| self.damage_error(&d).to_string())
     }
 }
 
@@ -49,9 +62,21 @@ impl std::ops::Deref for Loaded {
     }
 }
 
+/// What a loader thread reads.
+enum Job {
+    Node(NodeEntry),
+    Page(ChildPage),
+}
+
+/// What it read.
+enum Done {
+    Node(NodeKey, Result<Loaded, String>),
+    Page(NodeKey, Result<HierarchyPage, String>),
+}
+
 struct Queue {
-    /// Wanted nodes, best last (popped first).
-    wanted: Vec<NodeEntry>,
+    /// Wanted nodes and pages, best last (popped first).
+    wanted: Vec<Job>,
     stop: bool,
 }
 
@@ -63,12 +88,18 @@ struct Shared {
 /// Loader threads and the RAM cache.
 pub struct Loader {
     shared: Arc<Shared>,
-    results: Receiver<(NodeKey, Result<Loaded, String>)>,
+    results: Receiver<Done>,
     threads: Vec<JoinHandle<()>>,
     cache: Lru<Arc<Loaded>>,
-    /// Requested and not yet back (queued or being read).
-    pending: std::collections::HashSet<NodeKey>,
+    /// Requested and not yet back (queued or being read): nodes, hierarchy pages.
+    pending: HashSet<NodeKey>,
+    pending_pages: HashSet<NodeKey>,
     failed: HashMap<NodeKey, String>,
+    failed_pages: HashMap<NodeKey, String>,
+    /// Hierarchy pages landed and not taken yet.
+    landed_pages: Vec<(NodeKey, HierarchyPage)>,
+    /// Hierarchy pages read so far.
+    pub pages_read: usize,
 }
 
 fn batch_bytes(b: &PointBatch) -> usize {
@@ -95,7 +126,7 @@ impl Loader {
                     .name(format!("myriad-loader-{i}"))
                     .spawn(move || {
                         loop {
-                            let node = {
+                            let job = {
                                 let mut q = shared.queue.lock().expect("queue lock");
                                 loop {
                                     if q.stop {
@@ -107,13 +138,19 @@ impl Loader {
                                     q = shared.ready.wait(q).expect("queue lock");
                                 }
                             };
-                            let r = reader.read(&node).and_then(|points| {
-                                Ok(Loaded {
-                                    splats: reader.read_splats(&node)?,
-                                    points,
-                                })
-                            });
-                            if tx.send((node.key, r)).is_err() {
+                            let done = match job {
+                                Job::Node(node) => Done::Node(
+                                    node.key,
+                                    reader.read(&node).and_then(|points| {
+                                        Ok(Loaded {
+                                            splats: reader.read_splats(&node)?,
+                                            points,
+                                        })
+                                    }),
+                                ),
+                                Job::Page(p) => Done::Page(p.key, reader.read_hierarchy(&p)),
+                            };
+                            if tx.send(done).is_err() {
                                 return;
                             }
                         }
@@ -126,14 +163,28 @@ impl Loader {
             results,
             threads,
             cache: Lru::new(budget_bytes),
-            pending: Default::default(),
+            pending: HashSet::new(),
+            pending_pages: HashSet::new(),
             failed: HashMap::new(),
+            failed_pages: HashMap::new(),
+            landed_pages: Vec::new(),
+            pages_read: 0,
         }
     }
 
     /// Starts a frame: `wanted` lists the nodes to draw, best first. Resident ones are marked
     /// used; missing ones replace the load queue (what is no longer wanted is cancelled).
     pub fn request<'a>(&mut self, wanted: impl IntoIterator<Item = &'a NodeEntry>) {
+        self.request_with_pages(wanted, &[]);
+    }
+
+    /// [`Loader::request`] with the hierarchy pages the selection wants, best first (they go
+    /// ahead of the nodes). Pages that failed are not asked for again.
+    pub fn request_with_pages<'a>(
+        &mut self,
+        wanted: impl IntoIterator<Item = &'a NodeEntry>,
+        pages: &[ChildPage],
+    ) {
         self.cache.next_frame();
         let mut missing = Vec::new();
         for n in wanted {
@@ -142,38 +193,88 @@ impl Loader {
             }
         }
         let mut q = self.shared.queue.lock().expect("queue lock");
-        // Queued but no longer wanted: cancelled. Being read: will land in the cache anyway.
-        for n in q.wanted.drain(..) {
-            self.pending.remove(&n.key);
+        // Queued but no longer wanted: cancelled. Being read: will land anyway.
+        for job in q.wanted.drain(..) {
+            match job {
+                Job::Node(n) => self.pending.remove(&n.key),
+                Job::Page(p) => self.pending_pages.remove(&p.key),
+            };
         }
         missing.retain(|n| !self.pending.contains(&n.key));
-        missing.reverse();
+        let mut seen = HashSet::new();
+        let pages: Vec<ChildPage> = pages
+            .iter()
+            .filter(|p| {
+                !self.pending_pages.contains(&p.key)
+                    && !self.failed_pages.contains_key(&p.key)
+                    && seen.insert(p.key)
+            })
+            .copied()
+            .collect();
         for n in &missing {
             self.pending.insert(n.key);
         }
-        q.wanted = missing;
+        for p in &pages {
+            self.pending_pages.insert(p.key);
+        }
+        q.wanted = pages
+            .into_iter()
+            .map(Job::Page)
+            .chain(missing.into_iter().map(Job::Node))
+            .rev()
+            .collect();
         drop(q);
         self.shared.ready.notify_all();
     }
 
-    /// Moves finished loads into the cache; never waits. Returns how many landed.
+    /// Moves finished loads into the cache (hierarchy pages aside, for [`Loader::take_pages`]);
+    /// never waits. Returns how many came back (read or failed).
     pub fn poll(&mut self) -> usize {
         let mut landed = 0;
-        while let Ok((key, r)) = self.results.try_recv() {
-            self.pending.remove(&key);
-            match r {
-                Ok(b) => {
-                    let bytes =
-                        batch_bytes(&b) + b.splats.as_ref().map_or(0, |s| s.radii.len() * 16);
-                    self.cache.insert(key, Arc::new(b), bytes);
-                    landed += 1;
+        while let Ok(done) = self.results.try_recv() {
+            match done {
+                Done::Node(key, r) => {
+                    self.pending.remove(&key);
+                    match r {
+                        Ok(b) => self.insert(key, b),
+                        Err(e) => {
+                            self.failed.insert(key, e);
+                        }
+                    }
                 }
-                Err(e) => {
-                    self.failed.insert(key, e);
+                Done::Page(key, r) => {
+                    self.pending_pages.remove(&key);
+                    self.pages_read += 1;
+                    match r {
+                        Ok(p) => self.landed_pages.push((key, p)),
+                        Err(e) => {
+                            self.failed_pages.insert(key, e);
+                        }
+                    }
                 }
             }
+            landed += 1;
         }
         landed
+    }
+
+    /// The hierarchy pages that landed since the last call, by their root's key.
+    pub fn take_pages(&mut self) -> Vec<(NodeKey, HierarchyPage)> {
+        std::mem::take(&mut self.landed_pages)
+    }
+    /// Hierarchy pages that could not be read (the subtree's root), with why.
+    pub fn failed_pages(&self) -> &HashMap<NodeKey, String> {
+        &self.failed_pages
+    }
+    /// Hierarchy pages queued or being read.
+    pub fn pages_in_flight(&self) -> usize {
+        self.pending_pages.len()
+    }
+
+    /// Puts a node read elsewhere into the cache (the root a scene read on opening).
+    pub fn insert(&mut self, key: NodeKey, node: Loaded) {
+        let bytes = batch_bytes(&node) + node.splats.as_ref().map_or(0, |s| s.radii.len() * 16);
+        self.cache.insert(key, Arc::new(node), bytes);
     }
 
     /// A resident node's points.
@@ -183,9 +284,9 @@ impl Loader {
     pub fn is_resident(&self, key: &NodeKey) -> bool {
         self.cache.contains(key)
     }
-    /// Loads queued or being read.
+    /// Loads queued or being read (nodes and hierarchy pages).
     pub fn in_flight(&self) -> usize {
-        self.pending.len()
+        self.pending.len() + self.pending_pages.len()
     }
     /// Nodes whose page could not be read, with why.
     pub fn failed(&self) -> &HashMap<NodeKey, String> {

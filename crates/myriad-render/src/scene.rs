@@ -1,15 +1,17 @@
 //! A dataset on screen: each frame selects what the view needs within the point budget, asks
 //! the loader for what is missing (never waiting for it), uploads what has landed to GPU buffers
 //! and draws every selected node that has its buffer. A node still loading is covered by its
-//! parent's points, drawn meanwhile; the image refines as pages land.
+//! parent's points, drawn meanwhile; the image refines as pages land. The hierarchy is read the
+//! same way: the root page on opening, the pages below as the selection reaches them
+//! ([`myriad_lod::hierarchy`]), within a byte budget ([`Scene::pages`]).
 
 use crate::selector::{Request, Selector};
 use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
-    Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageReader, SelectOptions,
-    Selection, merge, robust_bounds, select_occluded,
+    Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageCache, PageReader,
+    SelectOptions, Selection, merge, robust_bounds, select_occluded,
 };
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -28,8 +30,11 @@ pub struct Picked {
 }
 
 pub struct Scene {
-    /// Shared with the selection thread ([`Scene::frame_threaded`]).
+    /// The hierarchy as far as its pages are loaded; shared with the selection thread
+    /// ([`Scene::frame_threaded`]), which gets a new copy when pages land.
     pub hierarchy: Arc<Hierarchy>,
+    /// Which hierarchy pages were used when, and the byte budget they are kept within.
+    pub pages: PageCache,
     pub loader: Loader,
     pub buffers: NodeBuffers,
     /// Positions are uploaded relative to this (the root cube's centre).
@@ -56,6 +61,9 @@ pub struct Scene {
     alone: Option<crate::selector::Answer>,
 }
 
+/// Memory for hierarchy pages a scene keeps by default (about 1.5 million nodes' entries).
+pub const DEFAULT_HIERARCHY_BYTES: usize = 256 << 20;
+
 /// What a frame did.
 #[derive(Debug, Clone, Default)]
 pub struct FrameStats {
@@ -67,8 +75,13 @@ pub struct FrameStats {
     pub points: u64,
     /// Nodes uploaded to the GPU in this frame.
     pub uploads: usize,
-    /// Loads queued or being read after this frame.
+    /// Loads queued or being read after this frame (nodes and hierarchy pages).
     pub in_flight: usize,
+    /// Hierarchy pages the selection wants and does not have (queued, being read).
+    pub pages_wanted: usize,
+    /// Hierarchy pages loaded and the memory they take.
+    pub hierarchy_pages: usize,
+    pub hierarchy_bytes: usize,
     /// Every selected node drawn (or failed to load).
     pub complete: bool,
     /// Nodes culled as hidden.
@@ -102,6 +115,7 @@ impl Scene {
         Scene {
             origin: hierarchy.root.center(),
             hierarchy: Arc::new(hierarchy),
+            pages: PageCache::new(DEFAULT_HIERARCHY_BYTES),
             loader: Loader::new(reader, threads, ram_bytes),
             buffers: NodeBuffers::new(gpu_bytes),
             z_range: (view_bounds.min[2], view_bounds.max[2]),
@@ -117,22 +131,33 @@ impl Scene {
         }
     }
 
-    /// A scene over a whole dataset. The view bounds are those of the root node's points (a
-    /// sample of the whole) without the outer 0.5 % on each side of each axis.
+    /// A scene over a dataset, of whose hierarchy only the root page is read (an empty scene
+    /// when it is damaged: check [`myriad_format::Dataset::hierarchy_page`] first to say so).
+    /// The view bounds are those of the root node's points (a sample of the whole) without the
+    /// outer 0.5 % on each side of each axis.
     pub fn open(dataset: Arc<myriad_format::Dataset>, ram_bytes: usize, gpu_bytes: usize) -> Scene {
-        let (nodes, _damage) = dataset.nodes();
-        let mut view_bounds = dataset.meta.bounds;
-        if let Some(root) = nodes
-            .iter()
-            .find(|n| n.key == NodeKey::ROOT && n.points > 0)
+        let meta = &dataset.meta;
+        let mut h = match dataset.hierarchy_page(&dataset.root_page()) {
+            Ok(page) => Hierarchy::from_root_page(meta.root, page, meta.depth),
+            Err(_) => Hierarchy::new(meta.root, []),
+        };
+        let mut view_bounds = meta.bounds;
+        let mut root_node = None;
+        if let Some(root) = h.get(&NodeKey::ROOT).filter(|n| n.points > 0)
             && let Ok(b) = dataset.read_node(root)
         {
             let sample = robust_bounds(&b.positions, 0.005);
             if !sample.is_empty() {
                 view_bounds = sample;
             }
+            // Resident from the start (the first frame draws it), unless it has splats to read.
+            if root.splats.is_none() {
+                root_node = Some(myriad_lod::stream::Loaded {
+                    points: b,
+                    splats: None,
+                });
+            }
         }
-        let mut h = Hierarchy::new(dataset.meta.root, nodes);
         // Normal cones cull only where normals have a sign (the input's): estimated normals
         // were turned up, so a ceiling would face its room from behind.
         h.cull_backfaces = dataset
@@ -142,7 +167,40 @@ impl Scene {
             .and_then(|v| v.as_str())
             == Some("input");
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
-        Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes)
+        let mut scene = Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes);
+        if let Some(n) = root_node {
+            scene.loader.insert(NodeKey::ROOT, n);
+        }
+        scene
+    }
+
+    /// Reads every hierarchy page now, on this thread, and keeps them all (what needs every
+    /// node: a reference image of every point). Damaged pages are left out; returns them.
+    pub fn read_every_page(
+        &mut self,
+        dataset: &myriad_format::Dataset,
+    ) -> Vec<myriad_format::hierarchy::ChildPage> {
+        self.pages.budget = usize::MAX;
+        let h = Arc::make_mut(&mut self.hierarchy);
+        let mut damaged = Vec::new();
+        loop {
+            let todo: Vec<_> = h
+                .unloaded()
+                .into_iter()
+                .filter(|p| !damaged.contains(p))
+                .collect();
+            if todo.is_empty() {
+                return damaged;
+            }
+            for p in todo {
+                match dataset.hierarchy_page(&p) {
+                    Ok(page) => {
+                        h.insert_page(p.key, page);
+                    }
+                    Err(_) => damaged.push(p),
+                }
+            }
+        }
     }
 
     /// Changing the scheme drops the GPU buffers (colours are baked into them).
@@ -244,28 +302,62 @@ impl Scene {
                     scene.hierarchy.get(&n.key).is_some_and(|e| e.points > 0)
                         && !scene.loader.is_resident(&n.key)
                         && !scene.loader.failed().contains_key(&n.key)
-                })
+                }) || scene.pages_missing(&s) > 0
             };
             if !missing(self) {
                 return s;
             }
             while self.loader.in_flight() > 0 && missing(self) {
-                if self.loader.poll() == 0 {
+                if self.poll() == 0 {
                     std::thread::sleep(Duration::from_millis(1));
                 }
             }
         }
     }
 
-    /// Requests what `selection` needs and takes in what has landed, without waiting.
+    /// Requests what `selection` needs (nodes, and the hierarchy pages it would refine into)
+    /// and takes in what has landed, without waiting; drops the hierarchy pages unused longest
+    /// while they take more than the budget.
     pub fn take(&mut self, selection: &Selection) {
         let wanted: Vec<NodeEntry> = selection
             .nodes
             .iter()
             .filter_map(|n| self.hierarchy.get(&n.key).cloned())
             .collect();
-        self.loader.request(&wanted);
-        self.loader.poll();
+        // An answer of the selection thread may ask for pages that landed since.
+        let pages: Vec<_> = (selection.pages.iter())
+            .filter(|p| !self.hierarchy.has_page(&p.key))
+            .copied()
+            .collect();
+        self.loader.request_with_pages(&wanted, &pages);
+        self.poll();
+        self.pages.touch(selection);
+        self.pages.evict(&mut self.hierarchy);
+    }
+
+    /// Takes in the nodes and hierarchy pages that have landed; never waits. How many came
+    /// back.
+    pub fn poll(&mut self) -> usize {
+        let n = self.loader.poll();
+        let landed = self.loader.take_pages();
+        if !landed.is_empty() {
+            // The selection thread keeps the copy it has; the next request carries this one.
+            let h = Arc::make_mut(&mut self.hierarchy);
+            for (key, page) in landed {
+                h.insert_page(key, page);
+            }
+        }
+        n
+    }
+
+    /// The hierarchy pages `selection` wants that are neither loaded nor failed.
+    pub fn pages_missing(&self, selection: &Selection) -> usize {
+        let failed = self.loader.failed_pages();
+        selection
+            .pages
+            .iter()
+            .filter(|p| !self.hierarchy.has_page(&p.key) && !failed.contains_key(&p.key))
+            .count()
     }
 
     /// `mwkd` (004 section IV, transitions): for each front node not on the GPU yet, what was
@@ -366,10 +458,14 @@ impl Scene {
             nodes: draws.len(),
             points: draws.iter().map(|d| d.count as u64).sum(),
             in_flight: self.loader.in_flight(),
+            pages_wanted: self.pages_missing(selection),
+            hierarchy_pages: self.hierarchy.pages(),
+            hierarchy_bytes: self.hierarchy.bytes(),
             complete: selection
                 .nodes
                 .iter()
-                .all(|n| self.buffers.contains(&n.key) || failed.contains_key(&n.key)),
+                .all(|n| self.buffers.contains(&n.key) || failed.contains_key(&n.key))
+                && self.pages_missing(selection) == 0,
             ..Default::default()
         }
     }
@@ -427,6 +523,7 @@ impl Scene {
             .filter_map(|k| Some((k, self.loader.get(&k)?)))
             .collect();
         Request {
+            hierarchy: self.hierarchy.clone(),
             camera: *camera,
             options: options.clone(),
             clip,
@@ -526,8 +623,7 @@ pub fn frame_many_threaded(
     let mut serials = Vec::new();
     for scene in scenes.iter_mut() {
         let request = scene.request(camera, options, style.clip);
-        let h = scene.hierarchy.clone();
-        let selector = scene.selector.get_or_insert_with(|| Selector::new(h));
+        let selector = scene.selector.get_or_insert_with(Selector::new);
         let serial = selector.ask(request);
         if let Some(a) = selector.take() {
             scene.alone = Some(a);

@@ -22,6 +22,8 @@ use std::time::{Duration, Instant};
 /// What to select for.
 #[derive(Clone)]
 pub struct Request {
+    /// The hierarchy as the frame thread knows it now (pages land there; a copy shares them).
+    pub hierarchy: Arc<Hierarchy>,
     pub camera: Camera,
     pub options: SelectOptions,
     pub clip: Option<Clip>,
@@ -62,12 +64,12 @@ pub struct Selector {
 }
 
 impl Selector {
-    pub fn new(hierarchy: Arc<Hierarchy>) -> Selector {
+    pub fn new() -> Selector {
         let shared: Shared = Arc::new((Mutex::new(State::default()), Condvar::new()));
         let s = shared.clone();
         let thread = std::thread::Builder::new()
             .name("myriad-select".into())
-            .spawn(move || run(&hierarchy, &s))
+            .spawn(move || run(&s))
             .expect("spawn the selection thread");
         Selector {
             shared,
@@ -92,7 +94,7 @@ impl Selector {
     }
 }
 
-fn run(h: &Hierarchy, shared: &Shared) {
+fn run(shared: &Shared) {
     let (lock, ready) = &**shared;
     loop {
         let (serial, r) = {
@@ -113,7 +115,13 @@ fn run(h: &Hierarchy, shared: &Shared) {
         let points = |k: &NodeKey| r.resident.get(k).cloned();
         let mut occluder = (r.occlusion == Occlusion::Software)
             .then(|| Occluder::new(&r.camera, r.occlusion_size, &points));
-        let selection = select_occluded(h, &r.camera, &r.options, &keep, occluder.as_mut());
+        let selection = select_occluded(
+            &r.hierarchy,
+            &r.camera,
+            &r.options,
+            &keep,
+            occluder.as_mut(),
+        );
         let answer = Answer {
             selection,
             camera: r.camera,

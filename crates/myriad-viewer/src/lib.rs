@@ -359,6 +359,7 @@ impl App {
             .map(|l| l.scene.loader.resident_bytes())
             .sum();
         let vram: usize = self.layers.iter().map(|l| l.scene.buffers.bytes()).sum();
+        let tree: usize = self.stats.iter().map(|s| s.hierarchy_bytes).sum();
         ui.label(format!(
             "{:.1} fps, frame {:.0} ms",
             self.timing.fps, self.timing.frame_ms
@@ -375,14 +376,15 @@ impl App {
             select.as_secs_f64() * 1e3
         ));
         ui.label(format!(
-            "cache: {:.0} MB decoded, {:.0} MB of point buffers",
+            "cache: {:.0} MB decoded, {:.0} MB of point buffers, {:.1} MB of hierarchy",
             ram as f64 / 1e6,
-            vram as f64 / 1e6
+            vram as f64 / 1e6,
+            tree as f64 / 1e6
         ));
         ui.horizontal(|ui| {
             if loading > 0 {
                 ui.spinner();
-                ui.label(format!("loading {loading} nodes"));
+                ui.label(format!("loading {loading} nodes and pages"));
             } else {
                 ui.label("all loaded");
             }

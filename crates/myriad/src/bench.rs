@@ -32,6 +32,9 @@ pub enum BenchCommand {
     /// Export speed and peak memory (COPC, Potree) next to PotreeConverter 2 converting the
     /// dataset's input in the same run
     Export(crate::bench_export::ExportBenchArgs),
+    /// Opening: time to the first image and to convergence (cold and warm page cache), pages
+    /// read and hierarchy memory, next to reading every hierarchy page
+    Open(crate::bench_open::OpenBenchArgs),
 }
 
 #[derive(Args)]
@@ -83,6 +86,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Passes(a) => crate::bench_passes::run(a),
         BenchCommand::Culling(a) => crate::bench_culling::run(a),
         BenchCommand::Export(a) => crate::bench_export::run(a),
+        BenchCommand::Open(a) => crate::bench_open::run(a),
     }
 }
 

@@ -87,8 +87,8 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
         scene.set_colour(a.color);
         println!(
             "\n{name}: {} points, {} nodes; {}x{}, frame times median of {}",
-            crate::info::thousands(scene.hierarchy.points()),
-            scene.hierarchy.len(),
+            crate::info::thousands(ds.meta.points),
+            ds.meta.nodes,
             a.width,
             a.height,
             a.frames

@@ -105,7 +105,7 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
         scene.set_colour(a.color);
         println!(
             "\n{name}: {} points",
-            crate::info::thousands(scene.hierarchy.points())
+            crate::info::thousands(ds.meta.points)
         );
         if !a.no_timing {
             println!(

@@ -131,6 +131,8 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             .file_stem()
             .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
         let mut scene = Scene::open(ds.clone(), usize::MAX, usize::MAX);
+        // The reference images sample every point: every node known.
+        scene.read_every_page(&ds);
         let total = scene.hierarchy.points();
         println!(
             "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8}",

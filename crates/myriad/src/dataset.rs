@@ -8,7 +8,6 @@ use myriad_build::extract::{self, ExtractOptions};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -199,20 +198,18 @@ pub fn is_dataset(path: &Path) -> bool {
 pub fn info(path: &Path, as_json: bool) -> Result<()> {
     let ds = Dataset::open(path)?;
     let m = &ds.meta;
-    let (nodes, damage) = ds.nodes();
-    for d in &damage {
-        eprintln!("warning: {}", ds.damage_error(d));
-    }
-    // Per level: nodes, points, and the finest spacing.
-    let mut levels: BTreeMap<u32, (u64, u64, f64)> = BTreeMap::new();
-    for n in &nodes {
-        let e = levels.entry(n.key.level).or_insert((0, 0, f64::INFINITY));
-        e.0 += 1;
-        e.1 += n.points as u64;
-        if let Some(&s) = n.spacing.first() {
-            e.2 = e.2.min(s);
+    // Per level: nodes, points, and the finest spacing; from the metadata (one read however
+    // large the dataset), or by walking every hierarchy page where a dataset written before
+    // the table was kept there lacks it.
+    let (levels, damage) = if m.levels.is_empty() {
+        let (nodes, damage) = ds.nodes();
+        for d in &damage {
+            eprintln!("warning: {}", ds.damage_error(d));
         }
-    }
+        (myriad_format::Level::table(&nodes), Some(damage.len()))
+    } else {
+        (m.levels.clone(), None)
+    };
     let bpp = ds.file_length as f64 / m.points.max(1) as f64;
     if as_json {
         println!(
@@ -235,8 +232,8 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
                 "file_size": ds.file_length,
                 "bytes_per_point": bpp,
                 "sources": m.sources,
-                "levels": levels.iter().map(|(l, (n, p, s))| json!({"level": l, "nodes": n, "points": p, "node_size": s})).collect::<Vec<_>>(),
-                "damaged_hierarchy_pages": damage.len(),
+                "levels": levels.iter().map(|l| json!({"level": l.level, "nodes": l.nodes, "points": l.points, "node_size": l.spacing.is_finite().then_some(l.spacing)})).collect::<Vec<_>>(),
+                "damaged_hierarchy_pages": damage,
             })
         );
         return Ok(());
@@ -261,11 +258,13 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
         bpp
     );
     println!("  level      nodes         points   node size");
-    for (l, (n, p, s)) in &levels {
+    for l in &levels {
         println!(
-            "  {l:>5} {:>10} {:>14} {s:>11.3}",
-            thousands(*n),
-            thousands(*p)
+            "  {:>5} {:>10} {:>14} {:>11.3}",
+            l.level,
+            thousands(l.nodes),
+            thousands(l.points),
+            l.spacing
         );
     }
     Ok(())

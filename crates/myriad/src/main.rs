@@ -4,6 +4,7 @@
 mod bench;
 mod bench_culling;
 mod bench_export;
+mod bench_open;
 mod bench_passes;
 mod bench_render;
 mod bench_structures;

@@ -180,13 +180,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&a.dataset)?);
-    let (nodes, damage) = ds.nodes();
-    if let (true, Some(d)) = (nodes.is_empty(), damage.first()) {
-        // The root's hierarchy page is damaged: nothing can be drawn.
-        bail!("{} (nothing left to draw)", ds.damage_error(d));
-    }
-    for d in &damage {
-        eprintln!("warning: {}", ds.damage_error(d));
+    // The root's hierarchy page (the only one read before drawing): damaged, nothing can be
+    // drawn. Pages below are read as the view reaches them; damage there is reported below.
+    if let Err(d) = ds.hierarchy_page(&ds.root_page()) {
+        bail!("{} (nothing left to draw)", ds.damage_error(&d));
     }
     let (gpu, why) = match a.path {
         Some(Path::Cpu) => (Gpu::cpu(), None),
@@ -270,6 +267,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
     let frame = t.elapsed();
     write_png(&a.output, a.width, a.height, &img)?;
+    for why in scene.loader.failed_pages().values() {
+        eprintln!("warning: {why}");
+    }
     println!(
         "{}: {} points in {} nodes ({} hidden nodes culled), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
         a.output.display(),
