@@ -59,6 +59,17 @@ pub(crate) fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
 
 /// The nodes a query touches, in key order: those whose cube meets the box and whose coarsest
 /// level is not finer than the spacing.
+/// The hierarchy's entries, read only from the pages whose subtrees meet the box (all without
+/// one), and the damage met on the way.
+pub(crate) fn hierarchy_for(ds: &Dataset, o: &ExtractOptions) -> (Vec<NodeEntry>, Vec<Damage>) {
+    match o.bbox {
+        Some(b) => ds.nodes_where(&|cube| {
+            (0..3).all(|a| cube.min[a] <= b.max[a] && b.min[a] <= cube.max[a])
+        }),
+        None => ds.nodes(),
+    }
+}
+
 pub(crate) fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEntry> {
     nodes
         .into_iter()
@@ -106,7 +117,7 @@ pub fn extract(ds: &Dataset, out: &Path, o: &ExtractOptions) -> Result<ExtractSu
             return Err(Error::unsupported(out, "extract writes .las, .laz or .ply"));
         }
     };
-    let (nodes, mut damage) = ds.nodes();
+    let (nodes, mut damage) = hierarchy_for(ds, o);
     let mut summary = ExtractSummary::default();
     for n in wanted(ds, nodes, o) {
         let mut batch = match ds.read_node(&n) {

@@ -12,6 +12,7 @@ pub mod page;
 pub mod splat;
 
 pub mod metadata;
+pub mod remote;
 
 pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
 pub use metadata::{Level, Metadata};
@@ -98,6 +99,10 @@ impl Header {
 pub trait ByteSource: Send + Sync {
     fn len(&self) -> u64;
     fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>>;
+    /// Requests made and bytes fetched, for sources over a network.
+    fn fetched(&self) -> Option<(u64, u64)> {
+        None
+    }
 }
 
 /// A local file, read with positioned reads (no shared cursor).
@@ -432,8 +437,19 @@ pub struct Dataset {
 }
 
 impl Dataset {
+    /// Opens a dataset file, or a dataset on a web server (`http://`, `https://`: read by
+    /// range requests, [`remote::HttpBytes`]).
     pub fn open(path: &Path) -> Result<Dataset> {
+        if remote::is_url(path) {
+            let url = path.to_str().expect("a URL is text");
+            return Dataset::from_source(Arc::new(remote::HttpBytes::open(url)?), path);
+        }
         Dataset::from_source(Arc::new(FileBytes::open(path)?), path)
+    }
+
+    /// Requests made and bytes fetched so far, for a dataset read over a network.
+    pub fn fetched(&self) -> Option<(u64, u64)> {
+        self.bytes.fetched()
     }
 
     /// Opens a dataset from any byte source; `name` labels errors.
@@ -530,14 +546,32 @@ impl Dataset {
 
     /// Every node entry reachable through undamaged hierarchy pages, and the damage met.
     pub fn nodes(&self) -> (Vec<NodeEntry>, Vec<Damage>) {
+        self.nodes_where(&|_| true)
+    }
+
+    /// [`Dataset::nodes`], reading a page only where `keep` accepts the bounds of the subtree
+    /// it holds (its root's cube; where nodes store bounds, those of the node above it): a box
+    /// query reads the pages it meets, not all of them. The entries of the pages read are all
+    /// returned.
+    pub fn nodes_where(&self, keep: &dyn Fn(&Aabb) -> bool) -> (Vec<NodeEntry>, Vec<Damage>) {
         let mut nodes = Vec::new();
         let mut damage = Vec::new();
         let mut todo = vec![self.root_page()];
         while let Some(p) = todo.pop() {
             match self.hierarchy_page(&p) {
                 Ok(page) => {
+                    for c in page.children {
+                        let parent = c.key.parent();
+                        let stored = page
+                            .nodes
+                            .iter()
+                            .find(|n| n.key == parent)
+                            .and_then(|n| n.bounds);
+                        if keep(&stored.unwrap_or_else(|| c.key.bounds(&self.meta.root))) {
+                            todo.push(c);
+                        }
+                    }
                     nodes.extend(page.nodes);
-                    todo.extend(page.children);
                 }
                 Err(d) => damage.push(d),
             }

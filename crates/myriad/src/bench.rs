@@ -35,6 +35,9 @@ pub enum BenchCommand {
     /// Opening: time to the first image and to convergence (cold and warm page cache), pages
     /// read and hierarchy memory, next to reading every hierarchy page
     Open(crate::bench_open::OpenBenchArgs),
+    /// `myriad serve` under concurrent random range reads, next to nginx in the same run:
+    /// requests/s, MB/s, latency, errors, server memory
+    Serve(crate::bench_serve::ServeBenchArgs),
 }
 
 #[derive(Args)]
@@ -87,6 +90,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Culling(a) => crate::bench_culling::run(a),
         BenchCommand::Export(a) => crate::bench_export::run(a),
         BenchCommand::Open(a) => crate::bench_open::run(a),
+        BenchCommand::Serve(a) => crate::bench_serve::run(a),
     }
 }
 

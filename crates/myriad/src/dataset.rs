@@ -188,6 +188,10 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
 /// Is `path` a dataset (by its magic)?
 pub fn is_dataset(path: &Path) -> bool {
     use std::io::Read;
+    // Over HTTP only datasets are read.
+    if myriad_format::remote::is_url(path) {
+        return true;
+    }
     let mut head = [0u8; 8];
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut head))

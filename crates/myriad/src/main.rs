@@ -7,11 +7,14 @@ mod bench_export;
 mod bench_open;
 mod bench_passes;
 mod bench_render;
+mod bench_serve;
 mod bench_structures;
+mod cached;
 mod dataset;
 mod export;
 mod info;
 mod render;
+mod serve;
 mod synth;
 mod view;
 
@@ -45,6 +48,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Open datasets in a window: navigate, measure, clip (level of detail while you move)
     View(view::ViewArgs),
+    /// Serve datasets and exported folders over HTTP (range requests) for browsers and viewers
+    Serve(serve::ServeArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
     /// Measure reading and synthesis speed (medians over several runs, with baselines)
@@ -89,6 +94,7 @@ fn main() -> ExitCode {
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
         Command::View(a) => view::run(a),
+        Command::Serve(a) => serve::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Bench(b) => bench::run(b),
     };

@@ -179,7 +179,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         bail!("--edl-radius must be from 0.5 to 32 pixels");
     }
     let t0 = Instant::now();
-    let ds = Arc::new(Dataset::open(&a.dataset)?);
+    let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
     // The root's hierarchy page (the only one read before drawing): damaged, nothing can be
     // drawn. Pages below are read as the view reaches them; damage there is reported below.
     if let Err(d) = ds.hierarchy_page(&ds.root_page()) {
@@ -269,6 +269,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
     write_png(&a.output, a.width, a.height, &img)?;
     for why in scene.loader.failed_pages().values() {
         eprintln!("warning: {why}");
+    }
+    if let Some((requests, bytes)) = ds.fetched() {
+        println!(
+            "fetched {} bytes in {requests} range requests ({:.2} % of the dataset's {} bytes)",
+            crate::info::thousands(bytes),
+            100.0 * bytes as f64 / ds.file_length.max(1) as f64,
+            crate::info::thousands(ds.file_length)
+        );
     }
     println!(
         "{}: {} points in {} nodes ({} hidden nodes culled), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",

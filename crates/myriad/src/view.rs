@@ -86,7 +86,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
     }
     let mut datasets = Vec::new();
     for p in &a.datasets {
-        let ds = Dataset::open(p)?;
+        let ds = Dataset::open(&crate::cached::dataset_for(p)?)?;
         let name = p.file_name().map_or_else(
             || p.display().to_string(),
             |n| n.to_string_lossy().to_string(),

@@ -843,6 +843,49 @@ fn info_reads_the_metadata_and_render_reads_hierarchy_pages_on_demand() {
         "{}",
         r.stdout
     );
+    // A box away from the damaged page's subtree reads none of its pages; one inside it meets
+    // the damage.
+    let root = &v["root"];
+    let side = (root["max"][0].as_f64().unwrap() - root["min"][0].as_f64().unwrap())
+        / (1u64 << below.key.level) as f64;
+    let cube_box = |cell: [u32; 3]| {
+        let lo: Vec<f64> = (0..3)
+            .map(|a| root["min"][a].as_f64().unwrap() + (cell[a] as f64 + 0.1) * side)
+            .collect();
+        let hi: Vec<f64> = lo.iter().map(|l| l + 0.8 * side).collect();
+        format!(
+            "{},{},{},{},{},{}",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        )
+    };
+    let c = below.key.cell;
+    let part = d.join("part.las");
+    let r = myriad(&[
+        "extract",
+        s(&out),
+        "-o",
+        s(&part),
+        "--box",
+        &cube_box([c[0] ^ 1, c[1], c[2]]),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(!r.stderr.contains("warning"), "{}", r.stderr);
+    let r = myriad(&[
+        "extract",
+        s(&out),
+        "-o",
+        s(&part),
+        "--force",
+        "--box",
+        &cube_box(c),
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains(&format!("hierarchy page of subtree {}", below.key)),
+        "{}",
+        r.stderr
+    );
     // Every node wanted: the page is reached, reported, and the rest drawn.
     let png = d.join("p.png");
     let r = myriad(&[

@@ -1,0 +1,214 @@
+//! Datasets over HTTP: a [`ByteSource`] that reads byte ranges with `Range` requests, so that
+//! a dataset on a web server opens as a file does and only the pages a command needs cross the
+//! network. The `ureq` crate makes the requests (blocking, one per read, connections kept
+//! alive and shared by the threads that read); this type adds what a dataset reader needs of
+//! them: a server that ignores `Range` is refused at once with an error that says so, failed
+//! reads are retried with backoff, at most [`MAX_IN_FLIGHT`] requests are out at a time, and the
+//! bytes fetched are counted.
+
+use crate::ByteSource;
+use myriad_core::{Error, Result};
+use std::io;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Condvar, Mutex};
+use std::time::Duration;
+
+/// Most requests a source has out at once (the loader threads and the selection share them).
+pub const MAX_IN_FLIGHT: usize = 8;
+/// Attempts per read: a failed connection, a timeout or a 5xx/429 answer is tried again.
+const ATTEMPTS: u32 = 4;
+
+/// Whether `path` names a dataset on a web server rather than a file.
+pub fn is_url(path: &Path) -> bool {
+    path.to_str()
+        .is_some_and(|s| s.starts_with("http://") || s.starts_with("https://"))
+}
+
+/// A resource read by HTTP range requests.
+pub struct HttpBytes {
+    url: String,
+    agent: ureq::Agent,
+    len: u64,
+    slots: Mutex<usize>,
+    freed: Condvar,
+    requests: AtomicU64,
+    fetched: AtomicU64,
+}
+
+/// What went wrong with one request: worth another attempt or not.
+enum Failure {
+    Retry(String),
+    Fatal(String),
+}
+
+impl HttpBytes {
+    /// Asks for the first bytes of `url`: the answer must be 206 with a `Content-Range` that
+    /// gives the resource's length.
+    pub fn open(url: &str) -> Result<HttpBytes> {
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_connect(Some(Duration::from_secs(10)))
+            .timeout_recv_body(Some(Duration::from_secs(60)))
+            .timeout_recv_response(Some(Duration::from_secs(30)))
+            .build()
+            .into();
+        let mut h = HttpBytes {
+            url: url.to_string(),
+            agent,
+            len: u64::MAX,
+            slots: Mutex::new(MAX_IN_FLIGHT),
+            freed: Condvar::new(),
+            requests: AtomicU64::new(0),
+            fetched: AtomicU64::new(0),
+        };
+        let (_, total) = h.range(0, 1).map_err(|e| Error::io(Path::new(url), e))?;
+        h.len = total;
+        Ok(h)
+    }
+
+    /// Requests made and bytes received so far.
+    pub fn stats(&self) -> (u64, u64) {
+        (
+            self.requests.load(Ordering::Relaxed),
+            self.fetched.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Reads `len` bytes at `offset` (retrying); also returns the resource's whole length.
+    fn range(&self, offset: u64, len: usize) -> io::Result<(Vec<u8>, u64)> {
+        {
+            let mut free = self.slots.lock().expect("slots lock");
+            while *free == 0 {
+                free = self.freed.wait(free).expect("slots lock");
+            }
+            *free -= 1;
+        }
+        let mut result = Err(io::Error::other("no attempt made"));
+        for attempt in 0..ATTEMPTS {
+            if attempt > 0 {
+                std::thread::sleep(Duration::from_millis(100 << attempt));
+            }
+            match self.attempt(offset, len) {
+                Ok(r) => {
+                    result = Ok(r);
+                    break;
+                }
+                Err(Failure::Fatal(m)) => {
+                    result = Err(io::Error::other(m));
+                    break;
+                }
+                Err(Failure::Retry(m)) => {
+                    result = Err(io::Error::other(format!(
+                        "{m} (after {} attempts)",
+                        attempt + 1
+                    )))
+                }
+            }
+        }
+        *self.slots.lock().expect("slots lock") += 1;
+        self.freed.notify_one();
+        result
+    }
+
+    fn attempt(&self, offset: u64, len: usize) -> std::result::Result<(Vec<u8>, u64), Failure> {
+        let last = offset + len.max(1) as u64 - 1;
+        self.requests.fetch_add(1, Ordering::Relaxed);
+        let mut r = self
+            .agent
+            .get(&self.url)
+            .header("Range", format!("bytes={offset}-{last}"))
+            .header("Accept-Encoding", "identity")
+            .call()
+            .map_err(|e| Failure::Retry(e.to_string()))?;
+        let status = r.status().as_u16();
+        match status {
+            206 => {}
+            200 => {
+                return Err(Failure::Fatal(
+                    "the server ignores Range requests (it answered 200 with the whole file); \
+                     serve the dataset with `myriad serve` or a server that supports Range"
+                        .into(),
+                ));
+            }
+            416 => {
+                return Err(Failure::Fatal(format!(
+                    "bytes {offset}-{last} lie past the end of the resource (416)"
+                )));
+            }
+            429 | 500..=599 => return Err(Failure::Retry(format!("HTTP {status}"))),
+            s => return Err(Failure::Fatal(format!("HTTP {s}"))),
+        }
+        let range = r
+            .headers()
+            .get("content-range")
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_string)
+            .ok_or_else(|| Failure::Fatal("a 206 answer without Content-Range".into()))?;
+        let (start, total) = parse_content_range(&range)
+            .ok_or_else(|| Failure::Fatal(format!("unreadable Content-Range \"{range}\"")))?;
+        if start != offset {
+            return Err(Failure::Fatal(format!(
+                "asked for bytes from {offset}, got them from {start}"
+            )));
+        }
+        let body = r
+            .body_mut()
+            .with_config()
+            .limit(len as u64 + 1)
+            .read_to_vec()
+            .map_err(|e| Failure::Retry(e.to_string()))?;
+        self.fetched.fetch_add(body.len() as u64, Ordering::Relaxed);
+        let want = len.min(total.saturating_sub(offset) as usize);
+        if body.len() != want {
+            return Err(Failure::Retry(format!(
+                "{} bytes came for {want} asked",
+                body.len()
+            )));
+        }
+        Ok((body, total))
+    }
+}
+
+/// `bytes START-END/TOTAL`: start and total.
+fn parse_content_range(v: &str) -> Option<(u64, u64)> {
+    let rest = v.trim().strip_prefix("bytes ")?;
+    let (span, total) = rest.split_once('/')?;
+    let (start, _) = span.split_once('-')?;
+    Some((start.trim().parse().ok()?, total.trim().parse().ok()?))
+}
+
+impl ByteSource for HttpBytes {
+    fn len(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
+        if offset.saturating_add(len as u64) > self.len {
+            return Err(io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                "range past the end of the resource",
+            ));
+        }
+        if len == 0 {
+            return Ok(Vec::new());
+        }
+        self.range(offset, len).map(|(b, _)| b)
+    }
+    fn fetched(&self) -> Option<(u64, u64)> {
+        Some(self.stats())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn content_ranges_and_urls() {
+        assert_eq!(parse_content_range("bytes 0-63/1000"), Some((0, 1000)));
+        assert_eq!(parse_content_range("bytes 10-19/*"), None);
+        assert_eq!(parse_content_range("items 0-1/2"), None);
+        assert!(is_url(Path::new("http://127.0.0.1:8080/d/ky.myr")));
+        assert!(!is_url(Path::new("ky.myr")));
+    }
+}

@@ -1,0 +1,192 @@
+//! What a server serves: named once, at start. A file is served under its file name; a folder
+//! (an exported Potree dataset, a folder of COPC files) under its name followed by each file's
+//! path inside it. Requests are answered from these names alone.
+
+use myriad_core::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// What a served name is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A Myriad dataset (`.myr`).
+    Dataset,
+    /// A COPC or LAS/LAZ file.
+    Scan,
+    /// A file of an exported folder (Potree's metadata.json, octree.bin, hierarchy.bin).
+    Export,
+}
+
+pub(crate) struct File {
+    pub(crate) path: PathBuf,
+    pub(crate) content_type: &'static str,
+    pub(crate) kind: Kind,
+    len: u64,
+}
+
+/// The files a server answers for, by the name in their URL (`/d/NAME`).
+#[derive(Default)]
+pub struct Catalog {
+    files: BTreeMap<String, File>,
+}
+
+/// Files at most this deep in a served folder, and at most this many.
+const MAX_DEPTH: usize = 8;
+const MAX_FILES: usize = 100_000;
+
+fn content_type(path: &Path) -> &'static str {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("json") => "application/json",
+        Some("html") => "text/html; charset=utf-8",
+        Some("js") => "text/javascript",
+        Some("css") => "text/css",
+        Some("png") => "image/png",
+        _ => "application/octet-stream",
+    }
+}
+
+impl Catalog {
+    /// The catalog of `inputs`: files (served under their file name) and folders (every file
+    /// below, under the folder's name and its path there). Two inputs with the same name are
+    /// an error, as is an input that is neither.
+    pub fn new(inputs: &[PathBuf]) -> Result<Catalog> {
+        let mut c = Catalog::default();
+        for input in inputs {
+            c.add_input(input)?;
+        }
+        Ok(c)
+    }
+
+    /// Adds a file (under its file name) or a folder (every file below it).
+    pub fn add_input(&mut self, input: &Path) -> Result<()> {
+        let meta = std::fs::metadata(input).map_err(|e| Error::io(input, e))?;
+        let name = input
+            .file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| Error::Invalid(format!("{}: not a file name", input.display())))?
+            .to_string();
+        if meta.is_file() {
+            self.add(name, input.to_path_buf(), None)
+        } else if meta.is_dir() {
+            self.add_folder(&name, input, 0)
+        } else {
+            Err(Error::Invalid(format!(
+                "{}: neither a file nor a folder",
+                input.display()
+            )))
+        }
+    }
+
+    /// Adds a file under a name of the caller's choosing (a scan's converted dataset).
+    pub fn add_file_as(&mut self, name: &str, path: &Path) -> Result<()> {
+        self.add(name.to_string(), path.to_path_buf(), None)
+    }
+
+    fn add(&mut self, name: String, path: PathBuf, kind: Option<Kind>) -> Result<()> {
+        let len = std::fs::metadata(&path)
+            .map_err(|e| Error::io(&path, e))?
+            .len();
+        let kind = kind.unwrap_or(if name.ends_with(".myr") {
+            Kind::Dataset
+        } else {
+            Kind::Scan
+        });
+        if self.files.len() >= MAX_FILES {
+            return Err(Error::Invalid(format!(
+                "more than {MAX_FILES} files to serve"
+            )));
+        }
+        if self.files.contains_key(&name) {
+            return Err(Error::Invalid(format!(
+                "{}: a file named \"{name}\" is served already",
+                path.display()
+            )));
+        }
+        self.files.insert(
+            name,
+            File {
+                content_type: content_type(&path),
+                path,
+                kind,
+                len,
+            },
+        );
+        Ok(())
+    }
+
+    fn add_folder(&mut self, prefix: &str, dir: &Path, depth: usize) -> Result<()> {
+        if depth > MAX_DEPTH {
+            return Ok(());
+        }
+        let mut entries: Vec<_> = std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .filter_map(|e| e.ok())
+            .collect();
+        entries.sort_by_key(|e| e.file_name());
+        for e in entries {
+            let Some(n) = e.file_name().to_str().map(str::to_string) else {
+                continue;
+            };
+            // Hidden files (unfinished outputs among them) are not served.
+            if n.starts_with('.') {
+                continue;
+            }
+            let Ok(t) = e.file_type() else { continue };
+            let name = format!("{prefix}/{n}");
+            if t.is_file() {
+                self.add(name, e.path(), Some(Kind::Export))?;
+            } else if t.is_dir() {
+                self.add_folder(&name, &e.path(), depth + 1)?;
+            }
+        }
+        Ok(())
+    }
+
+    pub(crate) fn file(&self, name: &str) -> Option<&File> {
+        self.files.get(name)
+    }
+
+    /// Every served name with its kind and size.
+    pub fn names(&self) -> impl Iterator<Item = (&str, Kind, u64)> {
+        self.files.iter().map(|(n, f)| (n.as_str(), f.kind, f.len))
+    }
+
+    pub(crate) fn index_html(&self) -> String {
+        let escape = |s: &str| {
+            s.replace('&', "&amp;")
+                .replace('<', "&lt;")
+                .replace('>', "&gt;")
+                .replace('"', "&quot;")
+        };
+        let href = |s: &str| {
+            s.bytes()
+                .map(|b| match b {
+                    b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'/' => {
+                        (b as char).to_string()
+                    }
+                    b => format!("%{b:02X}"),
+                })
+                .collect::<String>()
+        };
+        let mut rows = String::new();
+        for (name, kind, len) in self.names() {
+            let what = match kind {
+                Kind::Dataset => "Myriad dataset",
+                Kind::Scan => "scan",
+                Kind::Export => "exported file",
+            };
+            rows.push_str(&format!(
+                "<tr><td><a href=\"/d/{}\">{}</a></td><td>{what}</td><td>{len}</td></tr>\n",
+                href(name),
+                escape(name)
+            ));
+        }
+        format!(
+            "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>Myriad</title></head>\n\
+             <body><h1>Served by Myriad</h1>\n<p>Each file answers HTTP range requests at \
+             <code>/d/NAME</code>; <code>myriad render|info|extract http://HOST/d/NAME.myr</code> \
+             reads a dataset from here.</p>\n<table><tr><th>name</th><th>kind</th><th>bytes</th></tr>\n\
+             {rows}</table></body></html>\n"
+        )
+    }
+}

@@ -1,0 +1,223 @@
+//! The server as clients meet it, over raw TCP so that every byte of a request is the test's:
+//! ranges (one, several, past the end, malformed), HEAD, ETag with If-Range and If-None-Match,
+//! the CORS preflight, the index, and bad requests (methods, `..` and its encodings, huge
+//! headers, slow clients), each with its status while the server keeps serving.
+
+use myriad_serve::{Catalog, Options, Server};
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::path::PathBuf;
+use std::time::Duration;
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("myriad-serve-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+struct Answer {
+    status: u16,
+    head: String,
+    body: Vec<u8>,
+}
+
+impl Answer {
+    fn header(&self, name: &str) -> Option<String> {
+        self.head.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            k.eq_ignore_ascii_case(name).then(|| v.trim().to_string())
+        })
+    }
+}
+
+/// Sends `request` as it is and reads the answer (the connection closed after it).
+fn send(server: &Server, request: &str) -> Answer {
+    let mut s = TcpStream::connect(server.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let split = out
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("an answer head");
+    let head = String::from_utf8_lossy(&out[..split]).to_string();
+    let status = head.split(' ').nth(1).unwrap().parse().unwrap();
+    Answer {
+        status,
+        head,
+        body: out[split + 4..].to_vec(),
+    }
+}
+
+fn get(server: &Server, path: &str, extra: &str) -> Answer {
+    send(
+        server,
+        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{extra}\r\n"),
+    )
+}
+
+#[test]
+fn ranges_validators_cors_and_bad_requests() {
+    let d = dir("ranges");
+    let data: Vec<u8> = (0..100_000u32).map(|i| (i * 7 % 251) as u8).collect();
+    let file = d.join("site.myr");
+    std::fs::write(&file, &data).unwrap();
+    let potree = d.join("potree");
+    std::fs::create_dir_all(potree.join("sub")).unwrap();
+    std::fs::write(potree.join("metadata.json"), b"{}").unwrap();
+    std::fs::write(potree.join("sub/octree.bin"), b"0123456789").unwrap();
+    std::fs::write(potree.join(".partial"), b"hidden").unwrap();
+    let catalog = Catalog::new(&[file.clone(), potree.clone()]).unwrap();
+    let names: Vec<&str> = catalog.names().map(|n| n.0).collect();
+    assert_eq!(
+        names,
+        ["potree/metadata.json", "potree/sub/octree.bin", "site.myr"]
+    );
+    let server = Server::start(
+        catalog,
+        "127.0.0.1:0".parse().unwrap(),
+        Options {
+            max_connections: 8,
+            header_timeout: Duration::from_millis(500),
+            max_header_bytes: 8192,
+        },
+    )
+    .unwrap();
+
+    // The whole file.
+    let a = get(&server, "/d/site.myr", "");
+    assert_eq!(a.status, 200);
+    assert_eq!(a.body, data);
+    assert_eq!(a.header("accept-ranges").as_deref(), Some("bytes"));
+    assert_eq!(
+        a.header("access-control-allow-origin").as_deref(),
+        Some("*")
+    );
+    let etag = a.header("etag").unwrap();
+    // One range.
+    let a = get(&server, "/d/site.myr", "Range: bytes=1000-1999\r\n");
+    assert_eq!(a.status, 206);
+    assert_eq!(a.body, &data[1000..2000]);
+    assert_eq!(
+        a.header("content-range").as_deref(),
+        Some("bytes 1000-1999/100000")
+    );
+    let a = get(&server, "/d/site.myr", "Range: bytes=-10\r\n");
+    assert_eq!((a.status, &a.body[..]), (206, &data[99_990..]));
+    // Several: multipart/byteranges with each part's Content-Range.
+    let a = get(&server, "/d/site.myr", "Range: bytes=0-9, 50000-50004\r\n");
+    assert_eq!(a.status, 206);
+    let ct = a.header("content-type").unwrap();
+    assert!(ct.starts_with("multipart/byteranges; boundary="), "{ct}");
+    let body = String::from_utf8_lossy(&a.body);
+    assert!(body.contains("Content-Range: bytes 0-9/100000"));
+    assert!(body.contains("Content-Range: bytes 50000-50004/100000"));
+    assert!(a.body.windows(5).any(|w| w == &data[50000..50005]));
+    // Past the end, malformed: 416 with the length.
+    for bad in ["bytes=100000-", "bytes=5-1", "bytes=x-y", "bytes="] {
+        let a = get(&server, "/d/site.myr", &format!("Range: {bad}\r\n"));
+        assert_eq!(a.status, 416, "{bad}");
+        assert_eq!(a.header("content-range").as_deref(), Some("bytes */100000"));
+    }
+    // HEAD: the headers of GET, no body.
+    let a = send(
+        &server,
+        "HEAD /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nRange: bytes=0-99\r\n\r\n",
+    );
+    assert_eq!((a.status, a.body.len()), (206, 0));
+    assert_eq!(a.header("content-length").as_deref(), Some("100"));
+    // Validators.
+    let a = get(
+        &server,
+        "/d/site.myr",
+        &format!("If-None-Match: {etag}\r\n"),
+    );
+    assert_eq!((a.status, a.body.len()), (304, 0));
+    let a = get(
+        &server,
+        "/d/site.myr",
+        &format!("Range: bytes=0-9\r\nIf-Range: {etag}\r\n"),
+    );
+    assert_eq!((a.status, a.body.len()), (206, 10));
+    let a = get(
+        &server,
+        "/d/site.myr",
+        "Range: bytes=0-9\r\nIf-Range: \"another-version\"\r\n",
+    );
+    assert_eq!((a.status, a.body.len()), (200, data.len()));
+    // The preflight a cross-origin Range request forces.
+    let a = send(
+        &server,
+        "OPTIONS /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nOrigin: http://elsewhere\r\n\
+         Access-Control-Request-Method: GET\r\nAccess-Control-Request-Headers: range, content-type\r\n\r\n",
+    );
+    assert_eq!(a.status, 204);
+    let allowed = a.header("access-control-allow-headers").unwrap();
+    assert!(allowed.contains("Range") && allowed.contains("Content-Type"));
+    // A folder's files under its name; hidden ones not at all.
+    let a = get(&server, "/d/potree/sub/octree.bin", "Range: bytes=2-4\r\n");
+    assert_eq!((a.status, &a.body[..]), (206, &b"234"[..]));
+    assert_eq!(get(&server, "/d/potree/.partial", "").status, 404);
+    // The index, gzip where asked for.
+    let a = get(&server, "/", "Accept-Encoding: gzip, br\r\n");
+    assert_eq!(a.status, 200);
+    assert_eq!(a.header("content-encoding").as_deref(), Some("gzip"));
+    let mut html = String::new();
+    flate2::read::GzDecoder::new(&a.body[..])
+        .read_to_string(&mut html)
+        .unwrap();
+    assert!(html.contains("href=\"/d/site.myr\""), "{html}");
+
+    // Paths that would leave the catalog find nothing; nothing outside it is read.
+    std::fs::write(d.join("secret.txt"), b"secret").unwrap();
+    for p in [
+        "/d/../secret.txt",
+        "/d/potree/../site.myr",
+        "/d/%2e%2e/secret.txt",
+        "/d/potree/%2E%2E/%2E%2E/secret.txt",
+        "/d/%2fetc%2fpasswd",
+        "/d/potree%2f..%2fsecret.txt",
+        "/secret.txt",
+        "/d/",
+    ] {
+        let a = get(&server, p, "");
+        assert!(a.status == 404 || a.status == 400, "{p}: {}", a.status);
+        assert!(!a.body.windows(6).any(|w| w == b"secret"), "{p}");
+    }
+    assert_eq!(get(&server, "/d/%zz", "").status, 400);
+    // Writing methods: 405 with Allow.
+    let a = send(
+        &server,
+        "PUT /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 0\r\n\r\n",
+    );
+    assert_eq!(a.status, 405);
+    assert_eq!(a.header("allow").as_deref(), Some("GET, HEAD, OPTIONS"));
+    // A huge header: 431, and the server goes on.
+    let huge = format!("X-Junk: {}\r\n", "a".repeat(64 << 10));
+    let a = get(&server, "/d/site.myr", &huge);
+    assert_eq!(a.status, 431);
+    // Garbage instead of a request: 400.
+    let a = send(&server, "NOT HTTP AT ALL\r\n\r\n");
+    assert_eq!(a.status, 400);
+    // Slow clients (a request head never finished) are dropped after the header timeout, and
+    // while more of them than the server's connections wait, it still answers once they go.
+    let slow: Vec<TcpStream> = (0..12)
+        .map(|_| {
+            let mut s = TcpStream::connect(server.addr).unwrap();
+            s.write_all(b"GET /d/site.myr HTTP/1.1\r\nHost: x\r\n")
+                .unwrap();
+            s
+        })
+        .collect();
+    let t = std::time::Instant::now();
+    let a = get(&server, "/d/site.myr", "Range: bytes=0-0\r\n");
+    assert_eq!(a.status, 206);
+    assert!(t.elapsed() < Duration::from_secs(15), "{:?}", t.elapsed());
+    drop(slow);
+    let a = get(&server, "/d/site.myr", "Range: bytes=99999-\r\n");
+    assert_eq!((a.status, a.body.len()), (206, 1));
+    drop(server);
+    std::fs::remove_dir_all(&d).unwrap();
+}

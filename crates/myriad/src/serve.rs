@@ -1,0 +1,84 @@
+//! `myriad serve INPUT... [--bind ADDR] [--open]`: datasets, scans and folders of exported
+//! files over HTTP (myriad-serve), until the process is stopped.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use myriad_serve::{Catalog, Options, Server};
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct ServeArgs {
+    /// Datasets (.myr), COPC or LAS/LAZ files, folders of exported files (Potree)
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Address and port to listen on (another machine can connect only when this is not a
+    /// loopback address); port 0 takes any free port
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    bind: SocketAddr,
+    /// Open the index page in a browser
+    #[arg(long)]
+    open: bool,
+    /// Connections served at once
+    #[arg(long, default_value_t = 512)]
+    max_connections: usize,
+}
+
+pub fn run(a: ServeArgs) -> Result<()> {
+    // Datasets, COPC files and folders as they are; any other scan as a dataset made from it
+    // (kept for next time), named after it.
+    let mut catalog = Catalog::default();
+    for input in &a.inputs {
+        let name = input
+            .file_name()
+            .map(|n| n.to_string_lossy().to_lowercase());
+        let raw = input.is_dir()
+            || crate::dataset::is_dataset(input)
+            || name.is_some_and(|n| n.ends_with(".copc.laz"));
+        if raw {
+            catalog.add_input(input)?;
+        } else {
+            let ds = crate::cached::dataset_for(input)?;
+            let stem = input.file_stem().unwrap_or_default().to_string_lossy();
+            catalog.add_file_as(&format!("{stem}.myr"), &ds)?;
+        }
+    }
+    let names: Vec<(String, u64)> = catalog
+        .names()
+        .map(|(n, _, len)| (n.to_string(), len))
+        .collect();
+    let server = Server::start(
+        catalog,
+        a.bind,
+        Options {
+            max_connections: a.max_connections,
+            ..Options::default()
+        },
+    )
+    .with_context(|| format!("cannot listen on {}", a.bind))?;
+    let base = format!("http://{}", server.addr);
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "serving {} files on {base}/", names.len())?;
+    for (n, len) in &names {
+        writeln!(
+            out,
+            "  {base}/d/{n} ({} bytes)",
+            crate::info::thousands(*len)
+        )?;
+    }
+    writeln!(out, "stop with Ctrl-C")?;
+    out.flush()?;
+    drop(out);
+    if a.open {
+        // The desktop's browser, where there is one; the server runs on either way.
+        if let Err(e) = std::process::Command::new("xdg-open")
+            .arg(format!("{base}/"))
+            .spawn()
+        {
+            eprintln!("warning: could not open a browser ({e}); open {base}/");
+        }
+    }
+    server.wait();
+    Ok(())
+}

@@ -1,0 +1,222 @@
+//! Sharing (issue 16): `myriad serve` in its own process, every dataset command on its URL as on
+//! the file (the same image, a fraction of the bytes), a server that ignores Range refused with
+//! a clear error, and a scan opened directly by `render` and `serve` (converted once, kept).
+
+mod common;
+use common::{myriad, s, tempdir};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::process::{Child, Command, Stdio};
+
+/// `myriad serve` on a free port; its base URL. Killed when dropped.
+struct Serving {
+    child: Child,
+    base: String,
+}
+
+impl Drop for Serving {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn serve(args: &[&str]) -> Serving {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
+        .arg("serve")
+        .args(args)
+        .args(["--bind", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let first = lines.next().expect("serve prints its address").unwrap();
+    let base = first
+        .split(" on ")
+        .nth(1)
+        .expect("serving N files on URL")
+        .trim_end_matches('/')
+        .to_string();
+    // Keep reading its output so that it never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines {});
+    Serving { child, base }
+}
+
+fn pixels(path: &std::path::Path) -> Vec<u8> {
+    let d = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut r = d.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size().unwrap()];
+    r.next_frame(&mut buf).unwrap();
+    buf
+}
+
+#[test]
+fn datasets_over_http_and_scans_opened_directly() {
+    let d = tempdir("remote");
+    let scan = d.join("scan.laz");
+    let r = myriad(&["synth", "-o", s(&scan), "--points", "300000"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let site = d.join("site.myr");
+    // Small nodes: a small image needs the top of the tree only.
+    let r = myriad(&["convert", s(&scan), "-o", s(&site), "--capacity", "3000"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+
+    // The scan given to serve is converted once and served as scan.myr.
+    let server = serve(&[s(&site), s(&scan)]);
+    let url = format!("{}/d/site.myr", server.base);
+    let r = myriad(&["info", "--json", &url]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(v["points"], 300_000);
+    let r = myriad(&["info", "--json", &format!("{}/d/scan.myr", server.base)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let cached: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with(".scan.laz.myriad-") && n.ends_with(".myr"))
+        .collect();
+    assert_eq!(cached.len(), 1, "{cached:?}");
+
+    // The same image from the URL as from the file, for a fraction of the bytes (a 30 k point
+    // budget: the top of the tree).
+    let render = |input: &str, out: &std::path::Path| {
+        let r = myriad(&[
+            "render",
+            input,
+            "-o",
+            s(out),
+            "--raster",
+            "cpu",
+            "--width",
+            "320",
+            "--height",
+            "240",
+            "--budget",
+            "30k",
+            "--force",
+        ]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        r.stdout
+    };
+    let (local, remote) = (d.join("local.png"), d.join("remote.png"));
+    render(s(&site), &local);
+    let said = render(&url, &remote);
+    assert_eq!(pixels(&local), pixels(&remote));
+    let fetched = said
+        .lines()
+        .find_map(|l| l.strip_prefix("fetched "))
+        .unwrap_or_else(|| panic!("no fetched line: {said}"));
+    let bytes: u64 = fetched
+        .split(' ')
+        .next()
+        .unwrap()
+        .replace(',', "")
+        .parse()
+        .unwrap();
+    let size = std::fs::metadata(&site).unwrap().len();
+    assert!(bytes < size / 2, "fetched {bytes} of {size}");
+    let r = myriad(&["verify", &url]);
+    assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
+    let back = d.join("back.las");
+    let r = myriad(&["extract", &url, "-o", s(&back)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = myriad(&["info", "--json", s(&back)]);
+    assert!(r.stdout.contains("\"points\":300000"), "{}", r.stdout);
+    // The points in a box, as LAZ: the same file `extract --box` writes.
+    let (lo, hi) = (&v["bounds"]["min"], &v["bounds"]["max"]);
+    let c = |a: usize, f: f64| {
+        let (l, h) = (lo[a].as_f64().unwrap(), hi[a].as_f64().unwrap());
+        l + (h - l) * f
+    };
+    let bbox = format!(
+        "{},{},{},{},{},{}",
+        c(0, 0.25),
+        c(1, 0.25),
+        c(2, 0.0),
+        c(0, 0.6),
+        c(1, 0.5),
+        c(2, 1.0)
+    );
+    let want = d.join("box.laz");
+    let r = myriad(&["extract", s(&site), "-o", s(&want), "--box", &bbox]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let get = |url: &str| {
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .build()
+            .into();
+        let mut r = agent.get(url).call().unwrap();
+        let status = r.status().as_u16();
+        let points = r
+            .headers()
+            .get("x-myriad-points")
+            .map(|v| v.to_str().unwrap().to_string());
+        let body = r
+            .body_mut()
+            .with_config()
+            .limit(1 << 30)
+            .read_to_vec()
+            .unwrap();
+        (status, points, body)
+    };
+    let (status, points, body) = get(&format!("{}/x/site.myr?box={bbox}", server.base));
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(body, std::fs::read(&want).unwrap());
+    assert!(points.unwrap().parse::<u64>().unwrap() > 1000);
+    let (status, _, _) = get(&format!("{}/x/site.myr?box=1,2,3", server.base));
+    assert_eq!(status, 400);
+    let (status, _, _) = get(&format!("{}/x/nothing.myr?box={bbox}", server.base));
+    assert_eq!(status, 404);
+
+    // A name the server does not have: one line naming the URL.
+    let missing = format!("{}/d/nothing.myr", server.base);
+    let r = myriad(&["info", &missing]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.starts_with(&format!("error: {missing}")) && r.stderr.contains("404"),
+        "{}",
+        r.stderr
+    );
+    drop(server);
+
+    // A server that ignores Range (always 200 and the whole file) is refused, and said so.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let body = std::fs::read(&site).unwrap();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten().take(8) {
+            let mut stream = stream;
+            let mut buf = [0u8; 4096];
+            let _ = stream.read(&mut buf);
+            let _ = write!(
+                stream,
+                "HTTP/1.1 200 OK\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+                body.len()
+            );
+            let _ = stream.write_all(&body);
+        }
+    });
+    let plain = format!("http://127.0.0.1:{port}/site.myr");
+    let r = myriad(&["info", &plain]);
+    assert_eq!(r.code, 1, "{}", r.stdout);
+    assert!(r.stderr.contains("ignores Range"), "{}", r.stderr);
+    assert_eq!(r.stderr.lines().count(), 1, "{}", r.stderr);
+
+    // A scan given to render: converted the first time, reused the next.
+    let png = d.join("direct.png");
+    let r = myriad(&[
+        "render",
+        s(&scan),
+        "-o",
+        s(&png),
+        "--raster",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("using"), "{}", r.stderr);
+    std::fs::remove_dir_all(&d).unwrap();
+}
