@@ -34,3 +34,18 @@ pub fn tempdir(name: &str) -> PathBuf {
 pub fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
+
+pub fn synth(dir: &Path, name: &str, points: u64) -> PathBuf {
+    let p = dir.join(name);
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&p),
+        "--points",
+        &points.to_string(),
+        "--seed",
+        "5",
+    ]);
+    assert_eq!(r.code, 0, "synth failed: {}", r.stderr);
+    p
+}
