@@ -20,8 +20,8 @@ pub use hierarchy::PageCache;
 pub use occlusion::{DepthMap, Occluder, Occlusion};
 pub use pace::Pace;
 pub use select::{
-    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, select,
-    select_many, select_occluded, select_where,
+    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, prefetch,
+    select, select_many, select_occluded, select_where,
 };
 pub use stream::{Loader, PageReader};
 pub use view::{Camera, Frustum, robust_bounds};

@@ -94,6 +94,10 @@ pub struct Loader {
     /// Requested and not yet back (queued or being read): nodes, hierarchy pages.
     pending: HashSet<NodeKey>,
     pending_pages: HashSet<NodeKey>,
+    /// Prefetched nodes and pages on their way (not counted in flight: no frame waits for
+    /// them).
+    pending_ahead: HashSet<NodeKey>,
+    pages_ahead: HashSet<NodeKey>,
     failed: HashMap<NodeKey, String>,
     failed_pages: HashMap<NodeKey, String>,
     /// Hierarchy pages landed and not taken yet.
@@ -165,6 +169,8 @@ impl Loader {
             cache: Lru::new(budget_bytes),
             pending: HashSet::new(),
             pending_pages: HashSet::new(),
+            pending_ahead: HashSet::new(),
+            pages_ahead: HashSet::new(),
             failed: HashMap::new(),
             failed_pages: HashMap::new(),
             landed_pages: Vec::new(),
@@ -196,15 +202,25 @@ impl Loader {
         // Queued but no longer wanted: cancelled. Being read: will land anyway.
         for job in q.wanted.drain(..) {
             match job {
-                Job::Node(n) => self.pending.remove(&n.key),
-                Job::Page(p) => self.pending_pages.remove(&p.key),
+                Job::Node(n) => self.pending.remove(&n.key) | self.pending_ahead.remove(&n.key),
+                Job::Page(p) => self.pending_pages.remove(&p.key) | self.pages_ahead.remove(&p.key),
             };
         }
-        missing.retain(|n| !self.pending.contains(&n.key));
+        // Prefetched and being read: now wanted, so in flight.
+        missing.retain(|n| {
+            if self.pending_ahead.remove(&n.key) {
+                self.pending.insert(n.key);
+            }
+            !self.pending.contains(&n.key)
+        });
         let mut seen = HashSet::new();
         let pages: Vec<ChildPage> = pages
             .iter()
             .filter(|p| {
+                // Prefetched and being read: now wanted, so in flight.
+                if self.pages_ahead.remove(&p.key) {
+                    self.pending_pages.insert(p.key);
+                }
                 !self.pending_pages.contains(&p.key)
                     && !self.failed_pages.contains_key(&p.key)
                     && seen.insert(p.key)
@@ -227,6 +243,51 @@ impl Loader {
         self.shared.ready.notify_all();
     }
 
+    /// Adds nodes (and the hierarchy pages that would list more) to load ahead, behind
+    /// everything the frame asked for (call after [`Loader::request_with_pages`]): those not
+    /// resident, not on their way and not failed; pages before nodes. Nodes are not marked as
+    /// used: the cache drops them first. Returns how many nodes were queued.
+    pub fn prefetch(&mut self, nodes: &[NodeEntry], pages: &[ChildPage]) -> usize {
+        let pages: Vec<Job> = pages
+            .iter()
+            .filter(|p| {
+                !self.pending_pages.contains(&p.key)
+                    && !self.pages_ahead.contains(&p.key)
+                    && !self.failed_pages.contains_key(&p.key)
+            })
+            .rev()
+            .map(|p| Job::Page(*p))
+            .collect();
+        for j in &pages {
+            if let Job::Page(p) = j {
+                self.pages_ahead.insert(p.key);
+            }
+        }
+        let ahead: Vec<Job> = nodes
+            .iter()
+            .filter(|n| {
+                n.points > 0
+                    && !self.cache.contains(&n.key)
+                    && !self.pending.contains(&n.key)
+                    && !self.pending_ahead.contains(&n.key)
+                    && !self.failed.contains_key(&n.key)
+            })
+            .rev()
+            .map(|n| Job::Node(n.clone()))
+            .collect();
+        let count = ahead.len();
+        for j in &ahead {
+            if let Job::Node(n) = j {
+                self.pending_ahead.insert(n.key);
+            }
+        }
+        let mut q = self.shared.queue.lock().expect("queue lock");
+        q.wanted.splice(0..0, ahead.into_iter().chain(pages));
+        drop(q);
+        self.shared.ready.notify_all();
+        count
+    }
+
     /// Moves finished loads into the cache (hierarchy pages aside, for [`Loader::take_pages`]);
     /// never waits. Returns how many came back (read or failed).
     pub fn poll(&mut self) -> usize {
@@ -235,6 +296,7 @@ impl Loader {
             match done {
                 Done::Node(key, r) => {
                     self.pending.remove(&key);
+                    self.pending_ahead.remove(&key);
                     match r {
                         Ok(b) => self.insert(key, b),
                         Err(e) => {
@@ -244,6 +306,7 @@ impl Loader {
                 }
                 Done::Page(key, r) => {
                     self.pending_pages.remove(&key);
+                    self.pages_ahead.remove(&key);
                     self.pages_read += 1;
                     match r {
                         Ok(p) => self.landed_pages.push((key, p)),
@@ -400,6 +463,34 @@ mod tests {
         assert_eq!(*gate.order.lock().unwrap(), vec![0, 1, 2, 3, 4, 5]);
         assert!(nodes.iter().all(|n| l.is_resident(&n.key)));
         assert_eq!(l.get(&nodes[2].key).unwrap().len(), 100);
+    }
+
+    /// Prefetched nodes go behind what the frame asked for, count as nothing in flight, land
+    /// in the cache, and are not read twice when the view then wants them.
+    #[test]
+    fn prefetched_nodes_load_last_and_once() {
+        let (tx, gate) = gate();
+        let mut l = Loader::new(gate.clone(), 1, usize::MAX);
+        let nodes: Vec<NodeEntry> = (0..4).map(|i| entry(i, 10)).collect();
+        l.request(&nodes[..2]);
+        assert_eq!(l.prefetch(&nodes[1..], &[]), 2);
+        assert_eq!(l.in_flight(), 2);
+        for _ in 0..3 {
+            tx.send(()).unwrap();
+        }
+        wait_for(&mut l, 3);
+        assert_eq!(*gate.order.lock().unwrap(), vec![0, 1, 2]);
+        // Node 3 is being read (blocked); the view now wants it: not asked for again.
+        while !l.shared.queue.lock().unwrap().wanted.is_empty() {
+            std::thread::yield_now();
+        }
+        l.request(&nodes[3..]);
+        assert_eq!(l.in_flight(), 1);
+        tx.send(()).unwrap();
+        wait_for(&mut l, 1);
+        assert!(nodes.iter().all(|n| l.is_resident(&n.key)));
+        assert_eq!(gate.reads.load(Ordering::SeqCst), 4);
+        assert_eq!(l.prefetch(&nodes, &[]), 0);
     }
 
     #[test]

@@ -16,7 +16,7 @@ mod colour;
 mod cpu;
 mod post;
 mod raster;
-mod scene;
+pub mod scene;
 pub mod selector;
 
 pub use colour::{ColorBy, class_colour, colours};

@@ -11,7 +11,7 @@ use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
     Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageCache, PageReader,
-    SelectOptions, Selection, merge, robust_bounds, select_occluded,
+    SelectOptions, Selection, merge, prefetch, robust_bounds, select_occluded,
 };
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -55,11 +55,19 @@ pub struct Scene {
     pub occlusion_size: u32,
     /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
     pub upload_limit: usize,
+    /// Prefetching (004): nodes of the view widened by this factor are loaded ahead, at most
+    /// [`PREFETCH_NODES`] a frame; 1 or less: off.
+    pub prefetch: f64,
     /// The selection thread, started by the first threaded frame.
     selector: Option<Selector>,
     /// The newest answer of the selection thread for this scene alone (before a shared budget).
     alone: Option<crate::selector::Answer>,
 }
+
+/// How much wider than the view prefetching looks by default, and the most nodes it asks for
+/// in a frame.
+pub const DEFAULT_PREFETCH: f64 = 1.3;
+pub const PREFETCH_NODES: usize = 64;
 
 /// Memory for hierarchy pages a scene keeps by default (about 1.5 million nodes' entries).
 pub const DEFAULT_HIERARCHY_BYTES: usize = 256 << 20;
@@ -126,6 +134,7 @@ impl Scene {
             occlusion: Occlusion::Software,
             occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
             upload_limit: usize::MAX,
+            prefetch: DEFAULT_PREFETCH,
             selector: None,
             alone: None,
         }
@@ -282,7 +291,19 @@ impl Scene {
         let points = |k: &NodeKey| self.loader.get(k);
         let mut occluder = (self.occlusion == Occlusion::Software)
             .then(|| Occluder::new(camera, self.occlusion_size, &points));
-        select_occluded(&self.hierarchy, camera, options, &keep, occluder.as_mut())
+        let mut s = select_occluded(&self.hierarchy, camera, options, &keep, occluder.as_mut());
+        if self.prefetch > 1.0 {
+            (s.prefetch, s.prefetch_pages) = prefetch(
+                &self.hierarchy,
+                camera,
+                options,
+                &keep,
+                &s,
+                self.prefetch,
+                PREFETCH_NODES,
+            );
+        }
+        s
     }
 
     /// Selects and waits until every selected node is in (or failed to load), selecting again
@@ -330,6 +351,14 @@ impl Scene {
             .copied()
             .collect();
         self.loader.request_with_pages(&wanted, &pages);
+        let ahead: Vec<NodeEntry> = (selection.prefetch.iter())
+            .filter_map(|k| self.hierarchy.get(k).cloned())
+            .collect();
+        let pages_ahead: Vec<_> = (selection.prefetch_pages.iter())
+            .filter(|p| !self.hierarchy.has_page(&p.key))
+            .copied()
+            .collect();
+        self.loader.prefetch(&ahead, &pages_ahead);
         self.poll();
         self.pages.touch(selection);
         self.pages.evict(&mut self.hierarchy);
@@ -523,6 +552,7 @@ impl Scene {
             .filter_map(|k| Some((k, self.loader.get(&k)?)))
             .collect();
         Request {
+            prefetch: self.prefetch,
             hierarchy: self.hierarchy.clone(),
             camera: *camera,
             options: options.clone(),

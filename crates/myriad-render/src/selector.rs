@@ -24,6 +24,8 @@ use std::time::{Duration, Instant};
 pub struct Request {
     /// The hierarchy as the frame thread knows it now (pages land there; a copy shares them).
     pub hierarchy: Arc<Hierarchy>,
+    /// Prefetching's widening ([`crate::Scene::prefetch`]).
+    pub prefetch: f64,
     pub camera: Camera,
     pub options: SelectOptions,
     pub clip: Option<Clip>,
@@ -115,13 +117,24 @@ fn run(shared: &Shared) {
         let points = |k: &NodeKey| r.resident.get(k).cloned();
         let mut occluder = (r.occlusion == Occlusion::Software)
             .then(|| Occluder::new(&r.camera, r.occlusion_size, &points));
-        let selection = select_occluded(
+        let mut selection = select_occluded(
             &r.hierarchy,
             &r.camera,
             &r.options,
             &keep,
             occluder.as_mut(),
         );
+        if r.prefetch > 1.0 {
+            (selection.prefetch, selection.prefetch_pages) = myriad_lod::prefetch(
+                &r.hierarchy,
+                &r.camera,
+                &r.options,
+                &keep,
+                &selection,
+                r.prefetch,
+                crate::scene::PREFETCH_NODES,
+            );
+        }
         let answer = Answer {
             selection,
             camera: r.camera,

@@ -38,6 +38,8 @@ pub enum BenchCommand {
     /// `myriad serve` under concurrent random range reads, next to nginx in the same run:
     /// requests/s, MB/s, latency, errors, server memory
     Serve(crate::bench_serve::ServeBenchArgs),
+    /// Prefetching off and on while orbiting: frames with nodes missing, time to settle
+    Prefetch(crate::bench_prefetch::PrefetchBenchArgs),
 }
 
 #[derive(Args)]
@@ -91,6 +93,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Export(a) => crate::bench_export::run(a),
         BenchCommand::Open(a) => crate::bench_open::run(a),
         BenchCommand::Serve(a) => crate::bench_serve::run(a),
+        BenchCommand::Prefetch(a) => crate::bench_prefetch::run(a),
     }
 }
 

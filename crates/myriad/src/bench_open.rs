@@ -53,7 +53,7 @@ pub struct OpenBenchArgs {
 
 /// Drops the file's pages from the page cache (and the whole cache where allowed). Whether
 /// the whole cache was dropped.
-fn drop_cache(path: &Path) -> Result<bool> {
+pub(crate) fn drop_cache(path: &Path) -> Result<bool> {
     use std::os::fd::AsRawFd;
     let f = std::fs::File::open(path)?;
     // SAFETY: a valid descriptor of an open file; the call only advises the kernel.

@@ -6,6 +6,7 @@ mod bench_culling;
 mod bench_export;
 mod bench_open;
 mod bench_passes;
+mod bench_prefetch;
 mod bench_render;
 mod bench_serve;
 mod bench_structures;

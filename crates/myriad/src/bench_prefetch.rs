@@ -1,0 +1,167 @@
+//! `myriad bench prefetch DATASET...`: what prefetching (004: the nodes just outside the view
+//! loaded ahead) saves a viewer that orbits. Each run opens the dataset afresh, converges on
+//! `render`'s default view, then orbits the target by `--degrees` in `--frames` frames drawn as
+//! a viewer draws them (never waiting) and keeps drawing at the last view until it has
+//! converged. Reported per mode (off, on; runs alternate): frames drawn with selected nodes
+//! missing, the nodes missing per frame, and the time to converge once the orbit stops.
+//! `--cold` drops the file from the page cache before each run (loads then wait for the disk).
+
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_lod::SelectOptions;
+use myriad_render::{Rasterizer, Scene, Style};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Args)]
+pub struct PrefetchBenchArgs {
+    /// Datasets (.myr)
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    #[arg(long, default_value_t = 40.0)]
+    degrees: f64,
+    #[arg(long, default_value_t = 40)]
+    frames: usize,
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    budget: u64,
+    /// Drop the file from the page cache before each run
+    #[arg(long)]
+    cold: bool,
+    /// Start from a standard view (overview, top, close) instead of `render`'s default
+    #[arg(long, value_parser = ["overview", "top", "close"])]
+    view: Option<String>,
+    #[command(flatten)]
+    device: crate::bench_render::Device,
+}
+
+struct Run {
+    incomplete: usize,
+    missing: f64,
+    settle: f64,
+}
+
+fn orbit(
+    path: &PathBuf,
+    widen: f64,
+    a: &PrefetchBenchArgs,
+    gpu: &myriad_render::Gpu,
+) -> Result<Run> {
+    if a.cold {
+        crate::bench_open::drop_cache(path)?;
+    }
+    let raster = Rasterizer::new(gpu);
+    let style = Style::default();
+    let options = SelectOptions {
+        budget: a.budget,
+        min_pixels: 1.0,
+    };
+    let ds = Arc::new(Dataset::open(path)?);
+    let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
+    scene.prefetch = widen;
+    let start = match &a.view {
+        Some(v) => {
+            let views = myriad_lod::Camera::standard_views(&scene.view_bounds, a.width, a.height);
+            let mut cam = views.iter().find(|(n, _)| n == v).expect("clap checked").1;
+            cam.fit_depth(&ds.meta.bounds);
+            cam
+        }
+        None => crate::render::camera(
+            &scene.view_bounds,
+            &ds.meta.bounds,
+            None,
+            [0.0, 0.0, 1.0],
+            a.width,
+            a.height,
+            60.0,
+        )?,
+    };
+    scene.converge(&start, &options, None);
+    let mut cam = start;
+    let (mut incomplete, mut missing) = (0, 0usize);
+    let turn = |step: usize| {
+        let angle = (a.degrees * step as f64 / a.frames.max(1) as f64).to_radians();
+        let v: [f64; 3] = std::array::from_fn(|i| start.position[i] - start.target[i]);
+        let (s, c) = angle.sin_cos();
+        let mut cam = start;
+        cam.position = [
+            start.target[0] + v[0] * c - v[1] * s,
+            start.target[1] + v[0] * s + v[1] * c,
+            start.position[2],
+        ];
+        cam
+    };
+    for step in 1..=a.frames {
+        cam = turn(step);
+        let (_, stats) = scene.frame(gpu, &raster, &cam, &options, &style);
+        if !stats.complete {
+            incomplete += 1;
+        }
+        missing += stats.selected_nodes.saturating_sub(stats.nodes);
+    }
+    let t = Instant::now();
+    loop {
+        let (_, stats) = scene.frame(gpu, &raster, &cam, &options, &style);
+        if stats.complete && stats.in_flight == 0 {
+            break;
+        }
+        if t.elapsed() > Duration::from_secs(300) {
+            bail!("{}: not converged after the orbit", path.display());
+        }
+    }
+    Ok(Run {
+        incomplete,
+        missing: missing as f64 / a.frames.max(1) as f64,
+        settle: t.elapsed().as_secs_f64(),
+    })
+}
+
+pub fn run(a: PrefetchBenchArgs) -> Result<()> {
+    let gpu = a.device.gpu()?;
+    println!(
+        "{}, {}x{}, {} view, budget {}, an orbit of {} degrees in {} frames, {} page cache; medians of {} runs",
+        gpu.name,
+        a.width,
+        a.height,
+        a.view.as_deref().unwrap_or("render's default"),
+        crate::info::thousands(a.budget),
+        a.degrees,
+        a.frames,
+        if a.cold { "cold" } else { "warm" },
+        a.runs
+    );
+    println!(
+        "{:<16} {:<9} {:>18} {:>16} {:>12}",
+        "dataset", "prefetch", "incomplete frames", "missing / frame", "settle s"
+    );
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    for path in &a.datasets {
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        let mut by_mode: [Vec<Run>; 2] = [Vec::new(), Vec::new()];
+        for _ in 0..a.runs.max(1) {
+            for (m, widen) in [(0, 1.0), (1, myriad_render::scene::DEFAULT_PREFETCH)] {
+                by_mode[m].push(orbit(path, widen, &a, &gpu)?);
+            }
+        }
+        for (m, runs) in by_mode.iter().enumerate() {
+            println!(
+                "{name:<16} {:<9} {:>18.0} {:>16.1} {:>12.2}",
+                ["off", "on"][m],
+                median(runs.iter().map(|r| r.incomplete as f64).collect()),
+                median(runs.iter().map(|r| r.missing).collect()),
+                median(runs.iter().map(|r| r.settle).collect()),
+            );
+        }
+    }
+    Ok(())
+}
