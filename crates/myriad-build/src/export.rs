@@ -154,7 +154,15 @@ pub fn export(
             out.display()
         )));
     }
-    let (nodes, damage) = ds.nodes();
+    // With a box, only the hierarchy pages it meets.
+    let (nodes, damage) = extract::hierarchy_for(
+        ds,
+        &ExtractOptions {
+            bbox: o.bbox,
+            spacing: o.spacing,
+            force: o.force,
+        },
+    );
     if is_octree(&nodes) {
         let mut s = export_octree(ds, nodes, out, o, report)?;
         s.damage.splice(0..0, damage);

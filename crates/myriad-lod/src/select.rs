@@ -296,7 +296,12 @@ pub fn select_occluded(
             for c in h.children(&key) {
                 consider(c.key, &mut queue, &frustum);
             }
-            out.pages.extend(h.unloaded_below(&key));
+            // Where nodes are their keys' cubes, a page whose root is out of view or
+            // clipped away holds nothing this view draws: not asked for.
+            out.pages.extend(h.unloaded_below(&key).filter(|p| {
+                let cube = p.key.bounds(&h.root);
+                !h.cells() || (frustum.intersects(&cube) && keep(&cube))
+            }));
         }
     }
     if !h.cells() {

@@ -354,8 +354,11 @@ impl Scene {
         let ahead: Vec<NodeEntry> = (selection.prefetch.iter())
             .filter_map(|k| self.hierarchy.get(k).cloned())
             .collect();
+        // Pages ahead only while the hierarchy has room: near its budget they would only push
+        // out pages in use soon and be dropped again.
+        let room = self.hierarchy.bytes() < self.pages.budget / 2;
         let pages_ahead: Vec<_> = (selection.prefetch_pages.iter())
-            .filter(|p| !self.hierarchy.has_page(&p.key))
+            .filter(|p| room && !self.hierarchy.has_page(&p.key))
             .copied()
             .collect();
         self.loader.prefetch(&ahead, &pages_ahead);

@@ -180,11 +180,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
-    // The root's hierarchy page (the only one read before drawing): damaged, nothing can be
-    // drawn. Pages below are read as the view reaches them; damage there is reported below.
-    if let Err(d) = ds.hierarchy_page(&ds.root_page()) {
-        bail!("{} (nothing left to draw)", ds.damage_error(&d));
-    }
     let (gpu, why) = match a.path {
         Some(Path::Cpu) => (Gpu::cpu(), None),
         // A GPU path asked for: any adapter, a software one too.
@@ -225,6 +220,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     // Caches as the viewer's: 2 GiB of decoded points, 1 GiB on the GPU (what a frame uses is
     // kept even beyond them).
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
+    // The root's hierarchy page (the only one read before drawing) damaged: nothing can be
+    // drawn. Pages below are read as the view reaches them; damage there is reported below.
+    if scene.hierarchy.pages() == 0
+        && let Err(d) = ds.hierarchy_page(&ds.root_page())
+    {
+        bail!("{} (nothing left to draw)", ds.damage_error(&d));
+    }
     scene.set_colour(a.color);
     scene.occlusion = a.occlusion;
     scene.occlusion_size = a.occlusion_size;
