@@ -66,23 +66,13 @@ fn orbit(
     let ds = Arc::new(Dataset::open(path)?);
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
     scene.prefetch = widen;
-    let start = match &a.view {
-        Some(v) => {
-            let views = myriad_lod::Camera::standard_views(&scene.view_bounds, a.width, a.height);
-            let mut cam = views.iter().find(|(n, _)| n == v).expect("clap checked").1;
-            cam.fit_depth(&ds.meta.bounds);
-            cam
-        }
-        None => crate::render::camera(
-            &scene.view_bounds,
-            &ds.meta.bounds,
-            None,
-            [0.0, 0.0, 1.0],
-            a.width,
-            a.height,
-            60.0,
-        )?,
-    };
+    let start = crate::render::view_camera(
+        a.view.as_deref(),
+        &scene.view_bounds,
+        &ds.meta.bounds,
+        a.width,
+        a.height,
+    )?;
     scene.converge(&start, &options, None);
     let mut cam = start;
     let (mut incomplete, mut missing) = (0, 0usize);

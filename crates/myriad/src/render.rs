@@ -296,6 +296,28 @@ pub fn run(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// A standard view (overview, top, close) of `view_bounds`, else `render`'s default camera
+/// (60 degrees, z up), its depth range fitted to `all`: what the benchmarks look from.
+pub fn view_camera(
+    name: Option<&str>,
+    view_bounds: &Aabb,
+    all: &Aabb,
+    width: u32,
+    height: u32,
+) -> Result<Camera> {
+    match name {
+        Some(v) => {
+            let views = Camera::standard_views(view_bounds, width, height);
+            let Some(&(_, mut cam)) = views.iter().find(|(n, _)| *n == v) else {
+                bail!("no standard view \"{v}\"");
+            };
+            cam.fit_depth(all);
+            Ok(cam)
+        }
+        None => camera(view_bounds, all, None, [0.0, 0.0, 1.0], width, height, 60.0),
+    }
+}
+
 /// The camera `--camera` asks for, or the data (`view`) framed from above at 45 degrees; near
 /// and far planes around everything there is (`all`).
 pub fn camera(
