@@ -54,6 +54,8 @@ pub struct Hierarchy {
     cells: bool,
     /// `mwkd`: nodes hold splats, inner nodes aggregates that their children replace.
     splats: bool,
+    /// Some node has a contour (layered): benefits are the contours', not the cubes'.
+    contours: bool,
     /// The deepest level of the whole tree (the metadata's depth when pages are loaded lazily).
     pub(crate) max_level: u32,
     /// Cull nodes whose normal cone faces away (only where normals have a sign: the input's).
@@ -89,6 +91,7 @@ impl Hierarchy {
             pages: HashMap::new(),
             cells: true,
             splats: false,
+            contours: false,
             max_level: depth,
             cull_backfaces: false,
             nodes: 0,
@@ -100,6 +103,7 @@ impl Hierarchy {
         for e in page.nodes.values() {
             self.cells &= e.bounds.is_none();
             self.splats |= e.splats.is_some();
+            self.contours |= e.contour.is_some();
             self.max_level = self.max_level.max(e.key.level);
         }
         self.nodes += page.nodes.len();
@@ -167,6 +171,10 @@ impl Hierarchy {
     /// with [`select_front`](crate::select_front).
     pub fn splats(&self) -> bool {
         self.splats
+    }
+    /// Whether a known node has a contour (layered).
+    pub fn contours(&self) -> bool {
+        self.contours
     }
     /// Whether nodes are the cells of their keys' octree (octree and layered structures; kd-trees
     /// store their bounds instead).

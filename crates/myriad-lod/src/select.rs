@@ -69,10 +69,8 @@ pub struct Selection {
     pub pages: Vec<ChildPage>,
     /// The loaded pages (by their root's key) whose root the traversal reached.
     pub used_pages: Vec<NodeKey>,
-    /// Nodes to load ahead, not to draw ([`prefetch`]), best first, and the hierarchy pages
-    /// that view would want.
+    /// Nodes to load ahead, not to draw ([`prefetch`]), best first.
     pub prefetch: Vec<NodeKey>,
-    pub prefetch_pages: Vec<ChildPage>,
 }
 
 pub(crate) struct Candidate {
@@ -290,6 +288,15 @@ pub fn select_occluded(
             });
         }
         if out.budget_reached {
+            // Pages whose root would come after this node in benefit order would not be
+            // reached: not asked for (where the root's benefit is known from its key: octree
+            // cells without contours).
+            if h.cells() && !h.contours() {
+                out.pages.retain(|p| {
+                    let cube = p.key.bounds(&h.root);
+                    self::benefit(cam, &cube, nearest_depth(cam, &cube)) >= benefit
+                });
+            }
             break;
         }
         if whole || e.points == 0 {
@@ -347,7 +354,8 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
 /// wider than `cam` would draw and `main` does not (`cam` widened by `widen` in field of view
 /// and image alike, so that the pixel scale and with it the level of detail stay), and, where
 /// nodes replace their parents (`mwkd`), the parents of the front (zooming out). Best first, at
-/// most `limit`. Also the hierarchy pages the wider view wants that `main` does not.
+/// most `limit`. (Not the hierarchy pages that view would want: where memory for pages is
+/// short they push out pages in use and are dropped again, read after read.)
 pub fn prefetch(
     h: &Hierarchy,
     cam: &Camera,
@@ -356,7 +364,7 @@ pub fn prefetch(
     main: &Selection,
     widen: f64,
     limit: usize,
-) -> (Vec<NodeKey>, Vec<ChildPage>) {
+) -> Vec<NodeKey> {
     let have: std::collections::HashSet<NodeKey> = main.nodes.iter().map(|n| n.key).collect();
     let mut wide = *cam;
     let t = (cam.fov_y.to_radians() / 2.0).tan() * widen;
@@ -382,10 +390,7 @@ pub fn prefetch(
             }
         }
     }
-    let pages = (around.pages.into_iter())
-        .filter(|p| !main.pages.contains(p))
-        .collect();
-    (out, pages)
+    out
 }
 
 /// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
@@ -449,7 +454,6 @@ pub fn merge(alone: Vec<Selection>, budget: u64) -> Vec<Selection> {
         s.pages = a.pages;
         s.used_pages = a.used_pages;
         s.prefetch = a.prefetch;
-        s.prefetch_pages = a.prefetch_pages;
     }
     out
 }
@@ -681,7 +685,7 @@ pub(crate) mod tests {
             min_pixels: 1.0,
         };
         let main = select(&h, &cam, &o);
-        let (ahead, _) = prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 10_000);
+        let ahead = prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 10_000);
         assert!(!ahead.is_empty());
         let drawn: std::collections::HashSet<NodeKey> = main.nodes.iter().map(|n| n.key).collect();
         assert!(ahead.iter().all(|k| !drawn.contains(k)));
@@ -689,15 +693,8 @@ pub(crate) mod tests {
         let f = cam.frustum();
         assert!(ahead.iter().all(|k| !f.intersects(&h.bounds(k))));
         // Best first, at most the limit; nothing without widening.
-        assert_eq!(
-            prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 3).0,
-            ahead[..3]
-        );
-        assert!(
-            prefetch(&h, &cam, &o, &|_| true, &main, 1.0, 100)
-                .0
-                .is_empty()
-        );
+        assert_eq!(prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 3), ahead[..3]);
+        assert!(prefetch(&h, &cam, &o, &|_| true, &main, 1.0, 100).is_empty());
     }
 
     #[test]

@@ -94,10 +94,8 @@ pub struct Loader {
     /// Requested and not yet back (queued or being read): nodes, hierarchy pages.
     pending: HashSet<NodeKey>,
     pending_pages: HashSet<NodeKey>,
-    /// Prefetched nodes and pages on their way (not counted in flight: no frame waits for
-    /// them).
+    /// Prefetched nodes on their way (not counted in flight: no frame waits for them).
     pending_ahead: HashSet<NodeKey>,
-    pages_ahead: HashSet<NodeKey>,
     failed: HashMap<NodeKey, String>,
     failed_pages: HashMap<NodeKey, String>,
     /// Hierarchy pages landed and not taken yet.
@@ -170,7 +168,6 @@ impl Loader {
             pending: HashSet::new(),
             pending_pages: HashSet::new(),
             pending_ahead: HashSet::new(),
-            pages_ahead: HashSet::new(),
             failed: HashMap::new(),
             failed_pages: HashMap::new(),
             landed_pages: Vec::new(),
@@ -203,7 +200,7 @@ impl Loader {
         for job in q.wanted.drain(..) {
             match job {
                 Job::Node(n) => self.pending.remove(&n.key) | self.pending_ahead.remove(&n.key),
-                Job::Page(p) => self.pending_pages.remove(&p.key) | self.pages_ahead.remove(&p.key),
+                Job::Page(p) => self.pending_pages.remove(&p.key),
             };
         }
         // Prefetched and being read: now wanted, so in flight.
@@ -217,10 +214,6 @@ impl Loader {
         let pages: Vec<ChildPage> = pages
             .iter()
             .filter(|p| {
-                // Prefetched and being read: now wanted, so in flight.
-                if self.pages_ahead.remove(&p.key) {
-                    self.pending_pages.insert(p.key);
-                }
                 !self.pending_pages.contains(&p.key)
                     && !self.failed_pages.contains_key(&p.key)
                     && seen.insert(p.key)
@@ -243,26 +236,10 @@ impl Loader {
         self.shared.ready.notify_all();
     }
 
-    /// Adds nodes (and the hierarchy pages that would list more) to load ahead, behind
-    /// everything the frame asked for (call after [`Loader::request_with_pages`]): those not
-    /// resident, not on their way and not failed; pages before nodes. Nodes are not marked as
-    /// used: the cache drops them first. Returns how many nodes were queued.
-    pub fn prefetch(&mut self, nodes: &[NodeEntry], pages: &[ChildPage]) -> usize {
-        let pages: Vec<Job> = pages
-            .iter()
-            .filter(|p| {
-                !self.pending_pages.contains(&p.key)
-                    && !self.pages_ahead.contains(&p.key)
-                    && !self.failed_pages.contains_key(&p.key)
-            })
-            .rev()
-            .map(|p| Job::Page(*p))
-            .collect();
-        for j in &pages {
-            if let Job::Page(p) = j {
-                self.pages_ahead.insert(p.key);
-            }
-        }
+    /// Adds nodes to load ahead behind everything the frame asked for (call after
+    /// [`Loader::request_with_pages`]): those not resident, not on their way and not failed.
+    /// They are not marked as used: the cache drops them first. Returns how many were queued.
+    pub fn prefetch(&mut self, nodes: &[NodeEntry]) -> usize {
         let ahead: Vec<Job> = nodes
             .iter()
             .filter(|n| {
@@ -282,7 +259,7 @@ impl Loader {
             }
         }
         let mut q = self.shared.queue.lock().expect("queue lock");
-        q.wanted.splice(0..0, ahead.into_iter().chain(pages));
+        q.wanted.splice(0..0, ahead);
         drop(q);
         self.shared.ready.notify_all();
         count
@@ -306,7 +283,6 @@ impl Loader {
                 }
                 Done::Page(key, r) => {
                     self.pending_pages.remove(&key);
-                    self.pages_ahead.remove(&key);
                     self.pages_read += 1;
                     match r {
                         Ok(p) => self.landed_pages.push((key, p)),
@@ -473,7 +449,7 @@ mod tests {
         let mut l = Loader::new(gate.clone(), 1, usize::MAX);
         let nodes: Vec<NodeEntry> = (0..4).map(|i| entry(i, 10)).collect();
         l.request(&nodes[..2]);
-        assert_eq!(l.prefetch(&nodes[1..], &[]), 2);
+        assert_eq!(l.prefetch(&nodes[1..]), 2);
         assert_eq!(l.in_flight(), 2);
         for _ in 0..3 {
             tx.send(()).unwrap();
@@ -490,7 +466,7 @@ mod tests {
         wait_for(&mut l, 1);
         assert!(nodes.iter().all(|n| l.is_resident(&n.key)));
         assert_eq!(gate.reads.load(Ordering::SeqCst), 4);
-        assert_eq!(l.prefetch(&nodes, &[]), 0);
+        assert_eq!(l.prefetch(&nodes), 0);
     }
 
     #[test]

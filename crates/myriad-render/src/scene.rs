@@ -293,7 +293,7 @@ impl Scene {
             .then(|| Occluder::new(camera, self.occlusion_size, &points));
         let mut s = select_occluded(&self.hierarchy, camera, options, &keep, occluder.as_mut());
         if self.prefetch > 1.0 {
-            (s.prefetch, s.prefetch_pages) = prefetch(
+            s.prefetch = prefetch(
                 &self.hierarchy,
                 camera,
                 options,
@@ -354,14 +354,7 @@ impl Scene {
         let ahead: Vec<NodeEntry> = (selection.prefetch.iter())
             .filter_map(|k| self.hierarchy.get(k).cloned())
             .collect();
-        // Pages ahead only while the hierarchy has room: near its budget they would only push
-        // out pages in use soon and be dropped again.
-        let room = self.hierarchy.bytes() < self.pages.budget / 2;
-        let pages_ahead: Vec<_> = (selection.prefetch_pages.iter())
-            .filter(|p| room && !self.hierarchy.has_page(&p.key))
-            .copied()
-            .collect();
-        self.loader.prefetch(&ahead, &pages_ahead);
+        self.loader.prefetch(&ahead);
         self.poll();
         self.pages.touch(selection);
         self.pages.evict(&mut self.hierarchy);

@@ -125,7 +125,7 @@ fn run(shared: &Shared) {
             occluder.as_mut(),
         );
         if r.prefetch > 1.0 {
-            (selection.prefetch, selection.prefetch_pages) = myriad_lod::prefetch(
+            selection.prefetch = myriad_lod::prefetch(
                 &r.hierarchy,
                 &r.camera,
                 &r.options,

@@ -254,14 +254,16 @@ fn a_hierarchy_larger_than_its_budget_is_walked_within_it() {
     };
     let budget = scene.hierarchy.bytes() + 40 * page;
     scene.pages.budget = budget;
-    let options = SelectOptions {
-        budget: 1_000_000,
-        min_pixels: 1.0,
-    };
-    // Low over the plane, along a diagonal: each view wants a few dozen pages.
+    // Low over the plane, along a diagonal: each view wants a few dozen pages; every other
+    // view with a point budget that stops the traversal (pages below where it stops are not
+    // needed, and not asked for).
     let mut most = 0;
     let mut read = 0;
     for step in 0..12 {
+        let options = SelectOptions {
+            budget: if step % 2 == 0 { 1_000_000 } else { 1_000 },
+            min_pixels: 1.0,
+        };
         let x = 1.0 + step as f64 * 2.7;
         let cam = Camera {
             position: [x, x, 1.5],
@@ -282,6 +284,7 @@ fn a_hierarchy_larger_than_its_budget_is_walked_within_it() {
                 .collect::<Vec<_>>()
         };
         assert_eq!(nodes(&got), nodes(&want), "view {step}");
+        assert_eq!(got.budget_reached, step % 2 == 1, "view {step}");
         assert!(got.pages.iter().all(|p| scene.hierarchy.has_page(&p.key)));
         let used = got.used_pages.len();
         assert!(
