@@ -10,6 +10,7 @@ pub mod front;
 pub mod hierarchy;
 pub mod occlusion;
 pub mod pace;
+pub mod prefetch;
 pub mod select;
 pub mod stream;
 pub mod view;
@@ -19,9 +20,10 @@ pub use front::{backfacing, select_front};
 pub use hierarchy::PageCache;
 pub use occlusion::{DepthMap, Occluder, Occlusion};
 pub use pace::Pace;
+pub use prefetch::prefetch;
 pub use select::{
-    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, prefetch,
-    select, select_many, select_occluded, select_where,
+    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, select,
+    select_many, select_occluded, select_where,
 };
 pub use stream::{Loader, PageReader};
 pub use view::{Camera, Frustum, robust_bounds};

@@ -350,49 +350,6 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
     }
 }
 
-/// Nodes to load before the view needs them (004 section IV, prefetching): those a view just
-/// wider than `cam` would draw and `main` does not (`cam` widened by `widen` in field of view
-/// and image alike, so that the pixel scale and with it the level of detail stay), and, where
-/// nodes replace their parents (`mwkd`), the parents of the front (zooming out). Best first, at
-/// most `limit`. (Not the hierarchy pages that view would want: where memory for pages is
-/// short they push out pages in use and are dropped again, read after read.)
-pub fn prefetch(
-    h: &Hierarchy,
-    cam: &Camera,
-    o: &SelectOptions,
-    keep: &dyn Fn(&Aabb) -> bool,
-    main: &Selection,
-    widen: f64,
-    limit: usize,
-) -> Vec<NodeKey> {
-    let have: std::collections::HashSet<NodeKey> = main.nodes.iter().map(|n| n.key).collect();
-    let mut wide = *cam;
-    let t = (cam.fov_y.to_radians() / 2.0).tan() * widen;
-    wide.fov_y = (2.0 * t.atan()).to_degrees().min(170.0);
-    wide.width = ((cam.width as f64 * widen).round() as u32).max(1);
-    wide.height = ((cam.height as f64 * widen).round() as u32).max(1);
-    let around = select_where(h, &wide, o, keep);
-    let mut out: Vec<NodeKey> = around
-        .nodes
-        .iter()
-        .map(|n| n.key)
-        .filter(|k| !have.contains(k))
-        .take(limit)
-        .collect();
-    if h.splats() {
-        for n in &main.nodes {
-            if out.len() >= limit {
-                break;
-            }
-            let p = n.key.parent();
-            if n.key.level > 0 && !have.contains(&p) && !out.contains(&p) && h.get(&p).is_some() {
-                out.push(p);
-            }
-        }
-    }
-    out
-}
-
 /// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
 /// alone with the whole budget, then their nodes are taken in one benefit order (each dataset's
 /// own order kept, so parents still come before children) until the budget is spent.
@@ -609,7 +566,7 @@ pub(crate) mod tests {
     /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
     /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
     /// 16 times the points at a quarter of the spacing).
-    fn tree(depth: u32, side: f64, per_node: u32) -> Hierarchy {
+    pub(crate) fn tree(depth: u32, side: f64, per_node: u32) -> Hierarchy {
         let root = Aabb::new([0.0; 3], [side; 3]);
         let mut entries = Vec::new();
         let mut level_keys = vec![NodeKey::ROOT];
@@ -638,7 +595,7 @@ pub(crate) mod tests {
         Hierarchy::new(root, entries)
     }
 
-    fn looking_down(h: &Hierarchy, height: f64) -> Camera {
+    pub(crate) fn looking_down(h: &Hierarchy, height: f64) -> Camera {
         let c = h.root.center();
         Camera {
             position: [c[0], c[1] - 1e-3, h.root.max[2] + height],
@@ -671,30 +628,6 @@ pub(crate) mod tests {
                 assert!(s.budget_reached || s.points < budget);
             }
         }
-    }
-
-    /// 004's prefetching: the nodes a slightly wider view would draw, none of those drawn.
-    #[test]
-    fn prefetch_takes_the_nodes_just_outside_the_view() {
-        let h = tree(4, 100.0, 4000);
-        let mut cam = looking_down(&h, 20.0);
-        cam.target = [30.0, 30.0, 0.0];
-        cam.position = [30.0, 30.0 - 1e-3, h.root.max[2] + 20.0];
-        let o = SelectOptions {
-            budget: u64::MAX,
-            min_pixels: 1.0,
-        };
-        let main = select(&h, &cam, &o);
-        let ahead = prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 10_000);
-        assert!(!ahead.is_empty());
-        let drawn: std::collections::HashSet<NodeKey> = main.nodes.iter().map(|n| n.key).collect();
-        assert!(ahead.iter().all(|k| !drawn.contains(k)));
-        // Outside the view, all of them: the wider view draws what this one does inside.
-        let f = cam.frustum();
-        assert!(ahead.iter().all(|k| !f.intersects(&h.bounds(k))));
-        // Best first, at most the limit; nothing without widening.
-        assert_eq!(prefetch(&h, &cam, &o, &|_| true, &main, 1.3, 3), ahead[..3]);
-        assert!(prefetch(&h, &cam, &o, &|_| true, &main, 1.0, 100).is_empty());
     }
 
     #[test]
