@@ -560,14 +560,13 @@ impl Dataset {
         while let Some(p) = todo.pop() {
             match self.hierarchy_page(&p) {
                 Ok(page) => {
+                    // The bounds entries store (kd, mwkd), by key: looked up once per page.
+                    let stored: HashMap<NodeKey, Aabb> = (page.nodes.iter())
+                        .filter_map(|n| Some((n.key, n.bounds?)))
+                        .collect();
                     for c in page.children {
-                        let parent = c.key.parent();
-                        let stored = page
-                            .nodes
-                            .iter()
-                            .find(|n| n.key == parent)
-                            .and_then(|n| n.bounds);
-                        if keep(&stored.unwrap_or_else(|| c.key.bounds(&self.meta.root))) {
+                        let bounds = stored.get(&c.key.parent()).copied();
+                        if keep(&bounds.unwrap_or_else(|| c.key.bounds(&self.meta.root))) {
                             todo.push(c);
                         }
                     }

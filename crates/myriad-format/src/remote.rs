@@ -30,6 +30,8 @@ pub struct HttpBytes {
     url: String,
     agent: ureq::Agent,
     len: u64,
+    /// The first bytes, read when opening (the dataset header is read from them).
+    head: Vec<u8>,
     slots: Mutex<usize>,
     freed: Condvar,
     requests: AtomicU64,
@@ -43,8 +45,8 @@ enum Failure {
 }
 
 impl HttpBytes {
-    /// Asks for the first bytes of `url`: the answer must be 206 with a `Content-Range` that
-    /// gives the resource's length.
+    /// Asks for the first [`crate::HEADER_LEN`] bytes of `url` (kept: the dataset header): the
+    /// answer must be 206 with a `Content-Range` that gives the resource's length.
     pub fn open(url: &str) -> Result<HttpBytes> {
         let agent: ureq::Agent = ureq::Agent::config_builder()
             .http_status_as_error(false)
@@ -57,13 +59,16 @@ impl HttpBytes {
             url: url.to_string(),
             agent,
             len: u64::MAX,
+            head: Vec::new(),
             slots: Mutex::new(MAX_IN_FLIGHT),
             freed: Condvar::new(),
             requests: AtomicU64::new(0),
             fetched: AtomicU64::new(0),
         };
-        let (_, total) = h.range(0, 1).map_err(|e| Error::io(Path::new(url), e))?;
+        let (head, total) =
+            (h.range(0, crate::HEADER_LEN)).map_err(|e| Error::io(Path::new(url), e))?;
         h.len = total;
+        h.head = head;
         Ok(h)
     }
 
@@ -191,6 +196,9 @@ impl ByteSource for HttpBytes {
         }
         if len == 0 {
             return Ok(Vec::new());
+        }
+        if offset.saturating_add(len as u64) <= self.head.len() as u64 {
+            return Ok(self.head[offset as usize..offset as usize + len].to_vec());
         }
         self.range(offset, len).map(|(b, _)| b)
     }

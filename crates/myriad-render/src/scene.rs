@@ -10,8 +10,8 @@ use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours}
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
-    Camera, DrawnTree, Hierarchy, Loader, Occluder, Occlusion, PageCache, PageReader,
-    SelectOptions, Selection, merge, prefetch, robust_bounds, select_occluded,
+    Camera, DrawnTree, Hierarchy, Loader, Occlusion, PageCache, PageReader, SelectOptions,
+    Selection, merge, robust_bounds,
 };
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -287,23 +287,19 @@ impl Scene {
         options: &SelectOptions,
         clip: Option<crate::Clip>,
     ) -> Selection {
-        let keep = |cube: &Aabb| crate::Clip::keeps(clip, cube);
-        let points = |k: &NodeKey| self.loader.get(k);
-        let mut occluder = (self.occlusion == Occlusion::Software)
-            .then(|| Occluder::new(camera, self.occlusion_size, &points));
-        let mut s = select_occluded(&self.hierarchy, camera, options, &keep, occluder.as_mut());
-        if self.prefetch > 1.0 {
-            s.prefetch = prefetch(
-                &self.hierarchy,
-                camera,
-                options,
-                &keep,
-                &s,
-                self.prefetch,
-                PREFETCH_NODES,
-            );
+        crate::selector::select_for(&self.hierarchy, camera, options, self.culling(clip), &|k| {
+            self.loader.get(k)
+        })
+    }
+
+    /// This scene's culling settings with `clip`.
+    fn culling(&self, clip: Option<crate::Clip>) -> crate::selector::Culling {
+        crate::selector::Culling {
+            clip,
+            occlusion: self.occlusion,
+            occlusion_size: self.occlusion_size,
+            prefetch: self.prefetch,
         }
-        s
     }
 
     /// Selects and waits until every selected node is in (or failed to load), selecting again
@@ -548,13 +544,10 @@ impl Scene {
             .filter_map(|k| Some((k, self.loader.get(&k)?)))
             .collect();
         Request {
-            prefetch: self.prefetch,
             hierarchy: self.hierarchy.clone(),
             camera: *camera,
             options: options.clone(),
-            clip,
-            occlusion: self.occlusion,
-            occlusion_size: self.occlusion_size,
+            culling: self.culling(clip),
             resident,
         }
     }

@@ -19,18 +19,24 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+/// How a scene selects beyond camera and budget (its settings when asked).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Culling {
+    pub clip: Option<Clip>,
+    pub occlusion: Occlusion,
+    pub occlusion_size: u32,
+    /// Prefetching's widening ([`crate::Scene::prefetch`]).
+    pub prefetch: f64,
+}
+
 /// What to select for.
 #[derive(Clone)]
 pub struct Request {
     /// The hierarchy as the frame thread knows it now (pages land there; a copy shares them).
     pub hierarchy: Arc<Hierarchy>,
-    /// Prefetching's widening ([`crate::Scene::prefetch`]).
-    pub prefetch: f64,
     pub camera: Camera,
     pub options: SelectOptions,
-    pub clip: Option<Clip>,
-    pub occlusion: Occlusion,
-    pub occlusion_size: u32,
+    pub culling: Culling,
     /// Resident points the occluder may splat (those of the nodes selected last).
     pub resident: HashMap<NodeKey, Arc<Loaded>>,
 }
@@ -96,6 +102,34 @@ impl Selector {
     }
 }
 
+/// A scene's selection: `select_occluded` culling as the request says (the occluder splats
+/// the resident points `points` gives), and the nodes to prefetch where it widens the view.
+/// The frame thread ([`crate::Scene::select`]) and the selection thread both make it here.
+pub(crate) fn select_for(
+    h: &Hierarchy,
+    camera: &Camera,
+    options: &SelectOptions,
+    how: Culling,
+    points: &dyn Fn(&NodeKey) -> Option<Arc<Loaded>>,
+) -> Selection {
+    let keep = |cube: &Aabb| Clip::keeps(how.clip, cube);
+    let mut occluder = (how.occlusion == Occlusion::Software)
+        .then(|| Occluder::new(camera, how.occlusion_size, points));
+    let mut s = select_occluded(h, camera, options, &keep, occluder.as_mut());
+    if how.prefetch > 1.0 {
+        s.prefetch = myriad_lod::prefetch(
+            h,
+            camera,
+            options,
+            &keep,
+            &s,
+            how.prefetch,
+            crate::scene::PREFETCH_NODES,
+        );
+    }
+    s
+}
+
 fn run(shared: &Shared) {
     let (lock, ready) = &**shared;
     loop {
@@ -113,28 +147,9 @@ fn run(shared: &Shared) {
             }
         };
         let t = Instant::now();
-        let keep = |cube: &Aabb| Clip::keeps(r.clip, cube);
-        let points = |k: &NodeKey| r.resident.get(k).cloned();
-        let mut occluder = (r.occlusion == Occlusion::Software)
-            .then(|| Occluder::new(&r.camera, r.occlusion_size, &points));
-        let mut selection = select_occluded(
-            &r.hierarchy,
-            &r.camera,
-            &r.options,
-            &keep,
-            occluder.as_mut(),
-        );
-        if r.prefetch > 1.0 {
-            selection.prefetch = myriad_lod::prefetch(
-                &r.hierarchy,
-                &r.camera,
-                &r.options,
-                &keep,
-                &selection,
-                r.prefetch,
-                crate::scene::PREFETCH_NODES,
-            );
-        }
+        let selection = select_for(&r.hierarchy, &r.camera, &r.options, r.culling, &|k| {
+            r.resident.get(k).cloned()
+        });
         let answer = Answer {
             selection,
             camera: r.camera,

@@ -11,7 +11,7 @@ use clap::Args;
 use myriad_format::Dataset;
 use myriad_lod::SelectOptions;
 use myriad_render::{Rasterizer, Scene, Style};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -48,12 +48,7 @@ struct Run {
     settle: f64,
 }
 
-fn orbit(
-    path: &PathBuf,
-    widen: f64,
-    a: &PrefetchBenchArgs,
-    gpu: &myriad_render::Gpu,
-) -> Result<Run> {
+fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gpu) -> Result<Run> {
     if a.cold {
         crate::bench_open::drop_cache(path)?;
     }

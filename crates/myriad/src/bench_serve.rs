@@ -34,14 +34,14 @@ pub struct ServeBenchArgs {
 struct Running {
     child: Child,
     url: String,
-    _scratch: Option<PathBuf>,
+    scratch: Option<PathBuf>,
 }
 
 impl Drop for Running {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
-        if let Some(d) = &self._scratch {
+        if let Some(d) = &self.scratch {
             let _ = std::fs::remove_dir_all(d);
         }
     }
@@ -69,7 +69,7 @@ fn start_myriad(file: &Path) -> Result<Running> {
     Ok(Running {
         child,
         url: format!("{base}/d/{name}"),
-        _scratch: None,
+        scratch: None,
     })
 }
 
@@ -118,7 +118,7 @@ fn start_nginx(nginx: &Path, file: &Path) -> Result<Running> {
     Ok(Running {
         child,
         url,
-        _scratch: Some(scratch),
+        scratch: Some(scratch),
     })
 }
 
