@@ -136,7 +136,65 @@ pub struct PointBatch {
     pub extra_stride: usize,
 }
 
+/// A column's value as numbers (three for colours and normals, seven for a wave packet), for
+/// showing a point.
+pub trait Numbers {
+    fn numbers(&self) -> Vec<f64>;
+}
+
+macro_rules! scalar_numbers {
+    ($($t:ty),*) => {$(
+        impl Numbers for $t {
+            fn numbers(&self) -> Vec<f64> {
+                vec![*self as f64]
+            }
+        }
+    )*};
+}
+scalar_numbers!(u8, u16, f32, f64);
+
+impl Numbers for [u16; 3] {
+    fn numbers(&self) -> Vec<f64> {
+        self.iter().map(|&v| v as f64).collect()
+    }
+}
+
+impl Numbers for [f32; 3] {
+    fn numbers(&self) -> Vec<f64> {
+        self.iter().map(|&v| v as f64).collect()
+    }
+}
+
+impl Numbers for WavePacket {
+    fn numbers(&self) -> Vec<f64> {
+        vec![
+            self.descriptor_index as f64,
+            self.byte_offset as f64,
+            self.size as f64,
+            self.return_point_location as f64,
+            self.x_t as f64,
+            self.y_t as f64,
+            self.z_t as f64,
+        ]
+    }
+}
+
 impl PointBatch {
+    /// Every attribute of point `i` but its position, as numbers, in column order (what a
+    /// viewer shows of a picked point).
+    pub fn values(&self, i: usize) -> Vec<(Attribute, Vec<f64>)> {
+        let mut out = Vec::new();
+        macro_rules! one {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &self.$f {
+                    out.push((Attribute::$a, c[i].numbers()));
+                }
+            };
+        }
+        for_each_column!(one);
+        out
+    }
+
     /// An empty batch with a column for every attribute of `schema`.
     pub fn with_schema(schema: &Schema, capacity: usize) -> PointBatch {
         let mut b = PointBatch {

@@ -1,15 +1,18 @@
 //! Myriad's shared vocabulary: f64 geometry ([`Aabb`], [`Obb`]), the attribute schema that covers
 //! every LAS 1.4 point field plus normals ([`Schema`], [`Attribute`]), the columnar [`PointBatch`]
-//! that readers yield and builders consume, and the typed [`Error`] every library crate returns.
+//! that readers yield and builders consume, the colour schemes that show a point's attributes
+//! ([`colour`]: one implementation for the renderer and the web viewer), and the typed [`Error`]
+//! every library crate returns.
 //!
 //! Nothing here does I/O, spawns threads or touches a GPU.
 
 pub mod batch;
+pub mod colour;
 pub mod error;
 pub mod geometry;
 pub mod schema;
 
-pub use batch::{PointBatch, PointRecord, RowBytes, WavePacket};
+pub use batch::{Numbers, PointBatch, PointRecord, RowBytes, WavePacket};
 pub use error::{Error, Location, Result};
 pub use geometry::{Aabb, Affine, NodeKey, Obb};
 pub use schema::{Attribute, ExtraDim, ExtraType, Schema};

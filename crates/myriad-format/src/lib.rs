@@ -7,25 +7,31 @@
 //!
 //! This crate decides nothing about levels of detail: it stores what a builder gives it.
 
+// The WebAssembly build (the web viewer) reads only: the writer's helpers go unused there.
+#![cfg_attr(target_arch = "wasm32", allow(dead_code))]
+
 pub mod hierarchy;
 pub mod page;
 pub mod splat;
 
+mod codec;
 pub mod metadata;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod remote;
+#[cfg(not(target_arch = "wasm32"))]
+mod writer;
 
 pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
 pub use metadata::{Level, Metadata};
 pub use page::Quantization;
+#[cfg(not(target_arch = "wasm32"))]
+pub use writer::{DatasetWriter, NodeShape};
 
-use myriad_core::{Aabb, Error, NodeKey, Obb, PointBatch, Result, Schema};
-use myriad_io::atomic::AtomicFile;
+use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result, Schema};
 use serde_json::Value;
-use std::collections::{BTreeMap, HashMap};
-use std::fs::File;
-use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
 /// 2: hierarchy entries carry optional node bounds, contours and splat pages (the kd, layered and
@@ -106,19 +112,22 @@ pub trait ByteSource: Send + Sync {
 }
 
 /// A local file, read with positioned reads (no shared cursor).
+#[cfg(not(target_arch = "wasm32"))]
 pub struct FileBytes {
-    file: File,
+    file: std::fs::File,
     len: u64,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl FileBytes {
     pub fn open(path: &Path) -> Result<FileBytes> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         Ok(FileBytes { file, len })
     }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl ByteSource for FileBytes {
     fn len(&self) -> u64 {
         self.len
@@ -128,273 +137,6 @@ impl ByteSource for FileBytes {
         let mut b = vec![0u8; len];
         self.file.read_exact_at(&mut b, offset)?;
         Ok(b)
-    }
-}
-
-/// A node's stored outline: bounds for nodes that are not their key's octree cell, a contour
-/// where the structure has one.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct NodeShape {
-    pub bounds: Option<Aabb>,
-    pub contour: Option<Obb>,
-}
-
-/// Writes a dataset: node pages appended by any thread as they are built, then
-/// [`DatasetWriter::finish`] writes the hierarchy pages, the metadata and the header, and moves
-/// the file to its name. Until then the file has a zeroed header, under a temporary name.
-pub struct DatasetWriter {
-    out: Mutex<Out>,
-    file: AtomicFile,
-    path: PathBuf,
-    quant: Quantization,
-    entries: Mutex<Vec<NodeEntry>>,
-    splats: Mutex<HashMap<NodeKey, splat::SplatInfo>>,
-}
-
-struct Out {
-    w: BufWriter<File>,
-    pos: u64,
-}
-
-impl DatasetWriter {
-    pub fn create(path: &Path, force: bool, quant: Quantization) -> Result<DatasetWriter> {
-        let file = AtomicFile::create(path, force)?;
-        let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
-        w.write_all(&[0u8; HEADER_LEN])
-            .map_err(|e| Error::io(path, e))?;
-        Ok(DatasetWriter {
-            out: Mutex::new(Out {
-                w,
-                pos: HEADER_LEN as u64,
-            }),
-            file,
-            path: path.to_path_buf(),
-            quant,
-            entries: Mutex::new(Vec::new()),
-            splats: Mutex::new(HashMap::new()),
-        })
-    }
-
-    pub fn quantization(&self) -> &Quantization {
-        &self.quant
-    }
-
-    /// Compresses and appends one node (on the calling thread; only the append is serialized).
-    /// `prefix` and `spacing` are the node's levels of detail. Returns the page's bytes.
-    pub fn write_node(
-        &self,
-        key: NodeKey,
-        batch: &PointBatch,
-        prefix: &[u64],
-        spacing: &[f64],
-        shape: NodeShape,
-    ) -> Result<u64> {
-        if batch.len() > u32::MAX as usize {
-            return Err(Error::Invalid(format!(
-                "node {key} holds {} points; a node holds at most 2^32 - 1",
-                batch.len()
-            )));
-        }
-        let bytes = if batch.is_empty() {
-            Vec::new()
-        } else {
-            page::encode(batch, &self.quant)
-        };
-        let (offset, crc) = self.append(&bytes)?;
-        let mut entry = NodeEntry::new(
-            key,
-            PageRef {
-                offset: if bytes.is_empty() { 0 } else { offset },
-                length: bytes.len() as u32,
-                crc,
-            },
-            batch.len() as u32,
-            prefix.iter().map(|&p| p as u32).collect(),
-            spacing.to_vec(),
-        );
-        entry.bounds = shape.bounds;
-        entry.contour = shape.contour;
-        self.entries.lock().expect("entries lock").push(entry);
-        Ok(bytes.len() as u64)
-    }
-
-    /// Adds an entry as given, its page written elsewhere or nowhere: for fixtures that
-    /// measure a hierarchy alone (`myriad bench open --fixture`); a reader reports a node whose
-    /// page is not in the file as damaged.
-    pub fn write_entry(&self, entry: NodeEntry) {
-        self.entries.lock().expect("entries lock").push(entry);
-    }
-
-    /// Appends a page (only the append is serialized); its offset and CRC-32.
-    fn append(&self, bytes: &[u8]) -> Result<(u64, u32)> {
-        let crc = crc32fast::hash(bytes);
-        let mut out = self.out.lock().expect("writer lock");
-        let at = out.pos;
-        out.w
-            .write_all(bytes)
-            .map_err(|e| Error::io(&self.path, e))?;
-        out.pos += bytes.len() as u64;
-        Ok((at, crc))
-    }
-
-    /// Appends the splat page of node `key` (normals and radii of its points, `mwkd`), to be
-    /// joined to its entry. `aggregate`: its points are aggregates, not original points.
-    pub fn write_splats(
-        &self,
-        key: NodeKey,
-        s: &splat::Splats,
-        cone: [f32; 4],
-        aggregate: bool,
-    ) -> Result<u64> {
-        let (bytes, radius) = splat::encode(s);
-        let (offset, crc) = self.append(&bytes)?;
-        let info = splat::SplatInfo {
-            page: PageRef {
-                offset,
-                length: bytes.len() as u32,
-                crc,
-            },
-            radius,
-            cone,
-            aggregate,
-        };
-        self.splats.lock().expect("splats lock").insert(key, info);
-        Ok(bytes.len() as u64)
-    }
-
-    /// Original points (aggregates not counted), nodes and deepest level written so far.
-    pub fn totals(&self) -> (u64, u64, u32) {
-        let e = self.entries.lock().expect("entries lock");
-        let sp = self.splats.lock().expect("splats lock");
-        (
-            e.iter()
-                .filter(|n| !sp.get(&n.key).is_some_and(|s| s.aggregate))
-                .map(|n| n.points as u64)
-                .sum(),
-            e.len() as u64,
-            e.iter().map(|n| n.key.level).max().unwrap_or(0),
-        )
-    }
-
-    /// Bytes written so far.
-    pub fn position(&self) -> u64 {
-        self.out.lock().expect("writer lock").pos
-    }
-
-    /// Writes the hierarchy pages (children before parents), the metadata and the header, syncs,
-    /// and renames the file to its name. `meta.nodes` and `meta.depth` are set here. Returns the
-    /// file's size.
-    pub fn finish(self, mut meta: Metadata) -> Result<u64> {
-        let path = self.path.clone();
-        let io = |e| Error::io(&path, e);
-        let mut entries = self.entries.into_inner().expect("entries lock");
-        let mut splats = self.splats.into_inner().expect("splats lock");
-        for e in &mut entries {
-            e.splats = splats.remove(&e.key);
-        }
-        let mut out = self.out.into_inner().expect("writer lock");
-        meta.nodes = entries.len() as u64;
-        meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
-        meta.points = entries
-            .iter()
-            .filter(|e| !e.aggregate())
-            .map(|e| e.points as u64)
-            .sum();
-        meta.levels = Level::table(&entries);
-        // Group entries by page; pages by their parent page.
-        let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
-        for e in entries {
-            pages
-                .entry(hierarchy::page_root(e.key))
-                .or_default()
-                .push(e);
-        }
-        let mut below: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
-        for &k in pages.keys() {
-            if k.level > 0 {
-                below
-                    .entry(hierarchy::page_root(k.parent()))
-                    .or_default()
-                    .push(k);
-            }
-        }
-        fn write_page(
-            key: NodeKey,
-            pages: &mut BTreeMap<NodeKey, Vec<NodeEntry>>,
-            below: &HashMap<NodeKey, Vec<NodeKey>>,
-            out: &mut Out,
-        ) -> std::io::Result<PageRef> {
-            let mut children = Vec::new();
-            for &c in below.get(&key).map(|v| v.as_slice()).unwrap_or(&[]) {
-                children.push(ChildPage {
-                    key: c,
-                    page: write_page(c, pages, below, out)?,
-                });
-            }
-            let mut nodes = pages.remove(&key).unwrap_or_default();
-            nodes.sort_by_key(|n| n.key);
-            let bytes = HierarchyPage { nodes, children }.encode();
-            let r = PageRef {
-                offset: out.pos,
-                length: bytes.len() as u32,
-                crc: crc32fast::hash(&bytes),
-            };
-            out.w.write_all(&bytes)?;
-            out.pos += bytes.len() as u64;
-            Ok(r)
-        }
-        let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, &mut out).map_err(io)?;
-        meta.check_finite().map_err(|m| {
-            Error::Invalid(format!(
-                "{}: metadata: {m}; no dataset written",
-                path.display()
-            ))
-        })?;
-        let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
-        let metadata = PageRef {
-            offset: out.pos,
-            length: json.len() as u32,
-            crc: crc32fast::hash(&json),
-        };
-        out.w.write_all(&json).map_err(io)?;
-        out.pos += json.len() as u64;
-        let header = Header {
-            metadata,
-            hierarchy,
-            file_length: out.pos,
-            points: meta.points,
-        };
-        // Everything else is on disk before the header that makes the file a dataset.
-        out.w.flush().map_err(io)?;
-        let mut f = out.w.into_inner().map_err(|e| io(e.into_error()))?;
-        f.sync_data().map_err(io)?;
-        f.seek(SeekFrom::Start(0)).map_err(io)?;
-        f.write_all(&header.encode()).map_err(io)?;
-        f.sync_all().map_err(io)?;
-        drop(f);
-        // What is renamed into place opens, with this metadata and every hierarchy page intact.
-        let reopened = Dataset::open(self.file.temp_path()).and_then(|ds| {
-            if ds.meta != meta {
-                return Err(Error::Invalid(
-                    "its metadata differs from what was written".into(),
-                ));
-            }
-            match ds.nodes() {
-                (nodes, damage) if damage.is_empty() && nodes.len() as u64 == meta.nodes => Ok(()),
-                (_, damage) => Err(match damage.first() {
-                    Some(d) => ds.damage_error(d),
-                    None => Error::Invalid("its hierarchy lacks nodes".into()),
-                }),
-            }
-        });
-        if let Err(e) = reopened {
-            return Err(Error::Invalid(format!(
-                "{}: the dataset written does not open again ({e}); no dataset written",
-                path.display()
-            )));
-        }
-        self.file.commit()?;
-        Ok(header.file_length)
     }
 }
 
@@ -439,6 +181,7 @@ pub struct Dataset {
 impl Dataset {
     /// Opens a dataset file, or a dataset on a web server (`http://`, `https://`: read by
     /// range requests, [`remote::HttpBytes`]).
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn open(path: &Path) -> Result<Dataset> {
         if remote::is_url(path) {
             let url = path.to_str().expect("a URL is text");
@@ -508,14 +251,17 @@ impl Dataset {
         &self.path
     }
 
-    fn read_checked(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
+    fn read_range(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
         if r.offset.saturating_add(r.length as u64) > self.file_length {
             return Err("page lies past the end of the file".into());
         }
-        let b = self
-            .bytes
+        self.bytes
             .read_at(r.offset, r.length as usize)
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| e.to_string())
+    }
+
+    fn read_checked(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
+        let b = self.read_range(r)?;
         if crc32fast::hash(&b) != r.crc {
             return Err("checksum mismatch".into());
         }
@@ -612,6 +358,26 @@ impl Dataset {
         e: &NodeEntry,
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
+        if e.page.length == 0 {
+            return self.decode_node(e, &[], schema);
+        }
+        let b = self.read_range(e.page).map_err(|m| Damage {
+            key: e.key,
+            offset: e.page.offset,
+            message: m,
+            subtree: false,
+        })?;
+        self.decode_node(e, &b, schema)
+    }
+
+    /// Checks (CRC-32, point count) and decodes node `e`'s page, read elsewhere (the web
+    /// viewer fetches pages itself), with the columns of `schema`.
+    pub fn decode_node(
+        &self,
+        e: &NodeEntry,
+        page: &[u8],
+        schema: &Schema,
+    ) -> std::result::Result<PointBatch, Damage> {
         let damage = |offset: u64, message: String| Damage {
             key: e.key,
             offset,
@@ -624,10 +390,16 @@ impl Dataset {
             }
             return Ok(PointBatch::with_schema(schema, 0));
         }
-        let b = self
-            .read_checked(e.page)
-            .map_err(|m| damage(e.page.offset, m))?;
-        let batch = page::decode(&b, schema, &self.meta.quantization)
+        if page.len() != e.page.length as usize {
+            return Err(damage(
+                e.page.offset,
+                format!("{} bytes read of a {}-byte page", page.len(), e.page.length),
+            ));
+        }
+        if crc32fast::hash(page) != e.page.crc {
+            return Err(damage(e.page.offset, "checksum mismatch".into()));
+        }
+        let batch = page::decode(page, schema, &self.meta.quantization)
             .map_err(|pe| damage(e.page.offset + pe.at as u64, pe.message))?;
         if batch.len() != e.points as usize {
             return Err(damage(

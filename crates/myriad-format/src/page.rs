@@ -119,6 +119,7 @@ struct Column {
     stored: Vec<u8>,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 fn compress_column(id: u8, width: usize, mut raw: Vec<u8>) -> Column {
     let encoding = if id == GPS_TIME_COLUMN {
         delta_u64(&mut raw);
@@ -127,7 +128,7 @@ fn compress_column(id: u8, width: usize, mut raw: Vec<u8>) -> Column {
         ENC_PLANES
     };
     let planes = shuffle(&raw, width);
-    let stored = zstd::bulk::compress(&planes, ZSTD_LEVEL).expect("zstd compresses in memory");
+    let stored = crate::codec::compress(&planes, ZSTD_LEVEL);
     Column {
         id,
         encoding,
@@ -163,6 +164,7 @@ fn bits_for(range: u64) -> u8 {
     (64 - range.leading_zeros()) as u8
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Encodes `batch` as a node page. Positions are rounded to `q`'s grid.
 pub fn encode(batch: &PointBatch, q: &Quantization) -> Vec<u8> {
     let n = batch.len();
@@ -197,7 +199,7 @@ pub fn encode(batch: &PointBatch, q: &Quantization) -> Vec<u8> {
         encoding: ENC_DELTA_PLANES,
         width: 0,
         raw_len: planes.len(),
-        stored: zstd::bulk::compress(&planes, ZSTD_LEVEL).expect("zstd compresses in memory"),
+        stored: crate::codec::compress(&planes, ZSTD_LEVEL),
     });
     for k in 0..PointBatch::COLUMNS {
         if let Some((width, raw)) = batch.column_le(k) {
@@ -302,7 +304,7 @@ pub fn decode(page: &[u8], schema: &Schema, q: &Quantization) -> Result<PointBat
                 format!("column {id}: {raw_len} bytes for {n} points"),
             ));
         }
-        let planes = zstd::bulk::decompress(stored, raw_len)
+        let planes = crate::codec::decompress(stored, raw_len)
             .map_err(|e| bad(at, format!("column {id}: {e}")))?;
         let got = planes.len();
         if got != raw_len {

@@ -74,6 +74,7 @@ pub fn radius_from_code(c: u8, lo: f32, hi: f32) -> f32 {
     lo + (hi - lo) * c as f32 / 255.0
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// The page bytes of `s` and its radius range.
 pub fn encode(s: &Splats) -> (Vec<u8>, [f32; 2]) {
     let lo = s.radii.iter().copied().fold(f32::INFINITY, f32::min);
@@ -84,21 +85,15 @@ pub fn encode(s: &Splats) -> (Vec<u8>, [f32; 2]) {
         raw.extend_from_slice(&normal_code(n).to_le_bytes());
     }
     raw.extend(s.radii.iter().map(|&r| radius_code(r, lo, hi)));
-    (
-        zstd::bulk::compress(&raw, 3).expect("compressing into memory"),
-        [lo, hi],
-    )
+    (crate::codec::compress(&raw, 3), [lo, hi])
 }
 
 /// Decodes a page of `n` splats; an error says what is wrong.
 pub fn decode(page: &[u8], n: usize, radius: [f32; 2]) -> Result<Splats, String> {
     // Streamed, so that memory follows what the page really holds rather than the count its
     // entry claims (a damaged count asked for 7.7 GB up front under the fuzzer).
-    use std::io::Read;
-    let mut raw = Vec::new();
-    zstd::stream::read::Decoder::new(page)
-        .and_then(|d| d.take(n as u64 * 3 + 1).read_to_end(&mut raw))
-        .map_err(|e| format!("splat page: {e}"))?;
+    let raw =
+        crate::codec::decompress_streamed(page, n * 3).map_err(|e| format!("splat page: {e}"))?;
     if raw.len() != n * 3 {
         return Err(format!(
             "splat page holds {} bytes, {n} splats need {}",

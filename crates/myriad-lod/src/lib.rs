@@ -26,4 +26,4 @@ pub use select::{
     select_many, select_occluded, select_where,
 };
 pub use stream::{Loader, PageReader};
-pub use view::{Camera, Frustum, robust_bounds};
+pub use view::{Camera, Clip, Frustum, robust_bounds};

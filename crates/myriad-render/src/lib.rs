@@ -12,14 +12,14 @@
 //! [`NodeBuffers`] keeps them per node under a byte budget, and a [`Scene`] runs frames of the
 //! whole pipeline (selection, loading, upload, drawing).
 
-mod colour;
 mod cpu;
 mod post;
 mod raster;
 pub mod scene;
 pub mod selector;
 
-pub use colour::{ColorBy, class_colour, colours};
+pub use myriad_core::colour::{ColorBy, class_colour, colours};
+pub use myriad_lod::Clip;
 pub use post::gpu::{PASS_SOURCES, gbuffer_source};
 pub use post::{
     Blur, DEFAULT_PASSES, Fill, PASS_NAMES, Passes, Shade, Ssao, pack_normal, unpack_normal,
@@ -401,45 +401,6 @@ impl Default for Edl {
         Edl {
             strength: 1.0,
             radius: 1.4,
-        }
-    }
-}
-
-/// A clipping box: only the points inside it are drawn, or only those outside.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Clip {
-    pub bounds: myriad_core::Aabb,
-    /// Keep the inside (else the outside).
-    pub inside: bool,
-}
-
-impl Clip {
-    /// Whether a node's cube can hold points the box lets through (for the selection: nodes it
-    /// hides entirely take no budget).
-    pub fn keeps(clip: Option<Clip>, cube: &myriad_core::Aabb) -> bool {
-        let Some(c) = clip else { return true };
-        let b = &c.bounds;
-        if c.inside {
-            (0..3).all(|a| cube.max[a] >= b.min[a] && cube.min[a] <= b.max[a])
-        } else {
-            !(0..3).all(|a| cube.min[a] >= b.min[a] && cube.max[a] <= b.max[a])
-        }
-    }
-
-    /// The box relative to `origin` as the shaders take it: min with the mode (1 inside,
-    /// 2 outside), max; all zero without a box.
-    pub fn uniforms(clip: Option<Clip>, origin: [f64; 3]) -> [[f32; 4]; 2] {
-        match clip {
-            None => [[0.0; 4]; 2],
-            Some(c) => {
-                let r =
-                    |v: [f64; 3]| std::array::from_fn::<f32, 3, _>(|a| (v[a] - origin[a]) as f32);
-                let (lo, hi) = (r(c.bounds.min), r(c.bounds.max));
-                [
-                    [lo[0], lo[1], lo[2], if c.inside { 1.0 } else { 2.0 }],
-                    [hi[0], hi[1], hi[2], 0.0],
-                ]
-            }
         }
     }
 }

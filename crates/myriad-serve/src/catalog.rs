@@ -158,16 +158,6 @@ impl Catalog {
                 .replace('>', "&gt;")
                 .replace('"', "&quot;")
         };
-        let href = |s: &str| {
-            s.bytes()
-                .map(|b| match b {
-                    b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'/' => {
-                        (b as char).to_string()
-                    }
-                    b => format!("%{b:02X}"),
-                })
-                .collect::<String>()
-        };
         let mut rows = String::new();
         for (name, kind, len) in self.names() {
             let what = match kind {
@@ -175,8 +165,12 @@ impl Catalog {
                 Kind::Scan => "scan",
                 Kind::Export => "exported file",
             };
+            let view = match kind {
+                Kind::Dataset => format!("<a href=\"/view/{}\">view</a>", href(name)),
+                _ => String::new(),
+            };
             rows.push_str(&format!(
-                "<tr><td><a href=\"/d/{}\">{}</a></td><td>{what}</td><td>{len}</td></tr>\n",
+                "<tr><td><a href=\"/d/{}\">{}</a></td><td>{what}</td><td>{len}</td><td>{view}</td></tr>\n",
                 href(name),
                 escape(name)
             ));
@@ -185,8 +179,20 @@ impl Catalog {
             "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>Myriad</title></head>\n\
              <body><h1>Served by Myriad</h1>\n<p>Each file answers HTTP range requests at \
              <code>/d/NAME</code>; <code>myriad render|info|extract http://HOST/d/NAME.myr</code> \
-             reads a dataset from here.</p>\n<table><tr><th>name</th><th>kind</th><th>bytes</th></tr>\n\
+             reads a dataset from here, and <code>/view/NAME.myr</code> shows it in this browser.</p>\n<table><tr><th>name</th><th>kind</th><th>bytes</th><th></th></tr>\n\
              {rows}</table></body></html>\n"
         )
     }
+}
+
+/// A name as it goes into a URL path (percent-encoded but for unreserved characters and `/`).
+pub fn href(s: &str) -> String {
+    s.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'/' => {
+                (b as char).to_string()
+            }
+            b => format!("%{b:02X}"),
+        })
+        .collect()
 }

@@ -11,11 +11,13 @@
 //! to be accepted), a client has `Options::header_timeout` to send its request head and
 //! `Options::max_header_bytes` for it (431 beyond), and a failing connection ends alone.
 
+pub mod browser;
 mod catalog;
 pub mod download;
 pub mod range;
+mod viewer;
 
-pub use catalog::{Catalog, Kind};
+pub use catalog::{Catalog, Kind, href};
 
 use bytes::Bytes;
 use futures_util::TryStreamExt;
@@ -43,6 +45,8 @@ pub struct Options {
     pub header_timeout: Duration,
     /// Most bytes of a request head (at least 8192).
     pub max_header_bytes: usize,
+    /// A line on stderr for each request answered: method, path, range, status, bytes.
+    pub log: bool,
 }
 
 impl Default for Options {
@@ -51,6 +55,7 @@ impl Default for Options {
             max_connections: 512,
             header_timeout: Duration::from_secs(10),
             max_header_bytes: 16 << 10,
+            log: false,
         }
     }
 }
@@ -133,7 +138,8 @@ async fn accept(
         let catalog = catalog.clone();
         tokio::spawn(async move {
             let _permit = permit;
-            let service = hyper::service::service_fn(move |req| handle(catalog.clone(), req));
+            let service =
+                hyper::service::service_fn(move |req| handle(catalog.clone(), req, o.log));
             let mut b = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new());
             b.http1()
                 .timer(TokioTimer::new())
@@ -196,9 +202,22 @@ static DOWNLOADS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(dow
 async fn handle(
     catalog: Arc<Catalog>,
     req: Request<Incoming>,
+    log: bool,
 ) -> Result<Response<Body>, Infallible> {
     let mut r = route(&catalog, &req).await;
     cors(&mut r);
+    if log {
+        let text =
+            |v: Option<&HeaderValue>| v.and_then(|v| v.to_str().ok()).unwrap_or("-").to_string();
+        eprintln!(
+            "{} {} range={} {} {}",
+            req.method(),
+            req.uri(),
+            text(req.headers().get(header::RANGE)),
+            r.status().as_u16(),
+            text(r.headers().get(header::CONTENT_LENGTH)),
+        );
+    }
     Ok(r)
 }
 
@@ -235,7 +254,27 @@ async fn route(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
     }
     let path = req.uri().path();
     if path == "/" || path == "/index.html" {
-        return index(catalog, req);
+        return asset(
+            catalog.index_html().as_bytes(),
+            None,
+            "text/html; charset=utf-8",
+            req,
+        );
+    }
+    if let Some(name) = path.strip_prefix("/viewer/") {
+        return match viewer::file(name) {
+            Some(a) => asset(a.bytes, Some(a), a.content_type, req),
+            None => status(StatusCode::NOT_FOUND, "not found"),
+        };
+    }
+    if let Some(name) = path.strip_prefix("/view/") {
+        return match percent_decode(name).and_then(|n| catalog.file(&n).map(|f| f.kind)) {
+            Some(Kind::Dataset) => {
+                let a = viewer::page();
+                asset(a.bytes, Some(a), a.content_type, req)
+            }
+            _ => status(StatusCode::NOT_FOUND, "no such dataset"),
+        };
     }
     if let Some(name) = path.strip_prefix("/x/") {
         let Some(name) = percent_decode(name) else {
@@ -263,20 +302,23 @@ async fn route(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
     }
 }
 
-fn index(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
-    let html = catalog.index_html();
+/// A page or file of the server's own: gzip-compressed where the client takes it (`cached`
+/// keeps the compressed bytes of a file compiled in).
+fn asset(
+    bytes: &[u8],
+    cached: Option<&'static viewer::Asset>,
+    content_type: &'static str,
+    req: &Request<Incoming>,
+) -> Response<Body> {
     let gzip = req
         .headers()
         .get(header::ACCEPT_ENCODING)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.split(',').any(|e| e.trim().starts_with("gzip")));
-    let body = if gzip {
-        use std::io::Write;
-        let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-        z.write_all(html.as_bytes()).expect("to memory");
-        z.finish().expect("to memory")
-    } else {
-        html.into_bytes()
+    let body = match (gzip, cached) {
+        (true, Some(a)) => Bytes::from_static(a.gzip()),
+        (true, None) => Bytes::from(viewer::gzip(bytes)),
+        (false, _) => Bytes::copy_from_slice(bytes),
     };
     let len = body.len();
     let mut r = Response::new(if req.method() == Method::HEAD {
@@ -285,10 +327,7 @@ fn index(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
         full(body)
     });
     let h = r.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("text/html; charset=utf-8"),
-    );
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
     h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
     h.insert(header::VARY, HeaderValue::from_static("Accept-Encoding"));
     if gzip {

@@ -6,7 +6,7 @@
 use myriad_serve::{Catalog, Options, Server};
 use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 fn dir(name: &str) -> PathBuf {
@@ -82,6 +82,7 @@ fn ranges_validators_cors_and_bad_requests() {
             max_connections: 8,
             header_timeout: Duration::from_millis(500),
             max_header_bytes: 8192,
+            ..Options::default()
         },
     )
     .unwrap();
@@ -169,6 +170,45 @@ fn ranges_validators_cors_and_bad_requests() {
         .read_to_string(&mut html)
         .unwrap();
     assert!(html.contains("href=\"/d/site.myr\""), "{html}");
+    // The web viewer: its page for a dataset of the catalog only, its files compiled in, gzip
+    // where asked for.
+    assert!(html.contains("href=\"/view/site.myr\""), "{html}");
+    let a = get(&server, "/view/site.myr", "");
+    assert_eq!(a.status, 200);
+    assert!(String::from_utf8_lossy(&a.body).contains("/viewer/viewer.js"));
+    for p in [
+        "/view/nothing.myr",
+        "/view/potree/metadata.json",
+        "/viewer/",
+        "/viewer/../site.myr",
+    ] {
+        assert_eq!(get(&server, p, "").status, 404, "{p}");
+    }
+    let wasm = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/myriad_web.wasm"))
+        .unwrap();
+    let a = get(
+        &server,
+        "/viewer/myriad_web.wasm",
+        "Accept-Encoding: gzip\r\n",
+    );
+    assert_eq!(
+        a.header("content-type").as_deref(),
+        Some("application/wasm")
+    );
+    assert_eq!(a.header("content-encoding").as_deref(), Some("gzip"));
+    assert!(
+        a.body.len() < wasm.len() / 2,
+        "{} bytes gzipped",
+        a.body.len()
+    );
+    let mut unzipped = Vec::new();
+    flate2::read::GzDecoder::new(&a.body[..])
+        .read_to_end(&mut unzipped)
+        .unwrap();
+    assert_eq!(unzipped, wasm);
+    let a = get(&server, "/viewer/worker.js", "");
+    assert_eq!((a.status, a.header("content-encoding")), (200, None));
+    assert!(String::from_utf8_lossy(&a.body).contains("myr_read"));
 
     // Paths that would leave the catalog find nothing; nothing outside it is read.
     std::fs::write(d.join("secret.txt"), b"secret").unwrap();

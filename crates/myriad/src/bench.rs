@@ -40,6 +40,9 @@ pub enum BenchCommand {
     Serve(crate::bench_serve::ServeBenchArgs),
     /// Prefetching off and on while orbiting: frames with nodes missing, time to settle
     Prefetch(crate::bench_prefetch::PrefetchBenchArgs),
+    /// Time to the first image and to convergence in the browser: Myriad's web viewer next to
+    /// Potree 1.8 on PotreeConverter's output, from the same server, in headless Chromium
+    Web(crate::bench_web::WebBenchArgs),
 }
 
 #[derive(Args)]
@@ -94,6 +97,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Open(a) => crate::bench_open::run(a),
         BenchCommand::Serve(a) => crate::bench_serve::run(a),
         BenchCommand::Prefetch(a) => crate::bench_prefetch::run(a),
+        BenchCommand::Web(a) => crate::bench_web::run(a),
     }
 }
 

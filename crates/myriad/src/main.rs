@@ -10,6 +10,7 @@ mod bench_prefetch;
 mod bench_render;
 mod bench_serve;
 mod bench_structures;
+mod bench_web;
 mod cached;
 mod dataset;
 mod export;

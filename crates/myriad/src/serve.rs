@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use myriad_serve::{Catalog, Options, Server};
+use myriad_serve::{Catalog, Kind, Options, Server, href};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -23,6 +23,9 @@ pub struct ServeArgs {
     /// Connections served at once
     #[arg(long, default_value_t = 512)]
     max_connections: usize,
+    /// Print a line on stderr for each request: method, path, range, status, bytes
+    #[arg(long)]
+    log: bool,
 }
 
 pub fn run(a: ServeArgs) -> Result<()> {
@@ -44,15 +47,16 @@ pub fn run(a: ServeArgs) -> Result<()> {
             catalog.add_file_as(&format!("{stem}.myr"), &ds)?;
         }
     }
-    let names: Vec<(String, u64)> = catalog
+    let names: Vec<(String, Kind, u64)> = catalog
         .names()
-        .map(|(n, _, len)| (n.to_string(), len))
+        .map(|(n, kind, len)| (n.to_string(), kind, len))
         .collect();
     let server = Server::start(
         catalog,
         a.bind,
         Options {
             max_connections: a.max_connections,
+            log: a.log,
             ..Options::default()
         },
     )
@@ -60,23 +64,28 @@ pub fn run(a: ServeArgs) -> Result<()> {
     let base = format!("http://{}", server.addr);
     let mut out = std::io::stdout().lock();
     writeln!(out, "serving {} files on {base}/", names.len())?;
-    for (n, len) in &names {
+    for (n, kind, len) in &names {
         writeln!(
             out,
             "  {base}/d/{n} ({} bytes)",
             crate::info::thousands(*len)
         )?;
+        if *kind == Kind::Dataset {
+            writeln!(out, "    in the browser: {base}/view/{}", href(n))?;
+        }
     }
     writeln!(out, "stop with Ctrl-C")?;
     out.flush()?;
     drop(out);
     if a.open {
-        // The desktop's browser, where there is one; the server runs on either way.
-        if let Err(e) = std::process::Command::new("xdg-open")
-            .arg(format!("{base}/"))
-            .spawn()
-        {
-            eprintln!("warning: could not open a browser ({e}); open {base}/");
+        // The desktop's browser, where there is one, on the first dataset (else the index);
+        // the server runs on either way.
+        let page = match names.iter().find(|(_, kind, _)| *kind == Kind::Dataset) {
+            Some((n, _, _)) => format!("{base}/view/{}", href(n)),
+            None => format!("{base}/"),
+        };
+        if let Err(e) = std::process::Command::new("xdg-open").arg(&page).spawn() {
+            eprintln!("warning: could not open a browser ({e}); open {page}");
         }
     }
     server.wait();

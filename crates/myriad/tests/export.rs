@@ -272,14 +272,7 @@ fn potree_opens_in_the_potree_viewer() {
     if !viewer.join("libs/potree/potree.js").is_file() {
         return skipped("../shared/peers/potree-viewer not found");
     }
-    let chromium = ["chromium", "chromium-browser"].into_iter().find(|c| {
-        Command::new(c)
-            .arg("--version")
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    });
+    let chromium = myriad_serve::browser::find();
     let Some(chromium) = chromium else {
         return skipped("no Chromium (apt-get install chromium; .ci/run installs it)");
     };

@@ -3,44 +3,9 @@
 //! a clear error, and a scan opened directly by `render` and `serve` (converted once, kept).
 
 mod common;
-use common::{myriad, s, tempdir};
-use std::io::{BufRead, BufReader, Read, Write};
-use std::process::{Child, Command, Stdio};
-
-/// `myriad serve` on a free port; its base URL. Killed when dropped.
-struct Serving {
-    child: Child,
-    base: String,
-}
-
-impl Drop for Serving {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn serve(args: &[&str]) -> Serving {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
-        .arg("serve")
-        .args(args)
-        .args(["--bind", "127.0.0.1:0"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let first = lines.next().expect("serve prints its address").unwrap();
-    let base = first
-        .split(" on ")
-        .nth(1)
-        .expect("serving N files on URL")
-        .trim_end_matches('/')
-        .to_string();
-    // Keep reading its output so that it never blocks on a full pipe.
-    std::thread::spawn(move || for _ in lines {});
-    Serving { child, base }
-}
+use common::{myriad, s, serve, tempdir};
+use std::io::{Read, Write};
+use std::process::Stdio;
 
 fn pixels(path: &std::path::Path) -> Vec<u8> {
     let d = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
@@ -62,7 +27,7 @@ fn datasets_over_http_and_scans_opened_directly() {
     assert_eq!(r.code, 0, "{}", r.stderr);
 
     // The scan given to serve is converted once and served as scan.myr.
-    let server = serve(&[s(&site), s(&scan)]);
+    let server = serve(&[s(&site), s(&scan)], Stdio::inherit());
     let url = format!("{}/d/site.myr", server.base);
     let r = myriad(&["info", "--json", &url]);
     assert_eq!(r.code, 0, "{}", r.stderr);

@@ -1,8 +1,9 @@
 //! Helpers shared by the tests that run the `myriad` binary.
 #![allow(dead_code)]
 
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Stdio};
 
 pub struct Run {
     pub code: i32,
@@ -48,4 +49,40 @@ pub fn synth(dir: &Path, name: &str, points: u64) -> PathBuf {
     ]);
     assert_eq!(r.code, 0, "synth failed: {}", r.stderr);
     p
+}
+
+/// `myriad serve` on a free port; its base URL. Killed when dropped.
+pub struct Serving {
+    child: Child,
+    pub base: String,
+}
+
+impl Drop for Serving {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `myriad serve ARGS --bind 127.0.0.1:0`, its stderr going to `stderr`.
+pub fn serve(args: &[&str], stderr: Stdio) -> Serving {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
+        .arg("serve")
+        .args(args)
+        .args(["--bind", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let first = lines.next().expect("serve prints its address").unwrap();
+    let base = first
+        .split(" on ")
+        .nth(1)
+        .expect("serving N files on URL")
+        .trim_end_matches('/')
+        .to_string();
+    // Keep reading its output so that it never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines {});
+    Serving { child, base }
 }

@@ -1,6 +1,6 @@
 //! Colour schemes: what a point's colour shows.
 
-use myriad_core::PointBatch;
+use crate::PointBatch;
 
 /// What a point's colour shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -153,7 +153,7 @@ pub fn colours(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use myriad_core::{Attribute, Schema};
+    use crate::{Attribute, Schema};
 
     #[test]
     fn colour_schemes() {

@@ -1,0 +1,280 @@
+//! Writing a dataset (native builds only: the web viewer reads).
+
+use crate::hierarchy::{self, ChildPage, HierarchyPage, NodeEntry, PageRef};
+use crate::metadata::{Level, Metadata};
+use crate::page::{self, Quantization};
+use crate::{Dataset, HEADER_LEN, Header, splat};
+use myriad_core::{Aabb, Error, NodeKey, Obb, PointBatch, Result};
+use myriad_io::atomic::AtomicFile;
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// A node's stored outline: bounds for nodes that are not their key's octree cell, a contour
+/// where the structure has one.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NodeShape {
+    pub bounds: Option<Aabb>,
+    pub contour: Option<Obb>,
+}
+
+/// Writes a dataset: node pages appended by any thread as they are built, then
+/// [`DatasetWriter::finish`] writes the hierarchy pages, the metadata and the header, and moves
+/// the file to its name. Until then the file has a zeroed header, under a temporary name.
+pub struct DatasetWriter {
+    out: Mutex<Out>,
+    file: AtomicFile,
+    path: PathBuf,
+    quant: Quantization,
+    entries: Mutex<Vec<NodeEntry>>,
+    splats: Mutex<HashMap<NodeKey, splat::SplatInfo>>,
+}
+
+struct Out {
+    w: BufWriter<File>,
+    pos: u64,
+}
+
+impl DatasetWriter {
+    pub fn create(path: &Path, force: bool, quant: Quantization) -> Result<DatasetWriter> {
+        let file = AtomicFile::create(path, force)?;
+        let mut w = BufWriter::with_capacity(1 << 20, file.open_write()?);
+        w.write_all(&[0u8; HEADER_LEN])
+            .map_err(|e| Error::io(path, e))?;
+        Ok(DatasetWriter {
+            out: Mutex::new(Out {
+                w,
+                pos: HEADER_LEN as u64,
+            }),
+            file,
+            path: path.to_path_buf(),
+            quant,
+            entries: Mutex::new(Vec::new()),
+            splats: Mutex::new(HashMap::new()),
+        })
+    }
+
+    pub fn quantization(&self) -> &Quantization {
+        &self.quant
+    }
+
+    /// Compresses and appends one node (on the calling thread; only the append is serialized).
+    /// `prefix` and `spacing` are the node's levels of detail. Returns the page's bytes.
+    pub fn write_node(
+        &self,
+        key: NodeKey,
+        batch: &PointBatch,
+        prefix: &[u64],
+        spacing: &[f64],
+        shape: NodeShape,
+    ) -> Result<u64> {
+        if batch.len() > u32::MAX as usize {
+            return Err(Error::Invalid(format!(
+                "node {key} holds {} points; a node holds at most 2^32 - 1",
+                batch.len()
+            )));
+        }
+        let bytes = if batch.is_empty() {
+            Vec::new()
+        } else {
+            page::encode(batch, &self.quant)
+        };
+        let (offset, crc) = self.append(&bytes)?;
+        let mut entry = NodeEntry::new(
+            key,
+            PageRef {
+                offset: if bytes.is_empty() { 0 } else { offset },
+                length: bytes.len() as u32,
+                crc,
+            },
+            batch.len() as u32,
+            prefix.iter().map(|&p| p as u32).collect(),
+            spacing.to_vec(),
+        );
+        entry.bounds = shape.bounds;
+        entry.contour = shape.contour;
+        self.entries.lock().expect("entries lock").push(entry);
+        Ok(bytes.len() as u64)
+    }
+
+    /// Adds an entry as given, its page written elsewhere or nowhere: for fixtures that
+    /// measure a hierarchy alone (`myriad bench open --fixture`); a reader reports a node whose
+    /// page is not in the file as damaged.
+    pub fn write_entry(&self, entry: NodeEntry) {
+        self.entries.lock().expect("entries lock").push(entry);
+    }
+
+    /// Appends a page (only the append is serialized); its offset and CRC-32.
+    fn append(&self, bytes: &[u8]) -> Result<(u64, u32)> {
+        let crc = crc32fast::hash(bytes);
+        let mut out = self.out.lock().expect("writer lock");
+        let at = out.pos;
+        out.w
+            .write_all(bytes)
+            .map_err(|e| Error::io(&self.path, e))?;
+        out.pos += bytes.len() as u64;
+        Ok((at, crc))
+    }
+
+    /// Appends the splat page of node `key` (normals and radii of its points, `mwkd`), to be
+    /// joined to its entry. `aggregate`: its points are aggregates, not original points.
+    pub fn write_splats(
+        &self,
+        key: NodeKey,
+        s: &splat::Splats,
+        cone: [f32; 4],
+        aggregate: bool,
+    ) -> Result<u64> {
+        let (bytes, radius) = splat::encode(s);
+        let (offset, crc) = self.append(&bytes)?;
+        let info = splat::SplatInfo {
+            page: PageRef {
+                offset,
+                length: bytes.len() as u32,
+                crc,
+            },
+            radius,
+            cone,
+            aggregate,
+        };
+        self.splats.lock().expect("splats lock").insert(key, info);
+        Ok(bytes.len() as u64)
+    }
+
+    /// Original points (aggregates not counted), nodes and deepest level written so far.
+    pub fn totals(&self) -> (u64, u64, u32) {
+        let e = self.entries.lock().expect("entries lock");
+        let sp = self.splats.lock().expect("splats lock");
+        (
+            e.iter()
+                .filter(|n| !sp.get(&n.key).is_some_and(|s| s.aggregate))
+                .map(|n| n.points as u64)
+                .sum(),
+            e.len() as u64,
+            e.iter().map(|n| n.key.level).max().unwrap_or(0),
+        )
+    }
+
+    /// Bytes written so far.
+    pub fn position(&self) -> u64 {
+        self.out.lock().expect("writer lock").pos
+    }
+
+    /// Writes the hierarchy pages (children before parents), the metadata and the header, syncs,
+    /// and renames the file to its name. `meta.nodes` and `meta.depth` are set here. Returns the
+    /// file's size.
+    pub fn finish(self, mut meta: Metadata) -> Result<u64> {
+        let path = self.path.clone();
+        let io = |e| Error::io(&path, e);
+        let mut entries = self.entries.into_inner().expect("entries lock");
+        let mut splats = self.splats.into_inner().expect("splats lock");
+        for e in &mut entries {
+            e.splats = splats.remove(&e.key);
+        }
+        let mut out = self.out.into_inner().expect("writer lock");
+        meta.nodes = entries.len() as u64;
+        meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
+        meta.points = entries
+            .iter()
+            .filter(|e| !e.aggregate())
+            .map(|e| e.points as u64)
+            .sum();
+        meta.levels = Level::table(&entries);
+        // Group entries by page; pages by their parent page.
+        let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
+        for e in entries {
+            pages
+                .entry(hierarchy::page_root(e.key))
+                .or_default()
+                .push(e);
+        }
+        let mut below: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
+        for &k in pages.keys() {
+            if k.level > 0 {
+                below
+                    .entry(hierarchy::page_root(k.parent()))
+                    .or_default()
+                    .push(k);
+            }
+        }
+        fn write_page(
+            key: NodeKey,
+            pages: &mut BTreeMap<NodeKey, Vec<NodeEntry>>,
+            below: &HashMap<NodeKey, Vec<NodeKey>>,
+            out: &mut Out,
+        ) -> std::io::Result<PageRef> {
+            let mut children = Vec::new();
+            for &c in below.get(&key).map(|v| v.as_slice()).unwrap_or(&[]) {
+                children.push(ChildPage {
+                    key: c,
+                    page: write_page(c, pages, below, out)?,
+                });
+            }
+            let mut nodes = pages.remove(&key).unwrap_or_default();
+            nodes.sort_by_key(|n| n.key);
+            let bytes = HierarchyPage { nodes, children }.encode();
+            let r = PageRef {
+                offset: out.pos,
+                length: bytes.len() as u32,
+                crc: crc32fast::hash(&bytes),
+            };
+            out.w.write_all(&bytes)?;
+            out.pos += bytes.len() as u64;
+            Ok(r)
+        }
+        let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, &mut out).map_err(io)?;
+        meta.check_finite().map_err(|m| {
+            Error::Invalid(format!(
+                "{}: metadata: {m}; no dataset written",
+                path.display()
+            ))
+        })?;
+        let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
+        let metadata = PageRef {
+            offset: out.pos,
+            length: json.len() as u32,
+            crc: crc32fast::hash(&json),
+        };
+        out.w.write_all(&json).map_err(io)?;
+        out.pos += json.len() as u64;
+        let header = Header {
+            metadata,
+            hierarchy,
+            file_length: out.pos,
+            points: meta.points,
+        };
+        // Everything else is on disk before the header that makes the file a dataset.
+        out.w.flush().map_err(io)?;
+        let mut f = out.w.into_inner().map_err(|e| io(e.into_error()))?;
+        f.sync_data().map_err(io)?;
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        f.write_all(&header.encode()).map_err(io)?;
+        f.sync_all().map_err(io)?;
+        drop(f);
+        // What is renamed into place opens, with this metadata and every hierarchy page intact.
+        let reopened = Dataset::open(self.file.temp_path()).and_then(|ds| {
+            if ds.meta != meta {
+                return Err(Error::Invalid(
+                    "its metadata differs from what was written".into(),
+                ));
+            }
+            match ds.nodes() {
+                (nodes, damage) if damage.is_empty() && nodes.len() as u64 == meta.nodes => Ok(()),
+                (_, damage) => Err(match damage.first() {
+                    Some(d) => ds.damage_error(d),
+                    None => Error::Invalid("its hierarchy lacks nodes".into()),
+                }),
+            }
+        });
+        if let Err(e) = reopened {
+            return Err(Error::Invalid(format!(
+                "{}: the dataset written does not open again ({e}); no dataset written",
+                path.display()
+            )));
+        }
+        self.file.commit()?;
+        Ok(header.file_length)
+    }
+}

@@ -1,0 +1,563 @@
+// The web viewer (issue 16): a Myriad dataset served by `myriad serve`, read by range requests,
+// selected and decoded in workers by the same Rust as `myriad render` (myriad_web.wasm), drawn
+// with WebGL2: adaptive point sizes (the drawn nodes' tree, as draw.wgsl walks it), eye-dome
+// lighting (as edl.wgsl), positions relative to each node (no jitter at UTM or ECEF sizes).
+// Orbit (left drag), pan (right drag or shift), zoom (wheel), double-click to centre; click a
+// point for its attributes, measure distances, clip to a box and download its points as LAZ,
+// share the camera as a link. `window.myriad` exposes the state to scripts (tests).
+"use strict";
+
+const SCHEMES = ["rgb", "intensity", "elevation", "classification", "return", "source", "level", "uniform"];
+const ADAPTIVE_SCALE = 1.5; // myriad_render::PointSize::ADAPTIVE_SCALE
+const MAX_SIZE = 32;
+const EDL_RADIUS = 1.4;
+const EDL_STRENGTH = 1.0;
+
+const state = {
+  dataset: null, info: null, converged: false, points: 0, nodes: 0, loaded: 0, errors: [],
+  requests: 0, bytes: 0, firstImageMs: null, convergedMs: null, selections: 0, frames: 0,
+  pagesMissing: 0, picked: null, measure: [],
+};
+// Times are from the navigation's start (performance.now()'s origin), as for any page.
+const started = 0;
+
+// ---- small vector helpers (f64: JavaScript numbers) ----
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+const mul = (a, k) => [a[0] * k, a[1] * k, a[2] * k];
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const norm = (a) => { const l = Math.sqrt(dot(a, a)); return l > 0 ? mul(a, 1 / l) : a; };
+
+// The camera's frame as myriad_lod::Camera::basis.
+function basis(c) {
+  const f = norm(sub(c.target, c.position));
+  let r = cross(f, c.up);
+  if (dot(r, r) < 1e-24) r = cross(f, Math.abs(f[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0]);
+  r = norm(r);
+  return [r, cross(r, f), f];
+}
+
+// Near and far around the dataset's bounds (Camera::fit_depth), for the depth buffer.
+function fitDepth(c, b) {
+  const [, , f] = basis(c);
+  let near = Infinity, far = -Infinity;
+  for (let i = 0; i < 8; i++) {
+    const p = [b[i & 1 ? 3 : 0], b[i & 2 ? 4 : 1], b[i & 4 ? 5 : 2]];
+    const d = dot(sub(p, c.position), f);
+    near = Math.min(near, d); far = Math.max(far, d);
+  }
+  far = Math.max(far, 1e-3) * 1.01;
+  return [Math.max(near * 0.99, far * 1e-4), far];
+}
+
+// View-projection for positions relative to `origin` (column-major), computed in f64 and only
+// then rounded to f32: Camera::view_proj, clip depth from 0 (WebGPU) or -1 (WebGL) to 1.
+function viewProj(c, origin, width, height, zeroToOne) {
+  const [r, u, f] = basis(c);
+  const eye = sub(c.position, origin);
+  const fy = 1 / Math.tan((c.fov * Math.PI) / 360);
+  const fx = (fy * height) / width;
+  const [A, B] = zeroToOne ? [c.far / (c.far - c.near), (-c.far * c.near) / (c.far - c.near)]
+    : [(c.far + c.near) / (c.far - c.near), (-2 * c.far * c.near) / (c.far - c.near)];
+  const rows = [
+    [fx * r[0], fx * r[1], fx * r[2], -fx * dot(r, eye)],
+    [fy * u[0], fy * u[1], fy * u[2], -fy * dot(u, eye)],
+    [A * f[0], A * f[1], A * f[2], -A * dot(f, eye) + B],
+    [f[0], f[1], f[2], -dot(f, eye)],
+  ];
+  const m = new Float32Array(16);
+  for (let col = 0; col < 4; col++) for (let row = 0; row < 4; row++) m[col * 4 + row] = rows[row][col];
+  return m;
+}
+
+let canvas = document.getElementById("view");
+let renderer = null;
+
+// ---- view state ----
+const params = new URLSearchParams(location.hash.slice(1));
+const settings = {
+  budget: Number(params.get("budget")) || 2000000,
+  minPixels: Number(params.get("threshold")) || 1,
+  scheme: Math.max(0, SCHEMES.indexOf(params.get("color") || "rgb")),
+  edl: params.get("edl") !== "0",
+  pointSize: Number(params.get("size")) || 0, // 0: adaptive
+  renderer: params.get("renderer"), // webgl2 or webgpu; default: WebGPU where it works
+  clip: null, // {box: [6], inside: bool}
+};
+let camera = null;
+const nodes = new Map(); // key string -> {key, origin, count, buffer vao, positions, spacing, tree}
+let selection = null; // the last answer
+let selectionCamera = null;
+let drawnAtSelection = "";
+let dirty = true;
+
+function keyString(k) { return k.join("-"); }
+
+function cameraLink() {
+  const c = camera;
+  const v = [...c.position, ...c.target].map((x) => +x.toFixed(4)).join(",");
+  const p = new URLSearchParams();
+  p.set("camera", v);
+  if (c.up[2] !== 1) p.set("up", c.up.join(","));
+  if (settings.budget !== 2000000) p.set("budget", settings.budget);
+  if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
+  if (settings.clip) p.set("clip", settings.clip.box.join(",") + (settings.clip.inside ? "" : ",outside"));
+  return `${location.origin}${location.pathname}#${p.toString().replace(/%2C/g, ",")}`;
+}
+
+// ---- workers ----
+let selector = null;
+const decoders = [];
+let nextId = 1;
+const pending = new Map();
+function call(worker, msg, transfer) {
+  const id = nextId++;
+  msg.id = id;
+  return new Promise((resolve, reject) => {
+    pending.set(id, { resolve, reject, worker });
+    worker.postMessage(msg, transfer || []);
+  });
+}
+const workerStats = new Map();
+function onWorker(e) {
+  const m = e.data;
+  if (m.stats) {
+    workerStats.set(e.target, { ...m.stats });
+    state.requests = 0; state.bytes = 0;
+    for (const s of workerStats.values()) { state.requests += s.requests; state.bytes += s.bytes; }
+  }
+  const p = pending.get(m.id);
+  if (!p) return;
+  pending.delete(m.id);
+  if (m.error) p.reject(new Error(m.error)); else p.resolve(m);
+}
+
+function error(msg) {
+  if (!state.errors.includes(msg)) state.errors.push(msg);
+  document.getElementById("errors").textContent = state.errors.join("\n");
+}
+
+async function open() {
+  const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ""));
+  const url = `/d/${encodeURIComponent(name)}`;
+  state.dataset = name;
+  document.title = `${name}: Myriad`;
+  const head = await fetch(url, { method: "HEAD" });
+  if (!head.ok) throw new Error(`${url}: HTTP ${head.status}`);
+  const length = Number(head.headers.get("content-length"));
+  const module = await WebAssembly.compileStreaming(fetch("/viewer/myriad_web.wasm"));
+  selector = new Worker("/viewer/worker.js");
+  selector.onmessage = onWorker;
+  const opened = call(selector, { type: "init", role: "select", module, url, name, length });
+  const count = Math.min(4, Math.max(2, navigator.hardwareConcurrency || 2));
+  const ready = [];
+  for (let i = 0; i < count; i++) {
+    const w = new Worker("/viewer/worker.js");
+    w.onmessage = onWorker;
+    w.busy = 0;
+    decoders.push(w);
+    ready.push(call(w, { type: "init", role: "decode", module, url, name, length }));
+  }
+  const info = (await opened).info;
+  if (info.error) throw new Error(info.error);
+  state.info = info;
+  const c = params.get("camera");
+  if (c) {
+    const v = c.split(",").map(Number);
+    const up = (params.get("up") || "0,0,1").split(",").map(Number);
+    camera = { position: v.slice(0, 3), target: v.slice(3, 6), up, fov: Number(params.get("fov")) || 60 };
+  } else {
+    const d = (await call(selector, { type: "camera", width: canvas.width, height: canvas.height, fov: 60 })).camera;
+    camera = { position: d.position, target: d.target, up: d.up, fov: d.fov };
+  }
+  const clip = params.get("clip");
+  if (clip) {
+    const v = clip.split(",");
+    settings.clip = { box: v.slice(0, 6).map(Number), inside: v[6] !== "outside" };
+  }
+  for (const r of await Promise.all(ready)) if (r.info && r.info.error) throw new Error(r.info.error);
+  ui();
+  requestSelection();
+}
+
+let selecting = false;
+let selectAgain = false;
+function requestSelection() {
+  if (selecting) { selectAgain = true; return; }
+  selecting = true;
+  selectAgain = false;
+  const c = { ...camera };
+  const clip = settings.clip;
+  const args = [...c.position, ...c.target, ...c.up, c.fov, canvas.width, canvas.height,
+    settings.budget, settings.minPixels, clip ? (clip.inside ? 1 : 2) : 0,
+    ...(clip ? clip.box : [0, 0, 0, 0, 0, 0])];
+  const drawn = [];
+  for (const n of nodes.values()) if (n.count !== undefined) drawn.push(...n.key);
+  const drawnKey = drawn.join(",");
+  call(selector, { type: "select", args, drawn }).then((m) => {
+    selecting = false;
+    state.selections += 1;
+    const s = m.selection;
+    if (s.error) { error(s.error); return; }
+    for (const e of s.errors) error(e);
+    selection = s;
+    selectionCamera = c;
+    drawnAtSelection = drawnKey;
+    state.pagesMissing = s.pages_missing;
+    renderer.tree(s.tree);
+    load();
+    dirty = true;
+    if (selectAgain || s.pages_missing > 0) requestSelection();
+  }, (e) => { selecting = false; error(String(e.message || e)); });
+}
+
+const LOADS_PER_DECODER = 2;
+function load() {
+  if (!selection) return;
+  const want = new Set();
+  for (const n of selection.nodes) {
+    const k = keyString(n.key);
+    want.add(k);
+    let node = nodes.get(k);
+    if (!node) {
+      node = { key: n.key, state: "wanted" };
+      nodes.set(k, node);
+    }
+    node.used = state.selections;
+    if (node.state !== "wanted") continue;
+    const w = decoders.reduce((a, b) => (b.busy < a.busy ? b : a));
+    if (w.busy >= LOADS_PER_DECODER) continue;
+    w.busy += 1;
+    node.state = "loading";
+    const origin = [n.cube[0], n.cube[1], n.cube[2]];
+    const vb = state.info.view_bounds;
+    call(w, { type: "decode", key: n.key, page: n.page, total: n.total, origin,
+      scheme: settings.scheme, z: [vb[2], vb[5]] }).then((m) => {
+      w.busy -= 1;
+      upload(node, origin, n.cube[3], m.positions, m.colours);
+      node.state = "loaded";
+      dirty = true;
+      requestSelection();
+    }, (e) => {
+      w.busy -= 1;
+      node.state = "failed";
+      error(String(e.message || e));
+      load();
+    });
+  }
+  evict(want);
+}
+
+function upload(node, origin, side, positions, colours) {
+  const handle = renderer.upload(positions, colours);
+  Object.assign(node, { handle, origin, side, positions, count: positions.length / 3 });
+}
+
+// Keeps at most three budgets' worth of points loaded: the least recently selected go first.
+function evict(want) {
+  let total = 0;
+  for (const n of nodes.values()) if (n.count) total += n.count;
+  if (total <= 3 * settings.budget) return;
+  const old = [...nodes.values()].filter((n) => n.count && !want.has(keyString(n.key)))
+    .sort((a, b) => a.used - b.used);
+  for (const n of old) {
+    if (total <= 2 * settings.budget) break;
+    renderer.release(n.handle);
+    total -= n.count;
+    nodes.delete(keyString(n.key));
+  }
+}
+
+function reload() {
+  for (const n of nodes.values()) {
+    if (n.handle) renderer.release(n.handle);
+  }
+  nodes.clear();
+  requestSelection();
+}
+
+// ---- drawing ----
+function draw() {
+  const w = canvas.width, h = canvas.height;
+  [camera.near, camera.far] = fitDepth(camera, state.info.bounds);
+  const draws = [];
+  let drawnPoints = 0, drawnNodes = 0, complete = true;
+  const c = settings.clip;
+  for (const s of selection ? selection.nodes : []) {
+    const n = nodes.get(keyString(s.key));
+    if (!n || !n.count) { if (!n || n.state !== "failed") complete = false; continue; }
+    const count = Math.min(s.points, n.count);
+    const o = n.origin;
+    draws.push({
+      handle: n.handle, count, vp: viewProj(camera, o, w, h, renderer.zeroToOne),
+      spacing: s.spacing * ADAPTIVE_SCALE, node: s.tree, side: n.side,
+      clipMin: c ? [c.box[0] - o[0], c.box[1] - o[1], c.box[2] - o[2], c.inside ? 1 : 2] : [0, 0, 0, 0],
+      clipMax: c ? [c.box[3] - o[0], c.box[4] - o[1], c.box[5] - o[2], 0] : [0, 0, 0, 0],
+    });
+    drawnPoints += count;
+    drawnNodes += 1;
+    n.drawnCount = count;
+  }
+  renderer.draw({
+    width: w, height: h, focal: h / (2 * Math.tan((camera.fov * Math.PI) / 360)),
+    near: camera.near, far: camera.far, maxSize: MAX_SIZE, fixedSize: settings.pointSize,
+    edl: settings.edl ? { radius: EDL_RADIUS, strength: EDL_STRENGTH } : null, draws,
+  });
+  state.frames += 1;
+  state.points = drawnPoints;
+  state.nodes = drawnNodes;
+  state.loaded = [...nodes.values()].filter((n) => n.count).length;
+  if (drawnNodes > 0 && state.firstImageMs === null) state.firstImageMs = performance.now() - started;
+  // Converged: the selection was made for this camera with every node drawn now, and each of
+  // its nodes is drawn (or failed), with no hierarchy page missing.
+  const drawnKey = [...nodes.values()].filter((n) => n.count !== undefined).map((n) => n.key.join(",")).join(",");
+  const converged = !!selection && complete && !selecting && state.pagesMissing === 0 &&
+    sameCamera(selectionCamera, camera) && drawnKey === drawnAtSelection;
+  if (converged && !state.converged) state.convergedMs = performance.now() - started;
+  state.converged = converged;
+  status();
+}
+
+function sameCamera(a, b) {
+  return !!a && !!b && ["position", "target", "up"].every((k) => a[k].every((v, i) => v === b[k][i])) && a.fov === b.fov;
+}
+
+function frame() {
+  const w = Math.round(canvas.clientWidth * (window.devicePixelRatio || 1));
+  const h = Math.round(canvas.clientHeight * (window.devicePixelRatio || 1));
+  if (w !== canvas.width || h !== canvas.height) {
+    canvas.width = w; canvas.height = h; dirty = true;
+    if (camera) requestSelection();
+  }
+  if (dirty && camera && state.info) {
+    dirty = false;
+    draw();
+  }
+  requestAnimationFrame(frame);
+}
+
+function cameraMoved() {
+  state.converged = false;
+  dirty = true;
+  requestSelection();
+  clearTimeout(cameraMoved.t);
+  cameraMoved.t = setTimeout(() => history.replaceState(null, "", cameraLink()), 300);
+}
+
+// ---- picking (on the CPU, over the points drawn) ----
+function pickAt(x, y, radius) {
+  const w = canvas.width, h = canvas.height;
+  let best = null;
+  if (!selection) return null;
+  for (const s of selection.nodes) {
+    const n = nodes.get(keyString(s.key));
+    if (!n || !n.count) continue;
+    const m = viewProj(camera, n.origin, w, h);
+    const p = n.positions;
+    const c = settings.clip;
+    for (let i = 0; i < (n.drawnCount || 0); i++) {
+      const px = p[3 * i], py = p[3 * i + 1], pz = p[3 * i + 2];
+      const cw = m[3] * px + m[7] * py + m[11] * pz + m[15];
+      if (cw <= 0) continue;
+      const sx = ((m[0] * px + m[4] * py + m[8] * pz + m[12]) / cw * 0.5 + 0.5) * w;
+      const sy = (0.5 - (m[1] * px + m[5] * py + m[9] * pz + m[13]) / cw * 0.5) * h;
+      const d2 = (sx - x) ** 2 + (sy - y) ** 2;
+      if (d2 > radius * radius) continue;
+      if (c) {
+        const q = [px + n.origin[0], py + n.origin[1], pz + n.origin[2]];
+        const inside = q.every((v, a) => v >= c.box[a] && v <= c.box[a + 3]);
+        if (inside !== c.inside) continue;
+      }
+      if (!best || cw < best.depth - 1e-9 || (Math.abs(cw - best.depth) <= 1e-9 && d2 < best.d2)) {
+        best = { node: n, sel: s, index: i, depth: cw, d2,
+          position: [px + n.origin[0], py + n.origin[1], pz + n.origin[2]] };
+      }
+    }
+  }
+  return best;
+}
+
+// The attributes of the point drawn nearest the eye within `radius` pixels of (x, y) (CSS
+// pixels from the canvas's top left), read from its node's page.
+async function pick(x, y, radius = 6) {
+  const k = window.devicePixelRatio || 1;
+  const hit = pickAt(x * k, y * k, radius * k);
+  if (!hit) return null;
+  const w = decoders.reduce((a, b) => (b.busy < a.busy ? b : a));
+  const m = await call(w, { type: "point", key: hit.sel.key, page: hit.sel.page, total: hit.sel.total,
+    origin: hit.node.origin, index: hit.index });
+  const p = { node: hit.sel.key.join("-"), index: hit.index, ...m.point };
+  state.picked = p;
+  document.getElementById("picked").textContent = Object.entries(p)
+    .map(([k, v]) => `${k}: ${Array.isArray(v) ? v.join(", ") : v}`).join("\n");
+  return p;
+}
+
+// ---- interface ----
+function status() {
+  const s = document.getElementById("status");
+  s.textContent = `${state.points.toLocaleString()} points in ${state.nodes} nodes` +
+    (state.converged ? "" : " (loading)") +
+    ` | ${state.requests} range requests, ${(state.bytes / 1e6).toFixed(1)} MB`;
+}
+
+function measureText() {
+  const m = state.measure;
+  let total = 0;
+  for (let i = 1; i < m.length; i++) total += Math.sqrt(dot(sub(m[i].position, m[i - 1].position), sub(m[i].position, m[i - 1].position)));
+  state.distance = total;
+  document.getElementById("measured").textContent = m.length < 2 ? (m.length ? "1 point: click another" : "") :
+    `${m.length} points, ${total.toFixed(3)} units`;
+}
+
+function ui() {
+  const i = state.info;
+  document.getElementById("name").textContent = `${state.dataset}: ${i.points.toLocaleString()} points`;
+  const scheme = document.getElementById("scheme");
+  for (const s of SCHEMES) scheme.add(new Option(s, s));
+  scheme.value = SCHEMES[settings.scheme];
+  scheme.onchange = () => { settings.scheme = SCHEMES.indexOf(scheme.value); reload(); };
+  const edlBox = document.getElementById("edl");
+  edlBox.checked = settings.edl;
+  edlBox.onchange = () => { settings.edl = edlBox.checked; dirty = true; };
+  const budget = document.getElementById("budget");
+  budget.value = settings.budget;
+  budget.onchange = () => { settings.budget = Math.max(1000, Number(budget.value) || 2000000); cameraMoved(); };
+  document.getElementById("share").onclick = () => {
+    const l = cameraLink();
+    document.getElementById("link").value = l;
+    if (navigator.clipboard) navigator.clipboard.writeText(l).catch(() => {});
+  };
+  const measure = document.getElementById("measure");
+  measure.onclick = () => { mode = mode === "measure" ? "pick" : "measure"; measure.classList.toggle("on", mode === "measure"); state.measure = []; measureText(); };
+  const clipOn = document.getElementById("clip");
+  const inputs = [...document.querySelectorAll("#clipbox input[type=number]")];
+  const inside = document.getElementById("inside");
+  const download = document.getElementById("download");
+  const apply = () => {
+    if (!clipOn.checked) { settings.clip = null; download.removeAttribute("href"); }
+    else {
+      const box = inputs.map((e) => Number(e.value));
+      settings.clip = { box, inside: inside.checked };
+      download.href = `/x/${encodeURIComponent(state.dataset)}?box=${box.join(",")}`;
+    }
+    document.getElementById("clipbox").classList.toggle("on", clipOn.checked);
+    cameraMoved();
+  };
+  const vb = i.view_bounds;
+  const c = settings.clip ? settings.clip.box : [0, 1, 2].map((a) => vb[a] + (vb[a + 3] - vb[a]) * 0.25)
+    .concat([0, 1, 2].map((a) => vb[a] + (vb[a + 3] - vb[a]) * 0.75));
+  inputs.forEach((e, k) => { e.value = +c[k].toFixed(3); e.onchange = apply; });
+  clipOn.checked = !!settings.clip;
+  inside.checked = settings.clip ? settings.clip.inside : true;
+  clipOn.onchange = apply;
+  inside.onchange = apply;
+  if (settings.clip) apply();
+  navigation();
+}
+
+let mode = "pick";
+function navigation() {
+  let drag = null;
+  canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  canvas.addEventListener("pointerdown", (e) => {
+    drag = { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey, moved: false };
+    canvas.setPointerCapture(e.pointerId);
+  });
+  canvas.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
+    if (Math.abs(dx) + Math.abs(dy) < 2 && !drag.moved) return;
+    drag.moved = true;
+    drag.x = e.clientX; drag.y = e.clientY;
+    if (drag.button === 2 || drag.shift) pan(dx, dy); else orbit(dx, dy);
+  });
+  canvas.addEventListener("pointerup", async (e) => {
+    const d = drag;
+    drag = null;
+    if (!d || d.moved || d.button !== 0) return;
+    const r = canvas.getBoundingClientRect();
+    try {
+      const p = await pick(e.clientX - r.left, e.clientY - r.top);
+      if (p && mode === "measure") { state.measure.push({ position: [p.x, p.y, p.z] }); measureText(); }
+    } catch (err) {
+      error(String(err.message || err));
+    }
+  });
+  canvas.addEventListener("dblclick", (e) => {
+    const r = canvas.getBoundingClientRect();
+    const k = window.devicePixelRatio || 1;
+    const hit = pickAt((e.clientX - r.left) * k, (e.clientY - r.top) * k, 8 * k);
+    if (!hit) return;
+    const move = sub(hit.position, camera.target);
+    camera.target = hit.position;
+    camera.position = add(camera.position, move);
+    cameraMoved();
+  });
+  canvas.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    const k = Math.exp(Math.sign(e.deltaY) * 0.15);
+    camera.position = add(camera.target, mul(sub(camera.position, camera.target), k));
+    cameraMoved();
+  }, { passive: false });
+}
+
+function orbit(dx, dy) {
+  const v = sub(camera.position, camera.target);
+  const up = norm(camera.up);
+  const yaw = -dx * 0.005, pitch = -dy * 0.005;
+  const rot = (p, axis, a) => {
+    const c = Math.cos(a), s = Math.sin(a);
+    return add(add(mul(p, c), mul(cross(axis, p), s)), mul(axis, dot(axis, p) * (1 - c)));
+  };
+  let w = rot(v, up, yaw);
+  const right = norm(cross(w, up));
+  const t = rot(w, right, pitch);
+  // Never over the pole.
+  if (Math.abs(dot(norm(t), up)) < 0.995) w = t;
+  camera.position = add(camera.target, w);
+  cameraMoved();
+}
+
+function pan(dx, dy) {
+  const [r, u] = basis(camera);
+  const d = Math.sqrt(dot(sub(camera.position, camera.target), sub(camera.position, camera.target)));
+  const k = (2 * d * Math.tan((camera.fov * Math.PI) / 360)) / canvas.clientHeight;
+  const move = add(mul(r, -dx * k), mul(u, dy * k));
+  camera.position = add(camera.position, move);
+  camera.target = add(camera.target, move);
+  cameraMoved();
+}
+
+window.myriad = {
+  state,
+  pick,
+  link: () => cameraLink(),
+  camera: () => camera && { ...camera },
+  setCamera(c) { Object.assign(camera, c); cameraMoved(); },
+  selection: () => selection && selection.nodes.map((n) => ({ key: n.key, points: n.points })),
+  renderer: () => renderer && renderer.kind,
+};
+
+// WebGPU where the browser has it (and `#renderer=webgl2` does not say otherwise), else WebGL2.
+async function start() {
+  if (settings.renderer !== "webgl2" && typeof makeWebGPU === "function") {
+    try {
+      renderer = await makeWebGPU(canvas);
+    } catch (e) {
+      renderer = null;
+      if (settings.renderer === "webgpu") error(`WebGPU: ${e.message || e}`);
+      // A canvas keeps the kind of context it was first asked for: a fresh one for WebGL2.
+      const fresh = canvas.cloneNode();
+      canvas.replaceWith(fresh);
+      canvas = fresh;
+    }
+  }
+  if (!renderer) renderer = makeWebGL2(canvas);
+  if (!renderer) throw new Error("this browser has neither WebGPU nor WebGL2");
+  state.renderer = renderer.kind;
+  requestAnimationFrame(frame);
+  await open();
+}
+start().catch((e) => error(String(e.message || e)));

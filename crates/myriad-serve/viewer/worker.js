@@ -1,0 +1,149 @@
+// The web viewer's workers: one selects (myriad-lod's selection in WebAssembly, reading the
+// hierarchy pages it needs by synchronous range requests, which workers may make), the others
+// fetch node pages by range requests and decode them (myriad-format's decoder, same module).
+"use strict";
+
+let wasm = null;
+let url = null;
+let failure = "";
+const stats = { requests: 0, bytes: 0 };
+
+function memory(ptr, len) {
+  return new Uint8Array(wasm.exports.memory.buffer, ptr, len);
+}
+
+// The import the module reads the dataset through: one synchronous range request.
+function myr_read(offset, len, dst) {
+  const x = new XMLHttpRequest();
+  x.open("GET", url, false);
+  x.responseType = "arraybuffer";
+  x.setRequestHeader("Range", `bytes=${offset}-${offset + len - 1}`);
+  try {
+    x.send();
+  } catch (e) {
+    failure = `${url}: ${e}`;
+    return 1;
+  }
+  stats.requests += 1;
+  if (x.status !== 206 || !x.response || x.response.byteLength !== len) {
+    failure = `${url}: asked for ${len} bytes at ${offset}, got HTTP ${x.status}` +
+      (x.status === 200 ? " (the server ignores Range)" : "");
+    return 1;
+  }
+  stats.bytes += len;
+  memory(dst, len).set(new Uint8Array(x.response));
+  return 0;
+}
+
+function text(len) {
+  return new TextDecoder().decode(memory(wasm.exports.myr_out(), len).slice());
+}
+
+function json(len) {
+  const v = JSON.parse(text(len));
+  if (v && v.error && failure) v.error += ` (${failure})`;
+  failure = "";
+  return v;
+}
+
+// Copies bytes into the module's memory; the caller frees them.
+function put(bytes) {
+  const p = wasm.exports.myr_alloc(bytes.byteLength);
+  memory(p, bytes.byteLength).set(new Uint8Array(bytes.buffer || bytes, bytes.byteOffset || 0, bytes.byteLength));
+  return p;
+}
+
+function withArgs(values, f) {
+  const a = new Float64Array(values);
+  const p = put(new Uint8Array(a.buffer));
+  try {
+    return f(p);
+  } finally {
+    wasm.exports.myr_free(p, a.byteLength);
+  }
+}
+
+function withName(name, f) {
+  const b = new TextEncoder().encode(name);
+  const p = put(b);
+  try {
+    return f(p, b.byteLength);
+  } finally {
+    wasm.exports.myr_free(p, b.byteLength);
+  }
+}
+
+async function fetchPage(page) {
+  const [offset, length] = page;
+  const r = await fetch(url, { headers: { Range: `bytes=${offset}-${offset + length - 1}` } });
+  stats.requests += 1;
+  if (r.status !== 206) throw new Error(`${url}: HTTP ${r.status} for a range request`);
+  const b = new Uint8Array(await r.arrayBuffer());
+  stats.bytes += b.byteLength;
+  return b;
+}
+
+function nodeArgs(m) {
+  return [m.key[0], m.key[1], m.key[2], m.key[3], m.page[0], m.page[1], m.page[2], m.total,
+    m.origin[0], m.origin[1], m.origin[2]];
+}
+
+async function decode(m) {
+  const page = await fetchPage(m.page);
+  const p = put(page);
+  try {
+    const n = withArgs(nodeArgs(m), (a) =>
+      wasm.exports.myr_decode(p, page.byteLength, a, m.scheme, m.z[0], m.z[1]));
+    const out = memory(wasm.exports.myr_out(), n).slice();
+    const count = new DataView(out.buffer).getUint32(0, true);
+    if (count === 0xffffffff) throw new Error(new TextDecoder().decode(out.subarray(4)));
+    const positions = new Float32Array(out.buffer.slice(4, 4 + count * 12));
+    const colours = new Uint8Array(out.buffer.slice(4 + count * 12, 4 + count * 16));
+    return { positions, colours };
+  } finally {
+    wasm.exports.myr_free(p, page.byteLength);
+  }
+}
+
+async function point(m) {
+  const page = await fetchPage(m.page);
+  const p = put(page);
+  try {
+    return json(withArgs(nodeArgs(m), (a) => wasm.exports.myr_point(p, page.byteLength, a, m.index)));
+  } finally {
+    wasm.exports.myr_free(p, page.byteLength);
+  }
+}
+
+onmessage = async (e) => {
+  const m = e.data;
+  try {
+    if (m.type === "init") {
+      url = m.url;
+      wasm = await WebAssembly.instantiate(m.module, { env: { myr_read } });
+      const open = m.role === "select" ? wasm.exports.myr_open : wasm.exports.myr_open_pages;
+      const info = withName(m.name, (p, n) => json(open(m.length, p, n)));
+      postMessage({ id: m.id, info, stats });
+    } else if (m.type === "camera") {
+      postMessage({ id: m.id, camera: json(wasm.exports.myr_camera(m.width, m.height, m.fov)) });
+    } else if (m.type === "select") {
+      const drawn = new Uint32Array(m.drawn);
+      const d = put(new Uint8Array(drawn.buffer));
+      let answer;
+      try {
+        answer = withArgs(m.args, (a) => json(wasm.exports.myr_select(a, m.args.length, d, drawn.length / 4)));
+      } finally {
+        wasm.exports.myr_free(d, drawn.byteLength);
+      }
+      postMessage({ id: m.id, selection: answer, stats });
+    } else if (m.type === "decode") {
+      const d = await decode(m);
+      postMessage({ id: m.id, positions: d.positions, colours: d.colours, stats },
+        [d.positions.buffer, d.colours.buffer]);
+    } else if (m.type === "point") {
+      postMessage({ id: m.id, point: await point(m), stats });
+    }
+  } catch (err) {
+    postMessage({ id: m.id, error: String(err && err.message || err), stats });
+  }
+};

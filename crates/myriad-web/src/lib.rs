@@ -1,0 +1,219 @@
+//! The web viewer's core (issue 16), compiled to WebAssembly (`build.sh`): the same reader
+//! (`myriad-format`), selection (`myriad-lod`) and colour schemes (`myriad_core::colour`) as the
+//! native renderer, so that the browser draws what `myriad render` draws for the same camera.
+//! The viewer's JavaScript (myriad-serve's `viewer/`) runs it in Web Workers: one selects (and
+//! reads the hierarchy pages it needs, by synchronous range requests, which workers may make),
+//! others decode node pages the worker fetched. [`wasm`] is the boundary: plain exported
+//! functions over linear memory, no bindings generator.
+//!
+//! Everything here also builds natively, where the tests run it.
+
+use myriad_core::colour::{ColorBy, colours};
+use myriad_core::{Aabb, NodeKey, PointBatch};
+use myriad_format::{ByteSource, Dataset, NodeEntry, PageRef};
+use myriad_lod::{Camera, Clip, DrawnTree, Hierarchy, SelectOptions, robust_bounds, select_where};
+use serde_json::{Value, json};
+use std::collections::HashSet;
+use std::path::Path;
+use std::sync::Arc;
+
+#[cfg(target_arch = "wasm32")]
+pub mod wasm;
+
+/// Hierarchy pages one selection call reads at most before it answers (the viewer asks again
+/// while pages are missing).
+pub const PAGES_PER_CALL: usize = 8;
+
+/// An open dataset, its known hierarchy and the bounds the default views frame.
+pub struct Viewer {
+    pub dataset: Dataset,
+    pub hierarchy: Hierarchy,
+    /// The root node's points without the outer 0.5 % on each axis (as `Scene::open`).
+    pub view_bounds: Aabb,
+}
+
+/// What the viewer asks a selection for: the camera, budget and threshold, a clipping box, and
+/// the nodes it has drawn (for the adaptive point sizes' tree).
+pub struct Ask {
+    pub camera: Camera,
+    pub options: SelectOptions,
+    pub clip: Option<Clip>,
+    pub drawn: HashSet<NodeKey>,
+}
+
+pub fn key_json(k: &NodeKey) -> Value {
+    json!([k.level, k.cell[0], k.cell[1], k.cell[2]])
+}
+
+fn aabb_json(b: &Aabb) -> Value {
+    json!([b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]])
+}
+
+impl Viewer {
+    /// Opens a dataset from `bytes` (reads the header, metadata, root hierarchy page and root
+    /// node, as the native scene does).
+    pub fn open(bytes: Arc<dyn ByteSource>, name: &str) -> myriad_core::Result<Viewer> {
+        let dataset = Dataset::from_source(bytes, Path::new(name))?;
+        let meta = &dataset.meta;
+        let hierarchy = match dataset.hierarchy_page(&dataset.root_page()) {
+            Ok(page) => Hierarchy::from_root_page(meta.root, page, meta.depth),
+            Err(d) => return Err(dataset.damage_error(&d)),
+        };
+        let mut view_bounds = meta.bounds;
+        if let Some(root) = hierarchy.get(&NodeKey::ROOT).filter(|n| n.points > 0) {
+            let b = dataset
+                .read_node(root)
+                .map_err(|d| dataset.damage_error(&d))?;
+            let sample = robust_bounds(&b.positions, 0.005);
+            if !sample.is_empty() {
+                view_bounds = sample;
+            }
+        }
+        Ok(Viewer {
+            dataset,
+            hierarchy,
+            view_bounds,
+        })
+    }
+
+    /// The dataset as the viewer shows it: counts, bounds, attributes.
+    pub fn info(&self) -> Value {
+        let m = &self.dataset.meta;
+        json!({
+            "name": self.dataset.path().display().to_string(),
+            "points": m.points,
+            "nodes": m.nodes,
+            "structure": m.structure,
+            "bounds": aabb_json(&m.bounds),
+            "root": aabb_json(&m.root),
+            "view_bounds": aabb_json(&self.view_bounds),
+            "attributes": m.schema.names(),
+            "crs": m.crs,
+        })
+    }
+
+    /// The camera `myriad render` starts from: the view bounds framed from above at 45
+    /// degrees, near and far around the whole dataset.
+    pub fn default_camera(&self, width: u32, height: u32, fov: f64) -> Camera {
+        let mut cam = Camera::framing(&self.view_bounds, width, height, fov);
+        cam.fit_depth(&self.dataset.meta.bounds);
+        cam
+    }
+
+    /// Selects the nodes to draw for `ask`, reading up to [`PAGES_PER_CALL`] missing hierarchy
+    /// pages first where the selection needs them; the answer lists each node with where its
+    /// page lies, the adaptive point sizes' tree over the drawn nodes, and what is still missing.
+    pub fn select(&mut self, ask: &Ask) -> Value {
+        let keep = |cube: &Aabb| Clip::keeps(ask.clip, cube);
+        let mut cam = ask.camera;
+        cam.fit_depth(&self.dataset.meta.bounds);
+        let mut read = 0;
+        let mut errors = Vec::new();
+        let selection = loop {
+            let s = select_where(&self.hierarchy, &cam, &ask.options, &keep);
+            if s.pages.is_empty() || read >= PAGES_PER_CALL {
+                break s;
+            }
+            let before = read;
+            for p in s.pages.iter().take(PAGES_PER_CALL - read) {
+                read += 1;
+                match self.dataset.hierarchy_page(p) {
+                    Ok(page) => {
+                        self.hierarchy.insert_page(p.key, page);
+                    }
+                    Err(d) => {
+                        errors.push(self.dataset.damage_error(&d).to_string());
+                        // Never asked for again: an empty page in its place.
+                        self.hierarchy.insert_page(p.key, Default::default());
+                    }
+                }
+            }
+            if read == before {
+                break s;
+            }
+        };
+        let tree = DrawnTree::new(&selection, |k| ask.drawn.contains(k));
+        let root = self.hierarchy.root;
+        let cells = self.hierarchy.cells();
+        let nodes: Vec<Value> = selection
+            .nodes
+            .iter()
+            .filter_map(|n| {
+                let e = self.hierarchy.get(&n.key)?;
+                let cube = n.key.bounds(&root);
+                Some(json!({
+                    "key": key_json(&n.key),
+                    "points": n.points,
+                    "total": e.points,
+                    "spacing": n.spacing,
+                    "page": [e.page.offset, e.page.length, e.page.crc],
+                    "cube": [cube.min[0], cube.min[1], cube.min[2], cube.size()[0]],
+                    "tree": if cells { tree.index.get(&n.key).map(|&i| i as i64).unwrap_or(-1) } else { -1 },
+                }))
+            })
+            .collect();
+        json!({
+            "nodes": nodes,
+            "points": selection.points,
+            "budget_reached": selection.budget_reached,
+            "pages_missing": selection.pages.len(),
+            "pages_read": read,
+            "pages": self.hierarchy.pages(),
+            "tree": tree.entries.iter().flatten().collect::<Vec<_>>(),
+            "near": cam.near,
+            "far": cam.far,
+            "focal": cam.focal(),
+            "errors": errors,
+        })
+    }
+}
+
+/// A node entry from what a selection answer says of it (enough to check and decode its page).
+pub fn entry(key: NodeKey, page: PageRef, points: u32) -> NodeEntry {
+    NodeEntry::new(key, page, points, vec![points], vec![0.0])
+}
+
+/// A decoded node for the GPU: positions relative to `origin` (f32: no jitter at UTM or ECEF
+/// magnitudes when the origin is the node's) and RGBA8 colours by `scheme`.
+pub struct Decoded {
+    pub positions: Vec<f32>,
+    pub colours: Vec<[u8; 4]>,
+}
+
+/// Checks and decodes the page of node `e` (bytes as fetched), coloured as `myriad render`
+/// colours it.
+pub fn decode(
+    ds: &Dataset,
+    e: &NodeEntry,
+    bytes: &[u8],
+    origin: [f64; 3],
+    scheme: ColorBy,
+    z_range: (f64, f64),
+) -> Result<Decoded, String> {
+    let b = ds
+        .decode_node(e, bytes, &ds.meta.schema)
+        .map_err(|d| ds.damage_error(&d).to_string())?;
+    let positions = b
+        .positions
+        .iter()
+        .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
+        .collect();
+    let colours = colours(&b, b.len(), scheme, z_range, e.key.level);
+    Ok(Decoded { positions, colours })
+}
+
+/// Every attribute of point `i` of a decoded node, world coordinates in full.
+pub fn point_json(b: &PointBatch, i: usize) -> Value {
+    let mut out = serde_json::Map::new();
+    for (a, v) in ["x", "y", "z"].iter().zip(b.positions[i]) {
+        out.insert(a.to_string(), json!(v));
+    }
+    for (a, v) in b.values(i) {
+        let v = match v.as_slice() {
+            [one] => json!(one),
+            many => json!(many),
+        };
+        out.insert(a.name(), v);
+    }
+    Value::Object(out)
+}

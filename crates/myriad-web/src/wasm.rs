@@ -1,0 +1,313 @@
+//! The boundary with the viewer's JavaScript: exported functions over linear memory. Answers
+//! (JSON, or binary for decoded nodes) are left in one buffer that [`myr_out`] points at until
+//! the next call; the JavaScript copies them out. Range reads go out through one import,
+//! `env.myr_read`, which the selection worker answers with a synchronous request.
+
+use crate::{Ask, Viewer, decode, entry, point_json};
+use myriad_core::NodeKey;
+use myriad_core::colour::ColorBy;
+use myriad_format::{ByteSource, Dataset, PageRef};
+use myriad_lod::{Camera, Clip, SelectOptions};
+use serde_json::{Value, json};
+use std::cell::RefCell;
+use std::path::Path;
+use std::sync::Arc;
+
+#[link(wasm_import_module = "env")]
+unsafe extern "C" {
+    /// Copies `len` bytes of the dataset at `offset` into memory at `dst`; 0 when it did.
+    fn myr_read(offset: f64, len: u32, dst: *mut u8) -> i32;
+}
+
+/// The dataset over the viewer's range requests.
+struct Remote {
+    len: u64,
+}
+
+impl ByteSource for Remote {
+    fn len(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+        let mut b = vec![0u8; len];
+        // SAFETY: `b` holds `len` writable bytes; the import writes at most that many.
+        match unsafe { myr_read(offset as f64, len as u32, b.as_mut_ptr()) } {
+            0 => Ok(b),
+            _ => Err(std::io::Error::other(format!(
+                "range request for {len} bytes at {offset} failed"
+            ))),
+        }
+    }
+}
+
+thread_local! {
+    static VIEWER: RefCell<Option<Viewer>> = const { RefCell::new(None) };
+    static DATASET: RefCell<Option<Dataset>> = const { RefCell::new(None) };
+    static OUT: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
+}
+
+fn answer(bytes: Vec<u8>) -> u32 {
+    let n = bytes.len() as u32;
+    OUT.with(|o| *o.borrow_mut() = bytes);
+    n
+}
+
+fn answer_json(v: Value) -> u32 {
+    answer(v.to_string().into_bytes())
+}
+
+fn error(m: impl std::fmt::Display) -> u32 {
+    answer_json(json!({ "error": m.to_string() }))
+}
+
+/// The last answer (its length was the call's result).
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_out() -> *const u8 {
+    OUT.with(|o| o.borrow().as_ptr())
+}
+
+/// `n` bytes for the JavaScript to write arguments into.
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_alloc(n: u32) -> *mut u8 {
+    let mut v = Vec::<u8>::with_capacity(n as usize);
+    let p = v.as_mut_ptr();
+    std::mem::forget(v);
+    p
+}
+
+/// Frees what [`myr_alloc`] gave.
+///
+/// # Safety
+/// `p` and `n` as [`myr_alloc`] gave and took them, freed once.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_free(p: *mut u8, n: u32) {
+    drop(unsafe { Vec::from_raw_parts(p, 0, n as usize) });
+}
+
+/// # Safety
+/// `p..p + n` is memory the JavaScript wrote (from [`myr_alloc`]).
+unsafe fn bytes<'a>(p: *const u8, n: u32) -> &'a [u8] {
+    if n == 0 {
+        return &[];
+    }
+    unsafe { std::slice::from_raw_parts(p, n as usize) }
+}
+
+fn name(p: *const u8, n: u32) -> String {
+    // SAFETY: as for `bytes`.
+    String::from_utf8_lossy(unsafe { bytes(p, n) }).into_owned()
+}
+
+/// Opens the dataset of `len` bytes for selecting (the selection worker): its information.
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
+    let source = Arc::new(Remote { len: len as u64 });
+    match Viewer::open(source, &name(name_ptr, name_len)) {
+        Ok(v) => {
+            let info = v.info();
+            VIEWER.with(|s| *s.borrow_mut() = Some(v));
+            answer_json(info)
+        }
+        Err(e) => error(e),
+    }
+}
+
+/// Opens the dataset of `len` bytes for decoding (header and metadata only: decode workers).
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_open_pages(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
+    let source = Arc::new(Remote { len: len as u64 });
+    match Dataset::from_source(source, Path::new(&name(name_ptr, name_len))) {
+        Ok(d) => {
+            DATASET.with(|s| *s.borrow_mut() = Some(d));
+            answer_json(json!({}))
+        }
+        Err(e) => error(e),
+    }
+}
+
+fn camera_json(c: &Camera) -> Value {
+    json!({
+        "position": c.position, "target": c.target, "up": c.up, "fov": c.fov_y,
+        "near": c.near, "far": c.far,
+    })
+}
+
+/// The camera `myriad render` starts from, for a `width` x `height` view.
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_camera(width: u32, height: u32, fov: f64) -> u32 {
+    VIEWER.with(|s| match &*s.borrow() {
+        Some(v) => answer_json(camera_json(&v.default_camera(width, height, fov))),
+        None => error("no dataset open"),
+    })
+}
+
+/// Selects for the camera and options in `args` (f64s: eye, target, up, fov, width, height,
+/// budget, threshold in pixels, clip mode (0 none, 1 inside, 2 outside), clip min, clip max)
+/// with the nodes drawn (`drawn`: level, x, y, z each) for the point sizes' tree.
+///
+/// # Safety
+/// `args` holds `nargs` f64s and `drawn` `ndrawn` u32s, both written by the JavaScript.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_select(
+    args: *const f64,
+    nargs: u32,
+    drawn: *const u32,
+    ndrawn: u32,
+) -> u32 {
+    if nargs < 21 {
+        return error("select: 21 arguments expected");
+    }
+    // SAFETY: the caller's promise.
+    let a = unsafe { std::slice::from_raw_parts(args, nargs as usize) };
+    let d = unsafe { bytes(drawn as *const u8, ndrawn * 16) };
+    let v3 = |i: usize| [a[i], a[i + 1], a[i + 2]];
+    let camera = Camera {
+        position: v3(0),
+        target: v3(3),
+        up: v3(6),
+        fov_y: a[9],
+        width: a[10] as u32,
+        height: a[11] as u32,
+        near: 1.0,
+        far: 2.0,
+    };
+    let clip = match a[14] as u32 {
+        0 => None,
+        mode => Some(Clip {
+            bounds: myriad_core::Aabb::new(v3(15), v3(18)),
+            inside: mode == 1,
+        }),
+    };
+    let drawn = d
+        .chunks_exact(16)
+        .map(|c| {
+            let u = |i: usize| u32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().unwrap());
+            NodeKey {
+                level: u(0),
+                cell: [u(1), u(2), u(3)],
+            }
+        })
+        .collect();
+    let ask = Ask {
+        camera,
+        options: SelectOptions {
+            budget: a[12] as u64,
+            min_pixels: a[13],
+        },
+        clip,
+        drawn,
+    };
+    VIEWER.with(|s| match &mut *s.borrow_mut() {
+        Some(v) => answer_json(v.select(&ask)),
+        None => error("no dataset open"),
+    })
+}
+
+/// Runs `f` on the open dataset: the decode worker's, else the selection worker's.
+fn with_dataset<R>(f: impl Fn(&Dataset) -> R) -> Option<R> {
+    DATASET
+        .with(|s| s.borrow().as_ref().map(&f))
+        .or_else(|| VIEWER.with(|s| s.borrow().as_ref().map(|v| f(&v.dataset))))
+}
+
+const SCHEMES: [&str; 8] = [
+    "rgb",
+    "intensity",
+    "elevation",
+    "classification",
+    "return",
+    "source",
+    "level",
+    "uniform",
+];
+
+/// Checks and decodes a node's page (`page`, as fetched; `key` level, x, y, z; where the page
+/// lies, its CRC and point count) into positions relative to `origin` and colours by scheme
+/// `scheme` (an index of [`SCHEMES`]) over the elevations `z_lo..z_hi`. The answer: the point
+/// count (u32, little-endian), then 3 f32 per point, then 4 bytes of colour per point; or
+/// 0xffffffff and an error message.
+///
+/// # Safety
+/// `page` holds `page_len` bytes and `args` 11 f64s (level, x, y, z, offset, length, crc,
+/// points, then the origin), written by the JavaScript.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_decode(
+    page: *const u8,
+    page_len: u32,
+    args: *const f64,
+    scheme: u32,
+    z_lo: f64,
+    z_hi: f64,
+) -> u32 {
+    // SAFETY: the caller's promise.
+    let (b, a) = unsafe { (bytes(page, page_len), std::slice::from_raw_parts(args, 11)) };
+    let e = node_entry(a);
+    let scheme = SCHEMES
+        .get(scheme as usize)
+        .and_then(|s| ColorBy::parse(s))
+        .unwrap_or(ColorBy::Rgb);
+    let r = with_dataset(|ds| decode(ds, &e, b, [a[8], a[9], a[10]], scheme, (z_lo, z_hi)));
+    match r {
+        Some(Ok(d)) => {
+            let n = d.colours.len();
+            let mut out = Vec::with_capacity(4 + n * 16);
+            out.extend_from_slice(&(n as u32).to_le_bytes());
+            for v in &d.positions {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend(d.colours.iter().flatten());
+            answer(out)
+        }
+        Some(Err(m)) => {
+            let mut out = u32::MAX.to_le_bytes().to_vec();
+            out.extend_from_slice(m.as_bytes());
+            answer(out)
+        }
+        None => {
+            let mut out = u32::MAX.to_le_bytes().to_vec();
+            out.extend_from_slice(b"no dataset open");
+            answer(out)
+        }
+    }
+}
+
+fn node_entry(a: &[f64]) -> myriad_format::NodeEntry {
+    let key = NodeKey {
+        level: a[0] as u32,
+        cell: [a[1] as u32, a[2] as u32, a[3] as u32],
+    };
+    let page = PageRef {
+        offset: a[4] as u64,
+        length: a[5] as u32,
+        crc: a[6] as u32,
+    };
+    entry(key, page, a[7] as u32)
+}
+
+/// Every attribute of point `index` of a node (its page and `args` as for [`myr_decode`]).
+///
+/// # Safety
+/// As for [`myr_decode`].
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_point(
+    page: *const u8,
+    page_len: u32,
+    args: *const f64,
+    index: u32,
+) -> u32 {
+    // SAFETY: the caller's promise.
+    let (b, a) = unsafe { (bytes(page, page_len), std::slice::from_raw_parts(args, 11)) };
+    let e = node_entry(a);
+    let r = with_dataset(|ds| {
+        ds.decode_node(&e, b, &ds.meta.schema)
+            .map_err(|d| ds.damage_error(&d).to_string())
+    });
+    match r {
+        Some(Ok(batch)) if (index as usize) < batch.len() => {
+            answer_json(point_json(&batch, index as usize))
+        }
+        Some(Ok(batch)) => error(format!("no point {index} in a node of {}", batch.len())),
+        Some(Err(m)) => error(m),
+        None => error("no dataset open"),
+    }
+}
