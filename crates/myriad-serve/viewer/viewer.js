@@ -82,7 +82,8 @@ const settings = {
   scheme: Math.max(0, SCHEMES.indexOf(params.get("color") || "rgb")),
   edl: params.get("edl") !== "0",
   pointSize: Number(params.get("size")) || 0, // 0: adaptive
-  renderer: params.get("renderer"), // webgl2 or webgpu; default: WebGPU where it works
+  // webgl2 or webgpu; default: WebGPU on a hardware adapter, else WebGL2.
+  renderer: params.get("renderer"),
   clip: null, // {box: [6], inside: bool}
 };
 let camera = null;
@@ -540,11 +541,12 @@ window.myriad = {
   renderer: () => renderer && renderer.kind,
 };
 
-// WebGPU where the browser has it (and `#renderer=webgl2` does not say otherwise), else WebGL2.
+// WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),
+// else WebGL2 (`#renderer=webgl2`: always).
 async function start() {
   if (settings.renderer !== "webgl2" && typeof makeWebGPU === "function") {
     try {
-      renderer = await makeWebGPU(canvas);
+      renderer = await makeWebGPU(canvas, settings.renderer === "webgpu");
     } catch (e) {
       renderer = null;
       if (settings.renderer === "webgpu") error(`WebGPU: ${e.message || e}`);

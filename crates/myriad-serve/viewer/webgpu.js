@@ -110,10 +110,17 @@ fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
 }
 `;
 
-async function makeWebGPU(canvas) {
+// `software`: take a software adapter too (SwiftShader and the like draw the six vertices of each
+// point's square on the CPU: `myriad bench web` measured WebGL2's one-vertex points 2-5x faster
+// there, so the viewer takes WebGPU by default only on a hardware adapter).
+async function makeWebGPU(canvas, software) {
   if (!navigator.gpu) throw new Error("no navigator.gpu");
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error("no WebGPU adapter");
+  const info = adapter.info || {};
+  const soft = adapter.isFallbackAdapter || info.isFallbackAdapter ||
+    /swiftshader|llvmpipe|lavapipe|software/i.test(`${info.vendor} ${info.architecture} ${info.description}`);
+  if (soft && !software) throw new Error(`a software adapter (${info.vendor} ${info.architecture})`);
   const device = await adapter.requestDevice();
   let lost = null;
   device.lost.then((i) => { lost = i.message || "device lost"; });
