@@ -256,7 +256,7 @@ fn acquisition_order(node: &mut BuiltNode) {
     }
 }
 
-fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
+pub(crate) fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
     acquisition_order(&mut node);
     let mut bytes = writer.write_node(
         node.key,

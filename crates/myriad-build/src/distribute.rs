@@ -263,7 +263,7 @@ fn merged_schema(infos: &[myriad_io::SourceInfo]) -> Result<Schema> {
 }
 
 /// Gives `b` exactly the columns of `schema`: missing ones are filled with zeros.
-fn conform(mut b: PointBatch, schema: &Schema) -> PointBatch {
+pub(crate) fn conform(mut b: PointBatch, schema: &Schema) -> PointBatch {
     let n = b.len();
     let mut target = PointBatch::with_schema(schema, 0);
     macro_rules! take {

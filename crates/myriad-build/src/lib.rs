@@ -4,6 +4,7 @@
 //! builds the `nested-octree` of a chunk and the levels above the chunks; [`convert`] runs the
 //! whole build in parallel and writes the dataset.
 
+pub mod append;
 pub mod convert;
 pub mod distribute;
 pub mod export;

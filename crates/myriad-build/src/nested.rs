@@ -187,7 +187,12 @@ pub fn build_subtree_with<E>(
 }
 
 /// The node of `batch` at `key`: all of it in level order (a leaf's content).
-fn leaf_node(key: NodeKey, batch: PointBatch, root: &Aabb, params: &NestedParams) -> BuiltNode {
+pub(crate) fn leaf_node(
+    key: NodeKey,
+    batch: PointBatch,
+    root: &Aabb,
+    params: &NestedParams,
+) -> BuiltNode {
     let m = if params.ntree {
         ntree::build(&batch, batch.len(), true).0
     } else {

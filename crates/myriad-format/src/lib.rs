@@ -370,6 +370,20 @@ impl Dataset {
         self.decode_node(e, &b, schema)
     }
 
+    /// Node `e`'s page as stored, its checksum checked (to copy it into another dataset with
+    /// the same quantization: a page holds its own origin).
+    pub fn node_page(&self, e: &NodeEntry) -> std::result::Result<Vec<u8>, Damage> {
+        if e.page.length == 0 {
+            return Ok(Vec::new());
+        }
+        self.read_checked(e.page).map_err(|m| Damage {
+            key: e.key,
+            offset: e.page.offset,
+            message: m,
+            subtree: false,
+        })
+    }
+
     /// Checks (CRC-32, point count) and decodes node `e`'s page, read elsewhere (the web
     /// viewer fetches pages itself), with the columns of `schema`.
     pub fn decode_node(

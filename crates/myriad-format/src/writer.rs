@@ -99,6 +99,22 @@ impl DatasetWriter {
         Ok(bytes.len() as u64)
     }
 
+    /// Appends a node page as another dataset with the same quantization stored it (`page`, as
+    /// [`Dataset::node_page`] gives it) under `entry` (its key, counts and levels; the page's
+    /// place is this file's). Splat pages are not copied: for octree and layered datasets.
+    pub fn copy_node(&self, entry: &NodeEntry, page: &[u8]) -> Result<u64> {
+        let (offset, crc) = self.append(page)?;
+        let mut e = entry.clone();
+        e.page = PageRef {
+            offset: if page.is_empty() { 0 } else { offset },
+            length: page.len() as u32,
+            crc,
+        };
+        e.splats = None;
+        self.entries.lock().expect("entries lock").push(e);
+        Ok(page.len() as u64)
+    }
+
     /// Adds an entry as given, its page written elsewhere or nowhere: for fixtures that
     /// measure a hierarchy alone (`myriad bench open --fixture`); a reader reports a node whose
     /// page is not in the file as damaged.

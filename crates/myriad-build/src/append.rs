@@ -1,0 +1,347 @@
+//! `convert NEW... --append DATASET` (issue 19): scans added to an octree or layered dataset
+//! without building it again.
+//!
+//! The tree is cut at level `k` (`CUT_LEVELS` below the old root). Below the cut, each cell's
+//! subtree is kept or rebuilt whole:
+//! - a cell that the new points fall in is rebuilt from every point it holds: its old subtree's,
+//!   the new ones, and the points of the levels above the cut that lie in it (the builder moved
+//!   them up from this cell);
+//! - any other cell keeps its subtree's pages byte for byte (pages hold their own origin), but
+//!   for its top node, which takes back the points above the cut that lie in it (where they fit
+//!   in one node; else the cell is rebuilt too).
+//!
+//! The levels above the cut are then built again from the cells' top nodes, as `convert` builds
+//! them ([`nested::build_tops`]), so the new points are represented at every level. Every point
+//! of the old dataset and every new one ends in exactly one node. New points outside the old
+//! root cube grow the tree: new levels above the old root, whose nodes keep their cubes (and
+//! pages), their keys moved down.
+//!
+//! The dataset is written under a temporary name and renamed over the old one at the end (as
+//! every output): until then the old dataset is there, whole; a killed append leaves it as it was.
+//! Memory: the new points, and per thread one rebuilt cell.
+
+use crate::convert::{self, Report};
+use crate::distribute;
+use crate::nested::{self, BuiltNode, NestedParams};
+use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result};
+use myriad_format::{Dataset, DatasetWriter, NodeEntry};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Levels between the old root and the cut.
+pub const CUT_LEVELS: u32 = 3;
+/// Most levels the root may grow by (each doubles the cube's side).
+const MAX_GROWTH: u32 = 16;
+
+#[derive(Debug, Clone, Default)]
+pub struct AppendSummary {
+    pub added: u64,
+    pub points: u64,
+    /// Nodes built anew and nodes whose pages were copied as they were.
+    pub rebuilt: u64,
+    pub copied: u64,
+    /// Cells below the cut rebuilt, of those the dataset has there.
+    pub cells_rebuilt: usize,
+    pub cells: usize,
+    /// Levels added above the old root.
+    pub grown: u32,
+    pub skipped_non_finite: u64,
+    pub bytes: u64,
+    pub seconds: f64,
+}
+
+/// The level-`level` cell under `root` holding `p` (points on the far faces in the last cell).
+fn cell_of(root: &Aabb, level: u32, p: [f64; 3]) -> NodeKey {
+    let n = 1u64 << level;
+    let side = root.size()[0] / n as f64;
+    NodeKey {
+        level,
+        cell: std::array::from_fn(|a| {
+            (((p[a] - root.min[a]) / side).floor().max(0.0) as u64).min(n - 1) as u32
+        }),
+    }
+}
+
+/// The ancestor of `key` at `level` (at most its own level).
+fn ancestor(key: NodeKey, level: u32) -> NodeKey {
+    let up = key.level - level;
+    NodeKey {
+        level,
+        cell: key.cell.map(|c| c >> up),
+    }
+}
+
+/// Points of `b` grouped by their level-`level` cell.
+fn by_cell(b: PointBatch, root: &Aabb, level: u32) -> HashMap<NodeKey, PointBatch> {
+    let mut idx: HashMap<NodeKey, Vec<u32>> = HashMap::new();
+    for (i, &p) in b.positions.iter().enumerate() {
+        idx.entry(cell_of(root, level, p))
+            .or_default()
+            .push(i as u32);
+    }
+    idx.into_iter().map(|(k, v)| (k, b.gather(&v))).collect()
+}
+
+/// Adds the points of `inputs` to the dataset at `dataset`, in place.
+pub fn append(
+    dataset: &Path,
+    inputs: &[PathBuf],
+    open: &myriad_io::OpenOptions,
+    report: &dyn Report,
+) -> Result<AppendSummary> {
+    let start = Instant::now();
+    convert::remove_stale(dataset);
+    let ds = Dataset::open(dataset)?;
+    let mut meta = ds.meta.clone();
+    let ntree = match meta.structure.as_str() {
+        "nested-octree" | "octree" => false,
+        "layered" => true,
+        s => {
+            return Err(Error::unsupported(
+                dataset,
+                format!(
+                    "--append adds to octree and layered datasets, this one is {s}: convert the \
+                     scans together instead"
+                ),
+            ));
+        }
+    };
+    let param = |k: &str, d: u64| meta.parameters.get(k).and_then(|v| v.as_u64()).unwrap_or(d);
+    let params = NestedParams {
+        capacity: param("capacity", convert::DEFAULT_CAPACITY as u64) as usize,
+        inner_depth: param("inner_depth", convert::DEFAULT_INNER_DEPTH as u64) as u32,
+        max_level: param("max_level", convert::DEFAULT_MAX_LEVEL as u64) as u32,
+        ntree,
+    };
+    let (entries, damage) = ds.nodes();
+    if let Some(d) = damage.first() {
+        return Err(Error::Invalid(format!(
+            "{} (nothing appended: `myriad verify` lists the damage)",
+            ds.damage_error(d)
+        )));
+    }
+
+    // 1. The new points, in the dataset's columns.
+    let schema = meta.schema.clone();
+    let declared: u64 = inputs
+        .iter()
+        .filter_map(|p| myriad_io::open(p, open).ok()?.info().points)
+        .sum();
+    report.phase("reading", declared);
+    let mut new = PointBatch::with_schema(&schema, 0);
+    let mut skipped = 0;
+    for path in inputs {
+        let mut src = myriad_io::open(path, open)?;
+        let info = src.info().clone();
+        if let Some(a) = info.schema.attributes.iter().find(|a| !schema.has(a)) {
+            return Err(Error::unsupported(
+                path,
+                format!(
+                    "has {}, which {} lacks: convert the scans together instead",
+                    a.name(),
+                    dataset.display()
+                ),
+            ));
+        }
+        if info.schema.extra_bytes > 0 && info.schema.extra_bytes != schema.extra_bytes {
+            return Err(Error::unsupported(
+                path,
+                format!(
+                    "has {} extra bytes per point, {} has {}",
+                    info.schema.extra_bytes,
+                    dataset.display(),
+                    schema.extra_bytes
+                ),
+            ));
+        }
+        let before = new.len();
+        while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
+            report.advance(b.len() as u64);
+            new.append(&distribute::conform(b, &schema));
+        }
+        skipped += src.skipped_non_finite();
+        meta.sources.push(serde_json::json!({
+            "path": info.path.display().to_string(),
+            "format": info.format.name(),
+            "version": info.version,
+            "points": new.len() - before,
+            "appended": true,
+        }));
+    }
+    if new.is_empty() {
+        return Err(Error::Invalid(format!(
+            "{}: the inputs hold no points",
+            inputs[0].display()
+        )));
+    }
+    let added = new.len() as u64;
+    let mut bounds = Aabb::EMPTY;
+    for &p in &new.positions {
+        bounds.extend(p);
+    }
+
+    // 2. A root cube that holds them: the old root becomes a child, then a grandchild, ...
+    let mut root = meta.root;
+    let (mut grown, mut offset) = (0u32, [0u32; 3]);
+    let inside = |r: &Aabb| (0..3).all(|a| bounds.min[a] >= r.min[a] && bounds.max[a] <= r.max[a]);
+    while !inside(&root) {
+        if grown == MAX_GROWTH {
+            return Err(Error::Invalid(format!(
+                "{}: the new points lie more than 2^{MAX_GROWTH} times the dataset's size away \
+                 from it: convert the scans together instead",
+                inputs[0].display()
+            )));
+        }
+        let side = root.size()[0];
+        let mut min = root.min;
+        for a in 0..3 {
+            if bounds.min[a] < root.min[a] {
+                min[a] -= side;
+                offset[a] += 1 << grown;
+            }
+        }
+        root = Aabb::new(min, min.map(|v| v + 2.0 * side));
+        grown += 1;
+    }
+    let rekey = |k: NodeKey| NodeKey {
+        level: k.level + grown,
+        cell: std::array::from_fn(|a| k.cell[a] + (offset[a] << k.level)),
+    };
+    let entries: Vec<NodeEntry> = entries
+        .into_iter()
+        .map(|mut e| {
+            e.key = rekey(e.key);
+            e
+        })
+        .collect();
+
+    // 3. The cut, the cells the new points fall in, and the points above the cut by cell.
+    let depth = entries.iter().map(|e| e.key.level).max().unwrap_or(grown);
+    let k = (grown + CUT_LEVELS).min(depth);
+    let mut new_cells = by_cell(new, &root, k);
+    let mut above = PointBatch::with_schema(&schema, 0);
+    let mut below: BTreeMap<NodeKey, Vec<&NodeEntry>> = BTreeMap::new();
+    for e in &entries {
+        if e.key.level < k {
+            above.append(&ds.read_node(e).map_err(|d| ds.damage_error(&d))?);
+        } else {
+            below.entry(ancestor(e.key, k)).or_default().push(e);
+        }
+    }
+    let mut returned = by_cell(above, &root, k);
+    let mut rebuild: HashSet<NodeKey> = new_cells.keys().copied().collect();
+    // A cell without its top node (none is written so, but a kept cell needs it): rebuilt.
+    for (cell, v) in &below {
+        if !v.iter().any(|e| e.key == *cell) {
+            rebuild.insert(*cell);
+        }
+    }
+    for (cell, got) in &returned {
+        let top = below
+            .get(cell)
+            .and_then(|v| v.iter().find(|e| e.key == *cell));
+        if top.is_none_or(|t| t.points as usize + got.len() > params.capacity) {
+            rebuild.insert(*cell);
+        }
+    }
+    let cells: BTreeSet<NodeKey> = below.keys().chain(rebuild.iter()).copied().collect();
+
+    let writer = DatasetWriter::create(dataset, true, meta.quantization)?;
+    report.phase("building", (cells.len()) as u64);
+    // 4. Each cell: its top node for the levels above, the rest written (rebuilt or copied).
+    let work: Vec<(NodeKey, Option<PointBatch>, Option<PointBatch>)> = cells
+        .iter()
+        .map(|c| (*c, new_cells.remove(c), returned.remove(c)))
+        .collect();
+    let tops: Vec<(BuiltNode, u64, u64)> = work
+        .into_par_iter()
+        .map(|(cell, fresh, back)| -> Result<(BuiltNode, u64, u64)> {
+            let old = below.get(&cell).map(Vec::as_slice).unwrap_or(&[]);
+            let result = if rebuild.contains(&cell) {
+                let mut batch = PointBatch::with_schema(&schema, 0);
+                for e in old {
+                    batch.append(&ds.read_node(e).map_err(|d| ds.damage_error(&d))?);
+                }
+                for b in [fresh, back].into_iter().flatten() {
+                    batch.append(&b);
+                }
+                let mut top = None;
+                let mut written = 0;
+                nested::build_subtree_with(batch, &root, cell, &params, &mut |node| {
+                    if node.key == cell {
+                        top = Some(node);
+                    } else {
+                        convert::write(&writer, node)?;
+                        written += 1;
+                    }
+                    Ok::<(), Error>(())
+                })?;
+                (top.expect("a rebuilt cell has points"), written, 0)
+            } else {
+                let mut copied = 0;
+                let mut top = None;
+                for e in old {
+                    if e.key == cell {
+                        let mut batch = ds.read_node(e).map_err(|d| ds.damage_error(&d))?;
+                        if let Some(b) = &back {
+                            batch.append(b);
+                        }
+                        let mut n = nested::leaf_node(cell, batch, &root, &params);
+                        n.shape.contour = e.contour;
+                        top = Some(n);
+                    } else {
+                        let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
+                        writer.copy_node(e, &page)?;
+                        copied += 1;
+                    }
+                }
+                (top.expect("a kept cell has its top node"), 0, copied)
+            };
+            report.advance(1);
+            Ok(result)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (mut rebuilt, mut copied) = (0, 0);
+    let mut roots = Vec::with_capacity(tops.len());
+    for (top, r, c) in tops {
+        rebuilt += r;
+        copied += c;
+        roots.push(top);
+    }
+
+    // 5. The levels above the cut, from the cells' top nodes.
+    report.phase("merging", roots.len() as u64);
+    for node in nested::build_tops(roots, &root, &params) {
+        convert::write(&writer, node)?;
+        rebuilt += 1;
+    }
+    let (written, _, _) = writer.totals();
+    let points = meta.points + added;
+    if written != points {
+        return Err(Error::Invalid(format!(
+            "{}: internal error: {points} points, {written} in the nodes; nothing appended",
+            dataset.display()
+        )));
+    }
+    report.phase("writing", 1);
+    meta.points = points;
+    meta.bounds = meta.bounds.union(&bounds);
+    meta.root = root;
+    meta.software = format!("myriad {}", env!("CARGO_PKG_VERSION"));
+    let bytes = writer.finish(meta)?;
+    report.advance(1);
+    Ok(AppendSummary {
+        added,
+        points,
+        rebuilt,
+        copied,
+        cells_rebuilt: rebuild.len(),
+        cells: cells.len(),
+        grown,
+        skipped_non_finite: skipped,
+        bytes,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,169 @@
+//! `convert --append` (issue 19): scans added to a dataset hold exactly the records of all the
+//! inputs (a neighbouring scan, which grows the root, then one inside, which rebuilds only the
+//! cells it falls in), the dataset verifies, and a killed append leaves the old dataset whole.
+
+mod common;
+use common::{myriad, s, tempdir};
+use myriad_format::Dataset;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+/// Every record of a LAS/LAZ file as comparable integers: position in thousandths (the synthetic
+/// scans' scale), GPS time bits, intensity, classification, returns, colour.
+fn records(path: &Path) -> Vec<Vec<i64>> {
+    let mut src = myriad_io::open(path, &myriad_io::OpenOptions::default()).unwrap();
+    let mut out = Vec::new();
+    while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH).unwrap() {
+        for i in 0..b.len() {
+            let p = b.positions[i];
+            let rgb = b.rgb.as_ref().unwrap()[i];
+            out.push(vec![
+                (p[0] * 1000.0).round() as i64,
+                (p[1] * 1000.0).round() as i64,
+                (p[2] * 1000.0).round() as i64,
+                b.gps_time.as_ref().unwrap()[i].to_bits() as i64,
+                b.intensity.as_ref().unwrap()[i] as i64,
+                b.classification.as_ref().unwrap()[i] as i64,
+                b.return_number.as_ref().unwrap()[i] as i64,
+                rgb[0] as i64,
+                rgb[1] as i64,
+                rgb[2] as i64,
+            ]);
+        }
+    }
+    out.sort();
+    out
+}
+
+fn ok(args: &[&str]) -> String {
+    let r = myriad(args);
+    assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+    r.stdout
+}
+
+#[test]
+fn appended_scans_hold_every_record_and_a_kill_loses_nothing() {
+    let d = tempdir("append");
+    let scan = d.join("scan.laz");
+    ok(&["synth", "-o", s(&scan), "--points", "400k", "--seed", "3"]);
+    let whole = d.join("whole.myr");
+    ok(&["convert", s(&scan), "-o", s(&whole), "--capacity", "2000"]);
+    let b = Dataset::open(&whole).unwrap().meta.bounds;
+    // West and east of the middle: two neighbouring scans.
+    let mid = 0.5 * (b.min[0] + b.max[0]);
+    let west = d.join("west.laz");
+    let east = d.join("east.laz");
+    let bx = |lo: f64, hi: f64| {
+        format!(
+            "{lo},{},{},{hi},{},{}",
+            b.min[1] - 1.0,
+            b.min[2] - 1.0,
+            b.max[1] + 1.0,
+            b.max[2] + 1.0
+        )
+    };
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&west),
+        "--box",
+        &bx(b.min[0] - 1.0, mid),
+    ]);
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&east),
+        "--box",
+        &bx(mid + 1e-9, b.max[0] + 1.0),
+    ]);
+    let site = d.join("site.myr");
+    ok(&["convert", s(&west), "-o", s(&site), "--capacity", "2000"]);
+    let before = Dataset::open(&site).unwrap().meta.points;
+
+    // The east half lies partly outside the west half's root cube: the root grows.
+    let out = ok(&["convert", s(&east), "--append", s(&site)]);
+    eprintln!("{out}");
+    assert!(out.contains("verified"), "{out}");
+    let ds = Dataset::open(&site).unwrap();
+    let (w, e) = (records(&west), records(&east));
+    assert_eq!(ds.meta.points as usize, w.len() + e.len());
+    assert!(ds.meta.points > before);
+    let all = d.join("all.las");
+    ok(&["extract", s(&site), "-o", s(&all)]);
+    let mut want: Vec<Vec<i64>> = w.iter().chain(&e).cloned().collect();
+    want.sort();
+    assert_eq!(records(&all), want, "the records of both scans, each once");
+
+    // A scan inside: only the cells it falls in are rebuilt, the other pages are copied.
+    let small = d.join("small.laz");
+    let c = ds.meta.bounds.center();
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&small),
+        "--box",
+        &format!(
+            "{},{},{},{},{},{}",
+            c[0] - 10.0,
+            c[1] - 10.0,
+            b.min[2] - 1.0,
+            c[0] + 10.0,
+            c[1] + 10.0,
+            b.max[2] + 1.0
+        ),
+    ]);
+    let out = ok(&["convert", s(&small), "--append", s(&site), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    eprintln!("{v}");
+    assert_eq!(v["levels_grown"], 0);
+    assert!(v["nodes_copied"].as_u64().unwrap() > 0, "{v}");
+    assert!(v["cells_rebuilt"].as_u64() < v["cells"].as_u64(), "{v}");
+    ok(&["extract", s(&site), "-o", s(&all), "--force"]);
+    want.extend(records(&small));
+    want.sort();
+    assert_eq!(records(&all), want);
+    ok(&["verify", s(&site)]);
+
+    // Killed at any moment: the dataset is the old one or the new one, whole.
+    let n0 = Dataset::open(&site).unwrap().meta.points;
+    let added = records(&east).len() as u64;
+    let mut killed_midway = 0;
+    for ms in [5u64, 40, 120, 300] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
+            .args(["convert", s(&east), "--append", s(&site)])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(ms));
+        if child.try_wait().unwrap().is_none() {
+            killed_midway += 1;
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+        let n = Dataset::open(&site).unwrap().meta.points;
+        let r = myriad(&["verify", s(&site)]);
+        assert_eq!(r.code, 0, "after a kill at {ms} ms: {}", r.stderr);
+        assert!(
+            n == n0 || n == n0 + added,
+            "{n} points after a kill at {ms} ms"
+        );
+    }
+    assert!(killed_midway > 0, "no append was killed while it ran");
+
+    // What append refuses: a kd dataset, a scan with columns the dataset lacks.
+    let kd = d.join("kd.myr");
+    ok(&["convert", s(&west), "-o", s(&kd), "--structure", "kd"]);
+    let r = myriad(&["convert", s(&east), "--append", s(&kd)]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("kd") && r.stderr.lines().count() == 1,
+        "{}",
+        r.stderr
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
