@@ -1,8 +1,8 @@
 //! `convert NEW... --append DATASET` (issue 19): scans added to an octree or layered dataset
 //! without building it again.
 //!
-//! The tree is cut at level `k` (`CUT_LEVELS` below the old root). Below the cut, each cell's
-//! subtree is kept or rebuilt whole:
+//! The tree is cut at a level `k` (the one that handles the fewest old points again:
+//! [`cut_level`]). Below the cut, each cell's subtree is kept or rebuilt whole:
 //! - a cell that the new points fall in is rebuilt from every point it holds: its old subtree's,
 //!   the new ones, and the points of the levels above the cut that lie in it (the builder moved
 //!   them up from this cell);
@@ -30,8 +30,6 @@ use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Levels between the old root and the cut.
-pub const CUT_LEVELS: u32 = 3;
 /// Most levels the root may grow by (each doubles the cube's side).
 const MAX_GROWTH: u32 = 16;
 
@@ -42,7 +40,8 @@ pub struct AppendSummary {
     /// Nodes built anew and nodes whose pages were copied as they were.
     pub rebuilt: u64,
     pub copied: u64,
-    /// Cells below the cut rebuilt, of those the dataset has there.
+    /// The level the tree was cut at, and the cells there rebuilt, of those the dataset has.
+    pub cut: u32,
     pub cells_rebuilt: usize,
     pub cells: usize,
     /// Levels added above the old root.
@@ -82,6 +81,27 @@ fn by_cell(b: PointBatch, root: &Aabb, level: u32) -> HashMap<NodeKey, PointBatc
             .push(i as u32);
     }
     idx.into_iter().map(|(k, v)| (k, b.gather(&v))).collect()
+}
+
+/// The level to cut the tree at: the one that handles the fewest old points again, those above
+/// the cut (read, given back to their cells, built up again) and those in the cells the new
+/// points fall in (rebuilt); the shallower of equals.
+fn cut_level(entries: &[NodeEntry], new: &PointBatch, root: &Aabb, top: u32, depth: u32) -> u32 {
+    let finest: HashSet<NodeKey> = new
+        .positions
+        .iter()
+        .map(|&p| cell_of(root, depth, p))
+        .collect();
+    (top..=depth)
+        .min_by_key(|&k| {
+            let touched: HashSet<NodeKey> = finest.iter().map(|&c| ancestor(c, k)).collect();
+            entries
+                .iter()
+                .filter(|e| e.key.level < k || touched.contains(&ancestor(e.key, k)))
+                .map(|e| e.points as u64)
+                .sum::<u64>()
+        })
+        .unwrap_or(top)
 }
 
 /// Adds the points of `inputs` to the dataset at `dataset`, in place.
@@ -219,7 +239,7 @@ pub fn append(
 
     // 3. The cut, the cells the new points fall in, and the points above the cut by cell.
     let depth = entries.iter().map(|e| e.key.level).max().unwrap_or(grown);
-    let k = (grown + CUT_LEVELS).min(depth);
+    let k = cut_level(&entries, &new, &root, grown, depth);
     let mut new_cells = by_cell(new, &root, k);
     let mut above = PointBatch::with_schema(&schema, 0);
     let mut below: BTreeMap<NodeKey, Vec<&NodeEntry>> = BTreeMap::new();
@@ -337,6 +357,7 @@ pub fn append(
         points,
         rebuilt,
         copied,
+        cut: k,
         cells_rebuilt: rebuild.len(),
         cells: cells.len(),
         grown,

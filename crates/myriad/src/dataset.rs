@@ -229,7 +229,8 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
             json!({
                 "dataset": dataset.display().to_string(), "added": s.added, "points": s.points,
                 "nodes_rebuilt": s.rebuilt, "nodes_copied": s.copied,
-                "cells_rebuilt": s.cells_rebuilt, "cells": s.cells, "levels_grown": s.grown,
+                "cut_level": s.cut, "cells_rebuilt": s.cells_rebuilt, "cells": s.cells,
+                "levels_grown": s.grown,
                 "seconds": s.seconds, "bytes": s.bytes,
                 "skipped_non_finite": s.skipped_non_finite,
                 "peak_rss_bytes": crate::bench::peak_rss_bytes(),
@@ -245,9 +246,10 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
         thousands(r.nodes)
     );
     println!(
-        "  nodes       {} rebuilt, {} copied as they were ({} of {} cells below the cut rebuilt{})",
+        "  nodes       {} rebuilt, {} copied as they were (cut at level {}: {} of {} cells rebuilt{})",
         thousands(s.rebuilt),
         thousands(s.copied),
+        s.cut,
         s.cells_rebuilt,
         s.cells,
         if s.grown > 0 {
