@@ -63,6 +63,12 @@ pub struct ConvertBenchArgs {
     /// Where the dataset is written (removed at the end)
     #[arg(short, long, default_value = "myriad-bench-convert.myr")]
     output: PathBuf,
+    /// Also run PotreeConverter 2 on each file in the same runs (alternating with convert)
+    #[arg(long)]
+    peer: bool,
+    /// PotreeConverter 2 [default: ../shared/peers/potreeconverter/PotreeConverter when present]
+    #[arg(long)]
+    peer_path: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -195,6 +201,18 @@ fn synth(a: SynthBenchArgs) -> Result<()> {
 
 fn convert(a: ConvertBenchArgs) -> Result<()> {
     let exe = std::env::current_exe()?;
+    let peer = match (
+        a.peer,
+        a.peer_path
+            .clone()
+            .or_else(crate::bench_export::default_peer),
+    ) {
+        (false, _) => None,
+        (true, Some(p)) => Some(p),
+        (true, None) => anyhow::bail!(
+            "--peer: PotreeConverter not found (give --peer-path; ../shared/peers has a build)"
+        ),
+    };
     let capacities: Vec<Option<usize>> = if a.capacity.is_empty() {
         vec![None]
     } else {
@@ -225,6 +243,7 @@ fn convert(a: ConvertBenchArgs) -> Result<()> {
         );
         for cap in &capacities {
             let (mut secs, mut rates, mut raws, mut peaks) = (vec![], vec![], vec![], vec![]);
+            let (mut peer_secs, mut peer_peaks, mut walls) = (vec![], vec![], vec![]);
             let mut last = serde_json::Value::Null;
             for _ in 0..a.runs.max(1) {
                 // Baseline first, in the same minute: the las/laz crates decoding the file.
@@ -245,7 +264,9 @@ fn convert(a: ConvertBenchArgs) -> Result<()> {
                 if let Some(t) = a.threads {
                     cmd.args(["--threads", &t.to_string()]);
                 }
+                let wall = Instant::now();
                 let out = cmd.output()?;
+                walls.push(wall.elapsed().as_secs_f64());
                 if !out.status.success() {
                     anyhow::bail!(
                         "convert failed: {}",
@@ -256,6 +277,20 @@ fn convert(a: ConvertBenchArgs) -> Result<()> {
                 secs.push(last["seconds"].as_f64().unwrap_or(f64::NAN));
                 rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
                 peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
+                if let Some(peer) = &peer {
+                    // The peer in the same minute, into a folder next to our output.
+                    let dir = a.output.with_extension("potreeconverter");
+                    let _ = std::fs::remove_dir_all(&dir);
+                    let (t, m) = crate::bench_export::measured(
+                        std::process::Command::new(peer)
+                            .arg(path)
+                            .arg("-o")
+                            .arg(&dir),
+                    )?;
+                    let _ = std::fs::remove_dir_all(&dir);
+                    peer_secs.push(t);
+                    peer_peaks.push(m as f64);
+                }
             }
             std::fs::remove_file(&a.output).ok();
             let points = last["points"].as_u64().unwrap_or(0);
@@ -272,12 +307,30 @@ fn convert(a: ConvertBenchArgs) -> Result<()> {
             println!(
                 "{name:<40} {:>9} {points:>11} {:>8.2} {:>10.2} {:>9.0} {:>8.2} {:>10.2} {raw:>12} {ratio:>6}",
                 cap.map_or("default".to_string(), |c| c.to_string()),
-                median(secs),
+                median(secs.clone()),
                 ours / 1e6,
                 peaks.iter().cloned().fold(0.0, f64::max) / 1e6,
                 last["bytes_per_point"].as_f64().unwrap_or(f64::NAN),
                 input_bytes as f64 / points.max(1) as f64,
             );
+            if !peer_secs.is_empty() {
+                // Both as wall time of the whole process.
+                let t = median(peer_secs.clone());
+                let w = median(walls.clone());
+                println!(
+                    "{:<40} PotreeConverter 2: {t:.2} s, {:.2} M pts/s, {:.0} MB peak; convert {w:.2} s: {:.2}x its speed (runs, convert/peer: {})",
+                    "",
+                    points as f64 / t / 1e6,
+                    peer_peaks.iter().cloned().fold(0.0, f64::max) / 1e6,
+                    t / w,
+                    peer_secs
+                        .iter()
+                        .zip(&walls)
+                        .map(|(p, o)| format!("{:.2}/{:.2} s", o, p))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
         }
     }
     println!(

@@ -29,7 +29,7 @@ pub struct ExportBenchArgs {
 }
 
 /// Runs `cmd` to the end; returns its wall time and peak resident memory in bytes.
-fn measured(cmd: &mut Command) -> Result<(f64, u64)> {
+pub(crate) fn measured(cmd: &mut Command) -> Result<(f64, u64)> {
     let start = Instant::now();
     let child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).spawn()?;
     let pid = child.id() as libc::pid_t;
@@ -55,7 +55,7 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-fn default_peer() -> Option<PathBuf> {
+pub(crate) fn default_peer() -> Option<PathBuf> {
     let exe = std::env::current_exe().ok()?;
     exe.ancestors()
         .map(|a| a.join("shared/peers/potreeconverter/PotreeConverter"))
