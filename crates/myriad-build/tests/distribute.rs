@@ -312,3 +312,51 @@ fn chunks_and_tops_form_one_nested_octree() {
     drop(dist);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Rows that all fit the write buffers are never written to disk: the chunks come from memory,
+/// the same as from spill files.
+#[test]
+fn chunks_that_fit_in_memory_are_not_spilled() {
+    let d = tempdir("resident");
+    let las = d.join("city.las");
+    let opts = myriad_synth::SynthOptions {
+        points: 100_000,
+        scene: myriad_synth::SceneKind::City,
+        seed: 4,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    let spill = d.join("spill");
+    std::fs::create_dir_all(&spill).unwrap();
+    let run = |buffer_bytes| {
+        let options = DistributeOptions {
+            chunk_points: 1_000_000,
+            buffer_bytes,
+            compress_above: u64::MAX,
+            min_chunks: 8,
+            temp_dir: spill.clone(),
+        };
+        let dist = distribute(
+            std::slice::from_ref(&las),
+            &OpenOptions::default(),
+            &options,
+        )
+        .unwrap();
+        let files = std::fs::read_dir(dist.spill_dir()).unwrap().count();
+        let chunks: Vec<_> = dist
+            .chunks
+            .iter()
+            .map(|c| (c.cell, keys(&dist.load(c).unwrap())))
+            .collect();
+        (files, chunks)
+    };
+    let (in_memory, a) = run(256 << 20);
+    let (on_disk, b) = run(64 << 10);
+    assert_eq!(
+        in_memory, 0,
+        "spill files written for rows that fit in memory"
+    );
+    assert!(on_disk > 0);
+    assert!(a.len() > 1);
+    assert_eq!(a, b, "the same chunks, the same points in the same order");
+    std::fs::remove_dir_all(&d).unwrap();
+}
