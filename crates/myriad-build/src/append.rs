@@ -18,7 +18,8 @@
 //!
 //! The dataset is written under a temporary name and renamed over the old one at the end (as
 //! every output): until then the old dataset is there, whole; a killed append leaves it as it was.
-//! Memory: the new points, and per thread one rebuilt cell.
+//! Memory: the new points, and per thread one rebuilt cell; refused up front where that exceeds
+//! the budget (from the headers' counts, then from the cells to rebuild).
 
 use crate::convert::{self, Report};
 use crate::distribute;
@@ -104,11 +105,28 @@ fn cut_level(entries: &[NodeEntry], new: &PointBatch, root: &Aabb, top: u32, dep
         .unwrap_or(top)
 }
 
-/// Adds the points of `inputs` to the dataset at `dataset`, in place.
+/// Refuses an append that needs more than `memory` bytes.
+fn check_memory(inputs: &[PathBuf], need: u64, memory: u64) -> Result<()> {
+    if need <= memory {
+        return Ok(());
+    }
+    let gb = |b: u64| b as f64 / (1u64 << 30) as f64;
+    Err(Error::Invalid(format!(
+        "{}: appending needs about {:.1} GB in memory (the new points and each rebuilt part of \
+         the tree), over the {:.1} GB budget: give --memory, or convert the scans together",
+        inputs[0].display(),
+        gb(need),
+        gb(memory)
+    )))
+}
+
+/// Adds the points of `inputs` to the dataset at `dataset`, in place, within about `memory`
+/// bytes (refused up front where that cannot hold).
 pub fn append(
     dataset: &Path,
     inputs: &[PathBuf],
     open: &myriad_io::OpenOptions,
+    memory: u64,
     report: &dyn Report,
 ) -> Result<AppendSummary> {
     let start = Instant::now();
@@ -149,6 +167,10 @@ pub fn append(
         .iter()
         .filter_map(|p| myriad_io::open(p, open).ok()?.info().points)
         .sum();
+    // The new points are held in memory (as rows, then grouped by cell): refused up front
+    // when their headers say they will not fit the budget.
+    let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
+    check_memory(inputs, 2 * declared * row, memory)?;
     report.phase("reading", declared);
     let mut new = PointBatch::with_schema(&schema, 0);
     let mut skipped = 0;
@@ -267,6 +289,24 @@ pub fn append(
         }
     }
     let cells: BTreeSet<NodeKey> = below.keys().chain(rebuild.iter()).copied().collect();
+    // Each thread builds one rebuilt cell at a time, all of its points in memory.
+    let largest = rebuild
+        .iter()
+        .map(|c| {
+            let old: u64 = below
+                .get(c)
+                .map_or(0, |v| v.iter().map(|e| e.points as u64).sum());
+            let add = |m: &HashMap<NodeKey, PointBatch>| m.get(c).map_or(0, |b| b.len() as u64);
+            old + add(&new_cells) + add(&returned)
+        })
+        .max()
+        .unwrap_or(0);
+    check_memory(
+        inputs,
+        2 * added * row
+            + rayon::current_num_threads() as u64 * largest * convert::BUILD_BYTES_PER_POINT,
+        memory,
+    )?;
 
     let writer = DatasetWriter::create(dataset, true, meta.quantization)?;
     report.phase("building", (cells.len()) as u64);

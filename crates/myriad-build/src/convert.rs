@@ -154,7 +154,7 @@ pub fn parse_size(s: &str) -> std::result::Result<u64, String> {
 
 /// Bytes a point takes in memory while its chunk is built (its columns, a copy passed down, the
 /// MOSPT's codes and orders), for the widest common schema.
-const BUILD_BYTES_PER_POINT: u64 = 4 * 72 + 48;
+pub(crate) const BUILD_BYTES_PER_POINT: u64 = 4 * 72 + 48;
 const MIN_CHUNK_POINTS: u64 = 50_000;
 /// The smallest budget the build accepts.
 pub const MIN_MEMORY: u64 = 512 << 20;

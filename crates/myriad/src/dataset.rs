@@ -212,7 +212,8 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
             .ok();
     }
     let bar = Bar::new();
-    let s = myriad_build::append::append(dataset, &a.inputs, &open, &bar)?;
+    let memory = a.memory.unwrap_or_else(convert::default_memory);
+    let s = myriad_build::append::append(dataset, &a.inputs, &open, memory, &bar)?;
     bar.clear();
     // Read back whole: every page's checksum, the counts, the invariants.
     let ds = Dataset::open(dataset)?;

@@ -1,6 +1,7 @@
 //! `convert --append` (issue 19): scans added to a dataset hold exactly the records of all the
 //! inputs (a neighbouring scan, which grows the root, then one inside, which rebuilds only the
-//! cells it falls in), the dataset verifies, and a killed append leaves the old dataset whole.
+//! cells it falls in), the dataset verifies, a killed append leaves the old dataset whole, and
+//! one over the memory budget is refused.
 
 mod common;
 use common::{myriad, s, tempdir};
@@ -155,7 +156,16 @@ fn appended_scans_hold_every_record_and_a_kill_loses_nothing() {
     }
     assert!(killed_midway > 0, "no append was killed while it ran");
 
-    // What append refuses: a kd dataset, a scan with columns the dataset lacks.
+    // What append refuses: more than the memory budget (before touching anything), a kd dataset.
+    let n = Dataset::open(&site).unwrap().meta.points;
+    let r = myriad(&["convert", s(&east), "--append", s(&site), "--memory", "1MB"]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("--memory") && r.stderr.lines().count() == 1,
+        "{}",
+        r.stderr
+    );
+    assert_eq!(Dataset::open(&site).unwrap().meta.points, n);
     let kd = d.join("kd.myr");
     ok(&["convert", s(&west), "-o", s(&kd), "--structure", "kd"]);
     let r = myriad(&["convert", s(&east), "--append", s(&kd)]);
