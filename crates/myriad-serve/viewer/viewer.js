@@ -546,7 +546,9 @@ window.myriad = {
 async function start() {
   if (settings.renderer !== "webgl2" && typeof makeWebGPU === "function") {
     try {
-      renderer = await makeWebGPU(canvas, settings.renderer === "webgpu");
+      // A WebGPU set-up that never answers counts as none.
+      const late = new Promise((_, fail) => setTimeout(() => fail(new Error("no answer in 10 s")), 10000));
+      renderer = await Promise.race([makeWebGPU(canvas, settings.renderer === "webgpu"), late]);
     } catch (e) {
       renderer = null;
       if (settings.renderer === "webgpu") error(`WebGPU: ${e.message || e}`);
