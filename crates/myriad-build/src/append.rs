@@ -163,10 +163,12 @@ pub fn append(
 
     // 1. The new points, in the dataset's columns.
     let schema = meta.schema.clone();
-    let declared: u64 = inputs
-        .iter()
-        .filter_map(|p| myriad_io::open(p, open).ok()?.info().points)
-        .sum();
+    // Each input opened once: its header checked and counted before any point is read.
+    let mut sources = Vec::with_capacity(inputs.len());
+    for path in inputs {
+        sources.push(myriad_io::open(path, open)?);
+    }
+    let declared: u64 = sources.iter().filter_map(|s| s.info().points).sum();
     // The new points are held in memory (as rows, then grouped by cell): refused up front
     // when their headers say they will not fit the budget.
     let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
@@ -174,8 +176,7 @@ pub fn append(
     report.phase("reading", declared);
     let mut new = PointBatch::with_schema(&schema, 0);
     let mut skipped = 0;
-    for path in inputs {
-        let mut src = myriad_io::open(path, open)?;
+    for (path, mut src) in inputs.iter().zip(sources) {
         let info = src.info().clone();
         if let Some(a) = info.schema.attributes.iter().find(|a| !schema.has(a)) {
             return Err(Error::unsupported(

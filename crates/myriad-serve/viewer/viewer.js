@@ -15,11 +15,10 @@ const EDL_STRENGTH = 1.0;
 
 const state = {
   dataset: null, info: null, converged: false, points: 0, nodes: 0, loaded: 0, errors: [],
+  // Times in ms from the navigation's start (performance.now()'s origin).
   requests: 0, bytes: 0, firstImageMs: null, convergedMs: null, selections: 0, frames: 0,
   pagesMissing: 0, picked: null, measure: [],
 };
-// Times are from the navigation's start (performance.now()'s origin), as for any page.
-const started = 0;
 
 // ---- small vector helpers (f64: JavaScript numbers) ----
 const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
@@ -309,13 +308,13 @@ function draw() {
   state.points = drawnPoints;
   state.nodes = drawnNodes;
   state.loaded = [...nodes.values()].filter((n) => n.count).length;
-  if (drawnNodes > 0 && state.firstImageMs === null) state.firstImageMs = performance.now() - started;
+  if (drawnNodes > 0 && state.firstImageMs === null) state.firstImageMs = performance.now();
   // Converged: the selection was made for this camera with every node drawn now, and each of
   // its nodes is drawn (or failed), with no hierarchy page missing.
   const drawnKey = [...nodes.values()].filter((n) => n.count !== undefined).map((n) => n.key.join(",")).join(",");
   const converged = !!selection && complete && !selecting && state.pagesMissing === 0 &&
     sameCamera(selectionCamera, camera) && drawnKey === drawnAtSelection;
-  if (converged && !state.converged) state.convergedMs = performance.now() - started;
+  if (converged && !state.converged) state.convergedMs = performance.now();
   state.converged = converged;
   status();
 }

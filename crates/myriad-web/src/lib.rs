@@ -114,7 +114,6 @@ impl Viewer {
             if s.pages.is_empty() || read >= PAGES_PER_CALL {
                 break s;
             }
-            let before = read;
             for p in s.pages.iter().take(PAGES_PER_CALL - read) {
                 read += 1;
                 match self.dataset.hierarchy_page(p) {
@@ -127,9 +126,6 @@ impl Viewer {
                         self.hierarchy.insert_page(p.key, Default::default());
                     }
                 }
-            }
-            if read == before {
-                break s;
             }
         };
         let tree = DrawnTree::new(&selection, |k| ask.drawn.contains(k));
@@ -160,9 +156,6 @@ impl Viewer {
             "pages_read": read,
             "pages": self.hierarchy.pages(),
             "tree": tree.entries.iter().flatten().collect::<Vec<_>>(),
-            "near": cam.near,
-            "far": cam.far,
-            "focal": cam.focal(),
             "errors": errors,
         })
     }

@@ -126,10 +126,7 @@ pub extern "C" fn myr_open_pages(len: f64, name_ptr: *const u8, name_len: u32) -
 }
 
 fn camera_json(c: &Camera) -> Value {
-    json!({
-        "position": c.position, "target": c.target, "up": c.up, "fov": c.fov_y,
-        "near": c.near, "far": c.far,
-    })
+    json!({ "position": c.position, "target": c.target, "up": c.up, "fov": c.fov_y })
 }
 
 /// The camera `myriad render` starts from, for a `width` x `height` view.
