@@ -19,7 +19,7 @@
 use crate::distribute::{self, DistributeOptions, SPILL_PREFIX};
 use crate::kd;
 use crate::nested::{self, BuiltNode, NestedParams};
-use myriad_core::{Error, NodeKey, PointBatch, Result, Schema};
+use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result, Schema};
 use myriad_format::{DatasetWriter, Metadata, NodeShape, Quantization};
 use myriad_io::OpenOptions;
 use rayon::prelude::*;
@@ -88,6 +88,24 @@ pub struct ConvertOptions {
     /// Points per chunk, instead of what the memory budget gives (for tests: many chunks from
     /// a small input).
     pub chunk_points: Option<u64>,
+    /// A build fixed by a plan (a part, or the whole plan on one machine): see
+    /// [`crate::partition`].
+    pub planned: Option<Planned>,
+}
+
+/// What a plan fixes for a build: the grid (root cube, chunk level, schema, the cells a part
+/// keeps), the quantization, the CRS and LAS header, and what the dataset's parameters record.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    pub grid: distribute::Grid,
+    pub quantization: Quantization,
+    pub crs: Option<String>,
+    pub las_header: Option<Vec<u8>>,
+    /// Keep a copy of the nodes of this level as they are before the levels above take their
+    /// points ([`Summary::tops`]): what a merge builds the levels above a part from.
+    pub tops_level: Option<u32>,
+    /// Added to the dataset's parameters (which plan and part it was built from).
+    pub parameters: serde_json::Value,
 }
 
 impl ConvertOptions {
@@ -110,6 +128,7 @@ impl ConvertOptions {
                 ..Default::default()
             },
             chunk_points: None,
+            planned: None,
         }
     }
 }
@@ -213,10 +232,16 @@ pub struct Summary {
     pub skipped_non_finite: u64,
     pub trimmed: u64,
     pub clamped: u64,
+    /// Bounds of the points taken, and each input's points taken and read (more where a part
+    /// keeps some cells only).
+    pub bounds: Aabb,
+    pub sources: Vec<(PathBuf, u64, u64)>,
+    /// The nodes of [`Planned::tops_level`] before the levels above took points from them.
+    pub tops: Vec<BuiltNode>,
 }
 
 /// A node waiting on disk for the levels above: its points as rows, in MOSPT order.
-struct Pending {
+pub(crate) struct Pending {
     key: NodeKey,
     path: PathBuf,
     points: usize,
@@ -272,7 +297,7 @@ pub(crate) fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> 
     Ok(bytes)
 }
 
-fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
+pub(crate) fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
     let path = dir.join(format!("node-{}.rows", node.key));
     let mut bytes = Vec::with_capacity(node.points.len() * node.points.row_size());
     for i in 0..node.points.len() {
@@ -304,7 +329,7 @@ fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
     })
 }
 
-fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
+pub(crate) fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
     let bytes = std::fs::read(&p.path).map_err(|e| Error::io(&p.path, e))?;
     let mut b = PointBatch::with_schema(schema, p.points);
     let row = b.row_size();
@@ -350,6 +375,94 @@ fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
     })
 }
 
+/// Step 3 of the build: the levels above the chunks, bottom-up, families in parallel.
+pub(crate) struct Above<'a> {
+    pub structure: Structure,
+    pub params: &'a NestedParams,
+    pub mw: &'a crate::mwkd::MwkdParams,
+    pub root: &'a Aabb,
+    pub schema: &'a Schema,
+    pub writer: &'a DatasetWriter,
+    pub pool: &'a rayon::ThreadPool,
+    pub spill_dir: &'a Path,
+}
+
+impl Above<'_> {
+    /// Builds every level above the `pending` nodes and writes them and their children. Returns
+    /// a copy of the nodes of `tops_level` as they were before their parents took points from
+    /// them (a part's tops, [`Planned::tops_level`]).
+    pub(crate) fn build(
+        &self,
+        pending: Vec<Pending>,
+        tops_level: Option<u32>,
+        report: &dyn Report,
+    ) -> Result<Vec<BuiltNode>> {
+        let (structure, params, mw, root, schema) =
+            (self.structure, self.params, self.mw, self.root, self.schema);
+        let (writer, spill_dir) = (self.writer, self.spill_dir);
+        let mut tops = Vec::new();
+        let mut by_level: BTreeMap<u32, Vec<Pending>> = BTreeMap::new();
+        for p in pending {
+            by_level.entry(p.key.level).or_default().push(p);
+        }
+        report.phase("merging", by_level.values().map(|v| v.len() as u64).sum());
+        while let Some((&level, _)) = by_level.iter().next_back() {
+            let mut nodes = by_level.remove(&level).expect("present");
+            if Some(level) == tops_level {
+                let mut again = Vec::with_capacity(nodes.len());
+                for p in nodes {
+                    let node = unspill(p, schema)?;
+                    tops.push(node.clone());
+                    again.push(spill(node, spill_dir)?);
+                }
+                nodes = again;
+            }
+            if level == 0 {
+                for p in nodes {
+                    write(writer, unspill(p, schema)?)?;
+                }
+                break;
+            }
+            let mut families: BTreeMap<NodeKey, Vec<Pending>> = BTreeMap::new();
+            for n in nodes {
+                families.entry(n.key.parent()).or_default().push(n);
+            }
+            let parents: Vec<Pending> = self.pool.install(|| {
+                families
+                    .into_par_iter()
+                    .map(|(parent, kids)| -> Result<Pending> {
+                        let count = kids.len() as u64;
+                        let children = kids
+                            .into_iter()
+                            .map(|p| unspill(p, schema))
+                            .collect::<Result<Vec<_>>>()?;
+                        let (top, children) = match structure {
+                            Structure::Kd => kd::take_up(parent, children, params),
+                            Structure::Mwkd => {
+                                let kids =
+                                    children.into_iter().map(crate::mwkd::MwNode::from_built);
+                                let (top, kids) = crate::mwkd::take_up(parent, kids.collect(), mw);
+                                (
+                                    top.into_built(),
+                                    kids.into_iter().map(|k| k.into_built()).collect(),
+                                )
+                            }
+                            _ => nested::take_up(parent, children, root, params),
+                        };
+                        for c in children {
+                            write(writer, c)?;
+                        }
+                        report.advance(count);
+                        spill(top, spill_dir)
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })?;
+            by_level.entry(level - 1).or_default().extend(parents);
+        }
+        Ok(tops)
+    }
+}
+
 /// Removes what a killed build left next to `output`: spill folders and partial outputs whose
 /// process is gone.
 pub fn remove_stale(output: &Path) {
@@ -392,10 +505,14 @@ pub fn remove_stale(output: &Path) {
 /// Node pages store positions as integers on this grid: the grid must number the whole root cube
 /// within 2^53 steps per axis (where f64 still counts every step), or positions would be clamped.
 /// A scale that fine for the extent is refused, naming the input it came from.
-fn quantization(dist: &distribute::Distribution, precision: f64) -> Result<Quantization> {
+pub(crate) fn quantization(
+    sources: &[&myriad_io::SourceInfo],
+    root: &Aabb,
+    precision: f64,
+) -> Result<Quantization> {
     let mut scale = [f64::INFINITY; 3];
     let mut finest: [Option<&Path>; 3] = [None; 3];
-    for (info, _) in &dist.sources {
+    for info in sources {
         // A negative LAS scale mirrors the records, not the coordinates: the grid step is its size.
         let s = info.scale.map_or([precision; 3], |s| s.map(f64::abs));
         for a in 0..3 {
@@ -405,15 +522,14 @@ fn quantization(dist: &distribute::Distribution, precision: f64) -> Result<Quant
             }
         }
     }
-    let offset = dist
-        .sources
+    let offset = sources
         .iter()
-        .find_map(|(i, _)| i.offset)
-        .unwrap_or(dist.root.min.map(f64::floor));
+        .find_map(|i| i.offset)
+        .unwrap_or(root.min.map(f64::floor));
     for a in 0..3 {
-        let reach = (dist.root.max[a] - offset[a])
+        let reach = (root.max[a] - offset[a])
             .abs()
-            .max((dist.root.min[a] - offset[a]).abs());
+            .max((root.min[a] - offset[a]).abs());
         if !(reach / scale[a] < 2f64.powi(53)) {
             let axis = ["X", "Y", "Z"][a];
             let what = format!(
@@ -486,13 +602,14 @@ pub fn convert(
             compress_above: SPILL_COMPRESS_ABOVE,
             min_chunks: 8 * plan.threads as u64,
             temp_dir,
+            grid: options.planned.as_ref().map(|p| p.grid.clone()),
         },
         &mut |p| match p {
             distribute::Progress::Declared(n) => report.phase("reading", n),
             distribute::Progress::Read(n) => report.advance(n),
         },
     )?;
-    if dist.points == 0 {
+    if dist.points == 0 && options.planned.is_none() {
         return Err(Error::Invalid(format!(
             "{}: the inputs hold no points",
             inputs[0].display()
@@ -501,7 +618,13 @@ pub fn convert(
     phases.push(("reading", t.elapsed().as_secs_f64()));
     t = Instant::now();
 
-    let quant = quantization(&dist, options.precision)?;
+    let quant = match &options.planned {
+        Some(p) => p.quantization,
+        None => {
+            let infos: Vec<_> = dist.sources.iter().map(|(i, _)| i).collect();
+            quantization(&infos, &dist.root, options.precision)?
+        }
+    };
     let writer = DatasetWriter::create(out, options.force, quant)?;
     let root = dist.root;
     let schema = dist.schema.clone();
@@ -592,54 +715,18 @@ pub fn convert(
     t = Instant::now();
 
     // 3. The levels above the chunks.
-    let mut by_level: BTreeMap<u32, Vec<Pending>> = BTreeMap::new();
-    for p in pending {
-        by_level.entry(p.key.level).or_default().push(p);
+    let tops_level = options.planned.as_ref().and_then(|p| p.tops_level);
+    let tops = Above {
+        structure,
+        params: &params,
+        mw: &mw,
+        root: &root,
+        schema: &schema,
+        writer: &writer,
+        pool: &pool,
+        spill_dir: &spill_dir,
     }
-    report.phase("merging", by_level.values().map(|v| v.len() as u64).sum());
-    while let Some((&level, _)) = by_level.iter().next_back() {
-        let nodes = by_level.remove(&level).expect("present");
-        if level == 0 {
-            for p in nodes {
-                write(&writer, unspill(p, &schema)?)?;
-            }
-            break;
-        }
-        let mut families: BTreeMap<NodeKey, Vec<Pending>> = BTreeMap::new();
-        for n in nodes {
-            families.entry(n.key.parent()).or_default().push(n);
-        }
-        let parents: Vec<Pending> = pool.install(|| {
-            families
-                .into_par_iter()
-                .map(|(parent, kids)| -> Result<Pending> {
-                    let count = kids.len() as u64;
-                    let children = kids
-                        .into_iter()
-                        .map(|p| unspill(p, &schema))
-                        .collect::<Result<Vec<_>>>()?;
-                    let (top, children) = match structure {
-                        Structure::Kd => kd::take_up(parent, children, &params),
-                        Structure::Mwkd => {
-                            let kids = children.into_iter().map(crate::mwkd::MwNode::from_built);
-                            let (top, kids) = crate::mwkd::take_up(parent, kids.collect(), &mw);
-                            (
-                                top.into_built(),
-                                kids.into_iter().map(|k| k.into_built()).collect(),
-                            )
-                        }
-                        _ => nested::take_up(parent, children, &root, &params),
-                    };
-                    for c in children {
-                        write(&writer, c)?;
-                    }
-                    report.advance(count);
-                    spill(top, &spill_dir)
-                })
-                .collect::<Result<Vec<_>>>()
-        })?;
-        by_level.entry(level - 1).or_default().extend(parents);
-    }
+    .build(pending, tops_level, report)?;
     phases.push(("merging", t.elapsed().as_secs_f64()));
     t = Instant::now();
 
@@ -650,25 +737,17 @@ pub fn convert(
             Structure::Octree => "nested-octree".into(),
             s => s.name().into(),
         },
-        parameters: serde_json::json!({
-            "fanout": if structure == Structure::Mwkd { Some(mw.fanout) } else { None },
-            // Normals from the input have a sign; estimated ones were turned up (mwkd).
-            "normals": match structure {
-                Structure::Mwkd if schema.has(&myriad_core::Attribute::Normal) => Some("input"),
-                Structure::Mwkd => Some("estimated"),
-                _ => None,
-            },
-            "capacity": params.capacity,
-            "inner_depth": params.inner_depth,
-            "max_level": params.max_level,
-        }),
+        parameters: parameters(structure, &params, &mw, &schema, options.planned.as_ref()),
         points: dist.points,
         nodes: 0,
         depth: 0,
         bounds: dist.bounds,
         root,
         quantization: quant,
-        crs: dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
+        crs: match &options.planned {
+            Some(p) => p.crs.clone(),
+            None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
+        },
         schema: schema.clone(),
         sources: dist
             .sources
@@ -682,7 +761,10 @@ pub fn convert(
                 })
             })
             .collect(),
-        las_header: dist.las_header.clone(),
+        las_header: match &options.planned {
+            Some(p) => p.las_header.clone(),
+            None => dist.las_header.clone(),
+        },
         levels: Vec::new(),
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
     };
@@ -695,7 +777,12 @@ pub fn convert(
             dist.points
         )));
     }
-    let bytes = writer.finish(meta)?;
+    // A part whose cells hold no points (the plan's estimate was off) writes no dataset.
+    let bytes = if written == 0 {
+        0
+    } else {
+        writer.finish(meta)?
+    };
     report.advance(1);
     phases.push(("writing", t.elapsed().as_secs_f64()));
     Ok(Summary {
@@ -709,7 +796,44 @@ pub fn convert(
         skipped_non_finite: dist.skipped_non_finite,
         trimmed: dist.trimmed,
         clamped: dist.clamped,
+        bounds: dist.bounds,
+        sources: dist
+            .sources
+            .iter()
+            .zip(&dist.read)
+            .map(|((i, n), r)| (i.path.clone(), *n, *r))
+            .collect(),
+        tops,
     })
+}
+
+/// The parameters a dataset records: its structure's, and which plan and part it was built
+/// from.
+pub(crate) fn parameters(
+    structure: Structure,
+    params: &NestedParams,
+    mw: &crate::mwkd::MwkdParams,
+    schema: &Schema,
+    planned: Option<&Planned>,
+) -> serde_json::Value {
+    let mut v = serde_json::json!({
+        "fanout": if structure == Structure::Mwkd { Some(mw.fanout) } else { None },
+        // Normals from the input have a sign; estimated ones were turned up (mwkd).
+        "normals": match structure {
+            Structure::Mwkd if schema.has(&myriad_core::Attribute::Normal) => Some("input"),
+            Structure::Mwkd => Some("estimated"),
+            _ => None,
+        },
+        "capacity": params.capacity,
+        "inner_depth": params.inner_depth,
+        "max_level": params.max_level,
+    });
+    if let Some(serde_json::Value::Object(extra)) = planned.map(|p| &p.parameters) {
+        for (k, x) in extra {
+            v[k] = x.clone();
+        }
+    }
+    v
 }
 
 #[cfg(test)]

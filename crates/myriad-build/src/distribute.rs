@@ -41,6 +41,19 @@ pub struct DistributeOptions {
     pub min_chunks: u64,
     /// Where the private spill folder is made (next to the output, so that it is on its disk).
     pub temp_dir: PathBuf,
+    /// A grid fixed beforehand (a planned build, [`crate::partition`]) instead of one from the
+    /// inputs' headers.
+    pub grid: Option<Grid>,
+}
+
+/// The root cube, chunk level and schema of a planned build, and the cells a part keeps.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    pub root: Aabb,
+    pub level: u32,
+    pub schema: Schema,
+    /// Only the points in these cells of this level (at most `level`) are kept; `None`: all.
+    pub cells: Option<(u32, std::collections::HashSet<[u32; 3]>)>,
 }
 
 /// What [`distribute_with`] reports as it goes.
@@ -77,6 +90,8 @@ pub struct Distribution {
     pub clamped: u64,
     /// What each input's header said, and the points taken from it.
     pub sources: Vec<(myriad_io::SourceInfo, u64)>,
+    /// The points read from each input (more than taken where a grid keeps some cells only).
+    pub read: Vec<u64>,
     /// Points skipped for NaN or infinite coordinates, and dropped by placement boxes.
     pub skipped_non_finite: u64,
     pub trimmed: u64,
@@ -257,7 +272,7 @@ impl Scatter<'_> {
 }
 
 /// The union of the inputs' schemas, in the canonical column order.
-fn merged_schema(infos: &[myriad_io::SourceInfo]) -> Result<Schema> {
+pub(crate) fn merged_schema(infos: &[myriad_io::SourceInfo]) -> Result<Schema> {
     let mut all = Schema::for_las_format(10).attributes;
     all.push(Attribute::ScannerChannel);
     all.push(Attribute::Normal);
@@ -339,7 +354,7 @@ pub(crate) fn conform(mut b: PointBatch, schema: &Schema) -> PointBatch {
 
 /// The root cube around `bounds`. Headers state bounds rounded to their scale (and some are a
 /// step off): a margin of one scale `step` and 1e-5 of the extent keeps such points inside.
-fn root_cube(bounds: &Aabb, step: f64) -> Aabb {
+pub(crate) fn root_cube(bounds: &Aabb, step: f64) -> Aabb {
     let extent = bounds.size().into_iter().fold(0.0f64, f64::max).max(1e-9);
     let margin = step + extent * 1e-5;
     let min = bounds.min.map(|m| m - margin);
@@ -357,6 +372,19 @@ fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] 
     });
     *clamped += outside as u64;
     c
+}
+
+/// The level whose cells the points are first scattered to: a surface of `declared` points fills
+/// about 4^L of the 8^L cells of level L, giving chunks near `chunk_points`, and at least about
+/// `min_chunks` of them.
+pub(crate) fn chunk_level(declared: u64, chunk_points: u64, min_chunks: u64) -> u32 {
+    let per_chunk = chunk_points.max(1) as f64;
+    let chunks = (declared as f64 / per_chunk)
+        .max(min_chunks as f64)
+        .max(1.0);
+    // Never chunks smaller than the budget needs to make sense of (1/16 of chunk_points).
+    let chunks = chunks.min((declared as f64 * 16.0 / per_chunk).max(1.0));
+    (chunks.log(4.0).ceil() as u32).min(MAX_LEVEL)
 }
 
 /// Reads every input once and scatters its points into chunks under `options.temp_dir`.
@@ -396,6 +424,8 @@ pub fn distribute_with(
         }
         let ((n, b), kept) = match (info.points, info.bounds) {
             (Some(n), Some(b)) => ((n, b), Some(src)),
+            // A planned build knows its grid: no pass for bounds.
+            (n, _) if options.grid.is_some() => ((n.unwrap_or(0), Aabb::EMPTY), Some(src)),
             // No exact header bounds: one pass for them.
             _ => (myriad_io::scan(src.as_mut())?, None),
         };
@@ -404,21 +434,20 @@ pub fn distribute_with(
         infos.push(info);
         sources.push(kept);
     }
-    let schema = merged_schema(&infos)?;
     let margin_step = infos
         .iter()
         .filter_map(|i| i.scale)
         .flatten()
         .fold(0.0f64, f64::max);
-    let root = root_cube(&bounds, margin_step);
-    // A surface fills about 4^L of the 8^L cells of level L.
-    let per_chunk = options.chunk_points.max(1) as f64;
-    let chunks = (declared as f64 / per_chunk)
-        .max(options.min_chunks as f64)
-        .max(1.0);
-    // Never chunks smaller than the budget needs to make sense of (1/16 of chunk_points).
-    let chunks = chunks.min((declared as f64 * 16.0 / per_chunk).max(1.0));
-    let level = (chunks.log(4.0).ceil() as u32).min(MAX_LEVEL);
+    let (schema, root) = match &options.grid {
+        Some(g) => (g.schema.clone(), g.root),
+        None => (merged_schema(&infos)?, root_cube(&bounds, margin_step)),
+    };
+    let level = match &options.grid {
+        Some(g) => g.level,
+        None => chunk_level(declared, options.chunk_points, options.min_chunks),
+    };
+    let keep = options.grid.as_ref().and_then(|g| g.cells.as_ref());
 
     let folder = options
         .temp_dir
@@ -430,34 +459,58 @@ pub fn distribute_with(
     let mut scatter = Scatter::new(&folder.0, level, options.buffer_bytes, compress);
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
-    let (mut skipped, mut trimmed, mut taken) = (0u64, 0u64, Vec::new());
+    let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
     for (path, kept) in inputs.iter().zip(sources) {
         let mut src = match kept {
             Some(src) => src,
             None => myriad_io::open(path, open)?,
         };
         let before = points;
+        let mut all = 0u64;
         while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
+            all += b.len() as u64;
             let b = conform(b, &schema);
+            let mut kept = 0;
             for i in 0..b.len() {
                 let p = b.positions[i];
+                let cell = cell_of(&root, level, p, &mut clamped);
+                if clamped > 0 && options.grid.is_some() {
+                    return Err(Error::Invalid(format!(
+                        "{}: a point at ({}, {}, {}) lies outside the planned root cube {:?} to \
+                         {:?} (its header understates its bounds): plan again",
+                        path.display(),
+                        p[0],
+                        p[1],
+                        p[2],
+                        root.min,
+                        root.max
+                    )));
+                }
+                if let Some((at, cells)) = keep {
+                    if !cells.contains(&cell.map(|c| c >> (level - at))) {
+                        continue;
+                    }
+                }
                 actual.extend(p);
-                scatter.add(cell_of(&root, level, p, &mut clamped), &b, i)?;
+                scatter.add(cell, &b, i)?;
+                kept += 1;
             }
-            points += b.len() as u64;
+            points += kept;
             on_read(Progress::Read(b.len() as u64));
         }
         skipped += src.skipped_non_finite();
         trimmed += src.trimmed();
         taken.push(points - before);
+        read.push(all);
     }
     // Points outside the headers' bounds went to the nearest cell, whose cube does not hold
     // them. Rare (a header not updated after editing), but the tree must contain its points:
     // scatter the spill files again over a root cube from the bounds actually read. So too when
     // the headers overstate the bounds by far (a damaged header: 1e300): the points would share
     // one chunk and the tree would spend its levels on empty space.
-    let overstated =
-        !actual.is_empty() && root.size()[0] > 16.0 * root_cube(&actual, margin_step).size()[0];
+    let overstated = options.grid.is_none()
+        && !actual.is_empty()
+        && root.size()[0] > 16.0 * root_cube(&actual, margin_step).size()[0];
     // Everything still in the write buffers, and no chunk to scatter again: the rows stay in
     // memory (KY: 374 MB not written to disk and read back; the reading phase 2.7-3.0 -> 1.9-2.1 s).
     let split = scatter
@@ -515,6 +568,7 @@ pub fn distribute_with(
         bounds: actual,
         clamped,
         sources: infos.into_iter().zip(taken).collect(),
+        read,
         skipped_non_finite: skipped,
         trimmed,
         las_header,

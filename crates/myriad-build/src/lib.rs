@@ -14,3 +14,4 @@ pub mod mospt;
 pub mod mwkd;
 pub mod nested;
 pub mod ntree;
+pub mod partition;

@@ -80,6 +80,7 @@ fn nothing_lost_chunks_fit_and_spill_files_go() {
         compress_above: 0,
         min_chunks: 1,
         temp_dir: spill.clone(),
+        grid: None,
     };
     let dist = distribute(
         &[las.clone(), xyz.clone()],
@@ -173,6 +174,7 @@ fn inputs_with_different_extra_bytes_are_refused() {
         compress_above: u64::MAX,
         min_chunks: 1,
         temp_dir: d.clone(),
+        grid: None,
     };
     let err = distribute(&[las, xyz], &OpenOptions::default(), &options)
         .unwrap_err()
@@ -206,6 +208,7 @@ fn chunks_and_tops_form_one_nested_octree() {
             compress_above: u64::MAX,
             min_chunks: 1,
             temp_dir: d.clone(),
+            grid: None,
         },
     )
     .unwrap();
@@ -334,6 +337,7 @@ fn chunks_that_fit_in_memory_are_not_spilled() {
             compress_above: u64::MAX,
             min_chunks: 8,
             temp_dir: spill.clone(),
+            grid: None,
         };
         let dist = distribute(
             std::slice::from_ref(&las),

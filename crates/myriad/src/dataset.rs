@@ -16,7 +16,7 @@ use crate::info::{print_bounds, print_crs, thousands};
 #[derive(Args)]
 pub struct ConvertArgs {
     /// Input point clouds (LAS, LAZ, E57, PLY, PCD, PTS/XYZ/CSV/TXT); several merge into one dataset
-    #[arg(required = true)]
+    #[arg(required_unless_present = "plan", conflicts_with = "plan")]
     inputs: Vec<PathBuf>,
     /// The dataset to write (.myr)
     #[arg(
@@ -30,6 +30,14 @@ pub struct ConvertArgs {
     /// fall in are rebuilt, the rest kept; replaced only when complete, then verified
     #[arg(long, value_name = "DATASET")]
     append: Option<PathBuf>,
+    /// Build from a plan (`myriad plan`): its inputs and parameters; with --part, one part into
+    /// the folder given by -o, else the whole plan on this machine
+    #[arg(long, value_name = "PLAN", conflicts_with = "append")]
+    plan: Option<PathBuf>,
+    /// The part of the plan to build: an index, or auto (SLURM_ARRAY_TASK_ID,
+    /// JOB_COMPLETION_INDEX or AWS_BATCH_JOB_ARRAY_INDEX)
+    #[arg(long, requires = "plan", value_name = "I|auto")]
+    part: Option<String>,
     /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
     /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
     /// kd-tree of aggregates drawn as splats, 004)
@@ -112,6 +120,15 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         return append(&a, d);
     }
     let output = a.output.clone().expect("clap: --output or --append");
+    if let Some(plan) = &a.plan {
+        return crate::partition::convert_planned(
+            plan,
+            a.part.as_deref(),
+            &output,
+            a.threads,
+            a.json,
+        );
+    }
     let structure = match a.structure.as_str() {
         "nested-octree" => convert::Structure::Octree,
         s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,

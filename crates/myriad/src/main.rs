@@ -15,6 +15,7 @@ mod cached;
 mod dataset;
 mod export;
 mod info;
+mod partition;
 mod render;
 mod serve;
 mod synth;
@@ -38,6 +39,12 @@ struct Cli {
 enum Command {
     /// Build a level-of-detail dataset (.myr) from point clouds of any size
     Convert(dataset::ConvertArgs),
+    /// Plan a build in parts (for Slurm, Ray, Kubernetes, AWS Batch): reads the inputs' headers only
+    Plan(partition::PlanArgs),
+    /// Merge the parts of a planned build into one dataset (pages copied, levels above built)
+    Merge(partition::MergeArgs),
+    /// Run a planned build on Slurm: an array job for the parts, then the merge
+    Slurm(partition::SlurmArgs),
     /// Show what a point cloud file or dataset holds: format, count, bounds, attributes, CRS
     Info(info::InfoArgs),
     /// Write a dataset's points (in a box, at a level of detail) to LAS, LAZ or PLY
@@ -90,6 +97,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Convert(a) => dataset::convert(a),
+        Command::Plan(a) => partition::plan(a),
+        Command::Merge(a) => partition::merge(a),
+        Command::Slurm(a) => partition::slurm(a),
         Command::Info(a) => info::run(a),
         Command::Extract(a) => dataset::extract(a),
         Command::Export(a) => export::run(a),

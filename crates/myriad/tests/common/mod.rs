@@ -24,6 +24,40 @@ pub fn myriad(args: &[&str]) -> Run {
     }
 }
 
+/// Every record of a LAS/LAZ file as comparable integers: position in thousandths (the synthetic
+/// scans' scale), GPS time bits, intensity, classification, returns, colour.
+pub fn records(path: &Path) -> Vec<Vec<i64>> {
+    let mut src = myriad_io::open(path, &myriad_io::OpenOptions::default()).unwrap();
+    let mut out = Vec::new();
+    while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH).unwrap() {
+        for i in 0..b.len() {
+            let p = b.positions[i];
+            let rgb = b.rgb.as_ref().unwrap()[i];
+            out.push(vec![
+                (p[0] * 1000.0).round() as i64,
+                (p[1] * 1000.0).round() as i64,
+                (p[2] * 1000.0).round() as i64,
+                b.gps_time.as_ref().unwrap()[i].to_bits() as i64,
+                b.intensity.as_ref().unwrap()[i] as i64,
+                b.classification.as_ref().unwrap()[i] as i64,
+                b.return_number.as_ref().unwrap()[i] as i64,
+                rgb[0] as i64,
+                rgb[1] as i64,
+                rgb[2] as i64,
+            ]);
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Runs the binary, which must succeed; its output.
+pub fn ok(args: &[&str]) -> String {
+    let r = myriad(args);
+    assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+    r.stdout
+}
+
 /// An empty folder of this test process.
 pub fn tempdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("myriad-cli-{name}-{}", std::process::id()));

@@ -1,0 +1,971 @@
+//! Builds beyond one machine (issue 18): a plan, its parts built anywhere, and the merge.
+//!
+//! A one-machine build's result depends on the root cube, the chunk level, the chunk size and
+//! the parameters; [`plan`] fixes them from the inputs' headers alone, with a partition level
+//! `P` (at most the chunk level) whose occupied cells are split into runs of about equal
+//! estimated points, in Morton order. A part ([`part_options`], then `convert`) reads only the
+//! inputs whose bounds meet its cells, keeps the points in its cells, and builds exactly what a
+//! one-machine build builds there: the chunks below `P` and the levels between them and `P`. It
+//! writes that as a dataset of its own (its own levels above `P` too, so that it can be viewed
+//! and verified alone) and, in a `.tops` file next to it, its level-`P` nodes as they were before
+//! any level above took points from them. [`merge`] copies every part's pages below `P` without
+//! decoding them and builds the levels above `P` from the tops as `convert` does: the result has
+//! the same nodes with the same points, page for page, as `convert --plan` on one machine.
+//!
+//! Octree and layered structures only: kd and mwkd trees group chunks across the whole scan.
+
+use crate::convert::{self, Above, Planned, Report, Structure};
+use crate::distribute::{self, Grid, SPILL_PREFIX};
+use crate::nested::{BuiltNode, NestedParams};
+use myriad_core::{Aabb, Error, NodeKey, Obb, PointBatch, Result};
+use myriad_format::{Dataset, DatasetWriter, Metadata, NodeShape};
+use myriad_io::OpenOptions;
+use rayon::prelude::*;
+use serde_json::{Value, json};
+use std::collections::HashSet;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+const PLAN_FORMAT: u64 = 1;
+const TOPS_MAGIC: &[u8; 8] = b"MYRTOPS1";
+/// Deepest partition level (8^8 cells).
+const MAX_PARTITION_LEVEL: u32 = 8;
+
+/// What `myriad plan` is given: the inputs, the number of parts, and convert's options.
+#[derive(Debug, Clone)]
+pub struct PlanOptions {
+    pub parts: usize,
+    pub structure: Structure,
+    pub params: NestedParams,
+    /// Memory budget of each part, in bytes.
+    pub memory: u64,
+    /// Threads of each part (they size the chunks, as in `convert`).
+    pub threads: usize,
+    pub precision: f64,
+    pub open: OpenOptions,
+    pub columns: Option<String>,
+    pub chunk_points: Option<u64>,
+}
+
+/// One input as the plan saw its header.
+#[derive(Debug, Clone)]
+pub struct PlannedInput {
+    pub path: PathBuf,
+    pub points: u64,
+    pub bounds: Aabb,
+}
+
+/// A plan: everything the parts and the merge must agree on.
+#[derive(Debug, Clone)]
+pub struct BuildPlan {
+    pub id: String,
+    pub inputs: Vec<PlannedInput>,
+    pub structure: Structure,
+    pub params: NestedParams,
+    pub memory: u64,
+    pub chunk_points: u64,
+    pub chunk_level: u32,
+    pub partition_level: u32,
+    /// Each part's cells at the partition level, in Morton order, and its estimated points.
+    pub parts: Vec<(Vec<[u32; 3]>, u64)>,
+    /// The dataset's metadata as far as the plan knows it (root, grid, schema, CRS, LAS header).
+    pub dataset: Metadata,
+    pub columns: Option<String>,
+    pub placements: bool,
+    pub precision: f64,
+}
+
+fn morton(c: [u32; 3]) -> u64 {
+    let mut m = 0u64;
+    for bit in 0..21 {
+        for (a, v) in c.iter().enumerate() {
+            m |= ((*v as u64 >> bit) & 1) << (3 * bit + 2 - a as u32);
+        }
+    }
+    m
+}
+
+/// FNV-1a of the text: a plan's identity (not a security measure; it catches mixed-up plans).
+fn fingerprint(text: &str) -> String {
+    let mut h = 0xcbf29ce484222325u64;
+    for b in text.bytes() {
+        h = (h ^ b as u64).wrapping_mul(0x100000001b3);
+    }
+    format!("{h:016x}")
+}
+
+/// The fraction of `b` inside `cell` (by extent per axis; an axis `b` is flat on counts whole
+/// where it lies in the cell).
+fn overlap(b: &Aabb, cell: &Aabb) -> f64 {
+    let mut f = 1.0;
+    for a in 0..3 {
+        let (lo, hi) = (b.min[a].max(cell.min[a]), b.max[a].min(cell.max[a]));
+        let len = b.max[a] - b.min[a];
+        f *= if len <= 0.0 {
+            if b.min[a] >= cell.min[a] && b.min[a] <= cell.max[a] {
+                1.0
+            } else {
+                0.0
+            }
+        } else {
+            ((hi - lo) / len).max(0.0)
+        };
+    }
+    f
+}
+
+/// The cells of `level` under `root` that `b` meets.
+fn cells_meeting(root: &Aabb, level: u32, b: &Aabb) -> Vec<[u32; 3]> {
+    let n = 1u64 << level;
+    let side = root.size()[0] / n as f64;
+    let range = |a: usize| {
+        let f = |v: f64| (((v - root.min[a]) / side).floor().max(0.0) as u64).min(n - 1) as u32;
+        f(b.min[a])..=f(b.max[a])
+    };
+    let mut out = Vec::new();
+    for x in range(0) {
+        for y in range(1) {
+            for z in range(2) {
+                out.push([x, y, z]);
+            }
+        }
+    }
+    out
+}
+
+/// Splits `cells` (Morton order, with estimated points) into `parts` runs of about equal sums.
+fn runs(cells: &[([u32; 3], f64)], parts: usize) -> Vec<(Vec<[u32; 3]>, u64)> {
+    let total: f64 = cells.iter().map(|c| c.1).sum();
+    let mut out: Vec<(Vec<[u32; 3]>, f64)> = vec![(Vec::new(), 0.0); parts];
+    let mut acc = 0.0;
+    let mut part = 0;
+    for (i, &(c, n)) in cells.iter().enumerate() {
+        // Move to the next run once this one has its share, keeping a cell for each run left.
+        let left = cells.len() - i;
+        if part + 1 < parts
+            && !out[part].0.is_empty()
+            && (acc >= total * (part + 1) as f64 / parts as f64 || left < parts - part)
+        {
+            part += 1;
+        }
+        out[part].0.push(c);
+        out[part].1 += n;
+        acc += n;
+    }
+    out.into_iter()
+        .map(|(c, n)| (c, n.round() as u64))
+        .collect()
+}
+
+/// Reads the inputs' headers (an input without bounds in its header is read once for them) and
+/// makes the plan.
+pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
+    if !matches!(o.structure, Structure::Octree | Structure::Layered) {
+        return Err(Error::Invalid(format!(
+            "--structure {}: a partitioned build makes octree and layered datasets (kd and mwkd \
+             trees group chunks across the whole scan)",
+            o.structure.name()
+        )));
+    }
+    if o.parts == 0 {
+        return Err(Error::Invalid("--parts must be at least 1".into()));
+    }
+    if o.memory < convert::MIN_MEMORY {
+        return Err(Error::Invalid(format!(
+            "--memory {} MB is below the {} MB the build needs",
+            o.memory >> 20,
+            convert::MIN_MEMORY >> 20
+        )));
+    }
+    let mut infos = Vec::new();
+    let mut planned = Vec::new();
+    let mut las_header = None;
+    for path in inputs {
+        let mut src = myriad_io::open(path, &o.open)?;
+        let info = src.info().clone();
+        if las_header.is_none() {
+            if let Some(h) = src.las_header() {
+                las_header = Some(myriad_io::las::header_to_bytes(h)?);
+            }
+        }
+        let (points, bounds) = match (info.points, info.bounds) {
+            (Some(n), Some(b)) => (n, b),
+            _ => myriad_io::scan(src.as_mut())?,
+        };
+        planned.push(PlannedInput {
+            path: path.clone(),
+            points,
+            bounds,
+        });
+        infos.push(info);
+    }
+    let declared: u64 = planned.iter().map(|i| i.points).sum();
+    if declared == 0 {
+        return Err(Error::Invalid(format!(
+            "{}: the inputs hold no points",
+            inputs[0].display()
+        )));
+    }
+    let bounds = planned.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
+    let schema = distribute::merged_schema(&infos)?;
+    let step = infos
+        .iter()
+        .filter_map(|i| i.scale)
+        .flatten()
+        .fold(0.0f64, f64::max);
+    let root = distribute::root_cube(&bounds, step);
+    let refs: Vec<_> = infos.iter().collect();
+    let quantization = convert::quantization(&refs, &root, o.precision)?;
+    let params = NestedParams {
+        ntree: o.structure == Structure::Layered,
+        ..o.params
+    };
+    let sizing = convert::plan(o.memory, o.threads.max(1), &params);
+    let chunk_points = o.chunk_points.unwrap_or(sizing.chunk_points);
+
+    // The partition level: enough occupied cells that the runs come out even (8 per part).
+    let estimate = |level: u32| {
+        let mut cells: std::collections::HashMap<[u32; 3], f64> = Default::default();
+        for i in &planned {
+            let meet = cells_meeting(&root, level, &i.bounds);
+            let key = |c: [u32; 3]| NodeKey { level, cell: c }.bounds(&root);
+            let w: Vec<f64> = meet.iter().map(|&c| overlap(&i.bounds, &key(c))).collect();
+            let sum: f64 = w.iter().sum();
+            for (c, w) in meet.into_iter().zip(w) {
+                if sum > 0.0 && w > 0.0 {
+                    *cells.entry(c).or_default() += i.points as f64 * w / sum;
+                }
+            }
+        }
+        let mut v: Vec<([u32; 3], f64)> = cells.into_iter().filter(|c| c.1 > 0.0).collect();
+        v.sort_by_key(|c| morton(c.0));
+        v
+    };
+    let mut p = 1;
+    let mut cells = estimate(p);
+    while cells.len() < 8 * o.parts && p < MAX_PARTITION_LEVEL {
+        p += 1;
+        cells = estimate(p);
+    }
+    let chunk_level =
+        distribute::chunk_level(declared, chunk_points, 8 * sizing.threads as u64).max(p);
+    let parts = runs(&cells, o.parts);
+
+    let dataset = Metadata {
+        structure: match o.structure {
+            Structure::Octree => "nested-octree".into(),
+            s => s.name().into(),
+        },
+        parameters: json!({
+            "capacity": params.capacity, "inner_depth": params.inner_depth,
+            "max_level": params.max_level,
+        }),
+        points: declared,
+        nodes: 0,
+        depth: 0,
+        bounds,
+        root,
+        quantization,
+        crs: infos.iter().find_map(|i| i.crs.clone()),
+        schema,
+        sources: infos
+            .iter()
+            .map(|i| {
+                json!({
+                    "path": i.path.display().to_string(), "format": i.format.name(),
+                    "version": i.version, "points": i.points,
+                })
+            })
+            .collect(),
+        las_header,
+        software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
+        levels: Vec::new(),
+    };
+    let mut plan = BuildPlan {
+        id: String::new(),
+        inputs: planned,
+        structure: o.structure,
+        params,
+        memory: o.memory,
+        chunk_points,
+        chunk_level,
+        partition_level: p,
+        parts,
+        dataset,
+        columns: o.columns.clone(),
+        placements: o.open.sidecar_placements,
+        precision: o.precision,
+    };
+    plan.id = fingerprint(&plan.body().to_string());
+    Ok(plan)
+}
+
+impl BuildPlan {
+    /// The plan as JSON, without its id.
+    fn body(&self) -> Value {
+        let aabb = |b: &Aabb| json!({"min": b.min, "max": b.max});
+        json!({
+            "myriad_plan": PLAN_FORMAT,
+            "structure": self.structure.name(),
+            "capacity": self.params.capacity,
+            "inner_depth": self.params.inner_depth,
+            "max_level": self.params.max_level,
+            "memory": self.memory,
+            "chunk_points": self.chunk_points,
+            "chunk_level": self.chunk_level,
+            "partition_level": self.partition_level,
+            "columns": self.columns,
+            "placements": self.placements,
+            "precision": self.precision,
+            "inputs": self.inputs.iter().map(|i| json!({
+                "path": i.path.display().to_string(), "points": i.points, "bounds": aabb(&i.bounds),
+            })).collect::<Vec<_>>(),
+            "parts": self.parts.iter().map(|(c, n)| json!({
+                "estimated_points": n, "cells": c,
+            })).collect::<Vec<_>>(),
+            "dataset": self.dataset.to_json(),
+        })
+    }
+
+    pub fn to_json(&self) -> Value {
+        let mut v = self.body();
+        v["id"] = json!(self.id);
+        v
+    }
+
+    /// Reads a plan written by [`BuildPlan::to_json`]; refuses one edited since (its id).
+    pub fn load(path: &Path) -> Result<BuildPlan> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let bad =
+            |m: String| Error::Invalid(format!("{}: not a Myriad build plan: {m}", path.display()));
+        let v: Value = serde_json::from_str(&text).map_err(|e| {
+            Error::Invalid(format!(
+                "{}: line {}: not JSON: {e}",
+                path.display(),
+                e.line()
+            ))
+        })?;
+        if v["myriad_plan"].as_u64() != Some(PLAN_FORMAT) {
+            return Err(bad(format!("no \"myriad_plan\": {PLAN_FORMAT}")));
+        }
+        let u = |k: &str| {
+            v[k].as_u64()
+                .ok_or_else(|| bad(format!("\"{k}\" is not a count")))
+        };
+        let f3 = |x: &Value| -> Option<[f64; 3]> {
+            let a = x.as_array().filter(|a| a.len() == 3)?;
+            Some([a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?])
+        };
+        let aabb = |x: &Value| Some(Aabb::new(f3(&x["min"])?, f3(&x["max"])?));
+        let structure = Structure::parse(v["structure"].as_str().unwrap_or("")).map_err(bad)?;
+        let mut inputs = Vec::new();
+        for i in v["inputs"]
+            .as_array()
+            .ok_or_else(|| bad("no inputs".into()))?
+        {
+            inputs.push(PlannedInput {
+                path: PathBuf::from(i["path"].as_str().ok_or_else(|| bad("input path".into()))?),
+                points: i["points"]
+                    .as_u64()
+                    .ok_or_else(|| bad("input points".into()))?,
+                bounds: aabb(&i["bounds"]).ok_or_else(|| bad("input bounds".into()))?,
+            });
+        }
+        let mut parts = Vec::new();
+        for p in v["parts"]
+            .as_array()
+            .ok_or_else(|| bad("no parts".into()))?
+        {
+            let cells = p["cells"]
+                .as_array()
+                .ok_or_else(|| bad("part cells".into()))?
+                .iter()
+                .map(|c| {
+                    let a = c.as_array().filter(|a| a.len() == 3)?;
+                    Some([
+                        a[0].as_u64()? as u32,
+                        a[1].as_u64()? as u32,
+                        a[2].as_u64()? as u32,
+                    ])
+                })
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| bad("a part's cell is not 3 integers".into()))?;
+            parts.push((cells, p["estimated_points"].as_u64().unwrap_or(0)));
+        }
+        let partition_level = u("partition_level")? as u32;
+        let chunk_level = u("chunk_level")? as u32;
+        if partition_level > chunk_level || parts.is_empty() {
+            return Err(bad(
+                "partition level above the chunk level, or no parts".into()
+            ));
+        }
+        let plan = BuildPlan {
+            id: v["id"].as_str().unwrap_or("").to_string(),
+            inputs,
+            structure,
+            params: NestedParams {
+                capacity: u("capacity")? as usize,
+                inner_depth: u("inner_depth")? as u32,
+                max_level: u("max_level")? as u32,
+                ntree: structure == Structure::Layered,
+            },
+            memory: u("memory")?,
+            chunk_points: u("chunk_points")?,
+            chunk_level,
+            partition_level,
+            parts,
+            dataset: Metadata::from_json(&v["dataset"]).map_err(bad)?,
+            columns: v["columns"].as_str().map(String::from),
+            placements: v["placements"].as_bool().unwrap_or(true),
+            precision: v["precision"].as_f64().unwrap_or(1e-4),
+        };
+        if plan.id != fingerprint(&plan.body().to_string()) {
+            return Err(Error::Invalid(format!(
+                "{}: the plan was edited after it was made (its id does not match): make it \
+                 again with `myriad plan`",
+                path.display()
+            )));
+        }
+        Ok(plan)
+    }
+
+    /// The open options the plan's inputs are read with.
+    pub fn open_options(&self) -> OpenOptions {
+        OpenOptions {
+            columns: self.columns.clone(),
+            sidecar_placements: self.placements,
+            ..Default::default()
+        }
+    }
+
+    /// The inputs whose bounds meet part `index`'s cells (all inputs for `None`: the whole plan).
+    pub fn inputs_of(&self, index: Option<usize>) -> Vec<PathBuf> {
+        let root = &self.dataset.root;
+        let cells: Option<HashSet<[u32; 3]>> =
+            index.map(|i| self.parts[i].0.iter().copied().collect());
+        self.inputs
+            .iter()
+            .filter(|i| match &cells {
+                None => true,
+                Some(set) => {
+                    // The header's bounds with a margin for rounding to the scale.
+                    let m = root.size()[0] * 1e-5;
+                    let b = Aabb::new(i.bounds.min.map(|v| v - m), i.bounds.max.map(|v| v + m));
+                    cells_meeting(root, self.partition_level, &b)
+                        .iter()
+                        .any(|c| set.contains(c))
+                }
+            })
+            .map(|i| i.path.clone())
+            .collect()
+    }
+
+    /// `convert`'s options for part `index` (`None`: the whole plan on one machine), written to
+    /// `output`.
+    pub fn convert_options(
+        &self,
+        index: Option<usize>,
+        output: &Path,
+        threads: usize,
+    ) -> convert::ConvertOptions {
+        let mut o = convert::ConvertOptions::new(output);
+        o.structure = self.structure;
+        o.memory = self.memory;
+        o.threads = threads;
+        o.precision = self.precision;
+        o.params = self.params;
+        o.open = self.open_options();
+        o.chunk_points = Some(self.chunk_points);
+        o.force = true;
+        let p = self.partition_level;
+        o.planned = Some(Planned {
+            grid: Grid {
+                root: self.dataset.root,
+                level: self.chunk_level,
+                schema: self.dataset.schema.clone(),
+                cells: index.map(|i| (p, self.parts[i].0.iter().copied().collect())),
+            },
+            quantization: self.dataset.quantization,
+            crs: self.dataset.crs.clone(),
+            las_header: self.dataset.las_header.clone(),
+            tops_level: index.map(|_| p),
+            parameters: match index {
+                Some(i) => json!({"plan": self.id, "part": i, "parts": self.parts.len(),
+                                  "partition_level": p}),
+                None => json!({"plan": self.id}),
+            },
+        });
+        o
+    }
+}
+
+/// The files of part `index` in `dir`.
+pub fn part_paths(dir: &Path, index: usize) -> (PathBuf, PathBuf) {
+    (
+        dir.join(format!("part-{index}.myr")),
+        dir.join(format!("part-{index}.tops")),
+    )
+}
+
+/// What a part built, besides its dataset: written as the head of its `.tops` file.
+#[derive(Debug, Clone)]
+pub struct PartSummary {
+    pub points: u64,
+    pub bounds: Aabb,
+    /// Per input of the plan: points taken into this part and points read (`None`: not opened).
+    pub inputs: Vec<Option<(u64, u64)>>,
+    pub skipped_non_finite: u64,
+    pub trimmed: u64,
+    pub seconds: f64,
+    pub bytes: u64,
+    pub nodes: u64,
+}
+
+/// Builds part `index` of `plan` into `dir` (`part-I.myr` and `part-I.tops`), replacing what a
+/// previous run of it left. A part whose cells hold no points writes only its `.tops`.
+pub fn build_part(
+    plan: &BuildPlan,
+    index: usize,
+    dir: &Path,
+    threads: usize,
+    report: &dyn Report,
+) -> Result<PartSummary> {
+    if index >= plan.parts.len() {
+        return Err(Error::Invalid(format!(
+            "--part {index}: the plan has parts 0 to {}",
+            plan.parts.len() - 1
+        )));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let (myr, tops_path) = part_paths(dir, index);
+    let inputs = plan.inputs_of(Some(index));
+    let mut summary = PartSummary {
+        points: 0,
+        bounds: Aabb::EMPTY,
+        inputs: vec![None; plan.inputs.len()],
+        skipped_non_finite: 0,
+        trimmed: 0,
+        seconds: 0.0,
+        bytes: 0,
+        nodes: 0,
+    };
+    let start = Instant::now();
+    let mut tops = Vec::new();
+    if !inputs.is_empty() {
+        let o = plan.convert_options(Some(index), &myr, threads);
+        let s = convert::convert(&inputs, &o, report)?;
+        for (path, taken, read) in &s.sources {
+            let i = plan
+                .inputs
+                .iter()
+                .position(|p| &p.path == path)
+                .expect("a part opens the plan's inputs");
+            summary.inputs[i] = Some((*taken, *read));
+        }
+        summary.points = s.points;
+        summary.bounds = s.bounds;
+        summary.skipped_non_finite = s.skipped_non_finite;
+        summary.trimmed = s.trimmed;
+        summary.bytes = s.bytes;
+        summary.nodes = s.nodes;
+        tops = s.tops;
+    }
+    if summary.points == 0 {
+        // Nothing here: no dataset (a previous run's is removed: it cannot have had points).
+        let _ = std::fs::remove_file(&myr);
+    }
+    summary.seconds = start.elapsed().as_secs_f64();
+    write_tops(&tops_path, plan, index, &summary, &tops)?;
+    Ok(summary)
+}
+
+fn shape_json(s: &NodeShape) -> Value {
+    let obb = |o: &Obb| json!({"center": o.center, "axes": o.axes, "half": o.half_extents});
+    json!({
+        "bounds": s.bounds.map(|b| json!({"min": b.min, "max": b.max})),
+        "contour": s.contour.as_ref().map(obb),
+    })
+}
+
+fn shape_from(v: &Value) -> Option<NodeShape> {
+    let f3 = |x: &Value| -> Option<[f64; 3]> {
+        let a = x.as_array().filter(|a| a.len() == 3)?;
+        Some([a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?])
+    };
+    let bounds = match &v["bounds"] {
+        Value::Null => None,
+        b => Some(Aabb::new(f3(&b["min"])?, f3(&b["max"])?)),
+    };
+    let contour = match &v["contour"] {
+        Value::Null => None,
+        c => {
+            let axes = c["axes"].as_array().filter(|a| a.len() == 3)?;
+            Some(Obb {
+                center: f3(&c["center"])?,
+                axes: [f3(&axes[0])?, f3(&axes[1])?, f3(&axes[2])?],
+                half_extents: f3(&c["half"])?,
+            })
+        }
+    };
+    Some(NodeShape { bounds, contour })
+}
+
+/// The `.tops` file: magic, the head's length (u64) and the head (JSON: plan, part, summary, the
+/// nodes' keys, counts, levels and shapes), then every node's rows, zstd-compressed. Written
+/// under a temporary name and renamed.
+fn write_tops(
+    path: &Path,
+    plan: &BuildPlan,
+    index: usize,
+    s: &PartSummary,
+    tops: &[BuiltNode],
+) -> Result<()> {
+    let head = json!({
+        "plan": plan.id, "part": index, "points": s.points,
+        "bounds": (!s.bounds.is_empty()).then(|| json!({"min": s.bounds.min, "max": s.bounds.max})),
+        "inputs": s.inputs.iter().map(|i| i.map(|(t, r)| json!({"taken": t, "read": r}))).collect::<Vec<_>>(),
+        "skipped_non_finite": s.skipped_non_finite, "trimmed": s.trimmed,
+        "nodes": tops.iter().map(|n| json!({
+            "level": n.key.level, "cell": n.key.cell, "points": n.points.len(),
+            "prefix": n.prefix, "spacing": n.spacing, "shape": shape_json(&n.shape),
+        })).collect::<Vec<_>>(),
+    })
+    .to_string();
+    let file = myriad_io::atomic::AtomicFile::create(path, true)?;
+    let io = |e| Error::io(file.temp_path(), e);
+    let mut f = std::io::BufWriter::new(file.open_write()?);
+    f.write_all(TOPS_MAGIC).map_err(io)?;
+    f.write_all(&(head.len() as u64).to_le_bytes())
+        .map_err(io)?;
+    f.write_all(head.as_bytes()).map_err(io)?;
+    let mut z = zstd::Encoder::new(f, 1).map_err(io)?;
+    let mut row = Vec::new();
+    for n in tops {
+        for i in 0..n.points.len() {
+            row.clear();
+            n.points.put_row(i, &mut row);
+            z.write_all(&row).map_err(io)?;
+        }
+    }
+    let f = z.finish().map_err(io)?;
+    f.into_inner()
+        .map_err(|e| io(e.into_error()))?
+        .sync_all()
+        .map_err(io)?;
+    file.commit()
+}
+
+/// A part's `.tops` file read back: its head and its nodes.
+fn read_tops(path: &Path, plan: &BuildPlan, index: usize) -> Result<(Value, Vec<BuiltNode>)> {
+    let mut f = std::fs::File::open(path).map_err(|e| {
+        Error::Invalid(format!(
+            "{}: part {index} has not finished ({e}): run `myriad convert --plan PLAN --part \
+             {index} -o {}` again",
+            path.display(),
+            path.parent().unwrap_or(Path::new(".")).display()
+        ))
+    })?;
+    let io = |e| Error::io(path, e);
+    let mut magic = [0u8; 16];
+    f.read_exact(&mut magic).map_err(io)?;
+    if &magic[..8] != TOPS_MAGIC {
+        return Err(Error::at_byte(path, 0, "not a part's .tops file"));
+    }
+    let len = u64::from_le_bytes(magic[8..].try_into().expect("8 bytes"));
+    if len > 1 << 30 {
+        return Err(Error::at_byte(path, 8, "head length out of range"));
+    }
+    let mut head = vec![0u8; len as usize];
+    f.read_exact(&mut head).map_err(io)?;
+    let head: Value = serde_json::from_slice(&head)
+        .map_err(|e| Error::at_byte(path, 16 + e.column() as u64, format!("head: {e}")))?;
+    if head["plan"].as_str() != Some(plan.id.as_str())
+        || head["part"].as_u64() != Some(index as u64)
+    {
+        return Err(Error::Invalid(format!(
+            "{}: built from another plan or part (plan {}, part {}), not part {index} of plan {}",
+            path.display(),
+            head["plan"],
+            head["part"],
+            plan.id
+        )));
+    }
+    let mut rows = Vec::new();
+    zstd::Decoder::new(f)
+        .and_then(|mut z| z.read_to_end(&mut rows))
+        .map_err(io)?;
+    let schema = &plan.dataset.schema;
+    let row = PointBatch::with_schema(schema, 0).row_size();
+    let mut at = 0usize;
+    let mut nodes = Vec::new();
+    let bad = |m: &str| Error::at_byte(path, 16, format!("head: {m}"));
+    for n in head["nodes"].as_array().ok_or_else(|| bad("no nodes"))? {
+        let count = n["points"].as_u64().ok_or_else(|| bad("node points"))? as usize;
+        let cell = n["cell"]
+            .as_array()
+            .filter(|c| c.len() == 3)
+            .and_then(|c| {
+                Some([
+                    c[0].as_u64()? as u32,
+                    c[1].as_u64()? as u32,
+                    c[2].as_u64()? as u32,
+                ])
+            })
+            .ok_or_else(|| bad("node cell"))?;
+        let nums = |k: &str| {
+            n[k].as_array()
+                .map(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<_>>>())
+        };
+        let prefix = nums("prefix").flatten().ok_or_else(|| bad("node prefix"))?;
+        let spacing = nums("spacing")
+            .flatten()
+            .ok_or_else(|| bad("node spacing"))?;
+        let end = at + count * row;
+        if end > rows.len() {
+            return Err(Error::at_byte(
+                path,
+                16 + len,
+                "rows end before the nodes' points",
+            ));
+        }
+        let mut b = PointBatch::with_schema(schema, count);
+        for r in rows[at..end].chunks_exact(row) {
+            b.push_row(r);
+        }
+        at = end;
+        nodes.push(BuiltNode {
+            key: NodeKey {
+                level: n["level"].as_u64().ok_or_else(|| bad("node level"))? as u32,
+                cell,
+            },
+            points: b,
+            prefix: prefix.into_iter().map(|p| p as u64).collect(),
+            spacing,
+            shape: shape_from(&n["shape"]).ok_or_else(|| bad("node shape"))?,
+            splats: None,
+        });
+    }
+    if at != rows.len() {
+        return Err(Error::at_byte(
+            path,
+            16 + len,
+            "rows beyond the nodes' points",
+        ));
+    }
+    Ok((head, nodes))
+}
+
+#[derive(Debug, Clone)]
+pub struct MergeSummary {
+    pub points: u64,
+    pub nodes: u64,
+    /// Pages copied from the parts as they were, and nodes built (the levels above the parts).
+    pub copied: u64,
+    pub built: u64,
+    pub bytes: u64,
+    pub seconds: f64,
+}
+
+/// Removes the merge's spill folder however it ends.
+struct Folder(PathBuf);
+impl Drop for Folder {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Merges the parts of `plan` in `dir` into one dataset at `out`.
+pub fn merge(
+    plan: &BuildPlan,
+    dir: &Path,
+    out: &Path,
+    force: bool,
+    threads: usize,
+    report: &dyn Report,
+) -> Result<MergeSummary> {
+    let start = Instant::now();
+    if !force && out.exists() {
+        return Err(Error::Invalid(format!(
+            "{}: output exists (use --force to replace it)",
+            out.display()
+        )));
+    }
+    convert::remove_stale(out);
+    let p = plan.partition_level;
+    // Every part there and from this plan, before anything is written.
+    let mut heads = Vec::new();
+    let mut tops = Vec::new();
+    let mut parts = Vec::new();
+    for i in 0..plan.parts.len() {
+        let (myr, tops_path) = part_paths(dir, i);
+        let (head, nodes) = read_tops(&tops_path, plan, i)?;
+        let points = head["points"].as_u64().unwrap_or(0);
+        if points > 0 {
+            let ds = Dataset::open(&myr)?;
+            let param = &ds.meta.parameters;
+            if param["plan"].as_str() != Some(plan.id.as_str())
+                || param["part"].as_u64() != Some(i as u64)
+                || ds.meta.points != points
+            {
+                return Err(Error::Invalid(format!(
+                    "{}: not the dataset of part {i} of plan {} that {} describes: run the part again",
+                    myr.display(),
+                    plan.id,
+                    tops_path.display()
+                )));
+            }
+            parts.push(ds);
+        }
+        tops.extend(nodes);
+        heads.push(head);
+    }
+    // Every point of every input in exactly one part: a part that reads an input reads all its
+    // points, and the parts together must take them all.
+    let mut sources = Vec::new();
+    for (k, input) in plan.inputs.iter().enumerate() {
+        let (mut taken, mut read) = (0u64, None);
+        for h in &heads {
+            if let Some(t) = h["inputs"][k].as_object() {
+                taken += t["taken"].as_u64().unwrap_or(0);
+                read = read.max(t["read"].as_u64());
+            }
+        }
+        let read = read.unwrap_or(0);
+        if taken != read {
+            return Err(Error::Invalid(format!(
+                "{}: {read} points read, {taken} in the parts (its header's bounds understate \
+                 where its points are): make the plan again",
+                input.path.display()
+            )));
+        }
+        let mut s = plan.dataset.sources[k].clone();
+        s["points"] = json!(taken);
+        sources.push(s);
+    }
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
+    let writer = DatasetWriter::create(out, force, plan.dataset.quantization)?;
+    // 1. The parts' pages below the partition level, as they are.
+    let copies: Vec<_> = parts
+        .iter()
+        .flat_map(|ds| {
+            let (entries, _) = ds.nodes();
+            entries
+                .into_iter()
+                .filter(|e| e.key.level > p)
+                .map(move |e| (ds, e))
+        })
+        .collect();
+    report.phase("copying", copies.len() as u64);
+    let copied = copies.len() as u64;
+    pool.install(|| {
+        copies.par_iter().try_for_each(|(ds, e)| -> Result<()> {
+            let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
+            writer.copy_node(e, &page)?;
+            report.advance(1);
+            Ok(())
+        })
+    })?;
+
+    // 2. The levels above, from the parts' tops, as `convert` builds them.
+    let parent = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let spill_dir = Folder(parent.join(format!("{SPILL_PREFIX}{}", std::process::id())));
+    std::fs::create_dir_all(&spill_dir.0).map_err(|e| Error::io(&spill_dir.0, e))?;
+    let pending = tops
+        .into_iter()
+        .map(|n| convert::spill(n, &spill_dir.0))
+        .collect::<Result<Vec<_>>>()?;
+    let mw = crate::mwkd::MwkdParams {
+        fanout: 2,
+        capacity: plan.params.capacity,
+    };
+    Above {
+        structure: plan.structure,
+        params: &plan.params,
+        mw: &mw,
+        root: &plan.dataset.root,
+        schema: &plan.dataset.schema,
+        writer: &writer,
+        pool: &pool,
+        spill_dir: &spill_dir.0,
+    }
+    .build(pending, None, report)?;
+
+    let (written, nodes, _) = writer.totals();
+    let points: u64 = heads
+        .iter()
+        .map(|h| h["points"].as_u64().unwrap_or(0))
+        .sum();
+    if written != points {
+        return Err(Error::Invalid(format!(
+            "{}: internal error: the parts hold {points} points, {written} in the nodes",
+            out.display()
+        )));
+    }
+    let mut bounds = Aabb::EMPTY;
+    for h in &heads {
+        if let Some(b) = h["bounds"].as_object() {
+            let f3 = |x: &Value| -> [f64; 3] {
+                std::array::from_fn(|a| x[a].as_f64().unwrap_or(f64::NAN))
+            };
+            bounds = bounds.union(&Aabb::new(f3(&b["min"]), f3(&b["max"])));
+        }
+    }
+    let mut meta = plan.dataset.clone();
+    meta.points = points;
+    meta.bounds = bounds;
+    meta.sources = sources;
+    meta.parameters["plan"] = json!(plan.id);
+    meta.software = format!("myriad {}", env!("CARGO_PKG_VERSION"));
+    let bytes = writer.finish(meta)?;
+    Ok(MergeSummary {
+        points,
+        nodes,
+        copied,
+        built: nodes - copied,
+        bytes,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_are_even_and_in_order() {
+        let cells: Vec<([u32; 3], f64)> = (0..40u32).map(|i| ([i, 0, 0], 10.0)).collect();
+        let r = runs(&cells, 4);
+        assert_eq!(r.len(), 4);
+        assert!(r.iter().all(|(c, n)| c.len() == 10 && *n == 100), "{r:?}");
+        let flat: Vec<_> = r.iter().flat_map(|(c, _)| c.clone()).collect();
+        assert_eq!(flat, cells.iter().map(|c| c.0).collect::<Vec<_>>());
+        // Fewer cells than parts: the last parts are empty, none has two cells.
+        let r = runs(&cells[..3], 5);
+        assert_eq!(
+            r.iter().map(|(c, _)| c.len()).collect::<Vec<_>>(),
+            [1, 1, 1, 0, 0]
+        );
+        // One heavy cell first: it is a run alone.
+        let mut cells = cells;
+        cells[0].1 = 1000.0;
+        let r = runs(&cells, 2);
+        assert_eq!(r[0].0.len(), 1);
+    }
+
+    #[test]
+    fn overlap_of_flat_bounds() {
+        let cell = Aabb::new([0.0; 3], [1.0; 3]);
+        let flat = Aabb::new([0.5, 0.0, 0.5], [1.5, 1.0, 0.5]);
+        assert_eq!(overlap(&flat, &cell), 0.5);
+        let away = Aabb::new([0.5, 0.0, 2.0], [1.5, 1.0, 2.0]);
+        assert_eq!(overlap(&away, &cell), 0.0);
+    }
+}

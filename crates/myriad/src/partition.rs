@@ -1,0 +1,485 @@
+//! `myriad plan`, `convert --plan [--part]`, `myriad merge` and `myriad slurm`: a build split
+//! into parts that run anywhere (a Slurm array, a Kubernetes indexed job, AWS Batch, a Ray
+//! task), then merged.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use myriad_build::convert::{self, Structure};
+use myriad_build::partition::{self, BuildPlan, PlanOptions};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::dataset::Bar;
+use crate::info::thousands;
+
+#[derive(Args)]
+pub struct PlanArgs {
+    /// Input point clouds (as `convert` takes them)
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// The plan to write (JSON)
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Parts to split the build into
+    #[arg(long)]
+    parts: usize,
+    /// Hierarchy: octree or layered (kd and mwkd build on one machine only)
+    #[arg(long, default_value = "octree")]
+    structure: String,
+    /// Memory budget of each part: 512MB, 2GB, or bytes [default: a quarter of this machine's RAM, at most 8GB]
+    #[arg(long, value_parser = convert::parse_size)]
+    memory: Option<u64>,
+    /// Worker threads of each part (they size the chunks) [default: this machine's cores]
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units
+    #[arg(long, default_value_t = 0.0001)]
+    precision: f64,
+    /// Most points per node
+    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
+    capacity: usize,
+    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
+    #[arg(long)]
+    columns: Option<String>,
+    /// Ignore SCAN.placement files next to inputs
+    #[arg(long)]
+    no_placement: bool,
+    /// Replace an existing plan
+    #[arg(long)]
+    force: bool,
+    /// Points per chunk instead of what --memory gives (for tests)
+    #[arg(long, hide = true)]
+    chunk_points: Option<u64>,
+}
+
+pub fn plan(a: PlanArgs) -> Result<()> {
+    if !a.force && a.output.exists() {
+        bail!(
+            "{}: output exists (use --force to replace it)",
+            a.output.display()
+        );
+    }
+    if a.capacity < 64 {
+        bail!("--capacity {} is too small (at least 64)", a.capacity);
+    }
+    let structure = match a.structure.as_str() {
+        "nested-octree" => Structure::Octree,
+        s => Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
+    };
+    let defaults = convert::ConvertOptions::new(&a.output);
+    let o = PlanOptions {
+        parts: a.parts,
+        structure,
+        params: myriad_build::nested::NestedParams {
+            capacity: a.capacity,
+            ..defaults.params
+        },
+        memory: a.memory.unwrap_or(defaults.memory),
+        threads: a.threads.unwrap_or(defaults.threads).max(1),
+        precision: a.precision,
+        open: myriad_io::OpenOptions {
+            columns: a.columns.clone(),
+            sidecar_placements: !a.no_placement,
+            ..Default::default()
+        },
+        columns: a.columns,
+        chunk_points: a.chunk_points,
+    };
+    // Parts on other machines read the inputs by these paths: absolute, as a shared
+    // filesystem mounts them.
+    let inputs = a
+        .inputs
+        .iter()
+        .map(|p| std::path::absolute(p).with_context(|| format!("{}", p.display())))
+        .collect::<Result<Vec<_>>>()?;
+    let p = partition::plan(&inputs, &o)?;
+    let text = serde_json::to_string_pretty(&p.to_json())?;
+    let file = myriad_io::atomic::AtomicFile::create(&a.output, a.force)?;
+    std::fs::write(file.temp_path(), text + "\n")
+        .with_context(|| file.temp_path().display().to_string())?;
+    file.commit()?;
+    let declared: u64 = p.inputs.iter().map(|i| i.points).sum();
+    println!("{}", a.output.display());
+    println!(
+        "  inputs      {} ({} points)",
+        p.inputs.len(),
+        thousands(declared)
+    );
+    println!(
+        "  parts       {} (cells of level {}; chunks at level {}, at most {} points)",
+        p.parts.len(),
+        p.partition_level,
+        p.chunk_level,
+        thousands(p.chunk_points)
+    );
+    for (i, (cells, n)) in p.parts.iter().enumerate() {
+        println!(
+            "  part {i:<6} {} cells, about {} points, {} inputs",
+            cells.len(),
+            thousands(*n),
+            p.inputs_of(Some(i)).len()
+        );
+    }
+    println!(
+        "  next        myriad convert --plan {} --part I -o PARTS/ (I = 0..{}), then myriad merge {} PARTS/ -o OUT.myr",
+        a.output.display(),
+        p.parts.len() - 1,
+        a.output.display()
+    );
+    Ok(())
+}
+
+/// The part index `--part` names: a number, or `auto` from the engine's array index.
+fn part_index(s: &str) -> Result<usize> {
+    if s != "auto" {
+        return s
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--part {s:?}: a part index or \"auto\""));
+    }
+    for var in [
+        "SLURM_ARRAY_TASK_ID",
+        "JOB_COMPLETION_INDEX",
+        "AWS_BATCH_JOB_ARRAY_INDEX",
+    ] {
+        if let Ok(v) = std::env::var(var) {
+            return v
+                .trim()
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--part auto: {var}={v:?} is not an index"));
+        }
+    }
+    bail!(
+        "--part auto: none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX, \
+         AWS_BATCH_JOB_ARRAY_INDEX is set (give the index)"
+    )
+}
+
+/// `convert --plan PLAN [--part I] -o OUT`: one part into the folder OUT, or the whole plan on
+/// this machine into the dataset OUT.
+pub fn convert_planned(
+    plan_path: &Path,
+    part: Option<&str>,
+    output: &Path,
+    threads: Option<usize>,
+    as_json: bool,
+) -> Result<()> {
+    let plan = BuildPlan::load(plan_path)?;
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global()
+        .ok();
+    let bar = Bar::new();
+    let Some(part) = part else {
+        let o = plan.convert_options(None, output, threads);
+        let s = convert::convert(&plan.inputs_of(None), &o, &bar)?;
+        bar.clear();
+        if as_json {
+            println!(
+                "{}",
+                json!({"output": output.display().to_string(), "points": s.points,
+                       "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,
+                       "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+            );
+        } else {
+            println!("{}", output.display());
+            println!("  points      {}", thousands(s.points));
+            println!("  nodes       {} (depth {})", thousands(s.nodes), s.depth);
+            println!("  time        {:.2} s", s.seconds);
+        }
+        return Ok(());
+    };
+    let index = part_index(part)?;
+    let s = partition::build_part(&plan, index, output, threads, &bar)?;
+    bar.clear();
+    let (myr, tops) = partition::part_paths(output, index);
+    let opened = s.inputs.iter().filter(|i| i.is_some()).count();
+    if as_json {
+        println!(
+            "{}",
+            json!({"part": index, "dataset": (s.points > 0).then(|| myr.display().to_string()),
+                   "tops": tops.display().to_string(), "points": s.points, "nodes": s.nodes,
+                   "inputs_read": opened, "seconds": s.seconds, "bytes": s.bytes,
+                   "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+        );
+        return Ok(());
+    }
+    println!(
+        "part {index} of {} ({})",
+        plan.parts.len(),
+        plan_path.display()
+    );
+    if s.points > 0 {
+        println!("  dataset     {}", myr.display());
+    } else {
+        println!("  dataset     none: its cells hold no points");
+    }
+    println!("  tops        {}", tops.display());
+    println!(
+        "  points      {} from {} of {} inputs",
+        thousands(s.points),
+        opened,
+        plan.inputs.len()
+    );
+    println!("  nodes       {}", thousands(s.nodes));
+    println!("  time        {:.2} s", s.seconds);
+    if let Some(p) = crate::bench::peak_rss_bytes() {
+        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
+    }
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct MergeArgs {
+    /// The plan the parts were built from
+    plan: PathBuf,
+    /// The folder the parts were written to
+    parts: PathBuf,
+    /// The dataset to write (.myr)
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Replace an existing output
+    #[arg(long)]
+    force: bool,
+    /// Worker threads [default: all cores]
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Print the summary as one JSON object
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn merge(a: MergeArgs) -> Result<()> {
+    let plan = BuildPlan::load(&a.plan)?;
+    let threads = a
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let bar = Bar::new();
+    let s = partition::merge(&plan, &a.parts, &a.output, a.force, threads, &bar)?;
+    bar.clear();
+    if a.json {
+        println!(
+            "{}",
+            json!({"output": a.output.display().to_string(), "points": s.points,
+                   "nodes": s.nodes, "pages_copied": s.copied, "nodes_built": s.built,
+                   "seconds": s.seconds, "bytes": s.bytes,
+                   "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+        );
+        return Ok(());
+    }
+    println!("{}", a.output.display());
+    println!(
+        "  points      {} from {} parts",
+        thousands(s.points),
+        plan.parts.len()
+    );
+    println!(
+        "  nodes       {} ({} pages copied from the parts, {} built above level {})",
+        thousands(s.nodes),
+        thousands(s.copied),
+        thousands(s.built),
+        plan.partition_level
+    );
+    println!("  time        {:.2} s", s.seconds);
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct SlurmArgs {
+    /// The plan (from `myriad plan`)
+    plan: PathBuf,
+    /// The dataset the merge writes (.myr), on a filesystem every node shares
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Where the parts go [default: OUTPUT with ".parts" added]
+    #[arg(long)]
+    parts_dir: Option<PathBuf>,
+    /// Wait for the merge and exit 1 if a part or the merge failed
+    #[arg(long)]
+    wait: bool,
+    /// Print the sbatch commands instead of running them
+    #[arg(long)]
+    dry_run: bool,
+    /// Options for both sbatch calls, after `--` (e.g. -- --partition=cpu --mem=8G)
+    #[arg(last = true)]
+    sbatch: Vec<String>,
+}
+
+/// A word for `sh -c`, quoted where it has to be.
+fn sh_quote(s: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "_-=:/.,%+@".contains(c);
+    if !s.is_empty() && s.chars().all(plain) {
+        return s.to_string();
+    }
+    format!("'{}'", s.replace('\'', "'\\''"))
+}
+
+/// Submits a job and returns its id; `dry_run`: prints the command as a shell line instead,
+/// the first setting `$JOB` for the second.
+fn sbatch(args: &[String], dry_run: bool) -> Result<String> {
+    if dry_run {
+        let words: Vec<String> = args
+            .iter()
+            .map(|a| match a.strip_suffix("$JOB") {
+                Some(head) => format!("{}$JOB", sh_quote(head)),
+                None => sh_quote(a),
+            })
+            .collect();
+        let line = format!("sbatch --parsable {}", words.join(" "));
+        if args.iter().any(|a| a.ends_with("$JOB")) {
+            println!("{line}");
+        } else {
+            println!("JOB=$({line})");
+        }
+        return Ok("$JOB".into());
+    }
+    let out = Command::new("sbatch")
+        .arg("--parsable")
+        .args(args)
+        .output()
+        .context("sbatch: is Slurm installed and SLURM_CONF set?")?;
+    if !out.status.success() {
+        bail!("sbatch: {}", String::from_utf8_lossy(&out.stderr).trim());
+    }
+    let id = String::from_utf8_lossy(&out.stdout);
+    // "--parsable" prints "id" or "id;cluster".
+    Ok(id.trim().split(';').next().unwrap_or("").to_string())
+}
+
+/// The tasks of job `id` as (array index or none, state, exit code), from `scontrol`.
+fn job_states(id: &str) -> Result<Vec<(Option<String>, String, String)>> {
+    let out = Command::new("scontrol")
+        .args(["show", "job", "-o", id])
+        .output()
+        .context("scontrol")?;
+    if !out.status.success() {
+        bail!(
+            "scontrol show job {id}: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let get = |k: &str| {
+                l.split_whitespace()
+                    .find_map(|t| t.strip_prefix(k).map(String::from))
+            };
+            (
+                get("ArrayTaskId="),
+                get("JobState=").unwrap_or_default(),
+                get("ExitCode=").unwrap_or_default(),
+            )
+        })
+        .collect())
+}
+
+const RUNNING: [&str; 5] = [
+    "PENDING",
+    "RUNNING",
+    "CONFIGURING",
+    "COMPLETING",
+    "SUSPENDED",
+];
+
+pub fn slurm(a: SlurmArgs) -> Result<()> {
+    let plan = BuildPlan::load(&a.plan)?;
+    let abs = |p: &Path| std::path::absolute(p).with_context(|| p.display().to_string());
+    let plan_path = abs(&a.plan)?;
+    let output = abs(&a.output)?;
+    let parts = match &a.parts_dir {
+        Some(d) => abs(d)?,
+        None => {
+            let mut s = output.clone().into_os_string();
+            s.push(".parts");
+            PathBuf::from(s)
+        }
+    };
+    if !a.dry_run {
+        std::fs::create_dir_all(&parts).with_context(|| parts.display().to_string())?;
+    }
+    let exe = std::env::current_exe().context("the path of this program")?;
+    let q = |p: &Path| sh_quote(&p.display().to_string());
+    let n = plan.parts.len();
+    let mut array = vec![
+        "--job-name=myriad-part".to_string(),
+        format!("--array=0-{}", n - 1),
+        format!("--output={}/slurm-%A_%a.out", parts.display()),
+    ];
+    array.extend(a.sbatch.iter().cloned());
+    array.push(format!(
+        "--wrap=exec {} convert --plan {} --part auto -o {}",
+        q(&exe),
+        q(&plan_path),
+        q(&parts)
+    ));
+    let parts_job = sbatch(&array, a.dry_run)?;
+    let mut merge = vec![
+        "--job-name=myriad-merge".to_string(),
+        format!("--dependency=afterok:{parts_job}"),
+        "--kill-on-invalid-dep=yes".to_string(),
+        format!("--output={}/slurm-merge-%j.out", parts.display()),
+    ];
+    merge.extend(a.sbatch.iter().cloned());
+    merge.push(format!(
+        "--wrap=exec {} merge {} {} -o {} --force",
+        q(&exe),
+        q(&plan_path),
+        q(&parts),
+        q(&output)
+    ));
+    let merge_job = sbatch(&merge, a.dry_run)?;
+    if a.dry_run {
+        return Ok(());
+    }
+    println!(
+        "parts  job {parts_job} ({n} array tasks), logs in {}",
+        parts.display()
+    );
+    println!(
+        "merge  job {merge_job} (after every part succeeds) -> {}",
+        output.display()
+    );
+    if !a.wait {
+        return Ok(());
+    }
+    // Slurm reports a job cancelled for a failed dependency as ended, not failed (sbatch --wait
+    // returns 0): the states tell.
+    loop {
+        let m = job_states(&merge_job)?;
+        let state = m.first().map(|t| t.1.clone()).unwrap_or_default();
+        if RUNNING.contains(&state.as_str()) {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+            continue;
+        }
+        if state == "COMPLETED" {
+            println!("merged {}", output.display());
+            return Ok(());
+        }
+        let failed: Vec<String> = job_states(&parts_job)?
+            .into_iter()
+            .filter(|t| t.1 != "COMPLETED" && !RUNNING.contains(&t.1.as_str()))
+            .map(|(i, s, e)| {
+                let i = i.unwrap_or_default();
+                format!(
+                    "part {i} {s} (exit {e}; log {}/slurm-{parts_job}_{i}.out)",
+                    parts.display()
+                )
+            })
+            .collect();
+        if failed.is_empty() {
+            bail!(
+                "merge job {merge_job} {state}: see {}/slurm-merge-{merge_job}.out",
+                parts.display()
+            );
+        }
+        bail!(
+            "{}: not merged, merge job {merge_job} {state}: {}",
+            output.display(),
+            failed.join("; ")
+        );
+    }
+}

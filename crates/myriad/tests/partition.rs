@@ -1,0 +1,292 @@
+//! A build beyond one machine (issue 18): `plan`, `convert --plan --part`, `merge`, and the same
+//! run by a one-node Slurm cluster (scripts/slurm-local.sh; skipped where Slurm is not installed).
+//! The merged dataset holds the records of the inputs, each once, and is the dataset a
+//! one-machine `convert --plan` makes.
+
+mod common;
+use common::{myriad, ok, records, s, tempdir};
+use myriad_format::Dataset;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Two neighbouring scans (west and east halves of a synthetic one) in `d`, and their records.
+fn two_scans(d: &Path) -> (PathBuf, PathBuf, Vec<Vec<i64>>) {
+    let scan = d.join("scan.laz");
+    ok(&["synth", "-o", s(&scan), "--points", "300k", "--seed", "4"]);
+    let whole = d.join("whole.myr");
+    ok(&["convert", s(&scan), "-o", s(&whole)]);
+    let b = Dataset::open(&whole).unwrap().meta.bounds;
+    let mid = 0.5 * (b.min[0] + b.max[0]);
+    let bx = |lo: f64, hi: f64| {
+        format!(
+            "{lo},{},{},{hi},{},{}",
+            b.min[1] - 1.0,
+            b.min[2] - 1.0,
+            b.max[1] + 1.0,
+            b.max[2] + 1.0
+        )
+    };
+    let (west, east) = (d.join("west.laz"), d.join("east.laz"));
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&west),
+        "--box",
+        &bx(b.min[0] - 1.0, mid),
+    ]);
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&east),
+        "--box",
+        &bx(mid + 1e-9, b.max[0] + 1.0),
+    ]);
+    (west, east, records(&scan))
+}
+
+fn make_plan(d: &Path, inputs: &[&Path], name: &str) -> PathBuf {
+    let p = d.join(name);
+    let mut args = vec!["plan"];
+    args.extend(inputs.iter().map(|i| s(i)));
+    args.extend([
+        "-o",
+        s(&p),
+        "--parts",
+        "4",
+        "--capacity",
+        "2000",
+        "--chunk-points",
+        "20000",
+    ]);
+    let out = ok(&args);
+    assert!(out.contains("part 3"), "{out}");
+    p
+}
+
+/// The dataset verifies and extracts to `want`.
+fn holds(dataset: &Path, want: &[Vec<i64>]) {
+    let v = ok(&["verify", s(dataset)]);
+    assert!(v.contains("ok"), "{v}");
+    let las = dataset.with_extension("las");
+    ok(&["extract", s(dataset), "-o", s(&las), "--force"]);
+    assert!(
+        records(&las) == want,
+        "{}: not the inputs' records",
+        dataset.display()
+    );
+}
+
+#[test]
+fn parts_built_apart_merge_to_the_one_machine_build() {
+    let d = tempdir("partition");
+    let (west, east, want) = two_scans(&d);
+    let plan = make_plan(&d, &[&west, &east], "plan.json");
+    let parts = d.join("parts");
+    let mut opened = Vec::new();
+    for i in 0..4 {
+        // Each way an engine names the index: a number, Slurm, Kubernetes, AWS Batch.
+        let mut c = Command::new(env!("CARGO_BIN_EXE_myriad"));
+        c.args([
+            "convert",
+            "--plan",
+            s(&plan),
+            "-o",
+            s(&parts),
+            "--json",
+            "--part",
+        ]);
+        match i {
+            0 => c.arg("0"),
+            1 => c.arg("auto").env("SLURM_ARRAY_TASK_ID", "1"),
+            2 => c.arg("auto").env("JOB_COMPLETION_INDEX", "2"),
+            _ => c.arg("auto").env("AWS_BATCH_JOB_ARRAY_INDEX", "3"),
+        };
+        let out = c.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["part"], i);
+        opened.push(v["inputs_read"].as_u64().unwrap());
+        // Each part is a dataset of its own.
+        let part = parts.join(format!("part-{i}.myr"));
+        assert!(ok(&["verify", s(&part)]).contains("ok"));
+    }
+    // A part reads only the scans that reach its cells: the west's first cells, the east's last.
+    assert_eq!(opened.first(), Some(&1), "{opened:?}");
+    assert_eq!(opened.last(), Some(&1), "{opened:?}");
+
+    // Rerunning a part replaces it with the same bytes.
+    let tops = parts.join("part-2.tops");
+    let before = std::fs::read(&tops).unwrap();
+    ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--part",
+        "2",
+        "-o",
+        s(&parts),
+    ]);
+    assert!(std::fs::read(&tops).unwrap() == before);
+
+    let merged = d.join("merged.myr");
+    let out = ok(&["merge", s(&plan), s(&parts), "-o", s(&merged), "--json"]);
+    let m: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(m["points"], 300_000);
+    assert!(m["pages_copied"].as_u64().unwrap() > 0, "{m}");
+    holds(&merged, &want);
+
+    // The same as the whole plan on one machine: the same nodes and points in each.
+    let one = d.join("one.myr");
+    ok(&["convert", "--plan", s(&plan), "-o", s(&one)]);
+    let (a, b) = (
+        Dataset::open(&merged).unwrap(),
+        Dataset::open(&one).unwrap(),
+    );
+    let (mut x, _) = a.nodes();
+    let (mut y, _) = b.nodes();
+    x.sort_by_key(|e| e.key);
+    y.sort_by_key(|e| e.key);
+    assert_eq!(x.len(), y.len());
+    for (p, q) in x.iter().zip(&y) {
+        assert_eq!((p.key, p.points, &p.prefix), (q.key, q.points, &q.prefix));
+        assert!(
+            a.node_page(p).unwrap() == b.node_page(q).unwrap(),
+            "{:?}",
+            p.key
+        );
+    }
+    holds(&one, &want);
+
+    // A missing part: one line naming it, exit 1, no output.
+    std::fs::remove_file(parts.join("part-1.tops")).unwrap();
+    let out2 = d.join("out2.myr");
+    let r = myriad(&["merge", s(&plan), s(&parts), "-o", s(&out2)]);
+    assert_eq!(r.code, 1);
+    assert!(
+        r.stderr.contains("part-1.tops") && r.stderr.contains("--part 1"),
+        "{}",
+        r.stderr
+    );
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    assert!(!out2.exists());
+    let r = myriad(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--part",
+        "9",
+        "-o",
+        s(&parts),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("parts 0 to 3"), "{}", r.stderr);
+    let r = myriad(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--part",
+        "auto",
+        "-o",
+        s(&parts),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("SLURM_ARRAY_TASK_ID"), "{}", r.stderr);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// The cluster of scripts/slurm-local.sh, stopped when dropped.
+struct Slurm(PathBuf);
+
+impl Slurm {
+    fn script() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/slurm-local.sh")
+    }
+
+    /// Starts one, or says why not.
+    fn start(dir: &Path) -> Result<Slurm, String> {
+        let out = Command::new("sh")
+            .arg(Slurm::script())
+            .args(["start", s(dir)])
+            .output()
+            .map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            return Err(String::from_utf8_lossy(&out.stderr).trim().to_string());
+        }
+        Ok(Slurm(dir.to_path_buf()))
+    }
+
+    fn myriad(&self, args: &[&str]) -> common::Run {
+        let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
+            .args(args)
+            .env("SLURM_CONF", self.0.join("slurm.conf"))
+            .output()
+            .unwrap();
+        common::Run {
+            code: out.status.code().unwrap_or(-1),
+            stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        }
+    }
+}
+
+impl Drop for Slurm {
+    fn drop(&mut self) {
+        let _ = Command::new("sh")
+            .arg(Slurm::script())
+            .args(["stop", s(&self.0)])
+            .status();
+    }
+}
+
+#[test]
+fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
+    let d = tempdir("slurm");
+    let slurm = match Slurm::start(&d.join("cluster")) {
+        Ok(c) => c,
+        Err(why) => {
+            eprintln!("SKIPPED: no one-node Slurm cluster here ({why})");
+            return;
+        }
+    };
+    let (west, east, want) = two_scans(&d);
+    let plan = make_plan(&d, &[&west, &east], "plan.json");
+    let out = d.join("city.myr");
+    let r = slurm.myriad(&["slurm", s(&plan), "-o", s(&out), "--wait"]);
+    assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
+    assert!(r.stdout.contains("4 array tasks"), "{}", r.stdout);
+    holds(&out, &want);
+    // Every part ran as an array task, its log next to it.
+    let logs = std::fs::read_dir(d.join("city.myr.parts"))
+        .unwrap()
+        .filter(|e| {
+            let n = e.as_ref().unwrap().file_name();
+            let n = n.to_string_lossy();
+            n.starts_with("slurm-") && !n.contains("merge")
+        })
+        .count();
+    assert_eq!(logs, 4);
+
+    // An input gone before the parts run: the parts that read it fail, the merge does not run,
+    // and `slurm --wait` says which.
+    let gone = d.join("east-copy.laz");
+    std::fs::copy(&east, &gone).unwrap();
+    let plan2 = make_plan(&d, &[&west, &gone], "plan2.json");
+    std::fs::remove_file(&gone).unwrap();
+    let out2 = d.join("broken.myr");
+    let r = slurm.myriad(&["slurm", s(&plan2), "-o", s(&out2), "--wait"]);
+    assert_eq!(r.code, 1, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr.contains("not merged") && r.stderr.contains("part 3 FAILED"),
+        "{}",
+        r.stderr
+    );
+    assert!(!out2.exists());
+    drop(slurm);
+    let _ = std::fs::remove_dir_all(&d);
+}
