@@ -22,7 +22,7 @@ pub struct ConvertArgs {
     #[arg(
         short,
         long,
-        required_unless_present = "append",
+        required_unless_present_any = ["append", "list_inputs"],
         conflicts_with = "append"
     )]
     output: Option<PathBuf>,
@@ -38,6 +38,10 @@ pub struct ConvertArgs {
     /// JOB_COMPLETION_INDEX or AWS_BATCH_JOB_ARRAY_INDEX)
     #[arg(long, requires = "plan", value_name = "I|auto")]
     part: Option<String>,
+    /// Print the inputs the part reads (one path per line) and stop: what a driver copies to
+    /// the machine that builds it
+    #[arg(long, requires = "part")]
+    list_inputs: bool,
     /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
     /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
     /// kd-tree of aggregates drawn as splats, 004)
@@ -119,16 +123,17 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     if let Some(d) = &a.append {
         return append(&a, d);
     }
-    let output = a.output.clone().expect("clap: --output or --append");
     if let Some(plan) = &a.plan {
         return crate::partition::convert_planned(
             plan,
             a.part.as_deref(),
-            &output,
+            a.list_inputs,
+            &a.output.clone().unwrap_or_default(),
             a.threads,
             a.json,
         );
     }
+    let output = a.output.clone().expect("clap: --output or --append");
     let structure = match a.structure.as_str() {
         "nested-octree" => convert::Structure::Octree,
         s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,

@@ -160,6 +160,7 @@ fn part_index(s: &str) -> Result<usize> {
 pub fn convert_planned(
     plan_path: &Path,
     part: Option<&str>,
+    list_inputs: bool,
     output: &Path,
     threads: Option<usize>,
     as_json: bool,
@@ -192,6 +193,18 @@ pub fn convert_planned(
         return Ok(());
     };
     let index = part_index(part)?;
+    if list_inputs {
+        if index >= plan.parts.len() {
+            bail!(
+                "--part {index}: the plan has parts 0 to {}",
+                plan.parts.len() - 1
+            );
+        }
+        for p in plan.inputs_of(Some(index)) {
+            println!("{}", p.display());
+        }
+        return Ok(());
+    }
     let s = partition::build_part(&plan, index, output, threads, &bar)?;
     bar.clear();
     let (myr, tops) = partition::part_paths(output, index);

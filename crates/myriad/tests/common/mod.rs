@@ -120,3 +120,72 @@ pub fn serve(args: &[&str], stderr: Stdio) -> Serving {
     std::thread::spawn(move || for _ in lines {});
     Serving { child, base }
 }
+
+/// Two neighbouring scans (west and east halves of a synthetic one) in `d`, and their records.
+pub fn two_scans(d: &Path) -> (PathBuf, PathBuf, Vec<Vec<i64>>) {
+    let scan = d.join("scan.laz");
+    ok(&["synth", "-o", s(&scan), "--points", "300k", "--seed", "4"]);
+    let whole = d.join("whole.myr");
+    ok(&["convert", s(&scan), "-o", s(&whole)]);
+    let b = myriad_format::Dataset::open(&whole).unwrap().meta.bounds;
+    let mid = 0.5 * (b.min[0] + b.max[0]);
+    let bx = |lo: f64, hi: f64| {
+        format!(
+            "{lo},{},{},{hi},{},{}",
+            b.min[1] - 1.0,
+            b.min[2] - 1.0,
+            b.max[1] + 1.0,
+            b.max[2] + 1.0
+        )
+    };
+    let (west, east) = (d.join("west.laz"), d.join("east.laz"));
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&west),
+        "--box",
+        &bx(b.min[0] - 1.0, mid),
+    ]);
+    ok(&[
+        "extract",
+        s(&whole),
+        "-o",
+        s(&east),
+        "--box",
+        &bx(mid + 1e-9, b.max[0] + 1.0),
+    ]);
+    (west, east, records(&scan))
+}
+
+pub fn make_plan(d: &Path, inputs: &[&Path], name: &str) -> PathBuf {
+    let p = d.join(name);
+    let mut args = vec!["plan"];
+    args.extend(inputs.iter().map(|i| s(i)));
+    args.extend([
+        "-o",
+        s(&p),
+        "--parts",
+        "4",
+        "--capacity",
+        "2000",
+        "--chunk-points",
+        "20000",
+    ]);
+    let out = ok(&args);
+    assert!(out.contains("part 3"), "{out}");
+    p
+}
+
+/// The dataset verifies and extracts to `want`.
+pub fn holds(dataset: &Path, want: &[Vec<i64>]) {
+    let v = ok(&["verify", s(dataset)]);
+    assert!(v.contains("ok"), "{v}");
+    let las = dataset.with_extension("las");
+    ok(&["extract", s(dataset), "-o", s(&las), "--force"]);
+    assert!(
+        records(&las) == want,
+        "{}: not the inputs' records",
+        dataset.display()
+    );
+}
