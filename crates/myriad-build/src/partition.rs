@@ -64,6 +64,8 @@ pub struct BuildPlan {
     pub structure: Structure,
     pub params: NestedParams,
     pub memory: u64,
+    /// Worker threads of each part (as the chunks were sized for).
+    pub threads: usize,
     pub chunk_points: u64,
     pub chunk_level: u32,
     pub partition_level: u32,
@@ -184,10 +186,10 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
     for path in inputs {
         let mut src = myriad_io::open(path, &o.open)?;
         let info = src.info().clone();
-        if las_header.is_none() {
-            if let Some(h) = src.las_header() {
-                las_header = Some(myriad_io::las::header_to_bytes(h)?);
-            }
+        if las_header.is_none()
+            && let Some(h) = src.las_header()
+        {
+            las_header = Some(myriad_io::las::header_to_bytes(h)?);
         }
         let (points, bounds) = match (info.points, info.bounds) {
             (Some(n), Some(b)) => (n, b),
@@ -288,6 +290,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         structure: o.structure,
         params,
         memory: o.memory,
+        threads: sizing.threads,
         chunk_points,
         chunk_level,
         partition_level: p,
@@ -312,6 +315,7 @@ impl BuildPlan {
             "inner_depth": self.params.inner_depth,
             "max_level": self.params.max_level,
             "memory": self.memory,
+            "threads": self.threads,
             "chunk_points": self.chunk_points,
             "chunk_level": self.chunk_level,
             "partition_level": self.partition_level,
@@ -411,6 +415,7 @@ impl BuildPlan {
                 ntree: structure == Structure::Layered,
             },
             memory: u("memory")?,
+            threads: u("threads")?.max(1) as usize,
             chunk_points: u("chunk_points")?,
             chunk_level,
             partition_level,
@@ -793,9 +798,16 @@ pub fn merge(
     }
     convert::remove_stale(out);
     let p = plan.partition_level;
+    // The tops wait on disk as `convert`'s chunk roots do (one part's in memory at a time).
+    let parent = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let spill_dir = Folder(parent.join(format!("{SPILL_PREFIX}{}", std::process::id())));
+    std::fs::create_dir_all(&spill_dir.0).map_err(|e| Error::io(&spill_dir.0, e))?;
     // Every part there and from this plan, before anything is written.
     let mut heads = Vec::new();
-    let mut tops = Vec::new();
+    let mut pending = Vec::new();
     let mut parts = Vec::new();
     for i in 0..plan.parts.len() {
         let (myr, tops_path) = part_paths(dir, i);
@@ -817,7 +829,9 @@ pub fn merge(
             }
             parts.push(ds);
         }
-        tops.extend(nodes);
+        for n in nodes {
+            pending.push(convert::spill(n, &spill_dir.0)?);
+        }
         heads.push(head);
     }
     // Every point of every input in exactly one part: a part that reads an input reads all its
@@ -831,7 +845,13 @@ pub fn merge(
                 read = read.max(t["read"].as_u64());
             }
         }
-        let read = read.unwrap_or(0);
+        let Some(read) = read.or((input.points == 0).then_some(0)) else {
+            return Err(Error::Invalid(format!(
+                "{}: no part read it (its header's bounds are not where its points are): make \
+                 the plan again",
+                input.path.display()
+            )));
+        };
         if taken != read {
             return Err(Error::Invalid(format!(
                 "{}: {read} points read, {taken} in the parts (its header's bounds understate \
@@ -872,16 +892,6 @@ pub fn merge(
     })?;
 
     // 2. The levels above, from the parts' tops, as `convert` builds them.
-    let parent = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let spill_dir = Folder(parent.join(format!("{SPILL_PREFIX}{}", std::process::id())));
-    std::fs::create_dir_all(&spill_dir.0).map_err(|e| Error::io(&spill_dir.0, e))?;
-    let pending = tops
-        .into_iter()
-        .map(|n| convert::spill(n, &spill_dir.0))
-        .collect::<Result<Vec<_>>>()?;
     let mw = crate::mwkd::MwkdParams {
         fanout: 2,
         capacity: plan.params.capacity,

@@ -43,6 +43,9 @@ pub enum BenchCommand {
     /// Time to the first image and to convergence in the browser: Myriad's web viewer next to
     /// Potree 1.8 on PotreeConverter's output, from the same server, in headless Chromium
     Web(crate::bench_web::WebBenchArgs),
+    /// A build on one machine next to the same build as N parts and a merge on Slurm (the
+    /// cluster SLURM_CONF names), same cores: wall time, each part's time and peak memory, merge
+    Partition(crate::bench_partition::PartitionBenchArgs),
 }
 
 #[derive(Args)]
@@ -104,6 +107,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Serve(a) => crate::bench_serve::run(a),
         BenchCommand::Prefetch(a) => crate::bench_prefetch::run(a),
         BenchCommand::Web(a) => crate::bench_web::run(a),
+        BenchCommand::Partition(a) => crate::bench_partition::run_bench(a),
     }
 }
 

@@ -42,35 +42,64 @@ pub struct ConvertArgs {
     /// the machine that builds it
     #[arg(long, requires = "part")]
     list_inputs: bool,
-    /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
-    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
-    /// kd-tree of aggregates drawn as splats, 004)
-    #[arg(long, default_value = "octree")]
-    structure: String,
-    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
-    #[arg(long, value_parser = convert::parse_size)]
-    memory: Option<u64>,
-    /// Worker threads [default: all cores]
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
-    #[arg(long, default_value_t = 0.0001)]
-    precision: f64,
-    /// Most points per node
-    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
-    capacity: usize,
-    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
-    #[arg(long)]
-    columns: Option<String>,
-    /// Ignore SCAN.placement files next to inputs (see README)
-    #[arg(long)]
-    no_placement: bool,
+    #[command(flatten)]
+    build: BuildArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
     /// Print the summary as one JSON object
     #[arg(long)]
     json: bool,
+}
+
+/// The options a build takes, in `convert` and `plan`.
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
+    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
+    /// kd-tree of aggregates drawn as splats, 004)
+    #[arg(long, default_value = "octree")]
+    pub(crate) structure: String,
+    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
+    #[arg(long, value_parser = convert::parse_size)]
+    pub(crate) memory: Option<u64>,
+    /// Worker threads [default: all cores]
+    #[arg(long)]
+    pub(crate) threads: Option<usize>,
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
+    #[arg(long, default_value_t = 0.0001)]
+    pub(crate) precision: f64,
+    /// Most points per node
+    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
+    pub(crate) capacity: usize,
+    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
+    #[arg(long)]
+    pub(crate) columns: Option<String>,
+    /// Ignore SCAN.placement files next to inputs (see README)
+    #[arg(long)]
+    pub(crate) no_placement: bool,
+}
+
+impl BuildArgs {
+    /// The structure named, and the capacity checked.
+    pub(crate) fn structure(&self) -> Result<convert::Structure> {
+        if self.capacity < 64 {
+            bail!("--capacity {} is too small (at least 64)", self.capacity);
+        }
+        Ok(match self.structure.as_str() {
+            "nested-octree" => convert::Structure::Octree,
+            s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
+        })
+    }
+
+    /// How the inputs are opened.
+    pub(crate) fn open_options(&self) -> myriad_io::OpenOptions {
+        myriad_io::OpenOptions {
+            columns: self.columns.clone(),
+            sidecar_placements: !self.no_placement,
+            ..Default::default()
+        }
+    }
 }
 
 /// A progress bar per phase on a terminal (indicatif draws nothing when stderr is not one).
@@ -129,25 +158,19 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             a.part.as_deref(),
             a.list_inputs,
             &a.output.clone().unwrap_or_default(),
-            a.threads,
+            a.build.threads,
             a.json,
         );
     }
     let output = a.output.clone().expect("clap: --output or --append");
-    let structure = match a.structure.as_str() {
-        "nested-octree" => convert::Structure::Octree,
-        s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
-    };
-    if a.capacity < 64 {
-        bail!("--capacity {} is too small (at least 64)", a.capacity);
-    }
+    let structure = a.build.structure()?;
     let mut o = ConvertOptions::new(&output);
     o.force = a.force;
     o.structure = structure;
-    if let Some(m) = a.memory {
+    if let Some(m) = a.build.memory {
         o.memory = m;
     }
-    if let Some(t) = a.threads {
+    if let Some(t) = a.build.threads {
         if t == 0 {
             bail!("--threads must be at least 1");
         }
@@ -158,10 +181,10 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             .build_global()
             .ok();
     }
-    o.precision = a.precision;
-    o.params.capacity = a.capacity;
-    o.open.columns = a.columns;
-    o.open.sidecar_placements = !a.no_placement;
+    o.precision = a.build.precision;
+    o.params.capacity = a.build.capacity;
+    o.open.columns = a.build.columns.clone();
+    o.open.sidecar_placements = !a.build.no_placement;
     let bar = Bar::new();
     let s = convert::convert(&a.inputs, &o, &bar)?;
     if let Some(b) = bar.bar.lock().unwrap().take() {
@@ -222,19 +245,15 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
 
 /// `convert NEW... --append DATASET`: the scans added in place, then the dataset verified.
 fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
-    let open = myriad_io::OpenOptions {
-        columns: a.columns.clone(),
-        sidecar_placements: !a.no_placement,
-        ..Default::default()
-    };
-    if let Some(t) = a.threads {
+    let open = a.build.open_options();
+    if let Some(t) = a.build.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t.max(1))
             .build_global()
             .ok();
     }
     let bar = Bar::new();
-    let memory = a.memory.unwrap_or_else(convert::default_memory);
+    let memory = a.build.memory.unwrap_or_else(convert::default_memory);
     let s = myriad_build::append::append(dataset, &a.inputs, &open, memory, &bar)?;
     bar.clear();
     // Read back whole: every page's checksum, the counts, the invariants.

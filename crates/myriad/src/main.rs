@@ -5,6 +5,7 @@ mod bench;
 mod bench_culling;
 mod bench_export;
 mod bench_open;
+mod bench_partition;
 mod bench_passes;
 mod bench_prefetch;
 mod bench_render;

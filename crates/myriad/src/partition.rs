@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use myriad_build::convert::{self, Structure};
+use myriad_build::convert;
 use myriad_build::partition::{self, BuildPlan, PlanOptions};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -21,30 +21,14 @@ pub struct PlanArgs {
     /// The plan to write (JSON)
     #[arg(short, long)]
     output: PathBuf,
-    /// Parts to split the build into
+    /// Parts to split the build into (each part takes --memory and --threads; --structure
+    /// octree or layered)
     #[arg(long)]
     parts: usize,
-    /// Hierarchy: octree or layered (kd and mwkd build on one machine only)
-    #[arg(long, default_value = "octree")]
-    structure: String,
-    /// Memory budget of each part: 512MB, 2GB, or bytes [default: a quarter of this machine's RAM, at most 8GB]
-    #[arg(long, value_parser = convert::parse_size)]
-    memory: Option<u64>,
-    /// Worker threads of each part (they size the chunks) [default: this machine's cores]
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units
-    #[arg(long, default_value_t = 0.0001)]
-    precision: f64,
-    /// Most points per node
-    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
-    capacity: usize,
-    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
-    #[arg(long)]
-    columns: Option<String>,
-    /// Ignore SCAN.placement files next to inputs
-    #[arg(long)]
-    no_placement: bool,
+    // convert's options: --structure octree or layered only (kd and mwkd build on one machine
+    // only); --memory and --threads are each part's.
+    #[command(flatten)]
+    build: crate::dataset::BuildArgs,
     /// Replace an existing plan
     #[arg(long)]
     force: bool,
@@ -60,30 +44,20 @@ pub fn plan(a: PlanArgs) -> Result<()> {
             a.output.display()
         );
     }
-    if a.capacity < 64 {
-        bail!("--capacity {} is too small (at least 64)", a.capacity);
-    }
-    let structure = match a.structure.as_str() {
-        "nested-octree" => Structure::Octree,
-        s => Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
-    };
+    let structure = a.build.structure()?;
     let defaults = convert::ConvertOptions::new(&a.output);
     let o = PlanOptions {
         parts: a.parts,
         structure,
         params: myriad_build::nested::NestedParams {
-            capacity: a.capacity,
+            capacity: a.build.capacity,
             ..defaults.params
         },
-        memory: a.memory.unwrap_or(defaults.memory),
-        threads: a.threads.unwrap_or(defaults.threads).max(1),
-        precision: a.precision,
-        open: myriad_io::OpenOptions {
-            columns: a.columns.clone(),
-            sidecar_placements: !a.no_placement,
-            ..Default::default()
-        },
-        columns: a.columns,
+        memory: a.build.memory.unwrap_or(defaults.memory),
+        threads: a.build.threads.unwrap_or(defaults.threads).max(1),
+        precision: a.build.precision,
+        open: a.build.open_options(),
+        columns: a.build.columns.clone(),
         chunk_points: a.chunk_points,
     };
     // Parts on other machines read the inputs by these paths: absolute, as a shared
@@ -296,6 +270,9 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         plan.partition_level
     );
     println!("  time        {:.2} s", s.seconds);
+    if let Some(p) = crate::bench::peak_rss_bytes() {
+        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
+    }
     Ok(())
 }
 

@@ -4,7 +4,7 @@
 //! one over the memory budget is refused.
 
 mod common;
-use common::{myriad, ok, records, s, tempdir};
+use common::{halves, myriad, ok, records, s, tempdir};
 use myriad_format::Dataset;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -16,36 +16,9 @@ fn appended_scans_hold_every_record_and_a_kill_loses_nothing() {
     ok(&["synth", "-o", s(&scan), "--points", "400k", "--seed", "3"]);
     let whole = d.join("whole.myr");
     ok(&["convert", s(&scan), "-o", s(&whole), "--capacity", "2000"]);
-    let b = Dataset::open(&whole).unwrap().meta.bounds;
     // West and east of the middle: two neighbouring scans.
-    let mid = 0.5 * (b.min[0] + b.max[0]);
-    let west = d.join("west.laz");
-    let east = d.join("east.laz");
-    let bx = |lo: f64, hi: f64| {
-        format!(
-            "{lo},{},{},{hi},{},{}",
-            b.min[1] - 1.0,
-            b.min[2] - 1.0,
-            b.max[1] + 1.0,
-            b.max[2] + 1.0
-        )
-    };
-    ok(&[
-        "extract",
-        s(&whole),
-        "-o",
-        s(&west),
-        "--box",
-        &bx(b.min[0] - 1.0, mid),
-    ]);
-    ok(&[
-        "extract",
-        s(&whole),
-        "-o",
-        s(&east),
-        "--box",
-        &bx(mid + 1e-9, b.max[0] + 1.0),
-    ]);
+    let (west, east) = halves(&d, &whole);
+    let b = Dataset::open(&whole).unwrap().meta.bounds;
     let site = d.join("site.myr");
     ok(&["convert", s(&west), "-o", s(&site), "--capacity", "2000"]);
     let before = Dataset::open(&site).unwrap().meta.points;

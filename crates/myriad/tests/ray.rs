@@ -189,32 +189,45 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
         python(&py, &all)
     };
 
+    // The west scan and `second`, planned in 4 parts to `plan`; a plan NAME run to NAME.myr.
+    let plan_s3 = |second: &str, plan: &str| {
+        run(&[
+            "plan",
+            "s3://scans/in/west.laz",
+            second,
+            "-o",
+            plan,
+            "--parts",
+            "4",
+            "--",
+            "--capacity",
+            "2000",
+            "--chunk-points",
+            "20000",
+        ])
+    };
+    let run_s3 = |name: &str| {
+        let (plan, parts, out) = (
+            format!("s3://scans/{name}.json"),
+            format!("s3://scans/{name}-parts"),
+            format!("s3://scans/{name}.myr"),
+        );
+        run(&[
+            "run",
+            &plan,
+            "--parts-dir",
+            &parts,
+            "-o",
+            &out,
+            "--address",
+            RAY,
+        ])
+    };
+
     // Everything on S3.
-    let (c, out, err) = run(&[
-        "plan",
-        "s3://scans/in/west.laz",
-        "s3://scans/in/east.laz",
-        "-o",
-        "s3://scans/city.json",
-        "--parts",
-        "4",
-        "--",
-        "--capacity",
-        "2000",
-        "--chunk-points",
-        "20000",
-    ]);
+    let (c, out, err) = plan_s3("s3://scans/in/east.laz", "s3://scans/city.json");
     assert_eq!(c, 0, "{out}{err}");
-    let (c, out, err) = run(&[
-        "run",
-        "s3://scans/city.json",
-        "--parts-dir",
-        "s3://scans/city-parts",
-        "-o",
-        "s3://scans/city.myr",
-        "--address",
-        RAY,
-    ]);
+    let (c, out, err) = run_s3("city");
     assert_eq!(c, 0, "{out}{err}");
     assert!(
         out.contains("part 3:") && out.contains("merged s3://scans/city.myr"),
@@ -253,33 +266,11 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
         &py,
         &format!("s3.upload_file('{}', 'scans', 'in/gone.laz')", s(&east)),
     );
-    let (c, out, err) = run(&[
-        "plan",
-        "s3://scans/in/west.laz",
-        "s3://scans/in/gone.laz",
-        "-o",
-        "s3://scans/gone.json",
-        "--parts",
-        "4",
-        "--",
-        "--capacity",
-        "2000",
-        "--chunk-points",
-        "20000",
-    ]);
+    let (c, out, err) = plan_s3("s3://scans/in/gone.laz", "s3://scans/gone.json");
     assert_eq!(c, 0, "{out}{err}");
     s3(&py, "s3.delete_object(Bucket='scans', Key='in/gone.laz')");
     std::fs::remove_dir_all(stage.join("s3/scans/in")).unwrap();
-    let (c, out, err) = run(&[
-        "run",
-        "s3://scans/gone.json",
-        "--parts-dir",
-        "s3://scans/gone-parts",
-        "-o",
-        "s3://scans/gone.myr",
-        "--address",
-        RAY,
-    ]);
+    let (c, out, err) = run_s3("gone");
     assert_eq!(c, 1, "{out}{err}");
     assert!(
         err.contains("not merged") && err.contains("part 3"),

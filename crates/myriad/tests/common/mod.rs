@@ -127,7 +127,14 @@ pub fn two_scans(d: &Path) -> (PathBuf, PathBuf, Vec<Vec<i64>>) {
     ok(&["synth", "-o", s(&scan), "--points", "300k", "--seed", "4"]);
     let whole = d.join("whole.myr");
     ok(&["convert", s(&scan), "-o", s(&whole)]);
-    let b = myriad_format::Dataset::open(&whole).unwrap().meta.bounds;
+    let (west, east) = halves(d, &whole);
+    (west, east, records(&scan))
+}
+
+/// The points of a dataset west and east of the middle of its bounds: `d/west.laz` and
+/// `d/east.laz`, two neighbouring scans.
+pub fn halves(d: &Path, whole: &Path) -> (PathBuf, PathBuf) {
+    let b = myriad_format::Dataset::open(whole).unwrap().meta.bounds;
     let mid = 0.5 * (b.min[0] + b.max[0]);
     let bx = |lo: f64, hi: f64| {
         format!(
@@ -139,23 +146,13 @@ pub fn two_scans(d: &Path) -> (PathBuf, PathBuf, Vec<Vec<i64>>) {
         )
     };
     let (west, east) = (d.join("west.laz"), d.join("east.laz"));
-    ok(&[
-        "extract",
-        s(&whole),
-        "-o",
-        s(&west),
-        "--box",
-        &bx(b.min[0] - 1.0, mid),
-    ]);
-    ok(&[
-        "extract",
-        s(&whole),
-        "-o",
-        s(&east),
-        "--box",
-        &bx(mid + 1e-9, b.max[0] + 1.0),
-    ]);
-    (west, east, records(&scan))
+    for (out, lo, hi) in [
+        (&west, b.min[0] - 1.0, mid),
+        (&east, mid + 1e-9, b.max[0] + 1.0),
+    ] {
+        ok(&["extract", s(whole), "-o", s(out), "--box", &bx(lo, hi)]);
+    }
+    (west, east)
 }
 
 pub fn make_plan(d: &Path, inputs: &[&Path], name: &str) -> PathBuf {

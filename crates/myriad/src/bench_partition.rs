@@ -1,0 +1,184 @@
+//! `myriad bench partition`: a build on one machine next to the same build as N parts on Slurm
+//! (the cluster SLURM_CONF names), on the same cores: the overhead of partitioning and merging,
+//! each part's time and peak memory, and the merge's.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct PartitionBenchArgs {
+    /// Input point clouds (tiles: a part reads only those that reach its cells)
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Part counts to run, e.g. 4,8,16
+    #[arg(long, value_delimiter = ',', default_value = "4,8,16")]
+    parts: Vec<usize>,
+    /// Memory budget of the one-machine build and of each part
+    #[arg(long, default_value = "2GB")]
+    memory: String,
+    /// Folder for the outputs (on a filesystem the Slurm node shares; emptied as it goes)
+    #[arg(long)]
+    scratch: PathBuf,
+    /// Slurm CPUs per part task; the parts run with as many threads
+    #[arg(long, default_value_t = 1)]
+    cpus_per_part: usize,
+}
+
+/// Runs this program with `args`; its stdout, and the seconds it took.
+fn run(args: &[&str]) -> Result<(String, f64)> {
+    let exe = std::env::current_exe()?;
+    let t = Instant::now();
+    let out = Command::new(exe).args(args).output()?;
+    if !out.status.success() {
+        bail!(
+            "myriad {}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok((
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        t.elapsed().as_secs_f64(),
+    ))
+}
+
+/// The numbers a part's or the merge's Slurm log gives: "time  X s" and "memory  Y MB".
+fn log_figures(path: &Path) -> Result<(f64, f64)> {
+    let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    let field = |name: &str| {
+        text.lines()
+            .find_map(|l| l.trim().strip_prefix(name))
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    Ok((field("time"), field("memory")))
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
+    if std::env::var_os("SLURM_CONF").is_none() && Command::new("sinfo").output().is_err() {
+        bail!(
+            "bench partition needs a Slurm cluster: scripts/slurm-local.sh start DIR, then export SLURM_CONF=DIR/slurm.conf"
+        );
+    }
+    std::fs::create_dir_all(&a.scratch)?;
+    let scratch = std::path::absolute(&a.scratch)?;
+    let inputs: Vec<String> = a.inputs.iter().map(|p| p.display().to_string()).collect();
+    let s = |p: &Path| p.display().to_string();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+
+    // One machine, all cores.
+    let one = scratch.join("one.myr");
+    let mut args = vec!["convert"];
+    args.extend(inputs.iter().map(String::as_str));
+    let one_s = s(&one);
+    args.extend(["-o", &one_s, "--force", "--json", "--memory", &a.memory]);
+    let (out, one_secs) = run(&args)?;
+    let v: serde_json::Value = serde_json::from_str(&out)?;
+    let points = v["points"].as_u64().unwrap_or(0);
+    let one_peak = v["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6;
+    std::fs::remove_file(&one)?;
+    println!(
+        "one machine ({cores} cores): {points} points, {one_secs:.1} s, {:.2} M points/s, {one_peak:.0} MB peak",
+        points as f64 / one_secs / 1e6
+    );
+    println!(
+        "{:>5} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10} {:>8} {:>9} {:>9}",
+        "parts",
+        "P",
+        "plan s",
+        "wall s",
+        "x one",
+        "part s",
+        "part max s",
+        "part MB",
+        "merge s",
+        "merge MB"
+    );
+    for &n in &a.parts {
+        let plan = scratch.join(format!("plan-{n}.json"));
+        let plan_s = s(&plan);
+        let threads = a.cpus_per_part.to_string();
+        let parts = n.to_string();
+        let mut args = vec!["plan"];
+        args.extend(inputs.iter().map(String::as_str));
+        args.extend([
+            "-o",
+            &plan_s,
+            "--parts",
+            &parts,
+            "--force",
+            "--memory",
+            &a.memory,
+            "--threads",
+            &threads,
+        ]);
+        let (_, plan_secs) = run(&args)?;
+        let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&plan)?)?;
+        let out = scratch.join(format!("parts-{n}.myr"));
+        let dir = scratch.join(format!("parts-{n}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        let cpus = format!("--cpus-per-task={}", a.cpus_per_part);
+        let (log, wall) = run(&[
+            "slurm",
+            &plan_s,
+            "-o",
+            &s(&out),
+            "--parts-dir",
+            &s(&dir),
+            "--wait",
+            "--",
+            &cpus,
+        ])?;
+        let job = log
+            .lines()
+            .find_map(|l| l.strip_prefix("parts  job "))
+            .and_then(|r| r.split_whitespace().next())
+            .context("the parts' job id")?
+            .to_string();
+        let merge_job = log
+            .lines()
+            .find_map(|l| l.strip_prefix("merge  job "))
+            .and_then(|r| r.split_whitespace().next())
+            .context("the merge's job id")?
+            .to_string();
+        let mut times = Vec::new();
+        let mut peak = 0f64;
+        for i in 0..n {
+            let (t, m) = log_figures(&dir.join(format!("slurm-{job}_{i}.out")))?;
+            times.push(t);
+            peak = peak.max(m);
+        }
+        let (merge_t, merge_m) = log_figures(&dir.join(format!("slurm-merge-{merge_job}.out")))?;
+        let max = times.iter().copied().fold(0.0, f64::max);
+        let med = median(&mut times.clone());
+        println!(
+            "{n:>5} {:>8} {plan_secs:>8.2} {wall:>8.1} {:>9.2} {med:>9.1} {max:>10.1} {peak:>8.0} {merge_t:>9.1} {merge_m:>9.0}",
+            p["partition_level"].as_u64().unwrap_or(0),
+            wall / one_secs
+        );
+        let merged = myriad_format::Dataset::open(&out)?;
+        if merged.meta.points != points {
+            bail!(
+                "{}: {} points, one machine {points}",
+                out.display(),
+                merged.meta.points
+            );
+        }
+        drop(merged);
+        std::fs::remove_file(&out)?;
+        std::fs::remove_dir_all(&dir)?;
+    }
+    println!(
+        "(part s: median of the parts; wall: submission to merged, {cores} cores shared by the parts)"
+    );
+    Ok(())
+}
