@@ -2,8 +2,10 @@
 //! and scatters its points to octree-cell chunks on disk within a memory budget; [`mospt`] is the
 //! Memory Optimized Sequential Point Tree of one node (Scheiblauer 2006, chapter 3); [`nested`]
 //! builds the `nested-octree` of a chunk and the levels above the chunks; [`convert`] runs the
-//! whole build in parallel and writes the dataset.
+//! whole build in parallel and writes the dataset; [`partition`] splits it into parts that run
+//! on other machines and merges them.
 
+mod above;
 pub mod append;
 pub mod convert;
 pub mod distribute;
@@ -15,3 +17,4 @@ pub mod mwkd;
 pub mod nested;
 pub mod ntree;
 pub mod partition;
+mod tops;
