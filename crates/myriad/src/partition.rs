@@ -292,6 +292,9 @@ pub struct SlurmArgs {
     /// Print the sbatch commands instead of running them
     #[arg(long)]
     dry_run: bool,
+    /// The myriad program as the compute nodes see it [default: this one's path]
+    #[arg(long)]
+    myriad: Option<PathBuf>,
     /// Options for both sbatch calls, after `--` (e.g. -- --partition=cpu --mem=8G)
     #[arg(last = true)]
     sbatch: Vec<String>,
@@ -391,7 +394,10 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
     if !a.dry_run {
         std::fs::create_dir_all(&parts).with_context(|| parts.display().to_string())?;
     }
-    let exe = std::env::current_exe().context("the path of this program")?;
+    let exe = match a.myriad {
+        Some(p) => p,
+        None => std::env::current_exe().context("the path of this program")?,
+    };
     let q = |p: &Path| sh_quote(&p.display().to_string());
     let n = plan.parts.len();
     let mut array = vec![
