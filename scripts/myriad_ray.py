@@ -131,16 +131,15 @@ def merge(plan, parts_dir, output, parts, myriad, endpoint, stage):
         local_plan = fetch(endpoint, plan, work)
         local_parts = parts_dir
         if is_s3(parts_dir):
+            from botocore.exceptions import ClientError
+
             local_parts = os.path.join(work, "parts")
-            s3 = s3_client(endpoint)
-            bucket, key = split_s3(parts_dir)
             for i in range(parts):
                 for name in (f"part-{i}.tops", f"part-{i}.myr"):
                     try:
-                        s3.head_object(Bucket=bucket, Key=join(key, name).lstrip("/"))
-                    except Exception:
+                        download(endpoint, join(parts_dir, name), os.path.join(local_parts, name))
+                    except ClientError:
                         continue  # merge names a missing part; an empty part has no .myr
-                    download(endpoint, join(parts_dir, name), os.path.join(local_parts, name))
         out = os.path.join(work, os.path.basename(output)) if is_s3(output) else output
         summary = json.loads(
             run_myriad(
@@ -189,8 +188,14 @@ def cmd_plan(a):
         shutil.rmtree(work, ignore_errors=True)
 
 
+def last_line(e):
+    """The last line of a task's error: the cause, without Ray's traceback."""
+    lines = str(getattr(e, "cause", e)).strip().splitlines()
+    return lines[-1] if lines else str(e)
+
+
 def cmd_run(a):
-    host = (a.address or "").rpartition(":")[0]
+    host, _, port = (a.address or "").rpartition(":")
     if host in ("127.0.0.1", "localhost", "::1"):
         # Ray replaces a loopback address by this machine's outward one unless told not to (a
         # cluster bound to 127.0.0.1 is then never reached).
@@ -210,7 +215,6 @@ def cmd_run(a):
         # Ray waits for an unreachable cluster without end: say so at once instead.
         import socket
 
-        host, _, port = a.address.rpartition(":")
         try:
             socket.create_connection((host, int(port)), timeout=10).close()
         except (OSError, ValueError) as e:
@@ -223,15 +227,12 @@ def cmd_run(a):
     args = (a.plan, a.parts_dir, a.myriad, a.endpoint_url, a.stage)
     refs = {part_task.remote(i, *args): i for i in range(parts)}
     failed = []
-    points = 0
     for ref, i in refs.items():
         try:
             s = ray.get(ref)
-            points += s["points"]
             print(f"part {i}: {s['points']} points, {s['seconds']:.2f} s")
         except Exception as e:  # a task's error, raised here
-            cause = str(getattr(e, "cause", e)).strip().splitlines()
-            failed.append(f"part {i}: {cause[-1] if cause else e}")
+            failed.append(f"part {i}: {last_line(e)}")
     if failed:
         print(f"error: {a.output}: not merged: " + "; ".join(failed), file=sys.stderr)
         return 1
@@ -239,8 +240,7 @@ def cmd_run(a):
         s = ray.get(merge_task.remote(a.plan, a.parts_dir, a.output, parts, a.myriad,
                                       a.endpoint_url, a.stage))
     except Exception as e:
-        cause = str(getattr(e, "cause", e)).strip().splitlines()
-        print(f"error: {a.output}: merge failed: {cause[-1] if cause else e}", file=sys.stderr)
+        print(f"error: {a.output}: merge failed: {last_line(e)}", file=sys.stderr)
         return 1
     print(f"merged {a.output}: {s['points']} points, {s['nodes']} nodes, {s['seconds']:.2f} s")
     return 0

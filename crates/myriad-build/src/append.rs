@@ -53,7 +53,7 @@ pub struct AppendSummary {
 }
 
 /// The level-`level` cell under `root` holding `p` (points on the far faces in the last cell).
-fn cell_of(root: &Aabb, level: u32, p: [f64; 3]) -> NodeKey {
+pub(crate) fn cell_of(root: &Aabb, level: u32, p: [f64; 3]) -> NodeKey {
     let n = 1u64 << level;
     let side = root.size()[0] / n as f64;
     NodeKey {
@@ -205,13 +205,9 @@ pub fn append(
             new.append(&distribute::conform(b, &schema));
         }
         skipped += src.skipped_non_finite();
-        meta.sources.push(serde_json::json!({
-            "path": info.path.display().to_string(),
-            "format": info.format.name(),
-            "version": info.version,
-            "points": new.len() - before,
-            "appended": true,
-        }));
+        let mut listed = convert::source(&info, (new.len() - before) as u64);
+        listed["appended"] = true.into();
+        meta.sources.push(listed);
     }
     if new.is_empty() {
         return Err(Error::Invalid(format!(

@@ -65,6 +65,14 @@ impl Structure {
         }
     }
 
+    /// The name the dataset's metadata stores: the octree's is "nested-octree".
+    pub fn stored_name(self) -> &'static str {
+        match self {
+            Structure::Octree => "nested-octree",
+            s => s.name(),
+        }
+    }
+
     pub fn parse(s: &str) -> std::result::Result<Structure, String> {
         Structure::ALL
             .into_iter()
@@ -475,13 +483,7 @@ pub fn convert(
             out.display()
         )));
     }
-    if options.memory < MIN_MEMORY {
-        return Err(Error::Invalid(format!(
-            "--memory {} MB is below the {} MB the build needs",
-            options.memory >> 20,
-            MIN_MEMORY >> 20
-        )));
-    }
+    check_memory(options.memory)?;
     if !(options.precision.is_finite() && options.precision > 0.0) {
         return Err(Error::Invalid(
             "--precision must be a positive length".into(),
@@ -646,11 +648,14 @@ pub fn convert(
     // 4. Hierarchy, metadata, header.
     report.phase("writing", 1);
     let meta = Metadata {
-        structure: match structure {
-            Structure::Octree => "nested-octree".into(),
-            s => s.name().into(),
-        },
-        parameters: parameters(structure, &params, &mw, &schema, options.planned.as_ref()),
+        structure: structure.stored_name().into(),
+        parameters: parameters(
+            structure,
+            &params,
+            (structure == Structure::Mwkd).then_some(mw.fanout),
+            &schema,
+            options.planned.as_ref(),
+        ),
         points: dist.points,
         nodes: 0,
         depth: 0,
@@ -662,18 +667,7 @@ pub fn convert(
             None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
         },
         schema: schema.clone(),
-        sources: dist
-            .sources
-            .iter()
-            .map(|(i, n)| {
-                serde_json::json!({
-                    "path": i.path.display().to_string(),
-                    "format": i.format.name(),
-                    "version": i.version,
-                    "points": n,
-                })
-            })
-            .collect(),
+        sources: dist.sources.iter().map(|(i, n)| source(i, *n)).collect(),
         las_header: match &options.planned {
             Some(p) => p.las_header.clone(),
             None => dist.las_header.clone(),
@@ -720,17 +714,39 @@ pub fn convert(
     })
 }
 
+/// An input as the dataset's metadata lists it, with the points taken from it.
+pub(crate) fn source(info: &myriad_io::SourceInfo, points: u64) -> serde_json::Value {
+    serde_json::json!({
+        "path": info.path.display().to_string(),
+        "format": info.format.name(),
+        "version": info.version,
+        "points": points,
+    })
+}
+
+/// Refuses a memory budget the build cannot work in.
+pub(crate) fn check_memory(memory: u64) -> Result<()> {
+    if memory < MIN_MEMORY {
+        return Err(Error::Invalid(format!(
+            "--memory {} MB is below the {} MB the build needs",
+            memory >> 20,
+            MIN_MEMORY >> 20
+        )));
+    }
+    Ok(())
+}
+
 /// The parameters a dataset records: its structure's, and which plan and part it was built
 /// from.
 pub(crate) fn parameters(
     structure: Structure,
     params: &NestedParams,
-    mw: &crate::mwkd::MwkdParams,
+    fanout: Option<usize>,
     schema: &Schema,
     planned: Option<&Planned>,
 ) -> serde_json::Value {
     let mut v = serde_json::json!({
-        "fanout": if structure == Structure::Mwkd { Some(mw.fanout) } else { None },
+        "fanout": fanout,
         // Normals from the input have a sign; estimated ones were turned up (mwkd).
         "normals": match structure {
             Structure::Mwkd if schema.has(&myriad_core::Attribute::Normal) => Some("input"),

@@ -15,6 +15,7 @@
 //! Octree and layered structures only: kd and mwkd trees group chunks across the whole scan.
 
 use crate::above::Above;
+use crate::append::cell_of;
 use crate::convert::{self, Planned, Report, Structure};
 use crate::distribute::{self, Grid, SPILL_PREFIX};
 use crate::nested::NestedParams;
@@ -43,8 +44,8 @@ pub struct PlanOptions {
     /// Threads of each part (they size the chunks, as in `convert`).
     pub threads: usize,
     pub precision: f64,
+    /// How the inputs are opened (text columns, placements), as the parts will.
     pub open: OpenOptions,
-    pub columns: Option<String>,
     pub chunk_points: Option<u64>,
 }
 
@@ -119,16 +120,14 @@ fn overlap(b: &Aabb, cell: &Aabb) -> f64 {
 
 /// The cells of `level` under `root` that `b` meets.
 fn cells_meeting(root: &Aabb, level: u32, b: &Aabb) -> Vec<[u32; 3]> {
-    let n = 1u64 << level;
-    let side = root.size()[0] / n as f64;
-    let range = |a: usize| {
-        let f = |v: f64| (((v - root.min[a]) / side).floor().max(0.0) as u64).min(n - 1) as u32;
-        f(b.min[a])..=f(b.max[a])
-    };
+    let (lo, hi) = (
+        cell_of(root, level, b.min).cell,
+        cell_of(root, level, b.max).cell,
+    );
     let mut out = Vec::new();
-    for x in range(0) {
-        for y in range(1) {
-            for z in range(2) {
+    for x in lo[0]..=hi[0] {
+        for y in lo[1]..=hi[1] {
+            for z in lo[2]..=hi[2] {
                 out.push([x, y, z]);
             }
         }
@@ -173,13 +172,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
     if o.parts == 0 {
         return Err(Error::Invalid("--parts must be at least 1".into()));
     }
-    if o.memory < convert::MIN_MEMORY {
-        return Err(Error::Invalid(format!(
-            "--memory {} MB is below the {} MB the build needs",
-            o.memory >> 20,
-            convert::MIN_MEMORY >> 20
-        )));
-    }
+    convert::check_memory(o.memory)?;
     let mut infos = Vec::new();
     let mut planned = Vec::new();
     let mut las_header = None;
@@ -255,14 +248,8 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
     let parts = runs(&cells, o.parts);
 
     let dataset = Metadata {
-        structure: match o.structure {
-            Structure::Octree => "nested-octree".into(),
-            s => s.name().into(),
-        },
-        parameters: json!({
-            "capacity": params.capacity, "inner_depth": params.inner_depth,
-            "max_level": params.max_level,
-        }),
+        structure: o.structure.stored_name().into(),
+        parameters: convert::parameters(o.structure, &params, None, &schema, None),
         points: declared,
         nodes: 0,
         depth: 0,
@@ -273,12 +260,8 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         schema,
         sources: infos
             .iter()
-            .map(|i| {
-                json!({
-                    "path": i.path.display().to_string(), "format": i.format.name(),
-                    "version": i.version, "points": i.points,
-                })
-            })
+            .zip(&planned)
+            .map(|(i, p)| convert::source(i, p.points))
             .collect(),
         las_header,
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
@@ -296,7 +279,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         partition_level: p,
         parts,
         dataset,
-        columns: o.columns.clone(),
+        columns: o.open.columns.clone(),
         placements: o.open.sidecar_placements,
         precision: o.precision,
     };
@@ -716,6 +699,7 @@ pub fn merge(
     })?;
 
     // 2. The levels above, from the parts' tops, as `convert` builds them.
+    // Unused: a plan is octree or layered; `Above` takes them for mwkd.
     let mw = crate::mwkd::MwkdParams {
         fanout: 2,
         capacity: plan.params.capacity,

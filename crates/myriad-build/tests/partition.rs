@@ -24,7 +24,6 @@ fn options(parts: usize, structure: Structure) -> PlanOptions {
         threads: 2,
         precision: 1e-4,
         open: Default::default(),
-        columns: None,
         chunk_points: Some(15_000),
     }
 }

@@ -159,7 +159,7 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         }
         let (merge_t, merge_m) = log_figures(&dir.join(format!("slurm-merge-{merge_job}.out")))?;
         let max = times.iter().copied().fold(0.0, f64::max);
-        let med = median(&mut times.clone());
+        let med = median(&mut times);
         println!(
             "{n:>5} {:>8} {plan_secs:>8.2} {wall:>8.1} {:>9.2} {med:>9.1} {max:>10.1} {peak:>8.0} {merge_t:>9.1} {merge_m:>9.0}",
             p["partition_level"].as_u64().unwrap_or(0),

@@ -175,11 +175,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             bail!("--threads must be at least 1");
         }
         o.threads = t;
-        // LAZ decompression runs on rayon's global pool: it gets the same number of threads.
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build_global()
-            .ok();
+        global_threads(t);
     }
     o.precision = a.build.precision;
     o.params.capacity = a.build.capacity;
@@ -225,15 +221,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         thousands(s.bytes),
         bpp
     );
-    if let Some(p) = crate::bench::peak_rss_bytes() {
-        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
-    }
-    if s.skipped_non_finite > 0 {
-        println!(
-            "  skipped     {} with NaN/infinite coordinates",
-            thousands(s.skipped_non_finite)
-        );
-    }
+    print_memory_and_skipped(s.skipped_non_finite);
     if s.trimmed > 0 {
         println!(
             "  trimmed     {} outside placement boxes",
@@ -247,10 +235,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
 fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
     let open = a.build.open_options();
     if let Some(t) = a.build.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t.max(1))
-            .build_global()
-            .ok();
+        global_threads(t);
     }
     let bar = Bar::new();
     let memory = a.build.memory.unwrap_or_else(convert::default_memory);
@@ -305,16 +290,30 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
         }
     );
     println!("  time        {:.2} s", s.seconds);
+    print_memory_and_skipped(s.skipped_non_finite);
+    Ok(())
+}
+
+/// LAZ decompression runs on rayon's global pool: it gets the build's number of threads.
+pub(crate) fn global_threads(t: usize) {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(t.max(1))
+        .build_global()
+        .ok();
+}
+
+/// A build summary's last lines: peak memory, and the points skipped for NaN or infinite
+/// coordinates (when there were any).
+pub(crate) fn print_memory_and_skipped(skipped: u64) {
     if let Some(p) = crate::bench::peak_rss_bytes() {
         println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
     }
-    if s.skipped_non_finite > 0 {
+    if skipped > 0 {
         println!(
             "  skipped     {} with NaN/infinite coordinates",
-            thousands(s.skipped_non_finite)
+            thousands(skipped)
         );
     }
-    Ok(())
 }
 
 /// Is `path` a dataset (by its magic)?

@@ -57,7 +57,6 @@ pub fn plan(a: PlanArgs) -> Result<()> {
         threads: a.build.threads.unwrap_or(defaults.threads).max(1),
         precision: a.build.precision,
         open: a.build.open_options(),
-        columns: a.build.columns.clone(),
         chunk_points: a.chunk_points,
     };
     // Parts on other machines read the inputs by these paths: absolute, as a shared
@@ -140,12 +139,9 @@ pub fn convert_planned(
     as_json: bool,
 ) -> Result<()> {
     let plan = BuildPlan::load(plan_path)?;
-    let threads =
-        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build_global()
-        .ok();
+    // The threads the plan sized the chunks for, unless told otherwise.
+    let threads = threads.unwrap_or(plan.threads);
+    crate::dataset::global_threads(threads);
     let bar = Bar::new();
     let Some(part) = part else {
         let o = plan.convert_options(None, output, threads);
@@ -212,9 +208,7 @@ pub fn convert_planned(
     );
     println!("  nodes       {}", thousands(s.nodes));
     println!("  time        {:.2} s", s.seconds);
-    if let Some(p) = crate::bench::peak_rss_bytes() {
-        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
-    }
+    crate::dataset::print_memory_and_skipped(s.skipped_non_finite);
     Ok(())
 }
 
@@ -270,9 +264,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         plan.partition_level
     );
     println!("  time        {:.2} s", s.seconds);
-    if let Some(p) = crate::bench::peak_rss_bytes() {
-        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
-    }
+    crate::dataset::print_memory_and_skipped(0);
     Ok(())
 }
 
