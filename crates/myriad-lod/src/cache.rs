@@ -110,6 +110,10 @@ impl<V> Lru<V> {
     pub fn budget_bytes(&self) -> usize {
         self.budget_bytes
     }
+    /// Every value held, in no order.
+    pub fn values(&self) -> impl Iterator<Item = &V> {
+        self.entries.values().map(|e| &e.value)
+    }
 }
 
 #[cfg(test)]

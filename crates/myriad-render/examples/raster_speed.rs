@@ -1,10 +1,12 @@
 //! Frame time of the compute rasterizer: N random points on a terrain-like sheet, 1280 x 720,
 //! frame including the readback; median of 9 frames. The compute path unless `quads` (or `cpu`) is given;
-//! the points in one buffer, or in PARTS buffers (environment) as a frame's nodes are.
+//! the points in one buffer, or in PARTS buffers (environment) as a frame's nodes are; positions
+//! quantized (two words: 20 bits an axis), or f32 with POSITIONS=f32, or read with the first
+//! word alone with PRECISION=1000 (pixels).
 //! `cargo run --release -p myriad-render --example raster_speed [POINTS] [quads|cpu]`
 
 use myriad_lod::Camera;
-use myriad_render::{Gpu, Path, PointSize, Points, Rasterizer, Style};
+use myriad_render::{Encoding, Gpu, Path, PointSize, Points, Rasterizer, Style};
 
 fn main() {
     let n: usize = std::env::args()
@@ -41,13 +43,19 @@ fn main() {
     let sets: Vec<Points> = positions
         .chunks(chunk)
         .zip(colours.chunks(chunk))
-        .map(|(p, c)| Points::upload(&gpu, [500.0, 500.0, 0.0], p, c))
+        .map(|(p, c)| match std::env::var("POSITIONS").as_deref() {
+            Ok("f32") => Points::encode(&gpu, Encoding::F32 { origin: [500.0; 3] }, p, c),
+            _ => Points::upload(&gpu, [500.0, 500.0, 0.0], p, c),
+        })
         .collect();
     let cam = Camera::framing(&bounds, 1280, 720, 60.0);
-    let r = match path.as_deref() {
+    let mut r = match path.as_deref() {
         Some("quads") => Rasterizer::with_path(&gpu, Path::Quads),
         _ => Rasterizer::new(&gpu),
     };
+    if let Some(px) = std::env::var("PRECISION").ok().and_then(|v| v.parse().ok()) {
+        r.precision = px;
+    }
     let style = Style {
         size: PointSize::Fixed(1.0),
         ..Style::default()

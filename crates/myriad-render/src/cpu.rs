@@ -102,6 +102,7 @@ pub(crate) fn gbuffer(
     tree: &[[u32; 4]],
     style: &Style,
     normals: bool,
+    precision: f32,
 ) -> crate::post::GBuffer {
     let (w, h) = (camera.width.max(1), camera.height.max(1));
     let fb: Vec<AtomicU64> = (0..w as usize * h as usize)
@@ -117,7 +118,7 @@ pub(crate) fn gbuffer(
         &[0]
     };
     for &mode in modes {
-        points_pass(camera, draws, tree, style, mode, &fb, &normal_fb);
+        points_pass(camera, draws, tree, style, mode, precision, &fb, &normal_fb);
     }
     let far = camera.far as f32;
     let mut g = crate::post::GBuffer::new(w, h);
@@ -140,13 +141,16 @@ pub(crate) fn gbuffer(
 }
 
 /// One pass over the points: `mode` 0 keeps the nearest value per pixel in `fb`; 1 (splats
-/// only) writes a splat's normal into `normal_fb` where its value is the one kept.
+/// only) writes a splat's normal into `normal_fb` where its value is the one kept. Positions are
+/// decoded relative to the frame's origin as the compute path does (`decode`).
+#[allow(clippy::too_many_arguments)]
 fn points_pass(
     camera: &Camera,
     draws: &[Draw],
     tree: &[[u32; 4]],
     style: &Style,
     mode: u32,
+    precision: f32,
     fb: &[AtomicU64],
     normal_fb: &[AtomicU32],
 ) {
@@ -157,9 +161,11 @@ fn points_pass(
         PointSize::Adaptive { scale, max } => (scale as f64, None, max.max(1.0)),
         PointSize::Fixed(px) => (1.0, Some(px.max(1.0).round()), px.max(1.0)),
     };
+    let o = crate::raster::frame_origin(draws, camera);
+    let m = camera.view_proj(o);
     for draw in draws.iter().filter(|d| d.count > 0) {
-        let m = camera.view_proj(draw.points.origin);
-        let o = draw.points.origin;
+        let layout = crate::raster::Layout::of(draw, o, camera, precision);
+        let (words, stride) = (draw.points.words, draw.points.len as usize);
         let spacing = (draw.spacing * scale) as f32;
         let node = draw.node.map_or(u32::MAX, |n| n.0);
         let cube = draw.node.map_or([0.0; 4], |(_, c)| {
@@ -170,7 +176,8 @@ fn points_pass(
                 c.size()[0] as f32,
             ]
         });
-        let points = &draw.points.cpu_points()[..draw.count as usize];
+        let data = draw.points.cpu_words();
+        let colours = &data[draw.points.arrays() as usize * stride..][..draw.count as usize];
         // Oriented splats (as raster.wgsl) where the draw has them and sizes are adaptive.
         let splats = match (draw.points.cpu_splats(), draw.points.splat_range(), fixed) {
             (Some(codes), Some(range), None) => Some((&codes[..draw.count as usize], range)),
@@ -197,42 +204,92 @@ fn points_pass(
                 px.fetch_max(value, Ordering::Relaxed);
             }
         };
-        points.par_chunks(4096).enumerate().for_each(|(ci, chunk)| {
-            for (qi, q) in chunk.iter().enumerate() {
-                let p = [q[0], q[1], q[2]];
-                // As `clipped` in draw.wgsl.
-                if clip_min[3] != 0.0 {
-                    let inside = (0..3).all(|a| p[a] >= clip_min[a] && p[a] <= clip_max[a]);
-                    if inside == (clip_min[3] == 2.0) {
+        colours
+            .par_chunks(4096)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                let mut positions = vec![[0.0f32; 3]; chunk.len()];
+                crate::points::decode(
+                    data,
+                    ci * 4096,
+                    stride,
+                    words,
+                    layout.read,
+                    layout.offset,
+                    layout.unit,
+                    &mut positions,
+                );
+                for (qi, (&colour, &p)) in chunk.iter().zip(&positions).enumerate() {
+                    // As `clipped` in draw.wgsl.
+                    if clip_min[3] != 0.0 {
+                        let inside = (0..3).all(|a| p[a] >= clip_min[a] && p[a] <= clip_max[a]);
+                        if inside == (clip_min[3] == 2.0) {
+                            continue;
+                        }
+                    }
+                    let clip = mul(&m, p);
+                    if clip[3] <= 0.0 {
                         continue;
                     }
-                }
-                let clip = mul(&m, p);
-                if clip[3] <= 0.0 {
-                    continue;
-                }
-                let ndc = [clip[0] / clip[3], clip[1] / clip[3], clip[2] / clip[3]];
-                if ndc[0] < -1.0
-                    || ndc[0] >= 1.0
-                    || ndc[1] <= -1.0
-                    || ndc[1] > 1.0
-                    || ndc[2] < 0.0
-                    || ndc[2] > 1.0
-                {
-                    continue;
-                }
-                let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
-                let fy = (0.5 - ndc[1] * 0.5) * h as f32;
-                let colour = q[3].to_bits() as u64;
-                if let Some((codes, range)) = splats {
-                    let code = codes[ci * 4096 + qi];
-                    let sp = splat_shape(code, range, clip[3], &eye, focal, max_size);
-                    let normal = splat_normal_code(sp);
-                    let s = splat_pixels(sp[0], max_size);
+                    let ndc = [clip[0] / clip[3], clip[1] / clip[3], clip[2] / clip[3]];
+                    if ndc[0] < -1.0
+                        || ndc[0] >= 1.0
+                        || ndc[1] <= -1.0
+                        || ndc[1] > 1.0
+                        || ndc[2] < 0.0
+                        || ndc[2] > 1.0
+                    {
+                        continue;
+                    }
+                    let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
+                    let fy = (0.5 - ndc[1] * 0.5) * h as f32;
+                    let colour = colour as u64;
+                    if let Some((codes, range)) = splats {
+                        let code = codes[ci * 4096 + qi];
+                        let sp = splat_shape(code, range, clip[3], &eye, focal, max_size);
+                        let normal = splat_normal_code(sp);
+                        let s = splat_pixels(sp[0], max_size);
+                        let x0 = fx.floor() as i32 - (s - 1) / 2;
+                        let y0 = fy.floor() as i32 - (s - 1) / 2;
+                        let c = (s - 1) as f32 * 0.5;
+                        let k = clip[3] / focal;
+                        for dy in 0..s {
+                            let y = y0 + dy;
+                            if y < 0 || y >= h as i32 {
+                                continue;
+                            }
+                            for dx in 0..s {
+                                let x = x0 + dx;
+                                if x < 0 || x >= w as i32 {
+                                    continue;
+                                }
+                                let (a, b) = (dx as f32 - c, dy as f32 - c);
+                                let e = (a * sp[1] - b * sp[2]) / sp[3];
+                                if a * a + b * b + e * e > sp[0] * sp[0] {
+                                    continue;
+                                }
+                                plot(
+                                    x,
+                                    y,
+                                    ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour,
+                                    normal,
+                                );
+                            }
+                        }
+                        continue;
+                    }
+                    let s = match fixed {
+                        Some(px) => px,
+                        None => {
+                            adaptive_pixels(p, clip[3], spacing, node, cube, tree, max_size, focal)
+                        }
+                    } as i32;
                     let x0 = fx.floor() as i32 - (s - 1) / 2;
                     let y0 = fy.floor() as i32 - (s - 1) / 2;
                     let c = (s - 1) as f32 * 0.5;
-                    let k = clip[3] / focal;
+                    let r2 = ((s * s) as f32 * 0.25).max(0.5);
+                    let bulge = 0.5 * s as f32 * clip[3] / focal;
+                    let flat = ((depth_key(clip[3], far) as u64) << 32) | colour;
                     for dy in 0..s {
                         let y = y0 + dy;
                         if y < 0 || y >= h as i32 {
@@ -243,57 +300,22 @@ fn points_pass(
                             if x < 0 || x >= w as i32 {
                                 continue;
                             }
-                            let (a, b) = (dx as f32 - c, dy as f32 - c);
-                            let e = (a * sp[1] - b * sp[2]) / sp[3];
-                            if a * a + b * b + e * e > sp[0] * sp[0] {
-                                continue;
+                            let mut value = flat;
+                            if style.shape != Shape::Square {
+                                let (ox, oy) = (dx as f32 - c, dy as f32 - c);
+                                let d2 = ox * ox + oy * oy;
+                                if d2 > r2 {
+                                    continue;
+                                }
+                                if style.shape == Shape::Paraboloid {
+                                    let wp = clip[3] - bulge * (1.0 - d2 / r2);
+                                    value = ((depth_key(wp, far) as u64) << 32) | colour;
+                                }
                             }
-                            plot(
-                                x,
-                                y,
-                                ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour,
-                                normal,
-                            );
+                            plot(x, y, value, 0);
                         }
-                    }
-                    continue;
-                }
-                let s = match fixed {
-                    Some(px) => px,
-                    None => adaptive_pixels(p, clip[3], spacing, node, cube, tree, max_size, focal),
-                } as i32;
-                let x0 = fx.floor() as i32 - (s - 1) / 2;
-                let y0 = fy.floor() as i32 - (s - 1) / 2;
-                let c = (s - 1) as f32 * 0.5;
-                let r2 = ((s * s) as f32 * 0.25).max(0.5);
-                let bulge = 0.5 * s as f32 * clip[3] / focal;
-                let flat = ((depth_key(clip[3], far) as u64) << 32) | colour;
-                for dy in 0..s {
-                    let y = y0 + dy;
-                    if y < 0 || y >= h as i32 {
-                        continue;
-                    }
-                    for dx in 0..s {
-                        let x = x0 + dx;
-                        if x < 0 || x >= w as i32 {
-                            continue;
-                        }
-                        let mut value = flat;
-                        if style.shape != Shape::Square {
-                            let (ox, oy) = (dx as f32 - c, dy as f32 - c);
-                            let d2 = ox * ox + oy * oy;
-                            if d2 > r2 {
-                                continue;
-                            }
-                            if style.shape == Shape::Paraboloid {
-                                let wp = clip[3] - bulge * (1.0 - d2 / r2);
-                                value = ((depth_key(wp, far) as u64) << 32) | colour;
-                            }
-                        }
-                        plot(x, y, value, 0);
                     }
                 }
-            }
-        });
+            });
     }
 }

@@ -8,11 +8,12 @@
 //! RGBA. Shaders are in `src/shaders/*.wgsl` and `src/post/*.wgsl`, validated by a naga test that
 //! needs no GPU.
 //!
-//! Reads no files: points arrive as [`Points`] (positions relative to an origin, RGBA8 colour);
-//! [`NodeBuffers`] keeps them per node under a byte budget, and a [`Scene`] runs frames of the
-//! whole pipeline (selection, loading, upload, drawing).
+//! Reads no files: points arrive as [`Points`] (positions quantized per node in 4 to 12 bytes,
+//! RGBA8 colour); [`NodeBuffers`] keeps them per node under a byte budget, and a [`Scene`] runs
+//! frames of the whole pipeline (selection, loading, upload, drawing).
 
 mod cpu;
+mod points;
 mod post;
 mod raster;
 pub mod scene;
@@ -20,6 +21,7 @@ pub mod selector;
 
 pub use myriad_core::colour::{ColorBy, class_colour, colours};
 pub use myriad_lod::Clip;
+pub use points::{Encoding, Points, WORD_BITS, splat_code};
 pub use post::gpu::{PASS_SOURCES, gbuffer_source};
 pub use post::{
     Blur, DEFAULT_PASSES, Fill, PASS_NAMES, Passes, Shade, Ssao, pack_normal, unpack_normal,
@@ -29,8 +31,6 @@ pub use scene::{FrameStats, Picked, Scene, frame_many, frame_many_threaded};
 
 /// GPU buffers of nodes, least recently used evicted beyond a byte budget.
 pub type NodeBuffers = myriad_lod::Lru<Points>;
-
-use wgpu::util::DeviceExt;
 
 pub const RASTER_WGSL: &str = concat!(
     include_str!("shaders/draw.wgsl"),
@@ -148,183 +148,6 @@ impl Gpu {
     }
     fn queue(&self) -> &wgpu::Queue {
         &self.wgpu.as_ref().expect("a GPU path on a GPU").1
-    }
-}
-
-/// Bytes per point on the GPU: position relative to the origin (3 x f32) and RGBA8.
-pub const POINT_BYTES: usize = 16;
-
-/// Points to draw: positions relative to `origin` (f32) and an RGBA8 colour each, in a GPU
-/// buffer (or in memory, for the CPU).
-pub struct Points {
-    pub origin: [f64; 3],
-    storage: Storage,
-    pub len: u32,
-    /// Splats (`mwkd`): per point a normal's cube-map code and an 8-bit radius
-    /// ([`splat_code`]), and the radius range the codes span.
-    splats: Option<(Storage32, [f32; 2])>,
-}
-
-enum Storage {
-    Gpu(wgpu::Buffer),
-    Cpu(Vec<[f32; 4]>),
-}
-
-enum Storage32 {
-    Gpu(wgpu::Buffer),
-    Cpu(Vec<u32>),
-}
-
-/// A splat's normal and radius in one word: the normal's cube-map index
-/// (`myriad_format::splat::normal_code`) in the low 16 bits, the radius in 8 bits above, from
-/// `range[0]` (0) to `range[1]` (255).
-pub fn splat_code(normal: [f32; 3], radius: f32, range: [f32; 2]) -> u32 {
-    use myriad_format::splat::{normal_code, radius_code};
-    normal_code(normal) as u32 | (radius_code(radius, range[0], range[1]) as u32) << 16
-}
-
-impl Points {
-    pub fn upload(gpu: &Gpu, origin: [f64; 3], positions: &[[f64; 3]], rgba: &[[u8; 4]]) -> Points {
-        assert_eq!(positions.len(), rgba.len());
-        let data: Vec<[f32; 4]> = positions
-            .iter()
-            .zip(rgba)
-            .map(|(p, c)| {
-                [
-                    (p[0] - origin[0]) as f32,
-                    (p[1] - origin[1]) as f32,
-                    (p[2] - origin[2]) as f32,
-                    f32::from_bits(u32::from_le_bytes(*c)),
-                ]
-            })
-            .collect();
-        let storage = match gpu.wgpu() {
-            None => Storage::Cpu(data),
-            Some((device, _)) => {
-                Storage::Gpu(
-                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("points"),
-                        // An empty storage binding is not allowed: keep one dummy element.
-                        contents: if data.is_empty() {
-                            &[0u8; POINT_BYTES]
-                        } else {
-                            bytemuck::cast_slice(&data)
-                        },
-                        usage: wgpu::BufferUsages::STORAGE
-                            | wgpu::BufferUsages::VERTEX
-                            | wgpu::BufferUsages::COPY_SRC,
-                    }),
-                )
-            }
-        };
-        Points {
-            origin,
-            storage,
-            len: positions.len() as u32,
-            splats: None,
-        }
-    }
-
-    /// [`Points::upload`] of splats: each point also has a normal and a radius (world units).
-    pub fn upload_splats(
-        gpu: &Gpu,
-        origin: [f64; 3],
-        positions: &[[f64; 3]],
-        rgba: &[[u8; 4]],
-        normals: &[[f32; 3]],
-        radii: &[f32],
-    ) -> Points {
-        assert!(normals.len() == positions.len() && radii.len() == positions.len());
-        let mut p = Points::upload(gpu, origin, positions, rgba);
-        let lo = radii.iter().copied().fold(f32::INFINITY, f32::min);
-        let range = if lo.is_finite() {
-            [lo, radii.iter().copied().fold(lo, f32::max)]
-        } else {
-            [0.0, 0.0]
-        };
-        let codes: Vec<u32> = normals
-            .iter()
-            .zip(radii)
-            .map(|(&n, &r)| splat_code(n, r, range))
-            .collect();
-        let storage = match gpu.wgpu() {
-            None => Storage32::Cpu(codes),
-            Some((device, _)) => Storage32::Gpu(device.create_buffer_init(
-                &wgpu::util::BufferInitDescriptor {
-                    label: Some("splats"),
-                    contents: if codes.is_empty() {
-                        &[0u8; 4]
-                    } else {
-                        bytemuck::cast_slice(&codes)
-                    },
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                },
-            )),
-        };
-        p.splats = Some((storage, range));
-        p
-    }
-
-    /// The radius range of a splat upload.
-    pub fn splat_range(&self) -> Option<[f32; 2]> {
-        self.splats.as_ref().map(|s| s.1)
-    }
-
-    fn splat_buffer(&self) -> Option<&wgpu::Buffer> {
-        match &self.splats {
-            Some((Storage32::Gpu(b), _)) => Some(b),
-            _ => None,
-        }
-    }
-
-    fn cpu_splats(&self) -> Option<&[u32]> {
-        match &self.splats {
-            Some((Storage32::Cpu(v), _)) => Some(v),
-            _ => None,
-        }
-    }
-
-    /// Bytes this takes (on the GPU, or in memory for the CPU).
-    pub fn bytes(&self) -> usize {
-        let splats = match &self.splats {
-            Some((Storage32::Gpu(b), _)) => b.size() as usize,
-            Some((Storage32::Cpu(v), _)) => v.len() * 4,
-            None => 0,
-        };
-        splats
-            + match &self.storage {
-                Storage::Gpu(b) => b.size() as usize,
-                Storage::Cpu(v) => v.len() * POINT_BYTES,
-            }
-    }
-
-    fn buffer(&self) -> &wgpu::Buffer {
-        match &self.storage {
-            Storage::Gpu(b) => b,
-            Storage::Cpu(_) => panic!("points in memory drawn by a GPU path"),
-        }
-    }
-
-    fn cpu_points(&self) -> &[[f32; 4]] {
-        match &self.storage {
-            Storage::Cpu(v) => v,
-            Storage::Gpu(_) => panic!("points on a GPU drawn by the CPU path"),
-        }
-    }
-
-    /// Draw the first `count` points, `spacing` apart in the world (for adaptive sizes).
-    pub fn prefix(&self, count: u32, spacing: f64) -> Draw<'_> {
-        Draw {
-            points: self,
-            count: count.min(self.len),
-            spacing,
-            node: None,
-        }
-    }
-
-    /// Draw all points.
-    pub fn all(&self, spacing: f64) -> Draw<'_> {
-        self.prefix(self.len, spacing)
     }
 }
 

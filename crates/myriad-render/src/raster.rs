@@ -3,7 +3,7 @@
 
 use crate::post::gpu::{Buffers, Chain};
 use crate::post::{Passes, View};
-use crate::{Draw, Gpu, POINT_BYTES, PointSize, QUADS_WGSL, RASTER_WGSL, Shape, Style};
+use crate::{Draw, Gpu, PointSize, QUADS_WGSL, RASTER_WGSL, Shape, Style};
 use myriad_lod::Camera;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
@@ -43,6 +43,9 @@ struct DrawUniforms {
     clip: [[f32; 4]; 2],
     eye: [[f32; 4]; 3],
     radius: [f32; 4],
+    offset: [f32; 4],
+    unit: [f32; 4],
+    layout: [u32; 4],
 }
 
 /// A draw's range in the compute path's frame buffer (as `Range` in raster.wgsl).
@@ -51,12 +54,47 @@ struct DrawUniforms {
 struct Range {
     cube: [f32; 4],
     offset: [f32; 4],
+    unit: [f32; 4],
     spacing: f32,
     node: u32,
     start: u32,
     count: u32,
     radius: [f32; 4],
+    base: u32,
+    stride: u32,
+    words: u32,
+    read: u32,
 }
+
+/// Where a draw's points are for a frame drawn relative to `origin`: their origin there, the
+/// first word's step, and (base, stride, words, read) as `decode` in draw.wgsl takes them.
+pub(crate) struct Layout {
+    pub offset: [f32; 3],
+    pub unit: [f32; 3],
+    pub words: u32,
+    pub read: u32,
+}
+
+impl Layout {
+    pub(crate) fn of(draw: &Draw, origin: [f64; 3], camera: &Camera, precision: f32) -> Layout {
+        let o = draw.points.origin;
+        Layout {
+            offset: std::array::from_fn(|a| (o[a] - origin[a]) as f32),
+            unit: draw.points.unit(),
+            words: draw.points.words,
+            read: draw.points.read_words(camera, precision),
+        }
+    }
+}
+
+/// The origin a frame's positions are drawn relative to (on every path): the first draw's.
+pub(crate) fn frame_origin(draws: &[Draw], camera: &Camera) -> [f64; 3] {
+    draws.first().map_or(camera.position, |d| d.points.origin)
+}
+
+/// The default of [`Rasterizer::precision`]: a point read with its first position words only
+/// may move by at most half of this many pixels.
+pub const DEFAULT_PRECISION: f32 = 0.1;
 
 /// Buffers and textures of one image size, kept from frame to frame.
 struct Targets {
@@ -76,8 +114,8 @@ struct Targets {
     merged: Option<wgpu::Buffer>,
     /// And their splat codes (only splat draws' are copied), at the same indices.
     merged_splats: Option<wgpu::Buffer>,
-    /// What `merged` holds: (buffer, start, count) of each range copied.
-    copied: std::collections::HashSet<(wgpu::Buffer, u32, u32)>,
+    /// What `merged` holds: (buffer, first thread, first word, count) of each range copied.
+    copied: std::collections::HashSet<(wgpu::Buffer, u32, u32, u32)>,
 }
 
 enum Pipelines {
@@ -99,6 +137,9 @@ pub struct Rasterizer {
     /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
     present: Mutex<Option<wgpu::TextureView>>,
     pub path: Path,
+    /// Precision per batch (Schütz 2022): a draw's points are read with as few position words
+    /// as leave them within half this many pixels of where all words put them (0: all words).
+    pub precision: f32,
 }
 
 /// Workgroups for `n` threads, as a 2D dispatch within the 65535 limit per dimension.
@@ -139,18 +180,6 @@ pub(crate) fn compute_in(
 
 fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
     let module = module(gpu, "quads", QUADS_WGSL);
-    let attributes = [
-        wgpu::VertexAttribute {
-            format: wgpu::VertexFormat::Float32x3,
-            offset: 0,
-            shader_location: 0,
-        },
-        wgpu::VertexAttribute {
-            format: wgpu::VertexFormat::Unorm8x4,
-            offset: 12,
-            shader_location: 1,
-        },
-    ];
     let target = Some(wgpu::ColorTargetState {
         format: wgpu::TextureFormat::Rgba8Unorm,
         blend: None,
@@ -164,11 +193,8 @@ fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
                 module: &module,
                 entry_point: Some("vertex"),
                 compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: POINT_BYTES as u64,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &attributes,
-                })],
+                // The points are read from storage by instance index (`decode`).
+                buffers: &[],
             },
             primitive: wgpu::PrimitiveState::default(),
             depth_stencil: Some(wgpu::DepthStencilState {
@@ -234,6 +260,7 @@ impl Rasterizer {
             targets: Mutex::new(None),
             present: Mutex::new(None),
             path,
+            precision: DEFAULT_PRECISION,
         }
     }
 
@@ -324,7 +351,7 @@ impl Rasterizer {
         let view = View::new(camera, &passes, style.background, f);
         let normals = passes.normals();
         if self.path == Path::Cpu {
-            let g = crate::cpu::gbuffer(camera, draws, tree, style, normals);
+            let g = crate::cpu::gbuffer(camera, draws, tree, style, normals, self.precision);
             return crate::post::run(g, &passes, &view);
         }
         let (w, h) = (camera.width.max(1), camera.height.max(1));
@@ -334,6 +361,7 @@ impl Rasterizer {
         if guard.as_ref().is_none_or(|t| t.size != (w, h, f)) {
             *guard = Some(self.targets(gpu, w, h, f));
         }
+        let origin = frame_origin(draws, camera);
         let mut draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
         if self.path == Path::Quads && draws.iter().all(|d| d.node.is_some()) {
             // Front to back by node (002's reverse painter's order): the depth test then rejects
@@ -369,12 +397,12 @@ impl Rasterizer {
             p.splat_range()
                 .map_or([0.0; 4], |[lo, hi]| [lo, hi, 1.0, 0.0])
         };
-        let uniform = |origin: [f64; 3],
-                       count: u32,
+        let uniform = |count: u32,
                        spacing: f64,
                        node: Option<(u32, myriad_core::Aabb)>,
                        radius: [f32; 4],
-                       mode: u32| DrawUniforms {
+                       mode: u32,
+                       layout: Option<(Layout, u32)>| DrawUniforms {
             view_proj: camera.view_proj(origin),
             width: w,
             height: h,
@@ -396,58 +424,80 @@ impl Rasterizer {
             clip: crate::Clip::uniforms(style.clip, origin),
             eye,
             radius,
+            offset: layout.as_ref().map_or([0.0; 4], |(l, _)| {
+                [l.offset[0], l.offset[1], l.offset[2], 0.0]
+            }),
+            unit: layout
+                .as_ref()
+                .map_or([0.0; 4], |(l, _)| [l.unit[0], l.unit[1], l.unit[2], 0.0]),
+            layout: layout.map_or([0; 4], |(l, stride)| [0, stride, l.words, l.read]),
         };
         // The compute path draws batches of draws, each copied into one buffer (ranges starting
         // on workgroup boundaries) and drawn by one dispatch: on lavapipe every dispatch costs
         // about 2 ms of synchronisation, a frame has hundreds of nodes. A batch is as large as
         // a storage binding may be.
-        let origin = draws.first().map_or(camera.position, |d| d.points.origin);
-        let mut batches: Vec<Vec<(usize, u32)>> = Vec::new();
+        // Per batch its draws (index, first thread, first word) and its threads and words.
+        let mut batches: Vec<Vec<(usize, u32, u32)>> = Vec::new();
         let mut batch_points = Vec::new();
+        let mut batch_words = Vec::new();
         // Per draw in batch order: whether its points must be copied this frame.
         let mut fresh: Vec<bool> = Vec::new();
-        let limit = d.limits().max_storage_buffer_binding_size as u64 / POINT_BYTES as u64;
+        let limit = d.limits().max_storage_buffer_binding_size / 4;
         if self.path == Path::Compute {
-            let mut total = 0u64;
+            let (mut threads, mut words) = (0u64, 0u64);
             for (i, draw) in draws.iter().enumerate() {
                 let n = (draw.count as u64).next_multiple_of(WORKGROUP as u64);
-                if batches.is_empty() || total + n > limit {
+                let w = draw.count as u64 * (draw.points.arrays() as u64 + 1);
+                if batches.is_empty() || words + w > limit || threads + n > limit {
                     batches.push(Vec::new());
                     batch_points.push(0);
-                    total = 0;
+                    batch_words.push(0);
+                    (threads, words) = (0, 0);
                 }
-                batches.last_mut().expect("pushed").push((i, total as u32));
-                total += n;
-                *batch_points.last_mut().expect("pushed") = total;
+                batches
+                    .last_mut()
+                    .expect("pushed")
+                    .push((i, threads as u32, words as u32));
+                threads += n;
+                words += w;
+                *batch_points.last_mut().expect("pushed") = threads;
+                *batch_words.last_mut().expect("pushed") = words;
             }
-            let need = batch_points.iter().copied().max().unwrap_or(0) * POINT_BYTES as u64;
+            let need = |v: &[u64]| v.iter().copied().max().unwrap_or(0).max(WORKGROUP as u64) * 4;
             let t = guard.as_mut().expect("targets made above");
-            if t.merged.as_ref().is_none_or(|b| b.size() < need) {
-                t.merged = Some(
-                    d.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("frame points"),
-                        size: (need + need / 4)
-                            .min(limit * POINT_BYTES as u64)
-                            .max(need)
-                            .max(POINT_BYTES as u64 * WORKGROUP as u64),
-                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    }),
-                );
-                t.merged_splats = Some(d.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("frame splats"),
-                    size: t.merged.as_ref().expect("made above").size() / POINT_BYTES as u64 * 4,
+            let buffer = |label, need: u64| {
+                d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: (need + need / 4).min(limit * 4).max(need),
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
-                }));
+                })
+            };
+            if t.merged
+                .as_ref()
+                .is_none_or(|b| b.size() < need(&batch_words))
+            {
+                t.merged = Some(buffer("frame points", need(&batch_words)));
+                t.copied.clear();
+            }
+            if t.merged_splats
+                .as_ref()
+                .is_none_or(|b| b.size() < need(&batch_points))
+            {
+                t.merged_splats = Some(buffer("frame splats", need(&batch_points)));
                 t.copied.clear();
             }
             // What the frame buffer already holds from the last frame (one batch only: with
             // several, each overwrites the last) need not be copied again.
             let previous = std::mem::take(&mut t.copied);
             for batch in &batches {
-                for &(i, start) in batch {
-                    let item = (draws[i].points.buffer().clone(), start, draws[i].count);
+                for &(i, start, base) in batch {
+                    let item = (
+                        draws[i].points.buffer().clone(),
+                        start,
+                        base,
+                        draws[i].count,
+                    );
                     fresh.push(batches.len() > 1 || !previous.contains(&item));
                     if batches.len() == 1 {
                         t.copied.insert(item);
@@ -466,12 +516,12 @@ impl Rasterizer {
                 .iter()
                 .map(|d| {
                     uniform(
-                        d.points.origin,
                         d.count,
                         d.spacing,
                         d.node,
                         radius_of(d.points),
                         0,
+                        Some((Layout::of(d, origin, camera, self.precision), d.points.len)),
                     )
                 })
                 .collect(),
@@ -481,12 +531,12 @@ impl Rasterizer {
                 .flat_map(|&mode| {
                     batch_points.iter().map(move |&n| {
                         uniform(
-                            origin,
                             (n / WORKGROUP as u64) as u32,
                             0.0,
                             None,
                             [0.0; 4],
                             mode,
+                            None,
                         )
                     })
                 })
@@ -549,7 +599,7 @@ impl Rasterizer {
                     let (batch, total) = (&batches[b], batch_points[b]);
                     let mut ranges = Vec::with_capacity(batch.len());
                     let mut group_range = Vec::with_capacity((total / WORKGROUP as u64) as usize);
-                    for (k, &(i, start)) in batch.iter().enumerate() {
+                    for (k, &(i, start, base)) in batch.iter().enumerate() {
                         let draw = draws[i];
                         // Mode 1 finds the points where mode 0 left them, unless later batches
                         // overwrote them.
@@ -558,14 +608,21 @@ impl Rasterizer {
                         } else {
                             batches.len() > 1
                         };
+                        let (n, len) = (draw.count as u64, draw.points.len as u64);
                         if copy {
-                            enc.copy_buffer_to_buffer(
-                                draw.points.buffer(),
-                                0,
-                                merged,
-                                start as u64 * POINT_BYTES as u64,
-                                draw.count as u64 * POINT_BYTES as u64,
-                            );
+                            // Array by array: the prefix of each (all of them in one copy when
+                            // the draw is the whole node).
+                            let arrays = draw.points.arrays() as u64 + 1;
+                            let runs = if n == len { 1 } else { arrays };
+                            for a in 0..runs {
+                                enc.copy_buffer_to_buffer(
+                                    draw.points.buffer(),
+                                    a * len * 4,
+                                    merged,
+                                    (base as u64 + a * n) * 4,
+                                    if runs == 1 { arrays * n * 4 } else { n * 4 },
+                                );
+                            }
                             if let Some(sb) = draw.points.splat_buffer() {
                                 enc.copy_buffer_to_buffer(
                                     sb,
@@ -576,20 +633,20 @@ impl Rasterizer {
                                 );
                             }
                         }
-                        let o = draw.points.origin;
+                        let l = Layout::of(draw, origin, camera, self.precision);
                         ranges.push(Range {
                             cube: relative(draw.node, origin),
-                            offset: [
-                                (o[0] - origin[0]) as f32,
-                                (o[1] - origin[1]) as f32,
-                                (o[2] - origin[2]) as f32,
-                                0.0,
-                            ],
+                            offset: [l.offset[0], l.offset[1], l.offset[2], 0.0],
+                            unit: [l.unit[0], l.unit[1], l.unit[2], 0.0],
                             spacing: (draw.spacing * scale) as f32,
                             node: draw.node.map_or(u32::MAX, |n| n.0),
                             start,
                             count: draw.count,
                             radius: radius_of(draw.points),
+                            base,
+                            stride: draw.count,
+                            words: l.words,
+                            read: l.read,
                         });
                         let groups = draw.count.div_ceil(WORKGROUP);
                         group_range.extend(std::iter::repeat_n(k as u32, groups as usize));
@@ -613,7 +670,7 @@ impl Rasterizer {
                                 wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                                     buffer: merged,
                                     offset: 0,
-                                    size: wgpu::BufferSize::new(total * POINT_BYTES as u64),
+                                    size: wgpu::BufferSize::new(batch_words[b].max(1) * 4),
                                 }),
                             ),
                             (2, fb.as_entire_binding()),
@@ -649,6 +706,7 @@ impl Rasterizer {
                             layout: &layout,
                             entries: &[
                                 entry(0, uniform_at(i)),
+                                entry(1, draws[i].points.buffer().as_entire_binding()),
                                 entry(3, tree.as_entire_binding()),
                                 entry(6, splats.as_entire_binding()),
                             ],
@@ -681,7 +739,6 @@ impl Rasterizer {
                 pass.set_pipeline(quads);
                 for (draw, bind) in draws.iter().zip(&binds) {
                     pass.set_bind_group(0, bind, &[]);
-                    pass.set_vertex_buffer(0, draw.points.buffer().slice(..));
                     pass.draw(0..6, 0..draw.count);
                 }
             }
@@ -766,6 +823,21 @@ fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
 }
 
 impl Rasterizer {
+    /// Bytes the point pass reads for `draws` seen by `camera`: the position words each draw
+    /// needs ([`crate::Points::read_words`] at the frame's supersampled size), the colours and
+    /// splat codes.
+    pub fn bytes_read(&self, gpu: &Gpu, camera: &Camera, draws: &[Draw], style: &Style) -> u64 {
+        let f = self.factor(gpu, camera, &style.passes);
+        let (camera, _) = supersampled(camera, style, f);
+        draws
+            .iter()
+            .map(|d| {
+                let read = d.points.read_words(&camera, self.precision);
+                d.count as u64 * d.points.read_bytes(read) as u64
+            })
+            .sum()
+    }
+
     /// The supersampling factor a frame gets: what the passes ask for, less where the GPU's
     /// framebuffer would not fit one storage binding or texture.
     fn factor(&self, gpu: &Gpu, camera: &Camera, passes: &Passes) -> u32 {

@@ -6,7 +6,7 @@
 //! ([`myriad_lod::hierarchy`]), within a byte budget ([`Scene::pages`]).
 
 use crate::selector::{Request, Selector};
-use crate::{ColorBy, Draw, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
+use crate::{ColorBy, Draw, Encoding, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
@@ -37,8 +37,14 @@ pub struct Scene {
     pub pages: PageCache,
     pub loader: Loader,
     pub buffers: NodeBuffers,
-    /// Positions are uploaded relative to this (the root cube's centre).
+    /// The root cube's centre (f32 positions are relative to it).
     pub origin: [f64; 3],
+    /// The dataset's grid: positions are quantized on it per node, without loss where a node
+    /// spans at most 2^30 steps an axis (None: on a grid fitted to each node's points).
+    pub grid: Option<myriad_format::page::Quantization>,
+    /// Upload f32 positions (16 bytes a point with colour) instead: the layout before
+    /// quantization, for comparisons.
+    pub f32_positions: bool,
     /// The heights the elevation ramp spans.
     pub z_range: (f64, f64),
     /// Where the data is, without its outliers: for framing the view.
@@ -81,8 +87,15 @@ pub struct FrameStats {
     /// Drawn (selected and on the GPU).
     pub nodes: usize,
     pub points: u64,
-    /// Nodes uploaded to the GPU in this frame.
+    /// Nodes uploaded to the GPU in this frame, and their bytes.
     pub uploads: usize,
+    pub upload_bytes: usize,
+    /// Bytes the point pass reads for the drawn points (the position words it needs, colours,
+    /// splat codes: [`crate::Rasterizer::bytes_read`]).
+    pub read_bytes: u64,
+    /// Points on the GPU and the bytes they take (the GPU cache).
+    pub gpu_points: u64,
+    pub gpu_bytes: usize,
     /// Loads queued or being read after this frame (nodes and hierarchy pages).
     pub in_flight: usize,
     /// Hierarchy pages the selection wants and does not have (queued, being read).
@@ -122,6 +135,8 @@ impl Scene {
     ) -> Scene {
         Scene {
             origin: hierarchy.root.center(),
+            grid: None,
+            f32_positions: false,
             hierarchy: Arc::new(hierarchy),
             pages: PageCache::new(DEFAULT_HIERARCHY_BYTES),
             loader: Loader::new(reader, threads, ram_bytes),
@@ -176,10 +191,12 @@ impl Scene {
             .and_then(|v| v.as_str())
             == Some("input");
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
+        let grid = meta.quantization;
         let mut scene = Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes);
         if let Some(n) = root_node {
             scene.loader.insert(NodeKey::ROOT, n);
         }
+        scene.grid = Some(grid);
         scene
     }
 
@@ -314,12 +331,15 @@ impl Scene {
         loop {
             let s = self.select(camera, options, clip);
             self.take(&s);
+            // A page the selection wanted that has not failed is either still coming or has
+            // landed since (then the view refines: select again).
             let missing = |scene: &Scene| {
+                let failed = scene.loader.failed_pages();
                 s.nodes.iter().any(|n| {
                     scene.hierarchy.get(&n.key).is_some_and(|e| e.points > 0)
                         && !scene.loader.is_resident(&n.key)
                         && !scene.loader.failed().contains_key(&n.key)
-                }) || scene.pages_missing(&s) > 0
+                }) || s.pages.iter().any(|p| !failed.contains_key(&p.key))
             };
             if !missing(self) {
                 return s;
@@ -473,6 +493,8 @@ impl Scene {
     fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
         let failed = self.loader.failed();
         FrameStats {
+            gpu_points: self.buffers.values().map(|p| p.len as u64).sum(),
+            gpu_bytes: self.buffers.bytes(),
             selected_nodes: selection.nodes.len(),
             selected_points: selection.points,
             culled: selection.culled,
@@ -491,8 +513,9 @@ impl Scene {
         }
     }
 
-    /// Uploads the selected nodes that are resident but not on the GPU; returns how many.
-    pub fn upload(&mut self, gpu: &Gpu, selection: &Selection) -> usize {
+    /// Uploads the selected nodes that are resident but not on the GPU; returns how many, and
+    /// their bytes.
+    pub fn upload(&mut self, gpu: &Gpu, selection: &Selection) -> (usize, usize) {
         self.buffers.next_frame();
         // Stand-ins stay on the GPU while they are needed.
         for k in self.stand_ins(selection) {
@@ -508,23 +531,23 @@ impl Scene {
                 continue;
             };
             let c = colours(&batch, batch.len(), self.colour, self.z_range, n.key.level);
-            let p = match &batch.splats {
-                Some(s) => Points::upload_splats(
-                    gpu,
-                    self.origin,
-                    &batch.positions,
-                    &c,
-                    &s.normals,
-                    &s.radii,
-                ),
-                None => Points::upload(gpu, self.origin, &batch.positions, &c),
+            let encoding = match self.grid {
+                _ if self.f32_positions => Encoding::F32 {
+                    origin: self.origin,
+                },
+                Some(g) => Encoding::Grid(g),
+                None => Encoding::fitted(self.origin, &batch.positions),
             };
+            let mut p = Points::encode(gpu, encoding, &batch.positions, &c);
+            if let Some(s) = &batch.splats {
+                p = p.with_splats(gpu, &s.normals, &s.radii);
+            }
             let bytes = p.bytes();
             bytes_up += bytes;
             self.buffers.insert(n.key, p, bytes);
             uploads += 1;
         }
-        uploads
+        (uploads, bytes_up)
     }
 
     /// What the selection thread needs to select for `camera`: the options, and the resident
@@ -579,13 +602,15 @@ impl Scene {
         let selection = self.update_clipped(camera, options, style.clip);
         let select = t.elapsed();
         let t = Instant::now();
-        let uploads = self.upload(gpu, &selection);
+        let (uploads, upload_bytes) = self.upload(gpu, &selection);
         let upload = t.elapsed();
         let t = Instant::now();
         let (draws, tree, keys) = self.draws(&selection, 0);
         let image = raster.render(gpu, camera, &draws, &tree, style);
         let stats = FrameStats {
             uploads,
+            upload_bytes,
+            read_bytes: raster.bytes_read(gpu, camera, &draws, style),
             select,
             select_current: true,
             select_budget: options.budget,
@@ -704,7 +729,9 @@ fn draw_many(
         let (draws, entries, keys) = scene.draws(selection, tree.len() as u32);
         drawn.push(keys);
         stats.push(FrameStats {
-            uploads,
+            uploads: uploads.0,
+            upload_bytes: uploads.1,
+            read_bytes: raster.bytes_read(gpu, camera, &draws, style),
             upload,
             ..scene.stats(selection, &draws)
         });

@@ -4,30 +4,10 @@
 //! eye-dome lighting cover the pixels they should, and the GPU paths draw the CPU's image.
 
 use myriad_lod::Camera;
-use myriad_render::{Edl, Gpu, Passes, Path, PointSize, Points, Rasterizer, Shape, Style};
+mod common;
 
-/// Every (device, path) this machine runs: the CPU, then the GPU's paths if there is one.
-fn paths() -> Vec<(Gpu, Rasterizer)> {
-    let cpu = Gpu::cpu();
-    let r = Rasterizer::new(&cpu);
-    let mut out = vec![(cpu, r)];
-    match Gpu::headless() {
-        Ok(gpu) => {
-            eprintln!("adapter: {}, 64-bit atomics: {}", gpu.name, gpu.atomics);
-            if gpu.atomics {
-                let other = Gpu::headless().expect("found above");
-                let r = Rasterizer::with_path(&other, Path::Compute);
-                out.push((other, r));
-            }
-            let r = Rasterizer::with_path(&gpu, Path::Quads);
-            out.push((gpu, r));
-        }
-        Err(e) => eprintln!(
-            "SKIPPED on the GPU paths: {e}; they need a Vulkan driver (CI installs lavapipe)"
-        ),
-    }
-    out
-}
+use common::paths;
+use myriad_render::{Edl, Gpu, Passes, Path, PointSize, Points, Shape, Style};
 
 /// 200 x 100 pixels, 90 degrees vertically, from (x, -10, 0) towards (x, 0, 0), Z up.
 fn looking_along_y(x: f64) -> Camera {
@@ -343,13 +323,7 @@ fn every_path_draws_the_cpus_image() {
     // Random points in a box, random colours, seen at an angle: every path agrees with the CPU
     // on almost every pixel (they may differ where two points reach a pixel at the same depth,
     // which the quad path's depth test breaks by order, or by the last bit of depth).
-    let mut s = 0x2545f4914f6cdd1du64;
-    let mut next = || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = common::random(0x2545f4914f6cdd1d);
     let n = 20000;
     let positions: Vec<[f64; 3]> = (0..n)
         .map(|_| [next() * 10.0 - 5.0, next() * 10.0 - 5.0, next() * 4.0])
@@ -516,13 +490,7 @@ fn splats_are_oriented_discs_on_every_path() {
 /// A room's corner: a floor and two walls of jittered grid points, a few left out, so that
 /// there are holes to fill, edges, corners and slopes for every pass.
 fn corner_room(gpu: &Gpu, splats: bool) -> Points {
-    let mut s = 0x9e3779b97f4a7c15u64;
-    let mut next = || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = common::random(0x9e3779b97f4a7c15);
     let (mut positions, mut colours, mut normals) = (Vec::new(), Vec::new(), Vec::new());
     for plane in 0..3 {
         for i in 0..120 {

@@ -381,6 +381,13 @@ impl App {
             vram as f64 / 1e6,
             tree as f64 / 1e6
         ));
+        let on_gpu: u64 = self.stats.iter().map(|s| s.gpu_points).sum();
+        let read: u64 = self.stats.iter().map(|s| s.read_bytes).sum();
+        ui.label(format!(
+            "point buffers: {:.1} bytes a point, {:.1} read per drawn point",
+            vram as f64 / on_gpu.max(1) as f64,
+            read as f64 / points.max(1) as f64
+        ));
         ui.horizontal(|ui| {
             if loading > 0 {
                 ui.spinner();

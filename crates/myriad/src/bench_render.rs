@@ -26,20 +26,20 @@ pub struct RenderBenchArgs {
     datasets: Vec<PathBuf>,
     /// Point budget of the images compared with the full one
     #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
-    budget: u64,
+    pub(crate) budget: u64,
     /// Point budget of the timed frames
     #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
-    frame_budget: u64,
+    pub(crate) frame_budget: u64,
     #[arg(long, default_value_t = 1280)]
-    width: u32,
+    pub(crate) width: u32,
     #[arg(long, default_value_t = 720)]
-    height: u32,
+    pub(crate) height: u32,
     /// Timed frames per dataset
     #[arg(long, default_value_t = 9)]
-    frames: usize,
+    pub(crate) frames: usize,
     /// Scale of the adaptive point size
     #[arg(long, default_value_t = PointSize::ADAPTIVE_SCALE)]
-    scale: f32,
+    pub(crate) scale: f32,
     /// Seed of the random baseline
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -48,6 +48,9 @@ pub struct RenderBenchArgs {
     /// Write every image compared into this folder (NAME-VIEW-full|lod|random-MODE.png)
     #[arg(long)]
     images: Option<PathBuf>,
+    /// Only the comparison of positions on the GPU (f32 and quantized)
+    #[arg(long)]
+    positions_only: bool,
 }
 
 /// Peak signal-to-noise ratio of RGB between two RGBA8 images, in dB (infinite when equal).
@@ -111,7 +114,7 @@ impl Device {
 
 pub fn run(a: RenderBenchArgs) -> Result<()> {
     let gpu = a.device.gpu()?;
-    let raster = Rasterizer::new(&gpu);
+    let mut raster = Rasterizer::new(&gpu);
     println!(
         "{}, {:?} path, {}x{}; quality at a budget of {} points against every point, \
          baseline: as many points uniformly at random",
@@ -134,6 +137,11 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
         // The reference images sample every point: every node known.
         scene.read_every_page(&ds);
         let total = scene.hierarchy.points();
+        if a.positions_only {
+            println!("\n{name}: {} points", crate::info::thousands(total));
+            crate::bench_positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
+            continue;
+        }
         println!(
             "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8}",
             crate::info::thousands(total),
@@ -221,6 +229,7 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                 points as f64 / frame / 1e6,
             );
         }
+        crate::bench_positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
     }
     if lost > 0 {
         println!("\nthe random baseline was as good or better in {lost} of the views");

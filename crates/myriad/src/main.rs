@@ -7,6 +7,7 @@ mod bench_export;
 mod bench_open;
 mod bench_partition;
 mod bench_passes;
+mod bench_positions;
 mod bench_prefetch;
 mod bench_render;
 mod bench_serve;

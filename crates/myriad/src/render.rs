@@ -281,11 +281,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
     }
     println!(
-        "{}: {} points in {} nodes ({} hidden nodes culled), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
+        "{}: {} points in {} nodes ({} hidden nodes culled), {:.1} bytes a point in the point buffers ({:.1} read per drawn point), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
         a.output.display(),
         crate::info::thousands(stats.points),
         stats.nodes,
         stats.culled,
+        stats.gpu_bytes as f64 / stats.gpu_points.max(1) as f64,
+        stats.read_bytes as f64 / stats.points.max(1) as f64,
         frame.as_secs_f64() * 1e3,
         first_image.as_secs_f64(),
         converged.as_secs_f64(),

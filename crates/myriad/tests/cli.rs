@@ -547,6 +547,18 @@ fn render_a_converted_scan_to_png() {
         "{}",
         r.stdout
     );
+    // Positions quantized per node: 8 to 16 bytes a point with colour (f32 took 16), fewer read.
+    let number_before = |what: &str| -> f64 {
+        let at = r.stdout.find(what).expect(what);
+        let head = r.stdout[..at].trim_end();
+        head[head.rfind([' ', '(']).unwrap() + 1..].parse().unwrap()
+    };
+    let (stored, read) = (
+        number_before(" bytes a point"),
+        number_before(" read per drawn point"),
+    );
+    assert!((8.0..16.0).contains(&stored), "{}", r.stdout);
+    assert!((8.0..=16.0).contains(&read), "{}", r.stdout);
     // A PNG of the asked size, and the scan is in it: a good part of the pixels are not black.
     let bytes = std::fs::read(&png_path).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");

@@ -32,6 +32,11 @@ struct Draw {
     eye_forward: vec4<f32>,
     // Quad path, this draw's splats: smallest and largest radius, z 1 when it has splats.
     radius: vec4<f32>,
+    // Quad path, this draw's points (as `Range` in raster.wgsl): its origin relative to the
+    // frame's, its first word's step per axis, and its place: base, stride, words, read (`decode`).
+    offset: vec4<f32>,
+    unit: vec4<f32>,
+    place: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> u: Draw;
@@ -39,6 +44,43 @@ struct Draw {
 @group(0) @binding(3) var<storage, read> tree: array<vec4<u32>>;
 // Splats (mwkd): per point, a normal's cube-map index (low 16 bits) and an 8-bit radius code.
 @group(0) @binding(6) var<storage, read> splat_codes: array<u32>;
+// Points (myriad_render::Points): for each draw, at `base`, arrays of `stride` words each: the
+// position words (f32 x, y, z; or 1 to 3 words of 10 bits an axis, most significant first),
+// then the RGBA8 colours.
+@group(0) @binding(1) var<storage, read> points: array<u32>;
+
+// A position word's three 10-bit parts.
+fn split(w: u32) -> vec3<f32> {
+    return vec3<f32>(f32(w & 1023u), f32((w >> 10u) & 1023u), f32((w >> 20u) & 1023u));
+}
+
+// Point `i`'s position relative to the frame's origin (`offset`: its draw's origin there; `unit`:
+// the first word's step per axis). Quantized points read `read` of their `words` words and take
+// the rest at the middle of its range (as points::decode on the CPU).
+fn decode(i: u32, base: u32, stride: u32, words: u32, read: u32, offset: vec3<f32>, unit: vec3<f32>) -> vec3<f32> {
+    if (words == 0u) {
+        let x = bitcast<f32>(points[base + i]);
+        let y = bitcast<f32>(points[base + stride + i]);
+        let z = bitcast<f32>(points[base + 2u * stride + i]);
+        return vec3<f32>(offset.x + x, offset.y + y, offset.z + z);
+    }
+    var p = offset;
+    var u = unit;
+    for (var k = 0u; k < read; k++) {
+        let w = points[base + k * stride + i];
+        p = p + split(w) * u;
+        u = u * (1.0 / 1024.0);
+    }
+    if (read < words) {
+        p = p + u * 512.0;
+    }
+    return p;
+}
+
+// Point `i`'s colour word (RGBA8), after its position words.
+fn colour_word(i: u32, base: u32, stride: u32, words: u32) -> u32 {
+    return points[base + select(words, 3u, words == 0u) * stride + i];
+}
 
 // The unit direction at the centre of a cube-map cell (104 x 104 per face), as
 // myriad_format::splat::normal_from_code.

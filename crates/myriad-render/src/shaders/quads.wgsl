@@ -22,13 +22,13 @@ const CORNERS = array<vec2<f32>, 6>(
 fn vertex(
     @builtin(vertex_index) v: u32,
     @builtin(instance_index) instance: u32,
-    @location(0) p: vec3<f32>,
-    @location(1) colour: vec4<f32>,
 ) -> Corner {
+    let l = u.place;
+    let p = decode(instance, l.x, l.y, l.z, l.w, u.offset.xyz, u.unit.xyz);
     var out: Corner;
     // Culled: outside every clip volume.
     out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
-    out.colour = colour;
+    out.colour = unpack4x8unorm(colour_word(instance, l.x, l.y, l.z));
     out.local = vec2<f32>(0.0);
     out.depth = vec2<f32>(0.0);
     out.radius2 = 0.0;

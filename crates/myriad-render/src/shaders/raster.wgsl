@@ -1,23 +1,31 @@
 // Compute rasterizer (after Schütz et al. 2021): one thread per point projects it and keeps the
 // nearest point per pixel with a 64-bit atomicMax of (reversed linear depth << 32 | colour).
-// One dispatch draws every node of a frame: their points are copied into one buffer, each
-// draw's range starting on a workgroup boundary, and each workgroup looks up its draw.
+// One dispatch draws every node of a frame: their points are copied into one buffer, and each
+// draw's threads start on a workgroup boundary; each workgroup looks up its draw.
 
-// One draw's range in `points` and what its points need (`Draw`'s per-draw fields).
+// One draw's points and what they need (`Draw`'s per-draw fields).
 struct Range {
     // The node's cube relative to the frame's origin: min corner, side.
     cube: vec4<f32>,
     // Added to the draw's positions: its origin minus the frame's.
     offset: vec4<f32>,
+    // The first position word's step per axis (`decode`).
+    unit: vec4<f32>,
     spacing: f32,
     node: u32,
+    // The draw's first thread (and index in `splat_codes`), and its points.
     start: u32,
     count: u32,
     // Splats: smallest and largest radius; z 1 when this draw has them.
     radius: vec4<f32>,
+    // Where its words are in `points`, words between its arrays, position words (0: f32) and
+    // how many of them to read.
+    base: u32,
+    stride: u32,
+    words: u32,
+    read: u32,
 }
 
-@group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> ranges: array<Range>;
 // The range each workgroup draws from; `u.count` is the number of workgroups.
 @group(0) @binding(5) var<storage, read> group_range: array<u32>;
@@ -68,22 +76,21 @@ fn rasterize(
     if (local >= r.count) {
         return;
     }
-    let stored = points[r.start + local];
-    let p = vec4<f32>(stored.xyz + r.offset.xyz, stored.w);
-    if (clipped(p.xyz)) {
+    let p = decode(local, r.base, r.stride, r.words, r.read, r.offset.xyz, r.unit.xyz);
+    if (clipped(p)) {
         return;
     }
-    let clip = u.view_proj * vec4<f32>(p.xyz, 1.0);
+    let clip = u.view_proj * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0) {
         return;
     }
-    let ndc = clip.xyz / clip.w;
+    let ndc = clip / clip.w;
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < 0.0 || ndc.z > 1.0) {
         return;
     }
     let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
-    let colour = u64(bitcast<u32>(p.w));
+    let colour = u64(colour_word(local, r.base, r.stride, r.words));
     let splat = r.radius.z > 0.0 && u.point_size == 0.0;
     if (u.mode == 1u && !splat) {
         return;
@@ -110,7 +117,7 @@ fn rasterize(
         }
         return;
     }
-    let s = i32(point_pixels(p.xyz, clip.w, r.spacing, r.node, r.cube));
+    let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube));
     if (s == 1) {
         let x = u32(fx);
         let y = u32(fy);
