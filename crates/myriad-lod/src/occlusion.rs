@@ -21,6 +21,7 @@
 use crate::view::Camera;
 use myriad_core::NodeKey;
 use myriad_format::NodeEntry;
+use std::collections::HashSet;
 use std::sync::Arc;
 
 /// The paper's buffer size, in cells per side.
@@ -34,6 +35,10 @@ pub enum Occlusion {
     Off,
     /// The coarse depth buffer of this module.
     Software,
+    /// Occlusion queries (003): each frame the boxes of the nodes drawn and culled are tested
+    /// against the frame's depth (on the GPU, or the CPU path's mirror); the next selection
+    /// culls those of which no pixel showed.
+    Queries,
 }
 
 impl Occlusion {
@@ -41,11 +46,8 @@ impl Occlusion {
         match s {
             "off" => Ok(Occlusion::Off),
             "software" => Ok(Occlusion::Software),
-            "queries" => Err(
-                "\"queries\": hardware occlusion queries are not implemented (software or off)"
-                    .into(),
-            ),
-            _ => Err(format!("\"{s}\": software or off")),
+            "queries" => Ok(Occlusion::Queries),
+            _ => Err(format!("\"{s}\": software, queries or off")),
         }
     }
 }
@@ -259,22 +261,50 @@ impl DepthMap {
     }
 }
 
-/// What a selection with occlusion culling needs: the buffer, and the points of resident nodes
-/// (a node not loaded yet covers nothing).
+/// What a selection with occlusion culling needs: the software test's buffer and the points of
+/// resident nodes (a node not loaded yet covers nothing), or the nodes the last frame's
+/// occlusion queries found hidden.
 pub struct Occluder<'a> {
-    pub map: DepthMap,
+    pub map: Option<DepthMap>,
     pub points: &'a dyn Fn(&NodeKey) -> Option<Arc<crate::stream::Loaded>>,
+    pub hidden: Option<&'a HashSet<NodeKey>>,
 }
 
 impl<'a> Occluder<'a> {
+    /// The software test.
     pub fn new(
         cam: &Camera,
         size: u32,
         points: &'a dyn Fn(&NodeKey) -> Option<Arc<crate::stream::Loaded>>,
     ) -> Occluder<'a> {
         Occluder {
-            map: DepthMap::new(cam, size),
+            map: Some(DepthMap::new(cam, size)),
             points,
+            hidden: None,
+        }
+    }
+
+    /// The results of the last frame's occlusion queries.
+    pub fn queried(hidden: &'a HashSet<NodeKey>) -> Occluder<'a> {
+        Occluder {
+            map: None,
+            points: &|_| None,
+            hidden: Some(hidden),
+        }
+    }
+
+    /// Whether node `key` (its box's corners) is hidden.
+    pub(crate) fn hides(&mut self, key: &NodeKey, corners: &[[f64; 3]; 8]) -> bool {
+        self.hidden.is_some_and(|h| h.contains(key))
+            || self.map.as_mut().is_some_and(|m| m.hides(corners))
+    }
+
+    /// A selected node's first `count` points cover what lies behind them (software test).
+    pub(crate) fn cover(&mut self, e: &NodeEntry, spacing: &[f64], count: usize) {
+        if let Some(map) = self.map.as_mut()
+            && let Some(b) = (self.points)(&e.key)
+        {
+            map.cover(e, spacing, &b.positions, count);
         }
     }
 }

@@ -62,8 +62,9 @@ pub struct Selection {
     pub points: u64,
     /// Whether the budget stopped the traversal.
     pub budget_reached: bool,
-    /// Nodes culled as hidden ([`crate::occlusion`]; their subtrees not visited).
+    /// Nodes culled as hidden ([`crate::occlusion`]; their subtrees not visited), and which.
     pub culled: usize,
+    pub hidden: Vec<NodeKey>,
     /// Hierarchy pages not loaded yet below nodes the traversal would have refined, best first:
     /// what to load so that the view refines ([`crate::hierarchy`]).
     pub pages: Vec<ChildPage>,
@@ -241,9 +242,10 @@ pub fn select_occluded(
             None => h.bounds(&key).corners(),
         };
         if let Some(occ) = occluder.as_deref_mut()
-            && occ.map.hides(&corners)
+            && occ.hides(&key, &corners)
         {
             out.culled += 1;
+            out.hidden.push(key);
             continue;
         }
         let depth = nearest_depth_of(cam, &corners);
@@ -274,10 +276,8 @@ pub fn select_occluded(
                 .position(|&p| p as u64 >= count)
                 .unwrap_or(e.prefix.len() - 1);
             out.points += count;
-            if let Some(occ) = occluder.as_deref_mut()
-                && let Some(b) = (occ.points)(&key)
-            {
-                occ.map.cover(e, &spacing, &b.positions, count as usize);
+            if let Some(occ) = occluder.as_deref_mut() {
+                occ.cover(e, &spacing, count as usize);
             }
             out.nodes.push(Selected {
                 key,

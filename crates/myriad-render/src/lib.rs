@@ -15,6 +15,7 @@
 mod cpu;
 mod points;
 mod post;
+mod queries;
 mod raster;
 pub mod scene;
 pub mod selector;
@@ -42,6 +43,8 @@ pub const QUADS_WGSL: &str = concat!(
 );
 /// The compute path's framebuffer as the g-buffer pass reads it ([`gbuffer_source`]).
 pub const FB_ATOMIC_WGSL: &str = include_str!("shaders/fb_atomic.wgsl");
+/// Occlusion queries' boxes and the compute path's depth for them (`queries.rs`).
+pub const QUERIES_WGSL: &str = include_str!("shaders/queries.wgsl");
 /// The quad path's render targets as the g-buffer pass reads them.
 pub const FB_QUADS_WGSL: &str = include_str!("shaders/fb_quads.wgsl");
 

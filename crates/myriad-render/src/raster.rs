@@ -97,16 +97,18 @@ pub(crate) fn frame_origin(draws: &[Draw], camera: &Camera) -> [f64; 3] {
 pub const DEFAULT_PRECISION: f32 = 0.1;
 
 /// Buffers and textures of one image size, kept from frame to frame.
-struct Targets {
+pub(crate) struct Targets {
     /// The g-buffer's size and the supersampling factor.
-    size: (u32, u32, u32),
+    pub(crate) size: (u32, u32, u32),
     /// Compute path: one u64 per pixel, and the splats' normals.
-    framebuffer: Option<wgpu::Buffer>,
+    pub(crate) framebuffer: Option<wgpu::Buffer>,
     normal_fb: Option<wgpu::Buffer>,
     /// Quad path: colour, splat normals and depth.
     colour: Option<wgpu::TextureView>,
     normal: Option<wgpu::TextureView>,
-    depth: Option<wgpu::TextureView>,
+    pub(crate) depth: Option<wgpu::TextureView>,
+    /// Compute path: the framebuffer's depth for occlusion queries (`queries.rs`).
+    pub(crate) query_depth: Option<wgpu::TextureView>,
     /// The post passes' g-buffers and the image.
     post: Buffers,
     readback: wgpu::Buffer,
@@ -133,7 +135,11 @@ enum Pipelines {
 /// The rasterizer's pipelines and frame targets.
 pub struct Rasterizer {
     pipelines: Pipelines,
-    targets: Mutex<Option<Targets>>,
+    pub(crate) targets: Mutex<Option<Targets>>,
+    /// Occlusion queries' pipelines (made when first asked for) and what they need of the last
+    /// frame.
+    pub(crate) queries: std::sync::OnceLock<crate::queries::Pipelines>,
+    pub(crate) last: Mutex<Option<crate::queries::Last>>,
     /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
     present: Mutex<Option<wgpu::TextureView>>,
     pub path: Path,
@@ -155,6 +161,32 @@ pub(crate) fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
             label: Some(label),
             source: wgpu::ShaderSource::Wgsl(src.into()),
         })
+}
+
+/// A 2D texture of one image size and its view.
+pub(crate) fn target(
+    gpu: &Gpu,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureView {
+    gpu.device()
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
 }
 
 pub(crate) fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
@@ -258,6 +290,8 @@ impl Rasterizer {
         Rasterizer {
             pipelines,
             targets: Mutex::new(None),
+            queries: Default::default(),
+            last: Mutex::new(None),
             present: Mutex::new(None),
             path,
             precision: DEFAULT_PRECISION,
@@ -277,22 +311,13 @@ impl Rasterizer {
             })
         };
         let texture = |label, format| {
-            d.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            target(
+                gpu,
+                label,
+                (w, h),
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            })
-            .create_view(&Default::default())
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            )
         };
         let quads = self.path == Path::Quads;
         Targets {
@@ -323,6 +348,7 @@ impl Rasterizer {
             merged: None,
             merged_splats: None,
             copied: Default::default(),
+            query_depth: None,
         }
     }
 
@@ -350,10 +376,21 @@ impl Rasterizer {
         let (camera, style) = &supersampled(camera, style, f);
         let view = View::new(camera, &passes, style.background, f);
         let normals = passes.normals();
+        let origin = frame_origin(draws, camera);
         if self.path == Path::Cpu {
             let g = crate::cpu::gbuffer(camera, draws, tree, style, normals, self.precision);
+            *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some(crate::queries::Last {
+                camera: *camera,
+                origin,
+                depth: Some(g.depth.clone()),
+            });
             return crate::post::run(g, &passes, &view);
         }
+        *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some(crate::queries::Last {
+            camera: *camera,
+            origin,
+            depth: None,
+        });
         let (w, h) = (camera.width.max(1), camera.height.max(1));
         let out_pixels = ((w / f) * (h / f)) as u64;
         let d = gpu.device();
@@ -361,7 +398,6 @@ impl Rasterizer {
         if guard.as_ref().is_none_or(|t| t.size != (w, h, f)) {
             *guard = Some(self.targets(gpu, w, h, f));
         }
-        let origin = frame_origin(draws, camera);
         let mut draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
         if self.path == Path::Quads && draws.iter().all(|d| d.node.is_some()) {
             // Front to back by node (002's reverse painter's order): the depth test then rejects

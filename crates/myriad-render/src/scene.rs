@@ -59,6 +59,8 @@ pub struct Scene {
     pub occlusion: Occlusion,
     /// Cells per side of the coarse depth buffer of software occlusion culling.
     pub occlusion_size: u32,
+    /// The nodes the last frame's occlusion queries found hidden (`Occlusion::Queries`).
+    hidden: Arc<HashSet<NodeKey>>,
     /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
     pub upload_limit: usize,
     /// Prefetching (004): nodes of the view widened by this factor are loaded ahead, at most
@@ -120,6 +122,8 @@ pub struct FrameStats {
     pub select_budget: u64,
     pub upload: Duration,
     pub draw: Duration,
+    /// Occlusion queries after the frame (`Occlusion::Queries`).
+    pub query: Duration,
 }
 
 impl Scene {
@@ -148,6 +152,7 @@ impl Scene {
             colour: ColorBy::Rgb,
             occlusion: Occlusion::Software,
             occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
+            hidden: Default::default(),
             upload_limit: usize::MAX,
             prefetch: DEFAULT_PREFETCH,
             selector: None,
@@ -304,9 +309,14 @@ impl Scene {
         options: &SelectOptions,
         clip: Option<crate::Clip>,
     ) -> Selection {
-        crate::selector::select_for(&self.hierarchy, camera, options, self.culling(clip), &|k| {
-            self.loader.get(k)
-        })
+        crate::selector::select_for(
+            &self.hierarchy,
+            camera,
+            options,
+            self.culling(clip),
+            &|k| self.loader.get(k),
+            &self.hidden,
+        )
     }
 
     /// This scene's culling settings with `clip`.
@@ -489,6 +499,48 @@ impl Scene {
         (draws, entries, keys)
     }
 
+    /// Occlusion queries (`Occlusion::Queries`, 003): the boxes of the nodes `selection` chose
+    /// and of those it culled as hidden, tested against the frame just drawn; the next
+    /// selection culls those of which no pixel showed.
+    fn query_hidden(&mut self, gpu: &Gpu, raster: &Rasterizer, selection: &Selection) {
+        if self.occlusion != Occlusion::Queries {
+            if !self.hidden.is_empty() {
+                self.hidden = Default::default();
+            }
+            return;
+        }
+        let keys: Vec<NodeKey> = (selection.nodes.iter().map(|n| n.key))
+            .chain(selection.hidden.iter().copied())
+            .collect();
+        // Each box grown by its node's spacing on every side: points are drawn about that
+        // large, and a flat node's box would otherwise tie with its own points' depth.
+        let boxes: Vec<[[f64; 3]; 8]> = keys
+            .iter()
+            .map(|k| {
+                let e = self.hierarchy.get(k);
+                let d = e.and_then(|e| e.spacing.first().copied()).unwrap_or(0.0);
+                match e.and_then(|e| e.contour) {
+                    Some(mut c) => {
+                        c.half_extents = c.half_extents.map(|h| h + d);
+                        c.corners()
+                    }
+                    None => {
+                        let b = self.hierarchy.bounds(k);
+                        Aabb::new(b.min.map(|v| v - d), b.max.map(|v| v + d)).corners()
+                    }
+                }
+            })
+            .collect();
+        let visible = raster.query(gpu, &boxes);
+        self.hidden = Arc::new(
+            keys.iter()
+                .zip(visible)
+                .filter(|(_, v)| !v)
+                .map(|(k, _)| *k)
+                .collect(),
+        );
+    }
+
     /// What a frame of `selection` did, given what was drawn.
     fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
         let failed = self.loader.failed();
@@ -572,6 +624,7 @@ impl Scene {
             options: options.clone(),
             culling: self.culling(clip),
             resident,
+            hidden: self.hidden.clone(),
         }
     }
 
@@ -607,7 +660,7 @@ impl Scene {
         let t = Instant::now();
         let (draws, tree, keys) = self.draws(&selection, 0);
         let image = raster.render(gpu, camera, &draws, &tree, style);
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             uploads,
             upload_bytes,
             read_bytes: raster.bytes_read(gpu, camera, &draws, style),
@@ -615,10 +668,13 @@ impl Scene {
             select_current: true,
             select_budget: options.budget,
             upload,
-            draw: t.elapsed(),
             ..self.stats(&selection, &draws)
         };
         drop(draws);
+        stats.draw = t.elapsed();
+        let t = Instant::now();
+        self.query_hidden(gpu, raster, &selection);
+        stats.query = t.elapsed();
         self.drawn = keys;
         self.last = selection;
         (image, stats)
@@ -741,8 +797,11 @@ fn draw_many(
     let image = raster.render(gpu, camera, &all_draws, &tree, style);
     drop(all_draws);
     let draw = t.elapsed();
-    for s in &mut stats {
+    for ((s, scene), selection) in stats.iter_mut().zip(scenes.iter_mut()).zip(&selections) {
         s.draw = draw;
+        let t = Instant::now();
+        scene.query_hidden(gpu, raster, selection);
+        s.query = t.elapsed();
     }
     for ((scene, selection), keys) in scenes.iter_mut().zip(selections).zip(drawn) {
         scene.last = selection;

@@ -14,7 +14,7 @@ use myriad_core::{Aabb, NodeKey};
 use myriad_lod::occlusion::Occluder;
 use myriad_lod::stream::Loaded;
 use myriad_lod::{Camera, Hierarchy, Occlusion, SelectOptions, Selection, select_occluded};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -39,6 +39,8 @@ pub struct Request {
     pub culling: Culling,
     /// Resident points the occluder may splat (those of the nodes selected last).
     pub resident: HashMap<NodeKey, Arc<Loaded>>,
+    /// The nodes the last frame's occlusion queries found hidden.
+    pub hidden: Arc<HashSet<NodeKey>>,
 }
 
 /// A finished selection.
@@ -102,19 +104,24 @@ impl Selector {
     }
 }
 
-/// A scene's selection: `select_occluded` culling as the request says (the occluder splats
-/// the resident points `points` gives), and the nodes to prefetch where it widens the view.
-/// The frame thread ([`crate::Scene::select`]) and the selection thread both make it here.
+/// A scene's selection: `select_occluded` culling as the request says (the software occluder
+/// splats the resident points `points` gives; with queries, `hidden` are culled), and the
+/// nodes to prefetch where it widens the view. The frame thread ([`crate::Scene::select`]) and
+/// the selection thread both make it here.
 pub(crate) fn select_for(
     h: &Hierarchy,
     camera: &Camera,
     options: &SelectOptions,
     how: Culling,
     points: &dyn Fn(&NodeKey) -> Option<Arc<Loaded>>,
+    hidden: &HashSet<NodeKey>,
 ) -> Selection {
     let keep = |cube: &Aabb| Clip::keeps(how.clip, cube);
-    let mut occluder = (how.occlusion == Occlusion::Software)
-        .then(|| Occluder::new(camera, how.occlusion_size, points));
+    let mut occluder = match how.occlusion {
+        Occlusion::Software => Some(Occluder::new(camera, how.occlusion_size, points)),
+        Occlusion::Queries => Some(Occluder::queried(hidden)),
+        Occlusion::Off => None,
+    };
     let mut s = select_occluded(h, camera, options, &keep, occluder.as_mut());
     if how.prefetch > 1.0 {
         s.prefetch = myriad_lod::prefetch(
@@ -147,9 +154,14 @@ fn run(shared: &Shared) {
             }
         };
         let t = Instant::now();
-        let selection = select_for(&r.hierarchy, &r.camera, &r.options, r.culling, &|k| {
-            r.resident.get(k).cloned()
-        });
+        let selection = select_for(
+            &r.hierarchy,
+            &r.camera,
+            &r.options,
+            r.culling,
+            &|k| r.resident.get(k).cloned(),
+            &r.hidden,
+        );
         let answer = Answer {
             selection,
             camera: r.camera,

@@ -30,6 +30,8 @@ fn shaders_validate() {
         &myriad_render::gbuffer_source(myriad_render::FB_QUADS_WGSL),
         none,
     );
+    // Occlusion queries on either path (the framebuffer read as pairs of 32-bit words).
+    validate("queries.wgsl", myriad_render::QUERIES_WGSL, none);
     // The post passes need nothing beyond WebGPU.
     for (entry, src) in myriad_render::PASS_SOURCES {
         validate(entry, src, none);

@@ -3,10 +3,11 @@
 //! Two views per dataset: inside (the eye at the middle of the data, a third of the way up,
 //! looking level along its longer horizontal axis: in a building, a room with walls between it
 //! and the rest) and outside (the standard overview from above at 45 degrees). For each view,
-//! each method (`off`, `software`) and each `--budgets` (then the 1-pixel threshold alone, no
-//! budget), once converged: nodes and points selected, nodes culled, the median selection and
-//! frame time of `--frames` frames, and the PSNR against the image of every point with culling
-//! off.
+//! each method (`off`, `software`, `queries`: occlusion queries after each frame, hardware ones
+//! on a GPU, acting from the next frame: drawn until the selection settles) and each `--budgets`
+//! (then the 1-pixel threshold alone, no budget), once converged: nodes and points selected,
+//! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
+//! against the image of every point with culling off.
 
 use crate::bench_render::psnr;
 use crate::render::write_png;
@@ -94,7 +95,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
             a.frames
         );
         println!(
-            "{:<8} {:<9} {:>9} {:>7} {:>11} {:>7} {:>10} {:>9} {:>7}",
+            "{:<8} {:<9} {:>9} {:>7} {:>11} {:>7} {:>10} {:>9} {:>9} {:>7}",
             "view",
             "method",
             "budget",
@@ -102,6 +103,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
             "points",
             "culled",
             "select ms",
+            "query ms",
             "frame ms",
             "PSNR"
         );
@@ -128,25 +130,47 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
             };
             save("full", &full)?;
             for &budget in &budgets {
-                for (method, occlusion) in
-                    [("off", Occlusion::Off), ("software", Occlusion::Software)]
-                {
+                for (method, occlusion) in [
+                    ("off", Occlusion::Off),
+                    ("software", Occlusion::Software),
+                    ("queries", Occlusion::Queries),
+                ] {
                     scene.occlusion = occlusion;
                     let o = SelectOptions {
                         budget,
                         min_pixels: 1.0,
                     };
                     scene.converge(&cam, &o, None);
+                    // Queries act from the frame after theirs: draw until the selection
+                    // settles.
+                    let mut settled = None;
+                    for _ in 0..(if occlusion == Occlusion::Queries {
+                        12
+                    } else {
+                        0
+                    }) {
+                        let (_, s) = scene.frame(&gpu, &raster, &cam, &o, &style);
+                        scene.converge(&cam, &o, None);
+                        let now = Some((s.nodes, s.culled, s.points));
+                        if now == settled {
+                            break;
+                        }
+                        settled = now;
+                    }
                     let mut frames = Vec::new();
                     let mut image = Vec::new();
                     let mut stats = myriad_render::FrameStats::default();
                     for _ in 0..a.frames.max(1) {
                         let t = Instant::now();
                         (image, stats) = scene.frame(&gpu, &raster, &cam, &o, &style);
-                        frames.push((t.elapsed().as_secs_f64(), stats.select.as_secs_f64()));
+                        frames.push((
+                            t.elapsed().as_secs_f64(),
+                            stats.select.as_secs_f64(),
+                            stats.query.as_secs_f64(),
+                        ));
                     }
                     let median = |k: usize| {
-                        let mut v: Vec<f64> = frames.iter().map(|f| [f.0, f.1][k]).collect();
+                        let mut v: Vec<f64> = frames.iter().map(|f| [f.0, f.1, f.2][k]).collect();
                         v.sort_by(f64::total_cmp);
                         v[v.len() / 2] * 1e3
                     };
@@ -156,11 +180,12 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                         crate::info::thousands(budget)
                     };
                     println!(
-                        "{view:<8} {method:<9} {b:>9} {:>7} {:>11} {:>7} {:>10.2} {:>9.1} {:>7.2}",
+                        "{view:<8} {method:<9} {b:>9} {:>7} {:>11} {:>7} {:>10.2} {:>9.2} {:>9.1} {:>7.2}",
                         stats.nodes,
                         crate::info::thousands(stats.points),
                         stats.culled,
                         median(1),
+                        median(2),
                         median(0),
                         psnr(&image, &full),
                     );

@@ -139,7 +139,9 @@ pub struct RenderArgs {
     #[arg(long = "raster", value_parser = parse_path)]
     path: Option<Path>,
     /// Cull nodes hidden behind nearer ones: software (a coarse depth buffer filled by the
-    /// nodes already selected, seed 000) or off
+    /// nodes already selected, seed 000), queries (the nodes' boxes tested against each frame's
+    /// depth, hardware occlusion queries on a GPU, seed 003: they act from the next frame) or
+    /// off
     #[arg(long, value_parser = Occlusion::parse, default_value = "software")]
     occlusion: Occlusion,
     /// Cells per side of the occlusion depth buffer
@@ -261,8 +263,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
     scene.frame(&gpu, &raster, &cam, &options, &style);
     let first_image = t0.elapsed();
 
-    let selection = scene.converge(&cam, &options, style.clip);
+    let mut selection = scene.converge(&cam, &options, style.clip);
     scene.frame(&gpu, &raster, &cam, &options, &style);
+    // Occlusion queries act from the frame after theirs: draw until the selection settles.
+    let mut settled = None;
+    for _ in 0..(if scene.occlusion == Occlusion::Queries {
+        12
+    } else {
+        0
+    }) {
+        selection = scene.converge(&cam, &options, style.clip);
+        let (_, s) = scene.frame(&gpu, &raster, &cam, &options, &style);
+        if settled == Some((s.nodes, s.culled, s.points)) {
+            break;
+        }
+        settled = Some((s.nodes, s.culled, s.points));
+    }
     let converged = t0.elapsed();
     // The frame as a viewer would draw it now: selection, cache lookups, drawing, readback.
     let t = Instant::now();

@@ -66,7 +66,8 @@ pub struct ViewArgs {
     /// most it may grow to); 0: a fixed budget
     #[arg(long, default_value_t = 30.0)]
     target_fps: f64,
-    /// Cull nodes hidden behind nearer ones: software or off
+    /// Cull nodes hidden behind nearer ones: software, queries (occlusion queries after each
+    /// frame, acting from the next) or off
     #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
     occlusion: myriad_lod::Occlusion,
     /// Pixels a level's point spacing must cover to be drawn

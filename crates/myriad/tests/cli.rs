@@ -586,6 +586,7 @@ fn render_a_converted_scan_to_png() {
     assert_eq!(r.code, 2);
     for bad in [
         &["--shape", "hexagon"][..],
+        &["--occlusion", "sometimes"],
         &["--point-size", "adaptive:0"],
         &["--view", "sideways"],
         &["--raster", "rays"],
@@ -636,6 +637,13 @@ fn render_a_converted_scan_to_png() {
         &["--raster", if gpu { "quads" } else { "cpu" }],
         &["--raster", if gpu { "compute" } else { "cpu" }],
         &["--shape", "round", "--edl"],
+        &["--occlusion", "queries", "--raster", "cpu"],
+        &[
+            "--occlusion",
+            "queries",
+            "--raster",
+            if gpu { "compute" } else { "cpu" },
+        ],
         &["--shape", "paraboloid", "--point-size", "fixed:3"],
         &["--view", "top", "--color", "classification"],
         &[

@@ -1,4 +1,5 @@
-//! What the rasterizer tests share.
+//! What the rasterizer tests share (not every test file uses all of it).
+#![allow(dead_code)]
 
 use myriad_render::{Gpu, Path, Rasterizer};
 

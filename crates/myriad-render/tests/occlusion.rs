@@ -1,0 +1,213 @@
+//! Occlusion queries (003) on every path this machine runs (hardware queries on the GPU paths,
+//! their mirror on the CPU): a wall hides the box behind it and nothing else, a box seen through
+//! a hole is kept; in a scene, the node behind the wall is culled from the next frame on and
+//! comes back when the eye moves round the wall.
+
+mod common;
+
+use common::paths;
+use myriad_core::{Aabb, Attribute, NodeKey, PointBatch, Schema};
+use myriad_format::{NodeEntry, PageRef};
+use myriad_lod::{Camera, Hierarchy, Occlusion, PageReader, SelectOptions};
+use myriad_render::{ColorBy, Passes, PointSize, Points, Scene, Shape, Style};
+use std::sync::Arc;
+
+/// Looking along +x from x = -20 at the middle of a wall at x = 2 (y and z 0 to 10).
+fn camera() -> Camera {
+    Camera {
+        position: [-20.0, 5.0, 5.0],
+        target: [0.0, 5.0, 5.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 60.0,
+        width: 200,
+        height: 200,
+        near: 0.1,
+        far: 100.0,
+    }
+}
+
+/// Points 0.1 apart (0.8 pixels from the eye; drawn 2 pixels wide, no gaps) on the wall,
+/// leaving out those inside `hole` (y and z ranges).
+fn wall(hole: Option<[f64; 2]>) -> Vec<[f64; 3]> {
+    let mut out = Vec::new();
+    for i in 0..=100 {
+        for j in 0..=100 {
+            let (y, z) = (i as f64 * 0.1, j as f64 * 0.1);
+            let inside = |v: f64, h: [f64; 2]| v > h[0] && v < h[1];
+            if hole.is_some_and(|h| inside(y, h) && inside(z, h)) {
+                continue;
+            }
+            out.push([2.0, y, z]);
+        }
+    }
+    out
+}
+
+fn style() -> Style {
+    Style {
+        size: PointSize::Fixed(2.0),
+        shape: Shape::Square,
+        passes: Passes::default(),
+        background: [0, 0, 0, 255],
+        clip: None,
+    }
+}
+
+#[test]
+fn queries_find_what_a_wall_hides_on_every_path() {
+    let b = |lo: [f64; 3], hi: [f64; 3]| Aabb::new(lo, hi).corners();
+    let solid = [
+        (b([6.0, 4.0, 4.0], [8.0, 6.0, 6.0]), false, "behind"),
+        (b([10.0, 1.0, 1.0], [12.0, 9.0, 9.0]), false, "far behind"),
+        (b([6.0, 11.0, 4.0], [8.0, 13.0, 6.0]), true, "beside"),
+        (
+            b([6.0, 9.0, 4.0], [8.0, 13.0, 6.0]),
+            true,
+            "across the edge",
+        ),
+        (b([0.0, 4.0, 4.0], [1.0, 6.0, 6.0]), true, "in front"),
+        (
+            b([-21.0, 4.0, 4.0], [8.0, 6.0, 6.0]),
+            true,
+            "around the eye",
+        ),
+    ];
+    let holed = [
+        (
+            b([6.0, 4.6, 4.6], [8.0, 5.4, 5.4]),
+            true,
+            "through the hole",
+        ),
+        (
+            b([6.0, 1.0, 1.0], [8.0, 2.0, 2.0]),
+            false,
+            "behind the solid part",
+        ),
+    ];
+    for (gpu, r) in &paths() {
+        // Before any frame, every box is visible.
+        assert_eq!(r.query(gpu, &[solid[0].0]), [true], "{:?}", r.path);
+        for (hole, cases) in [(None, &solid[..]), (Some([4.3, 5.7]), &holed[..])] {
+            let positions = wall(hole);
+            let p = Points::upload(gpu, [0.0; 3], &positions, &vec![[200; 4]; positions.len()]);
+            r.render(gpu, &camera(), &[p.all(0.1)], &[], &style());
+            let boxes: Vec<_> = cases.iter().map(|c| c.0).collect();
+            let got = r.query(gpu, &boxes);
+            for (c, v) in cases.iter().zip(got) {
+                assert_eq!(v, c.1, "{:?}: {}", r.path, c.2);
+            }
+        }
+    }
+}
+
+/// A wall (the root), a box of points behind it (child 0) and one beside it (child 1).
+struct Walled;
+
+fn node_points(key: &NodeKey) -> Vec<[f64; 3]> {
+    let cube = |lo: [f64; 3]| -> Vec<[f64; 3]> {
+        (0..1000)
+            .map(|i| {
+                let f = |k: usize| (k % 10) as f64 * 0.2;
+                [lo[0] + f(i), lo[1] + f(i / 10), lo[2] + f(i / 100)]
+            })
+            .collect()
+    };
+    match key.level {
+        0 => wall(None),
+        _ if key.cell[0] == 0 => cube([6.0, 4.0, 4.0]),
+        _ => cube([6.0, 11.0, 4.0]),
+    }
+}
+
+fn entry(key: NodeKey) -> NodeEntry {
+    let p = node_points(&key);
+    let mut bounds = Aabb::EMPTY;
+    for &q in &p {
+        bounds.extend(q);
+    }
+    NodeEntry {
+        key,
+        page: PageRef {
+            offset: 64,
+            length: 100,
+            crc: 0,
+        },
+        points: p.len() as u32,
+        prefix: vec![p.len() as u32],
+        spacing: vec![0.1],
+        bounds: Some(bounds),
+        contour: None,
+        splats: None,
+    }
+}
+
+impl PageReader for Walled {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        let schema = Schema::new(vec![Attribute::Rgb]);
+        let points = node_points(&node.key);
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        let colour = [[255, 255, 255], [255, 0, 0], [0, 255, 0]]
+            [node.key.level as usize + (node.key.level > 0 && node.key.cell[0] == 1) as usize];
+        for p in points {
+            b.positions.push(p);
+            b.rgb.as_mut().unwrap().push(colour);
+        }
+        Ok(b)
+    }
+}
+
+#[test]
+fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
+    for (gpu, raster) in &paths() {
+        let root = Aabb::new([0.0; 3], [20.0; 3]);
+        let keys = [
+            NodeKey::ROOT,
+            NodeKey::ROOT.child(0),
+            NodeKey::ROOT.child(1),
+        ];
+        let h = Hierarchy::new(root, keys.map(entry));
+        let mut scene = Scene::new(Arc::new(Walled), h, root, 1, usize::MAX, usize::MAX);
+        scene.set_colour(ColorBy::Rgb);
+        scene.occlusion = Occlusion::Queries;
+        let options = SelectOptions {
+            budget: 1_000_000,
+            min_pixels: 0.0,
+        };
+        let green = |img: &[u8]| {
+            img.chunks_exact(4)
+                .filter(|p| p[1] == 255 && p[0] == 0)
+                .count()
+        };
+        let red = |img: &[u8]| {
+            img.chunks_exact(4)
+                .filter(|p| p[0] == 255 && p[1] == 0)
+                .count()
+        };
+        let cam = camera();
+        scene.converge(&cam, &options, None);
+        // The first frame knows nothing hidden: all three drawn; its queries find the box.
+        let (_, first) = scene.frame(gpu, raster, &cam, &options, &style());
+        assert_eq!((first.nodes, first.culled), (3, 0), "{:?}", raster.path);
+        for _ in 0..2 {
+            let (img, s) = scene.frame(gpu, raster, &cam, &options, &style());
+            assert_eq!((s.nodes, s.culled), (2, 1), "{:?}", raster.path);
+            assert_eq!(s.points, first.points - 1000);
+            assert!(green(&img) > 20 && red(&img) == 0, "{:?}", raster.path);
+        }
+        // From the other side of the wall the box is in front: it is queried while culled,
+        // and drawn again from the frame after.
+        let mut back = cam;
+        back.position = [30.0, 5.0, 5.0];
+        back.target = [0.0, 5.0, 5.0];
+        scene.converge(&back, &options, None);
+        let (_, s) = scene.frame(gpu, raster, &back, &options, &style());
+        assert_eq!(
+            s.culled, 1,
+            "{:?}: this frame still uses the last queries",
+            raster.path
+        );
+        let (img, s) = scene.frame(gpu, raster, &back, &options, &style());
+        assert_eq!((s.nodes, s.culled), (3, 0), "{:?}", raster.path);
+        assert!(red(&img) > 20, "{:?}", raster.path);
+    }
+}
