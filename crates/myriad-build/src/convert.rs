@@ -261,27 +261,50 @@ pub(crate) struct Pending {
     splats: Option<(PathBuf, bool)>,
 }
 
+/// Strata of a node's last level ([`acquisition_order`]).
+const STRATA: u32 = 4;
+
 /// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
 /// points have it. Any order within a level keeps the prefix property; acquisition order makes
 /// neighbours in the page neighbours along a scan line, which compresses far better (time deltas
-/// are nearly constant, positions and intensities change slowly).
+/// are nearly constant, positions and intensities change slowly). The last level (where a
+/// budget usually cuts a node) is first dealt into [`STRATA`] strata, each spread over the
+/// node: the k-th point (in acquisition order) of each cell of twice the level's spacing goes
+/// to stratum k (the last takes the rest), so that a prefix draws a thin even sample of the
+/// whole node rather than a run of scan lines; each stratum stays in acquisition order.
 fn acquisition_order(node: &mut BuiltNode) {
-    let Some(t) = &node.points.gps_time else {
-        return;
+    let times = node.points.gps_time.as_ref();
+    // Sort keys; a time orders as `total_cmp` does; without times, the order the points have.
+    let key = |i: usize| match times {
+        Some(t) => {
+            let b = t[i].to_bits();
+            b ^ (((b as i64) >> 63) as u64 | 1 << 63)
+        }
+        None => i as u64,
     };
-    // Sort (key, index) pairs; the key orders f64 as `total_cmp` does.
-    let key = |v: f64| {
-        let b = v.to_bits();
-        b ^ (((b as i64) >> 63) as u64 | 1 << 63)
-    };
-    let mut order: Vec<u32> = Vec::with_capacity(t.len());
+    let last = node.prefix.len().saturating_sub(1);
+    let mut order: Vec<u32> = Vec::with_capacity(node.points.len());
     let mut start = 0usize;
-    for &end in &node.prefix {
+    for (level, &end) in node.prefix.iter().enumerate() {
         let end = end as usize;
-        let mut level: Vec<(u64, u32)> = (start..end).map(|i| (key(t[i]), i as u32)).collect();
-        level.sort_unstable();
-        order.extend(level.into_iter().map(|p| p.1));
+        let mut keyed: Vec<(u32, u64, u32)> = (start..end).map(|i| (0, key(i), i as u32)).collect();
+        let cell = 2.0 * node.spacing.get(level).copied().unwrap_or(0.0);
+        if level == last && cell > 0.0 && end - start > STRATA as usize {
+            keyed.sort_unstable();
+            let mut seen: std::collections::HashMap<[i64; 3], u32> = Default::default();
+            for k in &mut keyed {
+                let p = node.points.positions[k.2 as usize];
+                let rank = seen.entry(p.map(|v| (v / cell).floor() as i64)).or_insert(0);
+                k.0 = (*rank).min(STRATA - 1);
+                *rank += 1;
+            }
+        }
+        keyed.sort_unstable();
+        order.extend(keyed.into_iter().map(|k| k.2));
         start = end;
+    }
+    if order.iter().enumerate().all(|(i, &o)| i as u32 == o) {
+        return;
     }
     node.points = node.points.gather(&order);
     if let Some((s, _)) = &mut node.splats {
@@ -768,6 +791,44 @@ pub(crate) fn parameters(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_last_level_is_spread_over_the_node_and_each_stratum_in_acquisition_order() {
+        // A 10 m square scanned line by line, a point every 0.1 m: the last level of a node.
+        let schema = Schema::new(vec![myriad_core::Attribute::GpsTime]);
+        let mut b = PointBatch::with_schema(&schema, 0);
+        for i in 0..10_000 {
+            b.positions
+                .push([(i % 100) as f64 * 0.1 + 0.05, (i / 100) as f64 * 0.1 + 0.05, 0.0]);
+            b.gps_time.as_mut().unwrap().push(i as f64);
+        }
+        let mut node = BuiltNode {
+            key: NodeKey::ROOT,
+            points: b,
+            prefix: vec![10_000],
+            spacing: vec![0.1],
+            shape: NodeShape::default(),
+            splats: None,
+        };
+        // The cells of 0.2 m that the first quarter of the points reaches.
+        let reach = |node: &BuiltNode| {
+            let cells: std::collections::HashSet<[i64; 2]> = node.points.positions[..2500]
+                .iter()
+                .map(|p| [(p[0] / 0.2) as i64, (p[1] / 0.2) as i64])
+                .collect();
+            cells.len() as f64 / 2500.0
+        };
+        // In scan-line order: 25 of 100 lines, 13 of 50 rows of cells.
+        assert_eq!(reach(&node), 0.26, "a quarter of the square");
+        acquisition_order(&mut node);
+        assert_eq!(reach(&node), 1.0, "a point in every cell");
+        // Four strata of 2,500, each in time order.
+        let t = node.points.gps_time.as_ref().unwrap();
+        for stratum in t.chunks(2500) {
+            assert!(stratum.windows(2).all(|w| w[0] < w[1]));
+        }
+        assert!(t[2499] > t[2500]);
+    }
 
     #[test]
     fn levels_in_acquisition_order() {
