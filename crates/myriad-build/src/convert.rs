@@ -294,7 +294,9 @@ fn acquisition_order(node: &mut BuiltNode) {
             let mut seen: std::collections::HashMap<[i64; 3], u32> = Default::default();
             for k in &mut keyed {
                 let p = node.points.positions[k.2 as usize];
-                let rank = seen.entry(p.map(|v| (v / cell).floor() as i64)).or_insert(0);
+                let rank = seen
+                    .entry(p.map(|v| (v / cell).floor() as i64))
+                    .or_insert(0);
                 k.0 = (*rank).min(STRATA - 1);
                 *rank += 1;
             }
@@ -798,8 +800,11 @@ mod tests {
         let schema = Schema::new(vec![myriad_core::Attribute::GpsTime]);
         let mut b = PointBatch::with_schema(&schema, 0);
         for i in 0..10_000 {
-            b.positions
-                .push([(i % 100) as f64 * 0.1 + 0.05, (i / 100) as f64 * 0.1 + 0.05, 0.0]);
+            b.positions.push([
+                (i % 100) as f64 * 0.1 + 0.05,
+                (i / 100) as f64 * 0.1 + 0.05,
+                0.0,
+            ]);
             b.gps_time.as_mut().unwrap().push(i as f64);
         }
         let mut node = BuiltNode {

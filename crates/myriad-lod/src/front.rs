@@ -6,7 +6,7 @@ use crate::select::{Candidate, Hierarchy, SelectOptions, Selected, Selection, ne
 use crate::view::Camera;
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, HashSet};
 
 /// Whether a node's normals all face away from the eye (004 section IV, normal-cone culling):
 /// the angle between the cone's axis and the direction to the eye exceeds 90 degrees plus the
@@ -28,6 +28,22 @@ pub fn backfacing(cam: &Camera, bounds: &Aabb, cone: [f32; 4]) -> bool {
     let alpha = (cone[3] as f64).clamp(-1.0, 1.0).acos();
     let beta = (radius / dist).asin();
     phi > std::f64::consts::FRAC_PI_2 + alpha + beta
+}
+
+/// 004's LOD metric `(l_max - l + 1) / d^2` (their `c0 = c2 = 1, c1 = 0`), `d` the distance from
+/// the eye to the node's box.
+fn metric(h: &Hierarchy, cam: &Camera, e: &NodeEntry) -> f64 {
+    let b = h.bounds(&e.key);
+    let d: f64 = (0..3)
+        .map(|a| {
+            (b.min[a] - cam.position[a])
+                .max(cam.position[a] - b.max[a])
+                .max(0.0)
+                .powi(2)
+        })
+        .sum();
+    let d = d.sqrt().max(cam.near);
+    (h.max_level - e.key.level + 1) as f64 / (d * d)
 }
 
 /// The rendering front of a tree whose nodes replace their parents (`mwkd`, 004 section IV,
@@ -52,21 +68,7 @@ pub fn select_front(
             && keep(&b)
             && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
     };
-    let distance = |b: &Aabb| {
-        let d: f64 = (0..3)
-            .map(|a| {
-                (b.min[a] - cam.position[a])
-                    .max(cam.position[a] - b.max[a])
-                    .max(0.0)
-                    .powi(2)
-            })
-            .sum();
-        d.sqrt().max(cam.near)
-    };
-    let metric = |e: &NodeEntry| {
-        let d = distance(&h.bounds(&e.key));
-        (h.max_level - e.key.level + 1) as f64 / (d * d)
-    };
+    let metric = |e: &NodeEntry| metric(h, cam, e);
     let Some(root) = h.get(&NodeKey::ROOT).filter(|e| visible(e)) else {
         return out;
     };
@@ -135,12 +137,230 @@ pub fn select_front(
     out
 }
 
+/// 004 section IV: the past frame's front refined and coarsened by the projected size of its
+/// splats, rather than a front rebuilt from the root: each node of `previous` (or its nearest
+/// ancestor still known), with the subtrees beside their paths at their roots so that the
+/// whole tree is covered, climbs while its parent's splats are smaller than `min_pixels`
+/// (coarsening) and descends into its visible children while its own are not (refining);
+/// nodes out of view, rejected by `keep` or facing away drop out. Splats shrink down the tree,
+/// so this is the front [`select_front`] reaches when the budget does not stop it: where it
+/// would (more points than the budget), None, and the caller selects from the root (Figure 5).
+/// Also returns the nodes it looked at.
+pub fn update_front(
+    h: &Hierarchy,
+    cam: &Camera,
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
+    previous: &[NodeKey],
+) -> Option<(Selection, usize)> {
+    let frustum = cam.frustum();
+    let visible = |e: &NodeEntry| {
+        let b = h.bounds(&e.key);
+        frustum.intersects(&b)
+            && keep(&b)
+            && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
+    };
+    let fine = |e: &NodeEntry| {
+        let depth = nearest_depth(cam, &h.bounds(&e.key));
+        let radius = e.spacing.first().copied().unwrap_or(0.0);
+        2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels
+    };
+    // The past front as a cut through the whole tree.
+    let mut cut: HashSet<NodeKey> = HashSet::new();
+    for &k in previous {
+        let mut k = k;
+        while h.get(&k).is_none() && k.level > 0 {
+            k = k.parent();
+        }
+        if h.get(&k).is_some() {
+            cut.insert(k);
+        }
+    }
+    if cut.is_empty() {
+        cut.insert(NodeKey::ROOT);
+    }
+    let mut above: HashSet<NodeKey> = HashSet::new();
+    for k in &cut {
+        let mut a = *k;
+        while a.level > 0 {
+            a = a.parent();
+            if !above.insert(a) {
+                break;
+            }
+        }
+    }
+    // A node of the cut below another (the past front had both) gives way to it.
+    cut.retain(|k| !above.contains(k));
+    let beside: Vec<NodeKey> = (above.iter())
+        .flat_map(|a| h.children(a).map(|c| c.key))
+        .filter(|c| !above.contains(c) && !cut.contains(c))
+        .collect();
+    cut.extend(beside);
+    let mut looked = 0;
+    let mut count = 0u64;
+    let mut front: HashSet<NodeKey> = HashSet::new();
+    let mut out = Selection::default();
+    let mut work: Vec<NodeKey> = cut.into_iter().collect();
+    while let Some(k) = work.pop() {
+        looked += 1;
+        let Some(mut e) = h.get(&k) else { continue };
+        // Coarsen while the parent's splats are below the threshold.
+        while e.key.level > 0
+            && let Some(p) = h.get(&e.key.parent())
+            && fine(p)
+        {
+            looked += 1;
+            e = p;
+        }
+        if front.contains(&e.key) || !visible(e) {
+            continue;
+        }
+        let unloaded = h.unloaded_below(&e.key).next().is_some();
+        if !fine(e) {
+            if unloaded {
+                out.pages.extend(h.unloaded_below(&e.key));
+            } else if h.children(&e.key).next().is_some() {
+                work.extend(h.children(&e.key).map(|c| c.key));
+                continue;
+            }
+        }
+        front.insert(e.key);
+        count += e.points as u64;
+        if count > o.budget {
+            return None;
+        }
+    }
+    let mut nodes: Vec<(&NodeEntry, f64)> = (front.iter())
+        .filter_map(|k| h.get(k))
+        .filter(|e| e.points > 0)
+        .map(|e| (e, metric(h, cam, e)))
+        .collect();
+    nodes.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.key.cmp(&b.0.key)));
+    for (e, benefit) in nodes {
+        out.points += e.points as u64;
+        out.nodes.push(Selected {
+            key: e.key,
+            points: e.points,
+            spacing: e.spacing.first().copied().unwrap_or(0.0),
+            benefit,
+            depth: nearest_depth(cam, &h.bounds(&e.key)),
+        });
+    }
+    out.pages.sort_by_key(|p| p.key);
+    out.pages.dedup_by_key(|p| p.key);
+    Some((out, looked))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::select::select;
     use crate::select::tests::entry;
     use myriad_format::PageRef;
+
+    /// A tree of splats over the plane z = 0 of [0, 64]^3: every level's cells of the bottom
+    /// layer, 100 points each, splats of a sixteenth of the cell.
+    fn plane(depth: u32) -> Hierarchy {
+        let mut entries = Vec::new();
+        for level in 0..=depth {
+            let n = 1u32 << level;
+            let side = 64.0 / n as f64;
+            for i in 0..n {
+                for j in 0..n {
+                    let key = NodeKey {
+                        level,
+                        cell: [i, j, 0],
+                    };
+                    let mut e = entry(key, 100, side / 16.0);
+                    e.splats = Some(myriad_format::splat::SplatInfo {
+                        page: PageRef {
+                            offset: 64,
+                            length: 10,
+                            crc: 0,
+                        },
+                        radius: [0.0, 1.0],
+                        cone: [0.0, 0.0, 1.0, -1.0],
+                        aggregate: level < depth,
+                    });
+                    entries.push(e);
+                }
+            }
+        }
+        Hierarchy::new(Aabb::new([0.0; 3], [64.0; 3]), entries)
+    }
+
+    /// The front updated from the last frame's is the front rebuilt from the root, frame after
+    /// frame along a flight that zooms in, turns and leaves; it looks at fewer nodes when the
+    /// view moves a little; over the budget it leaves the choice to the root's traversal.
+    #[test]
+    fn the_front_updated_from_the_last_one_is_the_one_from_the_root() {
+        let h = plane(6);
+        let o = SelectOptions {
+            budget: u64::MAX,
+            min_pixels: 1.0,
+        };
+        let keep = |_: &Aabb| true;
+        let mut previous: Vec<NodeKey> = Vec::new();
+        let mut looked_total = 0;
+        let mut fronts = 0;
+        for step in 0..24 {
+            let t = step as f64;
+            let cam = Camera {
+                position: [8.0 + t * 2.0, -20.0 + t * 3.0, 60.0 - t * 2.4],
+                target: [32.0 + (t * 0.4).sin() * 20.0, 32.0, 0.0],
+                up: [0.0, 0.0, 1.0],
+                fov_y: 60.0,
+                width: 640,
+                height: 480,
+                near: 0.01,
+                far: 1000.0,
+            };
+            let whole = select_front(&h, &cam, &o, &keep);
+            let sorted = |s: &Selection| {
+                let mut v: Vec<(NodeKey, u32)> =
+                    s.nodes.iter().map(|n| (n.key, n.points)).collect();
+                v.sort();
+                v
+            };
+            if !previous.is_empty() {
+                let (updated, looked) =
+                    update_front(&h, &cam, &o, &keep, &previous).expect("no budget");
+                assert_eq!(sorted(&updated), sorted(&whole), "step {step}");
+                assert_eq!(updated.points, whole.points);
+                looked_total += looked;
+                fronts += whole.nodes.len();
+            }
+            previous = whole.nodes.iter().map(|n| n.key).collect();
+        }
+        // About one look per front node (the root's traversal looks at every node above too).
+        assert!(
+            looked_total < 3 * fronts,
+            "{looked_total} looks for {fronts} front nodes"
+        );
+        // Over the budget: None (the caller starts from the root).
+        let tight = SelectOptions {
+            budget: 500,
+            min_pixels: 1.0,
+        };
+        let cam = Camera {
+            position: [32.0, 32.0, 5.0],
+            target: [32.0, 32.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 60.0,
+            width: 640,
+            height: 480,
+            near: 0.01,
+            far: 1000.0,
+        };
+        assert!(update_front(&h, &cam, &tight, &keep, &previous).is_none());
+        // A past front whose nodes are gone (pages dropped) starts from their ancestors.
+        let gone = [NodeKey {
+            level: 9,
+            cell: [300, 300, 0],
+        }];
+        let (s, _) = update_front(&h, &cam, &o, &keep, &gone).expect("no budget");
+        assert_eq!(s.points, select_front(&h, &cam, &o, &keep).points);
+    }
 
     /// 004 section IV: a multi-way kd-tree's front refines a node only when its children fit
     /// the budget in its place; children out of view give their share back; normal cones cull

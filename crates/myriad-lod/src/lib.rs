@@ -23,7 +23,7 @@ pub use pace::Pace;
 pub use prefetch::prefetch;
 pub use select::{
     DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, select,
-    select_many, select_occluded, select_where,
+    select_many, select_occluded, select_occluded_from, select_where,
 };
 pub use stream::{Loader, PageReader};
 pub use view::{Camera, Clip, Frustum, robust_bounds};

@@ -205,9 +205,27 @@ pub fn select_occluded(
     cam: &Camera,
     o: &SelectOptions,
     keep: &dyn Fn(&Aabb) -> bool,
+    occluder: Option<&mut Occluder>,
+) -> Selection {
+    select_occluded_from(h, cam, o, keep, occluder, &[])
+}
+
+/// [`select_occluded`] that, for `mwkd` fronts, updates the front drawn last (`previous`)
+/// where the budget allows ([`crate::front::update_front`]) rather than starting from the root.
+pub fn select_occluded_from(
+    h: &Hierarchy,
+    cam: &Camera,
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
     mut occluder: Option<&mut Occluder>,
+    previous: &[NodeKey],
 ) -> Selection {
     if h.splats() {
+        if !previous.is_empty()
+            && let Some((s, _)) = crate::front::update_front(h, cam, o, keep, previous)
+        {
+            return s;
+        }
         return crate::front::select_front(h, cam, o, keep);
     }
     let frustum = cam.frustum();

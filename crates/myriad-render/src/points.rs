@@ -301,10 +301,11 @@ impl Points {
 
     /// How many position words a rasterizer needs to read for `camera` (Schütz 2022's precision
     /// per batch): the fewest whose unread rest spans at most `pixels` where the points' box
-    /// is nearest to the eye (all of them when the box reaches the near plane, for f32, or
-    /// when `pixels` is 0).
+    /// is nearest to the eye (all of them when the box reaches the near plane, for f32, when
+    /// `pixels` is 0, and for splats: many overlapping discs at nearly one depth, whose order
+    /// the smallest shift changes).
     pub fn read_words(&self, camera: &myriad_lod::Camera, pixels: f32) -> u32 {
-        if self.words <= 1 || pixels <= 0.0 {
+        if self.words <= 1 || pixels <= 0.0 || self.splats.is_some() {
             return self.arrays();
         }
         let (_, _, f) = camera.basis();
@@ -506,6 +507,10 @@ mod tests {
         assert_eq!(p.read_words(&camera(20_000.0), 0.0), 2);
         // Inside the box: everything.
         assert_eq!(p.read_words(&camera(-10.0), 0.1), 2);
+        // Splats read every word (their order in depth decides which disc shows).
+        let splats = Points::encode(&gpu, grid(0.001, [0.0; 3]), &positions, &[[0; 4]; 2])
+            .with_splats(&gpu, &[[0.0, 0.0, 1.0]; 2], &[0.1; 2]);
+        assert_eq!(splats.read_words(&camera(2_000.0), 0.1), 2);
         let f = Points::encode(
             &gpu,
             Encoding::F32 { origin: [0.0; 3] },

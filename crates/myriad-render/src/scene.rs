@@ -316,7 +316,16 @@ impl Scene {
             self.culling(clip),
             &|k| self.loader.get(k),
             &self.hidden,
+            &self.previous(),
         )
+    }
+
+    /// The front the last selection chose (`mwkd`: the next one is updated from it).
+    fn previous(&self) -> Vec<NodeKey> {
+        if !self.hierarchy.splats() {
+            return Vec::new();
+        }
+        self.last.nodes.iter().map(|n| n.key).collect()
     }
 
     /// This scene's culling settings with `clip`.
@@ -625,6 +634,7 @@ impl Scene {
             culling: self.culling(clip),
             resident,
             hidden: self.hidden.clone(),
+            previous: self.previous(),
         }
     }
 

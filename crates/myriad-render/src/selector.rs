@@ -13,7 +13,7 @@ use crate::Clip;
 use myriad_core::{Aabb, NodeKey};
 use myriad_lod::occlusion::Occluder;
 use myriad_lod::stream::Loaded;
-use myriad_lod::{Camera, Hierarchy, Occlusion, SelectOptions, Selection, select_occluded};
+use myriad_lod::{Camera, Hierarchy, Occlusion, SelectOptions, Selection, select_occluded_from};
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
@@ -41,6 +41,8 @@ pub struct Request {
     pub resident: HashMap<NodeKey, Arc<Loaded>>,
     /// The nodes the last frame's occlusion queries found hidden.
     pub hidden: Arc<HashSet<NodeKey>>,
+    /// The nodes the last frame drew (an `mwkd` front is updated from them).
+    pub previous: Vec<NodeKey>,
 }
 
 /// A finished selection.
@@ -115,6 +117,7 @@ pub(crate) fn select_for(
     how: Culling,
     points: &dyn Fn(&NodeKey) -> Option<Arc<Loaded>>,
     hidden: &HashSet<NodeKey>,
+    previous: &[NodeKey],
 ) -> Selection {
     let keep = |cube: &Aabb| Clip::keeps(how.clip, cube);
     let mut occluder = match how.occlusion {
@@ -122,7 +125,7 @@ pub(crate) fn select_for(
         Occlusion::Queries => Some(Occluder::queried(hidden)),
         Occlusion::Off => None,
     };
-    let mut s = select_occluded(h, camera, options, &keep, occluder.as_mut());
+    let mut s = select_occluded_from(h, camera, options, &keep, occluder.as_mut(), previous);
     if how.prefetch > 1.0 {
         s.prefetch = myriad_lod::prefetch(
             h,
@@ -161,6 +164,7 @@ fn run(shared: &Shared) {
             r.culling,
             &|k| r.resident.get(k).cloned(),
             &r.hidden,
+            &r.previous,
         );
         let answer = Answer {
             selection,
