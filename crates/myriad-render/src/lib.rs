@@ -27,6 +27,7 @@ pub use post::gpu::{PASS_SOURCES, gbuffer_source};
 pub use post::{
     Blur, DEFAULT_PASSES, Fill, PASS_NAMES, Passes, Shade, Ssao, pack_normal, unpack_normal,
 };
+pub use queries::QueryTicket;
 pub use raster::{Path, Rasterizer};
 pub use scene::{FrameStats, Picked, Scene, frame_many, frame_many_threaded};
 

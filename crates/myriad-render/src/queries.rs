@@ -11,6 +11,8 @@
 use crate::raster::{Path, Rasterizer};
 use crate::{Gpu, raster};
 use myriad_lod::Camera;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use wgpu::util::DeviceExt;
 
 /// The triangles of a box by corner (as `FACES` in queries.wgsl).
@@ -162,44 +164,104 @@ fn cpu_visible(camera: &Camera, depth: &[f32], corners: &[[f64; 3]; 8]) -> bool 
     false
 }
 
+/// Occlusion queries submitted and not read yet ([`Rasterizer::query_submit`]).
+pub struct QueryTicket {
+    /// Per box: known (`Ok`: visible or not), or the index of its GPU query.
+    boxes: Vec<Result<bool, usize>>,
+    /// The GPU's sample counts, mapped once the flag is set.
+    gpu: Option<(wgpu::Buffer, Arc<AtomicBool>)>,
+}
+
+impl QueryTicket {
+    /// Whether any pixel of each box passed, once the results are in; never waits.
+    pub fn poll(&mut self, gpu: &Gpu) -> Option<Vec<bool>> {
+        let counts = match &self.gpu {
+            None => Vec::new(),
+            Some((readback, ready)) => {
+                let (d, _) = gpu.wgpu().expect("queries made on a GPU");
+                let _ = d.poll(wgpu::PollType::Poll);
+                if !ready.load(Ordering::Acquire) {
+                    return None;
+                }
+                let counts = bytemuck::cast_slice::<u8, u64>(
+                    &readback.slice(..).get_mapped_range().expect("mapped"),
+                )
+                .to_vec();
+                readback.unmap();
+                counts
+            }
+        };
+        Some(
+            (self.boxes.iter())
+                .map(|b| match *b {
+                    Ok(v) => v,
+                    Err(k) => counts[k] > 0,
+                })
+                .collect(),
+        )
+    }
+}
+
 impl Rasterizer {
     /// Occlusion queries against the depth of the last frame [`Rasterizer::render`] drew: for
     /// each box (its corners as `myriad_core::Aabb::corners`), whether any pixel of it passes
     /// the depth test (hardware occlusion queries on the GPU paths, their mirror on the CPU). A
-    /// box reaching the near plane is visible; before any frame, every box is.
+    /// box reaching the near plane is visible; before any frame, every box is. Waits for the
+    /// results.
     pub fn query(&self, gpu: &Gpu, boxes: &[[[f64; 3]; 8]]) -> Vec<bool> {
+        let mut ticket = self.query_submit(gpu, boxes);
+        if let Some((_, ready)) = &ticket.gpu {
+            let (d, _) = gpu.wgpu().expect("queries made on a GPU");
+            while !ready.load(Ordering::Acquire) {
+                d.poll(wgpu::PollType::wait_indefinitely())
+                    .expect("wait for the queries");
+            }
+        }
+        ticket.poll(gpu).expect("the results are in")
+    }
+
+    /// [`Rasterizer::query`] without waiting: the results come from the ticket when the GPU
+    /// has them (on the CPU path, at once).
+    pub fn query_submit(&self, gpu: &Gpu, boxes: &[[[f64; 3]; 8]]) -> QueryTicket {
+        let mut ticket = QueryTicket {
+            boxes: vec![Ok(true); boxes.len()],
+            gpu: None,
+        };
         let last = self.last.lock().unwrap_or_else(|e| e.into_inner());
         let Some(last) = last.as_ref() else {
-            return vec![true; boxes.len()];
+            return ticket;
         };
         let cam = &last.camera;
-        let mut visible = vec![true; boxes.len()];
         let tested: Vec<usize> = (0..boxes.len())
             .filter(|&i| !at_the_eye(cam, &boxes[i]))
             .collect();
         if tested.is_empty() {
-            return visible;
+            return ticket;
         }
-        if let Some(depth) = &last.depth {
-            for &i in &tested {
-                visible[i] = cpu_visible(cam, depth, &boxes[i]);
+        match &last.depth {
+            Some(depth) => {
+                for &i in &tested {
+                    ticket.boxes[i] = Ok(cpu_visible(cam, depth, &boxes[i]));
+                }
             }
-            return visible;
+            None => {
+                for (k, &i) in tested.iter().enumerate() {
+                    ticket.boxes[i] = Err(k);
+                }
+                ticket.gpu = Some(self.gpu_queries(gpu, last, tested.iter().map(|&i| &boxes[i])));
+            }
         }
-        let counts = self.gpu_queries(gpu, last, tested.iter().map(|&i| &boxes[i]));
-        for (&i, n) in tested.iter().zip(counts) {
-            visible[i] = n > 0;
-        }
-        visible
+        ticket
     }
 
-    /// Samples that passed per box, by hardware occlusion queries.
+    /// Submits hardware occlusion queries, one per box; their sample counts come into the
+    /// returned buffer, mapped when the flag is set.
     fn gpu_queries<'a>(
         &self,
         gpu: &Gpu,
         last: &Last,
         boxes: impl Iterator<Item = &'a [[f64; 3]; 8]>,
-    ) -> Vec<u64> {
+    ) -> (wgpu::Buffer, Arc<AtomicBool>) {
         let (d, queue) = gpu.wgpu().expect("a GPU path");
         let p = self.queries.get_or_init(|| Pipelines::new(gpu, self.path));
         let cam = &last.camera;
@@ -333,14 +395,15 @@ impl Rasterizer {
         enc.copy_buffer_to_buffer(&resolved, 0, &readback, 0, (n * 8) as u64);
         queue.submit([enc.finish()]);
         drop(guard);
-        let slice = readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map the query results"));
-        d.poll(wgpu::PollType::wait_indefinitely())
-            .expect("wait for the queries");
-        let counts =
-            bytemuck::cast_slice::<u8, u64>(&slice.get_mapped_range().expect("mapped")).to_vec();
-        readback.unmap();
-        counts
+        let ready = Arc::new(AtomicBool::new(false));
+        let flag = ready.clone();
+        // (An error: the ticket was dropped first; nothing waits for it then.)
+        readback.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            if r.is_ok() {
+                flag.store(true, Ordering::Release);
+            }
+        });
+        (readback, ready)
     }
 }
 

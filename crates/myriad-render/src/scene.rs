@@ -61,6 +61,11 @@ pub struct Scene {
     pub occlusion_size: u32,
     /// The nodes the last frame's occlusion queries found hidden (`Occlusion::Queries`).
     hidden: Arc<HashSet<NodeKey>>,
+    /// Whether a frame waits for its occlusion queries' results (else they are read in a later
+    /// frame, when the GPU has them: the viewer's way).
+    pub query_wait: bool,
+    /// Queries submitted and not read yet, and their nodes.
+    pending: Option<(crate::QueryTicket, Vec<NodeKey>)>,
     /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
     pub upload_limit: usize,
     /// Prefetching (004): nodes of the view widened by this factor are loaded ahead, at most
@@ -153,6 +158,8 @@ impl Scene {
             occlusion: Occlusion::Software,
             occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
             hidden: Default::default(),
+            query_wait: true,
+            pending: None,
             upload_limit: usize::MAX,
             prefetch: DEFAULT_PREFETCH,
             selector: None,
@@ -516,7 +523,15 @@ impl Scene {
             if !self.hidden.is_empty() {
                 self.hidden = Default::default();
             }
+            self.pending = None;
             return;
+        }
+        if let Some((ticket, keys)) = &mut self.pending {
+            let Some(visible) = ticket.poll(gpu) else {
+                return;
+            };
+            self.hidden = Arc::new(hidden_of(keys, visible));
+            self.pending = None;
         }
         let keys: Vec<NodeKey> = (selection.nodes.iter().map(|n| n.key))
             .chain(selection.hidden.iter().copied())
@@ -540,14 +555,11 @@ impl Scene {
                 }
             })
             .collect();
-        let visible = raster.query(gpu, &boxes);
-        self.hidden = Arc::new(
-            keys.iter()
-                .zip(visible)
-                .filter(|(_, v)| !v)
-                .map(|(k, _)| *k)
-                .collect(),
-        );
+        if self.query_wait {
+            self.hidden = Arc::new(hidden_of(&keys, raster.query(gpu, &boxes)));
+        } else {
+            self.pending = Some((raster.query_submit(gpu, &boxes), keys));
+        }
     }
 
     /// What a frame of `selection` did, given what was drawn.
@@ -689,6 +701,15 @@ impl Scene {
         self.last = selection;
         (image, stats)
     }
+}
+
+/// The nodes of `keys` whose box showed nowhere.
+fn hidden_of(keys: &[NodeKey], visible: Vec<bool>) -> HashSet<NodeKey> {
+    keys.iter()
+        .zip(visible)
+        .filter(|(_, v)| !v)
+        .map(|(k, _)| *k)
+        .collect()
 }
 
 /// One frame of several scenes seen together: one point budget over all of them (`select_many`),

@@ -230,5 +230,26 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
         let (img, s) = last.expect("drawn");
         assert_eq!((s.nodes, s.culled), (2, 1), "{:?}", raster.path);
         assert!(green(&img) > 20, "{:?}: the box beside", raster.path);
+
+        // Not waiting for the results (the viewer's way): the box is culled a frame or more
+        // later, when the GPU has answered.
+        let h = Hierarchy::new(root, keys.map(entry));
+        let mut scene = Scene::new(Arc::new(Walled), h, root, 1, usize::MAX, usize::MAX);
+        scene.occlusion = Occlusion::Queries;
+        scene.query_wait = false;
+        scene.converge(&cam, &options, None);
+        let mut culled = Vec::new();
+        for _ in 0..50 {
+            let (_, s) = scene.frame(gpu, raster, &cam, &options, &style());
+            culled.push(s.culled);
+            if s.culled == 1 {
+                break;
+            }
+        }
+        assert!(
+            culled[0] == 0 && culled.ends_with(&[1]),
+            "{:?}: {culled:?}",
+            raster.path
+        );
     }
 }

@@ -131,6 +131,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         scene.occlusion = o.occlusion;
         // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
         scene.upload_limit = (64 << 20) / shares;
+        // Occlusion queries read when the GPU has them: a frame never waits for the last one.
+        scene.query_wait = false;
         bounds.extend(scene.view_bounds.min);
         bounds.extend(scene.view_bounds.max);
         all.extend(ds.meta.bounds.min);
