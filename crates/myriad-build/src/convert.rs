@@ -261,18 +261,16 @@ pub(crate) struct Pending {
     splats: Option<(PathBuf, bool)>,
 }
 
-/// Strata of a node's last level ([`acquisition_order`]).
-const STRATA: u32 = 4;
-
 /// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
 /// points have it. Any order within a level keeps the prefix property; acquisition order makes
 /// neighbours in the page neighbours along a scan line, which compresses far better (time deltas
 /// are nearly constant, positions and intensities change slowly). The last level (where a
-/// budget usually cuts a node) is first dealt into [`STRATA`] strata, each spread over the
+/// budget usually cuts a node) is first dealt into `STRATA` strata, each spread over the
 /// node: the k-th point (in acquisition order) of each cell of twice the level's spacing goes
 /// to stratum k (the last takes the rest), so that a prefix draws a thin even sample of the
 /// whole node rather than a run of scan lines; each stratum stays in acquisition order.
 fn acquisition_order(node: &mut BuiltNode) {
+    const STRATA: u32 = 4;
     let times = node.points.gps_time.as_ref();
     // Sort keys; a time orders as `total_cmp` does; without times, the order the points have.
     let key = |i: usize| match times {
@@ -827,8 +825,7 @@ mod tests {
         assert_eq!(reach(&node), 0.26, "a quarter of the square");
         acquisition_order(&mut node);
         assert_eq!(reach(&node), 1.0, "a point in every cell");
-        // Four strata of 2,500, each in time order.
-        let t = node.points.gps_time.as_ref().unwrap();
+        let t = node.points.gps_time.as_ref().unwrap(); // four strata, each in time order
         for stratum in t.chunks(2500) {
             assert!(stratum.windows(2).all(|w| w[0] < w[1]));
         }

@@ -21,7 +21,7 @@ use myriad_lod::{Camera, SelectOptions};
 use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
 use present::{Presented, passes_panel};
-use report::{report_orbit, write_png};
+use report::{describe, report_orbit, write_png};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -131,6 +131,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         scene.occlusion = o.occlusion;
         // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
         scene.upload_limit = (64 << 20) / shares;
+        // Occlusion queries read when the GPU has them: a frame never waits for the last one.
+        scene.query_wait = false;
         // Occlusion queries read when the GPU has them: a frame never waits for the last one.
         scene.query_wait = false;
         bounds.extend(scene.view_bounds.min);
@@ -382,6 +384,13 @@ impl App {
             ram as f64 / 1e6,
             vram as f64 / 1e6,
             tree as f64 / 1e6
+        ));
+        let on_gpu: u64 = self.stats.iter().map(|s| s.gpu_points).sum();
+        let read: u64 = self.stats.iter().map(|s| s.read_bytes).sum();
+        ui.label(format!(
+            "point buffers: {:.1} bytes a point, {:.1} read per drawn point",
+            vram as f64 / on_gpu.max(1) as f64,
+            read as f64 / points.max(1) as f64
         ));
         let on_gpu: u64 = self.stats.iter().map(|s| s.gpu_points).sum();
         let read: u64 = self.stats.iter().map(|s| s.read_bytes).sum();
@@ -732,35 +741,6 @@ impl App {
         self.stats = stats;
         image
     }
-}
-
-/// A picked point as lines of text: coordinates and every attribute.
-fn describe(p: &myriad_render::Picked) -> String {
-    let b = &p.batch;
-    let i = p.index;
-    let mut s = format!(
-        "x {:.3}\ny {:.3}\nz {:.3}\nnode {}",
-        p.position[0], p.position[1], p.position[2], p.node
-    );
-    if let Some(v) = &b.intensity {
-        s += &format!("\nintensity {}", v[i]);
-    }
-    if let Some(v) = &b.classification {
-        s += &format!("\nclass {}", v[i]);
-    }
-    if let Some(v) = &b.return_number {
-        s += &format!("\nreturn {}", v[i]);
-    }
-    if let Some(v) = &b.point_source_id {
-        s += &format!("\nsource {}", v[i]);
-    }
-    if let Some(v) = &b.gps_time {
-        s += &format!("\ngps time {:.6}", v[i]);
-    }
-    if let Some(v) = &b.rgb {
-        s += &format!("\nrgb {} {} {}", v[i][0], v[i][1], v[i][2]);
-    }
-    s
 }
 
 impl eframe::App for App {

@@ -1,4 +1,5 @@
-//! What the viewer writes out: the frame times of a scripted orbit, and screenshots.
+//! What the viewer writes out: the frame times of a scripted orbit, screenshots, and the text
+//! of a picked point.
 
 use eframe::egui;
 use myriad_render::FrameStats;
@@ -65,4 +66,33 @@ pub(crate) fn write_png(path: &std::path::Path, image: &egui::ColorImage) -> Res
         Ok(())
     };
     write().map_err(|e| e.to_string())
+}
+
+/// A picked point as lines of text: coordinates and every attribute.
+pub(crate) fn describe(p: &myriad_render::Picked) -> String {
+    let b = &p.batch;
+    let i = p.index;
+    let mut s = format!(
+        "x {:.3}\ny {:.3}\nz {:.3}\nnode {}",
+        p.position[0], p.position[1], p.position[2], p.node
+    );
+    if let Some(v) = &b.intensity {
+        s += &format!("\nintensity {}", v[i]);
+    }
+    if let Some(v) = &b.classification {
+        s += &format!("\nclass {}", v[i]);
+    }
+    if let Some(v) = &b.return_number {
+        s += &format!("\nreturn {}", v[i]);
+    }
+    if let Some(v) = &b.point_source_id {
+        s += &format!("\nsource {}", v[i]);
+    }
+    if let Some(v) = &b.gps_time {
+        s += &format!("\ngps time {:.6}", v[i]);
+    }
+    if let Some(v) = &b.rgb {
+        s += &format!("\nrgb {} {} {}", v[i][0], v[i][1], v[i][2]);
+    }
+    s
 }
