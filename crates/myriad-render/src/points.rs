@@ -68,7 +68,7 @@ pub struct Points {
     pub step: [f64; 3],
     /// Position words per point: 1 to 3 of 10 bits an axis; 0: f32 x, y, z (three words).
     pub words: u32,
-    /// The points' box relative to `origin`: its far corner.
+    /// Quantized: the points' box relative to `origin`, its far corner (f32: zero).
     pub extent: [f64; 3],
     storage: Storage,
     pub len: u32,
@@ -181,7 +181,6 @@ impl Points {
     ) -> Points {
         assert_eq!(positions.len(), rgba.len());
         let n = positions.len();
-        let (lo, hi) = bounds(positions);
         let (origin, step, words, extent, mut data) = match encoding {
             Encoding::F32 { origin } => {
                 let mut data = vec![0u32; 4 * n];
@@ -190,14 +189,9 @@ impl Points {
                         data[a * n + i] = ((p[a] - origin[a]) as f32).to_bits();
                     }
                 }
-                let extent = if n == 0 {
-                    [0.0; 3]
-                } else {
-                    std::array::from_fn(|a| hi[a] - origin[a])
-                };
-                (origin, [0.0; 3], 0, extent, data)
+                (origin, [0.0; 3], 0, [0.0; 3], data)
             }
-            Encoding::Grid(g) => quantize(&g, positions, lo, hi),
+            Encoding::Grid(g) => quantize(&g, positions),
         };
         let arrays = if words == 0 { 3 } else { words as usize };
         for (i, c) in rgba.iter().enumerate() {
@@ -308,18 +302,11 @@ impl Points {
         if self.words <= 1 || pixels <= 0.0 || self.splats.is_some() {
             return self.arrays();
         }
-        let (_, _, f) = camera.basis();
         // The nearest eye depth of the box's corners.
-        let mut depth = f64::INFINITY;
-        for c in 0..8 {
-            let corner: [f64; 3] = std::array::from_fn(|a| {
-                self.origin[a] + if c >> a & 1 == 1 { self.extent[a] } else { 0.0 }
-            });
-            let d: f64 = (0..3)
-                .map(|a| (corner[a] - camera.position[a]) * f[a])
-                .sum();
-            depth = depth.min(d);
-        }
+        let far = std::array::from_fn(|a| self.origin[a] + self.extent[a]);
+        let depth = (myriad_core::Aabb::new(self.origin, far).corners().iter())
+            .map(|&c| camera.to_eye(c)[2])
+            .fold(f64::INFINITY, f64::min);
         if depth <= camera.near {
             return self.words;
         }
@@ -347,30 +334,6 @@ impl Points {
     pub fn all(&self, spacing: f64) -> crate::Draw<'_> {
         self.prefix(self.len, spacing)
     }
-
-    /// The positions back (f64, as the rasterizers see them with every word read): for tests
-    /// and the CPU.
-    pub fn positions(&self) -> Vec<[f64; 3]> {
-        let Storage::Cpu(data) = &self.storage else {
-            panic!("positions of points on a GPU")
-        };
-        let n = self.len as usize;
-        (0..n)
-            .map(|i| {
-                std::array::from_fn(|a| {
-                    if self.words == 0 {
-                        return self.origin[a] + f32::from_bits(data[a * n + i]) as f64;
-                    }
-                    let mut q = 0u64;
-                    for k in 0..self.words as usize {
-                        q = q << WORD_BITS
-                            | ((data[k * n + i] >> (WORD_BITS * a as u32)) & 1023) as u64;
-                    }
-                    self.origin[a] + q as f64 * self.step[a]
-                })
-            })
-            .collect()
-    }
 }
 
 /// Positions on the grid `g`, relative to the grid corner of their box: origin, step, words,
@@ -378,13 +341,12 @@ impl Points {
 fn quantize(
     g: &Quantization,
     positions: &[[f64; 3]],
-    lo: [f64; 3],
-    hi: [f64; 3],
 ) -> ([f64; 3], [f64; 3], u32, [f64; 3], Vec<u32>) {
     let n = positions.len();
     if n == 0 {
         return (g.offset, g.scale, 1, [0.0; 3], vec![0; 0]);
     }
+    let (lo, hi) = bounds(positions);
     let k_lo = g.to_int(lo);
     let k_hi = g.to_int(hi);
     let span = (0..3)
@@ -432,6 +394,24 @@ mod tests {
     use super::*;
     use myriad_lod::Camera;
 
+    /// Quantized positions back in f64, every word read.
+    fn decoded(p: &Points) -> Vec<[f64; 3]> {
+        let data = p.cpu_words();
+        let n = p.len as usize;
+        (0..n)
+            .map(|i| {
+                std::array::from_fn(|a| {
+                    let mut q = 0u64;
+                    for k in 0..p.words as usize {
+                        q = q << WORD_BITS
+                            | ((data[k * n + i] >> (WORD_BITS * a as u32)) & 1023) as u64;
+                    }
+                    p.origin[a] + q as f64 * p.step[a]
+                })
+            })
+            .collect()
+    }
+
     fn grid(scale: f64, offset: [f64; 3]) -> Encoding {
         Encoding::Grid(Quantization {
             scale: [scale; 3],
@@ -451,7 +431,7 @@ mod tests {
             let p = Points::encode(&gpu, grid(0.001, offset), &positions, &[[1, 2, 3, 4]; 3]);
             assert_eq!(p.words, words, "span {span}");
             assert_eq!(p.bytes(), 4 * (words as usize + 1) * 3);
-            let back = p.positions();
+            let back = decoded(&p);
             for (b, k) in back.iter().zip(&ks) {
                 let k2 = myriad_format::page::Quantization {
                     scale: [0.001; 3],
@@ -476,7 +456,7 @@ mod tests {
         assert_eq!(p.words, 3);
         // 6.4e9 mm needs 33 bits: steps of 8 mm.
         assert_eq!(p.step, [0.008; 3]);
-        for (b, q) in p.positions().iter().zip(&positions) {
+        for (b, q) in decoded(&p).iter().zip(&positions) {
             for a in 0..3 {
                 assert!((b[a] - q[a]).abs() <= 0.004 + 1e-9, "{b:?} {q:?}");
             }

@@ -223,6 +223,7 @@ impl Rasterizer {
     /// [`Rasterizer::query`] without waiting: the results come from the ticket when the GPU
     /// has them (on the CPU path, at once).
     pub fn query_submit(&self, gpu: &Gpu, boxes: &[[[f64; 3]; 8]]) -> QueryTicket {
+        self.keep_depth();
         let mut ticket = QueryTicket {
             boxes: vec![Ok(true); boxes.len()],
             gpu: None,
@@ -239,6 +240,8 @@ impl Rasterizer {
             return ticket;
         }
         match &last.depth {
+            // The CPU path before it was asked to keep its depth: nothing known.
+            None if self.path == Path::Cpu => {}
             Some(depth) => {
                 for &i in &tested {
                     ticket.boxes[i] = Ok(cpu_visible(cam, depth, &boxes[i]));

@@ -67,7 +67,7 @@ struct Range {
 }
 
 /// Where a draw's points are for a frame drawn relative to `origin`: their origin there, the
-/// first word's step, and (base, stride, words, read) as `decode` in draw.wgsl takes them.
+/// first word's step, their words and how many to read, as `decode` in draw.wgsl takes them.
 pub(crate) struct Layout {
     pub offset: [f32; 3],
     pub unit: [f32; 3],
@@ -107,7 +107,7 @@ pub(crate) struct Targets {
     colour: Option<wgpu::TextureView>,
     normal: Option<wgpu::TextureView>,
     pub(crate) depth: Option<wgpu::TextureView>,
-    /// Compute path: the framebuffer's depth for occlusion queries (`queries.rs`).
+    /// The frame's depth as occlusion queries test against it (`queries.rs`).
     pub(crate) query_depth: Option<wgpu::TextureView>,
     /// The post passes' g-buffers and the image.
     post: Buffers,
@@ -140,6 +140,9 @@ pub struct Rasterizer {
     /// frame.
     pub(crate) queries: std::sync::OnceLock<crate::queries::Pipelines>,
     pub(crate) last: Mutex<Option<crate::queries::Last>>,
+    /// The CPU path keeps each frame's depth for occlusion queries once asked to
+    /// ([`Rasterizer::keep_depth`]).
+    keep_depth: std::sync::atomic::AtomicBool,
     /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
     present: Mutex<Option<wgpu::TextureView>>,
     pub path: Path,
@@ -292,6 +295,7 @@ impl Rasterizer {
             targets: Mutex::new(None),
             queries: Default::default(),
             last: Mutex::new(None),
+            keep_depth: Default::default(),
             present: Mutex::new(None),
             path,
             precision: DEFAULT_PRECISION,
@@ -382,7 +386,8 @@ impl Rasterizer {
             *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some(crate::queries::Last {
                 camera: *camera,
                 origin,
-                depth: Some(g.depth.clone()),
+                depth: (self.keep_depth.load(std::sync::atomic::Ordering::Relaxed))
+                    .then(|| g.depth.clone()),
             });
             return crate::post::run(g, &passes, &view);
         }
@@ -859,6 +864,13 @@ fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
 }
 
 impl Rasterizer {
+    /// From now on the CPU path keeps each frame's depth, for occlusion queries (the GPU paths
+    /// keep theirs in any case).
+    pub fn keep_depth(&self) {
+        self.keep_depth
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// Bytes the point pass reads for `draws` seen by `camera`: the position words each draw
     /// needs ([`crate::Points::read_words`] at the frame's supersampled size), the colours and
     /// splat codes.

@@ -681,6 +681,9 @@ impl Scene {
         let upload = t.elapsed();
         let t = Instant::now();
         let (draws, tree, keys) = self.draws(&selection, 0);
+        if self.occlusion == Occlusion::Queries {
+            raster.keep_depth();
+        }
         let image = raster.render(gpu, camera, &draws, &tree, style);
         let mut stats = FrameStats {
             uploads,
@@ -824,6 +827,9 @@ fn draw_many(
         });
         tree.extend(entries);
         all_draws.extend(draws);
+    }
+    if scenes.iter().any(|s| s.occlusion == Occlusion::Queries) {
+        raster.keep_depth();
     }
     let image = raster.render(gpu, camera, &all_draws, &tree, style);
     drop(all_draws);
