@@ -46,6 +46,28 @@ fn metric(h: &Hierarchy, cam: &Camera, e: &NodeEntry) -> f64 {
     (h.max_level - e.key.level + 1) as f64 / (d * d)
 }
 
+/// Whether a node may be in the front: in the frustum, kept by `keep`, and (with
+/// [`Hierarchy::cull_backfaces`]) not facing away.
+fn shows(
+    h: &Hierarchy,
+    cam: &Camera,
+    frustum: &crate::view::Frustum,
+    keep: &dyn Fn(&Aabb) -> bool,
+    e: &NodeEntry,
+) -> bool {
+    let b = h.bounds(&e.key);
+    frustum.intersects(&b)
+        && keep(&b)
+        && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
+}
+
+/// Whether a node's splats are smaller on screen than `min_pixels` (it is not refined).
+fn fine(h: &Hierarchy, cam: &Camera, o: &SelectOptions, e: &NodeEntry) -> bool {
+    let depth = nearest_depth(cam, &h.bounds(&e.key));
+    let radius = e.spacing.first().copied().unwrap_or(0.0);
+    2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels
+}
+
 /// The rendering front of a tree whose nodes replace their parents (`mwkd`, 004 section IV,
 /// Figure 5): from the root, the node with the highest LOD metric is replaced by its children
 /// in view while the count stays within the budget; the first node that cannot be refined
@@ -62,12 +84,7 @@ pub fn select_front(
 ) -> Selection {
     let frustum = cam.frustum();
     let mut out = Selection::default();
-    let visible = |e: &NodeEntry| {
-        let b = h.bounds(&e.key);
-        frustum.intersects(&b)
-            && keep(&b)
-            && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
-    };
+    let visible = |e: &NodeEntry| shows(h, cam, &frustum, keep, e);
     let metric = |e: &NodeEntry| metric(h, cam, e);
     let Some(root) = h.get(&NodeKey::ROOT).filter(|e| visible(e)) else {
         return out;
@@ -82,9 +99,7 @@ pub fn select_front(
     while let Some(top) = queue.peek() {
         let e = h.get(&top.key).expect("queued nodes exist");
         let kids: Vec<&NodeEntry> = h.children(&e.key).filter(|c| visible(c)).collect();
-        let depth = nearest_depth(cam, &h.bounds(&e.key));
-        let radius = e.spacing.first().copied().unwrap_or(0.0);
-        let fine = 2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels;
+        let fine = fine(h, cam, o, e);
         // Children on pages not loaded yet: the node stays in the front until they are.
         let unloaded = h.unloaded_below(&e.key).next().is_some();
         if unloaded && !fine {
@@ -154,17 +169,8 @@ pub fn update_front(
     previous: &[NodeKey],
 ) -> Option<(Selection, usize)> {
     let frustum = cam.frustum();
-    let visible = |e: &NodeEntry| {
-        let b = h.bounds(&e.key);
-        frustum.intersects(&b)
-            && keep(&b)
-            && !(h.cull_backfaces && e.splats.is_some_and(|s| backfacing(cam, &b, s.cone)))
-    };
-    let fine = |e: &NodeEntry| {
-        let depth = nearest_depth(cam, &h.bounds(&e.key));
-        let radius = e.spacing.first().copied().unwrap_or(0.0);
-        2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels
-    };
+    let visible = |e: &NodeEntry| shows(h, cam, &frustum, keep, e);
+    let fine = |e: &NodeEntry| fine(h, cam, o, e);
     // The past front as a cut through the whole tree.
     let mut cut: HashSet<NodeKey> = HashSet::new();
     for &k in previous {
@@ -189,7 +195,7 @@ pub fn update_front(
             }
         }
     }
-    // A node of the cut below another (the past front had both) gives way to it.
+    // A node of the cut above another (the past front had both) gives way to it.
     cut.retain(|k| !above.contains(k));
     let beside: Vec<NodeKey> = (above.iter())
         .flat_map(|a| h.children(a).map(|c| c.key))
