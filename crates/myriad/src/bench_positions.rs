@@ -95,7 +95,6 @@ pub fn compare(
         };
         scene.converge(&views[0], &overview, None);
         let (_, first) = scene.frame(gpu, raster, &views[0], &overview, &style);
-        let (_, stats) = scene.frame(gpu, raster, &views[0], &overview, &style);
         let (times, _) = frame_times(
             scene,
             gpu,
@@ -109,8 +108,8 @@ pub fn compare(
         let base = *f32_psnr.get_or_insert(mean);
         println!(
             "{label:<22} {:>7.2} {:>7.2} {:>10.1} {:>9.1} {:>26} {:>+8.3}",
-            stats.gpu_bytes as f64 / stats.gpu_points.max(1) as f64,
-            stats.read_bytes as f64 / stats.points.max(1) as f64,
+            first.gpu_bytes as f64 / first.gpu_points.max(1) as f64,
+            first.read_bytes as f64 / first.points.max(1) as f64,
             first.upload_bytes as f64 / 1e6,
             times[times.len() / 2].0 * 1e3,
             db.iter()
