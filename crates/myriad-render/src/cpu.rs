@@ -163,6 +163,11 @@ fn points_pass(
     };
     let o = crate::raster::frame_origin(draws, camera);
     let m = camera.view_proj(o);
+    let eye = {
+        let (r, u, f) = camera.basis();
+        [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
+    };
+    let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
     for draw in draws.iter().filter(|d| d.count > 0) {
         let layout = crate::raster::Layout::of(draw, o, camera, precision);
         let (words, stride) = (draw.points.words, draw.points.len as usize);
@@ -183,11 +188,6 @@ fn points_pass(
             (Some(codes), Some(range), None) => Some((&codes[..draw.count as usize], range)),
             _ => None,
         };
-        let eye = {
-            let (r, u, f) = camera.basis();
-            [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
-        };
-        let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
         if mode == 1 && splats.is_none() {
             continue;
         }

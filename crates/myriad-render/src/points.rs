@@ -304,8 +304,9 @@ impl Points {
         }
         // The nearest eye depth of the box's corners.
         let far = std::array::from_fn(|a| self.origin[a] + self.extent[a]);
+        let (f, eye) = (camera.forward(), camera.position);
         let depth = (myriad_core::Aabb::new(self.origin, far).corners().iter())
-            .map(|&c| camera.to_eye(c)[2])
+            .map(|c| (0..3).map(|a| (c[a] - eye[a]) * f[a]).sum::<f64>())
             .fold(f64::INFINITY, f64::min);
         if depth <= camera.near {
             return self.words;
