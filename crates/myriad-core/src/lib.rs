@@ -10,9 +10,12 @@ pub mod batch;
 pub mod colour;
 pub mod error;
 pub mod geometry;
+pub mod mesh;
+pub mod pca;
 pub mod schema;
 
 pub use batch::{Numbers, PointBatch, PointRecord, RowBytes, WavePacket};
 pub use error::{Error, Location, Result};
 pub use geometry::{Aabb, Affine, NodeKey, Obb};
+pub use mesh::Mesh;
 pub use schema::{Attribute, ExtraDim, ExtraType, Schema};

@@ -16,6 +16,7 @@ pub mod e57;
 pub mod las;
 mod las_guard;
 mod las_records;
+pub mod mesh;
 pub mod pcd;
 pub mod placement;
 pub mod ply;

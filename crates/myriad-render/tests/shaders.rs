@@ -32,6 +32,13 @@ fn shaders_validate() {
     );
     // Occlusion queries on either path (the framebuffer read as pairs of 32-bit words).
     validate("queries.wgsl", myriad_render::QUERIES_WGSL, none);
+    // The surface's cluster, move and reduce: 32-bit atomics only.
+    validate(
+        "cluster.wgsl",
+        myriad_render::surface::gpu::CLUSTER_WGSL,
+        none,
+    );
+    validate("surface draw.wgsl", myriad_render::surface::DRAW_WGSL, none);
     // The post passes need nothing beyond WebGPU.
     for (entry, src) in myriad_render::PASS_SOURCES {
         validate(entry, src, none);

@@ -2,7 +2,8 @@
 //! pipeline, with navigation, panels and tools. It owns no rendering or level-of-detail logic:
 //! each frame a [`Scene`] selects, streams and draws (on the window's GPU straight into the
 //! texture it shows, `present.rs`; or on the CPU where the only adapter is a software one, into an
-//! image uploaded as a texture), shown under the panels.
+//! image uploaded as a texture), shown under the panels; or, asked for, the surface the drawn
+//! points make (`surface.rs`).
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
@@ -10,6 +11,7 @@ pub mod measure;
 pub mod nav;
 mod present;
 mod report;
+mod surface;
 
 use eframe::egui;
 use eframe::egui_wgpu;
@@ -54,6 +56,8 @@ pub struct ViewOptions {
     pub occlusion: myriad_lod::Occlusion,
     /// Pixels a level's spacing must cover to be drawn.
     pub lod_threshold: f64,
+    /// Show the surface the points make (seed 001) instead of the points.
+    pub surface: Option<myriad_render::surface::Surface>,
 }
 
 struct Layer {
@@ -112,6 +116,7 @@ struct App {
     clip: [[f64; 2]; 3],
     clip_on: bool,
     clip_inside: bool,
+    surfaces: surface::Surfaces,
 }
 
 /// Opens the window and runs until it is closed.
@@ -131,8 +136,6 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         scene.occlusion = o.occlusion;
         // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
         scene.upload_limit = (64 << 20) / shares;
-        // Occlusion queries read when the GPU has them: a frame never waits for the last one.
-        scene.query_wait = false;
         // Occlusion queries read when the GPU has them: a frame never waits for the last one.
         scene.query_wait = false;
         bounds.extend(scene.view_bounds.min);
@@ -187,6 +190,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         clip: [[0.25, 0.75]; 3],
         clip_on: false,
         clip_inside: true,
+        surfaces: surface::Surfaces::new(o.surface),
     };
     // The window's device is asked for what the compute path needs, so that frames drawn on it
     // go to the screen without a readback.
@@ -348,6 +352,8 @@ impl App {
             }
         }
         passes_panel(ui, &mut self.style.passes);
+        ui.separator();
+        surface::surface_panel(ui, &mut self.surfaces);
         ui.separator();
         ui.label("datasets");
         for l in &mut self.layers {
@@ -739,6 +745,9 @@ impl App {
             &self.style,
         );
         self.stats = stats;
+        if self.surfaces.on {
+            return self.surface_image(&cam, image);
+        }
         image
     }
 }
@@ -766,7 +775,13 @@ impl eframe::App for App {
                     self.nav.orbit(8.0, 0.0);
                 }
                 let t = Instant::now();
-                let shown = self.present_texture(w, h);
+                // A surface's image is read back and uploaded: the window's texture is let go.
+                let shown = if self.surfaces.on {
+                    self.stop_presenting();
+                    None
+                } else {
+                    self.present_texture(w, h)
+                };
                 let image = self.draw(w, h);
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 let now = Instant::now();
@@ -856,7 +871,8 @@ impl eframe::App for App {
             && self
                 .stats
                 .iter()
-                .all(|s| s.select_current && s.complete && s.in_flight == 0);
+                .all(|s| s.select_current && s.complete && s.in_flight == 0)
+            && self.surfaces.settled();
         self.settled = if converged { self.settled + 1 } else { 0 };
         if self.settled >= 2
             && !self.shot_requested

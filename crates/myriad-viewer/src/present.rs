@@ -63,6 +63,18 @@ impl App {
     }
 }
 
+impl App {
+    /// Frames read back again (for a surface, drawn on the CPU): the window's texture freed.
+    pub(crate) fn stop_presenting(&mut self) {
+        if let Some((rs, presented)) = &mut self.present
+            && let Some(p) = presented.take()
+        {
+            rs.renderer.write().free_texture(&p.id);
+            self.raster.present_to(None);
+        }
+    }
+}
+
 /// Checkboxes for the post passes (in the pipeline's order) and their main parameters.
 pub(crate) fn passes_panel(ui: &mut egui::Ui, p: &mut myriad_render::Passes) {
     use myriad_render::{Blur, Fill, Shade, Ssao};

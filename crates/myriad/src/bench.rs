@@ -29,6 +29,10 @@ pub enum BenchCommand {
     /// Occlusion culling from a view inside and one outside each dataset: nodes and points
     /// selected, nodes culled, selection and frame time, PSNR against every point unculled
     Culling(crate::bench_culling::CullingBenchArgs),
+    /// Surfaces (seed 001) from a view's points: cells and the milliseconds of cluster, move,
+    /// reduce, reconstruct and the frame for the full method, without move and for an octree
+    /// level as the baseline; distance from the points to the surface; holes
+    Surface(crate::bench_surface::SurfaceBenchArgs),
     /// Export speed and peak memory (COPC, Potree) next to PotreeConverter 2 converting the
     /// dataset's input in the same run
     Export(crate::bench_export::ExportBenchArgs),
@@ -102,6 +106,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Structures(a) => crate::bench_structures::run(a),
         BenchCommand::Passes(a) => crate::bench_passes::run(a),
         BenchCommand::Culling(a) => crate::bench_culling::run(a),
+        BenchCommand::Surface(a) => crate::bench_surface::run(a),
         BenchCommand::Export(a) => crate::bench_export::run(a),
         BenchCommand::Open(a) => crate::bench_open::run(a),
         BenchCommand::Serve(a) => crate::bench_serve::run(a),
@@ -111,7 +116,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }

@@ -12,11 +12,13 @@ mod bench_prefetch;
 mod bench_render;
 mod bench_serve;
 mod bench_structures;
+mod bench_surface;
 mod bench_web;
 mod cached;
 mod dataset;
 mod export;
 mod info;
+mod mesh;
 mod partition;
 mod render;
 mod serve;
@@ -57,6 +59,8 @@ enum Command {
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
     Render(render::RenderArgs),
+    /// Write the surface a view's points make (seed 001) as a mesh: PLY or glTF
+    Mesh(mesh::MeshArgs),
     /// Open datasets in a window: navigate, measure, clip (level of detail while you move)
     View(view::ViewArgs),
     /// Serve datasets and exported folders over HTTP (range requests) for browsers and viewers
@@ -107,6 +111,7 @@ fn main() -> ExitCode {
         Command::Export(a) => export::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
+        Command::Mesh(a) => mesh::run(a),
         Command::View(a) => view::run(a),
         Command::Serve(a) => serve::run(a),
         Command::Synth(a) => synth::run(a),

@@ -151,6 +151,12 @@ pub struct RenderArgs {
     /// Pixels a level's point spacing must cover to be drawn (003's tables use 1 and 2)
     #[arg(long, value_parser = parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
+    /// Draw the surface the points make instead of the points (seed 001): quads (cell-filling),
+    /// boxes or splats, one per cell of a grid in the view frustum, lit by a headlight
+    #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
+    surface: Option<myriad_render::surface::Kind>,
+    #[command(flatten)]
+    surface_options: crate::mesh::SurfaceArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -180,6 +186,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if !(a.edl_radius >= 0.5 && a.edl_radius <= 32.0) {
         bail!("--edl-radius must be from 0.5 to 32 pixels");
     }
+    let surface = a
+        .surface
+        .map(|k| a.surface_options.surface(k))
+        .transpose()?;
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
     let (gpu, why) = match a.path {
@@ -282,8 +292,40 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let converged = t0.elapsed();
     // The frame as a viewer would draw it now: selection, cache lookups, drawing, readback.
     let t = Instant::now();
-    let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+    let (mut img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
     let frame = t.elapsed();
+    if let Some(s) = &surface {
+        // The surface of the points that frame drew, in their place.
+        let t = Instant::now();
+        let (points, colours) = myriad_render::surface::drawn_points(&scene, style.clip);
+        // Cluster, move and reduce on the GPU where the frame was drawn on one.
+        let built = myriad_render::surface::Built::on(&gpu, &cam, &points, &colours, s)
+            .unwrap_or_else(|why| {
+                eprintln!("warning: {why}: the surface is made on the CPU");
+                myriad_render::surface::Built::new(&cam, &points, &colours, s)
+            });
+        let made = t.elapsed();
+        let t = Instant::now();
+        img = if gpu.is_cpu() {
+            myriad_render::surface::draw(&cam, &built.mesh, &style)
+        } else {
+            myriad_render::surface::Drawer::new(&gpu).draw(&gpu, &cam, &built.mesh, &style)
+        };
+        let c = &built.clustering;
+        println!(
+            "surface: {} cells ({} triangles) from {} points in view ({} moved); cluster {:.1} ms, move {:.1} ms, reduce {:.1} ms, reconstruct {:.1} ms, made in {:.1} ms, drawn in {:.1} ms",
+            crate::info::thousands(c.cells.len() as u64),
+            crate::info::thousands(built.mesh.triangles.len() as u64),
+            crate::info::thousands(c.inside as u64),
+            crate::info::thousands(c.moved as u64),
+            c.cluster.as_secs_f64() * 1e3,
+            c.moving.as_secs_f64() * 1e3,
+            c.reduce.as_secs_f64() * 1e3,
+            built.reconstruct.as_secs_f64() * 1e3,
+            made.as_secs_f64() * 1e3,
+            t.elapsed().as_secs_f64() * 1e3,
+        );
+    }
     write_png(&a.output, a.width, a.height, &img)?;
     for why in scene.loader.failed_pages().values() {
         eprintln!("warning: {why}");

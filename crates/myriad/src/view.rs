@@ -73,6 +73,11 @@ pub struct ViewArgs {
     /// Pixels a level's point spacing must cover to be drawn
     #[arg(long, value_parser = crate::render::parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
+    /// Show the surface the points make (seed 001): quads, boxes or splats; the panel switches
+    #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
+    surface: Option<myriad_render::surface::Kind>,
+    #[command(flatten)]
+    surface_options: crate::mesh::SurfaceArgs,
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
@@ -124,6 +129,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
         target_fps: (a.target_fps > 0.0).then_some(a.target_fps),
         occlusion: a.occlusion,
         lod_threshold: a.lod_threshold,
+        surface: a
+            .surface
+            .map(|k| a.surface_options.surface(k))
+            .transpose()?,
     };
     myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
 }

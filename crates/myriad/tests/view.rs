@@ -130,8 +130,11 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         true
     };
     // On the GPU also with hardware occlusion queries, read a frame or more late.
+    // And the surface the points make (seed 001), which the window shows from the CPU even
+    // where the points went straight to its texture.
     if run(&[]) && run(&["--gpu"]) {
         run(&["--gpu", "--occlusion", "queries"]);
+        run(&["--gpu", "--surface", "quads", "--grid", "100x80x30"]);
     }
     let _ = std::fs::remove_dir_all(&d);
 }

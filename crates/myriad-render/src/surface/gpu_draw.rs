@@ -1,0 +1,230 @@
+//! The surface's triangles drawn on the GPU (`draw.wgsl`), the mirror of `cpu.rs`: a render
+//! pipeline with a depth test into the quad path's targets, then the post passes on the GPU
+//! (`post::gpu`, the g-buffer read as `fb_quads.wgsl` reads the quad path's), read back.
+
+use crate::post::View;
+use crate::post::gpu::{Buffers, Chain};
+use crate::{FB_QUADS_WGSL, Gpu, Style};
+use myriad_core::Mesh;
+use myriad_lod::Camera;
+use wgpu::util::DeviceExt;
+
+pub const DRAW_WGSL: &str = include_str!("draw.wgsl");
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    forward: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    colour: [u8; 4],
+}
+
+/// The pipelines (made once, kept for every frame).
+pub struct Drawer {
+    pipeline: wgpu::RenderPipeline,
+    chain: Chain,
+}
+
+impl Drawer {
+    pub fn new(gpu: &Gpu) -> Drawer {
+        let d = gpu.device();
+        let module = crate::raster::module(gpu, "surface draw", DRAW_WGSL);
+        let target = Some(wgpu::ColorTargetState {
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("surface"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vertex"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![
+                        0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4
+                    ],
+                })],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fragment"),
+                compilation_options: Default::default(),
+                targets: &[target.clone(), target],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Drawer {
+            pipeline,
+            chain: Chain::new(gpu, FB_QUADS_WGSL),
+        }
+    }
+
+    /// The image of `mesh` seen by `camera` with `style`'s passes and the headlight on (as
+    /// [`super::draw`]): RGBA8, rows top to bottom.
+    pub fn draw(&self, gpu: &Gpu, camera: &Camera, mesh: &Mesh, style: &Style) -> Vec<u8> {
+        let d = gpu.device();
+        let mut passes = style.passes;
+        passes.shade.get_or_insert_with(crate::Shade::default);
+        let f = passes.factor();
+        let mut c = *camera;
+        c.width = camera.width.max(1) * f;
+        c.height = camera.height.max(1) * f;
+        let (w, h) = (c.width, c.height);
+        let view = View::new(&c, &passes, style.background, f);
+        let (r, u, fw) = c.basis();
+        let o = c.position;
+        let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
+        let uniforms = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("surface uniforms"),
+            contents: bytemuck::bytes_of(&Uniforms {
+                view_proj: c.view_proj(o),
+                right: v4(r),
+                up: v4(u),
+                forward: v4(fw),
+            }),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        // Each triangle's own three vertices, its first vertex's normal and colour on each.
+        let vertices: Vec<Vertex> = mesh
+            .triangles
+            .iter()
+            .flat_map(|t| {
+                let first = t[0] as usize;
+                t.map(|i| {
+                    let p = mesh.positions[i as usize];
+                    Vertex {
+                        position: [
+                            (p[0] - o[0]) as f32,
+                            (p[1] - o[1]) as f32,
+                            (p[2] - o[2]) as f32,
+                        ],
+                        normal: mesh.normals[first],
+                        colour: mesh.colours[first],
+                    }
+                })
+            })
+            .collect();
+        let vertex_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("surface vertices"),
+            contents: bytemuck::cast_slice(if vertices.is_empty() {
+                &[Vertex {
+                    position: [0.0; 3],
+                    normal: [0.0; 3],
+                    colour: [0; 4],
+                }]
+            } else {
+                &vertices[..]
+            }),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let target = |label, format| crate::raster::target(gpu, label, (w, h), format, usage);
+        let colour = target("surface colour", wgpu::TextureFormat::Rgba8Unorm);
+        let normal = target("surface normal", wgpu::TextureFormat::Rgba8Unorm);
+        let depth = target("surface depth", wgpu::TextureFormat::Depth32Float);
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("surface"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniforms.as_entire_binding(),
+            }],
+        });
+        let mut enc = d.create_command_encoder(&Default::default());
+        {
+            let attachment = |v| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view: v,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("surface"),
+                color_attachments: &[attachment(&colour), attachment(&normal)],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_vertex_buffer(0, vertex_buffer.slice(..));
+            pass.draw(0..vertices.len() as u32, 0..1);
+        }
+        let out_pixels = ((w / f) * (h / f)) as u64;
+        let buffers = Buffers::new(gpu, (w * h) as u64, out_pixels);
+        let framebuffer = vec![
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&colour),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&depth),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: wgpu::BindingResource::TextureView(&normal),
+            },
+        ];
+        self.chain.encode(
+            gpu,
+            &mut enc,
+            &buffers,
+            framebuffer,
+            &passes,
+            &view,
+            c.far as f32,
+            c.near as f32,
+            None,
+        );
+        let readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("surface image"),
+            size: out_pixels * 4,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        enc.copy_buffer_to_buffer(&buffers.image, 0, &readback, 0, out_pixels * 4);
+        gpu.queue().submit([enc.finish()]);
+        let slice = readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map the surface image"));
+        d.poll(wgpu::PollType::wait_indefinitely())
+            .expect("wait for the surface image");
+        let out = slice.get_mapped_range().expect("mapped").to_vec();
+        readback.unmap();
+        out
+    }
+}

@@ -1,0 +1,137 @@
+//! Surfaces in the viewer (seed 001): made on their own thread from the points the frames draw,
+//! again whenever the view, the drawn points or the parameters change; the last surface is shown
+//! (from the current view, drawn on the frame's device and read back) until the new one is in,
+//! so a frame never waits for one.
+
+use crate::App;
+use eframe::egui;
+use myriad_lod::Camera;
+use myriad_render::surface::{self, Kind, Made, Normals, Surface, Worker};
+
+pub(crate) struct Surfaces {
+    pub on: bool,
+    pub params: Surface,
+    worker: Worker,
+    made: Option<Made>,
+    /// The view and the number of points drawn the last surface was asked for.
+    asked: Option<(Camera, u64)>,
+    /// Drawing on a GPU: its surface pipelines (made when first needed).
+    drawer: Option<surface::Drawer>,
+}
+
+impl Surfaces {
+    pub fn new(s: Option<Surface>) -> Surfaces {
+        Surfaces {
+            on: s.is_some(),
+            params: s.unwrap_or_default(),
+            worker: Worker::new(),
+            made: None,
+            asked: None,
+            drawer: None,
+        }
+    }
+}
+
+impl Surfaces {
+    /// Off, or the surface of the last view asked for is shown (for screenshots of a converged
+    /// view).
+    pub fn settled(&self) -> bool {
+        !self.on
+            || (!self.worker.busy() && self.made.as_ref().is_some_and(|m| m.surface == self.params))
+    }
+}
+
+impl App {
+    /// With surfaces on: the newest surface taken in, a new one asked for where the view, the
+    /// drawn points or the parameters changed (when the worker is free), and the image of the
+    /// last surface seen from `cam` (the points' image until there is one).
+    pub(crate) fn surface_image(&mut self, cam: &Camera, points_image: Vec<u8>) -> Vec<u8> {
+        let s = &mut self.surfaces;
+        if let Some(m) = s.worker.take() {
+            s.made = Some(m);
+        }
+        let drawn: u64 = self.stats.iter().map(|x| x.points).sum();
+        let key = (*cam, drawn);
+        let stale = s.asked != Some(key) || s.made.as_ref().is_some_and(|m| m.surface != s.params);
+        if stale && !s.worker.busy() {
+            let mut points = Vec::new();
+            let mut colours = Vec::new();
+            for l in self.layers.iter().filter(|l| l.visible) {
+                let (p, c) = surface::drawn_points(&l.scene, self.style.clip);
+                points.extend(p);
+                colours.extend(c);
+            }
+            if s.worker.ask(cam, points, colours, &s.params) {
+                s.asked = Some(key);
+            }
+        }
+        let Some(m) = &s.made else {
+            return points_image;
+        };
+        if self.gpu.is_cpu() {
+            return surface::draw(cam, &m.built.mesh, &self.style);
+        }
+        s.drawer
+            .get_or_insert_with(|| surface::Drawer::new(&self.gpu))
+            .draw(&self.gpu, cam, &m.built.mesh, &self.style)
+    }
+}
+
+/// The surface's choices: kind (or off), normals, neighbours, grid; what the last one took.
+pub(crate) fn surface_panel(ui: &mut egui::Ui, s: &mut Surfaces) {
+    ui.label("surface (seed 001)");
+    let current = if s.on {
+        format!("{:?}", s.params.kind).to_lowercase()
+    } else {
+        "off (points)".into()
+    };
+    egui::ComboBox::from_label("surface")
+        .selected_text(current)
+        .show_ui(ui, |ui| {
+            if ui.selectable_label(!s.on, "off (points)").clicked() {
+                s.on = false;
+            }
+            for (k, name) in [
+                (Kind::Quads, "quads"),
+                (Kind::Boxes, "boxes"),
+                (Kind::Splats, "splats"),
+            ] {
+                if ui
+                    .selectable_label(s.on && s.params.kind == k, name)
+                    .clicked()
+                {
+                    s.on = true;
+                    s.params.kind = k;
+                }
+            }
+        });
+    if !s.on {
+        return;
+    }
+    ui.horizontal(|ui| {
+        ui.label("normals");
+        ui.radio_value(&mut s.params.normals, Normals::Tensor, "tensor");
+        ui.radio_value(&mut s.params.normals, Normals::Cells, "cells");
+    });
+    ui.horizontal(|ui| {
+        ui.label("move to");
+        for n in [0, 1, 3] {
+            ui.radio_value(&mut s.params.neighbours, n, n.to_string());
+        }
+        ui.label("neighbours");
+    });
+    ui.horizontal(|ui| {
+        ui.label("grid");
+        for (v, top) in s.params.grid.iter_mut().zip([600, 600, 200]) {
+            ui.add(egui::DragValue::new(v).range(4..=top));
+        }
+    });
+    if let Some(m) = &s.made {
+        ui.label(format!(
+            "{} cells from {} points, made in {:.0} ms",
+            m.built.clustering.cells.len(),
+            m.built.clustering.inside,
+            m.ms
+        ));
+    }
+}

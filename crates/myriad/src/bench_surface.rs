@@ -1,0 +1,319 @@
+//! `myriad bench surface DATASET...`: seed 001's table 1 and figure 4 on the CPU path.
+//!
+//! For each dataset, the points a standard view selects at `--budget` are clustered in the
+//! `--grid` frustum grid by each variant: the full method (move to 3 neighbours, tensor normals),
+//! move to 1 neighbour, cluster only (no move), cells' normals, planarity as the density, and the
+//! paper's baseline, the level of an octree over the same points whose cells number closest to the
+//! full method's. Per variant, medians of `--runs`: cells, milliseconds of cluster, move, reduce,
+//! reconstruct and the frame (the quads drawn and shaded); the distance from each point to its
+//! cell's quad (RMS and 95th percentile); and the holes: the fraction of the pixels the points
+//! cover (as `render` draws them) that the surface leaves empty. Then, as table 1's last columns,
+//! the frame of the points and of each kind of surface element.
+
+use crate::bench::median;
+use crate::mesh::drawn;
+use anyhow::Result;
+use clap::Args;
+use myriad_core::Aabb;
+use myriad_render::surface::{self, Built, Density, Grid, Kind, Normals, Surface};
+use myriad_render::{ColorBy, Gpu, Rasterizer, Style};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct SurfaceBenchArgs {
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// Points clustered: what the view selects within this budget
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    budget: u64,
+    /// The full method's options (the variants change one each)
+    #[command(flatten)]
+    options: crate::mesh::SurfaceArgs,
+    /// Cluster every point of the dataset in view (the paper's setting), not a level of detail
+    #[arg(long)]
+    all: bool,
+    /// The standard view
+    #[arg(long, default_value = "overview", value_parser = ["overview", "top", "close"])]
+    view: String,
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Runs per variant (medians)
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+    /// Cluster, move and reduce on the GPU (`--gpu`, lavapipe too) or the CPU (`--cpu`); the
+    /// octree baseline is always the CPU's, as in the paper
+    #[command(flatten)]
+    device: crate::bench_render::Device,
+    /// Write the images (points, each variant's quads, the full method's boxes and splats) here
+    #[arg(long)]
+    images: Option<PathBuf>,
+}
+
+struct Row {
+    name: &'static str,
+    cells: usize,
+    moved: usize,
+    ms: [f64; 5],
+    rms: f64,
+    p95: f64,
+    holes: f64,
+}
+
+pub fn run(a: SurfaceBenchArgs) -> Result<()> {
+    let runs = a.runs.max(1);
+    if let Some(dir) = &a.images {
+        std::fs::create_dir_all(dir)?;
+    }
+    // The points' frame (for the holes) on the CPU; the surface's steps on the device asked for.
+    let gpu = Gpu::cpu();
+    let raster = Rasterizer::new(&gpu);
+    let device = a.device.gpu()?;
+    // The surface's frames on the same device (the triangles by a render pipeline on a GPU).
+    let drawer = (!device.is_cpu()).then(|| surface::Drawer::new(&device));
+    let draw = |cam: &myriad_lod::Camera, mesh: &myriad_core::Mesh| match &drawer {
+        Some(d) => d.draw(&device, cam, mesh, &Style::default()),
+        None => surface::draw(cam, mesh, &Style::default()),
+    };
+    println!(
+        "{}; {:?}; {} view at {}x{}, budget {}, medians of {runs} runs",
+        device.name,
+        a.options.surface(Kind::Quads)?,
+        a.view,
+        a.width,
+        a.height,
+        a.budget
+    );
+    for path in &a.datasets {
+        let (mut scene, cam) = drawn(
+            path,
+            None,
+            Some(&a.view),
+            [0.0, 0.0, 1.0],
+            (a.width, a.height, 60.0),
+            if a.all { u64::MAX } else { a.budget },
+            ColorBy::Rgb,
+        )?;
+        let (points, colours) = surface::drawn_points(&scene, None);
+        // The points as `render` draws them, on a transparent background: what they cover.
+        let style = Style {
+            background: [0, 0, 0, 0],
+            ..Style::default()
+        };
+        let options = myriad_lod::SelectOptions {
+            budget: if a.all { u64::MAX } else { a.budget },
+            min_pixels: if a.all { 0.0 } else { 1.0 },
+        };
+        let mut point_ms = Vec::new();
+        let mut image = Vec::new();
+        for _ in 0..runs {
+            let t = Instant::now();
+            image = scene.frame(&gpu, &raster, &cam, &options, &style).0;
+            point_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        let covered: Vec<bool> = image.chunks(4).map(|p| p[3] > 0).collect();
+        let name = path
+            .file_stem()
+            .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
+        if let Some(dir) = &a.images {
+            crate::render::write_png(
+                &dir.join(format!("{name}-points.png")),
+                a.width,
+                a.height,
+                &image,
+            )?;
+        }
+        let full = a.options.surface(Kind::Quads)?;
+        let variants: [(&str, Surface); 5] = [
+            ("full", full),
+            (
+                "move to 1 neighbour",
+                Surface {
+                    neighbours: 1,
+                    ..full
+                },
+            ),
+            (
+                "cluster only (no move)",
+                Surface {
+                    neighbours: 0,
+                    ..full
+                },
+            ),
+            (
+                "cells' normals",
+                Surface {
+                    normals: Normals::Cells,
+                    ..full
+                },
+            ),
+            (
+                "planarity density",
+                Surface {
+                    density: Density::Planarity,
+                    ..full
+                },
+            ),
+        ];
+        let eye: Vec<[f64; 3]> = points.iter().map(|&p| cam.to_eye(p)).collect();
+        let Some(frustum) = Grid::frustum(&cam, full.grid, &eye) else {
+            println!("{name}: no point in view");
+            continue;
+        };
+        let mut rows = Vec::new();
+        let mut full_cells = 0;
+        let measure = |label: &'static str,
+                       grid: &Grid,
+                       s: &Surface,
+                       pts: &[[f64; 3]],
+                       cols: &[[u8; 4]]|
+         -> Result<(Row, Built)> {
+            let mut ms = vec![Vec::new(); 5];
+            let mut built = Built::default();
+            for _ in 0..runs {
+                built = Built::in_grid_on(&device, &cam, grid, pts, cols, s)
+                    .map_err(anyhow::Error::msg)?;
+                let c = &built.clustering;
+                for (k, d) in [c.cluster, c.moving, c.reduce, built.reconstruct]
+                    .iter()
+                    .enumerate()
+                {
+                    ms[k].push(d.as_secs_f64() * 1e3);
+                }
+                let t = Instant::now();
+                let img = draw(&cam, &built.mesh);
+                ms[4].push(t.elapsed().as_secs_f64() * 1e3);
+                drop(img);
+            }
+            let mut d = surface::distances(&cam, grid, &built.clustering, pts, Kind::Quads);
+            d.sort_by(f64::total_cmp);
+            let rms = (d.iter().map(|v| v * v).sum::<f64>() / d.len().max(1) as f64).sqrt();
+            let p95 = d.get(d.len() * 95 / 100).copied().unwrap_or(0.0);
+            let surface_covers = surface::coverage(&cam, &built.mesh);
+            let want = covered.iter().filter(|&&c| c).count();
+            let empty = covered
+                .iter()
+                .zip(&surface_covers)
+                .filter(|(p, s)| **p && !**s)
+                .count();
+            if let Some(dir) = &a.images {
+                let img = draw(&cam, &built.mesh);
+                let file = format!(
+                    "{name}-{}.png",
+                    label.split_whitespace().next().unwrap_or("x")
+                );
+                crate::render::write_png(&dir.join(file), a.width, a.height, &img)?;
+            }
+            let row = Row {
+                name: label,
+                cells: built.clustering.cells.len(),
+                moved: built.clustering.moved,
+                ms: std::array::from_fn(|k| median(ms[k].clone())),
+                rms,
+                p95,
+                holes: 100.0 * empty as f64 / want.max(1) as f64,
+            };
+            Ok((row, built))
+        };
+        let mut full_built = Built::default();
+        for (label, s) in variants {
+            let (row, built) = measure(label, &frustum, &s, &points, &colours)?;
+            if rows.is_empty() {
+                full_cells = row.cells;
+                full_built = built;
+            }
+            rows.push(row);
+        }
+        // The baseline: an octree level over the points in view, about as many cells.
+        let inside: Vec<usize> = (0..points.len())
+            .filter(|&i| frustum.coords(points[i], eye[i]).is_some())
+            .collect();
+        let in_points: Vec<[f64; 3]> = inside.iter().map(|&i| points[i]).collect();
+        let in_colours: Vec<[u8; 4]> = inside.iter().map(|&i| colours[i]).collect();
+        let mut cube = Aabb::new(in_points[0], in_points[0]);
+        for &p in &in_points {
+            cube.extend(p);
+        }
+        let side = cube.size().into_iter().fold(0.0f64, f64::max);
+        let cube = Aabb::new(cube.min, cube.min.map(|v| v + side));
+        let octree = Grid::cubes_like(&cube, &in_points, full_cells);
+        let level = match octree {
+            Grid::Cubes { dims, .. } => dims[0].trailing_zeros(),
+            _ => 0,
+        };
+        let (row, _) = measure(
+            "octree level (baseline)",
+            &octree,
+            &Surface {
+                neighbours: 0,
+                ..full
+            },
+            &in_points,
+            &in_colours,
+        )?;
+        rows.push(row);
+
+        println!(
+            "\n{name}: {} points drawn, {} in view (octree level {level})",
+            crate::info::thousands(points.len() as u64),
+            crate::info::thousands(full_built.clustering.inside as u64)
+        );
+        println!(
+            "| variant | cells | moved | cluster ms | move ms | reduce ms | reconstruct ms | frame ms | RMS | p95 | holes % |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+        for r in &rows {
+            println!(
+                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.4} | {:.4} | {:.2} |",
+                r.name,
+                crate::info::thousands(r.cells as u64),
+                crate::info::thousands(r.moved as u64),
+                r.ms[0],
+                r.ms[1],
+                r.ms[2],
+                r.ms[3],
+                r.ms[4],
+                r.rms,
+                r.p95,
+                r.holes
+            );
+        }
+        // Table 1's last columns: elements and the frame of each kind, against the points.
+        println!("\n| drawn | elements | triangles | frame ms |");
+        println!("|---|---|---|---|");
+        println!(
+            "| points | {} | - | {:.1} |",
+            crate::info::thousands(points.len() as u64),
+            median(point_ms)
+        );
+        for kind in [Kind::Splats, Kind::Boxes, Kind::Quads] {
+            let frustum_grid = full_built.grid.unwrap_or(frustum);
+            let mesh =
+                surface::reconstruct(&cam, &frustum_grid, &full_built.clustering.cells, kind);
+            let mut ms = Vec::new();
+            let mut img = Vec::new();
+            for _ in 0..runs {
+                let t = Instant::now();
+                img = draw(&cam, &mesh);
+                ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            if let Some(dir) = &a.images {
+                crate::render::write_png(
+                    &dir.join(format!("{name}-full-{kind:?}.png").to_lowercase()),
+                    a.width,
+                    a.height,
+                    &img,
+                )?;
+            }
+            println!(
+                "| {kind:?} | {} | {} | {:.1} |",
+                crate::info::thousands(full_built.clustering.cells.len() as u64),
+                crate::info::thousands(mesh.triangles.len() as u64),
+                median(ms)
+            );
+        }
+    }
+    Ok(())
+}
