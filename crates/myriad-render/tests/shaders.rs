@@ -38,6 +38,11 @@ fn shaders_validate() {
         myriad_render::surface::gpu::CLUSTER_WGSL,
         none,
     );
+    validate(
+        "cluster.wgsl + reconstruct.wgsl",
+        myriad_render::surface::gpu::RECONSTRUCT_WGSL,
+        none,
+    );
     validate("surface draw.wgsl", myriad_render::surface::DRAW_WGSL, none);
     // The post passes need nothing beyond WebGPU.
     for (entry, src) in myriad_render::PASS_SOURCES {

@@ -227,3 +227,53 @@ fn gpu_and_cpu_draw_the_same_surface() {
         );
     }
 }
+
+#[test]
+fn the_gpu_reconstructs_the_triangles_the_cpu_makes_of_its_cells() {
+    let gpu = match Gpu::headless() {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
+            return;
+        }
+    };
+    let cam = camera();
+    let (points, colours) = scene();
+    let drawer = surface::Drawer::new(&gpu);
+    let style = myriad_render::Style::default();
+    for kind in [
+        surface::Kind::Quads,
+        surface::Kind::Boxes,
+        surface::Kind::Splats,
+    ] {
+        let s = Surface {
+            kind,
+            grid: [64, 48, 24],
+            ..Surface::default()
+        };
+        let built = surface::Built::on(&gpu, &cam, &points, &colours, &s).unwrap();
+        // The CPU's triangles are made from the cells the GPU read back: the same count...
+        let on_gpu = built.gpu_mesh.as_ref().expect("built on the GPU");
+        assert_eq!(
+            on_gpu.vertices as usize,
+            3 * built.mesh.triangles.len(),
+            "{kind:?}"
+        );
+        // ...and the same picture (f32 corners on the GPU, f64 on the CPU).
+        let from_gpu = drawer.draw_built(&gpu, &cam, &built, &style);
+        let from_cpu = drawer.draw(&gpu, &cam, &built.mesh, &style);
+        let differ = from_gpu
+            .chunks(4)
+            .zip(from_cpu.chunks(4))
+            .filter(|(a, b)| (0..3).any(|k| a[k].abs_diff(b[k]) > 6))
+            .count();
+        let covered = from_cpu.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
+        assert!(covered > from_cpu.len() / 40, "{kind:?}: {covered}");
+        // Where splats overlap, an f32 corner against an f64 one may change which one is in
+        // front (lavapipe: 127 of 76,800 pixels for splats).
+        assert!(
+            differ * 200 <= from_cpu.len() / 4,
+            "{kind:?}: {differ} pixels differ"
+        );
+    }
+}

@@ -1,14 +1,16 @@
-//! `myriad bench surface DATASET...`: seed 001's table 1 and figure 4 on the CPU path.
+//! `myriad bench surface DATASET...`: seed 001's table 1 and figure 4, on the CPU (`--cpu`) or
+//! with the steps and the frames on the GPU (`--gpu`).
 //!
-//! For each dataset, the points a standard view selects at `--budget` are clustered in the
-//! `--grid` frustum grid by each variant: the full method (move to 3 neighbours, tensor normals),
-//! move to 1 neighbour, cluster only (no move), cells' normals, planarity as the density, and the
-//! paper's baseline, the level of an octree over the same points whose cells number closest to the
-//! full method's. Per variant, medians of `--runs`: cells, milliseconds of cluster, move, reduce,
-//! reconstruct and the frame (the quads drawn and shaded); the distance from each point to its
-//! cell's quad (RMS and 95th percentile); and the holes: the fraction of the pixels the points
-//! cover (as `render` draws them) that the surface leaves empty. Then, as table 1's last columns,
-//! the frame of the points and of each kind of surface element.
+//! For each dataset, the points a standard view selects at `--budget` (`--all`: every point) are
+//! clustered in the `--grid` frustum grid by each variant: the full method (move to 3
+//! neighbours, tensor normals), move to 1 neighbour, cluster only (no move), cells' normals,
+//! planarity as the density, and the paper's baseline, the two levels of an octree over the same
+//! points whose cells bracket the full method's in number. Per variant, medians of `--runs`:
+//! cells, milliseconds of cluster, move, reduce, reconstruct and the frame (the quads drawn and
+//! shaded); the distance from each point to its cell's quad (RMS and 95th percentile); and the
+//! holes: the fraction of the pixels the points cover (as `render` draws them) that the surface
+//! leaves empty. Then, as table 1's last columns, the frame of the points and of each kind of
+//! surface element.
 
 use crate::bench::median;
 use crate::mesh::drawn;
@@ -53,7 +55,7 @@ pub struct SurfaceBenchArgs {
 }
 
 struct Row {
-    name: &'static str,
+    name: String,
     cells: usize,
     moved: usize,
     ms: [f64; 5],
@@ -76,6 +78,10 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
     let draw = |cam: &myriad_lod::Camera, mesh: &myriad_core::Mesh| match &drawer {
         Some(d) => d.draw(&device, cam, mesh, &Style::default()),
         None => surface::draw(cam, mesh, &Style::default()),
+    };
+    let draw_built = |cam: &myriad_lod::Camera, built: &Built| match &drawer {
+        Some(d) => d.draw_built(&device, cam, built, &Style::default()),
+        None => surface::draw(cam, &built.mesh, &Style::default()),
     };
     println!(
         "{}; {:?}; {} view at {}x{}, budget {}, medians of {runs} runs",
@@ -164,7 +170,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
         };
         let mut rows = Vec::new();
         let mut full_cells = 0;
-        let measure = |label: &'static str,
+        let measure = |label: String,
                        grid: &Grid,
                        s: &Surface,
                        pts: &[[f64; 3]],
@@ -183,7 +189,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
                     ms[k].push(d.as_secs_f64() * 1e3);
                 }
                 let t = Instant::now();
-                let img = draw(&cam, &built.mesh);
+                let img = draw_built(&cam, &built);
                 ms[4].push(t.elapsed().as_secs_f64() * 1e3);
                 drop(img);
             }
@@ -199,11 +205,12 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
                 .filter(|(p, s)| **p && !**s)
                 .count();
             if let Some(dir) = &a.images {
-                let img = draw(&cam, &built.mesh);
-                let file = format!(
-                    "{name}-{}.png",
-                    label.split_whitespace().next().unwrap_or("x")
-                );
+                let img = draw_built(&cam, &built);
+                let slug: String = label
+                    .chars()
+                    .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+                    .collect();
+                let file = format!("{name}-{slug}.png");
                 crate::render::write_png(&dir.join(file), a.width, a.height, &img)?;
             }
             let row = Row {
@@ -219,7 +226,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
         };
         let mut full_built = Built::default();
         for (label, s) in variants {
-            let (row, built) = measure(label, &frustum, &s, &points, &colours)?;
+            let (row, built) = measure(label.to_string(), &frustum, &s, &points, &colours)?;
             if rows.is_empty() {
                 full_cells = row.cells;
                 full_built = built;
@@ -238,25 +245,26 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
         }
         let side = cube.size().into_iter().fold(0.0f64, f64::max);
         let cube = Aabb::new(cube.min, cube.min.map(|v| v + side));
-        let octree = Grid::cubes_like(&cube, &in_points, full_cells);
-        let level = match octree {
-            Grid::Cubes { dims, .. } => dims[0].trailing_zeros(),
-            _ => 0,
-        };
-        let (row, _) = measure(
-            "octree level (baseline)",
-            &octree,
-            &Surface {
-                neighbours: 0,
-                ..full
-            },
-            &in_points,
-            &in_colours,
-        )?;
-        rows.push(row);
+        let mut levels = Vec::new();
+        for octree in Grid::cubes_around(&cube, &in_points, full_cells) {
+            let level = octree.dims()[0].trailing_zeros();
+            levels.push(level.to_string());
+            let (row, _) = measure(
+                format!("octree level {level} (baseline)"),
+                &octree,
+                &Surface {
+                    neighbours: 0,
+                    ..full
+                },
+                &in_points,
+                &in_colours,
+            )?;
+            rows.push(row);
+        }
+        let level = levels.join(" and ");
 
         println!(
-            "\n{name}: {} points drawn, {} in view (octree level {level})",
+            "\n{name}: {} points drawn, {} in view (octree levels {level})",
             crate::info::thousands(points.len() as u64),
             crate::info::thousands(full_built.clustering.inside as u64)
         );

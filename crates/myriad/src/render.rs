@@ -309,7 +309,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         img = if gpu.is_cpu() {
             myriad_render::surface::draw(&cam, &built.mesh, &style)
         } else {
-            myriad_render::surface::Drawer::new(&gpu).draw(&gpu, &cam, &built.mesh, &style)
+            myriad_render::surface::Drawer::new(&gpu).draw_built(&gpu, &cam, &built, &style)
         };
         let c = &built.clustering;
         println!(

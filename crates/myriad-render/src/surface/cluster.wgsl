@@ -13,8 +13,12 @@ struct Params {
     // farthest depth, gamma, lb, ln(far / near)
     more: vec4<f32>,
     // points in this dispatch, density (0 count, 1 planarity), normals (0 tensor, 1 cells),
-    // cells
+    // cells; reconstruct: reduced cells, kind (0 quads, 1 boxes, 2 splats)
     flags: vec4<u32>,
+    // The camera's right, up and forward (reconstruct: eye to world axes).
+    right: vec4<f32>,
+    up: vec4<f32>,
+    forward: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;

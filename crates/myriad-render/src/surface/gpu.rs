@@ -9,10 +9,15 @@
 use super::{Cell, Clustering, Grid, Normals, Surface};
 use crate::Gpu;
 use myriad_lod::Camera;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
 pub const CLUSTER_WGSL: &str = include_str!("cluster.wgsl");
+/// cluster.wgsl with the reconstruct step after it (one module for every step).
+pub const RECONSTRUCT_WGSL: &str = concat!(
+    include_str!("cluster.wgsl"),
+    include_str!("reconstruct.wgsl")
+);
 
 const STRIDE: u64 = 20;
 const CELL_WORDS: usize = 16;
@@ -25,6 +30,17 @@ struct Params {
     view: [f32; 4],
     more: [f32; 4],
     flags: [u32; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    forward: [f32; 4],
+}
+
+/// A surface's triangles made on the GPU: `vertices` vertices of 28 bytes (position relative to
+/// the eye in world axes and normal as f32, RGBA8), three a triangle, for [`super::Drawer`].
+#[derive(Debug, Clone)]
+pub struct GpuMesh {
+    pub buffer: wgpu::Buffer,
+    pub vertices: u32,
 }
 
 fn groups(n: u32) -> (u32, u32) {
@@ -63,6 +79,34 @@ pub fn cluster(
     colours: &[[u8; 4]],
     s: &Surface,
 ) -> Result<Clustering, String> {
+    run(gpu, camera, grid, points, colours, s, false).map(|r| r.0)
+}
+
+/// [`cluster`], then the reconstruct step on the GPU too (`reconstruct.wgsl`): the cells, the
+/// triangles of `s.kind` in a vertex buffer, and what the reconstruct step took.
+pub fn build(
+    gpu: &Gpu,
+    camera: &Camera,
+    grid: &Grid,
+    points: &[[f64; 3]],
+    colours: &[[u8; 4]],
+    s: &Surface,
+) -> Result<(Clustering, GpuMesh, Duration), String> {
+    let (c, mesh) = run(gpu, camera, grid, points, colours, s, true)?;
+    let (mesh, took) = mesh.expect("asked for");
+    Ok((c, mesh, took))
+}
+
+#[allow(clippy::type_complexity)]
+fn run(
+    gpu: &Gpu,
+    camera: &Camera,
+    grid: &Grid,
+    points: &[[f64; 3]],
+    colours: &[[u8; 4]],
+    s: &Surface,
+    triangles: bool,
+) -> Result<(Clustering, Option<(GpuMesh, Duration)>), String> {
     let Some((d, q)) = gpu.wgpu() else {
         return Err("no GPU device".into());
     };
@@ -88,7 +132,7 @@ pub fn cluster(
     }
     // The pipelines (compiled once in a session that keeps them) are not counted in the steps'
     // times; uploads and readbacks are.
-    let module = crate::raster::module(gpu, "cluster.wgsl", CLUSTER_WGSL);
+    let module = crate::raster::module(gpu, "cluster.wgsl", RECONSTRUCT_WGSL);
     let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7)
         .map(|b| wgpu::BindGroupLayoutEntry {
             binding: b,
@@ -148,7 +192,12 @@ pub fn cluster(
         })
         .collect();
     let chunk = ((limit / 16).min(1 << 24) as usize).max(1);
+    let (r, u, f) = camera.basis();
+    let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
     let params = |n: usize| Params {
+        right: v4(r),
+        up: v4(u),
+        forward: v4(f),
         dims: [dims[0], dims[1], dims[2], s.neighbours],
         view: [width as f32, height as f32, focal as f32, near as f32],
         more: [
@@ -297,13 +346,65 @@ pub fn cluster(
         .map(|k| order.binary_search(k).map_or(u32::MAX, |i| i as u32))
         .collect();
     let inside = keys.iter().filter(|&&k| k != u32::MAX).count();
-    Ok(Clustering {
-        cells: cells_out.into_iter().map(|c| c.1).collect(),
-        of_point,
-        inside,
-        moved: moved_count,
-        cluster: cluster_time,
-        moving,
-        reduce: t.elapsed(),
-    })
+    let reduce_time = t.elapsed();
+    let mesh = triangles.then(|| {
+        let t = Instant::now();
+        // As reconstruct.wgsl numbers the kinds, and the vertices each makes a cell.
+        let (kind, per) = match s.kind {
+            super::Kind::Quads => (0, 6),
+            super::Kind::Boxes => (1, 36),
+            super::Kind::Splats => (2, 18),
+        };
+        let vertices = (n * per) as u32;
+        let buffer = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("surface vertices"),
+            size: (vertices as u64 * 28).max(28),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
+            mapped_at_creation: false,
+        });
+        let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("reconstruct"),
+            layout: None,
+            module: &module,
+            entry_point: Some("reconstruct"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let mut p = params(0);
+        p.flags = [n as u32, kind, 0, 0];
+        q.write_buffer(&uniform, 0, bytemuck::bytes_of(&p));
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("reconstruct"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[(0, &uniform), (6, &out), (7, &buffer)].map(|(b, buf)| {
+                wgpu::BindGroupEntry {
+                    binding: b,
+                    resource: buf.as_entire_binding(),
+                }
+            }),
+        });
+        let mut enc = d.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            let (x, y) = groups(n as u32);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        q.submit([enc.finish()]);
+        wait();
+        (GpuMesh { buffer, vertices }, t.elapsed())
+    });
+    Ok((
+        Clustering {
+            cells: cells_out.into_iter().map(|c| c.1).collect(),
+            of_point,
+            inside,
+            moved: moved_count,
+            cluster: cluster_time,
+            moving,
+            reduce: reduce_time,
+        },
+        mesh,
+    ))
 }

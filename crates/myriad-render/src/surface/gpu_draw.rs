@@ -85,6 +85,71 @@ impl Drawer {
     /// The image of `mesh` seen by `camera` with `style`'s passes and the headlight on (as
     /// [`super::draw`]): RGBA8, rows top to bottom.
     pub fn draw(&self, gpu: &Gpu, camera: &Camera, mesh: &Mesh, style: &Style) -> Vec<u8> {
+        let o = camera.position;
+        // Each triangle's own three vertices, its first vertex's normal and colour on each.
+        let vertices: Vec<Vertex> = mesh
+            .triangles
+            .iter()
+            .flat_map(|t| {
+                let first = t[0] as usize;
+                t.map(|i| {
+                    let p = mesh.positions[i as usize];
+                    Vertex {
+                        position: [
+                            (p[0] - o[0]) as f32,
+                            (p[1] - o[1]) as f32,
+                            (p[2] - o[2]) as f32,
+                        ],
+                        normal: mesh.normals[first],
+                        colour: mesh.colours[first],
+                    }
+                })
+            })
+            .collect();
+        let buffer = gpu
+            .device()
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("surface vertices"),
+                // Never an empty buffer (nothing is drawn from it then).
+                contents: bytemuck::cast_slice(if vertices.is_empty() {
+                    &[Vertex {
+                        position: [0.0; 3],
+                        normal: [0.0; 3],
+                        colour: [0; 4],
+                    }]
+                } else {
+                    &vertices[..]
+                }),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+        self.draw_vertices(gpu, camera, &buffer, vertices.len() as u32, style)
+    }
+
+    /// [`Drawer::draw`] of a surface built on this GPU: the triangles the reconstruct step left
+    /// in GPU memory where there are any (relative to the eye they were made for: `camera` is
+    /// that one), else its mesh.
+    pub fn draw_built(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        built: &super::Built,
+        style: &Style,
+    ) -> Vec<u8> {
+        match &built.gpu_mesh {
+            Some(m) => self.draw_vertices(gpu, camera, &m.buffer, m.vertices, style),
+            None => self.draw(gpu, camera, &built.mesh, style),
+        }
+    }
+
+    /// Draws `count` vertices of `buffer` (28 bytes each, positions relative to `camera`'s).
+    fn draw_vertices(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        buffer: &wgpu::Buffer,
+        count: u32,
+        style: &Style,
+    ) -> Vec<u8> {
         let d = gpu.device();
         let mut passes = style.passes;
         passes.shade.get_or_insert_with(crate::Shade::default);
@@ -106,39 +171,6 @@ impl Drawer {
                 forward: v4(fw),
             }),
             usage: wgpu::BufferUsages::UNIFORM,
-        });
-        // Each triangle's own three vertices, its first vertex's normal and colour on each.
-        let vertices: Vec<Vertex> = mesh
-            .triangles
-            .iter()
-            .flat_map(|t| {
-                let first = t[0] as usize;
-                t.map(|i| {
-                    let p = mesh.positions[i as usize];
-                    Vertex {
-                        position: [
-                            (p[0] - o[0]) as f32,
-                            (p[1] - o[1]) as f32,
-                            (p[2] - o[2]) as f32,
-                        ],
-                        normal: mesh.normals[first],
-                        colour: mesh.colours[first],
-                    }
-                })
-            })
-            .collect();
-        let vertex_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("surface vertices"),
-            contents: bytemuck::cast_slice(if vertices.is_empty() {
-                &[Vertex {
-                    position: [0.0; 3],
-                    normal: [0.0; 3],
-                    colour: [0; 4],
-                }]
-            } else {
-                &vertices[..]
-            }),
-            usage: wgpu::BufferUsages::VERTEX,
         });
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
         let target = |label, format| crate::raster::target(gpu, label, (w, h), format, usage);
@@ -181,8 +213,10 @@ impl Drawer {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind, &[]);
-            pass.set_vertex_buffer(0, vertex_buffer.slice(..));
-            pass.draw(0..vertices.len() as u32, 0..1);
+            if count > 0 {
+                pass.set_vertex_buffer(0, buffer.slice(..));
+                pass.draw(0..count, 0..1);
+            }
         }
         let out_pixels = ((w / f) * (h / f)) as u64;
         let buffers = Buffers::new(gpu, (w * h) as u64, out_pixels);

@@ -195,9 +195,10 @@ impl Grid {
         })
     }
 
-    /// The octree level of cube `root` whose cells holding `points` (world) number closest to
-    /// `cells`: the paper's baseline at about the same number of primitives.
-    pub fn cubes_like(root: &Aabb, points: &[[f64; 3]], cells: usize) -> Grid {
+    /// The two octree levels of cube `root` whose cells holding `points` (world) bracket
+    /// `cells` (the deepest with at most that many, and the one below it): the paper's baseline at
+    /// about the same number of primitives, from below and from above.
+    pub fn cubes_around(root: &Aabb, points: &[[f64; 3]], cells: usize) -> [Grid; 2] {
         const LEVELS: u32 = 12;
         let side = root.size().into_iter().fold(0.0f64, f64::max).max(1e-9);
         let n = (1u64 << LEVELS) as f64;
@@ -213,25 +214,27 @@ impl Grid {
             })
             .collect();
         codes.sort_unstable();
-        let best = (1..=LEVELS)
-            .min_by_key(|&l| {
-                let shift = 3 * (LEVELS - l);
-                let mut count = 0usize;
-                let mut last = None;
-                for &c in &codes {
-                    if last != Some(c >> shift) {
-                        count += 1;
-                        last = Some(c >> shift);
-                    }
+        let occupied = |l: u32| {
+            let shift = 3 * (LEVELS - l);
+            let mut count = 0usize;
+            let mut last = None;
+            for &c in &codes {
+                if last != Some(c >> shift) {
+                    count += 1;
+                    last = Some(c >> shift);
                 }
-                count.abs_diff(cells)
-            })
+            }
+            count
+        };
+        let below = (1..LEVELS)
+            .take_while(|&l| occupied(l) <= cells)
+            .last()
             .unwrap_or(1);
-        Grid::Cubes {
+        [below, below + 1].map(|l| Grid::Cubes {
             origin: root.min,
-            size: side / (1u64 << best) as f64,
-            dims: [1 << best; 3],
-        }
+            size: side / (1u64 << l) as f64,
+            dims: [1 << l; 3],
+        })
     }
 
     pub fn dims(&self) -> [u32; 3] {
@@ -383,6 +386,8 @@ pub struct Built {
     pub reconstruct: Duration,
     /// The grid used (None: no point in view).
     pub grid: Option<Grid>,
+    /// Made on a GPU: the triangles in its memory, as the reconstruct step left them there.
+    pub gpu_mesh: Option<gpu::GpuMesh>,
 }
 
 impl Built {
@@ -427,14 +432,16 @@ impl Built {
         if gpu.is_cpu() || !matches!(grid, Grid::Frustum { .. }) {
             return Ok(Built::in_grid(camera, grid, points, colours, s));
         }
-        let clustering = gpu::cluster(gpu, camera, grid, points, colours, s)?;
-        let t = Instant::now();
+        // Cluster, move, reduce and reconstruct on the GPU (its time is the reconstruct
+        // step's); the same triangles made on the CPU from the cells read back, for the mesh.
+        let (clustering, gpu_mesh, took) = gpu::build(gpu, camera, grid, points, colours, s)?;
         let mesh = reconstruct(camera, grid, &clustering.cells, s.kind);
         Ok(Built {
             clustering,
             mesh,
-            reconstruct: t.elapsed(),
+            reconstruct: took,
             grid: Some(*grid),
+            gpu_mesh: Some(gpu_mesh),
         })
     }
 
@@ -454,6 +461,7 @@ impl Built {
             mesh,
             reconstruct: t.elapsed(),
             grid: Some(*grid),
+            gpu_mesh: None,
         }
     }
 }
