@@ -347,8 +347,15 @@ fn run(
         .collect();
     let inside = keys.iter().filter(|&&k| k != u32::MAX).count();
     let reduce_time = t.elapsed();
+    let most = n as u64 * 36 * 28;
+    if triangles && most > limit {
+        return Err(format!(
+            "{n} cells' triangles need up to {} MB a binding, the device allows {} MB",
+            most >> 20,
+            limit >> 20
+        ));
+    }
     let mesh = triangles.then(|| {
-        let t = Instant::now();
         // As reconstruct.wgsl numbers the kinds, and the vertices each makes a cell.
         let (kind, per) = match s.kind {
             super::Kind::Quads => (0, 6),
@@ -370,6 +377,8 @@ fn run(
             compilation_options: Default::default(),
             cache: None,
         });
+        // As for the other steps, the pipeline is not counted.
+        let t = Instant::now();
         let mut p = params(0);
         p.flags = [n as u32, kind, 0, 0];
         q.write_buffer(&uniform, 0, bytemuck::bytes_of(&p));
