@@ -217,7 +217,7 @@ pub fn select_occluded_from(
     cam: &Camera,
     o: &SelectOptions,
     keep: &dyn Fn(&Aabb) -> bool,
-    mut occluder: Option<&mut Occluder>,
+    occluder: Option<&mut Occluder>,
     previous: &[NodeKey],
 ) -> Selection {
     if h.splats() {
@@ -228,27 +228,47 @@ pub fn select_occluded_from(
         }
         return crate::front::select_front(h, cam, o, keep);
     }
-    let frustum = cam.frustum();
+    select_eyes(h, std::slice::from_ref(cam), o, keep, occluder)
+}
+
+/// One selection for several eyes seen together (002's stereo: one selection for both eyes):
+/// a node is in view where any eye's frustum meets it, and its benefit and its level of detail
+/// are those of the eye that sees it best (the nearest). Occlusion, where given, is tested as
+/// the first eye sees. `mwkd` fronts are selected for the first eye.
+pub fn select_eyes(
+    h: &Hierarchy,
+    eyes: &[Camera],
+    o: &SelectOptions,
+    keep: &dyn Fn(&Aabb) -> bool,
+    mut occluder: Option<&mut Occluder>,
+) -> Selection {
+    let cam = &eyes[0];
+    if h.splats() {
+        return crate::front::select_front(h, cam, o, keep);
+    }
+    let frustums: Vec<Frustum> = eyes.iter().map(Camera::frustum).collect();
+    let seen = |e: &NodeEntry| frustums.iter().any(|f| in_view(h, f, e));
+    let best = |f: &dyn Fn(&Camera) -> f64| eyes.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
     let mut out = Selection::default();
     let mut queue = BinaryHeap::new();
-    let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>, frustum: &Frustum| {
+    let consider = |key: NodeKey, queue: &mut BinaryHeap<Candidate>| {
         let Some(e) = h.get(&key) else { return };
         let cube = h.bounds(&key);
         let contour = e.contour;
-        if !in_view(h, frustum, e) || !keep(&cube) {
+        if !seen(e) || !keep(&cube) {
             return;
         }
         let benefit = match &contour {
             // An octree cell: its side (003).
-            None if h.cells() => benefit(cam, &cube, nearest_depth(cam, &cube)),
+            None if h.cells() => best(&|cam| benefit(cam, &cube, nearest_depth(cam, &cube))),
             // A contour (000) or a kd box (002): the square root of its projected area.
-            Some(c) => benefit_of_box(cam, c),
-            None => benefit_of_box(cam, &Obb::from_aabb(&cube)),
+            Some(c) => best(&|cam| benefit_of_box(cam, c)),
+            None => best(&|cam| benefit_of_box(cam, &Obb::from_aabb(&cube))),
         };
         queue.push(Candidate { benefit, key });
     };
     if h.get(&NodeKey::ROOT).is_some() {
-        consider(NodeKey::ROOT, &mut queue, &frustum);
+        consider(NodeKey::ROOT, &mut queue);
     }
     while let Some(Candidate { benefit, key }) = queue.pop() {
         let Some(e) = h.get(&key) else { continue };
@@ -266,7 +286,10 @@ pub fn select_occluded_from(
             out.hidden.push(key);
             continue;
         }
-        let depth = nearest_depth_of(cam, &corners);
+        let depth = eyes
+            .iter()
+            .map(|cam| nearest_depth_of(cam, &corners))
+            .fold(f64::INFINITY, f64::min);
         let ppu = cam.pixels_per_unit(depth);
         // Levels whose spacing still shows; none: the node (and all below) adds nothing.
         let spacing = point_spacing(e);
@@ -312,25 +335,25 @@ pub fn select_occluded_from(
             if h.cells() && !h.contours() {
                 out.pages.retain(|p| {
                     let cube = p.key.bounds(&h.root);
-                    self::benefit(cam, &cube, nearest_depth(cam, &cube)) >= benefit
+                    best(&|cam| self::benefit(cam, &cube, nearest_depth(cam, &cube))) >= benefit
                 });
             }
             break;
         }
         if whole || e.points == 0 {
             for c in h.children(&key) {
-                consider(c.key, &mut queue, &frustum);
+                consider(c.key, &mut queue);
             }
             // Where nodes are their keys' cubes, a page whose root is out of view or
             // clipped away holds nothing this view draws: not asked for.
             out.pages.extend(h.unloaded_below(&key).filter(|p| {
                 let cube = p.key.bounds(&h.root);
-                !h.cells() || (frustum.intersects(&cube) && keep(&cube))
+                !h.cells() || (frustums.iter().any(|f| f.intersects(&cube)) && keep(&cube))
             }));
         }
     }
     if !h.cells() {
-        pull_up_spacing(h, &mut out, &frustum);
+        pull_up_spacing(h, &mut out, &frustums);
     }
     out
 }
@@ -340,7 +363,7 @@ pub fn select_occluded_from(
 /// them (pulled up from the deepest drawn descendants), so its points shrink where its children
 /// fill in between them. A node with a child in view that is not drawn keeps its own spacing:
 /// there its points are all there is.
-fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
+fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustums: &[Frustum]) {
     let index: HashMap<NodeKey, usize> = s
         .nodes
         .iter()
@@ -356,7 +379,7 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustum: &Frustum) {
             match index.get(&c.key) {
                 Some(&j) => finest = finest.min(s.nodes[j].spacing),
                 None => {
-                    if c.points > 0 && in_view(h, frustum, c) {
+                    if c.points > 0 && frustums.iter().any(|f| in_view(h, f, c)) {
                         all = false;
                     }
                 }
@@ -625,6 +648,46 @@ pub(crate) mod tests {
             near: 0.1,
             far: 1e6,
         }
+    }
+
+    #[test]
+    fn one_selection_for_two_eyes_holds_what_either_sees_and_nothing_else() {
+        let h = tree(5, 100.0, 4000);
+        let mut cam = looking_down(&h, 20.0);
+        cam.fov_y = 30.0;
+        // Eyes 40 apart: each sees what the other does not.
+        let eyes = cam.eyes(40.0);
+        let o = SelectOptions {
+            budget: u64::MAX,
+            min_pixels: 1.0,
+        };
+        let keep = |_: &Aabb| true;
+        let both = select_eyes(&h, &eyes, &o, &keep, None);
+        assert_counted_parents_first(&both);
+        let keys: std::collections::HashSet<NodeKey> = both.nodes.iter().map(|n| n.key).collect();
+        for eye in &eyes {
+            let alone = select(&h, eye, &o);
+            for n in &alone.nodes {
+                assert!(
+                    keys.contains(&n.key),
+                    "{} seen by one eye is missing",
+                    n.key
+                );
+            }
+            assert!(alone.nodes.len() < both.nodes.len());
+        }
+        let frustums = eyes.map(|e| e.frustum());
+        for n in &both.nodes {
+            let b = n.key.bounds(&h.root);
+            assert!(
+                frustums.iter().any(|f| f.intersects(&b)),
+                "{} seen by neither",
+                n.key
+            );
+        }
+        // The eyes are 40 apart, looking in parallel, level with the camera.
+        assert!((eyes[1].position[0] - eyes[0].position[0]).abs() > 39.99);
+        assert_eq!(eyes[0].position[2], cam.position[2]);
     }
 
     #[test]

@@ -104,6 +104,21 @@ impl Camera {
         (r, u, f)
     }
 
+    /// Two eyes `ipd` apart (in the data's units), left and right of this camera's eye along its
+    /// right vector, looking in parallel (a headset's eyes): each the camera's field of view and
+    /// image size.
+    pub fn eyes(&self, ipd: f64) -> [Camera; 2] {
+        let (r, _, _) = self.basis();
+        [-0.5, 0.5].map(|k| {
+            let d = r.map(|v| v * k * ipd);
+            Camera {
+                position: std::array::from_fn(|a| self.position[a] + d[a]),
+                target: std::array::from_fn(|a| self.target[a] + d[a]),
+                ..*self
+            }
+        })
+    }
+
     /// A point in eye coordinates: x right, y up, z the depth along the view direction.
     pub fn to_eye(&self, p: [f64; 3]) -> [f64; 3] {
         let (r, u, f) = self.basis();

@@ -104,12 +104,44 @@ pub(crate) fn gbuffer(
     normals: bool,
     precision: f32,
 ) -> crate::post::GBuffer {
-    let (w, h) = (camera.width.max(1), camera.height.max(1));
-    let fb: Vec<AtomicU64> = (0..w as usize * h as usize)
-        .map(|_| AtomicU64::new(0))
+    gbuffers(&[(*camera, None)], draws, tree, style, normals, precision)
+        .pop()
+        .expect("one eye")
+}
+
+/// [`gbuffer`] for several eyes in one pass over the points (single-pass stereo, 002 section
+/// 4.3): each point decoded once, then projected into each eye's own framebuffer, so that a
+/// point never spills into the other eye's image. An eye's mask (true: hidden, the hidden area
+/// of a headset's lens) keeps the points off its pixels.
+pub(crate) fn gbuffers(
+    eyes: &[(Camera, Option<&[bool]>)],
+    draws: &[Draw],
+    tree: &[[u32; 4]],
+    style: &Style,
+    normals: bool,
+    precision: f32,
+) -> Vec<crate::post::GBuffer> {
+    let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>)> = eyes
+        .iter()
+        .map(|(camera, _)| {
+            let n = camera.width.max(1) as usize * camera.height.max(1) as usize;
+            (
+                (0..n).map(|_| AtomicU64::new(0)).collect(),
+                (0..if normals { n } else { 0 })
+                    .map(|_| AtomicU32::new(0))
+                    .collect(),
+            )
+        })
         .collect();
-    let normal_fb: Vec<AtomicU32> = (0..if normals { fb.len() } else { 0 })
-        .map(|_| AtomicU32::new(0))
+    let targets: Vec<Target> = eyes
+        .iter()
+        .zip(&fbs)
+        .map(|((camera, mask), (fb, normal_fb))| Target {
+            camera,
+            fb,
+            normal_fb,
+            mask: *mask,
+        })
         .collect();
     let splat_draws = draws.iter().any(|d| d.points.cpu_splats().is_some());
     let modes: &[u32] = if normals && splat_draws {
@@ -118,55 +150,87 @@ pub(crate) fn gbuffer(
         &[0]
     };
     for &mode in modes {
-        points_pass(camera, draws, tree, style, mode, precision, &fb, &normal_fb);
+        points_pass(&targets, draws, tree, style, mode, precision);
     }
-    let far = camera.far as f32;
-    let mut g = crate::post::GBuffer::new(w, h);
-    g.depth
-        .par_iter_mut()
-        .zip(g.colour.par_iter_mut())
-        .zip(g.normal.par_iter_mut())
-        .enumerate()
-        .for_each(|(i, ((depth, colour), normal))| {
-            let v = fb[i].load(Ordering::Relaxed);
-            let key = (v >> 32) as u32;
-            if key != 0 {
-                // As `depth_at` in fb_atomic.wgsl.
-                *depth = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
-                *colour = v as u32;
-                *normal = normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
-            }
-        });
-    g
+    targets
+        .iter()
+        .map(|t| {
+            let (w, h) = (t.camera.width.max(1), t.camera.height.max(1));
+            let far = t.camera.far as f32;
+            let mut g = crate::post::GBuffer::new(w, h);
+            g.depth
+                .par_iter_mut()
+                .zip(g.colour.par_iter_mut())
+                .zip(g.normal.par_iter_mut())
+                .enumerate()
+                .for_each(|(i, ((depth, colour), normal))| {
+                    let v = t.fb[i].load(Ordering::Relaxed);
+                    let key = (v >> 32) as u32;
+                    if key != 0 {
+                        // As `depth_at` in fb_atomic.wgsl.
+                        *depth = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
+                        *colour = v as u32;
+                        *normal = t.normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
+                    }
+                });
+            g
+        })
+        .collect()
+}
+
+/// An eye's framebuffer for [`points_pass`].
+struct Target<'a> {
+    camera: &'a Camera,
+    fb: &'a [AtomicU64],
+    normal_fb: &'a [AtomicU32],
+    mask: Option<&'a [bool]>,
+}
+
+/// What [`points_pass`] needs of an eye, computed once a pass.
+struct Eye<'a> {
+    t: &'a Target<'a>,
+    w: u32,
+    h: u32,
+    far: f32,
+    focal: f32,
+    m: [[f32; 4]; 4],
+    basis: [[f32; 3]; 3],
 }
 
 /// One pass over the points: `mode` 0 keeps the nearest value per pixel in `fb`; 1 (splats
 /// only) writes a splat's normal into `normal_fb` where its value is the one kept. Positions are
 /// decoded relative to the frame's origin as the compute path does (`decode`).
-#[allow(clippy::too_many_arguments)]
 fn points_pass(
-    camera: &Camera,
+    targets: &[Target],
     draws: &[Draw],
     tree: &[[u32; 4]],
     style: &Style,
     mode: u32,
     precision: f32,
-    fb: &[AtomicU64],
-    normal_fb: &[AtomicU32],
 ) {
-    let (w, h) = (camera.width.max(1), camera.height.max(1));
-    let (far, focal) = (camera.far as f32, camera.focal() as f32);
+    // Positions decoded once, relative to the first eye's frame origin, for every eye.
+    let camera = targets[0].camera;
     // Fixed sizes are the same for every point.
     let (scale, fixed, max_size) = match style.size {
         PointSize::Adaptive { scale, max } => (scale as f64, None, max.max(1.0)),
         PointSize::Fixed(px) => (1.0, Some(px.max(1.0).round()), px.max(1.0)),
     };
     let o = crate::raster::frame_origin(draws, camera);
-    let m = camera.view_proj(o);
-    let eye = {
-        let (r, u, f) = camera.basis();
-        [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
-    };
+    let eyes: Vec<Eye> = targets
+        .iter()
+        .map(|t| Eye {
+            t,
+            w: t.camera.width.max(1),
+            h: t.camera.height.max(1),
+            far: t.camera.far as f32,
+            focal: t.camera.focal() as f32,
+            m: t.camera.view_proj(o),
+            basis: {
+                let (r, u, f) = t.camera.basis();
+                [r, u, f].map(|v| [v[0] as f32, v[1] as f32, v[2] as f32])
+            },
+        })
+        .collect();
     let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
     for draw in draws.iter().filter(|d| d.count > 0) {
         let layout = crate::raster::Layout::of(draw, o, camera, precision);
@@ -193,12 +257,15 @@ fn points_pass(
         }
         // Keeps the nearest at a pixel (in the frame: the callers check). Most points are hidden
         // behind nearer ones: a plain load first spares their read-modify-write.
-        let plot = |x: i32, y: i32, value: u64, normal: u32| {
-            let i = y as usize * w as usize + x as usize;
-            let px = &fb[i];
+        let plot = |e: &Eye, x: i32, y: i32, value: u64, normal: u32| {
+            let i = y as usize * e.w as usize + x as usize;
+            if e.t.mask.is_some_and(|m| m[i]) {
+                return;
+            }
+            let px = &e.t.fb[i];
             if mode == 1 {
                 if px.load(Ordering::Relaxed) == value {
-                    normal_fb[i].store(normal, Ordering::Relaxed);
+                    e.t.normal_fb[i].store(normal, Ordering::Relaxed);
                 }
             } else if px.load(Ordering::Relaxed) < value {
                 px.fetch_max(value, Ordering::Relaxed);
@@ -227,92 +294,96 @@ fn points_pass(
                             continue;
                         }
                     }
-                    let clip = mul(&m, p);
-                    if clip[3] <= 0.0 {
-                        continue;
-                    }
-                    let ndc = [clip[0] / clip[3], clip[1] / clip[3], clip[2] / clip[3]];
-                    if ndc[0] < -1.0
-                        || ndc[0] >= 1.0
-                        || ndc[1] <= -1.0
-                        || ndc[1] > 1.0
-                        || ndc[2] < 0.0
-                        || ndc[2] > 1.0
-                    {
-                        continue;
-                    }
-                    let fx = (ndc[0] * 0.5 + 0.5) * w as f32;
-                    let fy = (0.5 - ndc[1] * 0.5) * h as f32;
-                    let colour = colour as u64;
-                    if let Some((codes, range)) = splats {
-                        let code = codes[ci * 4096 + qi];
-                        let sp = splat_shape(code, range, clip[3], &eye, focal, max_size);
-                        let normal = splat_normal_code(sp);
-                        let s = splat_pixels(sp[0], max_size);
+                    for e in &eyes {
+                        let clip = mul(&e.m, p);
+                        if clip[3] <= 0.0 {
+                            continue;
+                        }
+                        let ndc = [clip[0] / clip[3], clip[1] / clip[3], clip[2] / clip[3]];
+                        if ndc[0] < -1.0
+                            || ndc[0] >= 1.0
+                            || ndc[1] <= -1.0
+                            || ndc[1] > 1.0
+                            || ndc[2] < 0.0
+                            || ndc[2] > 1.0
+                        {
+                            continue;
+                        }
+                        let fx = (ndc[0] * 0.5 + 0.5) * e.w as f32;
+                        let fy = (0.5 - ndc[1] * 0.5) * e.h as f32;
+                        let colour = colour as u64;
+                        if let Some((codes, range)) = splats {
+                            let code = codes[ci * 4096 + qi];
+                            let sp = splat_shape(code, range, clip[3], &e.basis, e.focal, max_size);
+                            let normal = splat_normal_code(sp);
+                            let s = splat_pixels(sp[0], max_size);
+                            let x0 = fx.floor() as i32 - (s - 1) / 2;
+                            let y0 = fy.floor() as i32 - (s - 1) / 2;
+                            let c = (s - 1) as f32 * 0.5;
+                            let k = clip[3] / e.focal;
+                            for dy in 0..s {
+                                let y = y0 + dy;
+                                if y < 0 || y >= e.h as i32 {
+                                    continue;
+                                }
+                                for dx in 0..s {
+                                    let x = x0 + dx;
+                                    if x < 0 || x >= e.w as i32 {
+                                        continue;
+                                    }
+                                    let (a, b) = (dx as f32 - c, dy as f32 - c);
+                                    let ez = (a * sp[1] - b * sp[2]) / sp[3];
+                                    if a * a + b * b + ez * ez > sp[0] * sp[0] {
+                                        continue;
+                                    }
+                                    plot(
+                                        e,
+                                        x,
+                                        y,
+                                        ((depth_key(clip[3] - k * ez, e.far) as u64) << 32)
+                                            | colour,
+                                        normal,
+                                    );
+                                }
+                            }
+                            continue;
+                        }
+                        let s = match fixed {
+                            Some(px) => px,
+                            None => adaptive_pixels(
+                                p, clip[3], spacing, node, cube, tree, max_size, e.focal,
+                            ),
+                        } as i32;
                         let x0 = fx.floor() as i32 - (s - 1) / 2;
                         let y0 = fy.floor() as i32 - (s - 1) / 2;
                         let c = (s - 1) as f32 * 0.5;
-                        let k = clip[3] / focal;
+                        let r2 = ((s * s) as f32 * 0.25).max(0.5);
+                        let bulge = 0.5 * s as f32 * clip[3] / e.focal;
+                        let flat = ((depth_key(clip[3], e.far) as u64) << 32) | colour;
                         for dy in 0..s {
                             let y = y0 + dy;
-                            if y < 0 || y >= h as i32 {
+                            if y < 0 || y >= e.h as i32 {
                                 continue;
                             }
                             for dx in 0..s {
                                 let x = x0 + dx;
-                                if x < 0 || x >= w as i32 {
+                                if x < 0 || x >= e.w as i32 {
                                     continue;
                                 }
-                                let (a, b) = (dx as f32 - c, dy as f32 - c);
-                                let e = (a * sp[1] - b * sp[2]) / sp[3];
-                                if a * a + b * b + e * e > sp[0] * sp[0] {
-                                    continue;
+                                let mut value = flat;
+                                if style.shape != Shape::Square {
+                                    let (ox, oy) = (dx as f32 - c, dy as f32 - c);
+                                    let d2 = ox * ox + oy * oy;
+                                    if d2 > r2 {
+                                        continue;
+                                    }
+                                    if style.shape == Shape::Paraboloid {
+                                        let wp = clip[3] - bulge * (1.0 - d2 / r2);
+                                        value = ((depth_key(wp, e.far) as u64) << 32) | colour;
+                                    }
                                 }
-                                plot(
-                                    x,
-                                    y,
-                                    ((depth_key(clip[3] - k * e, far) as u64) << 32) | colour,
-                                    normal,
-                                );
+                                plot(e, x, y, value, 0);
                             }
-                        }
-                        continue;
-                    }
-                    let s = match fixed {
-                        Some(px) => px,
-                        None => {
-                            adaptive_pixels(p, clip[3], spacing, node, cube, tree, max_size, focal)
-                        }
-                    } as i32;
-                    let x0 = fx.floor() as i32 - (s - 1) / 2;
-                    let y0 = fy.floor() as i32 - (s - 1) / 2;
-                    let c = (s - 1) as f32 * 0.5;
-                    let r2 = ((s * s) as f32 * 0.25).max(0.5);
-                    let bulge = 0.5 * s as f32 * clip[3] / focal;
-                    let flat = ((depth_key(clip[3], far) as u64) << 32) | colour;
-                    for dy in 0..s {
-                        let y = y0 + dy;
-                        if y < 0 || y >= h as i32 {
-                            continue;
-                        }
-                        for dx in 0..s {
-                            let x = x0 + dx;
-                            if x < 0 || x >= w as i32 {
-                                continue;
-                            }
-                            let mut value = flat;
-                            if style.shape != Shape::Square {
-                                let (ox, oy) = (dx as f32 - c, dy as f32 - c);
-                                let d2 = ox * ox + oy * oy;
-                                if d2 > r2 {
-                                    continue;
-                                }
-                                if style.shape == Shape::Paraboloid {
-                                    let wp = clip[3] - bulge * (1.0 - d2 / r2);
-                                    value = ((depth_key(wp, far) as u64) << 32) | colour;
-                                }
-                            }
-                            plot(x, y, value, 0);
                         }
                     }
                 }

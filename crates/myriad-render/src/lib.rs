@@ -19,6 +19,7 @@ mod queries;
 mod raster;
 pub mod scene;
 pub mod selector;
+pub mod stereo;
 pub mod surface;
 
 pub use myriad_core::colour::{ColorBy, class_colour, colours};

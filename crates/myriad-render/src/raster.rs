@@ -847,7 +847,7 @@ impl Rasterizer {
 
 /// The camera and style of a frame supersampled `f` times: `f` times the pixels on each side,
 /// fixed point sizes and the largest adaptive size `f` times as many pixels.
-fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
+pub(crate) fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
     let mut c = camera.clone();
     c.width = camera.width.max(1) * f;
     c.height = camera.height.max(1) * f;
@@ -888,7 +888,7 @@ impl Rasterizer {
 
     /// The supersampling factor a frame gets: what the passes ask for, less where the GPU's
     /// framebuffer would not fit one storage binding or texture.
-    fn factor(&self, gpu: &Gpu, camera: &Camera, passes: &Passes) -> u32 {
+    pub(crate) fn factor(&self, gpu: &Gpu, camera: &Camera, passes: &Passes) -> u32 {
         let mut f = passes.factor();
         if let Some((d, _)) = gpu.wgpu() {
             let limits = d.limits();

@@ -53,7 +53,7 @@ pub struct Scene {
     pub last: Selection,
     /// The nodes drawn in the last frame (`mwkd` draws them again in place of front nodes not
     /// yet on the GPU).
-    drawn: HashSet<NodeKey>,
+    pub(crate) drawn: HashSet<NodeKey>,
     colour: ColorBy,
     /// How hidden nodes are culled during selection.
     pub occlusion: Occlusion,
@@ -354,8 +354,13 @@ impl Scene {
         options: &SelectOptions,
         clip: Option<crate::Clip>,
     ) -> Selection {
+        self.converge_with(&|scene: &Scene| scene.select(camera, options, clip))
+    }
+
+    /// [`Scene::converge`] for any selection (`select`: this scene's, e.g. both eyes' at once).
+    pub fn converge_with(&mut self, select: &dyn Fn(&Scene) -> Selection) -> Selection {
         loop {
-            let s = self.select(camera, options, clip);
+            let s = select(self);
             self.take(&s);
             // A page the selection wanted that has not failed is either still coming or has
             // landed since (then the view refines: select again).
@@ -475,7 +480,7 @@ impl Scene {
     /// The draws of `selection` whose buffers are on the GPU (and, `mwkd`, the stand-ins of
     /// those that are not), the keys drawn, and the drawn tree they index, its entries numbered
     /// from `base` (for a frame of several scenes).
-    fn draws(
+    pub(crate) fn draws(
         &self,
         selection: &Selection,
         base: u32,
@@ -563,7 +568,7 @@ impl Scene {
     }
 
     /// What a frame of `selection` did, given what was drawn.
-    fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
+    pub(crate) fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
         let failed = self.loader.failed();
         FrameStats {
             gpu_points: self.buffers.values().map(|p| p.len as u64).sum(),

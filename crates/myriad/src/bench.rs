@@ -33,6 +33,9 @@ pub enum BenchCommand {
     /// reduce, reconstruct and the frame for the full method, without move and for an octree
     /// level as the baseline; distance from the points to the surface; holes
     Surface(crate::bench_surface::SurfaceBenchArgs),
+    /// Stereo frames (seed 002): mono, both eyes in two passes and in one, with and without the
+    /// hidden-area mask, at 2160x2160 per eye
+    Stereo(crate::bench_stereo::StereoBenchArgs),
     /// Export speed and peak memory (COPC, Potree) next to PotreeConverter 2 converting the
     /// dataset's input in the same run
     Export(crate::bench_export::ExportBenchArgs),
@@ -107,6 +110,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Passes(a) => crate::bench_passes::run(a),
         BenchCommand::Culling(a) => crate::bench_culling::run(a),
         BenchCommand::Surface(a) => crate::bench_surface::run(a),
+        BenchCommand::Stereo(a) => crate::bench_stereo::run(a),
         BenchCommand::Export(a) => crate::bench_export::run(a),
         BenchCommand::Open(a) => crate::bench_open::run(a),
         BenchCommand::Serve(a) => crate::bench_serve::run(a),

@@ -11,6 +11,7 @@ mod bench_positions;
 mod bench_prefetch;
 mod bench_render;
 mod bench_serve;
+mod bench_stereo;
 mod bench_structures;
 mod bench_surface;
 mod bench_web;

@@ -151,6 +151,20 @@ pub struct RenderArgs {
     /// Pixels a level's point spacing must cover to be drawn (003's tables use 1 and 2)
     #[arg(long, value_parser = parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
+    /// Stereo (seed 002): the left and right eyes side by side, each --width x --height, from
+    /// one selection for both eyes (single-pass on the CPU path)
+    #[arg(long, conflicts_with = "surface")]
+    stereo: bool,
+    /// With --stereo: the distance between the eyes, in the dataset's units
+    #[arg(long, default_value_t = 0.064, requires = "stereo")]
+    ipd: f64,
+    /// With --stereo: one frame per eye instead of one pass over the points for both
+    #[arg(long, requires = "stereo")]
+    two_pass: bool,
+    /// With --stereo: black out the pixels a headset's lens cannot show (outside the ellipse
+    /// inscribed in each eye's image)
+    #[arg(long, requires = "stereo")]
+    hidden_area: bool,
     /// Draw the surface the points make instead of the points (seed 001): quads (cell-filling),
     /// boxes or splats, one per cell of a grid in the view frustum, lit by a headlight
     #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
@@ -260,6 +274,40 @@ pub fn run(a: RenderArgs) -> Result<()> {
             a.fov,
         )?,
     };
+    if a.stereo {
+        if !(a.ipd >= 0.0 && a.ipd.is_finite()) {
+            bail!("--ipd must be a distance of 0 or more");
+        }
+        let eyes = cam.eyes(a.ipd);
+        let stereo = myriad_render::stereo::Stereo {
+            ipd: a.ipd,
+            single_pass: !a.two_pass,
+            hidden_area: a.hidden_area,
+        };
+        scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, style.clip));
+        let t = Instant::now();
+        let (img, stats) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo);
+        let frame = t.elapsed();
+        write_png(&a.output, 2 * a.width, a.height, &img)?;
+        println!(
+            "{}: both eyes side by side ({}x{} each, {} apart): {} points in {} nodes, frame {:.1} ms ({}, {:?} path, {})",
+            a.output.display(),
+            a.width,
+            a.height,
+            a.ipd,
+            crate::info::thousands(stats.points),
+            stats.nodes,
+            frame.as_secs_f64() * 1e3,
+            gpu.name,
+            raster.path,
+            if a.two_pass || raster.path != Path::Cpu {
+                "two passes"
+            } else {
+                "single pass"
+            },
+        );
+        return Ok(());
+    }
     // First image: as soon as the first selected node (the root) is in.
     let first = scene.update(&cam, &options);
     if let Some(root) = first.nodes.first() {

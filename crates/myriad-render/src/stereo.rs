@@ -1,0 +1,318 @@
+//! Stereo (seed 002): two eyes' images of one selection, side by side.
+//!
+//! - Single-pass stereo (002 section 4.3) on the CPU path: each point decoded once and projected
+//!   into both eyes' framebuffers (`cpu::gbuffers`); each eye has its own framebuffer, so a
+//!   point at an eye's border is clipped there and never drawn into the other eye's image. Two
+//!   passes (one frame per eye) are the baseline, and what the GPU paths draw.
+//! - The hidden-area mask (002 section 4.1): the pixels outside the ellipse inscribed in an
+//!   eye's image (a lens shows a disc; a headset's runtime gives its own mesh), which the CPU's
+//!   point pass skips; every path leaves them black.
+
+use crate::{Draw, Gpu, Path, Rasterizer, Style};
+use myriad_lod::Camera;
+
+/// How a stereo frame is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stereo {
+    /// Distance between the eyes, in the data's units.
+    pub ipd: f64,
+    /// Both eyes in one pass over the points (the CPU path; the GPU paths draw two passes).
+    pub single_pass: bool,
+    /// Mask the pixels the lens cannot show.
+    pub hidden_area: bool,
+}
+
+impl Default for Stereo {
+    fn default() -> Stereo {
+        Stereo {
+            ipd: 0.064,
+            single_pass: true,
+            hidden_area: false,
+        }
+    }
+}
+
+/// Per pixel of a `width` x `height` eye image, row by row, whether it is hidden: its centre
+/// outside the ellipse inscribed in the image.
+pub fn hidden_area(width: u32, height: u32) -> Vec<bool> {
+    let (a, b) = (width as f64 / 2.0, height as f64 / 2.0);
+    (0..height)
+        .flat_map(|y| {
+            (0..width).map(move |x| {
+                let dx = (x as f64 + 0.5 - a) / a;
+                let dy = (y as f64 + 0.5 - b) / b;
+                dx * dx + dy * dy > 1.0
+            })
+        })
+        .collect()
+}
+
+impl Rasterizer {
+    /// The two eyes' images of `draws` side by side: RGBA8, `2 * width` x `height`, the left
+    /// eye on the left.
+    pub fn render_stereo(
+        &self,
+        gpu: &Gpu,
+        eyes: &[Camera; 2],
+        draws: &[Draw],
+        tree: &[[u32; 4]],
+        style: &Style,
+        stereo: &Stereo,
+    ) -> Vec<u8> {
+        let (w, h) = (eyes[0].width.max(1), eyes[0].height.max(1));
+        let images: Vec<Vec<u8>> = if self.path == Path::Cpu {
+            let passes = style.passes;
+            let f = self.factor(gpu, &eyes[0], &passes);
+            let eyes = eyes.map(|e| crate::raster::supersampled(&e, style, f));
+            let style = &eyes[0].1;
+            let (sw, sh) = (eyes[0].0.width, eyes[0].0.height);
+            let mask = stereo.hidden_area.then(|| hidden_area(sw, sh));
+            let list: Vec<(Camera, Option<&[bool]>)> =
+                eyes.iter().map(|e| (e.0, mask.as_deref())).collect();
+            let gs = if stereo.single_pass {
+                crate::cpu::gbuffers(&list, draws, tree, style, passes.normals(), self.precision)
+            } else {
+                list.iter()
+                    .flat_map(|e| {
+                        crate::cpu::gbuffers(
+                            std::slice::from_ref(e),
+                            draws,
+                            tree,
+                            style,
+                            passes.normals(),
+                            self.precision,
+                        )
+                    })
+                    .collect()
+            };
+            gs.into_iter()
+                .zip(&eyes)
+                .map(|(g, (camera, _))| {
+                    let view = crate::post::View::new(camera, &passes, style.background, f);
+                    crate::post::run(g, &passes, &view)
+                })
+                .collect()
+        } else {
+            eyes.iter()
+                .map(|e| self.render(gpu, e, draws, tree, style))
+                .collect()
+        };
+        let mask = stereo.hidden_area.then(|| hidden_area(w, h));
+        let mut out = vec![0u8; (2 * w * h * 4) as usize];
+        for (k, img) in images.iter().enumerate() {
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let i = y * w as usize + x;
+                    let o = (y * 2 * w as usize + k * w as usize + x) * 4;
+                    if mask.as_ref().is_some_and(|m| m[i]) {
+                        out[o + 3] = 255;
+                    } else {
+                        out[o..o + 4].copy_from_slice(&img[i * 4..i * 4 + 4]);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+impl crate::Scene {
+    /// One selection for both eyes (the union of their frusta, each node's detail as the
+    /// nearer eye sees it: [`myriad_lod::select::select_eyes`]); occlusion culling is not
+    /// applied to stereo selections.
+    pub fn select_eyes(
+        &self,
+        eyes: &[Camera],
+        options: &myriad_lod::SelectOptions,
+        clip: Option<crate::Clip>,
+    ) -> myriad_lod::Selection {
+        myriad_lod::select::select_eyes(
+            &self.hierarchy,
+            eyes,
+            options,
+            &|cube| crate::Clip::keeps(clip, cube),
+            None,
+        )
+    }
+
+    /// A stereo frame: both eyes' selection, loads (never waiting), uploads, and the two
+    /// images side by side ([`Rasterizer::render_stereo`]).
+    pub fn frame_stereo(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        eyes: &[Camera; 2],
+        options: &myriad_lod::SelectOptions,
+        style: &Style,
+        stereo: &Stereo,
+    ) -> (Vec<u8>, crate::FrameStats) {
+        let t = std::time::Instant::now();
+        let selection = self.select_eyes(eyes, options, style.clip);
+        self.take(&selection);
+        let select = t.elapsed();
+        let t = std::time::Instant::now();
+        let (uploads, upload_bytes) = self.upload(gpu, &selection);
+        let upload = t.elapsed();
+        let t = std::time::Instant::now();
+        let (draws, tree, keys) = self.draws(&selection, 0);
+        let image = raster.render_stereo(gpu, eyes, &draws, &tree, style, stereo);
+        let mut stats = crate::FrameStats {
+            uploads,
+            upload_bytes,
+            select,
+            select_current: true,
+            select_budget: options.budget,
+            upload,
+            ..self.stats(&selection, &draws)
+        };
+        drop(draws);
+        stats.draw = t.elapsed();
+        self.drawn = keys;
+        self.last = selection;
+        (image, stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Passes, PointSize, Points};
+
+    fn camera(size: u32) -> Camera {
+        Camera {
+            position: [0.0, 0.0, 0.0],
+            target: [0.0, 1.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            fov_y: 60.0,
+            width: size,
+            height: size,
+            near: 0.1,
+            far: 100.0,
+        }
+    }
+
+    fn style(px: f32) -> Style {
+        Style {
+            size: PointSize::Fixed(px),
+            passes: Passes::default(),
+            ..Style::default()
+        }
+    }
+
+    /// The lit columns of each half of a side-by-side image.
+    fn lit_columns(img: &[u8], w: usize, h: usize) -> [Vec<usize>; 2] {
+        let mut out = [Vec::new(), Vec::new()];
+        for y in 0..h {
+            for x in 0..2 * w {
+                let p = &img[(y * 2 * w + x) * 4..][..3];
+                if p != [0, 0, 0] {
+                    out[x / w].push(x % w);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_hidden_area_is_outside_the_inscribed_ellipse() {
+        let (w, h) = (400u32, 300u32);
+        let hidden = hidden_area(w, h).iter().filter(|&&m| m).count() as f64;
+        let expected = (1.0 - std::f64::consts::PI / 4.0) * (w * h) as f64;
+        assert!(
+            (hidden - expected).abs() < 0.01 * expected,
+            "{hidden} {expected}"
+        );
+        // The centre shows, the corners do not.
+        let m = hidden_area(w, h);
+        assert!(!m[(150 * w + 200) as usize] && m[0] && m[(w * h - 1) as usize]);
+    }
+
+    #[test]
+    fn a_point_straight_ahead_shows_the_disparity_of_the_eyes_distance() {
+        let gpu = Gpu::cpu();
+        let raster = Rasterizer::new(&gpu);
+        let cam = camera(201);
+        let (ipd, depth) = (0.5, 10.0);
+        let points = Points::upload(&gpu, [0.0; 3], &[[0.0, depth, 0.0]], &[[255; 4]]);
+        let eyes = cam.eyes(ipd);
+        for single_pass in [true, false] {
+            let s = Stereo {
+                ipd,
+                single_pass,
+                hidden_area: false,
+            };
+            let img = raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(1.0), &s);
+            let [l, r] = lit_columns(&img, 201, 201);
+            assert_eq!((l.len(), r.len()), (1, 1), "{l:?} {r:?}");
+            // The left eye sees the point right of its centre, the right eye left of it, by
+            // half the disparity ipd * focal / depth each.
+            let disparity = ipd * cam.focal() / depth;
+            assert!(
+                (l[0] as f64 - r[0] as f64 - disparity).abs() <= 1.0,
+                "{l:?} {r:?} {disparity}"
+            );
+            assert!(l[0] > 100 && r[0] < 100);
+        }
+    }
+
+    #[test]
+    fn single_pass_draws_the_two_passes_images_and_nothing_crosses_a_border() {
+        let gpu = Gpu::cpu();
+        let mut raster = Rasterizer::new(&gpu);
+        // All position words read by both: the passes differ only in how they are scheduled.
+        raster.precision = 0.0;
+        let cam = camera(96);
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let positions: Vec<[f64; 3]> = (0..20_000)
+            .map(|_| [next() * 16.0 - 8.0, 4.0 + next() * 10.0, next() * 8.0 - 4.0])
+            .collect();
+        let colours: Vec<[u8; 4]> = (0..positions.len())
+            .map(|i| [(i % 251) as u8, 100, 200, 255])
+            .collect();
+        let points = Points::upload(&gpu, [0.0; 3], &positions, &colours);
+        let eyes = cam.eyes(1.0);
+        let draw = |single_pass, hidden_area| {
+            let s = Stereo {
+                ipd: 1.0,
+                single_pass,
+                hidden_area,
+            };
+            raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(3.0), &s)
+        };
+        for hidden in [false, true] {
+            assert_eq!(draw(true, hidden), draw(false, hidden));
+        }
+        // Masked pixels are black; the rest of each eye has the points.
+        let img = draw(true, true);
+        let mask = hidden_area(96, 96);
+        for y in 0..96 {
+            for x in 0..192 {
+                let p = &img[(y * 192 + x) * 4..][..3];
+                if mask[y * 96 + x % 96] {
+                    assert_eq!(p, [0, 0, 0]);
+                }
+            }
+        }
+        // A point the right eye sees near its right border and the left eye not at all (2 apart,
+        // the left eye's view ends at x = 4.77 at depth 10, the right's at 6.77): nothing of
+        // it in the left image.
+        let eyes = cam.eyes(2.0);
+        let lone = Points::upload(&gpu, [0.0; 3], &[[5.5, 10.0, 0.0]], &[[255; 4]]);
+        for single_pass in [true, false] {
+            let s = Stereo {
+                ipd: 2.0,
+                single_pass,
+                hidden_area: false,
+            };
+            let img = raster.render_stereo(&gpu, &eyes, &[lone.all(1.0)], &[], &style(5.0), &s);
+            let [l, r] = lit_columns(&img, 96, 96);
+            assert!(l.is_empty() && r.len() == 25, "{l:?} {r:?}");
+        }
+    }
+}

@@ -1,0 +1,109 @@
+//! `myriad bench stereo DATASET...`: seed 002's table 1 for stereo frames. For each dataset, the
+//! overview at `--size` x `--size` per eye (2160: one eye of a current headset), the budget
+//! `--budget`: the median frame (selection, loads, uploads, drawing, post passes) of the mono
+//! view, of both eyes in two passes and in a single pass, each with and without the hidden-area
+//! mask. The GPU paths draw two passes (single-pass stereo is the CPU path's).
+
+use crate::bench::median;
+use anyhow::Result;
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_lod::SelectOptions;
+use myriad_render::stereo::Stereo;
+use myriad_render::{Path, Rasterizer, Scene, Style};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct StereoBenchArgs {
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// Pixels on each side of each eye's image
+    #[arg(long, default_value_t = 2160)]
+    size: u32,
+    /// Point budget of both eyes together
+    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    budget: u64,
+    /// Distance between the eyes, in the datasets' units
+    #[arg(long, default_value_t = 0.064)]
+    ipd: f64,
+    /// Timed frames per configuration (medians)
+    #[arg(long, default_value_t = 5)]
+    frames: usize,
+    #[command(flatten)]
+    device: crate::bench_render::Device,
+}
+
+pub fn run(a: StereoBenchArgs) -> Result<()> {
+    let gpu = a.device.gpu()?;
+    let raster = Rasterizer::new(&gpu);
+    println!(
+        "{}, {:?} path; {}x{} per eye, budget {}, eyes {} apart; medians of {} frames",
+        gpu.name, raster.path, a.size, a.size, a.budget, a.ipd, a.frames
+    );
+    let style = Style::default();
+    let options = SelectOptions {
+        budget: a.budget,
+        min_pixels: 1.0,
+    };
+    for path in &a.datasets {
+        let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(path)?)?);
+        let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
+        let cam = crate::render::view_camera(
+            Some("overview"),
+            &scene.view_bounds,
+            &ds.meta.bounds,
+            a.size,
+            a.size,
+        )?;
+        let eyes = cam.eyes(a.ipd);
+        let name = path.display();
+        println!("\n{name}\n| frame | points | ms |\n|---|---|---|");
+        scene.converge(&cam, &options, None);
+        let mut ms = Vec::new();
+        let mut points = 0;
+        for _ in 0..a.frames.max(1) {
+            let t = Instant::now();
+            points = scene.frame(&gpu, &raster, &cam, &options, &style).1.points;
+            ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        println!(
+            "| mono | {} | {:.1} |",
+            crate::info::thousands(points),
+            median(ms)
+        );
+        scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, None));
+        for (label, single_pass, hidden_area) in [
+            ("two passes", false, false),
+            ("two passes, hidden-area mask", false, true),
+            ("single pass", true, false),
+            ("single pass, hidden-area mask", true, true),
+        ] {
+            if single_pass && raster.path != Path::Cpu {
+                println!("| {label} | - | (the CPU path's) |");
+                continue;
+            }
+            let stereo = Stereo {
+                ipd: a.ipd,
+                single_pass,
+                hidden_area,
+            };
+            let mut ms = Vec::new();
+            for _ in 0..a.frames.max(1) {
+                let t = Instant::now();
+                points = scene
+                    .frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo)
+                    .1
+                    .points;
+                ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            println!(
+                "| {label} | {} | {:.1} |",
+                crate::info::thousands(points),
+                median(ms)
+            );
+        }
+    }
+    Ok(())
+}

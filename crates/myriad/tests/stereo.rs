@@ -1,0 +1,91 @@
+//! `render --stereo` through the CLI: both eyes side by side from one selection.
+
+mod common;
+use common::*;
+
+fn decode(path: &std::path::Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut img = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut img).unwrap();
+    (info.width, info.height, img)
+}
+
+#[test]
+fn render_stereo_draws_both_eyes_side_by_side() {
+    let d = tempdir("stereo");
+    let las = synth(&d, "s.las", 150_000);
+    let ds = d.join("s.myr");
+    ok(&["convert", s(&las), "-o", s(&ds)]);
+    let png_path = d.join("st.png");
+    let text = ok(&[
+        "render",
+        s(&ds),
+        "-o",
+        s(&png_path),
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--stereo",
+        "--ipd",
+        "4",
+        "--hidden-area",
+    ]);
+    assert!(text.contains("both eyes side by side"), "{text}");
+    let (w, h, img) = decode(&png_path);
+    assert_eq!((w, h), (320, 120));
+    let lit = |x0: usize, x1: usize| {
+        (0..120usize)
+            .flat_map(|y| (x0..x1).map(move |x| (y, x)))
+            .filter(|&(y, x)| img[(y * 320 + x) * 4..][..3] != [0, 0, 0])
+            .count()
+    };
+    // Both eyes show the scan; the masked corners are black.
+    assert!(lit(0, 160) > 160 * 120 / 10 && lit(160, 320) > 160 * 120 / 10);
+    for (y, x) in [(0, 0), (0, 159), (119, 160), (119, 319)] {
+        assert_eq!(&img[(y * 320 + x) * 4..][..3], &[0, 0, 0]);
+    }
+    // The eyes differ (parallax), and two passes draw what one does.
+    let left: Vec<u8> = (0..120)
+        .flat_map(|y| img[y * 1280..y * 1280 + 640].to_vec())
+        .collect();
+    let right: Vec<u8> = (0..120)
+        .flat_map(|y| img[y * 1280 + 640..y * 1280 + 1280].to_vec())
+        .collect();
+    assert_ne!(left, right);
+    let two = d.join("two.png");
+    ok(&[
+        "render",
+        s(&ds),
+        "-o",
+        s(&two),
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--stereo",
+        "--ipd",
+        "4",
+        "--hidden-area",
+        "--two-pass",
+    ]);
+    let (_, _, img2) = decode(&two);
+    let differ = img
+        .chunks(4)
+        .zip(img2.chunks(4))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(differ * 100 <= 320 * 120, "{differ} pixels differ");
+    // A negative distance between the eyes is refused.
+    let r = myriad(&[
+        "render",
+        s(&ds),
+        "-o",
+        s(&d.join("x.png")),
+        "--stereo",
+        "--ipd=-1",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("--ipd"), "{}", r.stderr);
+}
