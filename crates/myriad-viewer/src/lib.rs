@@ -23,7 +23,7 @@ use myriad_lod::{Camera, SelectOptions};
 use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
 use present::{Presented, passes_panel};
-use report::{describe, report_orbit, write_png};
+use report::{HELP, describe, report_orbit, write_png};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -58,6 +58,8 @@ pub struct ViewOptions {
     pub lod_threshold: f64,
     /// Show the surface the points make (seed 001) instead of the points.
     pub surface: Option<myriad_render::surface::Surface>,
+    /// Both eyes side by side, this far apart (seed 002), from the first visible dataset.
+    pub stereo: Option<f64>,
 }
 
 struct Layer {
@@ -117,6 +119,7 @@ struct App {
     clip_on: bool,
     clip_inside: bool,
     surfaces: surface::Surfaces,
+    stereo: surface::StereoView,
 }
 
 /// Opens the window and runs until it is closed.
@@ -191,6 +194,10 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         clip_on: false,
         clip_inside: true,
         surfaces: surface::Surfaces::new(o.surface),
+        stereo: surface::StereoView {
+            on: o.stereo.is_some(),
+            ipd: o.stereo.unwrap_or(0.064),
+        },
     };
     // The window's device is asked for what the compute path needs, so that frames drawn on it
     // go to the screen without a readback.
@@ -242,26 +249,6 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     )
     .map_err(|e| format!("window: {e}"))
 }
-
-const HELP: &[(&str, &str)] = &[
-    ("left drag", "orbit around the point under the cursor"),
-    ("right or middle drag", "pan"),
-    ("wheel", "zoom towards the cursor (fly mode: speed)"),
-    ("double click", "pick a point: coordinates and attributes"),
-    (
-        "M / N / A",
-        "measure distance / height / area: click points, right click ends",
-    ),
-    ("Esc", "stop measuring"),
-    (
-        "G",
-        "fly mode on/off: W A S D to move, Q E down/up, drag to look",
-    ),
-    ("F", "frame all"),
-    ("1 / 2 / 3", "top / front / side view"),
-    ("P", "screenshot (myriad-screenshot-N.png)"),
-    ("H", "this help"),
-];
 
 impl App {
     fn settings(&mut self, ui: &mut egui::Ui) {
@@ -354,6 +341,7 @@ impl App {
         passes_panel(ui, &mut self.style.passes);
         ui.separator();
         surface::surface_panel(ui, &mut self.surfaces);
+        surface::stereo_panel(ui, &mut self.stereo);
         ui.separator();
         ui.label("datasets");
         for l in &mut self.layers {
@@ -725,6 +713,9 @@ impl App {
             self.nav.frame(&self.bounds);
         }
         let cam = self.nav.camera;
+        if self.stereo.on {
+            return self.draw_stereo(&cam);
+        }
         let mut scenes: Vec<&mut Scene> = self
             .layers
             .iter_mut()
@@ -776,7 +767,7 @@ impl eframe::App for App {
                 }
                 let t = Instant::now();
                 // A surface's image is read back and uploaded: the window's texture is let go.
-                let shown = if self.surfaces.on {
+                let shown = if self.surfaces.on || self.stereo.on {
                     self.stop_presenting();
                     None
                 } else {

@@ -96,3 +96,24 @@ pub(crate) fn describe(p: &myriad_render::Picked) -> String {
     }
     s
 }
+
+/// The shortcuts the help window lists.
+pub(crate) const HELP: &[(&str, &str)] = &[
+    ("left drag", "orbit around the point under the cursor"),
+    ("right or middle drag", "pan"),
+    ("wheel", "zoom towards the cursor (fly mode: speed)"),
+    ("double click", "pick a point: coordinates and attributes"),
+    (
+        "M / N / A",
+        "measure distance / height / area: click points, right click ends",
+    ),
+    ("Esc", "stop measuring"),
+    (
+        "G",
+        "fly mode on/off: W A S D to move, Q E down/up, drag to look",
+    ),
+    ("F", "frame all"),
+    ("1 / 2 / 3", "top / front / side view"),
+    ("P", "screenshot (myriad-screenshot-N.png)"),
+    ("H", "this help"),
+];

@@ -1,4 +1,4 @@
-//! Surfaces in the viewer (seed 001): made on their own thread from the points the frames draw,
+//! Surfaces and stereo in the viewer. Surfaces (seed 001): made on their own thread from the points the frames draw,
 //! again whenever the view, the drawn points or the parameters change; the last surface is shown
 //! (from the current view, drawn on the frame's device and read back) until the new one is in,
 //! so a frame never waits for one.
@@ -133,5 +133,58 @@ pub(crate) fn surface_panel(ui: &mut egui::Ui, s: &mut Surfaces) {
             m.built.clustering.inside,
             m.ms
         ));
+    }
+}
+
+/// Both eyes side by side in the window (seed 002), for a check without a headset.
+pub(crate) struct StereoView {
+    pub on: bool,
+    /// Distance between the eyes, in the data's units.
+    pub ipd: f64,
+}
+
+impl App {
+    /// Both eyes of the first visible dataset side by side, each half the view's width (one
+    /// selection for both: `Scene::frame_stereo`, single-pass on the CPU path).
+    pub(crate) fn draw_stereo(&mut self, cam: &Camera) -> Vec<u8> {
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let mut eye = *cam;
+        eye.width = (cam.width / 2).max(1);
+        let eyes = eye.eyes(self.stereo.ipd);
+        let stereo = myriad_render::stereo::Stereo {
+            ipd: self.stereo.ipd,
+            ..Default::default()
+        };
+        let Some(layer) = self.layers.iter_mut().find(|l| l.visible) else {
+            return vec![0; w * h * 4];
+        };
+        let (image, stats) = layer.scene.frame_stereo(
+            &self.gpu,
+            &self.raster,
+            &eyes,
+            &self.options,
+            &self.style,
+            &stereo,
+        );
+        self.stats = vec![stats];
+        // An odd width leaves a column: black.
+        let half = 2 * eye.width as usize;
+        let mut out = vec![0u8; w * h * 4];
+        for y in 0..h {
+            out[y * w * 4..][..half * 4].copy_from_slice(&image[y * half * 4..][..half * 4]);
+        }
+        out
+    }
+}
+
+/// The stereo switch and the eyes' distance.
+pub(crate) fn stereo_panel(ui: &mut egui::Ui, s: &mut StereoView) {
+    ui.checkbox(&mut s.on, "stereo (both eyes side by side)");
+    if s.on {
+        ui.add(
+            egui::Slider::new(&mut s.ipd, 0.001..=100.0)
+                .logarithmic(true)
+                .text("eye distance"),
+        );
     }
 }

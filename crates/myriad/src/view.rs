@@ -78,6 +78,12 @@ pub struct ViewArgs {
     surface: Option<myriad_render::surface::Kind>,
     #[command(flatten)]
     surface_options: crate::mesh::SurfaceArgs,
+    /// Both eyes side by side (seed 002), from the first dataset, for a check without a headset
+    #[arg(long)]
+    stereo: bool,
+    /// With --stereo: the distance between the eyes, in the dataset's units
+    #[arg(long, default_value_t = 0.064, requires = "stereo")]
+    ipd: f64,
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
@@ -133,6 +139,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             .surface
             .map(|k| a.surface_options.surface(k))
             .transpose()?,
+        stereo: a.stereo.then_some(a.ipd),
     };
     myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
 }

@@ -135,6 +135,8 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
     if run(&[]) && run(&["--gpu"]) {
         run(&["--gpu", "--occlusion", "queries"]);
         run(&["--gpu", "--surface", "quads", "--grid", "100x80x30"]);
+        // Both eyes side by side (seed 002).
+        run(&["--stereo", "--ipd", "5"]);
     }
     let _ = std::fs::remove_dir_all(&d);
 }
