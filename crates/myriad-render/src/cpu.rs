@@ -257,9 +257,11 @@ fn points_pass(
         }
         // Keeps the nearest at a pixel (in the frame: the callers check). Most points are hidden
         // behind nearer ones: a plain load first spares their read-modify-write.
-        let plot = |e: &Eye, x: i32, y: i32, value: u64, normal: u32| {
+        // `edge`: the point lies across the border of its eye's hidden area (only there are
+        // its pixels looked up in the mask).
+        let plot = |e: &Eye, edge: bool, x: i32, y: i32, value: u64, normal: u32| {
             let i = y as usize * e.w as usize + x as usize;
-            if e.t.mask.is_some_and(|m| m[i]) {
+            if edge && e.t.mask.is_some_and(|m| m[i]) {
                 return;
             }
             let px = &e.t.fb[i];
@@ -311,6 +313,18 @@ fn points_pass(
                         }
                         let fx = (ndc[0] * 0.5 + 0.5) * e.w as f32;
                         let fy = (0.5 - ndc[1] * 0.5) * e.h as f32;
+                        // The hidden area is outside the ellipse inscribed in the image: a point
+                        // well outside it is not drawn, one well inside needs no mask.
+                        let edge = e.t.mask.is_some() && {
+                            let (a, b) = (e.w as f32 * 0.5, e.h as f32 * 0.5);
+                            let (u, v) = ((fx - a) / a, (fy - b) / b);
+                            let d = (u * u + v * v).sqrt();
+                            let margin = max_size / a.min(b);
+                            if d > 1.0 + margin {
+                                continue;
+                            }
+                            d > 1.0 - margin
+                        };
                         let colour = colour as u64;
                         if let Some((codes, range)) = splats {
                             let code = codes[ci * 4096 + qi];
@@ -338,6 +352,7 @@ fn points_pass(
                                     }
                                     plot(
                                         e,
+                                        edge,
                                         x,
                                         y,
                                         ((depth_key(clip[3] - k * ez, e.far) as u64) << 32)
@@ -382,7 +397,7 @@ fn points_pass(
                                         value = ((depth_key(wp, e.far) as u64) << 32) | colour;
                                     }
                                 }
-                                plot(e, x, y, value, 0);
+                                plot(e, edge, x, y, value, 0);
                             }
                         }
                     }

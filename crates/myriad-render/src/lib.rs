@@ -13,6 +13,7 @@
 //! frames of the whole pipeline (selection, loading, upload, drawing).
 
 mod cpu;
+mod pipelines;
 mod points;
 mod post;
 mod queries;

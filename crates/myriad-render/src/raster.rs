@@ -1,6 +1,7 @@
 //! Drawing a frame: the compute path (64-bit atomics) or the quad path into a g-buffer, then the
 //! post passes (`post`) and the readback.
 
+pub(crate) use crate::pipelines::{target, targets_pipeline};
 use crate::post::gpu::{Buffers, Chain};
 use crate::post::{Passes, View};
 use crate::{Draw, Gpu, PointSize, QUADS_WGSL, RASTER_WGSL, Shape, Style};
@@ -166,32 +167,6 @@ pub(crate) fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
         })
 }
 
-/// A 2D texture of one image size and its view.
-pub(crate) fn target(
-    gpu: &Gpu,
-    label: &str,
-    (width, height): (u32, u32),
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::TextureView {
-    gpu.device()
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-        .create_view(&Default::default())
-}
-
 pub(crate) fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
     compute_in(gpu, &module(gpu, entry, src), entry)
 }
@@ -214,42 +189,8 @@ pub(crate) fn compute_in(
 }
 
 fn quads_pipeline(gpu: &Gpu) -> wgpu::RenderPipeline {
-    let module = module(gpu, "quads", QUADS_WGSL);
-    let target = Some(wgpu::ColorTargetState {
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        blend: None,
-        write_mask: wgpu::ColorWrites::ALL,
-    });
-    gpu.device()
-        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("quads"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vertex"),
-                compilation_options: Default::default(),
-                // The points are read from storage by instance index (`decode`).
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fragment"),
-                compilation_options: Default::default(),
-                // Colour and the splats' normals.
-                targets: &[target.clone(), target],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
+    // The points are read from storage by instance index (`decode`): no vertex buffer.
+    targets_pipeline(gpu, "quads", &module(gpu, "quads", QUADS_WGSL), &[])
 }
 
 impl Rasterizer {

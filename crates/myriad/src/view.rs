@@ -63,9 +63,9 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 0)]
     orbit_frames: u32,
     /// Hold this frame rate by adjusting the point budget each frame (--budget is then the
-    /// most it may grow to); 0: a fixed budget
-    #[arg(long, default_value_t = 30.0)]
-    target_fps: f64,
+    /// most it may grow to); 0: a fixed budget [default: 30; 90 with --stereo, a headset's rate]
+    #[arg(long)]
+    target_fps: Option<f64>,
     /// Cull nodes hidden behind nearer ones: software, queries (occlusion queries after each
     /// frame, acting from the next) or off
     #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
@@ -93,7 +93,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
     if a.width < 64 || a.height < 64 || a.width > 16384 || a.height > 16384 {
         bail!("--width and --height must be 64 to 16384");
     }
-    if !(a.target_fps == 0.0 || (1.0..=240.0).contains(&a.target_fps)) {
+    let target_fps = a.target_fps.unwrap_or(if a.stereo { 90.0 } else { 30.0 });
+    if !(target_fps == 0.0 || (1.0..=240.0).contains(&target_fps)) {
         bail!("--target-fps must be 0 (off) or from 1 to 240");
     }
     let mut datasets = Vec::new();
@@ -132,7 +133,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         orbit_frames: a.orbit_frames,
         gpu: a.gpu,
         readback: a.readback,
-        target_fps: (a.target_fps > 0.0).then_some(a.target_fps),
+        target_fps: (target_fps > 0.0).then_some(target_fps),
         occlusion: a.occlusion,
         lod_threshold: a.lod_threshold,
         surface: a

@@ -36,46 +36,19 @@ pub struct Drawer {
 
 impl Drawer {
     pub fn new(gpu: &Gpu) -> Drawer {
-        let d = gpu.device();
         let module = crate::raster::module(gpu, "surface draw", DRAW_WGSL);
-        let target = Some(wgpu::ColorTargetState {
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        });
-        let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("surface"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vertex"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<Vertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![
-                        0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4
-                    ],
-                })],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fragment"),
-                compilation_options: Default::default(),
-                targets: &[target.clone(), target],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = crate::raster::targets_pipeline(
+            gpu,
+            "surface",
+            &module,
+            &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![
+                    0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4
+                ],
+            })],
+        );
         Drawer {
             pipeline,
             chain: Chain::new(gpu, FB_QUADS_WGSL),
