@@ -47,6 +47,10 @@ struct DrawUniforms {
     offset: [f32; 4],
     unit: [f32; 4],
     layout: [u32; 4],
+    /// Single-pass stereo (compute path): the right eye's view-projection and, in `stereo[0]`,
+    /// each eye's width in the side-by-side frame (0: one eye).
+    view_proj_right: [[f32; 4]; 4],
+    stereo: [u32; 4],
 }
 
 /// A draw's range in the compute path's frame buffer (as `Range` in raster.wgsl).
@@ -316,8 +320,23 @@ impl Rasterizer {
         tree: &[[u32; 4]],
         style: &Style,
     ) -> Vec<u8> {
+        self.render_eyes(gpu, camera, None, draws, tree, style)
+    }
+
+    /// [`Rasterizer::render`]; with `eyes` (the compute path), both eyes in one dispatch into
+    /// a side-by-side frame: `camera` is then the left eye's, twice as wide.
+    pub(crate) fn render_eyes(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        eyes: Option<&[Camera; 2]>,
+        draws: &[Draw],
+        tree: &[[u32; 4]],
+        style: &Style,
+    ) -> Vec<u8> {
         let passes = style.passes;
         let f = self.factor(gpu, camera, &passes);
+        let eyes = eyes.map(|e| e.map(|c| supersampled(&c, style, f).0));
         let (camera, style) = &supersampled(camera, style, f);
         let view = View::new(camera, &passes, style.background, f);
         let normals = passes.normals();
@@ -385,7 +404,7 @@ impl Rasterizer {
                        radius: [f32; 4],
                        mode: u32,
                        layout: Option<(Layout, u32)>| DrawUniforms {
-            view_proj: camera.view_proj(origin),
+            view_proj: eyes.map_or(camera.view_proj(origin), |e| e[0].view_proj(origin)),
             width: w,
             height: h,
             count,
@@ -413,6 +432,8 @@ impl Rasterizer {
                 .as_ref()
                 .map_or([0.0; 4], |(l, _)| [l.unit[0], l.unit[1], l.unit[2], 0.0]),
             layout: layout.map_or([0; 4], |(l, stride)| [0, stride, l.words, l.read]),
+            view_proj_right: eyes.map_or([[0.0; 4]; 4], |e| e[1].view_proj(origin)),
+            stereo: [eyes.map_or(0, |e| e[0].width), 0, 0, 0],
         };
         // The compute path draws batches of draws, each copied into one buffer (ranges starting
         // on workgroup boundaries) and drawn by one dispatch: on lavapipe every dispatch costs

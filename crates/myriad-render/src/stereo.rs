@@ -1,9 +1,10 @@
 //! Stereo (seed 002): two eyes' images of one selection, side by side.
 //!
-//! - Single-pass stereo (002 section 4.3) on the CPU path: each point decoded once and projected
-//!   into both eyes' framebuffers (`cpu::gbuffers`); each eye has its own framebuffer, so a
-//!   point at an eye's border is clipped there and never drawn into the other eye's image. Two
-//!   passes (one frame per eye) are the baseline, and what the GPU paths draw.
+//! - Single-pass stereo (002 section 4.3): each point decoded once and projected into both eyes'
+//!   images: on the CPU path into each eye's framebuffer (`cpu::gbuffers`), on the compute path
+//!   by one dispatch into a frame twice as wide (raster.wgsl's `draw_point` per eye, each eye's
+//!   pixels clipped to its half), so a point at an eye's border never reaches the other eye's
+//!   image. Two passes (one frame per eye) are the baseline, and what the quad path draws.
 //! - The hidden-area mask (002 section 4.1): the pixels outside the ellipse inscribed in an
 //!   eye's image (a lens shows a disc; a headset's runtime gives its own mesh), which the CPU's
 //!   point pass skips; every path leaves them black.
@@ -16,7 +17,8 @@ use myriad_lod::Camera;
 pub struct Stereo {
     /// Distance between the eyes, in the data's units.
     pub ipd: f64,
-    /// Both eyes in one pass over the points (the CPU path; the GPU paths draw two passes).
+    /// Both eyes in one pass over the points (the CPU and compute paths; the quad path draws two
+    /// passes).
     pub single_pass: bool,
     /// Mask the pixels the lens cannot show.
     pub hidden_area: bool,
@@ -90,6 +92,21 @@ impl Rasterizer {
                 .map(|(g, (camera, _))| {
                     let view = crate::post::View::new(camera, &passes, style.background, f);
                     crate::post::run(g, &passes, &view)
+                })
+                .collect()
+        } else if stereo.single_pass && self.path == Path::Compute {
+            // One dispatch for both eyes into a frame twice as wide, then split.
+            let mut wide = eyes[0];
+            wide.width = 2 * w;
+            let both = self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style);
+            (0..2)
+                .map(|k| {
+                    (0..h as usize)
+                        .flat_map(|y| {
+                            let row = (y * 2 * w as usize + k * w as usize) * 4;
+                            both[row..row + w as usize * 4].to_vec()
+                        })
+                        .collect()
                 })
                 .collect()
         } else {

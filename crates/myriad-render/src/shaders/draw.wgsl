@@ -37,6 +37,10 @@ struct Draw {
     offset: vec4<f32>,
     unit: vec4<f32>,
     place: vec4<u32>,
+    // Single-pass stereo (compute path): the right eye's view-projection and, in x, each eye's
+    // width in the side-by-side frame (0: one eye).
+    view_proj_right: mat4x4<f32>,
+    stereo: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> u: Draw;

@@ -33,18 +33,23 @@ struct Range {
 // Mode 1: the normal (pack4x8snorm, eye coordinates) of the splat whose value each pixel kept.
 @group(0) @binding(7) var<storage, read_write> normal_fb: array<u32>;
 var<private> normal_code: u32;
+// The eye being drawn: its width and its first column in the frame (single-pass stereo: the
+// right eye's image is right of the left's).
+var<private> eye_width: u32;
+var<private> eye_offset: u32;
 
 // Nearer is larger, so that atomicMax keeps the nearest; 0 stays "empty".
 fn depth_key(w: f32) -> u32 {
     return u32(clamp(1.0 - w / u.far, 0.0, 1.0) * 4294967040.0) + 1u;
 }
 
-// Keeps the nearest at pixel (x, y); nothing outside the frame.
+// Keeps the nearest at pixel (x, y) of the eye's image; nothing outside it (a point at an eye's
+// border never reaches the other eye's image).
 fn plot(x: i32, y: i32, value: u64) {
-    if (x < 0 || y < 0 || x >= i32(u.width) || y >= i32(u.height)) {
+    if (x < 0 || y < 0 || x >= i32(eye_width) || y >= i32(u.height)) {
         return;
     }
-    let i = u32(y) * u.width + u32(x);
+    let i = u32(y) * u.width + eye_offset + u32(x);
     if (u.mode == 1u) {
         if (atomicLoad(&framebuffer[i]) == value) {
             normal_fb[i] = normal_code;
@@ -80,7 +85,26 @@ fn rasterize(
     if (clipped(p)) {
         return;
     }
-    let clip = u.view_proj * vec4<f32>(p, 1.0);
+    if (u.stereo.x == 0u) {
+        eye_width = u.width;
+        eye_offset = 0u;
+        draw_point(p, local, r, u.view_proj);
+        return;
+    }
+    eye_width = u.stereo.x;
+    for (var k = 0u; k < 2u; k++) {
+        eye_offset = k * u.stereo.x;
+        var view_proj = u.view_proj;
+        if (k == 1u) {
+            view_proj = u.view_proj_right;
+        }
+        draw_point(p, local, r, view_proj);
+    }
+}
+
+// Point `local` of range `r` at `p` (relative to the origin) into the eye seen by `view_proj`.
+fn draw_point(p: vec3<f32>, local: u32, r: Range, view_proj: mat4x4<f32>) {
+    let clip = view_proj * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0) {
         return;
     }
@@ -88,7 +112,7 @@ fn rasterize(
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < 0.0 || ndc.z > 1.0) {
         return;
     }
-    let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
+    let fx = (ndc.x * 0.5 + 0.5) * f32(eye_width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     let colour = u64(colour_word(local, r.base, r.stride, r.words));
     let splat = r.radius.z > 0.0 && u.point_size == 0.0;
@@ -121,7 +145,7 @@ fn rasterize(
     if (s == 1) {
         let x = u32(fx);
         let y = u32(fy);
-        atomicMax(&framebuffer[y * u.width + x], (u64(depth_key(clip.w)) << 32u) | colour);
+        atomicMax(&framebuffer[y * u.width + eye_offset + x], (u64(depth_key(clip.w)) << 32u) | colour);
         return;
     }
     // A square of s x s pixels centred on the point.

@@ -1,0 +1,81 @@
+//! Single-pass stereo on the compute path (one dispatch for both eyes) against the CPU's.
+
+mod common;
+use common::random;
+use myriad_render::stereo::Stereo;
+use myriad_render::{Gpu, Passes, Path, PointSize, Points, Rasterizer, Style};
+
+#[test]
+fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
+    let gpu = match Gpu::headless() {
+        Ok(g) if g.atomics => g,
+        Ok(_) => {
+            eprintln!("SKIPPED: the adapter has no 64-bit atomics (no compute path)");
+            return;
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
+            return;
+        }
+    };
+    let cam = myriad_lod::Camera {
+        position: [0.0, 0.0, 0.0],
+        target: [0.0, 1.0, 0.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 60.0,
+        width: 120,
+        height: 90,
+        near: 0.1,
+        far: 100.0,
+    };
+    let mut r = random(3);
+    let positions: Vec<[f64; 3]> = (0..30_000)
+        .map(|_| [r() * 16.0 - 8.0, 4.0 + r() * 10.0, r() * 8.0 - 4.0])
+        .collect();
+    let colours: Vec<[u8; 4]> = (0..positions.len())
+        .map(|i| [(i % 251) as u8, (i % 13) as u8 * 19, 200, 255])
+        .collect();
+    let cpu = Gpu::cpu();
+    let on_cpu = Points::upload(&cpu, [0.0; 3], &positions, &colours);
+    let on_gpu = Points::upload(&gpu, [0.0; 3], &positions, &colours);
+    let style = Style {
+        size: PointSize::Fixed(3.0),
+        passes: Passes::default(),
+        ..Style::default()
+    };
+    let eyes = cam.eyes(1.5);
+    let mut cpu_raster = Rasterizer::new(&cpu);
+    let mut gpu_raster = Rasterizer::with_path(&gpu, Path::Compute);
+    cpu_raster.precision = 0.0;
+    gpu_raster.precision = 0.0;
+    for hidden_area in [false, true] {
+        let s = Stereo {
+            ipd: 1.5,
+            single_pass: true,
+            hidden_area,
+        };
+        let a = cpu_raster.render_stereo(&cpu, &eyes, &[on_cpu.all(1.0)], &[], &style, &s);
+        let b = gpu_raster.render_stereo(&gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &s);
+        let two = Stereo {
+            single_pass: false,
+            ..s
+        };
+        let c = gpu_raster.render_stereo(&gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &two);
+        let differ =
+            |x: &[u8], y: &[u8]| x.chunks(4).zip(y.chunks(4)).filter(|(p, q)| p != q).count();
+        let lit = a.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
+        assert!(lit > 240 * 90 / 4, "{lit}");
+        // f32 on the GPU against f32 on the CPU: the same pixels, but for a rare rounding.
+        assert!(
+            differ(&a, &b) * 1000 <= 240 * 90,
+            "{} pixels differ from the CPU's",
+            differ(&a, &b)
+        );
+        // One dispatch draws what two passes do.
+        assert!(
+            differ(&b, &c) * 1000 <= 240 * 90,
+            "{} pixels differ from two passes",
+            differ(&b, &c)
+        );
+    }
+}
