@@ -12,6 +12,7 @@ pub mod nav;
 mod present;
 mod report;
 mod surface;
+pub mod vr;
 
 use eframe::egui;
 use eframe::egui_wgpu;

@@ -84,6 +84,15 @@ pub struct ViewArgs {
     /// With --stereo: the distance between the eyes, in the dataset's units
     #[arg(long, default_value_t = 0.064, requires = "stereo")]
     ipd: f64,
+    /// In a headset through OpenXR (the first dataset, in front of you at the stage's origin)
+    #[arg(long, conflicts_with_all = ["stereo", "screenshot"])]
+    vr: bool,
+    /// With --vr: end the session after this many frames (scripts, tests)
+    #[arg(long, requires = "vr")]
+    vr_frames: Option<u64>,
+    /// With --vr: metres a data unit is shown at
+    #[arg(long, default_value_t = 1.0, requires = "vr")]
+    vr_scale: f64,
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
@@ -105,6 +114,46 @@ pub fn run(a: ViewArgs) -> Result<()> {
             |n| n.to_string_lossy().to_string(),
         );
         datasets.push((name, Arc::new(ds)));
+    }
+    if a.vr {
+        if !(a.vr_scale > 0.0 && a.vr_scale.is_finite()) {
+            bail!("--vr-scale must be above 0");
+        }
+        let o = myriad_viewer::vr::VrOptions {
+            frames: a.vr_frames,
+            budget: a.budget,
+            style: Style {
+                size: a.point_size,
+                shape: a.shape,
+                passes: a.passes,
+                background: [0, 0, 0, 255],
+                clip: None,
+            },
+            scale: a.vr_scale,
+        };
+        let ds = datasets.swap_remove(0).1;
+        let r = myriad_viewer::vr::run(ds, &o).map_err(|e| anyhow::anyhow!("--vr: {e}"))?;
+        let mut iv = r.intervals.clone();
+        iv.sort_by(f64::total_cmp);
+        let median = iv.get(iv.len() / 2).copied().unwrap_or(0.0);
+        let moved = r.heads.windows(2).filter(|p| p[0] != p[1]).count();
+        let mut periods = r.periods.clone();
+        periods.sort_by(f64::total_cmp);
+        let period = periods.get(periods.len() / 2).copied().unwrap_or(0.0);
+        println!(
+            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms), head moved between {moved} of them, {}",
+            if r.focused {
+                "reached FOCUSED"
+            } else {
+                "never focused"
+            },
+            r.frames,
+            r.views,
+            r.size.0,
+            r.size.1,
+            if r.ended { "ended cleanly" } else { "lost" },
+        );
+        return Ok(());
     }
     if let Some(c) = a.camera
         && c[..3] == c[3..]

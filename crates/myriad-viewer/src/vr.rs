@@ -1,0 +1,617 @@
+//! `myriad view --vr`: a dataset in a headset through OpenXR (seed 002). The `openxr` crate over
+//! the system's loader; Vulkan through XR_KHR_vulkan_enable2 (the runtime makes the instance and
+//! the device, `ash` drives them); each frame the runtime's predicted display time, both eyes'
+//! poses and fields of view located, one selection for both eyes, both images drawn (single
+//! pass on the CPU path), copied into the eyes' swapchain images and submitted as a projection
+//! layer. The data stand in front of the user at the stage's origin, `scale` metres a data unit,
+//! Z up.
+//!
+//! Not yet: controllers (fly, grab and scale, the measuring ray of 002), off-axis projections
+//! (each eye is drawn with a symmetric frustum wide enough for its field of view), a GPU image
+//! handed to the runtime without a copy through the CPU.
+
+use ash::vk;
+use ash::vk::Handle;
+use myriad_format::Dataset;
+use myriad_lod::{Camera, SelectOptions};
+use myriad_render::stereo::Stereo;
+use myriad_render::{Gpu, Rasterizer, Scene, Style};
+use openxr as xr;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What a VR session did.
+#[derive(Debug, Default, Clone)]
+pub struct VrReport {
+    /// The session reached FOCUSED.
+    pub focused: bool,
+    /// Frames submitted with both eyes' images, and the views each had.
+    pub frames: u64,
+    pub views: usize,
+    /// Intervals between frame submissions (ms), and the eyes' positions (metres, stage space)
+    /// at each submitted frame.
+    pub intervals: Vec<f64>,
+    pub heads: Vec<[f32; 3]>,
+    /// The session ended by the runtime's EXITING (after our request or the user's).
+    pub ended: bool,
+    /// The runtime's display period (ms), as it predicted it for each frame.
+    pub periods: Vec<f64>,
+    /// Each eye's image size (the runtime's recommendation).
+    pub size: (u32, u32),
+}
+
+/// VR's own options.
+#[derive(Debug, Clone)]
+pub struct VrOptions {
+    /// End the session after this many frames (tests, scripts); None: until the runtime ends it.
+    pub frames: Option<u64>,
+    pub budget: u64,
+    pub style: Style,
+    /// Metres a data unit is shown at.
+    pub scale: f64,
+}
+
+fn err(what: &str) -> impl Fn(xr::sys::Result) -> String + '_ {
+    move |e| format!("{what}: {e}")
+}
+
+/// Runs a VR session on `dataset` until the runtime ends it (or `o.frames` were submitted).
+pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
+    // SAFETY: the system's OpenXR loader conforms to the specification. Debian's
+    // libopenxr-loader1 has the versioned name only (libopenxr-dev adds the plain one).
+    let entry = unsafe {
+        xr::Entry::load(&())
+            .or_else(|_| xr::Entry::load_from(std::path::Path::new("libopenxr_loader.so.1"), &()))
+    }
+    .map_err(|e| {
+        format!("no OpenXR loader ({e}): install the OpenXR loader (Debian: libopenxr-loader1)")
+    })?;
+    let available = entry
+        .enumerate_extensions()
+        .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
+    if !available.khr_vulkan_enable2 {
+        return Err("the OpenXR runtime has no XR_KHR_vulkan_enable2 (Vulkan)".into());
+    }
+    let mut wanted = xr::ExtensionSet::default();
+    wanted.khr_vulkan_enable2 = true;
+    let instance = entry
+        .create_instance(
+            &xr::ApplicationInfo {
+                application_name: "myriad",
+                application_version: 1,
+                engine_name: "myriad",
+                engine_version: 1,
+                api_version: xr::Version::new(1, 0, 0),
+            },
+            &wanted,
+            &[],
+            &(),
+        )
+        .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
+    let system = instance
+        .system(xr::FormFactor::HEAD_MOUNTED_DISPLAY)
+        .map_err(|e| format!("no headset ({e})"))?;
+    let views_config = instance
+        .enumerate_view_configuration_views(system, xr::ViewConfigurationType::PRIMARY_STEREO)
+        .map_err(err("the headset's views"))?;
+    if views_config.len() != 2 {
+        return Err(format!(
+            "the headset has {} views, not two",
+            views_config.len()
+        ));
+    }
+    let requirements = instance
+        .graphics_requirements::<xr::Vulkan>(system)
+        .map_err(err("Vulkan requirements"))?;
+
+    // Vulkan through the runtime.
+    // SAFETY: loads the system's Vulkan loader.
+    let vk_entry = unsafe { ash::Entry::load() }.map_err(|e| format!("no Vulkan loader: {e}"))?;
+    let api = vk::make_api_version(0, 1, 1, 0);
+    if api
+        < vk::make_api_version(
+            0,
+            requirements.min_api_version_supported.major() as u32,
+            requirements.min_api_version_supported.minor() as u32,
+            0,
+        )
+    {
+        return Err("the OpenXR runtime needs a newer Vulkan".into());
+    }
+    let app_info = vk::ApplicationInfo::default()
+        .application_name(c"myriad")
+        .api_version(api);
+    let get_proc = vk_entry.static_fn().get_instance_proc_addr;
+    // SAFETY: the create infos outlive the calls; the runtime returns valid handles or errors.
+    let (vk_instance, physical, device, queue_family) = unsafe {
+        let raw = instance
+            .create_vulkan_instance(
+                system,
+                std::mem::transmute::<vk::PFN_vkGetInstanceProcAddr, _>(get_proc),
+                &vk::InstanceCreateInfo::default().application_info(&app_info) as *const _
+                    as *const _,
+            )
+            .map_err(err("the runtime's Vulkan instance"))?
+            .map_err(|r| {
+                format!(
+                    "the runtime's Vulkan instance: {:?}",
+                    vk::Result::from_raw(r)
+                )
+            })?;
+        let vk_instance =
+            ash::Instance::load(vk_entry.static_fn(), vk::Instance::from_raw(raw as _));
+        let physical = vk::PhysicalDevice::from_raw(
+            instance
+                .vulkan_graphics_device(system, raw as _)
+                .map_err(err("the runtime's Vulkan device"))? as _,
+        );
+        let queue_family = vk_instance
+            .get_physical_device_queue_family_properties(physical)
+            .iter()
+            .position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS))
+            .ok_or("the Vulkan device has no graphics queue")? as u32;
+        let priorities = [1.0];
+        let queues = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&priorities)];
+        let raw_device = instance
+            .create_vulkan_device(
+                system,
+                std::mem::transmute::<vk::PFN_vkGetInstanceProcAddr, _>(get_proc),
+                physical.as_raw() as _,
+                &vk::DeviceCreateInfo::default().queue_create_infos(&queues) as *const _
+                    as *const _,
+            )
+            .map_err(err("the runtime's Vulkan device"))?
+            .map_err(|r| format!("the runtime's Vulkan device: {:?}", vk::Result::from_raw(r)))?;
+        let device =
+            ash::Device::load(vk_instance.fp_v1_0(), vk::Device::from_raw(raw_device as _));
+        (vk_instance, physical, device, queue_family)
+    };
+    // SAFETY: the handles come from the runtime's Vulkan instance and device above.
+    let (session, mut waiter, mut stream) = unsafe {
+        instance.create_session::<xr::Vulkan>(
+            system,
+            &xr::vulkan::SessionCreateInfo {
+                instance: vk_instance.handle().as_raw() as _,
+                physical_device: physical.as_raw() as _,
+                device: device.handle().as_raw() as _,
+                queue_family_index: queue_family,
+                queue_index: 0,
+            },
+        )
+    }
+    .map_err(err("the OpenXR session"))?;
+    let space = session
+        .create_reference_space(xr::ReferenceSpaceType::STAGE, xr::Posef::IDENTITY)
+        .or_else(|_| {
+            session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY)
+        })
+        .map_err(err("a reference space"))?;
+    let formats = session
+        .enumerate_swapchain_formats()
+        .map_err(err("swapchain formats"))?;
+    let format = [vk::Format::R8G8B8A8_SRGB, vk::Format::R8G8B8A8_UNORM]
+        .into_iter()
+        .find(|f| formats.contains(&(f.as_raw() as u32)))
+        .ok_or("the runtime offers no RGBA8 swapchain")?;
+    let (w, h) = (
+        views_config[0].recommended_image_rect_width,
+        views_config[0].recommended_image_rect_height,
+    );
+    let mut swapchains = Vec::new();
+    for _ in 0..2 {
+        let sc = session
+            .create_swapchain(&xr::SwapchainCreateInfo {
+                create_flags: xr::SwapchainCreateFlags::EMPTY,
+                usage_flags: xr::SwapchainUsageFlags::COLOR_ATTACHMENT
+                    | xr::SwapchainUsageFlags::TRANSFER_DST,
+                format: format.as_raw() as u32,
+                sample_count: 1,
+                width: w,
+                height: h,
+                face_count: 1,
+                array_size: 1,
+                mip_count: 1,
+            })
+            .map_err(err("a swapchain"))?;
+        let images: Vec<vk::Image> = sc
+            .enumerate_images()
+            .map_err(err("swapchain images"))?
+            .into_iter()
+            .map(vk::Image::from_raw)
+            .collect();
+        swapchains.push((sc, images));
+    }
+    let copier = Copier::new(&vk_instance, physical, &device, queue_family, (w, h))?;
+
+    // The data and the renderer.
+    let mut scene = Scene::open(dataset.clone(), 2 << 30, 1 << 30);
+    let gpu = Gpu::cpu();
+    let raster = Rasterizer::new(&gpu);
+    let options = SelectOptions {
+        budget: o.budget,
+        min_pixels: 1.0,
+    };
+    let centre = scene.view_bounds.center();
+    let ground = scene.view_bounds.min[2];
+    let mut report = VrReport {
+        views: 2,
+        size: (w, h),
+        ..Default::default()
+    };
+    let mut running = false;
+    let mut last = None;
+    let mut events = xr::EventDataBuffer::new();
+    'frames: loop {
+        while let Some(event) = instance
+            .poll_event(&mut events)
+            .map_err(err("OpenXR events"))?
+        {
+            match event {
+                xr::Event::SessionStateChanged(e) => match e.state() {
+                    xr::SessionState::READY => {
+                        session
+                            .begin(xr::ViewConfigurationType::PRIMARY_STEREO)
+                            .map_err(err("beginning the session"))?;
+                        running = true;
+                    }
+                    xr::SessionState::FOCUSED => report.focused = true,
+                    xr::SessionState::STOPPING => {
+                        session.end().map_err(err("ending the session"))?;
+                        running = false;
+                    }
+                    xr::SessionState::EXITING | xr::SessionState::LOSS_PENDING => {
+                        report.ended = true;
+                        break 'frames;
+                    }
+                    _ => {}
+                },
+                xr::Event::InstanceLossPending(_) => break 'frames,
+                _ => {}
+            }
+        }
+        if !running {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            continue;
+        }
+        let state = waiter.wait().map_err(err("waiting for a frame"))?;
+        report
+            .periods
+            .push(state.predicted_display_period.as_nanos() as f64 / 1e6);
+        stream.begin().map_err(err("beginning a frame"))?;
+        if !state.should_render {
+            stream
+                .end(
+                    state.predicted_display_time,
+                    xr::EnvironmentBlendMode::OPAQUE,
+                    &[],
+                )
+                .map_err(err("ending a frame"))?;
+            continue;
+        }
+        let (_, views) = session
+            .locate_views(
+                xr::ViewConfigurationType::PRIMARY_STEREO,
+                state.predicted_display_time,
+                &space,
+            )
+            .map_err(err("locating the eyes"))?;
+        // Stage space (metres, Y up) to data (units, Z up): the data's centre at the stage's
+        // origin, a data unit `scale` metres.
+        let to_data = |v: xr::Vector3f| {
+            let k = 1.0 / o.scale;
+            [
+                centre[0] + v.x as f64 * k,
+                centre[1] - v.z as f64 * k,
+                ground + v.y as f64 * k,
+            ]
+        };
+        let rotate = |q: xr::Quaternionf, v: [f32; 3]| -> xr::Vector3f {
+            let (x, y, z, w) = (q.x, q.y, q.z, q.w);
+            let t = [
+                2.0 * (y * v[2] - z * v[1]),
+                2.0 * (z * v[0] - x * v[2]),
+                2.0 * (x * v[1] - y * v[0]),
+            ];
+            xr::Vector3f {
+                x: v[0] + w * t[0] + (y * t[2] - z * t[1]),
+                y: v[1] + w * t[1] + (z * t[0] - x * t[2]),
+                z: v[2] + w * t[2] + (x * t[1] - y * t[0]),
+            }
+        };
+        let eyes: [Camera; 2] = std::array::from_fn(|k| {
+            let pose = views[k].pose;
+            let fov = views[k].fov;
+            let forward = rotate(pose.orientation, [0.0, 0.0, -1.0]);
+            let up = rotate(pose.orientation, [0.0, 1.0, 0.0]);
+            let p = pose.position;
+            let at = xr::Vector3f {
+                x: p.x + forward.x,
+                y: p.y + forward.y,
+                z: p.z + forward.z,
+            };
+            let up_data = [up.x as f64, -up.z as f64, up.y as f64];
+            // A symmetric frustum holding the eye's (the larger half angle, both ways).
+            let half = fov.angle_up.abs().max(fov.angle_down.abs()) as f64;
+            Camera {
+                position: to_data(p),
+                target: to_data(at),
+                up: up_data,
+                fov_y: 2.0 * half.to_degrees(),
+                width: w,
+                height: h,
+                near: 0.05 / o.scale,
+                far: 1e4 / o.scale,
+            }
+        });
+        scene.take(&scene.select_eyes(&eyes, &options, None));
+        let stereo = Stereo {
+            ipd: 0.0,
+            single_pass: true,
+            hidden_area: false,
+        };
+        let (image, _) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &o.style, &stereo);
+        let mut layer_views = Vec::new();
+        for (k, (sc, images)) in swapchains.iter_mut().enumerate() {
+            let i = sc.acquire_image().map_err(err("a swapchain image"))? as usize;
+            sc.wait_image(xr::Duration::INFINITE)
+                .map_err(err("a swapchain image"))?;
+            // This eye's half of the side-by-side image.
+            let half: Vec<u8> = (0..h as usize)
+                .flat_map(|y| {
+                    let row = (y * 2 * w as usize + k * w as usize) * 4;
+                    image[row..row + w as usize * 4].to_vec()
+                })
+                .collect();
+            copier.copy(&device, images[i], &half)?;
+            sc.release_image().map_err(err("a swapchain image"))?;
+            layer_views.push((views[k].pose, views[k].fov));
+        }
+        let projection: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = layer_views
+            .iter()
+            .zip(&swapchains)
+            .map(|(&(pose, fov), (sc, _))| {
+                xr::CompositionLayerProjectionView::new()
+                    .pose(pose)
+                    .fov(fov)
+                    .sub_image(
+                        xr::SwapchainSubImage::new()
+                            .swapchain(sc)
+                            .image_array_index(0)
+                            .image_rect(xr::Rect2Di {
+                                offset: xr::Offset2Di { x: 0, y: 0 },
+                                extent: xr::Extent2Di {
+                                    width: w as i32,
+                                    height: h as i32,
+                                },
+                            }),
+                    )
+            })
+            .collect();
+        stream
+            .end(
+                state.predicted_display_time,
+                xr::EnvironmentBlendMode::OPAQUE,
+                &[&xr::CompositionLayerProjection::new()
+                    .space(&space)
+                    .views(&projection)],
+            )
+            .map_err(err("submitting a frame"))?;
+        report.frames += 1;
+        let p = views[0].pose.position;
+        report.heads.push([p.x, p.y, p.z]);
+        let now = Instant::now();
+        if let Some(t) = last {
+            report
+                .intervals
+                .push(now.duration_since(t).as_secs_f64() * 1e3);
+        }
+        last = Some(now);
+        if o.frames.is_some_and(|n| report.frames == n) {
+            session.request_exit().map_err(err("asking to end"))?;
+        }
+    }
+    copier.destroy(&device);
+    drop(swapchains);
+    drop(session);
+    Ok(report)
+}
+
+/// Copies RGBA8 images into swapchain images: a host-visible staging buffer, one command
+/// buffer, a fence.
+struct Copier {
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    pool: vk::CommandPool,
+    commands: vk::CommandBuffer,
+    fence: vk::Fence,
+    queue: vk::Queue,
+    size: (u32, u32),
+}
+
+impl Copier {
+    fn new(
+        instance: &ash::Instance,
+        physical: vk::PhysicalDevice,
+        device: &ash::Device,
+        family: u32,
+        size: (u32, u32),
+    ) -> Result<Copier, String> {
+        let bytes = size.0 as u64 * size.1 as u64 * 4;
+        let vkerr = |what: &'static str| move |e: vk::Result| format!("Vulkan {what}: {e}");
+        // SAFETY: plain Vulkan object creation on a valid device.
+        unsafe {
+            let buffer = device
+                .create_buffer(
+                    &vk::BufferCreateInfo::default()
+                        .size(bytes)
+                        .usage(vk::BufferUsageFlags::TRANSFER_SRC),
+                    None,
+                )
+                .map_err(vkerr("staging buffer"))?;
+            let needs = device.get_buffer_memory_requirements(buffer);
+            let props = instance.get_physical_device_memory_properties(physical);
+            let kind = (0..props.memory_type_count)
+                .find(|&i| {
+                    needs.memory_type_bits & (1 << i) != 0
+                        && props.memory_types[i as usize].property_flags.contains(
+                            vk::MemoryPropertyFlags::HOST_VISIBLE
+                                | vk::MemoryPropertyFlags::HOST_COHERENT,
+                        )
+                })
+                .ok_or("no host-visible Vulkan memory")?;
+            let memory = device
+                .allocate_memory(
+                    &vk::MemoryAllocateInfo::default()
+                        .allocation_size(needs.size)
+                        .memory_type_index(kind),
+                    None,
+                )
+                .map_err(vkerr("staging memory"))?;
+            device
+                .bind_buffer_memory(buffer, memory, 0)
+                .map_err(vkerr("staging memory"))?;
+            let pool = device
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .map_err(vkerr("command pool"))?;
+            let commands = device
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .command_buffer_count(1),
+                )
+                .map_err(vkerr("command buffer"))?[0];
+            let fence = device
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .map_err(vkerr("fence"))?;
+            let queue = device.get_device_queue(family, 0);
+            Ok(Copier {
+                buffer,
+                memory,
+                pool,
+                commands,
+                fence,
+                queue,
+                size,
+            })
+        }
+    }
+
+    /// `rgba` (the swapchain's size) into `image`, left in COLOR_ATTACHMENT_OPTIMAL as the
+    /// runtime expects a released image.
+    fn copy(&self, device: &ash::Device, image: vk::Image, rgba: &[u8]) -> Result<(), String> {
+        let vkerr = |e: vk::Result| format!("Vulkan copy: {e}");
+        let (w, h) = self.size;
+        let range = vk::ImageSubresourceRange::default()
+            .aspect_mask(vk::ImageAspectFlags::COLOR)
+            .level_count(1)
+            .layer_count(1);
+        let barrier = |from, to, src, dst| {
+            vk::ImageMemoryBarrier::default()
+                .old_layout(from)
+                .new_layout(to)
+                .src_access_mask(src)
+                .dst_access_mask(dst)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(image)
+                .subresource_range(range)
+        };
+        // SAFETY: the staging memory is host-visible and as large as an image; the command
+        // buffer is recorded, submitted and waited for before it is used again.
+        unsafe {
+            let ptr = device
+                .map_memory(
+                    self.memory,
+                    0,
+                    rgba.len() as u64,
+                    vk::MemoryMapFlags::empty(),
+                )
+                .map_err(vkerr)?;
+            std::ptr::copy_nonoverlapping(rgba.as_ptr(), ptr as *mut u8, rgba.len());
+            device.unmap_memory(self.memory);
+            let c = self.commands;
+            device
+                .reset_command_buffer(c, vk::CommandBufferResetFlags::empty())
+                .map_err(vkerr)?;
+            device
+                .begin_command_buffer(c, &vk::CommandBufferBeginInfo::default())
+                .map_err(vkerr)?;
+            device.cmd_pipeline_barrier(
+                c,
+                vk::PipelineStageFlags::TOP_OF_PIPE,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &[barrier(
+                    vk::ImageLayout::UNDEFINED,
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    vk::AccessFlags::empty(),
+                    vk::AccessFlags::TRANSFER_WRITE,
+                )],
+            );
+            device.cmd_copy_buffer_to_image(
+                c,
+                self.buffer,
+                image,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[vk::BufferImageCopy::default()
+                    .image_subresource(
+                        vk::ImageSubresourceLayers::default()
+                            .aspect_mask(vk::ImageAspectFlags::COLOR)
+                            .layer_count(1),
+                    )
+                    .image_extent(vk::Extent3D {
+                        width: w,
+                        height: h,
+                        depth: 1,
+                    })],
+            );
+            device.cmd_pipeline_barrier(
+                c,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &[barrier(
+                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                )],
+            );
+            device.end_command_buffer(c).map_err(vkerr)?;
+            let buffers = [c];
+            device
+                .queue_submit(
+                    self.queue,
+                    &[vk::SubmitInfo::default().command_buffers(&buffers)],
+                    self.fence,
+                )
+                .map_err(vkerr)?;
+            device
+                .wait_for_fences(&[self.fence], true, u64::MAX)
+                .map_err(vkerr)?;
+            device.reset_fences(&[self.fence]).map_err(vkerr)?;
+        }
+        Ok(())
+    }
+
+    fn destroy(&self, device: &ash::Device) {
+        // SAFETY: nothing uses these objects after the last copy was waited for.
+        unsafe {
+            device.destroy_fence(self.fence, None);
+            device.destroy_command_pool(self.pool, None);
+            device.destroy_buffer(self.buffer, None);
+            device.free_memory(self.memory, None);
+        }
+    }
+}
