@@ -38,6 +38,12 @@ pub struct VrReport {
     pub periods: Vec<f64>,
     /// Each eye's image size (the runtime's recommendation).
     pub size: (u32, u32),
+    /// Frames whose image differed from the frame's before (the views follow the head).
+    pub changed: u64,
+    /// The point budget the frame rate settled on (held at the runtime's display rate).
+    pub budget: u64,
+    /// Each frame's work (ms): from the runtime's go to the submission.
+    pub work: Vec<f64>,
 }
 
 /// VR's own options.
@@ -229,10 +235,14 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     let mut scene = Scene::open(dataset.clone(), 2 << 30, 1 << 30);
     let gpu = Gpu::cpu();
     let raster = Rasterizer::new(&gpu);
-    let options = SelectOptions {
+    let mut options = SelectOptions {
         budget: o.budget,
         min_pixels: 1.0,
     };
+    // The budget follows the time a frame's work takes against the runtime's display period
+    // (002: the budget adjusted to hold the headset's rate; 90 fps where it says none).
+    let mut pace: Option<myriad_lod::Pace> = None;
+    let mut last_image = 0u64;
     let centre = scene.view_bounds.center();
     let ground = scene.view_bounds.min[2];
     let mut report = VrReport {
@@ -276,6 +286,7 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             continue;
         }
         let state = waiter.wait().map_err(err("waiting for a frame"))?;
+        let work = Instant::now();
         report
             .periods
             .push(state.predicted_display_period.as_nanos() as f64 / 1e6);
@@ -351,7 +362,13 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             single_pass: true,
             hidden_area: false,
         };
-        let (image, _) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &o.style, &stereo);
+        let (image, stats) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &o.style, &stereo);
+        // FNV-1a of the image: did the view change?
+        let hash = image.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+            (h ^ b as u64).wrapping_mul(0x100000001b3)
+        });
+        report.changed += (report.frames > 0 && hash != last_image) as u64;
+        last_image = hash;
         let mut layer_views = Vec::new();
         for (k, (sc, images)) in swapchains.iter_mut().enumerate() {
             let i = sc.acquire_image().map_err(err("a swapchain image"))? as usize;
@@ -399,6 +416,16 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             )
             .map_err(err("submitting a frame"))?;
         report.frames += 1;
+        let period = state.predicted_display_period.as_nanos() as f64 / 1e9;
+        let p = pace.get_or_insert_with(|| myriad_lod::Pace::new(90.0, o.budget, 20_000, o.budget));
+        // The runtime's period as it predicts it now (it may settle after the first frames).
+        if period > 0.0 {
+            p.target = period;
+        }
+        report.work.push(work.elapsed().as_secs_f64() * 1e3);
+        let limited = stats.selected_points as f64 >= 0.98 * options.budget as f64;
+        options.budget = p.frame(work.elapsed().as_secs_f64(), stats.points, limited);
+        report.budget = options.budget;
         let p = views[0].pose.position;
         report.heads.push([p.x, p.y, p.z]);
         let now = Instant::now();

@@ -140,8 +140,11 @@ pub fn run(a: ViewArgs) -> Result<()> {
         let mut periods = r.periods.clone();
         periods.sort_by(f64::total_cmp);
         let period = periods.get(periods.len() / 2).copied().unwrap_or(0.0);
+        let mut work = r.work.clone();
+        work.sort_by(f64::total_cmp);
+        let work = work.get(work.len() / 2).copied().unwrap_or(0.0);
         println!(
-            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms), head moved between {moved} of them, {}",
+            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms; a frame's work {work:.1} ms), head moved between {moved} of them, the image changed in {} of them, budget settled on {} points, {}",
             if r.focused {
                 "reached FOCUSED"
             } else {
@@ -151,6 +154,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
             r.views,
             r.size.0,
             r.size.1,
+            r.changed,
+            r.budget,
             if r.ended { "ended cleanly" } else { "lost" },
         );
         return Ok(());

@@ -89,4 +89,12 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
         .and_then(|n| n.parse().ok())
         .expect("the head's moves");
     assert!(moved > 0, "{out}");
+    // The images follow the head: most frames differ from the one before.
+    let changed: u64 = out
+        .split("the image changed in ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("the images' changes");
+    assert!(changed * 2 > moved, "{out}");
 }
