@@ -7,8 +7,9 @@
 //! Z up.
 //!
 //! Not yet: controllers (fly, grab and scale, the measuring ray of 002), off-axis projections
-//! (each eye is drawn with a symmetric frustum wide enough for its field of view), a GPU image
-//! handed to the runtime without a copy through the CPU.
+//! (each eye is drawn with a symmetric frustum holding its field of view vertically, and the
+//! layer says so, so that the compositor places the image right), a GPU image handed to the
+//! runtime without a copy through the CPU.
 
 use ash::vk;
 use ash::vk::Handle;
@@ -383,7 +384,17 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 .collect();
             copier.copy(&device, images[i], &half)?;
             sc.release_image().map_err(err("a swapchain image"))?;
-            layer_views.push((views[k].pose, views[k].fov));
+            // The field of view the image was drawn with (symmetric), so that the compositor
+            // maps it where it belongs.
+            let v = (eyes[k].fov_y.to_radians() / 2.0).tan();
+            let u = v * w as f64 / h as f64;
+            let drawn = xr::Fovf {
+                angle_left: -u.atan() as f32,
+                angle_right: u.atan() as f32,
+                angle_up: v.atan() as f32,
+                angle_down: -v.atan() as f32,
+            };
+            layer_views.push((views[k].pose, drawn));
         }
         let projection: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = layer_views
             .iter()
