@@ -13,6 +13,7 @@ mod present;
 mod report;
 mod surface;
 pub mod vr;
+pub mod vr_nav;
 
 use eframe::egui;
 use eframe::egui_wgpu;

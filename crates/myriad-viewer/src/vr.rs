@@ -6,7 +6,13 @@
 //! layer. The data stand in front of the user at the stage's origin, `scale` metres a data unit,
 //! Z up.
 //!
-//! Not yet: controllers (fly, grab and scale, the measuring ray of 002), off-axis projections
+//! The controllers (002's interaction; bound for the Khronos simple controller, which every
+//! runtime maps its controllers to): the right trigger flies along the right hand's pointing
+//! direction, both triggers grab the data (move with the hands, scale with their distance:
+//! `vr_nav.rs`), the right menu button marks a measuring point where its ray meets the drawn
+//! points; the report gives the distances.
+//!
+//! Not yet: off-axis projections
 //! (each eye is drawn with a symmetric frustum holding its field of view vertically, and the
 //! layer says so, so that the compositor places the image right), a GPU image handed to the
 //! runtime without a copy through the CPU.
@@ -45,6 +51,10 @@ pub struct VrReport {
     pub budget: u64,
     /// Each frame's work (ms): from the runtime's go to the submission.
     pub work: Vec<f64>,
+    /// Frames in which both controllers' aim poses were located.
+    pub hands: u64,
+    /// Points marked with the measuring ray (data coordinates), in order.
+    pub measured: Vec<[f64; 3]>,
 }
 
 /// VR's own options.
@@ -245,7 +255,12 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     let mut pace: Option<myriad_lod::Pace> = None;
     let mut last_image = 0u64;
     let centre = scene.view_bounds.center();
-    let ground = scene.view_bounds.min[2];
+    // The data's centre, at its ground, at the stage's origin.
+    let mut nav =
+        crate::vr_nav::StageNav::new([centre[0], centre[1], scene.view_bounds.min[2]], o.scale);
+    let hands = Hands::new(&instance, &session)?;
+    let mut measure_was = false;
+    let mut last_work: Option<Instant> = None;
     let mut report = VrReport {
         views: 2,
         size: (w, h),
@@ -311,27 +326,22 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             .map_err(err("locating the eyes"))?;
         // Stage space (metres, Y up) to data (units, Z up): the data's centre at the stage's
         // origin, a data unit `scale` metres.
-        let to_data = |v: xr::Vector3f| {
-            let k = 1.0 / o.scale;
-            [
-                centre[0] + v.x as f64 * k,
-                centre[1] - v.z as f64 * k,
-                ground + v.y as f64 * k,
-            ]
-        };
-        let rotate = |q: xr::Quaternionf, v: [f32; 3]| -> xr::Vector3f {
-            let (x, y, z, w) = (q.x, q.y, q.z, q.w);
-            let t = [
-                2.0 * (y * v[2] - z * v[1]),
-                2.0 * (z * v[0] - x * v[2]),
-                2.0 * (x * v[1] - y * v[0]),
-            ];
-            xr::Vector3f {
-                x: v[0] + w * t[0] + (y * t[2] - z * t[1]),
-                y: v[1] + w * t[1] + (z * t[0] - x * t[2]),
-                z: v[2] + w * t[2] + (x * t[1] - y * t[0]),
+        // The controllers: fly with the right trigger, grab with both (move and scale), mark a
+        // measuring point with the right menu button where its ray meets the data.
+        let input = hands.read(&session, &space, state.predicted_display_time)?;
+        let now = Instant::now();
+        let dt = last_work.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
+        last_work = Some(now);
+        report.hands += input.located as u64;
+        match (input.select, input.aim) {
+            ([true, true], [Some(l), Some(r)]) => nav.grab(Some([l.0, r.0])),
+            ([false, true], [_, Some(r)]) => {
+                nav.grab(None);
+                nav.fly(r.1, dt, FLY_SPEED);
             }
-        };
+            _ => nav.grab(None),
+        }
+        let to_data = |v: xr::Vector3f| nav.to_data([v.x as f64, v.y as f64, v.z as f64]);
         let eyes: [Camera; 2] = std::array::from_fn(|k| {
             let pose = views[k].pose;
             let fov = views[k].fov;
@@ -343,7 +353,7 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 y: p.y + forward.y,
                 z: p.z + forward.z,
             };
-            let up_data = [up.x as f64, -up.z as f64, up.y as f64];
+            let up_data = crate::vr_nav::to_data_axes([up.x as f64, up.y as f64, up.z as f64]);
             // A symmetric frustum holding the eye's (the larger half angle, both ways).
             let half = fov.angle_up.abs().max(fov.angle_down.abs()) as f64;
             Camera {
@@ -353,8 +363,8 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 fov_y: 2.0 * half.to_degrees(),
                 width: w,
                 height: h,
-                near: 0.05 / o.scale,
-                far: 1e4 / o.scale,
+                near: 0.05 / nav.scale,
+                far: 1e4 / nav.scale,
             }
         });
         scene.take(&scene.select_eyes(&eyes, &options, None));
@@ -364,6 +374,28 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             hidden_area: false,
         };
         let (image, stats) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &o.style, &stereo);
+        if input.measure
+            && !measure_was
+            && let Some((at, dir)) = input.aim[1]
+        {
+            // A narrow camera along the ray; the nearest drawn point under its centre.
+            let from = nav.to_data(at);
+            let d = crate::vr_nav::to_data_axes(dir);
+            let ray = Camera {
+                position: from,
+                target: std::array::from_fn(|a| from[a] + d[a]),
+                up: [0.0, 0.0, 1.0],
+                fov_y: 5.0,
+                width: 65,
+                height: 65,
+                near: 0.01 / nav.scale,
+                far: 1e4 / nav.scale,
+            };
+            if let Some(p) = scene.pick(&ray, 32.5, 32.5, 3.0) {
+                report.measured.push(p.position);
+            }
+        }
+        measure_was = input.measure;
         // FNV-1a of the image: did the view change?
         let hash = image.iter().fold(0xcbf29ce484222325u64, |h, &b| {
             (h ^ b as u64).wrapping_mul(0x100000001b3)
@@ -454,6 +486,136 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     drop(swapchains);
     drop(session);
     Ok(report)
+}
+
+/// Metres a second the right trigger flies.
+const FLY_SPEED: f64 = 2.0;
+
+/// The controllers' actions: aim poses and triggers (select) of both hands, the right menu
+/// button (measure), bound for the Khronos simple controller (every runtime maps its controllers
+/// to it).
+struct Hands {
+    set: xr::ActionSet,
+    select: xr::Action<bool>,
+    menu: xr::Action<bool>,
+    paths: [xr::Path; 2],
+    spaces: [xr::Space; 2],
+}
+
+/// What the controllers did this frame.
+struct Input {
+    /// Each hand's aim: position and pointing direction (stage).
+    aim: [Option<([f64; 3], [f64; 3])>; 2],
+    select: [bool; 2],
+    measure: bool,
+    /// Both aims located.
+    located: bool,
+}
+
+impl Hands {
+    fn new(instance: &xr::Instance, session: &xr::Session<xr::Vulkan>) -> Result<Hands, String> {
+        let e = |what: &'static str| move |r: xr::sys::Result| format!("controllers ({what}): {r}");
+        let set = instance
+            .create_action_set("myriad", "myriad", 0)
+            .map_err(e("action set"))?;
+        let paths = [
+            instance
+                .string_to_path("/user/hand/left")
+                .map_err(e("path"))?,
+            instance
+                .string_to_path("/user/hand/right")
+                .map_err(e("path"))?,
+        ];
+        let aim = set
+            .create_action::<xr::Posef>("aim", "pointing", &paths)
+            .map_err(e("aim"))?;
+        let select = set
+            .create_action::<bool>("select", "fly, and with both hands grab", &paths)
+            .map_err(e("select"))?;
+        let menu = set
+            .create_action::<bool>("measure", "measure", &paths[1..])
+            .map_err(e("measure"))?;
+        let p = |s: &str| instance.string_to_path(s).map_err(e("binding path"));
+        instance
+            .suggest_interaction_profile_bindings(
+                p("/interaction_profiles/khr/simple_controller")?,
+                &[
+                    xr::Binding::new(&aim, p("/user/hand/left/input/aim/pose")?),
+                    xr::Binding::new(&aim, p("/user/hand/right/input/aim/pose")?),
+                    xr::Binding::new(&select, p("/user/hand/left/input/select/click")?),
+                    xr::Binding::new(&select, p("/user/hand/right/input/select/click")?),
+                    xr::Binding::new(&menu, p("/user/hand/right/input/menu/click")?),
+                ],
+            )
+            .map_err(e("bindings"))?;
+        session.attach_action_sets(&[&set]).map_err(e("attach"))?;
+        let spaces = [
+            aim.create_space(session, paths[0], xr::Posef::IDENTITY)
+                .map_err(e("space"))?,
+            aim.create_space(session, paths[1], xr::Posef::IDENTITY)
+                .map_err(e("space"))?,
+        ];
+        Ok(Hands {
+            set,
+            select,
+            menu,
+            paths,
+            spaces,
+        })
+    }
+
+    fn read(
+        &self,
+        session: &xr::Session<xr::Vulkan>,
+        base: &xr::Space,
+        time: xr::Time,
+    ) -> Result<Input, String> {
+        let e = |r: xr::sys::Result| format!("controllers: {r}");
+        session.sync_actions(&[(&self.set).into()]).map_err(e)?;
+        let mut aim = [None, None];
+        for (k, space) in self.spaces.iter().enumerate() {
+            let l = space.locate(base, time).map_err(e)?;
+            let valid =
+                xr::SpaceLocationFlags::POSITION_VALID | xr::SpaceLocationFlags::ORIENTATION_VALID;
+            if l.location_flags.contains(valid) {
+                let q = l.pose.orientation;
+                let d = rotate(q, [0.0, 0.0, -1.0]);
+                let p = l.pose.position;
+                aim[k] = Some((
+                    [p.x as f64, p.y as f64, p.z as f64],
+                    [d.x as f64, d.y as f64, d.z as f64],
+                ));
+            }
+        }
+        let on = |a: &xr::Action<bool>, path| -> Result<bool, String> {
+            let s = a.state(session, path).map_err(e)?;
+            Ok(s.is_active && s.current_state)
+        };
+        Ok(Input {
+            located: aim.iter().all(Option::is_some),
+            aim,
+            select: [
+                on(&self.select, self.paths[0])?,
+                on(&self.select, self.paths[1])?,
+            ],
+            measure: on(&self.menu, self.paths[1])?,
+        })
+    }
+}
+
+/// `v` turned by the unit quaternion `q`.
+fn rotate(q: xr::Quaternionf, v: [f32; 3]) -> xr::Vector3f {
+    let (x, y, z, w) = (q.x, q.y, q.z, q.w);
+    let t = [
+        2.0 * (y * v[2] - z * v[1]),
+        2.0 * (z * v[0] - x * v[2]),
+        2.0 * (x * v[1] - y * v[0]),
+    ];
+    xr::Vector3f {
+        x: v[0] + w * t[0] + (y * t[2] - z * t[1]),
+        y: v[1] + w * t[1] + (z * t[0] - x * t[2]),
+        z: v[2] + w * t[2] + (x * t[1] - y * t[0]),
+    }
 }
 
 /// Copies RGBA8 images into swapchain images: a host-visible staging buffer, one command

@@ -144,7 +144,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         work.sort_by(f64::total_cmp);
         let work = work.get(work.len() / 2).copied().unwrap_or(0.0);
         println!(
-            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms; a frame's work {work:.1} ms), head moved between {moved} of them, the image changed in {} of them, budget settled on {} points, {}",
+            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms; a frame's work {work:.1} ms), head moved between {moved} of them, the image changed in {} of them, budget settled on {} points, controllers located in {} frames, {} points measured{}, {}",
             if r.focused {
                 "reached FOCUSED"
             } else {
@@ -156,6 +156,16 @@ pub fn run(a: ViewArgs) -> Result<()> {
             r.size.1,
             r.changed,
             r.budget,
+            r.hands,
+            r.measured.len(),
+            r.measured
+                .windows(2)
+                .last()
+                .map(|p| {
+                    let d: f64 = (0..3).map(|a| (p[1][a] - p[0][a]).powi(2)).sum();
+                    format!(" (the last two {:.3} apart)", d.sqrt())
+                })
+                .unwrap_or_default(),
             if r.ended { "ended cleanly" } else { "lost" },
         );
         return Ok(());

@@ -32,6 +32,8 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
             .env("XR_RUNTIME_JSON", runtime)
             .env("XRT_COMPOSITOR_NULL", "1")
             .env("SIMULATED_ENABLE", "1")
+            .env("SIMULATED_LEFT", "simple")
+            .env("SIMULATED_RIGHT", "simple")
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
             .spawn()
@@ -97,4 +99,12 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
         .and_then(|n| n.parse().ok())
         .expect("the images' changes");
     assert!(changed * 2 > moved, "{out}");
+    // The simulated controllers are bound and located (they press no buttons).
+    let hands: u64 = out
+        .split("controllers located in ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("the controllers");
+    assert!(hands > 0, "{out}");
 }
