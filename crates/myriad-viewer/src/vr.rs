@@ -12,10 +12,10 @@
 //! `vr_nav.rs`), the right menu button marks a measuring point where its ray meets the drawn
 //! points; the report gives the distances.
 //!
-//! Not yet: off-axis projections
-//! (each eye is drawn with a symmetric frustum holding its field of view vertically, and the
-//! layer says so, so that the compositor places the image right), a GPU image handed to the
-//! runtime without a copy through the CPU.
+//! Off-axis eyes: each eye's field is cut from a symmetric image holding both eyes' fields
+//! (`vr_nav::cover`), pixel for pixel what an off-axis projection draws.
+//!
+//! Not yet: a GPU image handed to the runtime without a copy through the CPU.
 
 use ash::vk;
 use ash::vk::Handle;
@@ -342,9 +342,19 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             _ => nav.grab(None),
         }
         let to_data = |v: xr::Vector3f| nav.to_data([v.x as f64, v.y as f64, v.z as f64]);
+        // Off-axis eyes cut from symmetric images holding both fields (`vr_nav::cover`).
+        let tangents = [0, 1].map(|k| {
+            let f = views[k].fov;
+            crate::vr_nav::Tangents {
+                left: (f.angle_left as f64).tan(),
+                right: (f.angle_right as f64).tan(),
+                up: (f.angle_up as f64).tan(),
+                down: (f.angle_down as f64).tan(),
+            }
+        });
+        let cover = crate::vr_nav::cover(tangents, w, h);
         let eyes: [Camera; 2] = std::array::from_fn(|k| {
             let pose = views[k].pose;
-            let fov = views[k].fov;
             let forward = rotate(pose.orientation, [0.0, 0.0, -1.0]);
             let up = rotate(pose.orientation, [0.0, 1.0, 0.0]);
             let p = pose.position;
@@ -354,15 +364,13 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 z: p.z + forward.z,
             };
             let up_data = crate::vr_nav::to_data_axes([up.x as f64, up.y as f64, up.z as f64]);
-            // A symmetric frustum holding the eye's (the larger half angle, both ways).
-            let half = fov.angle_up.abs().max(fov.angle_down.abs()) as f64;
             Camera {
                 position: to_data(p),
                 target: to_data(at),
                 up: up_data,
-                fov_y: 2.0 * half.to_degrees(),
-                width: w,
-                height: h,
+                fov_y: cover.fov_y,
+                width: cover.width,
+                height: cover.height,
                 near: 0.05 / nav.scale,
                 far: 1e4 / nav.scale,
             }
@@ -407,24 +415,24 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             let i = sc.acquire_image().map_err(err("a swapchain image"))? as usize;
             sc.wait_image(xr::Duration::INFINITE)
                 .map_err(err("a swapchain image"))?;
-            // This eye's half of the side-by-side image.
-            let half: Vec<u8> = (0..h as usize)
+            // This eye's field, cut from its half of the side-by-side image.
+            let (x0, y0) = cover.corners[k];
+            let full = cover.width as usize;
+            let cut: Vec<u8> = (0..h as usize)
                 .flat_map(|y| {
-                    let row = (y * 2 * w as usize + k * w as usize) * 4;
+                    let row = ((y0 as usize + y) * 2 * full + k * full + x0 as usize) * 4;
                     image[row..row + w as usize * 4].to_vec()
                 })
                 .collect();
-            copier.copy(&device, images[i], &half)?;
+            copier.copy(&device, images[i], &cut)?;
             sc.release_image().map_err(err("a swapchain image"))?;
-            // The field of view the image was drawn with (symmetric), so that the compositor
-            // maps it where it belongs.
-            let v = (eyes[k].fov_y.to_radians() / 2.0).tan();
-            let u = v * w as f64 / h as f64;
+            // The field the cut covers (the eye's own, to a pixel).
+            let t = cover.drawn[k];
             let drawn = xr::Fovf {
-                angle_left: -u.atan() as f32,
-                angle_right: u.atan() as f32,
-                angle_up: v.atan() as f32,
-                angle_down: -v.atan() as f32,
+                angle_left: t.left.atan() as f32,
+                angle_right: t.right.atan() as f32,
+                angle_up: t.up.atan() as f32,
+                angle_down: t.down.atan() as f32,
             };
             layer_views.push((views[k].pose, drawn));
         }

@@ -1,5 +1,6 @@
-//! Where the headset's stage stands in the data, and the controllers' navigation (002: fly,
-//! rotate and scale the clouds): pure arithmetic, tested without a runtime.
+//! Where the headset's stage stands in the data, the controllers' navigation (002: fly, rotate
+//! and scale the clouds), and the eyes' off-axis fields of view cut from symmetric images: pure
+//! arithmetic, tested without a runtime.
 //!
 //! Stage space is the runtime's (metres, Y up, -Z ahead); data space is the dataset's (its
 //! units, Z up). A stage vector (x, y, z) is the data direction (x, -z, y); `scale` metres show one
@@ -90,12 +91,128 @@ impl StageNav {
     }
 }
 
+/// An eye's field of view as the tangents of its four half angles (left and down negative).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tangents {
+    pub left: f64,
+    pub right: f64,
+    pub up: f64,
+    pub down: f64,
+}
+
+/// How eyes with off-axis (asymmetric) fields of view are drawn with symmetric frusta: one
+/// symmetric image per eye holding both eyes' fields, `width` x `height` pixels of `fov_y`
+/// degrees, and per eye the corner of its own field in that image, from which its swapchain's
+/// `w` x `h` pixels are cut. Pixels are square, of the swapchain's vertical size; `drawn` is the
+/// field each cut covers (the eye's own, to a pixel, where the swapchain's pixels are square),
+/// what the projection layer must say. The pixels cut are those an off-axis projection of that
+/// field would draw (the same eye, orientation and image plane).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cover {
+    pub width: u32,
+    pub height: u32,
+    pub fov_y: f64,
+    pub corners: [(u32, u32); 2],
+    pub drawn: [Tangents; 2],
+}
+
+pub fn cover(eyes: [Tangents; 2], w: u32, h: u32) -> Cover {
+    let (w, h) = (w.max(1), h.max(1));
+    let u = eyes
+        .iter()
+        .map(|t| t.left.abs().max(t.right.abs()))
+        .fold(0.0, f64::max);
+    let v = eyes
+        .iter()
+        .map(|t| t.up.abs().max(t.down.abs()))
+        .fold(0.0, f64::max);
+    let p = (eyes[0].up - eyes[0].down) / h as f64;
+    let width = ((2.0 * u / p).ceil() as u32).max(w);
+    let height = ((2.0 * v / p).ceil() as u32).max(h);
+    let (half_w, half_h) = (width as f64 * p / 2.0, height as f64 * p / 2.0);
+    let corners = eyes.map(|t| {
+        let x = ((t.left + half_w) / p).round().max(0.0) as u32;
+        let y = ((half_h - t.up) / p).round().max(0.0) as u32;
+        (x.min(width - w), y.min(height - h))
+    });
+    let drawn = corners.map(|(x, y)| {
+        let left = x as f64 * p - half_w;
+        let up = half_h - y as f64 * p;
+        Tangents {
+            left,
+            right: left + w as f64 * p,
+            up,
+            down: up - h as f64 * p,
+        }
+    });
+    Cover {
+        width,
+        height,
+        fov_y: 2.0 * half_h.atan().to_degrees(),
+        corners,
+        drawn,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn close(a: [f64; 3], b: [f64; 3]) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() < 1e-9)
+    }
+
+    #[test]
+    fn off_axis_eyes_are_cut_from_symmetric_images() {
+        // A headset's eyes: wider outwards (52 degrees) than inwards (44), 40 up, 50 down.
+        let t = |d: f64| d.to_radians().tan();
+        let left = Tangents {
+            left: -t(52.0),
+            right: t(44.0),
+            up: t(40.0),
+            down: -t(50.0),
+        };
+        let right = Tangents {
+            left: -t(44.0),
+            right: t(52.0),
+            ..left
+        };
+        // Square pixels: 1000 rows over the vertical field, as many columns as that pixel size
+        // takes over the horizontal one.
+        let h = 1000;
+        let p = (left.up - left.down) / h as f64;
+        let w = ((left.right - left.left) / p).round() as u32;
+        let c = cover([left, right], w, h);
+        // Symmetric: as wide as the outer half twice, as high as the lower half twice.
+        assert!((c.width as f64 * p / 2.0 - t(52.0)).abs() < 2.0 * p);
+        assert!(((c.fov_y / 2.0).to_radians().tan() - t(50.0)).abs() < 2.0 * p);
+        // The left eye's field starts at the image's left side, the right eye's ends at its
+        // right side; both start 10 degrees' worth below the top.
+        assert_eq!(c.corners[0].0, 0);
+        assert_eq!(c.corners[1].0 + w, c.width);
+        let top = ((t(50.0) - t(40.0)) / p).round() as u32;
+        assert!(c.corners[0].1.abs_diff(top) <= 1 && c.corners[1].1 == c.corners[0].1);
+        // What each cut covers is the eye's field, to a pixel.
+        for (d, e) in c.drawn.iter().zip([left, right]) {
+            for (a, b) in [
+                (d.left, e.left),
+                (d.right, e.right),
+                (d.up, e.up),
+                (d.down, e.down),
+            ] {
+                assert!((a - b).abs() <= 1.5 * p, "{d:?} {e:?}");
+            }
+        }
+        // A symmetric eye is cut from the middle.
+        let sym = Tangents {
+            left: -t(45.0),
+            right: t(45.0),
+            up: t(45.0),
+            down: -t(45.0),
+        };
+        let c = cover([sym, sym], 100, 100);
+        assert_eq!((c.width, c.height, c.corners[0]), (100, 100, (0, 0)));
+        assert!((c.fov_y - 90.0).abs() < 1e-9);
     }
 
     #[test]
