@@ -338,7 +338,10 @@ impl Rasterizer {
         let f = self.factor(gpu, camera, &passes);
         let eyes = eyes.map(|e| e.map(|c| supersampled(&c, style, f).0));
         let (camera, style) = &supersampled(camera, style, f);
-        let view = View::new(camera, &passes, style.background, f);
+        let view = View {
+            eye_width: eyes.map_or(0, |e| e[0].width),
+            ..View::new(camera, &passes, style.background, f)
+        };
         let normals = passes.normals();
         let origin = frame_origin(draws, camera);
         if self.path == Path::Cpu {

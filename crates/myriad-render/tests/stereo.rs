@@ -48,7 +48,13 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
     let mut gpu_raster = Rasterizer::with_path(&gpu, Path::Compute);
     cpu_raster.precision = 0.0;
     gpu_raster.precision = 0.0;
-    for hidden_area in [false, true] {
+    // With no pass and with every pass (which must not read across the eyes' border, and must
+    // place each eye's pixels from its own centre, as the CPU's per-eye passes do).
+    let every = Style {
+        passes: Passes::parse("fill,shade,ssao,edl,blur").unwrap(),
+        ..style
+    };
+    for (style, hidden_area) in [(style, false), (style, true), (every, false)] {
         let s = Stereo {
             ipd: 1.5,
             single_pass: true,
@@ -65,11 +71,18 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
             |x: &[u8], y: &[u8]| x.chunks(4).zip(y.chunks(4)).filter(|(p, q)| p != q).count();
         let lit = a.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
         assert!(lit > 240 * 90 / 4, "{lit}");
-        // f32 on the GPU against f32 on the CPU: the same pixels, but for a rare rounding.
+        // f32 on the GPU against f32 on the CPU: without passes the same pixels but for a rare
+        // rounding; with every pass as close as the GPU's two passes are (lavapipe: 831 of
+        // 21,600 pixels differ both ways, each post pass's float rounding).
+        let (single, two_passes) = (differ(&a, &b), differ(&a, &c));
+        let bound = if style.passes.normals() {
+            two_passes
+        } else {
+            0
+        };
         assert!(
-            differ(&a, &b) * 1000 <= 240 * 90,
-            "{} pixels differ from the CPU's",
-            differ(&a, &b)
+            (single - bound.min(single)) * 1000 <= 240 * 90,
+            "{single} pixels differ from the CPU's (two passes: {two_passes})"
         );
         // One dispatch draws what two passes do.
         assert!(

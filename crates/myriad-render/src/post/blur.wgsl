@@ -12,7 +12,7 @@ fn blur(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         keep(i);
         return;
     }
-    let x = i32(i % r.width);
+    let x = pixel_x(i);
     let y = i32(i / r.width);
     var sum = vec3<f32>(0.0);
     var weight = 0.0;

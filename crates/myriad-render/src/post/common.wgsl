@@ -26,6 +26,8 @@ struct Post {
     edl_strength: f32,
     edl_radius: f32,
     blur_threshold: f32,
+    // Side-by-side stereo (the compute path's single pass): each eye's width; 0: one image.
+    eye_width: u32,
 }
 
 @group(0) @binding(0) var<uniform> r: Post;
@@ -48,9 +50,27 @@ fn thread_pixel(id: vec3<u32>, groups: vec3<u32>) -> u32 {
     return id.y * groups.x * 128u + id.x;
 }
 
-// Index of pixel (x, y), or -1 outside the g-buffer.
+// The columns of the thread's eye (the whole width but in side-by-side stereo), set by
+// `pixel_x`: a pass never reads across the eyes' border.
+var<private> eye_lo: i32;
+var<private> eye_hi: i32;
+
+// The column of pixel `i`, and its eye's columns.
+fn pixel_x(i: u32) -> i32 {
+    let x = i32(i % r.width);
+    if (r.eye_width == 0u) {
+        eye_lo = 0;
+        eye_hi = i32(r.width);
+    } else {
+        eye_lo = x / i32(r.eye_width) * i32(r.eye_width);
+        eye_hi = eye_lo + i32(r.eye_width);
+    }
+    return x;
+}
+
+// Index of pixel (x, y), or -1 outside the g-buffer (or the thread's eye).
 fn at(x: i32, y: i32) -> i32 {
-    if (x < 0 || y < 0 || x >= i32(r.width) || y >= i32(r.height)) {
+    if (x < eye_lo || y < 0 || x >= eye_hi || y >= i32(r.height)) {
         return -1;
     }
     return y * i32(r.width) + x;
@@ -71,7 +91,7 @@ fn put(i: u32, depth: f32, colour: u32, normal: u32) {
 // Eye-space position (right, up, forward) of pixel (x, y) at depth d.
 fn eye_position(x: i32, y: i32, d: f32) -> vec3<f32> {
     return vec3<f32>(
-        (f32(x) + 0.5 - f32(r.width) * 0.5) / r.focal * d,
+        (f32(x - eye_lo) + 0.5 - f32(eye_hi - eye_lo) * 0.5) / r.focal * d,
         (f32(r.height) * 0.5 - f32(y) - 0.5) / r.focal * d,
         d,
     );

@@ -12,7 +12,7 @@ fn edl(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) gr
         keep(i);
         return;
     }
-    let x = i32(i % r.width);
+    let x = pixel_x(i);
     let y = i32(i / r.width);
     let l = log2(d);
     var sum = 0.0;

@@ -2,7 +2,7 @@
 // within the radius, at least `fill_min` of them, takes the nearest one. Mirror: mod.rs.
 
 fn fill(i: u32, axis: u32) {
-    let x = i32(i % r.width);
+    let x = pixel_x(i);
     let y = i32(i / r.width);
     let d = src_depth[i];
     var best = -1;

@@ -56,6 +56,8 @@ struct Uniforms {
     edl_strength: f32,
     edl_radius: f32,
     blur_threshold: f32,
+    eye_width: u32,
+    pad: [u32; 3],
 }
 
 /// The compute pipelines of the chain.
@@ -168,6 +170,8 @@ impl Chain {
             edl_strength: edl.strength,
             edl_radius: edl.radius * f as f32,
             blur_threshold: passes.blur.unwrap_or_default().threshold,
+            eye_width: view.eye_width,
+            pad: [0; 3],
         };
         let uniforms = wgpu::util::DeviceExt::create_buffer_init(
             d,

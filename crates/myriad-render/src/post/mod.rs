@@ -199,6 +199,10 @@ pub(crate) struct View {
     /// Towards the sun in eye coordinates (right, up, forward).
     pub sun: [f32; 3],
     pub background: [u8; 4],
+    /// Side-by-side stereo on the GPU: each eye's width (the passes read no pixel across the
+    /// eyes' border, and place pixels in eye space from their own eye's centre); 0: one image.
+    /// The CPU runs the passes on each eye's own g-buffer instead.
+    pub eye_width: u32,
 }
 
 impl View {
@@ -219,6 +223,7 @@ impl View {
             factor,
             focal: camera.focal() as f32,
             sun: [dot(r), dot(u), dot(f)],
+            eye_width: 0,
             background,
         }
     }

@@ -36,7 +36,7 @@ fn normals(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         keep(i);
         return;
     }
-    let x = i32(i % r.width);
+    let x = pixel_x(i);
     let y = i32(i / r.width);
     let p = eye_position(x, y, d);
     let a = tangent(x, y, p, d, 1, 0);

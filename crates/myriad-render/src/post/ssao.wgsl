@@ -12,7 +12,7 @@ fn ssao(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         keep(i);
         return;
     }
-    let x = i32(i % r.width);
+    let x = pixel_x(i);
     let y = i32(i / r.width);
     let p = eye_position(x, y, d);
     let n = unpack4x8snorm(src_normal[i]).xyz;

@@ -15,6 +15,7 @@ fn view(factor: u32) -> View {
         focal: FOCAL * factor as f32,
         sun: [0.0, 0.0, -1.0],
         background: [0, 0, 255, 255],
+        eye_width: 0,
     }
 }
 
