@@ -745,7 +745,10 @@ impl Rasterizer {
                 pass.set_pipeline(quads);
                 for (draw, bind) in draws.iter().zip(&binds) {
                     pass.set_bind_group(0, bind, &[]);
-                    pass.draw(0..6, 0..draw.count);
+                    // Single-pass stereo: each point once per eye (instances beyond `count`
+                    // are the right eye's).
+                    let eyes_drawn = if eyes.is_some() { 2 } else { 1 };
+                    pass.draw(0..6, 0..draw.count * eyes_drawn);
                 }
             }
         }

@@ -4,7 +4,8 @@
 //!   images: on the CPU path into each eye's framebuffer (`cpu::gbuffers`), on the compute path
 //!   by one dispatch into a frame twice as wide (raster.wgsl's `draw_point` per eye, each eye's
 //!   pixels clipped to its half), so a point at an eye's border never reaches the other eye's
-//!   image. Two passes (one frame per eye) are the baseline, and what the quad path draws.
+//!   image; on the quad path by one instanced draw of twice the points, each square clamped to
+//!   its eye's columns. Two passes (one frame per eye) are the baseline.
 //! - The hidden-area mask (002 section 4.1): the pixels outside the ellipse inscribed in an
 //!   eye's image (a lens shows a disc; a headset's runtime gives its own mesh), which the CPU's
 //!   point pass skips; every path leaves them black.
@@ -17,8 +18,7 @@ use myriad_lod::Camera;
 pub struct Stereo {
     /// Distance between the eyes, in the data's units.
     pub ipd: f64,
-    /// Both eyes in one pass over the points (the CPU and compute paths; the quad path draws two
-    /// passes).
+    /// Both eyes in one pass over the points (else a frame per eye).
     pub single_pass: bool,
     /// Mask the pixels the lens cannot show.
     pub hidden_area: bool,
@@ -94,8 +94,9 @@ impl Rasterizer {
                     crate::post::run(g, &passes, &view)
                 })
                 .collect()
-        } else if stereo.single_pass && self.path == Path::Compute {
-            // One dispatch for both eyes into a frame twice as wide, then split.
+        } else if stereo.single_pass && self.path != Path::Cpu {
+            // One dispatch (compute) or one instanced draw (quads) for both eyes into a frame
+            // twice as wide, then split.
             let mut wide = eyes[0];
             wide.width = 2 * w;
             let both = self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style);

@@ -1,4 +1,5 @@
-//! Single-pass stereo on the compute path (one dispatch for both eyes) against the CPU's.
+//! Single-pass stereo on the GPU paths (the compute path: one dispatch for both eyes; the quad
+//! path: one instanced draw) against the CPU's and against two passes.
 
 mod common;
 use common::random;
@@ -6,18 +7,26 @@ use myriad_render::stereo::Stereo;
 use myriad_render::{Gpu, Passes, Path, PointSize, Points, Rasterizer, Style};
 
 #[test]
-fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
+fn the_gpu_paths_draw_both_eyes_in_one_pass_as_the_cpu_does() {
     let gpu = match Gpu::headless() {
-        Ok(g) if g.atomics => g,
-        Ok(_) => {
-            eprintln!("SKIPPED: the adapter has no 64-bit atomics (no compute path)");
-            return;
-        }
+        Ok(g) => g,
         Err(e) => {
             eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
             return;
         }
     };
+    let mut paths = vec![Path::Quads];
+    if gpu.atomics {
+        paths.push(Path::Compute);
+    } else {
+        eprintln!("the adapter has no 64-bit atomics: the quad path alone");
+    }
+    for path in paths {
+        eyes_in_one_pass(&gpu, path);
+    }
+}
+
+fn eyes_in_one_pass(gpu: &Gpu, path: Path) {
     let cam = myriad_lod::Camera {
         position: [0.0, 0.0, 0.0],
         target: [0.0, 1.0, 0.0],
@@ -37,7 +46,7 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
         .collect();
     let cpu = Gpu::cpu();
     let on_cpu = Points::upload(&cpu, [0.0; 3], &positions, &colours);
-    let on_gpu = Points::upload(&gpu, [0.0; 3], &positions, &colours);
+    let on_gpu = Points::upload(gpu, [0.0; 3], &positions, &colours);
     let style = Style {
         size: PointSize::Fixed(3.0),
         passes: Passes::default(),
@@ -45,7 +54,7 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
     };
     let eyes = cam.eyes(1.5);
     let mut cpu_raster = Rasterizer::new(&cpu);
-    let mut gpu_raster = Rasterizer::with_path(&gpu, Path::Compute);
+    let mut gpu_raster = Rasterizer::with_path(gpu, path);
     cpu_raster.precision = 0.0;
     gpu_raster.precision = 0.0;
     // With no pass and with every pass (which must not read across the eyes' border, and must
@@ -61,12 +70,12 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
             hidden_area,
         };
         let a = cpu_raster.render_stereo(&cpu, &eyes, &[on_cpu.all(1.0)], &[], &style, &s);
-        let b = gpu_raster.render_stereo(&gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &s);
+        let b = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &s);
         let two = Stereo {
             single_pass: false,
             ..s
         };
-        let c = gpu_raster.render_stereo(&gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &two);
+        let c = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &two);
         let differ =
             |x: &[u8], y: &[u8]| x.chunks(4).zip(y.chunks(4)).filter(|(p, q)| p != q).count();
         let lit = a.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();
@@ -82,12 +91,12 @@ fn the_compute_path_draws_both_eyes_in_one_dispatch_as_the_cpu_does() {
         };
         assert!(
             (single - bound.min(single)) * 1000 <= 240 * 90,
-            "{single} pixels differ from the CPU's (two passes: {two_passes})"
+            "{path:?}: {single} pixels differ from the CPU's (two passes: {two_passes})"
         );
         // One dispatch draws what two passes do.
         assert!(
             differ(&b, &c) * 1000 <= 240 * 90,
-            "{} pixels differ from two passes",
+            "{path:?}: {} pixels differ from two passes",
             differ(&b, &c)
         );
     }

@@ -21,8 +21,22 @@ const CORNERS = array<vec2<f32>, 6>(
 @vertex
 fn vertex(
     @builtin(vertex_index) v: u32,
-    @builtin(instance_index) instance: u32,
+    @builtin(instance_index) drawn: u32,
 ) -> Corner {
+    // Single-pass stereo (`u.stereo.x`: each eye's width in a frame twice as wide): instances
+    // from `u.count` on draw the points again for the right eye.
+    var eye = 0u;
+    var instance = drawn;
+    var view_proj = u.view_proj;
+    var width = u.width;
+    if (u.stereo.x > 0u) {
+        eye = drawn / u.count;
+        instance = drawn % u.count;
+        width = u.stereo.x;
+        if (eye == 1u) {
+            view_proj = u.view_proj_right;
+        }
+    }
     let l = u.place;
     let p = decode(instance, l.x, l.y, l.z, l.w, u.offset.xyz, u.unit.xyz);
     var out: Corner;
@@ -36,7 +50,7 @@ fn vertex(
     if (clipped(p)) {
         return out;
     }
-    let clip = u.view_proj * vec4<f32>(p, 1.0);
+    let clip = view_proj * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0) {
         return out;
     }
@@ -44,7 +58,7 @@ fn vertex(
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < 0.0 || ndc.z > 1.0) {
         return out;
     }
-    let fx = (ndc.x * 0.5 + 0.5) * f32(u.width);
+    let fx = (ndc.x * 0.5 + 0.5) * f32(width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     var s = point_pixels(p, clip.w, u.spacing, u.node, u.cube);
     if (u.radius.z > 0.0 && u.point_size == 0.0) {
@@ -54,11 +68,15 @@ fn vertex(
     let x0 = floor(fx) - floor((s - 1.0) * 0.5);
     let y0 = floor(fy) - floor((s - 1.0) * 0.5);
     let corner = CORNERS[v % 6u];
-    let px = vec2<f32>(x0, y0) + corner * s;
+    // In the eye's own columns: a square across the eye's side is cut there (the depth test's
+    // early rejection kept, no discard), so nothing reaches the other eye's image.
+    let shift = f32(eye * width);
+    var px = vec2<f32>(x0, y0) + corner * s;
+    px.x = clamp(px.x, 0.0, f32(width)) + shift;
     let x = px.x / f32(u.width) * 2.0 - 1.0;
     let y = 1.0 - px.y / f32(u.height) * 2.0;
     out.position = vec4<f32>(x, y, ndc.z, 1.0);
-    out.local = (corner - vec2<f32>(0.5)) * s;
+    out.local = px - shift - vec2<f32>(x0, y0) - vec2<f32>(0.5) * s;
     out.depth = vec2<f32>(clip.w, 0.5 * s * clip.w / u.focal);
     out.radius2 = max(s * s * 0.25, 0.5);
     return out;
