@@ -681,33 +681,53 @@ impl Scene {
         let t = Instant::now();
         let selection = self.update_clipped(camera, options, style.clip);
         let select = t.elapsed();
-        let t = Instant::now();
-        let (uploads, upload_bytes) = self.upload(gpu, &selection);
-        let upload = t.elapsed();
-        let t = Instant::now();
-        let (draws, tree, keys) = self.draws(&selection, 0);
-        if self.occlusion == Occlusion::Queries {
-            raster.keep_depth();
-        }
-        let image = raster.render(gpu, camera, &draws, &tree, style);
-        let mut stats = FrameStats {
-            uploads,
-            upload_bytes,
-            read_bytes: raster.bytes_read(gpu, camera, &draws, style),
-            select,
-            select_current: true,
-            select_budget: options.budget,
-            upload,
-            ..self.stats(&selection, &draws)
-        };
-        drop(draws);
-        stats.draw = t.elapsed();
+        let queries = self.occlusion == Occlusion::Queries;
+        let (image, mut stats, keys) =
+            self.draw_selected(gpu, &selection, select, options, |draws, tree| {
+                if queries {
+                    raster.keep_depth();
+                }
+                let image = raster.render(gpu, camera, draws, tree, style);
+                (image, raster.bytes_read(gpu, camera, draws, style))
+            });
         let t = Instant::now();
         self.query_hidden(gpu, raster, &selection);
         stats.query = t.elapsed();
         self.drawn = keys;
         self.last = selection;
         (image, stats)
+    }
+
+    /// The rest of a frame of `selection` (taken in, made in `select`): uploads, the draws
+    /// drawn by `render` (the image and the bytes the point pass read), the frame's statistics
+    /// and the keys drawn.
+    pub(crate) fn draw_selected(
+        &mut self,
+        gpu: &Gpu,
+        selection: &Selection,
+        select: Duration,
+        options: &SelectOptions,
+        render: impl FnOnce(&[Draw], &[[u32; 4]]) -> (Vec<u8>, u64),
+    ) -> (Vec<u8>, FrameStats, HashSet<NodeKey>) {
+        let t = Instant::now();
+        let (uploads, upload_bytes) = self.upload(gpu, selection);
+        let upload = t.elapsed();
+        let t = Instant::now();
+        let (draws, tree, keys) = self.draws(selection, 0);
+        let (image, read_bytes) = render(&draws, &tree);
+        let mut stats = FrameStats {
+            uploads,
+            upload_bytes,
+            read_bytes,
+            select,
+            select_current: true,
+            select_budget: options.budget,
+            upload,
+            ..self.stats(selection, &draws)
+        };
+        drop(draws);
+        stats.draw = t.elapsed();
+        (image, stats, keys)
     }
 }
 

@@ -62,15 +62,22 @@ impl Rasterizer {
         stereo: &Stereo,
     ) -> Vec<u8> {
         let (w, h) = (eyes[0].width.max(1), eyes[0].height.max(1));
-        let images: Vec<Vec<u8>> = if self.path == Path::Cpu {
+        let mask = stereo.hidden_area.then(|| hidden_area(w, h));
+        let mut out = if self.path == Path::Cpu {
             let passes = style.passes;
             let f = self.factor(gpu, &eyes[0], &passes);
             let eyes = eyes.map(|e| crate::raster::supersampled(&e, style, f));
             let style = &eyes[0].1;
-            let (sw, sh) = (eyes[0].0.width, eyes[0].0.height);
-            let mask = stereo.hidden_area.then(|| hidden_area(sw, sh));
+            // The mask at the supersampled size (the image's where there is no supersampling).
+            let big = (f > 1 && stereo.hidden_area)
+                .then(|| hidden_area(eyes[0].0.width, eyes[0].0.height));
+            let eye_mask = if f > 1 {
+                big.as_deref()
+            } else {
+                mask.as_deref()
+            };
             let list: Vec<(Camera, Option<&[bool]>)> =
-                eyes.iter().map(|e| (e.0, mask.as_deref())).collect();
+                eyes.iter().map(|e| (e.0, eye_mask)).collect();
             let gs = if stereo.single_pass {
                 crate::cpu::gbuffers(&list, draws, tree, style, passes.normals(), self.precision)
             } else {
@@ -87,51 +94,50 @@ impl Rasterizer {
                     })
                     .collect()
             };
-            gs.into_iter()
+            let images: Vec<Vec<u8>> = gs
+                .into_iter()
                 .zip(&eyes)
                 .map(|(g, (camera, _))| {
                     let view = crate::post::View::new(camera, &passes, style.background, f);
                     crate::post::run(g, &passes, &view)
                 })
-                .collect()
-        } else if stereo.single_pass && self.path != Path::Cpu {
+                .collect();
+            side_by_side(&images, w, h)
+        } else if stereo.single_pass {
             // One dispatch (compute) or one instanced draw (quads) for both eyes into a frame
-            // twice as wide, then split.
+            // twice as wide: already side by side.
             let mut wide = eyes[0];
             wide.width = 2 * w;
-            let both = self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style);
-            (0..2)
-                .map(|k| {
-                    (0..h as usize)
-                        .flat_map(|y| {
-                            let row = (y * 2 * w as usize + k * w as usize) * 4;
-                            both[row..row + w as usize * 4].to_vec()
-                        })
-                        .collect()
-                })
-                .collect()
+            self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style)
         } else {
-            eyes.iter()
+            let images: Vec<Vec<u8>> = eyes
+                .iter()
                 .map(|e| self.render(gpu, e, draws, tree, style))
-                .collect()
+                .collect();
+            side_by_side(&images, w, h)
         };
-        let mask = stereo.hidden_area.then(|| hidden_area(w, h));
-        let mut out = vec![0u8; (2 * w * h * 4) as usize];
-        for (k, img) in images.iter().enumerate() {
-            for y in 0..h as usize {
-                for x in 0..w as usize {
-                    let i = y * w as usize + x;
-                    let o = (y * 2 * w as usize + k * w as usize + x) * 4;
-                    if mask.as_ref().is_some_and(|m| m[i]) {
-                        out[o + 3] = 255;
-                    } else {
-                        out[o..o + 4].copy_from_slice(&img[i * 4..i * 4 + 4]);
-                    }
+        if let Some(m) = &mask {
+            for (i, px) in out.chunks_exact_mut(4).enumerate() {
+                let (y, x) = (i / (2 * w as usize), i % w as usize);
+                if m[y * w as usize + x] {
+                    px.copy_from_slice(&[0, 0, 0, 255]);
                 }
             }
         }
         out
     }
+}
+
+/// Two `w` x `h` images (RGBA8) in one, the first on the left.
+fn side_by_side(images: &[Vec<u8>], w: u32, h: u32) -> Vec<u8> {
+    let row = w as usize * 4;
+    let mut out = Vec::with_capacity(2 * row * h as usize);
+    for y in 0..h as usize {
+        for img in images {
+            out.extend_from_slice(&img[y * row..(y + 1) * row]);
+        }
+    }
+    out
 }
 
 impl crate::Scene {
@@ -168,23 +174,11 @@ impl crate::Scene {
         let selection = self.select_eyes(eyes, options, style.clip);
         self.take(&selection);
         let select = t.elapsed();
-        let t = std::time::Instant::now();
-        let (uploads, upload_bytes) = self.upload(gpu, &selection);
-        let upload = t.elapsed();
-        let t = std::time::Instant::now();
-        let (draws, tree, keys) = self.draws(&selection, 0);
-        let image = raster.render_stereo(gpu, eyes, &draws, &tree, style, stereo);
-        let mut stats = crate::FrameStats {
-            uploads,
-            upload_bytes,
-            select,
-            select_current: true,
-            select_budget: options.budget,
-            upload,
-            ..self.stats(&selection, &draws)
-        };
-        drop(draws);
-        stats.draw = t.elapsed();
+        let (image, stats, keys) =
+            self.draw_selected(gpu, &selection, select, options, |draws, tree| {
+                let image = raster.render_stereo(gpu, eyes, draws, tree, style, stereo);
+                (image, 0)
+            });
         self.drawn = keys;
         self.last = selection;
         (image, stats)

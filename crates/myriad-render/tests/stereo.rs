@@ -8,12 +8,8 @@ use myriad_render::{Gpu, Passes, Path, PointSize, Points, Rasterizer, Style};
 
 #[test]
 fn the_gpu_paths_draw_both_eyes_in_one_pass_as_the_cpu_does() {
-    let gpu = match Gpu::headless() {
-        Ok(g) => g,
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
-            return;
-        }
+    let Some(gpu) = common::gpu_or_skip() else {
+        return;
     };
     let mut paths = vec![Path::Quads];
     if gpu.atomics {

@@ -5,7 +5,6 @@ mod common;
 use common::random;
 use myriad_core::Aabb;
 use myriad_lod::Camera;
-use myriad_render::Gpu;
 use myriad_render::surface::{self, Density, Grid, Normals, Surface};
 
 fn camera() -> Camera {
@@ -44,16 +43,11 @@ fn scene() -> (Vec<[f64; 3]>, Vec<[u8; 4]>) {
 
 #[test]
 fn gpu_and_cpu_make_the_same_cells() {
-    let gpu = match Gpu::headless() {
-        Ok(g) => g,
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
-            return;
-        }
+    let Some(gpu) = common::gpu_or_skip() else {
+        return;
     };
     let cam = camera();
     let (points, colours) = scene();
-    let eye: Vec<[f64; 3]> = points.iter().map(|&p| cam.to_eye(p)).collect();
     for s in [
         Surface::default(),
         Surface {
@@ -74,7 +68,7 @@ fn gpu_and_cpu_make_the_same_cells() {
             grid: [64, 48, 24],
             ..s
         };
-        let grid = Grid::frustum(&cam, s.grid, &eye).expect("in view");
+        let grid = Grid::frustum(&cam, s.grid, &points).expect("in view");
         let cpu = surface::cluster(&cam, &grid, &points, &colours, &s);
         let gpu = surface::gpu::cluster(&gpu, &cam, &grid, &points, &colours, &s).unwrap();
         assert_eq!(cpu.inside, points.len());
@@ -181,12 +175,8 @@ fn gpu_and_cpu_make_the_same_cells() {
 
 #[test]
 fn gpu_and_cpu_draw_the_same_surface() {
-    let gpu = match Gpu::headless() {
-        Ok(g) => g,
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
-            return;
-        }
+    let Some(gpu) = common::gpu_or_skip() else {
+        return;
     };
     let cam = camera();
     let (points, colours) = scene();
@@ -230,12 +220,8 @@ fn gpu_and_cpu_draw_the_same_surface() {
 
 #[test]
 fn the_gpu_reconstructs_the_triangles_the_cpu_makes_of_its_cells() {
-    let gpu = match Gpu::headless() {
-        Ok(g) => g,
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe");
-            return;
-        }
+    let Some(gpu) = common::gpu_or_skip() else {
+        return;
     };
     let cam = camera();
     let (points, colours) = scene();

@@ -163,8 +163,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
                 },
             ),
         ];
-        let eye: Vec<[f64; 3]> = points.iter().map(|&p| cam.to_eye(p)).collect();
-        let Some(frustum) = Grid::frustum(&cam, full.grid, &eye) else {
+        let Some(frustum) = Grid::frustum(&cam, full.grid, &points) else {
             println!("{name}: no point in view");
             continue;
         };
@@ -233,9 +232,10 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
             }
             rows.push(row);
         }
-        // The baseline: an octree level over the points in view, about as many cells.
+        // The baseline: an octree level over the points in view (those the full method
+        // clustered), about as many cells.
         let inside: Vec<usize> = (0..points.len())
-            .filter(|&i| frustum.coords(points[i], eye[i]).is_some())
+            .filter(|&i| full_built.clustering.of_point[i] != u32::MAX)
             .collect();
         let in_points: Vec<[f64; 3]> = inside.iter().map(|&i| points[i]).collect();
         let in_colours: Vec<[u8; 4]> = inside.iter().map(|&i| colours[i]).collect();

@@ -127,9 +127,7 @@ impl Drawer {
         let mut passes = style.passes;
         passes.shade.get_or_insert_with(crate::Shade::default);
         let f = passes.factor();
-        let mut c = *camera;
-        c.width = camera.width.max(1) * f;
-        c.height = camera.height.max(1) * f;
+        let c = crate::raster::supersampled(camera, style, f).0;
         let (w, h) = (c.width, c.height);
         let view = View::new(&c, &passes, style.background, f);
         let (r, u, fw) = c.basis();

@@ -168,22 +168,29 @@ pub enum Grid {
 }
 
 impl Grid {
-    /// The frustum grid of `camera` over the depths of the points in view (`eye`: eye
-    /// coordinates); None when no point is in view.
-    pub fn frustum(camera: &Camera, dims: [u32; 3], eye: &[[f64; 3]]) -> Option<Grid> {
+    /// The frustum grid of `camera` over the depths of the `points` (world) in view; None when
+    /// no point is in view. One pass over the points, in parallel, keeping nothing.
+    pub fn frustum(camera: &Camera, dims: [u32; 3], points: &[[f64; 3]]) -> Option<Grid> {
+        use rayon::prelude::*;
         let (w, h, f) = (camera.width as f64, camera.height as f64, camera.focal());
-        let mut near = f64::INFINITY;
-        let mut far = 0.0f64;
-        for e in eye {
-            if e[2] <= camera.near {
-                continue;
-            }
-            let (x, y) = (w / 2.0 + e[0] * f / e[2], h / 2.0 - e[1] * f / e[2]);
-            if (0.0..w).contains(&x) && (0.0..h).contains(&y) {
-                near = near.min(e[2]);
-                far = far.max(e[2]);
-            }
-        }
+        let (r, u, fw) = camera.basis();
+        let o = camera.position;
+        let (near, far) = points
+            .par_iter()
+            .filter_map(|p| {
+                let d = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+                let dot = |v: [f64; 3]| d[0] * v[0] + d[1] * v[1] + d[2] * v[2];
+                let e = [dot(r), dot(u), dot(fw)];
+                if e[2] <= camera.near {
+                    return None;
+                }
+                let (x, y) = (w / 2.0 + e[0] * f / e[2], h / 2.0 - e[1] * f / e[2]);
+                ((0.0..w).contains(&x) && (0.0..h).contains(&y)).then_some((e[2], e[2]))
+            })
+            .reduce(
+                || (f64::INFINITY, 0.0f64),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
         (near <= far).then(|| Grid::Frustum {
             dims,
             width: w,
@@ -394,8 +401,7 @@ impl Built {
     /// Cluster, move and reduce `points` (world, with their colours) in the frustum grid of
     /// `camera`, and reconstruct the surface.
     pub fn new(camera: &Camera, points: &[[f64; 3]], colours: &[[u8; 4]], s: &Surface) -> Built {
-        let eye = cluster::to_eye(camera, points);
-        let Some(grid) = Grid::frustum(camera, s.grid, &eye) else {
+        let Some(grid) = Grid::frustum(camera, s.grid, points) else {
             return Built::default();
         };
         Built::in_grid(camera, &grid, points, colours, s)
@@ -413,8 +419,7 @@ impl Built {
         if gpu.is_cpu() {
             return Ok(Built::new(camera, points, colours, s));
         }
-        let eye = cluster::to_eye(camera, points);
-        let Some(grid) = Grid::frustum(camera, s.grid, &eye) else {
+        let Some(grid) = Grid::frustum(camera, s.grid, points) else {
             return Ok(Built::default());
         };
         Built::in_grid_on(gpu, camera, &grid, points, colours, s)
@@ -472,9 +477,7 @@ pub fn draw(camera: &Camera, mesh: &Mesh, style: &crate::Style) -> Vec<u8> {
     let mut passes = style.passes;
     passes.shade.get_or_insert_with(crate::Shade::default);
     let f = passes.factor();
-    let mut c = *camera;
-    c.width = camera.width.max(1) * f;
-    c.height = camera.height.max(1) * f;
+    let c = crate::raster::supersampled(camera, style, f).0;
     let view = crate::post::View::new(&c, &passes, style.background, f);
     crate::post::run(gbuffer(&c, mesh), &passes, &view)
 }

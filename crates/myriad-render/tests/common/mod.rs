@@ -26,6 +26,13 @@ pub fn paths() -> Vec<(Gpu, Rasterizer)> {
     out
 }
 
+/// The GPU adapter, or None having said the test is skipped without one.
+pub fn gpu_or_skip() -> Option<Gpu> {
+    Gpu::headless()
+        .map_err(|e| eprintln!("SKIPPED: no GPU adapter ({e}); CI installs lavapipe"))
+        .ok()
+}
+
 /// Numbers uniform in [0, 1) from `seed` (xorshift), the same on every run.
 pub fn random(mut s: u64) -> impl FnMut() -> f64 {
     move || {
