@@ -189,12 +189,45 @@ struct Target<'a> {
 /// What [`points_pass`] needs of an eye, computed once a pass.
 struct Eye<'a> {
     t: &'a Target<'a>,
+    /// Its mask's [`mask_classes`] for the largest point.
+    classes: Option<Vec<u8>>,
     w: u32,
     h: u32,
     far: f32,
     focal: f32,
     m: [[f32; 4]; 4],
     basis: [[f32; 3]; 3],
+}
+
+/// Per pixel of a `w` x `h` mask (true: hidden), what a point centred there needs: 0, every
+/// pixel within `r` of it hidden (it is not drawn); 2, none hidden (drawn as it is); 1, some
+/// (each of its pixels looked up). One summed-area table of the hidden pixels.
+fn mask_classes(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<u8> {
+    let stride = w + 1;
+    let mut sat = vec![0u32; stride * (h + 1)];
+    for y in 0..h {
+        let mut row = 0;
+        for x in 0..w {
+            row += mask[y * w + x] as u32;
+            sat[(y + 1) * stride + x + 1] = sat[y * stride + x + 1] + row;
+        }
+    }
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+            let hidden = sat[y1 * stride + x1] + sat[y0 * stride + x0]
+                - sat[y0 * stride + x1]
+                - sat[y1 * stride + x0];
+            match hidden as usize {
+                0 => 2,
+                n if n == (x1 - x0) * (y1 - y0) => 0,
+                _ => 1,
+            }
+        })
+        .collect()
 }
 
 /// One pass over the points: `mode` 0 keeps the nearest value per pixel in `fb`; 1 (splats
@@ -220,6 +253,10 @@ fn points_pass(
         .iter()
         .map(|t| Eye {
             t,
+            classes: t.mask.map(|m| {
+                let w = t.camera.width.max(1) as usize;
+                mask_classes(m, w, m.len() / w, max_size.ceil() as usize / 2 + 1)
+            }),
             w: t.camera.width.max(1),
             h: t.camera.height.max(1),
             far: t.camera.far as f32,
@@ -313,17 +350,19 @@ fn points_pass(
                         }
                         let fx = (ndc[0] * 0.5 + 0.5) * e.w as f32;
                         let fy = (0.5 - ndc[1] * 0.5) * e.h as f32;
-                        // The hidden area is outside the ellipse inscribed in the image: a point
-                        // well outside it is not drawn, one well inside needs no mask.
-                        let edge = e.t.mask.is_some() && {
-                            let (a, b) = (e.w as f32 * 0.5, e.h as f32 * 0.5);
-                            let (u, v) = ((fx - a) / a, (fy - b) / b);
-                            let d = (u * u + v * v).sqrt();
-                            let margin = max_size / a.min(b);
-                            if d > 1.0 + margin {
-                                continue;
+                        // A point amid the hidden area is not drawn, one clear of it needs
+                        // no mask, one near its border looks up each of its pixels.
+                        let edge = match &e.classes {
+                            None => false,
+                            Some(c) => {
+                                let x = (fx as usize).min(e.w as usize - 1);
+                                let y = (fy as usize).min(e.h as usize - 1);
+                                match c[y * e.w as usize + x] {
+                                    0 => continue,
+                                    1 => true,
+                                    _ => false,
+                                }
                             }
-                            d > 1.0 - margin
                         };
                         let colour = colour as u64;
                         if let Some((codes, range)) = splats {

@@ -154,6 +154,9 @@ pub struct Rasterizer {
     /// Precision per batch (Schütz 2022): a draw's points are read with as few position words
     /// as leave them within half this many pixels of where all words put them (0: all words).
     pub precision: f32,
+    /// On the quad path, draw nodes front to back (002's reverse painter's order: the depth
+    /// test then rejects what lies behind before it is shaded); else in the selection's order.
+    pub front_to_back: bool,
 }
 
 /// Workgroups for `n` threads, as a 2D dispatch within the 65535 limit per dimension.
@@ -244,6 +247,7 @@ impl Rasterizer {
             present: Mutex::new(None),
             path,
             precision: DEFAULT_PRECISION,
+            front_to_back: true,
         }
     }
 
@@ -367,7 +371,8 @@ impl Rasterizer {
             *guard = Some(self.targets(gpu, w, h, f));
         }
         let mut draws: Vec<&Draw> = draws.iter().filter(|s| s.count > 0).collect();
-        if self.path == Path::Quads && draws.iter().all(|d| d.node.is_some()) {
+        if self.path == Path::Quads && self.front_to_back && draws.iter().all(|d| d.node.is_some())
+        {
             // Front to back by node (002's reverse painter's order): the depth test then rejects
             // the fragments of what lies behind before they are shaded. Ties keep their order.
             let e = camera.position;

@@ -6,9 +6,9 @@
 //!   pixels clipped to its half), so a point at an eye's border never reaches the other eye's
 //!   image; on the quad path by one instanced draw of twice the points, each square clamped to
 //!   its eye's columns. Two passes (one frame per eye) are the baseline.
-//! - The hidden-area mask (002 section 4.1): the pixels outside the ellipse inscribed in an
-//!   eye's image (a lens shows a disc; a headset's runtime gives its own mesh), which the CPU's
-//!   point pass skips; every path leaves them black.
+//! - The hidden-area mask (002 section 4.1): the pixels a lens cannot show: a headset runtime's
+//!   own triangles (`triangles_mask`), else those outside the ellipse inscribed in an eye's image
+//!   (a lens shows a disc). The CPU's point pass skips them; every path leaves them black.
 
 use crate::{Draw, Gpu, Path, Rasterizer, Style};
 use myriad_lod::Camera;
@@ -49,9 +49,54 @@ pub fn hidden_area(width: u32, height: u32) -> Vec<bool> {
         .collect()
 }
 
+/// Per pixel of a `width` x `height` image, row by row, whether its centre lies in one of
+/// `triangles` (pixel coordinates: x right, y down, the image's corner at 0, 0; either winding):
+/// a headset runtime's hidden-area mesh (XR_KHR_visibility_mask) as a mask.
+pub fn triangles_mask(width: u32, height: u32, triangles: &[[[f64; 2]; 3]]) -> Vec<bool> {
+    let (w, h) = (width as usize, height as usize);
+    let mut mask = vec![false; w * h];
+    let cross = |a: [f64; 2], b: [f64; 2], p: [f64; 2]| {
+        (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+    };
+    for t in triangles {
+        let lo = |a: usize| t.iter().map(|v| v[a]).fold(f64::INFINITY, f64::min);
+        let hi = |a: usize| t.iter().map(|v| v[a]).fold(f64::NEG_INFINITY, f64::max);
+        // Pixels whose centres can lie in the triangle's box.
+        let span = |lo: f64, hi: f64, n: usize| {
+            let a = (lo - 0.5).ceil().max(0.0) as usize;
+            let b = ((hi - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+            a..b.max(a)
+        };
+        for y in span(lo(1), hi(1), h) {
+            for x in span(lo(0), hi(0), w) {
+                let p = [x as f64 + 0.5, y as f64 + 0.5];
+                let e = [
+                    cross(t[0], t[1], p),
+                    cross(t[1], t[2], p),
+                    cross(t[2], t[0], p),
+                ];
+                if e.iter().all(|&c| c >= 0.0) || e.iter().all(|&c| c <= 0.0) {
+                    mask[y * w + x] = true;
+                }
+            }
+        }
+    }
+    mask
+}
+
+/// `mask` (`w` pixels a row) at `f` times its size, each pixel's `f` x `f` alike.
+fn upsampled(mask: &[bool], w: usize, f: usize) -> Vec<bool> {
+    let h = mask.len() / w.max(1);
+    (0..h * f)
+        .flat_map(|y| (0..w * f).map(move |x| mask[(y / f) * w + x / f]))
+        .collect()
+}
+
 impl Rasterizer {
     /// The two eyes' images of `draws` side by side: RGBA8, `2 * width` x `height`, the left
-    /// eye on the left.
+    /// eye on the left. `masks`: each eye's hidden pixels (a runtime's, e.g. from
+    /// [`triangles_mask`]), in place of the ellipse `stereo.hidden_area` asks for.
+    #[allow(clippy::too_many_arguments)]
     pub fn render_stereo(
         &self,
         gpu: &Gpu,
@@ -60,24 +105,33 @@ impl Rasterizer {
         tree: &[[u32; 4]],
         style: &Style,
         stereo: &Stereo,
+        masks: Option<&[Vec<bool>; 2]>,
     ) -> Vec<u8> {
         let (w, h) = (eyes[0].width.max(1), eyes[0].height.max(1));
-        let mask = stereo.hidden_area.then(|| hidden_area(w, h));
+        let ellipse;
+        let mask: Option<[&[bool]; 2]> = match masks {
+            Some(m) => Some([&m[0], &m[1]]),
+            None if stereo.hidden_area => {
+                ellipse = hidden_area(w, h);
+                Some([&ellipse, &ellipse])
+            }
+            None => None,
+        };
         let mut out = if self.path == Path::Cpu {
             let passes = style.passes;
             let f = self.factor(gpu, &eyes[0], &passes);
             let eyes = eyes.map(|e| crate::raster::supersampled(&e, style, f));
             let style = &eyes[0].1;
-            // The mask at the supersampled size (the image's where there is no supersampling).
-            let big = (f > 1 && stereo.hidden_area)
-                .then(|| hidden_area(eyes[0].0.width, eyes[0].0.height));
-            let eye_mask = if f > 1 {
-                big.as_deref()
-            } else {
-                mask.as_deref()
+            // The masks at the supersampled size (the image's where there is no supersampling).
+            let big = mask
+                .filter(|_| f > 1)
+                .map(|m| m.map(|m| upsampled(m, w as usize, f as usize)));
+            let eye_mask = |k: usize| match &big {
+                Some(b) => Some(&b[k][..]),
+                None => mask.map(|m| m[k]),
             };
             let list: Vec<(Camera, Option<&[bool]>)> =
-                eyes.iter().map(|e| (e.0, eye_mask)).collect();
+                (0..2).map(|k| (eyes[k].0, eye_mask(k))).collect();
             let gs = if stereo.single_pass {
                 crate::cpu::gbuffers(&list, draws, tree, style, passes.normals(), self.precision)
             } else {
@@ -118,8 +172,8 @@ impl Rasterizer {
         };
         if let Some(m) = &mask {
             for (i, px) in out.chunks_exact_mut(4).enumerate() {
-                let (y, x) = (i / (2 * w as usize), i % w as usize);
-                if m[y * w as usize + x] {
+                let (y, x) = (i / (2 * w as usize), i % (2 * w as usize));
+                if m[x / w as usize][y * w as usize + x % w as usize] {
                     px.copy_from_slice(&[0, 0, 0, 255]);
                 }
             }
@@ -159,6 +213,7 @@ impl crate::Scene {
         )
     }
 
+    #[allow(clippy::too_many_arguments)]
     /// A stereo frame: both eyes' selection, loads (never waiting), uploads, and the two
     /// images side by side ([`Rasterizer::render_stereo`]).
     pub fn frame_stereo(
@@ -169,6 +224,7 @@ impl crate::Scene {
         options: &myriad_lod::SelectOptions,
         style: &Style,
         stereo: &Stereo,
+        masks: Option<&[Vec<bool>; 2]>,
     ) -> (Vec<u8>, crate::FrameStats) {
         let t = std::time::Instant::now();
         let selection = self.select_eyes(eyes, options, style.clip);
@@ -176,7 +232,7 @@ impl crate::Scene {
         let select = t.elapsed();
         let (image, stats, keys) =
             self.draw_selected(gpu, &selection, select, options, |draws, tree| {
-                let image = raster.render_stereo(gpu, eyes, draws, tree, style, stereo);
+                let image = raster.render_stereo(gpu, eyes, draws, tree, style, stereo, masks);
                 (image, 0)
             });
         self.drawn = keys;
@@ -240,6 +296,93 @@ mod tests {
     }
 
     #[test]
+    fn a_runtimes_triangles_mask_the_pixels_whose_centres_they_hold() {
+        // Two triangles over the columns 0..10 of rows 2..6 (one clockwise, one not), and one
+        // reaching outside the image: 40 pixels, then the 3 x 3 corner it covers.
+        let quad = [
+            [[0.0, 2.0], [10.0, 2.0], [10.0, 6.0]],
+            [[0.0, 2.0], [0.0, 6.0], [10.0, 6.0]],
+        ];
+        let m = triangles_mask(20, 10, &quad);
+        assert_eq!(m.iter().filter(|&&b| b).count(), 40);
+        assert!(m[2 * 20] && m[5 * 20 + 9] && !m[20] && !m[6 * 20] && !m[2 * 20 + 10]);
+        let corner = [[[17.0, 7.0], [40.0, 7.0], [17.0, 40.0]]];
+        assert_eq!(
+            triangles_mask(20, 10, &corner)
+                .iter()
+                .filter(|&&b| b)
+                .count(),
+            9
+        );
+        // A sliver between pixel centres holds none.
+        let sliver = [[[3.6, 0.0], [3.9, 0.0], [3.6, 10.0]]];
+        assert!(triangles_mask(20, 10, &sliver).iter().all(|&b| !b));
+    }
+
+    #[test]
+    fn each_eye_takes_its_own_mask() {
+        let gpu = Gpu::cpu();
+        let raster = Rasterizer::new(&gpu);
+        let cam = camera(40);
+        // A wall filling both eyes' views.
+        let positions: Vec<[f64; 3]> = (0..6000)
+            .map(|i| {
+                [
+                    (i % 100) as f64 * 0.1 - 5.0,
+                    5.0,
+                    (i / 100) as f64 * 0.1 - 3.0,
+                ]
+            })
+            .collect();
+        let points = Points::upload(&gpu, [0.0; 3], &positions, &vec![[255; 4]; 6000]);
+        // The left eye hides its left half, the right eye its top rows.
+        let left = (0..1600).map(|i| i % 40 < 20).collect();
+        let right = triangles_mask(
+            40,
+            40,
+            &[
+                [[0.0, 0.0], [80.0, 0.0], [0.0, 10.0]],
+                [[80.0, 0.0], [80.0, 10.0], [0.0, 10.0]],
+            ],
+        );
+        assert_eq!(right.iter().filter(|&&b| b).count(), 400);
+        let masks = [left, right];
+        for (f, single_pass) in [(0, true), (0, false), (2, true)] {
+            let s = Stereo {
+                ipd: 0.1,
+                single_pass,
+                hidden_area: true,
+            };
+            let st = Style {
+                passes: Passes {
+                    aa: f,
+                    ..Passes::default()
+                },
+                ..style(2.0)
+            };
+            let img = raster.render_stereo(
+                &gpu,
+                &cam.eyes(0.1),
+                &[points.all(1.0)],
+                &[],
+                &st,
+                &s,
+                Some(&masks),
+            );
+            let lit = |x: usize, y: usize| img[(y * 80 + x) * 4..][..3] != [0, 0, 0];
+            for y in 0..40 {
+                for x in 0..40 {
+                    assert_eq!(lit(x, y), x >= 20 && lit(x, y), "left {x} {y}");
+                    assert_eq!(lit(40 + x, y), y >= 10 && lit(40 + x, y), "right {x} {y}");
+                }
+            }
+            // Not the ellipse: the left eye's top right corner and the right eye's bottom
+            // left corner show.
+            assert!(lit(38, 1) && lit(41, 38), "aa {f}");
+        }
+    }
+
+    #[test]
     fn a_point_straight_ahead_shows_the_disparity_of_the_eyes_distance() {
         let gpu = Gpu::cpu();
         let raster = Rasterizer::new(&gpu);
@@ -253,7 +396,8 @@ mod tests {
                 single_pass,
                 hidden_area: false,
             };
-            let img = raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(1.0), &s);
+            let img =
+                raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(1.0), &s, None);
             let [l, r] = lit_columns(&img, 201, 201);
             assert_eq!((l.len(), r.len()), (1, 1), "{l:?} {r:?}");
             // The left eye sees the point right of its centre, the right eye left of it, by
@@ -295,7 +439,7 @@ mod tests {
                 single_pass,
                 hidden_area,
             };
-            raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(3.0), &s)
+            raster.render_stereo(&gpu, &eyes, &[points.all(1.0)], &[], &style(3.0), &s, None)
         };
         for hidden in [false, true] {
             assert_eq!(draw(true, hidden), draw(false, hidden));
@@ -322,7 +466,8 @@ mod tests {
                 single_pass,
                 hidden_area: false,
             };
-            let img = raster.render_stereo(&gpu, &eyes, &[lone.all(1.0)], &[], &style(5.0), &s);
+            let img =
+                raster.render_stereo(&gpu, &eyes, &[lone.all(1.0)], &[], &style(5.0), &s, None);
             let [l, r] = lit_columns(&img, 96, 96);
             assert!(l.is_empty() && r.len() == 25, "{l:?} {r:?}");
         }

@@ -65,13 +65,13 @@ fn eyes_in_one_pass(gpu: &Gpu, path: Path) {
             single_pass: true,
             hidden_area,
         };
-        let a = cpu_raster.render_stereo(&cpu, &eyes, &[on_cpu.all(1.0)], &[], &style, &s);
-        let b = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &s);
+        let a = cpu_raster.render_stereo(&cpu, &eyes, &[on_cpu.all(1.0)], &[], &style, &s, None);
+        let b = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &s, None);
         let two = Stereo {
             single_pass: false,
             ..s
         };
-        let c = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &two);
+        let c = gpu_raster.render_stereo(gpu, &eyes, &[on_gpu.all(1.0)], &[], &style, &two, None);
         let differ =
             |x: &[u8], y: &[u8]| x.chunks(4).zip(y.chunks(4)).filter(|(p, q)| p != q).count();
         let lit = a.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count();

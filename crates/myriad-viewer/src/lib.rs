@@ -14,6 +14,7 @@ mod report;
 mod surface;
 pub mod vr;
 pub mod vr_nav;
+mod vr_vulkan;
 
 use eframe::egui;
 use eframe::egui_wgpu;

@@ -165,6 +165,7 @@ impl App {
             &self.options,
             &self.style,
             &stereo,
+            None,
         );
         self.stats = vec![stats];
         // An odd width leaves a column: black.

@@ -1,10 +1,15 @@
 //! `myriad view --vr`: a dataset in a headset through OpenXR (seed 002). The `openxr` crate over
-//! the system's loader; Vulkan through XR_KHR_vulkan_enable2 (the runtime makes the instance and
-//! the device, `ash` drives them); each frame the runtime's predicted display time, both eyes'
-//! poses and fields of view located, one selection for both eyes, both images drawn (single
-//! pass on the CPU path), copied into the eyes' swapchain images and submitted as a projection
-//! layer. The data stand in front of the user at the stage's origin, `scale` metres a data unit,
-//! Z up.
+//! the system's loader; Vulkan through XR_KHR_vulkan_enable2, the runtime making the instance
+//! and the device wgpu then drives (`vr_vulkan.rs`); each frame the runtime's predicted display
+//! time, both eyes' poses and fields of view located, one selection for both eyes, both images
+//! drawn in one pass (on the runtime's GPU into a texture; on the CPU where that GPU is a
+//! software one, unless `--gpu`), cut into the eyes' swapchain images on the GPU and submitted
+//! as a projection layer. The data stand in front of the user at the stage's origin, `scale`
+//! metres a data unit, Z up.
+//!
+//! The hidden area: the runtime's triangles (XR_KHR_visibility_mask, fetched again when it says
+//! they changed) mask each eye's pixels for the point pass, and are drawn black over the
+//! swapchain images.
 //!
 //! The controllers (002's interaction; bound for the Khronos simple controller, which every
 //! runtime maps its controllers to): the right trigger flies along the right hand's pointing
@@ -14,11 +19,7 @@
 //!
 //! Off-axis eyes: each eye's field is cut from a symmetric image holding both eyes' fields
 //! (`vr_nav::cover`), pixel for pixel what an off-axis projection draws.
-//!
-//! Not yet: a GPU image handed to the runtime without a copy through the CPU.
 
-use ash::vk;
-use ash::vk::Handle;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
 use myriad_render::stereo::Stereo;
@@ -45,8 +46,18 @@ pub struct VrReport {
     pub periods: Vec<f64>,
     /// Each eye's image size (the runtime's recommendation).
     pub size: (u32, u32),
-    /// Frames whose image differed from the frame's before (the views follow the head).
+    /// Frames whose image was looked at (every frame drawn on the CPU; every
+    /// `CHECK_EVERY`th on a GPU, read back), and of those the ones that differed from the one
+    /// looked at before (the views follow the head).
+    pub checked: u64,
     pub changed: u64,
+    /// Pixels of the looked-at images lit where the runtime's hidden area is (none: masked).
+    pub hidden_lit: u64,
+    /// Pixels of the swapchain images (read back with the images looked at) that differ from
+    /// the frame they were cut from (the hidden area's rim at most).
+    pub swapchain_differ: u64,
+    /// The runtime's Vulkan device, and what draws.
+    pub device: String,
     /// The point budget the frame rate settled on (held at the runtime's display rate).
     pub budget: u64,
     /// Each frame's work (ms): from the runtime's go to the submission.
@@ -55,6 +66,9 @@ pub struct VrReport {
     pub hands: u64,
     /// Points marked with the measuring ray (data coordinates), in order.
     pub measured: Vec<[f64; 3]>,
+    /// Per eye, the pixels of its image the runtime's hidden-area mesh hides (masked: black,
+    /// skipped by the point pass); None where the runtime has no XR_KHR_visibility_mask.
+    pub hidden: Option<[u64; 2]>,
 }
 
 /// VR's own options.
@@ -66,6 +80,8 @@ pub struct VrOptions {
     pub style: Style,
     /// Metres a data unit is shown at.
     pub scale: f64,
+    /// Draw on the runtime's device even where it is a software one (lavapipe).
+    pub gpu: bool,
 }
 
 fn err(what: &str) -> impl Fn(xr::sys::Result) -> String + '_ {
@@ -91,6 +107,7 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     }
     let mut wanted = xr::ExtensionSet::default();
     wanted.khr_vulkan_enable2 = true;
+    wanted.khr_visibility_mask = available.khr_visibility_mask;
     let instance = entry
         .create_instance(
             &xr::ApplicationInfo {
@@ -117,135 +134,40 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             views_config.len()
         ));
     }
-    let requirements = instance
-        .graphics_requirements::<xr::Vulkan>(system)
-        .map_err(err("Vulkan requirements"))?;
-
-    // Vulkan through the runtime.
-    // SAFETY: loads the system's Vulkan loader.
-    let vk_entry = unsafe { ash::Entry::load() }.map_err(|e| format!("no Vulkan loader: {e}"))?;
-    let api = vk::make_api_version(0, 1, 1, 0);
-    if api
-        < vk::make_api_version(
-            0,
-            requirements.min_api_version_supported.major() as u32,
-            requirements.min_api_version_supported.minor() as u32,
-            0,
-        )
-    {
-        return Err("the OpenXR runtime needs a newer Vulkan".into());
-    }
-    let app_info = vk::ApplicationInfo::default()
-        .application_name(c"myriad")
-        .api_version(api);
-    let get_proc = vk_entry.static_fn().get_instance_proc_addr;
-    // SAFETY: the create infos outlive the calls; the runtime returns valid handles or errors.
-    let (vk_instance, physical, device, queue_family) = unsafe {
-        let raw = instance
-            .create_vulkan_instance(
-                system,
-                std::mem::transmute::<vk::PFN_vkGetInstanceProcAddr, _>(get_proc),
-                &vk::InstanceCreateInfo::default().application_info(&app_info) as *const _
-                    as *const _,
-            )
-            .map_err(err("the runtime's Vulkan instance"))?
-            .map_err(|r| {
-                format!(
-                    "the runtime's Vulkan instance: {:?}",
-                    vk::Result::from_raw(r)
-                )
-            })?;
-        let vk_instance =
-            ash::Instance::load(vk_entry.static_fn(), vk::Instance::from_raw(raw as _));
-        let physical = vk::PhysicalDevice::from_raw(
-            instance
-                .vulkan_graphics_device(system, raw as _)
-                .map_err(err("the runtime's Vulkan device"))? as _,
-        );
-        let queue_family = vk_instance
-            .get_physical_device_queue_family_properties(physical)
-            .iter()
-            .position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS))
-            .ok_or("the Vulkan device has no graphics queue")? as u32;
-        let priorities = [1.0];
-        let queues = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(queue_family)
-            .queue_priorities(&priorities)];
-        let raw_device = instance
-            .create_vulkan_device(
-                system,
-                std::mem::transmute::<vk::PFN_vkGetInstanceProcAddr, _>(get_proc),
-                physical.as_raw() as _,
-                &vk::DeviceCreateInfo::default().queue_create_infos(&queues) as *const _
-                    as *const _,
-            )
-            .map_err(err("the runtime's Vulkan device"))?
-            .map_err(|r| format!("the runtime's Vulkan device: {:?}", vk::Result::from_raw(r)))?;
-        let device =
-            ash::Device::load(vk_instance.fp_v1_0(), vk::Device::from_raw(raw_device as _));
-        (vk_instance, physical, device, queue_family)
-    };
+    // Vulkan through the runtime, under wgpu.
+    let xr_device = crate::vr_vulkan::create(&instance, system)?;
     // SAFETY: the handles come from the runtime's Vulkan instance and device above.
-    let (session, mut waiter, mut stream) = unsafe {
-        instance.create_session::<xr::Vulkan>(
-            system,
-            &xr::vulkan::SessionCreateInfo {
-                instance: vk_instance.handle().as_raw() as _,
-                physical_device: physical.as_raw() as _,
-                device: device.handle().as_raw() as _,
-                queue_family_index: queue_family,
-                queue_index: 0,
-            },
-        )
-    }
-    .map_err(err("the OpenXR session"))?;
+    let (session, mut waiter, mut stream) =
+        unsafe { instance.create_session::<xr::Vulkan>(system, &xr_device.session_info) }
+            .map_err(err("the OpenXR session"))?;
     let space = session
         .create_reference_space(xr::ReferenceSpaceType::STAGE, xr::Posef::IDENTITY)
         .or_else(|_| {
             session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY)
         })
         .map_err(err("a reference space"))?;
-    let formats = session
-        .enumerate_swapchain_formats()
-        .map_err(err("swapchain formats"))?;
-    let format = [vk::Format::R8G8B8A8_SRGB, vk::Format::R8G8B8A8_UNORM]
-        .into_iter()
-        .find(|f| formats.contains(&(f.as_raw() as u32)))
-        .ok_or("the runtime offers no RGBA8 swapchain")?;
     let (w, h) = (
         views_config[0].recommended_image_rect_width,
         views_config[0].recommended_image_rect_height,
     );
-    let mut swapchains = Vec::new();
-    for _ in 0..2 {
-        let sc = session
-            .create_swapchain(&xr::SwapchainCreateInfo {
-                create_flags: xr::SwapchainCreateFlags::EMPTY,
-                usage_flags: xr::SwapchainUsageFlags::COLOR_ATTACHMENT
-                    | xr::SwapchainUsageFlags::TRANSFER_DST,
-                format: format.as_raw() as u32,
-                sample_count: 1,
-                width: w,
-                height: h,
-                face_count: 1,
-                array_size: 1,
-                mip_count: 1,
-            })
-            .map_err(err("a swapchain"))?;
-        let images: Vec<vk::Image> = sc
-            .enumerate_images()
-            .map_err(err("swapchain images"))?
-            .into_iter()
-            .map(vk::Image::from_raw)
-            .collect();
-        swapchains.push((sc, images));
-    }
-    let copier = Copier::new(&vk_instance, physical, &device, queue_family, (w, h))?;
+    let xr_gpu = xr_device.gpu;
+    let mut swapchains = crate::vr_vulkan::Eyes::new(&session, &xr_gpu, (w, h))?;
+    // The lenses' hidden areas (the runtime's triangles), and each eye's mask in its symmetric
+    // image made from them for the fields the runtime gives.
+    let mut hidden = wanted
+        .khr_visibility_mask
+        .then(|| hidden_meshes(&session))
+        .transpose()?;
+    let mut masks: Option<(crate::vr_nav::Cover, [Vec<bool>; 2])> = None;
 
     // The data and the renderer.
     let mut scene = Scene::open(dataset.clone(), 2 << 30, 1 << 30);
-    let gpu = Gpu::cpu();
-    let raster = Rasterizer::new(&gpu);
+    // The runtime's device draws where it is a hardware GPU (or where asked to); a software
+    // one (lavapipe) leaves the drawing to the CPU path, as the window does.
+    let on_gpu = o.gpu || !xr_gpu.software;
+    let cpu = Gpu::cpu();
+    let gpu = if on_gpu { &xr_gpu } else { &cpu };
+    let raster = Rasterizer::new(gpu);
     let mut options = SelectOptions {
         budget: o.budget,
         min_pixels: 1.0,
@@ -264,6 +186,11 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     let mut report = VrReport {
         views: 2,
         size: (w, h),
+        device: format!(
+            "{}, drawing on {}",
+            xr_gpu.name,
+            if on_gpu { "it" } else { "the CPU" }
+        ),
         ..Default::default()
     };
     let mut running = false;
@@ -293,6 +220,10 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                     }
                     _ => {}
                 },
+                xr::Event::VisibilityMaskChangedKHR(_) => {
+                    hidden = Some(hidden_meshes(&session)?);
+                    masks = None;
+                }
                 xr::Event::InstanceLossPending(_) => break 'frames,
                 _ => {}
             }
@@ -353,6 +284,23 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             }
         });
         let cover = crate::vr_nav::cover(tangents, w, h);
+        if masks.as_ref().is_none_or(|m| m.0 != cover) {
+            let none = [Vec::new(), Vec::new()];
+            let tris = hidden.as_ref().unwrap_or(&none);
+            let m = [0, 1].map(|k| cover.mask(k, w, h, &tris[k]));
+            // The runtime's hidden pixels in each eye's own field (its cut).
+            let outside = (cover.width * cover.height - w * h) as u64;
+            report.hidden = hidden.is_some().then(|| {
+                m.each_ref()
+                    .map(|m| m.iter().filter(|&&b| b).count() as u64 - outside)
+            });
+            masks = Some((cover, m));
+            // The hidden area over each eye's cut, drawn black into its swapchain image.
+            for k in 0..2 {
+                let tris = hidden.as_ref().map_or(&[][..], |t| &t[k][..]);
+                swapchains.set_hidden(&xr_gpu, k, tris, cover.drawn[k]);
+            }
+        }
         let eyes: [Camera; 2] = std::array::from_fn(|k| {
             let pose = views[k].pose;
             let forward = rotate(pose.orientation, [0.0, 0.0, -1.0]);
@@ -375,13 +323,19 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 far: 1e4 / nav.scale,
             }
         });
-        scene.take(&scene.select_eyes(&eyes, &options, None));
         let stereo = Stereo {
             ipd: 0.0,
             single_pass: true,
-            hidden_area: false,
+            hidden_area: true,
         };
-        let (image, stats) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &o.style, &stereo);
+        let eye_masks = masks.as_ref().map(|m| &m.1);
+        // On the GPU the frame is drawn into the texture the eyes are cut from, and read back
+        // (to see that it follows the head) every `CHECK_EVERY` frames only.
+        let wide = (2 * cover.width, cover.height);
+        let checked = !on_gpu || report.frames.is_multiple_of(CHECK_EVERY);
+        raster.present_to((!checked).then(|| swapchains.frame(&xr_gpu, wide.0, wide.1)));
+        let (image, stats) =
+            scene.frame_stereo(gpu, &raster, &eyes, &options, &o.style, &stereo, eye_masks);
         if input.measure
             && !measure_was
             && let Some((at, dir)) = input.aim[1]
@@ -404,42 +358,56 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             }
         }
         measure_was = input.measure;
-        // FNV-1a of the image: did the view change?
-        let hash = image.iter().fold(0xcbf29ce484222325u64, |h, &b| {
-            (h ^ b as u64).wrapping_mul(0x100000001b3)
-        });
-        report.changed += (report.frames > 0 && hash != last_image) as u64;
-        last_image = hash;
-        let mut layer_views = Vec::new();
-        for (k, (sc, images)) in swapchains.iter_mut().enumerate() {
-            let i = sc.acquire_image().map_err(err("a swapchain image"))? as usize;
-            sc.wait_image(xr::Duration::INFINITE)
-                .map_err(err("a swapchain image"))?;
-            // This eye's field, cut from its half of the side-by-side image.
-            let (x0, y0) = cover.corners[k];
-            let full = cover.width as usize;
-            let cut: Vec<u8> = (0..h as usize)
-                .flat_map(|y| {
-                    let row = ((y0 as usize + y) * 2 * full + k * full + x0 as usize) * 4;
-                    image[row..row + w as usize * 4].to_vec()
-                })
-                .collect();
-            copier.copy(&device, images[i], &cut)?;
-            sc.release_image().map_err(err("a swapchain image"))?;
-            // The field the cut covers (the eye's own, to a pixel).
-            let t = cover.drawn[k];
-            let drawn = xr::Fovf {
-                angle_left: t.left.atan() as f32,
-                angle_right: t.right.atan() as f32,
-                angle_up: t.up.atan() as f32,
-                angle_down: t.down.atan() as f32,
-            };
-            layer_views.push((views[k].pose, drawn));
+        if checked {
+            // FNV-1a of the image: did the view change since the last frame checked? And no
+            // pixel the runtime hides is lit.
+            let hash = image.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+                (h ^ b as u64).wrapping_mul(0x100000001b3)
+            });
+            report.changed += (report.checked > 0 && hash != last_image) as u64;
+            report.checked += 1;
+            last_image = hash;
+            if let Some((_, m)) = &masks {
+                let full = cover.width as usize;
+                for (k, m) in m.iter().enumerate() {
+                    report.hidden_lit += m
+                        .iter()
+                        .enumerate()
+                        .filter(|&(i, &hidden)| {
+                            let at = ((i / full) * 2 * full + k * full + i % full) * 4;
+                            hidden && image[at..at + 3] != [0, 0, 0]
+                        })
+                        .count() as u64;
+                }
+            }
         }
+        // Each eye's field cut from its half of the side-by-side frame into its swapchain.
+        let corners = [0, 1].map(|k| {
+            (
+                k as u32 * cover.width + cover.corners[k].0,
+                cover.corners[k].1,
+            )
+        });
+        if let Some(d) = swapchains.submit(&xr_gpu, checked.then_some(&image[..]), wide, corners)? {
+            report.swapchain_differ += d;
+        }
+        // The field each cut covers (the eye's own, to a pixel).
+        let layer_views: Vec<(xr::Posef, xr::Fovf)> = (0..2)
+            .map(|k| {
+                let t = cover.drawn[k];
+                let drawn = xr::Fovf {
+                    angle_left: t.left.atan() as f32,
+                    angle_right: t.right.atan() as f32,
+                    angle_up: t.up.atan() as f32,
+                    angle_down: t.down.atan() as f32,
+                };
+                (views[k].pose, drawn)
+            })
+            .collect();
         let projection: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = layer_views
             .iter()
-            .zip(&swapchains)
-            .map(|(&(pose, fov), (sc, _))| {
+            .zip(&swapchains.swapchains)
+            .map(|(&(pose, fov), sc)| {
                 xr::CompositionLayerProjectionView::new()
                     .pose(pose)
                     .fov(fov)
@@ -490,11 +458,40 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             session.request_exit().map_err(err("asking to end"))?;
         }
     }
-    copier.destroy(&device);
     drop(swapchains);
     drop(session);
     Ok(report)
 }
+
+/// Each eye's hidden-area triangles from the runtime (XR_KHR_visibility_mask), in tangents of
+/// its view (x right, y up: the mesh lies on the plane one unit ahead).
+fn hidden_meshes(session: &xr::Session<xr::Vulkan>) -> Result<[Vec<[[f64; 2]; 3]>; 2], String> {
+    let mut out = [Vec::new(), Vec::new()];
+    for (k, tris) in out.iter_mut().enumerate() {
+        let m = session
+            .get_visibility_mask_khr(
+                xr::ViewConfigurationType::PRIMARY_STEREO,
+                k as u32,
+                xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH,
+            )
+            .map_err(err("the hidden-area mesh"))?;
+        for t in m.indices.chunks_exact(3) {
+            let v = |i: u32| {
+                m.vertices
+                    .get(i as usize)
+                    .map(|v| [v.x as f64, v.y as f64])
+                    .ok_or_else(|| {
+                        format!("the hidden-area mesh: vertex {i} of {}", m.vertices.len())
+                    })
+            };
+            tris.push([v(t[0])?, v(t[1])?, v(t[2])?]);
+        }
+    }
+    Ok(out)
+}
+
+/// On a GPU, a frame in this many is read back to check it.
+const CHECK_EVERY: u64 = 10;
 
 /// Metres a second the right trigger flies.
 const FLY_SPEED: f64 = 2.0;
@@ -623,203 +620,5 @@ fn rotate(q: xr::Quaternionf, v: [f32; 3]) -> xr::Vector3f {
         x: v[0] + w * t[0] + (y * t[2] - z * t[1]),
         y: v[1] + w * t[1] + (z * t[0] - x * t[2]),
         z: v[2] + w * t[2] + (x * t[1] - y * t[0]),
-    }
-}
-
-/// Copies RGBA8 images into swapchain images: a host-visible staging buffer, one command
-/// buffer, a fence.
-struct Copier {
-    buffer: vk::Buffer,
-    memory: vk::DeviceMemory,
-    pool: vk::CommandPool,
-    commands: vk::CommandBuffer,
-    fence: vk::Fence,
-    queue: vk::Queue,
-    size: (u32, u32),
-}
-
-impl Copier {
-    fn new(
-        instance: &ash::Instance,
-        physical: vk::PhysicalDevice,
-        device: &ash::Device,
-        family: u32,
-        size: (u32, u32),
-    ) -> Result<Copier, String> {
-        let bytes = size.0 as u64 * size.1 as u64 * 4;
-        let vkerr = |what: &'static str| move |e: vk::Result| format!("Vulkan {what}: {e}");
-        // SAFETY: plain Vulkan object creation on a valid device.
-        unsafe {
-            let buffer = device
-                .create_buffer(
-                    &vk::BufferCreateInfo::default()
-                        .size(bytes)
-                        .usage(vk::BufferUsageFlags::TRANSFER_SRC),
-                    None,
-                )
-                .map_err(vkerr("staging buffer"))?;
-            let needs = device.get_buffer_memory_requirements(buffer);
-            let props = instance.get_physical_device_memory_properties(physical);
-            let kind = (0..props.memory_type_count)
-                .find(|&i| {
-                    needs.memory_type_bits & (1 << i) != 0
-                        && props.memory_types[i as usize].property_flags.contains(
-                            vk::MemoryPropertyFlags::HOST_VISIBLE
-                                | vk::MemoryPropertyFlags::HOST_COHERENT,
-                        )
-                })
-                .ok_or("no host-visible Vulkan memory")?;
-            let memory = device
-                .allocate_memory(
-                    &vk::MemoryAllocateInfo::default()
-                        .allocation_size(needs.size)
-                        .memory_type_index(kind),
-                    None,
-                )
-                .map_err(vkerr("staging memory"))?;
-            device
-                .bind_buffer_memory(buffer, memory, 0)
-                .map_err(vkerr("staging memory"))?;
-            let pool = device
-                .create_command_pool(
-                    &vk::CommandPoolCreateInfo::default()
-                        .queue_family_index(family)
-                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                    None,
-                )
-                .map_err(vkerr("command pool"))?;
-            let commands = device
-                .allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default()
-                        .command_pool(pool)
-                        .command_buffer_count(1),
-                )
-                .map_err(vkerr("command buffer"))?[0];
-            let fence = device
-                .create_fence(&vk::FenceCreateInfo::default(), None)
-                .map_err(vkerr("fence"))?;
-            let queue = device.get_device_queue(family, 0);
-            Ok(Copier {
-                buffer,
-                memory,
-                pool,
-                commands,
-                fence,
-                queue,
-                size,
-            })
-        }
-    }
-
-    /// `rgba` (the swapchain's size) into `image`, left in COLOR_ATTACHMENT_OPTIMAL as the
-    /// runtime expects a released image.
-    fn copy(&self, device: &ash::Device, image: vk::Image, rgba: &[u8]) -> Result<(), String> {
-        let vkerr = |e: vk::Result| format!("Vulkan copy: {e}");
-        let (w, h) = self.size;
-        let range = vk::ImageSubresourceRange::default()
-            .aspect_mask(vk::ImageAspectFlags::COLOR)
-            .level_count(1)
-            .layer_count(1);
-        let barrier = |from, to, src, dst| {
-            vk::ImageMemoryBarrier::default()
-                .old_layout(from)
-                .new_layout(to)
-                .src_access_mask(src)
-                .dst_access_mask(dst)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(range)
-        };
-        // SAFETY: the staging memory is host-visible and as large as an image; the command
-        // buffer is recorded, submitted and waited for before it is used again.
-        unsafe {
-            let ptr = device
-                .map_memory(
-                    self.memory,
-                    0,
-                    rgba.len() as u64,
-                    vk::MemoryMapFlags::empty(),
-                )
-                .map_err(vkerr)?;
-            std::ptr::copy_nonoverlapping(rgba.as_ptr(), ptr as *mut u8, rgba.len());
-            device.unmap_memory(self.memory);
-            let c = self.commands;
-            device
-                .reset_command_buffer(c, vk::CommandBufferResetFlags::empty())
-                .map_err(vkerr)?;
-            device
-                .begin_command_buffer(c, &vk::CommandBufferBeginInfo::default())
-                .map_err(vkerr)?;
-            device.cmd_pipeline_barrier(
-                c,
-                vk::PipelineStageFlags::TOP_OF_PIPE,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::DependencyFlags::empty(),
-                &[],
-                &[],
-                &[barrier(
-                    vk::ImageLayout::UNDEFINED,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                    vk::AccessFlags::empty(),
-                    vk::AccessFlags::TRANSFER_WRITE,
-                )],
-            );
-            device.cmd_copy_buffer_to_image(
-                c,
-                self.buffer,
-                image,
-                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                &[vk::BufferImageCopy::default()
-                    .image_subresource(
-                        vk::ImageSubresourceLayers::default()
-                            .aspect_mask(vk::ImageAspectFlags::COLOR)
-                            .layer_count(1),
-                    )
-                    .image_extent(vk::Extent3D {
-                        width: w,
-                        height: h,
-                        depth: 1,
-                    })],
-            );
-            device.cmd_pipeline_barrier(
-                c,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
-                vk::DependencyFlags::empty(),
-                &[],
-                &[],
-                &[barrier(
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
-                )],
-            );
-            device.end_command_buffer(c).map_err(vkerr)?;
-            let buffers = [c];
-            device
-                .queue_submit(
-                    self.queue,
-                    &[vk::SubmitInfo::default().command_buffers(&buffers)],
-                    self.fence,
-                )
-                .map_err(vkerr)?;
-            device
-                .wait_for_fences(&[self.fence], true, u64::MAX)
-                .map_err(vkerr)?;
-            device.reset_fences(&[self.fence]).map_err(vkerr)?;
-        }
-        Ok(())
-    }
-
-    fn destroy(&self, device: &ash::Device) {
-        // SAFETY: nothing uses these objects after the last copy was waited for.
-        unsafe {
-            device.destroy_fence(self.fence, None);
-            device.destroy_command_pool(self.pool, None);
-            device.destroy_buffer(self.buffer, None);
-            device.free_memory(self.memory, None);
-        }
     }
 }

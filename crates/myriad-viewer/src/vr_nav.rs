@@ -116,6 +116,32 @@ pub struct Cover {
     pub drawn: [Tangents; 2],
 }
 
+impl Cover {
+    /// Eye `k`'s hidden pixels in its symmetric image, row by row: those outside its cut of
+    /// `w` x `h` pixels (no eye shows them) and those whose centres lie in one of `hidden` (the
+    /// runtime's hidden-area triangles, XR_KHR_visibility_mask: tangents, x right, y up).
+    pub fn mask(&self, k: usize, w: u32, h: u32, hidden: &[[[f64; 2]; 3]]) -> Vec<bool> {
+        let p = 2.0 * (self.fov_y / 2.0).to_radians().tan() / self.height as f64;
+        let (half_w, half_h) = (self.width as f64 * p / 2.0, self.height as f64 * p / 2.0);
+        let pixels: Vec<[[f64; 2]; 3]> = hidden
+            .iter()
+            .map(|t| t.map(|v| [(v[0] + half_w) / p, (half_h - v[1]) / p]))
+            .collect();
+        let mut mask = myriad_render::stereo::triangles_mask(self.width, self.height, &pixels);
+        let (x0, y0) = self.corners[k];
+        for (i, m) in mask.iter_mut().enumerate() {
+            let (x, y) = (
+                (i % self.width as usize) as u32,
+                (i / self.width as usize) as u32,
+            );
+            if x < x0 || x >= x0 + w || y < y0 || y >= y0 + h {
+                *m = true;
+            }
+        }
+        mask
+    }
+}
+
 pub fn cover(eyes: [Tangents; 2], w: u32, h: u32) -> Cover {
     let (w, h) = (w.max(1), h.max(1));
     let u = eyes
@@ -213,6 +239,43 @@ mod tests {
         let c = cover([sym, sym], 100, 100);
         assert_eq!((c.width, c.height, c.corners[0]), (100, 100, (0, 0)));
         assert!((c.fov_y - 90.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_eyes_mask_holds_the_runtimes_triangles_and_all_outside_its_cut() {
+        let t = |d: f64| d.to_radians().tan();
+        let left = Tangents {
+            left: -t(50.0),
+            right: t(40.0),
+            up: t(45.0),
+            down: -t(45.0),
+        };
+        let right = Tangents {
+            left: -t(40.0),
+            right: t(50.0),
+            ..left
+        };
+        let h = 200;
+        let p = (left.up - left.down) / h as f64;
+        let w = ((left.right - left.left) / p).round() as u32;
+        let c = cover([left, right], w, h);
+        assert!(c.width > w);
+        // No triangles: exactly the pixels outside the cut.
+        let m = c.mask(0, w, h, &[]);
+        assert_eq!(m.iter().filter(|&&b| !b).count(), (w * h) as usize);
+        assert!(!m[0] && m[c.width as usize - 1]);
+        // The runtime hides the eye's top left corner: a right triangle with legs of 20 pixels
+        // from the field's corner (tangents), 20 * 21 / 2 = 210 pixel centres in it (the
+        // hypotenuse's half), more or less a row.
+        let (l, u) = (c.drawn[0].left, c.drawn[0].up);
+        let corner = [[l, u], [l + 20.0 * p, u], [l, u - 20.0 * p]];
+        let m = c.mask(0, w, h, &[corner]);
+        let hidden = m.iter().filter(|&&b| b).count() - (c.width * h - w * h) as usize;
+        assert!(hidden.abs_diff(210) <= 21, "{hidden}");
+        assert!(m[0] && !m[(h as usize / 2) * c.width as usize + w as usize / 2]);
+        // The right eye's cut is the image's right part; the same tangents, its own pixels.
+        let m = c.mask(1, w, h, &[corner]);
+        assert!(m[0] && !m[c.width as usize - 1]);
     }
 
     #[test]

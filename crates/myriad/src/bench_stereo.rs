@@ -3,7 +3,8 @@
 //! `--budget`: the median frame (selection, loads, uploads, drawing, post passes) of the mono
 //! view, of both eyes in two passes and in a single pass, each with and without the hidden-area
 //! mask (single pass: one pass over the points on the CPU, one dispatch on the compute path, one
-//! instanced draw on the quad path).
+//! instanced draw on the quad path). On the quad path each is timed with the nodes drawn front
+//! to back (002's reverse painter's order) and in the selection's order.
 
 use crate::bench::median;
 use anyhow::Result;
@@ -11,7 +12,7 @@ use clap::Args;
 use myriad_format::Dataset;
 use myriad_lod::SelectOptions;
 use myriad_render::stereo::Stereo;
-use myriad_render::{Rasterizer, Scene, Style};
+use myriad_render::{Gpu, Path, Rasterizer, Scene, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -34,11 +35,24 @@ pub struct StereoBenchArgs {
     frames: usize,
     #[command(flatten)]
     device: crate::bench_render::Device,
+    /// Rasterizer: compute, quads or cpu [default: the device's]; on the quad path every frame
+    /// is also timed with the nodes in the selection's order, not front to back
+    #[arg(long = "raster", value_parser = crate::render::parse_path)]
+    path: Option<Path>,
 }
 
 pub fn run(a: StereoBenchArgs) -> Result<()> {
-    let gpu = a.device.gpu()?;
-    let raster = Rasterizer::new(&gpu);
+    let gpu = match a.path {
+        Some(Path::Cpu) => Gpu::cpu(),
+        Some(_) => Gpu::headless().map_err(anyhow::Error::msg)?,
+        None => a.device.gpu()?,
+    };
+    if a.path == Some(Path::Compute) && !gpu.atomics {
+        anyhow::bail!("{}: no 64-bit atomics, so no compute path", gpu.name);
+    }
+    let mut raster = a
+        .path
+        .map_or_else(|| Rasterizer::new(&gpu), |p| Rasterizer::with_path(&gpu, p));
     println!(
         "{}, {:?} path; {}x{} per eye, budget {}, eyes {} apart; medians of {} frames",
         gpu.name, raster.path, a.size, a.size, a.budget, a.ipd, a.frames
@@ -62,44 +76,66 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
         let name = path.display();
         println!("\n{name}\n| frame | points | ms |\n|---|---|---|");
         scene.converge(&cam, &options, None);
-        let mut ms = Vec::new();
+        // Node order matters only where there is a depth test (the quad path); the CPU and
+        // compute paths keep the nearest point by atomics in any order.
+        let orders: &[bool] = if raster.path == Path::Quads {
+            &[true, false]
+        } else {
+            &[true]
+        };
+        let as_selected = |front_to_back: bool| {
+            if front_to_back {
+                ""
+            } else {
+                ", nodes as selected"
+            }
+        };
         let mut points = 0;
-        for _ in 0..a.frames.max(1) {
-            let t = Instant::now();
-            points = scene.frame(&gpu, &raster, &cam, &options, &style).1.points;
-            ms.push(t.elapsed().as_secs_f64() * 1e3);
-        }
-        println!(
-            "| mono | {} | {:.1} |",
-            crate::info::thousands(points),
-            median(ms)
-        );
-        scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, None));
-        for (label, single_pass, hidden_area) in [
-            ("two passes", false, false),
-            ("two passes, hidden-area mask", false, true),
-            ("single pass", true, false),
-            ("single pass, hidden-area mask", true, true),
-        ] {
-            let stereo = Stereo {
-                ipd: a.ipd,
-                single_pass,
-                hidden_area,
-            };
+        for &front_to_back in orders {
+            raster.front_to_back = front_to_back;
             let mut ms = Vec::new();
             for _ in 0..a.frames.max(1) {
                 let t = Instant::now();
-                points = scene
-                    .frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo)
-                    .1
-                    .points;
+                points = scene.frame(&gpu, &raster, &cam, &options, &style).1.points;
                 ms.push(t.elapsed().as_secs_f64() * 1e3);
             }
             println!(
-                "| {label} | {} | {:.1} |",
+                "| mono{} | {} | {:.1} |",
+                as_selected(front_to_back),
                 crate::info::thousands(points),
                 median(ms)
             );
+        }
+        scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, None));
+        for &front_to_back in orders {
+            raster.front_to_back = front_to_back;
+            for (label, single_pass, hidden_area) in [
+                ("two passes", false, false),
+                ("two passes, hidden-area mask", false, true),
+                ("single pass", true, false),
+                ("single pass, hidden-area mask", true, true),
+            ] {
+                let stereo = Stereo {
+                    ipd: a.ipd,
+                    single_pass,
+                    hidden_area,
+                };
+                let mut ms = Vec::new();
+                for _ in 0..a.frames.max(1) {
+                    let t = Instant::now();
+                    points = scene
+                        .frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo, None)
+                        .1
+                        .points;
+                    ms.push(t.elapsed().as_secs_f64() * 1e3);
+                }
+                println!(
+                    "| {label}{} | {} | {:.1} |",
+                    as_selected(front_to_back),
+                    crate::info::thousands(points),
+                    median(ms)
+                );
+            }
         }
     }
     Ok(())

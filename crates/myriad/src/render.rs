@@ -66,7 +66,7 @@ pub(crate) fn parse_shape(s: &str) -> Result<Shape, String> {
     Shape::parse(s).ok_or_else(|| format!("\"{s}\": one of square, round, paraboloid"))
 }
 
-fn parse_path(s: &str) -> Result<Path, String> {
+pub(crate) fn parse_path(s: &str) -> Result<Path, String> {
     match s {
         "compute" => Ok(Path::Compute),
         "quads" => Ok(Path::Quads),
@@ -286,7 +286,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, style.clip));
         let t = Instant::now();
-        let (img, stats) = scene.frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo);
+        let (img, stats) =
+            scene.frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo, None);
         let frame = t.elapsed();
         write_png(&a.output, 2 * a.width, a.height, &img)?;
         println!(

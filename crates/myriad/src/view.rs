@@ -44,8 +44,8 @@ pub struct ViewArgs {
     /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform
     #[arg(long, value_parser = parse_color, default_value = "rgb")]
     color: ColorBy,
-    /// Draw on the window's GPU adapter even where it is a software one (lavapipe); without
-    /// it, a software adapter leaves the drawing to the CPU path
+    /// Draw on the window's GPU adapter (with --vr: the runtime's) even where it is a software
+    /// one (lavapipe); without it, a software adapter leaves the drawing to the CPU path
     #[arg(long)]
     gpu: bool,
     /// On a GPU: read each frame back and upload it, instead of drawing into the window's
@@ -130,6 +130,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
                 clip: None,
             },
             scale: a.vr_scale,
+            gpu: a.gpu,
         };
         let ds = datasets.swap_remove(0).1;
         let r = myriad_viewer::vr::run(ds, &o).map_err(|e| anyhow::anyhow!("--vr: {e}"))?;
@@ -144,7 +145,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         work.sort_by(f64::total_cmp);
         let work = work.get(work.len() / 2).copied().unwrap_or(0.0);
         println!(
-            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms; a frame's work {work:.1} ms), head moved between {moved} of them, the image changed in {} of them, budget settled on {} points, controllers located in {} frames, {} points measured{}, {}",
+            "vr: session {}, {} frames submitted with {} views each ({}x{}), median interval {median:.1} ms (the runtime's display period {period:.1} ms; a frame's work {work:.1} ms), head moved between {moved} of them, the image changed in {} of {} looked at, budget settled on {} points, controllers located in {} frames, {} points measured{}, {}",
             if r.focused {
                 "reached FOCUSED"
             } else {
@@ -155,6 +156,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             r.size.0,
             r.size.1,
             r.changed,
+            r.checked.saturating_sub(1),
             r.budget,
             r.hands,
             r.measured.len(),
@@ -168,6 +170,18 @@ pub fn run(a: ViewArgs) -> Result<()> {
                 .unwrap_or_default(),
             if r.ended { "ended cleanly" } else { "lost" },
         );
+        println!(
+            "vr: {}; the swapchain images differ from the frames looked at in {} pixels",
+            r.device, r.swapchain_differ
+        );
+        match r.hidden {
+            Some([l, rt]) => println!(
+                "vr: the runtime's hidden-area mesh masks {l} and {rt} of each eye's {} pixels ({} of them lit in the images looked at)",
+                r.size.0 as u64 * r.size.1 as u64,
+                r.hidden_lit
+            ),
+            None => println!("vr: the runtime gives no hidden-area mesh (XR_KHR_visibility_mask)"),
+        }
         return Ok(());
     }
     if let Some(c) = a.camera

@@ -89,3 +89,60 @@ fn render_stereo_draws_both_eyes_side_by_side() {
     assert_eq!(r.code, 1, "{}", r.stderr);
     assert!(r.stderr.contains("--ipd"), "{}", r.stderr);
 }
+
+#[test]
+fn bench_stereo_times_every_frame_and_on_the_quad_path_both_node_orders() {
+    let d = tempdir("stereo-bench");
+    let las = synth(&d, "b.las", 60_000);
+    let ds = d.join("b.myr");
+    ok(&["convert", s(&las), "-o", s(&ds)]);
+    let rows = |out: &str| -> Vec<(String, u64)> {
+        out.lines()
+            .filter_map(|l| {
+                let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+                let n = cells.get(2)?.replace(',', "").parse().ok()?;
+                let ms: f64 = cells.get(3)?.parse().ok()?;
+                assert!(ms > 0.0, "{l}");
+                Some((cells[1].to_string(), n))
+            })
+            .collect()
+    };
+    let args = |raster: &'static str| {
+        [
+            "bench",
+            "stereo",
+            s(&ds),
+            "--size",
+            "64",
+            "--frames",
+            "1",
+            "--raster",
+            raster,
+        ]
+        .map(String::from)
+    };
+    let cpu = args("cpu");
+    let out = ok(&cpu.each_ref().map(String::as_str));
+    let r = rows(&out);
+    assert_eq!(r.len(), 5, "{out}");
+    assert!(
+        r[0].0 == "mono" && r[4].0 == "single pass, hidden-area mask",
+        "{out}"
+    );
+    assert!(r.iter().all(|(_, n)| *n > 0), "{out}");
+    // The quad path (on any adapter, lavapipe too): each frame front to back and as selected,
+    // the same points.
+    let quads = args("quads");
+    let run = myriad(&quads.each_ref().map(String::as_str));
+    if run.code != 0 && run.stderr.contains("adapter") {
+        eprintln!("SKIPPED the quad path: {}", run.stderr.trim());
+        return;
+    }
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let r = rows(&run.stdout);
+    assert_eq!(r.len(), 10, "{}", run.stdout);
+    assert_eq!(r[1].0, "mono, nodes as selected");
+    assert_eq!(r[0].1, r[1].1);
+    assert_eq!(r[9].0, "single pass, hidden-area mask, nodes as selected");
+    assert_eq!(r[5].1, r[9].1);
+}

@@ -18,7 +18,7 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
     let las = synth(&d, "v.las", 100_000);
     let ds = d.join("v.myr");
     ok(&["convert", s(&las), "-o", s(&ds)]);
-    let run = |runtime: &Path, frames: &str| {
+    let run_with = |runtime: &Path, frames: &str, extra: &[&str]| {
         let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_myriad"))
             .args([
                 "view",
@@ -29,6 +29,7 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
                 "--budget",
                 "50k",
             ])
+            .args(extra)
             .env("XR_RUNTIME_JSON", runtime)
             .env("XRT_COMPOSITOR_NULL", "1")
             .env("SIMULATED_ENABLE", "1")
@@ -66,6 +67,7 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
             err.join().unwrap(),
         )
     };
+    let run = |runtime: &Path, frames: &str| run_with(runtime, frames, &[]);
     // No runtime there: a clear message and exit code 1, not a crash.
     let (code, _, err) = run(&d.join("none.json"), "10");
     if err.contains("no OpenXR loader") {
@@ -84,27 +86,47 @@ fn view_vr_runs_a_session_under_the_simulated_headset() {
         "{out}"
     );
     assert!(out.contains("ended cleanly"), "{out}");
-    let moved: u64 = out
-        .split("head moved between ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("the head's moves");
+    let moved = number_after(&out, "head moved between ");
     assert!(moved > 0, "{out}");
     // The images follow the head: most frames differ from the one before.
-    let changed: u64 = out
-        .split("the image changed in ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("the images' changes");
+    let changed = number_after(&out, "the image changed in ");
     assert!(changed * 2 > moved, "{out}");
     // The simulated controllers are bound and located (they press no buttons).
-    let hands: u64 = out
-        .split("controllers located in ")
+    assert!(number_after(&out, "controllers located in ") > 0, "{out}");
+    // The runtime's hidden-area mesh (Monado has one): masked, no pixel under it lit; what
+    // reaches the swapchains is the frame drawn (read back from them), but for the mesh's rim.
+    let (hidden, lit) = (
+        number_after(&out, "hidden-area mesh masks "),
+        number_after(&out, "pixels ("),
+    );
+    assert!(hidden > 0 && lit == 0, "{out}");
+    let differ = number_after(&out, "frames looked at in ");
+    assert!(differ * 1000 <= changed * 320 * 240, "{out}");
+    assert!(out.contains("drawing on the CPU"), "{out}");
+    // On the runtime's (software) device itself: the compute or quad path draws into a
+    // texture the eyes' swapchain images are cut from on the GPU.
+    let mut gpu_run = run_with(&manifest, "20", &["--gpu"]);
+    let out = std::mem::take(&mut gpu_run.1);
+    assert_eq!(gpu_run.0, 0, "{out}\n{}", gpu_run.2);
+    assert!(
+        out.contains("20 frames submitted with 2 views each"),
+        "{out}"
+    );
+    assert!(
+        out.contains("drawing on it") && out.contains("ended cleanly"),
+        "{out}"
+    );
+    assert!(
+        number_after(&out, "frames looked at in ") * 1000 <= 20 * 320 * 240,
+        "{out}"
+    );
+}
+
+/// The number in `out` just after `key`.
+fn number_after(out: &str, key: &str) -> u64 {
+    out.split(key)
         .nth(1)
         .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("the controllers");
-    assert!(hands > 0, "{out}");
+        .and_then(|n| n.trim_end_matches(',').parse().ok())
+        .unwrap_or_else(|| panic!("no number after {key:?} in {out}"))
 }
