@@ -271,6 +271,22 @@ impl Scatter<'_> {
     }
 }
 
+/// The scanner positions of every input's scans in one table, and each input's first index in
+/// it (its points' source IDs are moved up by that much), when every input says where its scans
+/// were taken from (`SourceInfo::origins`); None otherwise: the IDs are then left as read.
+pub fn scan_origins(infos: &[&myriad_io::SourceInfo]) -> Option<(Vec<[f64; 3]>, Vec<u16>)> {
+    if infos.is_empty() || infos.iter().any(|i| i.origins.is_empty()) {
+        return None;
+    }
+    let mut table = Vec::new();
+    let mut offsets = Vec::new();
+    for i in infos {
+        offsets.push(u16::try_from(table.len()).ok()?);
+        table.extend_from_slice(&i.origins);
+    }
+    (table.len() <= u16::MAX as usize).then_some((table, offsets))
+}
+
 /// The union of the inputs' schemas, in the canonical column order.
 pub(crate) fn merged_schema(infos: &[myriad_io::SourceInfo]) -> Result<Schema> {
     let mut all = Schema::for_las_format(10).attributes;
@@ -460,7 +476,9 @@ pub fn distribute_with(
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
     let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
-    for (path, kept) in inputs.iter().zip(sources) {
+    let origins = scan_origins(&infos.iter().collect::<Vec<_>>());
+    for (k, (path, kept)) in inputs.iter().zip(sources).enumerate() {
+        let scan_offset = origins.as_ref().map_or(0, |o| o.1[k]);
         let mut src = match kept {
             Some(src) => src,
             None => myriad_io::open(path, open)?,
@@ -469,7 +487,13 @@ pub fn distribute_with(
         let mut all = 0u64;
         while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
             all += b.len() as u64;
-            let b = conform(b, &schema);
+            let mut b = conform(b, &schema);
+            // Scan numbers into the table of every input's scans.
+            if let (true, Some(ids)) = (scan_offset > 0, &mut b.point_source_id) {
+                for id in ids.iter_mut().filter(|id| **id > 0) {
+                    *id += scan_offset;
+                }
+            }
             let mut kept = 0;
             for i in 0..b.len() {
                 let p = b.positions[i];

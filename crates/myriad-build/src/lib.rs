@@ -15,6 +15,7 @@ pub mod kd;
 pub mod mospt;
 pub mod mwkd;
 pub mod nested;
+mod nodes;
 pub mod ntree;
 pub mod partition;
 mod tops;

@@ -33,12 +33,34 @@ pub const KNN: usize = 12;
 /// Starting normal-deviation threshold of the clustering, degrees.
 pub const THETA: f32 = 10.0;
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct MwkdParams {
     /// Fan-out `N`.
     pub fanout: usize,
     /// Target points per node `s`.
     pub capacity: usize,
+    /// How the normals get their sign.
+    pub orientation: Orientation,
+}
+
+/// Which way a point's normal faces.
+#[derive(Debug, Clone, Default)]
+pub enum Orientation {
+    /// Estimated normals turned up (+z; the sign is unknown): a ceiling faces the sky.
+    #[default]
+    Up,
+    /// The input's normals, as they are.
+    Input,
+    /// Estimated normals turned towards the scanner that saw the point: the scanners'
+    /// positions by source ID (`s >= 1` was seen from `[s - 1]`; others are turned up).
+    Scanners(std::sync::Arc<Vec<[f64; 3]>>),
+}
+
+impl Orientation {
+    /// The normals have a sign (a node's cone may say it faces away).
+    pub fn signed(&self) -> bool {
+        !matches!(self, Orientation::Up)
+    }
 }
 
 /// A built node of the multi-way kd-tree.
@@ -243,8 +265,9 @@ impl<'a> Grid<'a> {
     }
 }
 
-/// Normals (input's, else estimated) and splat radii of a leaf's points.
-pub fn leaf_splats(b: &PointBatch) -> Splats {
+/// Normals (input's, else estimated; signed as `orientation` says) and splat radii of a leaf's
+/// points.
+pub fn leaf_splats(b: &PointBatch, orientation: &Orientation) -> Splats {
     let pos = &b.positions;
     let n = pos.len();
     if n == 0 {
@@ -268,7 +291,28 @@ pub fn leaf_splats(b: &PointBatch) -> Splats {
                     unit(a)
                 }
             };
-            (up(normal), r)
+            let scanner = match orientation {
+                Orientation::Scanners(at) => b
+                    .point_source_id
+                    .as_ref()
+                    .and_then(|ids| at.get((ids[i] as usize).checked_sub(1)?)),
+                _ => None,
+            };
+            let normal = match (orientation, scanner) {
+                (Orientation::Input, _) if b.normal.is_some() => normal,
+                // Towards the scanner: the side of the surface it saw.
+                (_, Some(o)) => {
+                    let p = pos[i];
+                    let towards: f64 = (0..3).map(|a| normal[a] as f64 * (o[a] - p[a])).sum();
+                    if towards < 0.0 {
+                        normal.map(|x| -x)
+                    } else {
+                        normal
+                    }
+                }
+                _ => up(normal),
+            };
+            (normal, r)
         })
         .unzip();
     // Duplicates (radius 0) get the smallest positive radius of the leaf; stray points, whose
@@ -295,6 +339,7 @@ pub fn representatives(
     splats: &Splats,
     bounds: &Aabb,
     target: usize,
+    signed: bool,
 ) -> (PointBatch, Splats) {
     let n = points.len();
     if n <= target.max(1) {
@@ -303,12 +348,12 @@ pub fn representatives(
     let side = bounds.size().into_iter().fold(0.0, f64::max).max(1e-9);
     let mut k = ((target as f64).sqrt().ceil() as usize).clamp(2, 256);
     let clusters = loop {
-        match cluster(points, splats, bounds.min, side, k, target) {
+        match cluster(points, splats, bounds.min, side, k, target, signed) {
             Some(c) => break c,
             None => k = (k * 2 / 3).max(1),
         }
     };
-    aggregate(points, splats, &clusters)
+    aggregate(points, splats, &clusters, signed)
 }
 
 /// Clusters by normal deviation in a `k^3` grid until at most `target` remain; `None` when even
@@ -320,6 +365,7 @@ fn cluster(
     side: f64,
     k: usize,
     target: usize,
+    signed: bool,
 ) -> Option<Vec<Vec<u32>>> {
     let cell = |p: &[f64; 3]| -> usize {
         let c = |a: usize| (((p[a] - min[a]) / side * k as f64) as usize).min(k - 1);
@@ -353,7 +399,9 @@ fn cluster(
             let n = splats.normals[i as usize];
             let found = out.iter_mut().find(|(first, _)| {
                 let m = splats.normals[*first];
-                (n[0] * m[0] + n[1] * m[1] + n[2] * m[2]).abs() >= cos
+                // Signed normals facing opposite ways (a thin wall's sides) stay apart.
+                let d = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
+                (if signed { d } else { d.abs() }) >= cos
             });
             match found {
                 Some((_, c)) => c.push(i),
@@ -396,7 +444,12 @@ fn cluster(
 }
 
 /// One aggregate per cluster.
-fn aggregate(points: &PointBatch, splats: &Splats, clusters: &[Vec<u32>]) -> (PointBatch, Splats) {
+fn aggregate(
+    points: &PointBatch,
+    splats: &Splats,
+    clusters: &[Vec<u32>],
+    signed: bool,
+) -> (PointBatch, Splats) {
     let mut rows = Vec::with_capacity(clusters.len());
     let mut centres = Vec::with_capacity(clusters.len());
     let mut out = Splats::default();
@@ -410,10 +463,13 @@ fn aggregate(points: &PointBatch, splats: &Splats, clusters: &[Vec<u32>]) -> (Po
         let total: f64 = c.iter().map(|&i| w(i)).sum();
         let mut centre = [0.0; 3];
         let mut normal = [0.0; 3];
+        let mut facing = [0.0; 3];
         let first = splats.normals[c[0] as usize];
         for &i in c {
             let p = points.positions[i as usize];
             let n = splats.normals[i as usize];
+            // The axis: normals summed on the first one's side (a cluster may hold both faces
+            // of a thin wall); signed normals then face the side most of the weight faces.
             let sign = if n[0] * first[0] + n[1] * first[1] + n[2] * first[2] < 0.0 {
                 -1.0
             } else {
@@ -422,7 +478,11 @@ fn aggregate(points: &PointBatch, splats: &Splats, clusters: &[Vec<u32>]) -> (Po
             for a in 0..3 {
                 centre[a] += p[a] * w(i) / total;
                 normal[a] += sign * n[a] as f64 * w(i);
+                facing[a] += n[a] as f64 * w(i);
             }
+        }
+        if signed && (0..3).map(|a| normal[a] * facing[a]).sum::<f64>() < 0.0 {
+            normal = normal.map(|x| -x);
         }
         let dist = |i: u32| {
             let p = points.positions[i as usize];
@@ -438,7 +498,11 @@ fn aggregate(points: &PointBatch, splats: &Splats, clusters: &[Vec<u32>]) -> (Po
             .fold(0.0, f64::max);
         rows.push(nearest);
         centres.push(centre);
-        out.normals.push(up(unit(normal)));
+        out.normals.push(if signed {
+            unit(normal)
+        } else {
+            up(unit(normal))
+        });
         out.radii.push(radius as f32);
         if let Some(col) = &points.rgb {
             let mut s = [0.0; 3];
@@ -493,7 +557,7 @@ pub fn build_subtree_with<E>(
 ) -> Result<MwNode, E> {
     let bounds = bounds_of(&batch.positions);
     if batch.len() <= p.capacity || key.level >= crate::kd::MAX_LEVEL {
-        let splats = leaf_splats(&batch);
+        let splats = leaf_splats(&batch, &p.orientation);
         return Ok(MwNode {
             key,
             points: batch,
@@ -527,7 +591,15 @@ pub fn take_up(key: NodeKey, children: Vec<MwNode>, p: &MwkdParams) -> (MwNode, 
     let target = (p.capacity / p.fanout).max(1);
     let reps: Vec<(PointBatch, Splats)> = children
         .par_iter()
-        .map(|c| representatives(&c.points, &c.splats, &c.bounds, target))
+        .map(|c| {
+            representatives(
+                &c.points,
+                &c.splats,
+                &c.bounds,
+                target,
+                p.orientation.signed(),
+            )
+        })
         .collect();
     let mut points: Option<PointBatch> = None;
     let mut splats = Splats::default();
@@ -588,7 +660,7 @@ mod tests {
         for p in &mut b.positions {
             p[2] = 0.5 * p[0] + 2.0;
         }
-        let s = leaf_splats(&b);
+        let s = leaf_splats(&b, &Orientation::Up);
         let want = unit([-0.5, 0.0, 1.0]);
         for n in &s.normals {
             let d = n[0] * want[0] + n[1] * want[1] + n[2] * want[2];
@@ -601,11 +673,71 @@ mod tests {
     }
 
     #[test]
+    fn normals_face_their_scanner_or_keep_the_inputs_sign() {
+        // A ceiling (z = 3) seen from below by scanner 1, a floor (z = 0) from above by
+        // scanner 2, and a floor point whose source names no scanner.
+        let mut b = PointBatch::with_schema(&Schema::new(vec![Attribute::PointSourceId]), 0);
+        for i in 0..800 {
+            let (x, y) = ((i % 20) as f64 * 0.1, (i / 20 % 20) as f64 * 0.1);
+            let ceiling = i < 400;
+            b.positions.push([
+                x + if ceiling { 0.0 } else { 10.0 },
+                y,
+                if ceiling { 3.0 } else { 0.0 },
+            ]);
+            b.point_source_id.as_mut().unwrap().push(match i {
+                799 => 7,
+                _ if ceiling => 1,
+                _ => 2,
+            });
+        }
+        let scanners =
+            Orientation::Scanners(std::sync::Arc::new(vec![[1.0, 1.0, 1.5], [11.0, 1.0, 1.5]]));
+        let s = leaf_splats(&b, &scanners);
+        assert!(
+            s.normals[..400].iter().all(|n| n[2] < -0.99),
+            "{:?}",
+            s.normals[0]
+        );
+        assert!(s.normals[400..].iter().all(|n| n[2] > 0.99));
+        // Without scanners every estimated normal is turned up: the ceiling faces the sky.
+        let s = leaf_splats(&b, &Orientation::Up);
+        assert!(s.normals.iter().all(|n| n[2] > 0.99));
+        // The input's normals keep their sign.
+        let mut with = b.clone();
+        with.normal = Some(vec![[0.0, 0.0, -1.0]; 800]);
+        let s = leaf_splats(&with, &Orientation::Input);
+        assert!(s.normals.iter().all(|n| n[2] == -1.0));
+        // Aggregates of signed normals keep a side.
+        let mut wall = PointBatch::with_schema(&Schema::new(vec![Attribute::Intensity]), 0);
+        let mut normals = Vec::new();
+        for i in 0..2000 {
+            let side = if i % 2 == 0 { 1.0 } else { -1.0 };
+            wall.positions.push([
+                (i / 2 % 30) as f64 * 0.1,
+                (i / 60) as f64 * 0.1,
+                side * 0.001,
+            ]);
+            wall.intensity.as_mut().unwrap().push(i as u16);
+            normals.push([0.0, 0.0, side as f32]);
+        }
+        let splats = Splats {
+            radii: vec![0.05; 2000],
+            normals,
+        };
+        let bounds = bounds_of(&wall.positions);
+        // Clusters holding both faces keep the wall's axis (facing the heavier side).
+        let (_, reps) = representatives(&wall, &splats, &bounds, 200, true);
+        assert!(reps.normals.iter().all(|n| n[2].abs() > 0.99));
+    }
+
+    #[test]
     fn inner_nodes_aggregate_and_leaves_keep_every_point() {
         let b = surface(20_000);
         let p = MwkdParams {
             fanout: 4,
             capacity: 2000,
+            orientation: Orientation::Up,
         };
         let mut nodes = Vec::new();
         let root = build_subtree_with(b, NodeKey::ROOT, &p, &mut |n| {

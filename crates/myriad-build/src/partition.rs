@@ -249,7 +249,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
 
     let dataset = Metadata {
         structure: o.structure.stored_name().into(),
-        parameters: convert::parameters(o.structure, &params, None, &schema, None),
+        parameters: convert::parameters(o.structure, &params, None, None),
         points: declared,
         nodes: 0,
         depth: 0,
@@ -703,6 +703,7 @@ pub fn merge(
     let mw = crate::mwkd::MwkdParams {
         fanout: 2,
         capacity: plan.params.capacity,
+        orientation: crate::mwkd::Orientation::Up,
     };
     Above {
         structure: plan.structure,

@@ -22,6 +22,42 @@ pub struct SplatInfo {
     pub aggregate: bool,
 }
 
+/// The smallest cone holding both normal cones `a` and `b` (unit axis, cosine of the half
+/// angle; -1: every direction): what a node's cone must hold of its children's, so that a node
+/// facing away has no subtree that does not.
+pub fn cone_union(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    let angle = |c: f32| (c.clamp(-1.0, 1.0) as f64).acos();
+    let (ta, tb) = (angle(a[3]), angle(b[3]));
+    let dot: f64 = (0..3).map(|k| a[k] as f64 * b[k] as f64).sum();
+    let phi = dot.clamp(-1.0, 1.0).acos();
+    if phi + tb <= ta {
+        return a;
+    }
+    if phi + ta <= tb {
+        return b;
+    }
+    let t = (ta + phi + tb) / 2.0;
+    if t >= std::f64::consts::PI || phi >= std::f64::consts::PI - 1e-9 {
+        return [0.0, 0.0, 1.0, -1.0];
+    }
+    // The axis turned from a's towards b's by t - ta, in their plane.
+    let turn = t - ta;
+    let perp: [f64; 3] = std::array::from_fn(|k| b[k] as f64 - dot * a[k] as f64);
+    let len = (perp.iter().map(|x| x * x).sum::<f64>()).sqrt();
+    if len < 1e-12 {
+        return [a[0], a[1], a[2], t.cos() as f32];
+    }
+    let axis: [f64; 3] =
+        std::array::from_fn(|k| a[k] as f64 * turn.cos() + perp[k] / len * turn.sin());
+    // Rounding: a hair wider, never narrower.
+    [
+        axis[0] as f32,
+        axis[1] as f32,
+        axis[2] as f32,
+        ((t + 1e-6).min(std::f64::consts::PI).cos()) as f32,
+    ]
+}
+
 /// Normals and radii of a node's points, decoded.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Splats {
@@ -147,6 +183,40 @@ mod tests {
             let back = normal_from_code(normal_code(axis));
             assert!((0..3).map(|a| axis[a] * back[a]).sum::<f32>() > 0.9999);
         }
+    }
+
+    #[test]
+    fn a_cone_union_holds_both_cones() {
+        let deg = |d: f32| d.to_radians().cos();
+        let up = [0.0, 0.0, 1.0, deg(10.0)];
+        // Inside: the wider one.
+        assert_eq!(cone_union(up, [0.0, 0.0, 1.0, deg(5.0)]), up);
+        // 30 degrees apart, 10 each: 25 degrees about the middle.
+        let s = 30f32.to_radians();
+        let tilted = [s.sin(), 0.0, s.cos(), deg(10.0)];
+        let u = cone_union(up, tilted);
+        assert!((u[3].acos().to_degrees() - 25.0).abs() < 0.01, "{u:?}");
+        let mid = 15f32.to_radians();
+        assert!((u[0] - mid.sin()).abs() < 1e-5 && (u[2] - mid.cos()).abs() < 1e-5);
+        // Every direction of both, sampled, lies within the union.
+        for c in [up, tilted] {
+            let t = c[3].acos();
+            for k in 0..16 {
+                let az = k as f32 / 16.0 * std::f32::consts::TAU;
+                // A direction at the cone's rim about its own axis (axes in the x-z plane).
+                let (ax, az_) = (c[0], c[2]);
+                let (e1, e2) = ([az_, 0.0, -ax], [0.0, 1.0, 0.0]);
+                let d: [f32; 3] = std::array::from_fn(|i| {
+                    c[i] * t.cos() + (e1[i] * az.cos() + e2[i] * az.sin()) * t.sin()
+                });
+                let cos: f32 = (0..3).map(|i| d[i] * u[i]).sum();
+                assert!(cos >= u[3] - 1e-5, "{d:?} {u:?}");
+            }
+        }
+        // Opposite axes, or a cone of every direction: every direction.
+        let down = [0.0, 0.0, -1.0, deg(10.0)];
+        assert_eq!(cone_union(up, down)[3], -1.0);
+        assert_eq!(cone_union(up, [0.0, 0.0, 1.0, -1.0])[3], -1.0);
     }
 
     #[test]

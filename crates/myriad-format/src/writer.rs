@@ -186,6 +186,19 @@ impl DatasetWriter {
         let io = |e| Error::io(&path, e);
         let mut entries = self.entries.into_inner().expect("entries lock");
         let mut splats = self.splats.into_inner().expect("splats lock");
+        // Each node's normal cone widened to hold its children's (deepest first): culling a
+        // node that faces away then never hides a child that does not.
+        let mut keys: Vec<NodeKey> = splats.keys().copied().collect();
+        keys.sort_by_key(|k| std::cmp::Reverse(k.level));
+        for k in keys {
+            if k.level == 0 {
+                continue;
+            }
+            let child = splats[&k].cone;
+            if let Some(parent) = splats.get_mut(&k.parent()) {
+                parent.cone = splat::cone_union(parent.cone, child);
+            }
+        }
         for e in &mut entries {
             e.splats = splats.remove(&e.key);
         }

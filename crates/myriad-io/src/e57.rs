@@ -1,5 +1,8 @@
 //! E57 through the `e57` crate: every scan in the file, its pose applied, spherical coordinates
-//! converted, intensity and colour normalized by the file's limits and stored as 16 bits.
+//! converted, intensity and colour normalized by the file's limits and stored as 16 bits. Where
+//! every scan was taken from one place (spherical coordinates or a row/column grid), each
+//! point's source ID is its scan's number (1, 2, ...) and `SourceInfo::origins` holds where the
+//! scanner stood (the poses' translations).
 //!
 //! The crate's point iterator borrows its reader, so decoding runs on a producer thread that sends
 //! batches through a channel of depth 2: memory stays bounded and the caller's thread is free.
@@ -173,6 +176,11 @@ fn xml_element_offset(path: &Path, scan: usize, element: &[&str]) -> Option<u64>
     Some(logical / data * page + logical % data)
 }
 
+/// A scan taken from one place: spherical coordinates, or a row/column grid.
+fn stationary(c: &e57::PointCloud) -> bool {
+    c.has_spherical() || c.has_row_column()
+}
+
 fn e57_error(path: &Path, at: u64, e: e57::Error) -> Error {
     Error::at_byte(path, at, format!("invalid E57 data: {e}"))
 }
@@ -193,6 +201,24 @@ impl E57Source {
         }
         if clouds.iter().any(|c| c.has_color()) {
             attributes.push(Attribute::Rgb);
+        }
+        // Scans taken from one place (spherical coordinates or a row/column grid: a terrestrial
+        // scanner) have the scanner at their own origin: where their poses put it. Their points
+        // carry their scan's number as the source ID, so that normals can face the scanner.
+        let origins: Vec<[f64; 3]> = if clouds.iter().all(stationary) {
+            clouds
+                .iter()
+                .map(|c| {
+                    c.transform.as_ref().map_or([0.0; 3], |t| {
+                        [t.translation.x, t.translation.y, t.translation.z]
+                    })
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if !origins.is_empty() {
+            attributes.push(Attribute::PointSourceId);
         }
         let crs = reader
             .coordinate_metadata()
@@ -218,6 +244,7 @@ impl E57Source {
                 offset: None,
                 crs,
                 file_size,
+                origins,
             },
             rx: None,
             skipped: Default::default(),
@@ -249,7 +276,7 @@ fn produce(
     skipped: &std::sync::atomic::AtomicU64,
 ) -> Result<()> {
     let mut reader = e57::E57Reader::from_file(path).map_err(|e| e57_error(path, 0, e))?;
-    for pc in reader.pointclouds() {
+    for (scan, pc) in reader.pointclouds().into_iter().enumerate() {
         let at = pc.file_offset;
         let mut it = reader
             .pointcloud_simple(&pc)
@@ -274,6 +301,9 @@ fn produce(
             batch.positions.push([x, y, z]);
             if let Some(c) = &mut batch.intensity {
                 c.push(p.intensity.map_or(0, u16n));
+            }
+            if let Some(c) = &mut batch.point_source_id {
+                c.push((scan + 1).min(u16::MAX as usize) as u16);
             }
             if let Some(c) = &mut batch.rgb {
                 c.push(

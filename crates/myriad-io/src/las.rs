@@ -209,6 +209,7 @@ impl LasSource {
             offset: Some(quant.offset),
             crs: crs_of(&header),
             file_size,
+            origins: Vec::new(),
         };
         Ok(LasSource {
             info,

@@ -100,6 +100,11 @@ pub struct SourceInfo {
     /// Coordinate reference system: WKT, or "EPSG:n" from GeoTIFF keys.
     pub crs: Option<String>,
     pub file_size: u64,
+    /// Where the scanner stood for each of the file's scans, when every scan was taken from
+    /// one place (E57 scans with spherical coordinates or a row/column grid: their poses'
+    /// translations): a point whose source ID is `s >= 1` was seen from `origins[s - 1]`.
+    /// Empty where that is not known (airborne and mobile data, most formats).
+    pub origins: Vec<[f64; 3]>,
 }
 
 /// A streaming reader of one file. Not `Send`: the `las` reader is not, so a source is opened on

@@ -312,6 +312,7 @@ impl PcdSource {
                 offset: None,
                 crs: None,
                 file_size,
+                origins: Vec::new(),
             },
             reader,
             fields,

@@ -210,6 +210,10 @@ impl Placed {
         let mut info = inner.info().clone();
         // The header's bounds and count describe the scan before trimming and transforming.
         info.bounds = None;
+        // The scanner positions move with the points.
+        for o in &mut info.origins {
+            *o = placement.project_from_scanner.apply(*o);
+        }
         if placement.trim.is_some() {
             info.points = None;
         }

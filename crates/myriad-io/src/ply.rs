@@ -240,6 +240,7 @@ impl PlySource {
                 offset: None,
                 crs: None,
                 file_size,
+                origins: Vec::new(),
             },
             reader,
             encoding,

@@ -217,6 +217,7 @@ impl TextSource {
                 offset: None,
                 crs: None,
                 file_size,
+                origins: Vec::new(),
             },
             reader,
             cols,

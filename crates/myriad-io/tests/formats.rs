@@ -357,13 +357,35 @@ fn laz_layer_sizes_are_checked() {
 /// and points without valid coordinates are skipped and counted.
 #[test]
 fn e57_reads_every_scan_with_its_pose() {
+    // Cartesian scans without a grid: where the scanner stood is not known.
+    let (src, b) = e57_two_scans(false);
+    assert!(src.info().origins.is_empty() && b.point_source_id.is_none());
+    // With a row/column grid (a stationary scanner's structured scans): each point's scan
+    // number as its source ID, and where each scan was taken from (its pose's translation).
+    let (src, b) = e57_two_scans(true);
+    assert_eq!(src.info().origins, vec![[0.0; 3], [10.0, 0.0, 0.0]]);
+    assert_eq!(b.point_source_id.unwrap(), vec![1, 1, 2, 2]);
+    // A placement moves where the scanners stood with the points.
+    let placement = myriad_io::placement::Placement::parse(
+        std::path::Path::new("scan.e57.placement"),
+        "ROTATE-DEG 0 0 90\nTRANSLATE 100 0 0",
+    )
+    .unwrap();
+    let placed = myriad_io::placement::Placed::new(src, placement);
+    let o = &placed.info().origins;
+    let rounded: Vec<[i64; 3]> = o.iter().map(|p| p.map(|c| c.round() as i64)).collect();
+    assert_eq!(rounded, vec![[100, 0, 0], [100, 10, 0]]);
+}
+
+/// Two scans, the second posed, one NaN point; with `grid`, row and column indices.
+fn e57_two_scans(grid: bool) -> (Box<dyn PointSource>, PointBatch) {
     use e57::{
         E57Writer, Quaternion, Record, RecordDataType, RecordName, RecordValue, Transform,
         Translation,
     };
     let d = std::env::temp_dir().join(format!("myriad-e57-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
-    let p = d.join("two-scans.e57");
+    let p = d.join(format!("two-scans-{grid}.e57"));
     let xyz = |name| Record {
         name,
         data_type: RecordDataType::Double {
@@ -371,7 +393,7 @@ fn e57_reads_every_scan_with_its_pose() {
             max: None,
         },
     };
-    let proto = vec![
+    let mut proto = vec![
         xyz(RecordName::CartesianX),
         xyz(RecordName::CartesianY),
         xyz(RecordName::CartesianZ),
@@ -383,6 +405,14 @@ fn e57_reads_every_scan_with_its_pose() {
             },
         },
     ];
+    let index = |name| Record {
+        name,
+        data_type: RecordDataType::Integer { min: 0, max: 10 },
+    };
+    if grid {
+        proto.push(index(RecordName::RowIndex));
+        proto.push(index(RecordName::ColumnIndex));
+    }
     let mut w = E57Writer::from_file(&p, "file-guid").unwrap();
     let scans: [(&str, Option<Transform>, Vec<[f64; 4]>); 2] = [
         (
@@ -417,12 +447,15 @@ fn e57_reads_every_scan_with_its_pose() {
         let mut pc = w.add_pointcloud(guid, proto.clone()).unwrap();
         pc.set_transform(pose);
         for q in points {
-            let v = vec![
+            let mut v = vec![
                 RecordValue::Double(q[0]),
                 RecordValue::Double(q[1]),
                 RecordValue::Double(q[2]),
                 RecordValue::Single(q[3] as f32),
             ];
+            if grid {
+                v.extend([RecordValue::Integer(0), RecordValue::Integer(1)]);
+            }
             pc.add_point(v).unwrap();
         }
         pc.finalize().unwrap();
@@ -446,5 +479,6 @@ fn e57_reads_every_scan_with_its_pose() {
             [10000, 2000, 5000]
         ]
     );
-    assert_eq!(b.intensity.unwrap(), vec![32768, 65535, 16384, 0]);
+    assert_eq!(b.intensity.as_ref().unwrap(), &vec![32768, 65535, 16384, 0]);
+    (src, b)
 }

@@ -194,14 +194,17 @@ impl Scene {
                 });
             }
         }
-        // Normal cones cull only where normals have a sign (the input's): estimated normals
-        // were turned up, so a ceiling would face its room from behind.
-        h.cull_backfaces = dataset
-            .meta
-            .parameters
-            .get("normals")
-            .and_then(|v| v.as_str())
-            == Some("input");
+        // Normal cones cull only where normals have a sign (the input's, or estimated ones
+        // turned towards their scanners): others were turned up, so a ceiling would face its
+        // room from behind.
+        h.cull_backfaces = matches!(
+            dataset
+                .meta
+                .parameters
+                .get("normals")
+                .and_then(|v| v.as_str()),
+            Some("input" | "oriented")
+        );
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
         let grid = meta.quantization;
         let mut scene = Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes);

@@ -5,6 +5,7 @@
 //! memory is bounded by a few blocks in flight, whatever `points` is. See [`scene`] for the world
 //! and [`scan`] for the scanners.
 
+mod e57;
 mod rng;
 pub mod scan;
 pub mod scene;
@@ -142,8 +143,9 @@ where
     })
 }
 
-/// Writes a synthetic scan to `path` (LAS, or LAZ when it ends in .laz), atomically.
-/// `progress` is called with the points written so far.
+/// Writes a synthetic scan to `path` (LAS, or LAZ when it ends in .laz; E57, one scan per
+/// station, for the indoor scene), atomically. `progress` is called with the points written so
+/// far.
 pub fn write(
     options: &SynthOptions,
     path: &Path,
@@ -154,9 +156,12 @@ pub fn write(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
+    if ext.as_deref() == Some("e57") {
+        return e57::write(options, path, force, progress);
+    }
     if !matches!(ext.as_deref(), Some("las" | "laz")) {
         return Err(Error::Invalid(format!(
-            "{}: synth writes .las or .laz files",
+            "{}: synth writes .las, .laz or (--scene indoor) .e57 files",
             path.display()
         )));
     }

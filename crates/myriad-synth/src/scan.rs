@@ -411,19 +411,25 @@ impl Indoor {
             .collect()
     }
 
-    pub fn pulse(&self, k: u64, cache: &mut Cache, out: &mut PointBatch) {
-        let station = k / self.pulses_per_station;
-        let j = k % self.pulses_per_station;
-        let room = station / 2;
-        let rbox = self.room_box(room);
+    /// Where station `station` stands (two per room), before the scene's origin is added.
+    pub fn station(&self, station: u64) -> [f64; 3] {
+        let rbox = self.room_box(station / 2);
         let sh = mix(self.seed ^ station.wrapping_mul(0x57A7));
-        let o = [
+        [
             rbox.min[0]
                 + 2.0
                 + (ROOM[0] - 4.0) * (0.2 + 0.6 * (station % 2) as f64 * 0.9 + 0.1 * unit(sh)),
             rbox.min[1] + 2.0 + (ROOM[1] - 4.0) * sub(sh, 16),
             1.5,
-        ];
+        ]
+    }
+
+    pub fn pulse(&self, k: u64, cache: &mut Cache, out: &mut PointBatch) {
+        let station = k / self.pulses_per_station;
+        let j = k % self.pulses_per_station;
+        let room = station / 2;
+        let rbox = self.room_box(room);
+        let o = self.station(station);
         let n_az = self.pulses_per_station.div_ceil(self.n_el);
         let az = (j / self.n_el) as f64 / n_az as f64 * std::f64::consts::TAU;
         let el = (-60.0 + 150.0 * ((j % self.n_el) as f64 + 0.5) / self.n_el as f64).to_radians();

@@ -17,7 +17,7 @@ enum Scene {
 
 #[derive(Args)]
 pub struct SynthArgs {
-    /// Output file, .las or .laz
+    /// Output file: .las, .laz, or .e57 (--scene indoor: one scan per station, posed)
     #[arg(short, long)]
     output: PathBuf,
     /// Number of points: 1000000, 1e6, 250k, 100M, 2G
