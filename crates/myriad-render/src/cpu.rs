@@ -189,7 +189,7 @@ struct Target<'a> {
 /// What [`points_pass`] needs of an eye, computed once a pass.
 struct Eye<'a> {
     t: &'a Target<'a>,
-    /// Its mask's [`mask_classes`] for the largest point.
+    /// Its mask's [`mask_classes`] for the largest point, by tile.
     classes: Option<Vec<u8>>,
     w: u32,
     h: u32,
@@ -199,32 +199,49 @@ struct Eye<'a> {
     basis: [[f32; 3]; 3],
 }
 
-/// Per pixel of a `w` x `h` mask (true: hidden), what a point centred there needs: 0, every
-/// pixel within `r` of it hidden (it is not drawn); 2, none hidden (drawn as it is); 1, some
-/// (each of its pixels looked up). One summed-area table of the hidden pixels.
+/// Side of the tiles of [`mask_classes`], pixels.
+const MASK_TILE: usize = 8;
+
+/// Per tile of `MASK_TILE` pixels of a `w` x `h` mask (true: hidden), what a point centred in
+/// it needs: 0, every pixel within `r` of the tile hidden (it is not drawn); 2, none hidden
+/// (drawn as it is); 1, some (each of its pixels looked up). Conservative (whole tiles around
+/// it), and small enough to stay in cache while the points are drawn.
 fn mask_classes(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<u8> {
-    let stride = w + 1;
-    let mut sat = vec![0u32; stride * (h + 1)];
-    for y in 0..h {
-        let mut row = 0;
-        for x in 0..w {
-            row += mask[y * w + x] as u32;
-            sat[(y + 1) * stride + x + 1] = sat[y * stride + x + 1] + row;
-        }
-    }
-    (0..w * h)
+    let (tw, th) = (w.div_ceil(MASK_TILE), h.div_ceil(MASK_TILE));
+    // Hidden pixels and pixels per tile, a row of tiles per task.
+    let counts: Vec<(u32, u32)> = (0..th)
         .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
-            let hidden = sat[y1 * stride + x1] + sat[y0 * stride + x0]
-                - sat[y0 * stride + x1]
-                - sat[y1 * stride + x0];
-            match hidden as usize {
-                0 => 2,
-                n if n == (x1 - x0) * (y1 - y0) => 0,
-                _ => 1,
+        .flat_map_iter(|ty| {
+            let mut row = vec![(0u32, 0u32); tw];
+            for y in ty * MASK_TILE..((ty + 1) * MASK_TILE).min(h) {
+                for (x, &m) in mask[y * w..(y + 1) * w].iter().enumerate() {
+                    let c = &mut row[x / MASK_TILE];
+                    c.0 += m as u32;
+                    c.1 += 1;
+                }
+            }
+            row
+        })
+        .collect();
+    let k = r.div_ceil(MASK_TILE) as isize;
+    (0..tw * th)
+        .into_par_iter()
+        .map(|t| {
+            let (tx, ty) = ((t % tw) as isize, (t / tw) as isize);
+            let (mut all, mut none) = (true, true);
+            for y in (ty - k).max(0)..(ty + k + 1).min(th as isize) {
+                for x in (tx - k).max(0)..(tx + k + 1).min(tw as isize) {
+                    let (hidden, pixels) = counts[y as usize * tw + x as usize];
+                    all &= hidden == pixels;
+                    none &= hidden == 0;
+                }
+            }
+            if all {
+                0
+            } else if none {
+                2
+            } else {
+                1
             }
         })
         .collect()
@@ -355,9 +372,9 @@ fn points_pass(
                         let edge = match &e.classes {
                             None => false,
                             Some(c) => {
-                                let x = (fx as usize).min(e.w as usize - 1);
-                                let y = (fy as usize).min(e.h as usize - 1);
-                                match c[y * e.w as usize + x] {
+                                let x = (fx as usize).min(e.w as usize - 1) / MASK_TILE;
+                                let y = (fy as usize).min(e.h as usize - 1) / MASK_TILE;
+                                match c[y * (e.w as usize).div_ceil(MASK_TILE) + x] {
                                     0 => continue,
                                     1 => true,
                                     _ => false,

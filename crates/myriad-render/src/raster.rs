@@ -150,6 +150,8 @@ pub struct Rasterizer {
     keep_depth: std::sync::atomic::AtomicBool,
     /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
     present: Mutex<Option<wgpu::TextureView>>,
+    /// The last hidden-area ellipse made, by image size ([`crate::stereo::hidden_area`]).
+    pub(crate) ellipse: Mutex<Option<((u32, u32), std::sync::Arc<Vec<bool>>)>>,
     pub path: Path,
     /// Precision per batch (Schütz 2022): a draw's points are read with as few position words
     /// as leave them within half this many pixels of where all words put them (0: all words).
@@ -245,6 +247,7 @@ impl Rasterizer {
             last: Mutex::new(None),
             keep_depth: Default::default(),
             present: Mutex::new(None),
+            ellipse: Mutex::new(None),
             path,
             precision: DEFAULT_PRECISION,
             front_to_back: true,
@@ -324,11 +327,14 @@ impl Rasterizer {
         tree: &[[u32; 4]],
         style: &Style,
     ) -> Vec<u8> {
-        self.render_eyes(gpu, camera, None, draws, tree, style)
+        self.render_eyes(gpu, camera, None, draws, tree, style, None)
     }
 
     /// [`Rasterizer::render`]; with `eyes` (the compute path), both eyes in one dispatch into
-    /// a side-by-side frame: `camera` is then the left eye's, twice as wide.
+    /// a side-by-side frame: `camera` is then the left eye's, twice as wide. `hidden`: per pixel
+    /// of the (supersampled) frame, those the point pass (compute path) and every post pass skip
+    /// (a headset's hidden area; GPU paths only, the CPU's is `cpu::gbuffers`'s).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn render_eyes(
         &self,
         gpu: &Gpu,
@@ -337,6 +343,7 @@ impl Rasterizer {
         draws: &[Draw],
         tree: &[[u32; 4]],
         style: &Style,
+        hidden: Option<&[bool]>,
     ) -> Vec<u8> {
         let passes = style.passes;
         let f = self.factor(gpu, camera, &passes);
@@ -375,7 +382,10 @@ impl Rasterizer {
         {
             // Front to back by node (002's reverse painter's order): the depth test then rejects
             // the fragments of what lies behind before they are shaded. Ties keep their order.
-            let e = camera.position;
+            // Both eyes in one draw: from between them.
+            let e = eyes.map_or(camera.position, |e| {
+                std::array::from_fn(|a| (e[0].position[a] + e[1].position[a]) / 2.0)
+            });
             let distance = |d: &Draw| {
                 let b = d.node.expect("checked").1;
                 (0..3)
@@ -517,6 +527,7 @@ impl Rasterizer {
             }
         }
         let t = guard.as_ref().expect("targets made above");
+        t.post.hide(gpu, hidden);
         // The compute path's second pass, for the splats' normals where the passes need them.
         let splats = draws.iter().any(|d| d.points.splat_buffer().is_some());
         let modes: &[u32] = if normals && splats { &[0, 1] } else { &[0] };
@@ -697,6 +708,7 @@ impl Rasterizer {
                                 }),
                             ),
                             (7, normal_fb.as_entire_binding()),
+                            (8, t.post.hidden_binding()),
                         ]
                         .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
                     });

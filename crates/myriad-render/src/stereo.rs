@@ -8,7 +8,8 @@
 //!   its eye's columns. Two passes (one frame per eye) are the baseline.
 //! - The hidden-area mask (002 section 4.1): the pixels a lens cannot show: a headset runtime's
 //!   own triangles (`triangles_mask`), else those outside the ellipse inscribed in an eye's image
-//!   (a lens shows a disc). The CPU's point pass skips them; every path leaves them black.
+//!   (a lens shows a disc). The CPU's point pass and post passes skip them; every path leaves
+//!   them black.
 
 use crate::{Draw, Gpu, Path, Rasterizer, Style};
 use myriad_lod::Camera;
@@ -37,14 +38,15 @@ impl Default for Stereo {
 /// Per pixel of a `width` x `height` eye image, row by row, whether it is hidden: its centre
 /// outside the ellipse inscribed in the image.
 pub fn hidden_area(width: u32, height: u32) -> Vec<bool> {
+    use rayon::prelude::*;
     let (a, b) = (width as f64 / 2.0, height as f64 / 2.0);
-    (0..height)
-        .flat_map(|y| {
-            (0..width).map(move |x| {
-                let dx = (x as f64 + 0.5 - a) / a;
-                let dy = (y as f64 + 0.5 - b) / b;
-                dx * dx + dy * dy > 1.0
-            })
+    (0..width as usize * height as usize)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % width as usize, i / width as usize);
+            let dx = (x as f64 + 0.5 - a) / a;
+            let dy = (y as f64 + 0.5 - b) / b;
+            dx * dx + dy * dy > 1.0
         })
         .collect()
 }
@@ -112,8 +114,13 @@ impl Rasterizer {
         let mask: Option<[&[bool]; 2]> = match masks {
             Some(m) => Some([&m[0], &m[1]]),
             None if stereo.hidden_area => {
-                ellipse = hidden_area(w, h);
-                Some([&ellipse, &ellipse])
+                // Made once for a size, as a runtime's masks are.
+                let mut last = self.ellipse.lock().unwrap_or_else(|e| e.into_inner());
+                if last.as_ref().is_none_or(|l| l.0 != (w, h)) {
+                    *last = Some(((w, h), std::sync::Arc::new(hidden_area(w, h))));
+                }
+                ellipse = last.as_ref().expect("made above").1.clone();
+                Some([&ellipse[..], &ellipse[..]])
             }
             None => None,
         };
@@ -148,35 +155,59 @@ impl Rasterizer {
                     })
                     .collect()
             };
+            // The post passes skip the hidden pixels too.
             let images: Vec<Vec<u8>> = gs
                 .into_iter()
-                .zip(&eyes)
-                .map(|(g, (camera, _))| {
+                .zip(&list)
+                .map(|(g, (camera, mask))| {
                     let view = crate::post::View::new(camera, &passes, style.background, f);
-                    crate::post::run(g, &passes, &view)
+                    crate::post::run_masked(g, &passes, &view, *mask)
                 })
                 .collect();
             side_by_side(&images, w, h)
-        } else if stereo.single_pass {
-            // One dispatch (compute) or one instanced draw (quads) for both eyes into a frame
-            // twice as wide: already side by side.
+        } else {
+            // The masks at the g-buffer's (supersampled) size, for the GPU's point pass (the
+            // compute path) and post passes to skip.
             let mut wide = eyes[0];
             wide.width = 2 * w;
-            self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style)
-        } else {
-            let images: Vec<Vec<u8>> = eyes
-                .iter()
-                .map(|e| self.render(gpu, e, draws, tree, style))
-                .collect();
-            side_by_side(&images, w, h)
+            let framed = if stereo.single_pass { &wide } else { &eyes[0] };
+            let f = self.factor(gpu, framed, &style.passes) as usize;
+            let big = mask.map(|m| m.map(|m| upsampled(m, w as usize, f)));
+            if stereo.single_pass {
+                // One dispatch (compute) or one instanced draw (quads) for both eyes into a
+                // frame twice as wide: already side by side.
+                let row = w as usize * f;
+                let both: Option<Vec<bool>> = big.as_ref().map(|b| {
+                    (0..h as usize * f)
+                        .flat_map(|y| {
+                            b.iter()
+                                .flat_map(move |m| m[y * row..(y + 1) * row].iter().copied())
+                        })
+                        .collect()
+                });
+                self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style, both.as_deref())
+            } else {
+                let images: Vec<Vec<u8>> = (0..2)
+                    .map(|k| {
+                        let hidden = big.as_ref().map(|b| &b[k][..]);
+                        self.render_eyes(gpu, &eyes[k], None, draws, tree, style, hidden)
+                    })
+                    .collect();
+                side_by_side(&images, w, h)
+            }
         };
         if let Some(m) = &mask {
-            for (i, px) in out.chunks_exact_mut(4).enumerate() {
-                let (y, x) = (i / (2 * w as usize), i % (2 * w as usize));
-                if m[x / w as usize][y * w as usize + x % w as usize] {
-                    px.copy_from_slice(&[0, 0, 0, 255]);
-                }
-            }
+            use rayon::prelude::*;
+            let w = w as usize;
+            out.par_chunks_exact_mut(8 * w)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (x, px) in row.chunks_exact_mut(4).enumerate() {
+                        if m[x / w][y * w + x % w] {
+                            px.copy_from_slice(&[0, 0, 0, 255]);
+                        }
+                    }
+                });
         }
         out
     }

@@ -7,6 +7,10 @@ fn blur(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     if (i >= r.width * r.height) {
         return;
     }
+    if (hidden(i)) {
+        keep(i);
+        return;
+    }
     let d = src_depth[i];
     if (d <= 0.0) {
         keep(i);

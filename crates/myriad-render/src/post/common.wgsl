@@ -37,6 +37,14 @@ struct Post {
 @group(0) @binding(13) var<storage, read_write> dst_depth: array<f32>;
 @group(0) @binding(14) var<storage, read_write> dst_colour: array<u32>;
 @group(0) @binding(15) var<storage, read_write> dst_normal: array<u32>;
+// The hidden area (a headset lens's), one bit a pixel; a word of zeros: none. The passes skip it.
+@group(0) @binding(16) var<storage, read> hidden_bits: array<u32>;
+
+// Whether pixel `i` is hidden: a pass leaves it as it is.
+fn hidden(i: u32) -> bool {
+    let k = i >> 5u;
+    return k < arrayLength(&hidden_bits) && (hidden_bits[k] & (1u << (i & 31u))) != 0u;
+}
 
 const AROUND = array<vec2<f32>, 8>(
     vec2<f32>(1.0, 0.0), vec2<f32>(0.70710677, 0.70710677),

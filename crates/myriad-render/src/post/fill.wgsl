@@ -2,6 +2,10 @@
 // within the radius, at least `fill_min` of them, takes the nearest one. Mirror: mod.rs.
 
 fn fill(i: u32, axis: u32) {
+    if (hidden(i)) {
+        keep(i);
+        return;
+    }
     let x = pixel_x(i);
     let y = i32(i / r.width);
     let d = src_depth[i];

@@ -70,6 +70,11 @@ pub(crate) struct Chain {
 pub(crate) struct Buffers {
     sets: [[wgpu::Buffer; 3]; 2],
     pub image: wgpu::Buffer,
+    /// The hidden area, one bit a pixel of the g-buffer ([`Buffers::hide`]); `none`: a few
+    /// words of zeros, bound when nothing is hidden.
+    hidden: wgpu::Buffer,
+    none: wgpu::Buffer,
+    masked: std::sync::atomic::AtomicBool,
 }
 
 impl Buffers {
@@ -95,6 +100,42 @@ impl Buffers {
                 out_pixels * 4,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             ),
+            hidden: buffer(
+                "hidden area",
+                pixels.div_ceil(32) * 4,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
+            // Zeroed at creation.
+            none: buffer("nothing hidden", 16, wgpu::BufferUsages::STORAGE),
+            masked: Default::default(),
+        }
+    }
+
+    /// The pixels the point pass (compute path) and every post pass skip from now on: per
+    /// pixel of the g-buffer, row by row (a headset's hidden area); None: none.
+    pub fn hide(&self, gpu: &Gpu, mask: Option<&[bool]>) {
+        use std::sync::atomic::Ordering::Relaxed;
+        self.masked.store(mask.is_some(), Relaxed);
+        if let Some(m) = mask {
+            let words: Vec<u32> = m
+                .chunks(32)
+                .map(|c| {
+                    c.iter()
+                        .enumerate()
+                        .fold(0u32, |w, (k, &h)| w | ((h as u32) << k))
+                })
+                .collect();
+            gpu.queue()
+                .write_buffer(&self.hidden, 0, bytemuck::cast_slice(&words));
+        }
+    }
+
+    /// The binding of the hidden area as [`Buffers::hide`] last set it.
+    pub fn hidden_binding(&self) -> wgpu::BindingResource<'_> {
+        if self.masked.load(std::sync::atomic::Ordering::Relaxed) {
+            self.hidden.as_entire_binding()
+        } else {
+            self.none.as_entire_binding()
         }
     }
 }
@@ -214,12 +255,14 @@ impl Chain {
         let mut entries = vec![entry(0, uniforms.as_entire_binding())];
         entries.extend(framebuffer);
         entries.extend(set_entries(&buffers.sets[0], 13, 3));
+        entries.push(entry(16, buffers.hidden_binding()));
         dispatch(enc, &self.gbuffer, entries, pixels);
         let mut current = 0;
         for name in passes.steps() {
             let mut entries = vec![entry(0, uniforms.as_entire_binding())];
             entries.extend(set_entries(&buffers.sets[current], 10, 3));
             entries.extend(set_entries(&buffers.sets[1 - current], 13, 3));
+            entries.push(entry(16, buffers.hidden_binding()));
             dispatch(enc, self.pass(name), entries, pixels);
             current = 1 - current;
         }

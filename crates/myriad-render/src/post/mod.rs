@@ -302,7 +302,18 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 /// Runs the passes on the g-buffer and returns the image (RGBA8, rows top to bottom), the
 /// g-buffer's size divided by the supersampling factor.
-pub(crate) fn run(mut g: GBuffer, passes: &Passes, v: &View) -> Vec<u8> {
+pub(crate) fn run(g: GBuffer, passes: &Passes, v: &View) -> Vec<u8> {
+    run_masked(g, passes, v, None)
+}
+
+/// [`run`], every pass skipping the pixels `mask` hides (a headset's hidden area: they stay as
+/// the point pass left them, empty).
+pub(crate) fn run_masked(
+    mut g: GBuffer,
+    passes: &Passes,
+    v: &View,
+    mask: Option<&[bool]>,
+) -> Vec<u8> {
     let mut scratch = GBuffer::new(g.width, g.height);
     // Pixel sizes scale with the supersampling, as in gpu.rs's uniforms.
     let f = v.factor;
@@ -330,7 +341,7 @@ pub(crate) fn run(mut g: GBuffer, passes: &Passes, v: &View) -> Vec<u8> {
             "blur" => Box::new(|g, i| blur_pixel(g, i, &blur)),
             _ => unreachable!("a step of Passes::steps"),
         };
-        each_pixel(&g, &mut scratch, &pass);
+        each_pixel(&g, &mut scratch, &pass, mask);
         std::mem::swap(&mut g, &mut scratch);
     }
     finish(&g, v)
@@ -341,6 +352,7 @@ fn each_pixel(
     src: &GBuffer,
     dst: &mut GBuffer,
     pass: &(dyn Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync),
+    mask: Option<&[bool]>,
 ) {
     let w = src.width as usize;
     dst.depth
@@ -350,7 +362,12 @@ fn each_pixel(
         .enumerate()
         .for_each(|(y, ((d, c), n))| {
             for x in 0..w {
-                (d[x], c[x], n[x]) = pass(src, y * w + x);
+                let i = y * w + x;
+                (d[x], c[x], n[x]) = if mask.is_some_and(|m| m[i]) {
+                    keep(src, i)
+                } else {
+                    pass(src, i)
+                };
             }
         });
 }

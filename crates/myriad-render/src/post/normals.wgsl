@@ -31,6 +31,10 @@ fn normals(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (i >= r.width * r.height) {
         return;
     }
+    if (hidden(i)) {
+        keep(i);
+        return;
+    }
     let d = src_depth[i];
     if (d <= 0.0 || src_normal[i] != 0u) {
         keep(i);

@@ -6,6 +6,10 @@ fn shade(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     if (i >= r.width * r.height) {
         return;
     }
+    if (hidden(i)) {
+        keep(i);
+        return;
+    }
     if (src_depth[i] <= 0.0) {
         keep(i);
         return;

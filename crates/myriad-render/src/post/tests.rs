@@ -178,6 +178,28 @@ fn fill_closes_a_one_pixel_hole_and_leaves_a_depth_edge_alone() {
 }
 
 #[test]
+fn every_pass_skips_the_hidden_pixels() {
+    // A hole amid a surface: fill closes it, unless the hole is hidden (a headset's lens does
+    // not show it); then no pass touches it, and its neighbours see it empty.
+    let mut g = surface(|_, _| 10.0);
+    let hole = (10 * W + 10) as usize;
+    g.depth[hole] = 0.0;
+    let mut mask = vec![false; (W * H) as usize];
+    mask[hole] = true;
+    let all = only("fill,shade,ssao,edl,blur");
+    let open = run(g.clone(), &all, &view(1));
+    assert_ne!(pixel(&open, 10, 10), [0, 0, 255, 255], "filled");
+    let masked = run_masked(g.clone(), &all, &view(1), Some(&mask));
+    assert_eq!(pixel(&masked, 10, 10), [0, 0, 255, 255], "left empty");
+    // Away from it, the same image.
+    assert_eq!(pixel(&masked, 40, 30), pixel(&open, 40, 30));
+    // No mask, or nothing hidden: `run`.
+    assert_eq!(run_masked(g.clone(), &all, &view(1), None), open);
+    let none = vec![false; (W * H) as usize];
+    assert_eq!(run_masked(g, &all, &view(1), Some(&none)), open);
+}
+
+#[test]
 fn fill_leaves_the_silhouette_against_the_background() {
     // A disc on nothing: no pixel outside it is filled.
     let disc = |x: i32, y: i32| {

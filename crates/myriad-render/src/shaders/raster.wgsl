@@ -33,6 +33,8 @@ struct Range {
 // Mode 1: the normal (pack4x8snorm, eye coordinates) of the splat whose value each pixel kept.
 @group(0) @binding(7) var<storage, read_write> normal_fb: array<u32>;
 var<private> normal_code: u32;
+// The hidden area (a headset lens's), one bit a pixel of the frame; a word of zeros: none.
+@group(0) @binding(8) var<storage, read> hidden_bits: array<u32>;
 // The eye being drawn: its width and its first column in the frame (single-pass stereo: the
 // right eye's image is right of the left's).
 var<private> eye_width: u32;
@@ -50,6 +52,9 @@ fn plot(x: i32, y: i32, value: u64) {
         return;
     }
     let i = u32(y) * u.width + eye_offset + u32(x);
+    if ((i >> 5u) < arrayLength(&hidden_bits) && (hidden_bits[i >> 5u] & (1u << (i & 31u))) != 0u) {
+        return;
+    }
     if (u.mode == 1u) {
         if (atomicLoad(&framebuffer[i]) == value) {
             normal_fb[i] = normal_code;
