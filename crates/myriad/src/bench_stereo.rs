@@ -1,5 +1,5 @@
 //! `myriad bench stereo DATASET...`: seed 002's table 1 for stereo frames. For each dataset, the
-//! overview at `--size` x `--size` per eye (2160: one eye of a current headset), the budget
+//! overview (or `--view`) at `--size` x `--size` per eye (2160: one eye of a current headset), the budget
 //! `--budget`: the median frame (selection, loads, uploads, drawing, post passes) of the mono
 //! view, of both eyes in two passes and in a single pass, each with and without the hidden-area
 //! mask (single pass: one pass over the points on the CPU, one dispatch on the compute path, one
@@ -39,6 +39,14 @@ pub struct StereoBenchArgs {
     /// is also timed with the nodes in the selection's order, not front to back
     #[arg(long = "raster", value_parser = crate::render::parse_path)]
     path: Option<Path>,
+    /// Post passes over each eye's image, comma-separated (as `render --passes`; the hidden
+    /// area skips them too) [default: none, as 002's table]
+    #[arg(long, value_parser = crate::render::parse_passes)]
+    passes: Option<myriad_render::Passes>,
+    /// The standard view the eyes look from: overview, top or close (the data reach the
+    /// corners, where the hidden area is)
+    #[arg(long, default_value = "overview", value_parser = ["overview", "top", "close"])]
+    view: String,
 }
 
 pub fn run(a: StereoBenchArgs) -> Result<()> {
@@ -57,7 +65,10 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
         "{}, {:?} path; {}x{} per eye, budget {}, eyes {} apart; medians of {} frames",
         gpu.name, raster.path, a.size, a.size, a.budget, a.ipd, a.frames
     );
-    let style = Style::default();
+    let style = Style {
+        passes: a.passes.unwrap_or_default(),
+        ..Style::default()
+    };
     let options = SelectOptions {
         budget: a.budget,
         min_pixels: 1.0,
@@ -66,7 +77,7 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
         let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(path)?)?);
         let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
         let cam = crate::render::view_camera(
-            Some("overview"),
+            Some(&a.view),
             &scene.view_bounds,
             &ds.meta.bounds,
             a.size,
