@@ -154,10 +154,17 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
     let mut swapchains = crate::vr_vulkan::Eyes::new(&session, &xr_gpu, (w, h))?;
     // The lenses' hidden areas (the runtime's triangles), and each eye's mask in its symmetric
     // image made from them for the fields the runtime gives.
-    let mut hidden = wanted
-        .khr_visibility_mask
-        .then(|| hidden_meshes(&session))
-        .transpose()?;
+    // A runtime that offers the extension but fails to give a mesh: drawn without it.
+    let fetch = |session: &xr::Session<xr::Vulkan>| {
+        hidden_meshes(session)
+            .inspect_err(|e| eprintln!("warning: {e}: no hidden-area mask"))
+            .ok()
+    };
+    let mut hidden = if wanted.khr_visibility_mask {
+        fetch(&session)
+    } else {
+        None
+    };
     let mut masks: Option<(crate::vr_nav::Cover, [Vec<bool>; 2])> = None;
 
     // The data and the renderer.
@@ -221,7 +228,7 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                     _ => {}
                 },
                 xr::Event::VisibilityMaskChangedKHR(_) => {
-                    hidden = Some(hidden_meshes(&session)?);
+                    hidden = fetch(&session);
                     masks = None;
                 }
                 xr::Event::InstanceLossPending(_) => break 'frames,
