@@ -141,6 +141,11 @@ pub(crate) fn gbuffers(
             fb,
             normal_fb,
             mask: *mask,
+            // Once for every pass over the points.
+            classes: mask.map(|m| {
+                let w = camera.width.max(1) as usize;
+                mask_classes(m, w, m.len() / w, sizes(style).2.ceil() as usize / 2 + 1)
+            }),
         })
         .collect();
     let splat_draws = draws.iter().any(|d| d.points.cpu_splats().is_some());
@@ -184,19 +189,28 @@ struct Target<'a> {
     fb: &'a [AtomicU64],
     normal_fb: &'a [AtomicU32],
     mask: Option<&'a [bool]>,
+    /// Its mask's [`mask_classes`] for the largest point, by tile.
+    classes: Option<Vec<u8>>,
 }
 
 /// What [`points_pass`] needs of an eye, computed once a pass.
 struct Eye<'a> {
     t: &'a Target<'a>,
-    /// Its mask's [`mask_classes`] for the largest point, by tile.
-    classes: Option<Vec<u8>>,
     w: u32,
     h: u32,
     far: f32,
     focal: f32,
     m: [[f32; 4]; 4],
     basis: [[f32; 3]; 3],
+}
+
+/// A style's point sizes: the adaptive scale, the fixed size (the same for every point) or
+/// none, and the largest size in pixels.
+fn sizes(style: &Style) -> (f64, Option<f32>, f32) {
+    match style.size {
+        PointSize::Adaptive { scale, max } => (scale as f64, None, max.max(1.0)),
+        PointSize::Fixed(px) => (1.0, Some(px.max(1.0).round()), px.max(1.0)),
+    }
 }
 
 /// Side of the tiles of [`mask_classes`], pixels.
@@ -260,20 +274,12 @@ fn points_pass(
 ) {
     // Positions decoded once, relative to the first eye's frame origin, for every eye.
     let camera = targets[0].camera;
-    // Fixed sizes are the same for every point.
-    let (scale, fixed, max_size) = match style.size {
-        PointSize::Adaptive { scale, max } => (scale as f64, None, max.max(1.0)),
-        PointSize::Fixed(px) => (1.0, Some(px.max(1.0).round()), px.max(1.0)),
-    };
+    let (scale, fixed, max_size) = sizes(style);
     let o = crate::raster::frame_origin(draws, camera);
     let eyes: Vec<Eye> = targets
         .iter()
         .map(|t| Eye {
             t,
-            classes: t.mask.map(|m| {
-                let w = t.camera.width.max(1) as usize;
-                mask_classes(m, w, m.len() / w, max_size.ceil() as usize / 2 + 1)
-            }),
             w: t.camera.width.max(1),
             h: t.camera.height.max(1),
             far: t.camera.far as f32,
@@ -369,7 +375,7 @@ fn points_pass(
                         let fy = (0.5 - ndc[1] * 0.5) * e.h as f32;
                         // A point amid the hidden area is not drawn, one clear of it needs
                         // no mask, one near its border looks up each of its pixels.
-                        let edge = match &e.classes {
+                        let edge = match &e.t.classes {
                             None => false,
                             Some(c) => {
                                 let x = (fx as usize).min(e.w as usize - 1) / MASK_TILE;

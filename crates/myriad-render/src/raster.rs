@@ -331,9 +331,9 @@ impl Rasterizer {
     }
 
     /// [`Rasterizer::render`]; with `eyes` (the compute path), both eyes in one dispatch into
-    /// a side-by-side frame: `camera` is then the left eye's, twice as wide. `hidden`: per pixel
-    /// of the (supersampled) frame, those the point pass (compute path) and every post pass skip
-    /// (a headset's hidden area; GPU paths only, the CPU's is `cpu::gbuffers`'s).
+    /// a side-by-side frame: `camera` is then the left eye's, twice as wide. `hidden`: the
+    /// pixels the point pass (compute path) and every post pass skip (a headset's hidden area;
+    /// GPU paths only, the CPU's is `cpu::gbuffers`'s).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn render_eyes(
         &self,
@@ -343,7 +343,7 @@ impl Rasterizer {
         draws: &[Draw],
         tree: &[[u32; 4]],
         style: &Style,
-        hidden: Option<&[bool]>,
+        hidden: Option<crate::post::gpu::Hidden>,
     ) -> Vec<u8> {
         let passes = style.passes;
         let f = self.factor(gpu, camera, &passes);
@@ -527,7 +527,7 @@ impl Rasterizer {
             }
         }
         let t = guard.as_ref().expect("targets made above");
-        t.post.hide(gpu, hidden);
+        t.post.hide(gpu, hidden, f);
         // The compute path's second pass, for the splats' normals where the passes need them.
         let splats = draws.iter().any(|d| d.points.splat_buffer().is_some());
         let modes: &[u32] = if normals && splats { &[0, 1] } else { &[0] };

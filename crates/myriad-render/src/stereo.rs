@@ -166,31 +166,23 @@ impl Rasterizer {
                 .collect();
             side_by_side(&images, w, h)
         } else {
-            // The masks at the g-buffer's (supersampled) size, for the GPU's point pass (the
-            // compute path) and post passes to skip.
-            let mut wide = eyes[0];
-            wide.width = 2 * w;
-            let framed = if stereo.single_pass { &wide } else { &eyes[0] };
-            let f = self.factor(gpu, framed, &style.passes) as usize;
-            let big = mask.map(|m| m.map(|m| upsampled(m, w as usize, f)));
+            // The masks for the GPU's point pass (the compute path) and post passes to skip.
+            let hidden = |eyes| crate::post::gpu::Hidden {
+                eyes,
+                width: w as usize,
+            };
             if stereo.single_pass {
                 // One dispatch (compute) or one instanced draw (quads) for both eyes into a
                 // frame twice as wide: already side by side.
-                let row = w as usize * f;
-                let both: Option<Vec<bool>> = big.as_ref().map(|b| {
-                    (0..h as usize * f)
-                        .flat_map(|y| {
-                            b.iter()
-                                .flat_map(move |m| m[y * row..(y + 1) * row].iter().copied())
-                        })
-                        .collect()
-                });
-                self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style, both.as_deref())
+                let mut wide = eyes[0];
+                wide.width = 2 * w;
+                let both = mask.as_ref().map(|m| hidden(&m[..]));
+                self.render_eyes(gpu, &wide, Some(eyes), draws, tree, style, both)
             } else {
                 let images: Vec<Vec<u8>> = (0..2)
                     .map(|k| {
-                        let hidden = big.as_ref().map(|b| &b[k][..]);
-                        self.render_eyes(gpu, &eyes[k], None, draws, tree, style, hidden)
+                        let one = mask.as_ref().map(|m| hidden(std::slice::from_ref(&m[k])));
+                        self.render_eyes(gpu, &eyes[k], None, draws, tree, style, one)
                     })
                     .collect();
                 side_by_side(&images, w, h)

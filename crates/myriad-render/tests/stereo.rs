@@ -115,7 +115,8 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
         far: 100.0,
     };
     let eyes = cam.eyes(0.0);
-    // One point a pixel centre at depth 10; the patch over pixels 24..40.
+    // One point a pixel at depth 10, a quarter pixel up and left of its centre (so that
+    // supersampled twice it covers its own pixel's samples); the patch over pixels 24..40.
     let pixel = 2.0 * 10.0 * (30f64.to_radians().tan()) / size as f64;
     let mut positions = Vec::new();
     let mut colours = Vec::new();
@@ -123,9 +124,9 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
         for x in 0..size {
             let at = |d: f64| {
                 [
-                    (x as f64 + 0.5 - size as f64 / 2.0) * pixel * d / 10.0,
+                    (x as f64 + 0.25 - size as f64 / 2.0) * pixel * d / 10.0,
                     d,
-                    (size as f64 / 2.0 - y as f64 - 0.5) * pixel * d / 10.0,
+                    (size as f64 / 2.0 - y as f64 - 0.25) * pixel * d / 10.0,
                 ]
             };
             positions.push(at(10.0));
@@ -157,11 +158,16 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
         let points = Points::upload(gpu, [0.0; 3], &positions, &colours);
         let mut raster = Rasterizer::with_path(gpu, *path);
         raster.precision = 0.0;
-        for single_pass in [true, false] {
+        // Supersampled too: each hidden pixel's samples are hidden.
+        for (aa, single_pass) in [(0, true), (0, false), (2, true), (2, false)] {
             let s = Stereo {
                 ipd: 0.0,
                 single_pass,
                 hidden_area: true,
+            };
+            let style = Style {
+                passes: Passes { aa, ..style.passes },
+                ..style
             };
             let img = raster.render_stereo(
                 gpu,
@@ -179,7 +185,7 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
                 assert_eq!(
                     &p[..3],
                     want,
-                    "{path:?} single pass {single_pass}: ({x}, {y})"
+                    "{path:?} aa {aa}, single pass {single_pass}: ({x}, {y})"
                 );
             }
         }

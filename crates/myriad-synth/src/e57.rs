@@ -57,7 +57,7 @@ pub fn write(
             if scan.point_source_id.as_ref().and_then(|s| s.first()) != Some(&id) {
                 flush(&mut w, &mut scan)?;
             }
-            scan.append(&b.gather(&(start as u32..end as u32).collect::<Vec<_>>()));
+            scan.append(&b.slice(start..end));
             written += (end - start) as u64;
             start = end;
         }

@@ -362,7 +362,7 @@ impl Eyes {
 
     /// The side-by-side frame's texture for `width` x `height` (both eyes), made anew when the
     /// size changes: the rasterizer's target on the GPU paths.
-    pub(crate) fn frame(&mut self, gpu: &Gpu, width: u32, height: u32) -> wgpu::TextureView {
+    pub(crate) fn frame(&mut self, gpu: &Gpu, width: u32, height: u32) -> wgpu::Texture {
         let (device, _) = gpu.wgpu().expect("a GPU device");
         let size = wgpu::Extent3d {
             width,
@@ -383,29 +383,26 @@ impl Eyes {
                 view_formats: &[],
             }));
         }
-        self.frame
-            .as_ref()
-            .expect("made above")
-            .create_view(&Default::default())
+        self.frame.clone().expect("made above")
     }
 
     /// Both eyes' images into their swapchains: `image` (the side-by-side frame read back or
     /// drawn on the CPU, `width` x `height`) uploaded first where given, else the frame the GPU
     /// drew; each eye's `size` cut from its corner, the hidden area drawn black over it; waits
-    /// for the GPU before the images go back to the runtime. With `image`, the swapchain
-    /// images are read back and compared with it: the pixels that differ (none, but for the
-    /// hidden area's rim, where the GPU's rule for a triangle's edges and the mask's differ).
+    /// for the GPU before the images go back to the runtime. With `image` and `verify`, the
+    /// swapchain images are read back and compared with it: the pixels that differ (none, but
+    /// for the hidden area's rim, where the GPU's rule for a triangle's edges and the mask's
+    /// differ).
     pub(crate) fn submit(
         &mut self,
         gpu: &Gpu,
         image: Option<&[u8]>,
+        verify: bool,
         (width, height): (u32, u32),
         corners: [(u32, u32); 2],
     ) -> Result<Option<u64>, String> {
-        let frame_view = self.frame(gpu, width, height);
-        drop(frame_view);
+        let frame = &self.frame(gpu, width, height);
         let (device, queue) = gpu.wgpu().expect("a GPU device");
-        let frame = self.frame.as_ref().expect("made above");
         if let Some(rgba) = image {
             queue.write_texture(
                 frame.as_image_copy(),
@@ -427,7 +424,7 @@ impl Eyes {
         }
         let (w, h) = self.size;
         let row = (w * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = image.map(|_| {
+        let readback = image.filter(|_| verify).map(|_| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("swapchain readback"),
                 size: 2 * row as u64 * h as u64,

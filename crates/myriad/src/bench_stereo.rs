@@ -101,20 +101,12 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
                 ", nodes as selected"
             }
         };
-        let mut points = 0;
         for &front_to_back in orders {
             raster.front_to_back = front_to_back;
-            let mut ms = Vec::new();
-            for _ in 0..a.frames.max(1) {
-                let t = Instant::now();
-                points = scene.frame(&gpu, &raster, &cam, &options, &style).1.points;
-                ms.push(t.elapsed().as_secs_f64() * 1e3);
-            }
-            println!(
-                "| mono{} | {} | {:.1} |",
-                as_selected(front_to_back),
-                crate::info::thousands(points),
-                median(ms)
+            row(
+                &format!("mono{}", as_selected(front_to_back)),
+                a.frames,
+                || scene.frame(&gpu, &raster, &cam, &options, &style).1.points,
             );
         }
         scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, None));
@@ -131,23 +123,32 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
                     single_pass,
                     hidden_area,
                 };
-                let mut ms = Vec::new();
-                for _ in 0..a.frames.max(1) {
-                    let t = Instant::now();
-                    points = scene
+                let label = format!("{label}{}", as_selected(front_to_back));
+                row(&label, a.frames, || {
+                    scene
                         .frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo, None)
                         .1
-                        .points;
-                    ms.push(t.elapsed().as_secs_f64() * 1e3);
-                }
-                println!(
-                    "| {label}{} | {} | {:.1} |",
-                    as_selected(front_to_back),
-                    crate::info::thousands(points),
-                    median(ms)
-                );
+                        .points
+                });
             }
         }
     }
     Ok(())
+}
+
+/// Times `frame` (which returns the points it drew) `frames` times and prints its row of the
+/// table: the points, the median milliseconds.
+fn row(label: &str, frames: usize, mut frame: impl FnMut() -> u64) {
+    let mut ms = Vec::new();
+    let mut points = 0;
+    for _ in 0..frames.max(1) {
+        let t = Instant::now();
+        points = frame();
+        ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    println!(
+        "| {label} | {} | {:.1} |",
+        crate::info::thousands(points),
+        median(ms)
+    );
 }

@@ -171,14 +171,17 @@ pub fn run(a: ViewArgs) -> Result<()> {
             if r.ended { "ended cleanly" } else { "lost" },
         );
         println!(
-            "vr: {}; the swapchain images differ from the frames looked at in {} pixels",
-            r.device, r.swapchain_differ
+            "vr: {}; the swapchain images of every {}th frame differ from it in {} pixels",
+            r.device,
+            myriad_viewer::vr::CHECK_EVERY,
+            r.swapchain_differ
         );
         match r.hidden {
             Some([l, rt]) => println!(
-                "vr: the runtime's hidden-area mesh masks {l} and {rt} of each eye's {} pixels ({} of them lit in the images looked at)",
+                "vr: the runtime's hidden-area mesh masks {l} and {rt} of each eye's {} pixels ({} of them lit in every {}th frame)",
                 r.size.0 as u64 * r.size.1 as u64,
-                r.hidden_lit
+                r.hidden_lit,
+                myriad_viewer::vr::CHECK_EVERY
             ),
             None => println!("vr: the runtime gives no hidden-area mesh (XR_KHR_visibility_mask)"),
         }

@@ -3,14 +3,6 @@
 mod common;
 use common::*;
 
-fn decode(path: &std::path::Path) -> (u32, u32, Vec<u8>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut img = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut img).unwrap();
-    (info.width, info.height, img)
-}
-
 #[test]
 fn render_stereo_draws_both_eyes_side_by_side() {
     let d = tempdir("stereo");
@@ -33,7 +25,7 @@ fn render_stereo_draws_both_eyes_side_by_side() {
         "--hidden-area",
     ]);
     assert!(text.contains("both eyes side by side"), "{text}");
-    let (w, h, img) = decode(&png_path);
+    let (w, h, img) = decode_png(&png_path);
     assert_eq!((w, h), (320, 120));
     let lit = |x0: usize, x1: usize| {
         (0..120usize)
@@ -70,7 +62,7 @@ fn render_stereo_draws_both_eyes_side_by_side() {
         "--hidden-area",
         "--two-pass",
     ]);
-    let (_, _, img2) = decode(&two);
+    let (_, _, img2) = decode_png(&two);
     let differ = img
         .chunks(4)
         .zip(img2.chunks(4))

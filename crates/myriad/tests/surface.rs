@@ -104,12 +104,7 @@ fn number_before(text: &str, what: &str) -> u64 {
 }
 
 fn lit_pixels(png_path: &Path) -> usize {
-    let decoder = png::Decoder::new(std::io::BufReader::new(
-        std::fs::File::open(png_path).unwrap(),
-    ));
-    let mut reader = decoder.read_info().unwrap();
-    let mut img = vec![0; reader.output_buffer_size().unwrap()];
-    reader.next_frame(&mut img).unwrap();
+    let (_, _, img) = decode_png(png_path);
     img.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count()
 }
 

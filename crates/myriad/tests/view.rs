@@ -3,7 +3,9 @@
 //! window and exits; the scan is in the screenshot. Skipped with a message where `xvfb-run` is
 //! missing (CI installs it, see .ci/run).
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::decode_png;
+use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -16,14 +18,6 @@ fn tempdir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut img = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut img).unwrap();
-    (info.width, info.height, img)
 }
 
 #[test]
@@ -110,7 +104,7 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         assert!(stdout.contains("screenshot written"), "{stdout}");
         // The window as shown: panels on the left, the scan in the view. The view (right of the
         // panel) is mostly the scan: not black.
-        let (w, h, img) = decode(&shot);
+        let (w, h, img) = decode_png(&shot);
         assert!(w >= 800 && h >= 500, "{w}x{h}");
         let mut lit = 0;
         let mut total = 0;

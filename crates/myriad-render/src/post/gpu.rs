@@ -66,6 +66,14 @@ pub(crate) struct Chain {
     passes: Vec<(&'static str, wgpu::ComputePipeline)>,
 }
 
+/// A hidden area as the GPU passes take it: one mask per eye (image pixels, row by row,
+/// `width` a row), the eyes side by side in the frame.
+#[derive(Clone, Copy)]
+pub(crate) struct Hidden<'a> {
+    pub eyes: &'a [&'a [bool]],
+    pub width: usize,
+}
+
 /// The g-buffer's two sets of (depth, colour, normal) arrays and the image.
 pub(crate) struct Buffers {
     sets: [[wgpu::Buffer; 3]; 2],
@@ -111,23 +119,34 @@ impl Buffers {
         }
     }
 
-    /// The pixels the point pass (compute path) and every post pass skip from now on: per
-    /// pixel of the g-buffer, row by row (a headset's hidden area); None: none.
-    pub fn hide(&self, gpu: &Gpu, mask: Option<&[bool]>) {
+    /// The pixels the point pass (compute path) and every post pass skip from now on (a
+    /// headset's hidden area), for a g-buffer supersampled `factor` times; None: none.
+    pub fn hide(&self, gpu: &Gpu, hidden: Option<Hidden>, factor: u32) {
+        use rayon::prelude::*;
         use std::sync::atomic::Ordering::Relaxed;
-        self.masked.store(mask.is_some(), Relaxed);
-        if let Some(m) = mask {
-            let words: Vec<u32> = m
-                .chunks(32)
-                .map(|c| {
-                    c.iter()
-                        .enumerate()
-                        .fold(0u32, |w, (k, &h)| w | ((h as u32) << k))
-                })
-                .collect();
-            gpu.queue()
-                .write_buffer(&self.hidden, 0, bytemuck::cast_slice(&words));
-        }
+        self.masked.store(hidden.is_some(), Relaxed);
+        let Some(h) = hidden else {
+            return;
+        };
+        // One bit a g-buffer pixel, each looked up in its eye's mask.
+        let f = factor.max(1) as usize;
+        let eye = h.width * f;
+        let frame = eye * h.eyes.len();
+        let pixels = frame * (h.eyes[0].len() / h.width.max(1)) * f;
+        let words: Vec<u32> = (0..pixels.div_ceil(32))
+            .into_par_iter()
+            .map(|k| {
+                (0..32)
+                    .filter(|b| k * 32 + b < pixels)
+                    .fold(0u32, |word, b| {
+                        let (x, y) = ((k * 32 + b) % frame, (k * 32 + b) / frame);
+                        let hidden = h.eyes[x / eye][(y / f) * h.width + (x % eye) / f];
+                        word | ((hidden as u32) << b)
+                    })
+            })
+            .collect();
+        gpu.queue()
+            .write_buffer(&self.hidden, 0, bytemuck::cast_slice(&words));
     }
 
     /// The binding of the hidden area as [`Buffers::hide`] last set it.

@@ -49,7 +49,8 @@ fn groups(n: u32) -> (u32, u32) {
     (x, g.div_ceil(x))
 }
 
-fn read(gpu: &Gpu, source: &wgpu::Buffer, bytes: u64) -> Vec<u8> {
+/// The first `bytes` of `source` (copied to a staging buffer, after what was submitted before).
+pub(super) fn read(gpu: &Gpu, source: &wgpu::Buffer, bytes: u64) -> Vec<u8> {
     let d = gpu.device();
     let staging = d.create_buffer(&wgpu::BufferDescriptor {
         label: Some("surface readback"),

@@ -216,20 +216,7 @@ impl Drawer {
             c.near as f32,
             None,
         );
-        let readback = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("surface image"),
-            size: out_pixels * 4,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        enc.copy_buffer_to_buffer(&buffers.image, 0, &readback, 0, out_pixels * 4);
         gpu.queue().submit([enc.finish()]);
-        let slice = readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map the surface image"));
-        d.poll(wgpu::PollType::wait_indefinitely())
-            .expect("wait for the surface image");
-        let out = slice.get_mapped_range().expect("mapped").to_vec();
-        readback.unmap();
-        out
+        super::gpu::read(gpu, &buffers.image, out_pixels * 4)
     }
 }

@@ -58,6 +58,15 @@ pub fn ok(args: &[&str]) -> String {
     r.stdout
 }
 
+/// A PNG's width, height and pixels (RGBA8 for the images `render` writes).
+pub fn decode_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut img = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut img).unwrap();
+    (info.width, info.height, img)
+}
+
 /// An empty folder of this test process.
 pub fn tempdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("myriad-cli-{name}-{}", std::process::id()));
