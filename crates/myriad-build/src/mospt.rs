@@ -95,8 +95,9 @@ pub fn build(batch: &PointBatch, cube: &Aabb, max_depth: u32) -> Mospt {
     build_sorted(batch, sorted, &sc, cube, max_depth)
 }
 
-/// [`build`] for points whose Morton order is known: `sorted` lists `batch`'s points in that
-/// order and `sorted_codes` their codes ([`codes`], relative to `cube`), in the same order.
+/// [`build`] for points whose Morton order is known: `sorted` lists the node's points (indices
+/// into `batch`, which may hold other points besides) in that order and `sorted_codes` their
+/// codes ([`codes`], relative to `cube`), in the same order. `order` holds indices into `batch`.
 pub fn build_sorted(
     batch: &PointBatch,
     sorted: Vec<u32>,
@@ -104,9 +105,9 @@ pub fn build_sorted(
     cube: &Aabb,
     max_depth: u32,
 ) -> Mospt {
-    let n = batch.len();
+    let n = sorted.len();
     assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
-    assert_eq!(sorted.len(), n);
+    assert_eq!(sorted_codes.len(), n);
     let max_depth = max_depth.min(CODE_LEVELS);
     let side = cube
         .size()
@@ -129,14 +130,16 @@ pub fn build_sorted(
         .max()
         .unwrap_or(0);
 
-    // Per point: the level at which it enters (depth + 1: never a representative).
+    // Per point, by its place in `sorted`: the level at which it enters (depth + 1: never a
+    // representative).
     let mut level = vec![depth + 1; n];
-    // Sums over each cell, for its mean colour or centroid.
+    // Sums over each cell, for its mean colour or centroid; points named by their place.
     let rgb = batch.rgb.as_ref();
-    let value = |i: u32| -> [f64; 3] {
+    let value = |at: u32| -> [f64; 3] {
+        let i = sorted[at as usize] as usize;
         match rgb {
-            Some(c) => c[i as usize].map(f64::from),
-            None => batch.positions[i as usize],
+            Some(c) => c[i].map(f64::from),
+            None => batch.positions[i],
         }
     };
     let distance = |a: [f64; 3], b: [f64; 3]| -> f64 {
@@ -163,14 +166,13 @@ pub fn build_sorted(
         let mut end = start;
         let mut sum = [0.0; 3];
         while end < n && sc[end] >> shift_of(depth) == key {
-            let v = value(sorted[end]);
+            let v = value(end as u32);
             (0..3).for_each(|k| sum[k] += v[k]);
             end += 1;
         }
         let mean = sum.map(|s| s / (end - start) as f64);
-        let rep = *sorted[start..end]
-            .iter()
-            .min_by(|&&a, &&b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
+        let rep = (start as u32..end as u32)
+            .min_by(|&a, &b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
             .unwrap();
         level[rep as usize] = depth;
         current.push(Cell {
@@ -224,10 +226,9 @@ pub fn build_sorted(
         .chain(prefix[..levels - 1].iter().map(|&p| p as usize))
         .collect();
     let mut order = vec![0u32; n];
-    for &i in &sorted {
-        let l = level[i as usize] as usize;
-        order[next[l]] = i;
-        next[l] += 1;
+    for (&i, &l) in sorted.iter().zip(&level) {
+        order[next[l as usize]] = i;
+        next[l as usize] += 1;
     }
     let spacing = (0..levels)
         .map(|l| side / (1u64 << (l.min(depth as usize))) as f64)

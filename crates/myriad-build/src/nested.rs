@@ -105,8 +105,10 @@ pub fn build_subtree_with<E>(
     params: &NestedParams,
     emit: &mut dyn FnMut(BuiltNode) -> Result<(), E>,
 ) -> Result<(), E> {
-    // Sorted once by Morton code: every node below keeps that order, and its codes relative to
-    // its own cube are its parent's shifted by one level, so no node sorts again.
+    // Sorted once by Morton code, and gathered once in that order: every node below is a list
+    // of places in the sorted batch, ascending (Morton order within the node), and its codes
+    // relative to its own cube are the chunk's shifted by its depth below it. Only a node's kept
+    // points are gathered; the rest moves down as places, never copied.
     let codes = mospt::codes(&batch, &key.bounds(root));
     let order = mospt::sort_order(&codes);
     let sorted = batch.gather(&order);
@@ -114,71 +116,72 @@ pub fn build_subtree_with<E>(
     let codes: Vec<u64> = order.iter().map(|&i| codes[i as usize]).collect();
     drop(order);
     let batch = sorted;
-    let mut work = vec![(key, batch, codes)];
-    while let Some((key, batch, codes)) = work.pop() {
-        if batch.is_empty() {
+    let below = (1u64 << (3 * mospt::CODE_LEVELS)) - 1;
+    let top = 3 * (mospt::CODE_LEVELS - 1);
+    let mut work = vec![(key, (0..batch.len() as u32).collect::<Vec<u32>>())];
+    while let Some((node_key, ids)) = work.pop() {
+        if ids.is_empty() {
             continue;
         }
-        let n = batch.len();
-        let cube = key.bounds(root);
-        let leaf = n <= params.capacity || key.level >= params.max_level;
+        let n = ids.len();
+        let shift = 3 * (node_key.level - key.level);
+        let node_codes: Vec<u64> = ids
+            .iter()
+            .map(|&i| (codes[i as usize] << shift) & below)
+            .collect();
+        let cube = node_key.bounds(root);
+        let leaf = n <= params.capacity || node_key.level >= params.max_level;
         let depth = if leaf {
             mospt::CODE_LEVELS
         } else {
             params.inner_depth
         };
-        let (m, keep, contour) = if params.ntree {
-            let (m, pca) = ntree::build(&batch, params.capacity, leaf);
+        // The node, and the places (in `ids`) of the points it keeps when it passes some down.
+        let (node, kept) = if params.ntree {
+            let own = batch.gather(&ids);
+            let (m, pca) = ntree::build(&own, params.capacity, leaf);
             let keep = m.order.len();
-            (m, keep, Some(ntree::contour(&batch.positions, &pca)))
+            let mut node = node_from_prefix(node_key, &own, &m, keep);
+            node.shape.contour = Some(ntree::contour(&own.positions, &pca));
+            (node, (keep < n).then(|| m.order[..keep].to_vec()))
         } else {
-            let m = mospt::build_sorted(&batch, (0..n as u32).collect(), &codes, &cube, depth);
+            let m = mospt::build_sorted(&batch, ids.clone(), &node_codes, &cube, depth);
             let keep = if leaf {
                 n
             } else {
                 fitting_prefix(&m, params.capacity)
             };
-            (m, keep, None)
-        };
-        let mut node = node_from_prefix(key, &batch, &m, keep);
-        node.shape.contour = contour;
-        if keep < n {
-            // The rest goes down; in Morton order each child's points are one run, whose
-            // octant is the top three bits of the code.
-            let mut rest_mask = vec![true; n];
-            for &i in &m.order[..keep] {
-                rest_mask[i as usize] = false;
-            }
-            drop(m);
-            let mut rest = batch;
-            rest.retain_mask(&rest_mask);
-            let rest_codes: Vec<u64> = codes
-                .iter()
-                .zip(&rest_mask)
-                .filter(|(_, k)| **k)
-                .map(|(c, _)| *c)
-                .collect();
-            drop(codes);
-            let top = 3 * (mospt::CODE_LEVELS - 1);
-            let below = (1u64 << (3 * mospt::CODE_LEVELS)) - 1;
-            let mut start = 0;
-            while start < rest.len() {
-                let octant = rest_codes[start] >> top;
-                let end = start
-                    + rest_codes[start..]
-                        .iter()
-                        .take_while(|&&c| c >> top == octant)
-                        .count();
-                let child_codes = rest_codes[start..end]
+            // `ids` ascends, so each kept index is found by bisection.
+            let kept = (keep < n).then(|| {
+                m.order[..keep]
                     .iter()
-                    .map(|c| (c << 3) & below)
-                    .collect();
-                work.push((
-                    key.child(octant as usize),
-                    rest.slice(start..end),
-                    child_codes,
-                ));
-                start = end;
+                    .map(|i| ids.binary_search(i).expect("a node's own point") as u32)
+                    .collect::<Vec<u32>>()
+            });
+            (node_from_prefix(node_key, &batch, &m, keep), kept)
+        };
+        if let Some(kept) = kept {
+            // The rest goes down; in Morton order each child's points are one run, whose
+            // octant is the top three bits of the node's code.
+            let mut rest = vec![true; n];
+            for &k in &kept {
+                rest[k as usize] = false;
+            }
+            let mut at = 0;
+            while at < n {
+                if !rest[at] {
+                    at += 1;
+                    continue;
+                }
+                let octant = node_codes[at] >> top;
+                let mut child = Vec::new();
+                while at < n && node_codes[at] >> top == octant {
+                    if rest[at] {
+                        child.push(ids[at]);
+                    }
+                    at += 1;
+                }
+                work.push((node_key.child(octant as usize), child));
             }
         }
         emit(node)?;
