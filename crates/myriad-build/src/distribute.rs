@@ -97,9 +97,10 @@ pub struct Distribution {
     pub trimmed: u64,
     /// The first LAS/LAZ input's header with its VLRs ([`myriad_io::las::header_to_bytes`]).
     pub las_header: Option<Vec<u8>>,
-    /// The chunks' rows, by cell, when they all fit in the write buffers and were never spilled
-    /// (taken out as the chunks are loaded): a small build writes and reads back no spill files.
-    resident: std::sync::Mutex<HashMap<[u32; 3], Vec<u8>>>,
+    /// The chunks' points, by cell, when they all fit in the write buffers and were never
+    /// spilled (taken out as the chunks are loaded): a small build writes and reads back no
+    /// spill files, and its points are never turned into rows.
+    resident: std::sync::Mutex<HashMap<[u32; 3], PointBatch>>,
     /// Held so that dropping the distribution removes the spill files.
     _spill: SpillFolder,
 }
@@ -107,21 +108,18 @@ pub struct Distribution {
 impl Distribution {
     /// Reads a chunk's points back.
     pub fn load(&self, chunk: &Chunk) -> Result<PointBatch> {
-        let mut b = PointBatch::with_schema(&self.schema, chunk.points as usize);
-        let row = b.row_size();
         let resident = self
             .resident
             .lock()
-            .expect("resident rows")
+            .expect("resident points")
             .remove(&chunk.cell);
-        if let Some(rows) = resident {
-            // Rows this process wrote whole: their count is the chunk's.
-            for r in rows.chunks_exact(row) {
-                b.push_row(r);
-            }
+        if let Some(b) = resident {
+            // Points this process scattered whole: their count is the chunk's.
             debug_assert_eq!(b.len() as u64, chunk.points);
             return Ok(b);
         }
+        let mut b = PointBatch::with_schema(&self.schema, chunk.points as usize);
+        let row = b.row_size();
         let mut frames = Frames::open(&chunk.path)?;
         while let Some(rows) = frames.next_frame()? {
             if rows.len() % row != 0 {
@@ -165,15 +163,19 @@ impl Drop for SpillFolder {
 }
 
 /// Write buffers of the chunks of one level, flushed to their files when `limit` is reached.
+/// A buffer holds its points as a batch; they become rows only when written to a spill file.
 struct Scatter<'a> {
     folder: &'a Path,
     level: u32,
+    schema: &'a Schema,
+    /// Bytes of a point as a row: what the budget counts.
+    row: usize,
     /// Slot of each cell met so far.
     cells: HashMap<[u32; 3], usize>,
     /// Per slot: the cell, its write buffer, its point count.
-    slots: Vec<([u32; 3], Vec<u8>, u64)>,
-    /// The last cell added to, and its slot: consecutive points mostly share a cell.
-    last: Option<([u32; 3], usize)>,
+    slots: Vec<([u32; 3], PointBatch, u64)>,
+    /// Per slot: the points of the batch being added that go there (reused).
+    picks: Vec<Vec<u32>>,
     /// Whether anything was written to the spill files yet.
     spilled: bool,
     buffered: usize,
@@ -182,13 +184,21 @@ struct Scatter<'a> {
 }
 
 impl<'a> Scatter<'a> {
-    fn new(folder: &'a Path, level: u32, limit: usize, compress: bool) -> Scatter<'a> {
+    fn new(
+        folder: &'a Path,
+        level: u32,
+        schema: &'a Schema,
+        limit: usize,
+        compress: bool,
+    ) -> Scatter<'a> {
         Scatter {
             folder,
             level,
+            schema,
+            row: PointBatch::with_schema(schema, 0).row_size(),
             cells: HashMap::new(),
             slots: Vec::new(),
-            last: None,
+            picks: Vec::new(),
             spilled: false,
             buffered: 0,
             limit,
@@ -215,32 +225,43 @@ impl Scatter<'_> {
             .collect()
     }
 
-    fn add(&mut self, cell: [u32; 3], batch: &PointBatch, i: usize) -> Result<()> {
-        let slot = match self.last {
-            Some((c, s)) if c == cell => s,
-            _ => {
-                let next = self.slots.len();
-                let s = *self.cells.entry(cell).or_insert(next);
-                if s == next {
-                    self.slots.push((cell, Vec::new(), 0));
+    /// Adds the points `picked` of `batch`, which fall in the cells `cells` (one each).
+    fn add(&mut self, batch: &PointBatch, picked: &[u32], cells: &[[u32; 3]]) -> Result<()> {
+        let mut last: Option<([u32; 3], usize)> = None;
+        for (&i, &cell) in picked.iter().zip(cells) {
+            // Consecutive points mostly share a cell.
+            let slot = match last {
+                Some((c, s)) if c == cell => s,
+                _ => {
+                    let next = self.slots.len();
+                    let s = *self.cells.entry(cell).or_insert(next);
+                    if s == next {
+                        self.slots
+                            .push((cell, PointBatch::with_schema(self.schema, 0), 0));
+                        self.picks.push(Vec::new());
+                    }
+                    last = Some((cell, s));
+                    s
                 }
-                self.last = Some((cell, s));
-                s
+            };
+            self.picks[slot].push(i);
+        }
+        for (slot, picks) in self.slots.iter_mut().zip(&mut self.picks) {
+            if !picks.is_empty() {
+                slot.1.extend_gather(batch, picks);
+                slot.2 += picks.len() as u64;
+                self.buffered += picks.len() * self.row;
+                picks.clear();
             }
-        };
-        let (_, buf, count) = &mut self.slots[slot];
-        let before = buf.len();
-        batch.put_row(i, buf);
-        self.buffered += buf.len() - before;
-        *count += 1;
+        }
         if self.buffered > self.limit {
             self.flush()?;
         }
         Ok(())
     }
 
-    /// The rows of every chunk, by cell, when none was spilled (else `None`, nothing taken).
-    fn take_resident(&mut self) -> Option<HashMap<[u32; 3], Vec<u8>>> {
+    /// The points of every chunk, by cell, when none was spilled (else `None`, nothing taken).
+    fn take_resident(&mut self) -> Option<HashMap<[u32; 3], PointBatch>> {
         if self.spilled {
             return None;
         }
@@ -255,6 +276,7 @@ impl Scatter<'_> {
 
     fn flush(&mut self) -> Result<()> {
         self.spilled |= self.slots.iter().any(|(_, b, _)| !b.is_empty());
+        let mut rows = Vec::new();
         for (cell, buf, _) in self.slots.iter_mut().filter(|(_, b, _)| !b.is_empty()) {
             let path = spill_path(self.folder, self.level, *cell);
             let mut f = std::fs::OpenOptions::new()
@@ -262,9 +284,14 @@ impl Scatter<'_> {
                 .append(true)
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
-            write_frame(&mut f, buf, self.compress).map_err(|e| Error::io(&path, e))?;
+            rows.clear();
+            rows.reserve(buf.len() * self.row);
+            for i in 0..buf.len() {
+                buf.put_row(i, &mut rows);
+            }
+            write_frame(&mut f, &rows, self.compress).map_err(|e| Error::io(&path, e))?;
             // Freed, not cleared: capacities would otherwise outgrow the budget.
-            *buf = Vec::new();
+            *buf = PointBatch::with_schema(self.schema, 0);
         }
         self.buffered = 0;
         Ok(())
@@ -472,7 +499,8 @@ pub fn distribute_with(
     let folder = SpillFolder(folder);
     let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
     let compress = declared.saturating_mul(row) > options.compress_above;
-    let mut scatter = Scatter::new(&folder.0, level, options.buffer_bytes, compress);
+    let mut scatter = Scatter::new(&folder.0, level, &schema, options.buffer_bytes, compress);
+    let (mut picked, mut cells) = (Vec::new(), Vec::new());
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
     let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
@@ -494,7 +522,8 @@ pub fn distribute_with(
                     *id += scan_offset;
                 }
             }
-            let mut kept = 0;
+            picked.clear();
+            cells.clear();
             for i in 0..b.len() {
                 let p = b.positions[i];
                 let cell = cell_of(&root, level, p, &mut clamped);
@@ -516,10 +545,11 @@ pub fn distribute_with(
                     }
                 }
                 actual.extend(p);
-                scatter.add(cell, &b, i)?;
-                kept += 1;
+                picked.push(i as u32);
+                cells.push(cell);
             }
-            points += kept;
+            scatter.add(&b, &picked, &cells)?;
+            points += picked.len() as u64;
             on_read(Progress::Read(b.len() as u64));
         }
         skipped += src.skipped_non_finite();
@@ -612,7 +642,7 @@ fn rescatter(
     buffer_bytes: usize,
     compress: bool,
 ) -> Result<Vec<Chunk>> {
-    let mut scatter = Scatter::new(folder, level, buffer_bytes, compress);
+    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, compress);
     let row = PointBatch::with_schema(schema, 0).row_size();
     let mut outside = 0;
     for chunk in chunks {
@@ -625,9 +655,12 @@ fn rescatter(
             for r in rows.chunks_exact(row) {
                 b.push_row(r);
             }
-            for i in 0..b.len() {
-                scatter.add(cell_of(root, level, b.positions[i], &mut outside), &b, i)?;
-            }
+            let cells: Vec<[u32; 3]> = b
+                .positions
+                .iter()
+                .map(|&p| cell_of(root, level, p, &mut outside))
+                .collect();
+            scatter.add(&b, &(0..b.len() as u32).collect::<Vec<_>>(), &cells)?;
         }
         drop(frames);
         std::fs::remove_file(&chunk.path).map_err(|e| Error::io(&chunk.path, e))?;

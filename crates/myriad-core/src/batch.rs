@@ -465,6 +465,30 @@ impl PointBatch {
     }
 
     /// Appends `other`, which must carry the same columns.
+    /// Appends the points `indices` of `other` (which has the same columns): `append` of a
+    /// `gather`, without the batch between.
+    pub fn extend_gather(&mut self, other: &PointBatch, indices: &[u32]) {
+        let pick = |i: &u32| *i as usize;
+        self.positions
+            .extend(indices.iter().map(|i| other.positions[pick(i)]));
+        macro_rules! ext {
+            ($f:ident, $t:ty, $a:ident) => {
+                match (&mut self.$f, &other.$f) {
+                    (Some(a), Some(b)) => a.extend(indices.iter().map(|i| b[pick(i)])),
+                    (None, None) => {}
+                    _ => panic!("extend_gather: batches differ in column {}", stringify!($f)),
+                }
+            };
+        }
+        for_each_column!(ext);
+        if let (Some(a), Some(b)) = (&mut self.extra_bytes, &other.extra_bytes) {
+            let s = other.extra_stride;
+            for i in indices {
+                a.extend_from_slice(&b[pick(i) * s..(pick(i) + 1) * s]);
+            }
+        }
+    }
+
     pub fn append(&mut self, other: &PointBatch) {
         self.positions.extend_from_slice(&other.positions);
         macro_rules! app {
