@@ -18,4 +18,5 @@ pub mod nested;
 mod nodes;
 pub mod ntree;
 pub mod partition;
+mod radix;
 mod tops;

@@ -76,13 +76,14 @@ pub fn codes(batch: &PointBatch, cube: &Aabb) -> Vec<u64> {
 
 /// The order that sorts `codes`.
 pub fn sort_order(codes: &[u64]) -> Vec<u32> {
-    // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache.
+    // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache. The
+    // radix sort is stable, so equal codes keep their indices' order.
     let mut pairs: Vec<(u64, u32)> = codes
         .iter()
         .enumerate()
         .map(|(i, &c)| (c, i as u32))
         .collect();
-    pairs.sort_unstable();
+    crate::radix::sort_by_key(&mut pairs, |p| p.0);
     pairs.into_iter().map(|p| p.1).collect()
 }
 
@@ -133,14 +134,11 @@ pub fn build_sorted(
     // Per point, by its place in `sorted`: the level at which it enters (depth + 1: never a
     // representative).
     let mut level = vec![depth + 1; n];
-    // Sums over each cell, for its mean colour or centroid; points named by their place.
+    // What a cell's mean is taken of (colour, else position), by place, read once.
     let rgb = batch.rgb.as_ref();
-    let value = |at: u32| -> [f64; 3] {
-        let i = sorted[at as usize] as usize;
-        match rgb {
-            Some(c) => c[i].map(f64::from),
-            None => batch.positions[i],
-        }
+    let values: Vec<[f64; 3]> = match rgb {
+        Some(c) => sorted.iter().map(|&i| c[i as usize].map(f64::from)).collect(),
+        None => sorted.iter().map(|&i| batch.positions[i as usize]).collect(),
     };
     let distance = |a: [f64; 3], b: [f64; 3]| -> f64 {
         if rgb.is_some() {
@@ -149,7 +147,20 @@ pub fn build_sorted(
             (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
         }
     };
-    // Cells of the current level, as runs of `sorted`: (start, end, representative, value sum).
+    // The candidate nearest `mean`, the first of equals.
+    let nearest = |candidates: &mut dyn Iterator<Item = u32>, mean: [f64; 3]| -> u32 {
+        let mut best = (f64::INFINITY, u32::MAX);
+        for c in candidates {
+            let d = distance(values[c as usize], mean);
+            if d < best.0 || best.1 == u32::MAX {
+                best = (d, c);
+            }
+        }
+        best.1
+    };
+    // Cells of the current level, as runs of `sorted`: (start, end, representative's place,
+    // value sum).
+    #[derive(Clone, Copy)]
     struct Cell {
         start: usize,
         end: usize,
@@ -166,14 +177,15 @@ pub fn build_sorted(
         let mut end = start;
         let mut sum = [0.0; 3];
         while end < n && sc[end] >> shift_of(depth) == key {
-            let v = value(end as u32);
-            (0..3).for_each(|k| sum[k] += v[k]);
+            (0..3).for_each(|k| sum[k] += values[end][k]);
             end += 1;
         }
-        let mean = sum.map(|s| s / (end - start) as f64);
-        let rep = (start as u32..end as u32)
-            .min_by(|&a, &b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
-            .unwrap();
+        let rep = if end - start == 1 {
+            start as u32
+        } else {
+            let mean = sum.map(|s| s / (end - start) as f64);
+            nearest(&mut (start as u32..end as u32), mean)
+        };
         level[rep as usize] = depth;
         current.push(Cell {
             start,
@@ -183,10 +195,10 @@ pub fn build_sorted(
         });
         start = end;
     }
-    // Coarser levels: merge sibling cells; the representative nearest the merged mean moves up.
+    // Coarser levels: merge sibling cells (in place: a level has at most as many cells as the
+    // one below); the representative nearest the merged mean moves up.
     for l in (0..depth).rev() {
-        let mut parents: Vec<Cell> = Vec::new();
-        let mut k = 0;
+        let (mut k, mut parents) = (0, 0);
         while k < current.len() {
             let key = sc[current[k].start] >> shift_of(l);
             let first = k;
@@ -196,21 +208,22 @@ pub fn build_sorted(
                 k += 1;
             }
             let (s, e) = (current[first].start, current[k - 1].end);
-            let mean = sum.map(|v| v / (e - s) as f64);
-            let rep = current[first..k]
-                .iter()
-                .map(|c| c.rep)
-                .min_by(|&a, &b| distance(value(a), mean).total_cmp(&distance(value(b), mean)))
-                .unwrap();
+            let rep = if k - first == 1 {
+                current[first].rep
+            } else {
+                let mean = sum.map(|v| v / (e - s) as f64);
+                nearest(&mut current[first..k].iter().map(|c| c.rep), mean)
+            };
             level[rep as usize] = l;
-            parents.push(Cell {
+            current[parents] = Cell {
                 start: s,
                 end: e,
                 rep,
                 sum,
-            });
+            };
+            parents += 1;
         }
-        current = parents;
+        current.truncate(parents);
     }
 
     // Level order; within a level, Morton order: a counting sort by level keeps `sorted`'s order.

@@ -43,22 +43,29 @@ fn acquisition_order(node: &mut BuiltNode) {
     let mut start = 0usize;
     for (level, &end) in node.prefix.iter().enumerate() {
         let end = end as usize;
-        let mut keyed: Vec<(u32, u64, u32)> = (start..end).map(|i| (0, key(i), i as u32)).collect();
+        // (key, point), sorted by key; the radix sort is stable and the points ascend, so
+        // equal times keep the points' order.
+        let mut keyed: Vec<(u64, u32)> = (start..end).map(|i| (key(i), i as u32)).collect();
+        if times.is_some() {
+            crate::radix::sort_by_key(&mut keyed, |k| k.0);
+        }
         let cell = 2.0 * node.spacing.get(level).copied().unwrap_or(0.0);
         if level == last && cell > 0.0 && end - start > STRATA as usize {
-            keyed.sort_unstable();
+            // Dealt into strata, each kept in acquisition order.
+            let mut strata: Vec<Vec<u32>> = vec![Vec::new(); STRATA as usize];
             let mut seen: std::collections::HashMap<[i64; 3], u32> = Default::default();
-            for k in &mut keyed {
-                let p = node.points.positions[k.2 as usize];
+            for k in &keyed {
+                let p = node.points.positions[k.1 as usize];
                 let rank = seen
                     .entry(p.map(|v| (v / cell).floor() as i64))
                     .or_insert(0);
-                k.0 = (*rank).min(STRATA - 1);
+                strata[(*rank).min(STRATA - 1) as usize].push(k.1);
                 *rank += 1;
             }
+            strata.iter().for_each(|s| order.extend_from_slice(s));
+        } else {
+            order.extend(keyed.into_iter().map(|k| k.1));
         }
-        keyed.sort_unstable();
-        order.extend(keyed.into_iter().map(|k| k.2));
         start = end;
     }
     if order.iter().enumerate().all(|(i, &o)| i as u32 == o) {
