@@ -195,35 +195,68 @@ pub fn build_sorted(
         });
         start = end;
     }
-    // Coarser levels: merge sibling cells (in place: a level has at most as many cells as the
-    // one below); the representative nearest the merged mean moves up.
-    for l in (0..depth).rev() {
-        let (mut k, mut parents) = (0, 0);
-        while k < current.len() {
-            let key = sc[current[k].start] >> shift_of(l);
-            let first = k;
-            let mut sum = [0.0; 3];
-            while k < current.len() && sc[current[k].start] >> shift_of(l) == key {
-                (0..3).for_each(|c| sum[c] += current[k].sum[c]);
-                k += 1;
+    // Coarser levels. A cell with one child cell is that child again (same points, same
+    // representative), so only where siblings meet is there work: two neighbouring finest cells
+    // share every cell above the level at which their codes part, and at level l the cells
+    // whose boundaries part at l + 1 merge into their parent; the representative nearest the
+    // merged mean moves up, and the others' coarsest level is l + 1. Linear in the cells,
+    // however deep the tree.
+    let m = current.len();
+    let parts_at = |j: usize| {
+        let x = sc[current[j - 1].start] ^ sc[current[j].start];
+        (max_depth - (63 - x.leading_zeros()) / 3) as usize
+    };
+    // Boundaries by the level they part at (a counting sort), ascending within a level.
+    let mut begin = vec![0usize; depth as usize + 2];
+    (1..m).for_each(|j| begin[parts_at(j) + 1] += 1);
+    for l in 1..begin.len() {
+        begin[l] += begin[l - 1];
+    }
+    let mut fill = begin.clone();
+    let mut bounds = vec![0u32; m.saturating_sub(1)];
+    for j in 1..m {
+        let b = parts_at(j);
+        bounds[fill[b]] = j as u32;
+        fill[b] += 1;
+    }
+    // Groups of finest cells, named by their first: where each ends, and the group ending at
+    // each boundary.
+    let mut end: Vec<u32> = (1..=m as u32).collect();
+    let mut first: Vec<u32> = (0..=m as u32).map(|e| e.saturating_sub(1)).collect();
+    let mut children = Vec::with_capacity(8);
+    for l in (0..depth as usize).rev() {
+        let parting = &bounds[begin[l + 1]..begin[l + 2]];
+        let mut i = 0;
+        while i < parting.len() {
+            let s = first[parting[i] as usize] as usize;
+            let mut e = end[s] as usize;
+            children.clear();
+            children.push(s);
+            while i < parting.len() && parting[i] as usize == e {
+                children.push(e);
+                e = end[e] as usize;
+                i += 1;
             }
-            let (s, e) = (current[first].start, current[k - 1].end);
-            let rep = if k - first == 1 {
-                current[first].rep
-            } else {
-                let mean = sum.map(|v| v / (e - s) as f64);
-                nearest(&mut current[first..k].iter().map(|c| c.rep), mean)
-            };
-            level[rep as usize] = l;
-            current[parents] = Cell {
-                start: s,
-                end: e,
-                rep,
-                sum,
-            };
-            parents += 1;
+            let mut sum = [0.0; 3];
+            for &c in &children {
+                (0..3).for_each(|k| sum[k] += current[c].sum[k]);
+            }
+            let points = current[e - 1].end - current[s].start;
+            let mean = sum.map(|v| v / points as f64);
+            let rep = nearest(&mut children.iter().map(|&c| current[c].rep), mean);
+            for &c in &children {
+                if current[c].rep != rep {
+                    level[current[c].rep as usize] = l as u32 + 1;
+                }
+            }
+            current[s].rep = rep;
+            current[s].sum = sum;
+            end[s] = e as u32;
+            first[e] = s as u32;
         }
-        current.truncate(parents);
+    }
+    if m > 0 {
+        level[current[0].rep as usize] = 0;
     }
 
     // Level order; within a level, Morton order: a counting sort by level keeps `sorted`'s order.
