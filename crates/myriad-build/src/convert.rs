@@ -25,7 +25,6 @@ pub(crate) use crate::nodes::{Pending, spill, unspill, write};
 use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result};
 use myriad_format::{DatasetWriter, Metadata, Quantization};
 use myriad_io::OpenOptions;
-use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -214,6 +213,33 @@ pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
         chunk_points,
         threads,
     }
+}
+
+/// `build` of every item on the pool's threads, each thread taking the next item as it is free:
+/// with the items largest first, the last to finish is a small one (a split of the list, as
+/// `par_iter` makes, can leave one thread the big items). The results in the items' order; the
+/// first error stops the others at their next item.
+fn largest_first<T: Sync, R: Send>(
+    pool: &rayon::ThreadPool,
+    items: &[T],
+    build: impl Fn(&T) -> Result<R> + Sync,
+) -> Result<Vec<R>> {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let done = std::sync::Mutex::new(Vec::with_capacity(items.len()));
+    pool.broadcast(|_| {
+        while !failed.load(Ordering::Relaxed) {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = items.get(i) else { break };
+            let r = build(item);
+            failed.fetch_or(r.is_err(), Ordering::Relaxed);
+            done.lock().expect("results").push((i, r));
+        }
+    });
+    let mut done = done.into_inner().expect("results");
+    done.sort_by_key(|(i, _)| *i);
+    done.into_iter().map(|(_, r)| r).collect()
 }
 
 /// Follows a build: phases with a total of work units, and progress within them.
@@ -446,62 +472,51 @@ pub fn convert(
             arity,
         );
         groups.sort_by_key(|g| std::cmp::Reverse(g.points));
-        pool.install(|| {
-            groups
-                .par_iter()
-                .map(|g| -> Result<Pending> {
-                    let mut batch = PointBatch::with_schema(&schema, g.points as usize);
-                    for &i in &g.chunks {
-                        batch.append(&dist.load(&dist.chunks[i])?);
-                    }
-                    if structure == Structure::Mwkd {
-                        let n = batch.len() as u64;
-                        let top =
-                            crate::mwkd::build_subtree_with(batch, g.key, &mw, &mut |node| {
-                                write(&writer, node.into_built()).map(|_| ())
-                            })?;
-                        report.advance(n);
-                        return spill(top.into_built(), &spill_dir);
-                    }
-                    let mut top = None;
-                    kd::build_subtree_with(batch, g.key, &params, &mut |node| {
-                        report.advance(node.points.len() as u64);
-                        if node.key == g.key {
-                            top = Some(spill(node, &spill_dir)?);
-                        } else {
-                            write(&writer, node)?;
-                        }
-                        Ok::<(), Error>(())
-                    })?;
-                    Ok(top.expect("a group has points, so its subtree has a root"))
-                })
-                .collect::<Result<Vec<_>>>()
+        largest_first(&pool, &groups, |g| -> Result<Pending> {
+            let mut batch = PointBatch::with_schema(&schema, g.points as usize);
+            for &i in &g.chunks {
+                batch.append(&dist.load(&dist.chunks[i])?);
+            }
+            if structure == Structure::Mwkd {
+                let n = batch.len() as u64;
+                let top = crate::mwkd::build_subtree_with(batch, g.key, &mw, &mut |node| {
+                    write(&writer, node.into_built()).map(|_| ())
+                })?;
+                report.advance(n);
+                return spill(top.into_built(), &spill_dir);
+            }
+            let mut top = None;
+            kd::build_subtree_with(batch, g.key, &params, &mut |node| {
+                report.advance(node.points.len() as u64);
+                if node.key == g.key {
+                    top = Some(spill(node, &spill_dir)?);
+                } else {
+                    write(&writer, node)?;
+                }
+                Ok::<(), Error>(())
+            })?;
+            Ok(top.expect("a group has points, so its subtree has a root"))
         })?
     } else {
         let mut chunks = dist.chunks.clone();
         chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
-        pool.install(|| {
-            chunks
-                .par_iter()
-                .map(|chunk| -> Result<Pending> {
-                    let batch = dist.load(chunk)?;
-                    let key = NodeKey {
-                        level: chunk.level,
-                        cell: chunk.cell,
-                    };
-                    let mut top = None;
-                    nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
-                        report.advance(node.points.len() as u64);
-                        if node.key == key {
-                            top = Some(spill(node, &spill_dir)?);
-                        } else {
-                            write(&writer, node)?;
-                        }
-                        Ok::<(), Error>(())
-                    })?;
-                    Ok(top.expect("a chunk has points, so its subtree has a root"))
-                })
-                .collect::<Result<Vec<_>>>()
+        largest_first(&pool, &chunks, |chunk| -> Result<Pending> {
+            let batch = dist.load(chunk)?;
+            let key = NodeKey {
+                level: chunk.level,
+                cell: chunk.cell,
+            };
+            let mut top = None;
+            nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
+                report.advance(node.points.len() as u64);
+                if node.key == key {
+                    top = Some(spill(node, &spill_dir)?);
+                } else {
+                    write(&writer, node)?;
+                }
+                Ok::<(), Error>(())
+            })?;
+            Ok(top.expect("a chunk has points, so its subtree has a root"))
         })?
     };
     phases.push(("building", t.elapsed().as_secs_f64()));

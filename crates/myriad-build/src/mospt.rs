@@ -137,8 +137,14 @@ pub fn build_sorted(
     // What a cell's mean is taken of (colour, else position), by place, read once.
     let rgb = batch.rgb.as_ref();
     let values: Vec<[f64; 3]> = match rgb {
-        Some(c) => sorted.iter().map(|&i| c[i as usize].map(f64::from)).collect(),
-        None => sorted.iter().map(|&i| batch.positions[i as usize]).collect(),
+        Some(c) => sorted
+            .iter()
+            .map(|&i| c[i as usize].map(f64::from))
+            .collect(),
+        None => sorted
+            .iter()
+            .map(|&i| batch.positions[i as usize])
+            .collect(),
     };
     let distance = |a: [f64; 3], b: [f64; 3]| -> f64 {
         if rgb.is_some() {

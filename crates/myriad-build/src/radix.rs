@@ -56,7 +56,13 @@ mod tests {
             seed ^= seed << 17;
             seed
         };
-        for (n, mask) in [(0, u64::MAX), (10, u64::MAX), (5000, u64::MAX), (5000, 0xff_0f00), (3000, 7)] {
+        for (n, mask) in [
+            (0, u64::MAX),
+            (10, u64::MAX),
+            (5000, u64::MAX),
+            (5000, 0xff_0f00),
+            (3000, 7),
+        ] {
             let items: Vec<(u64, u32)> = (0..n).map(|i| (next() & mask, i as u32)).collect();
             let mut radix = items.clone();
             sort_by_key(&mut radix, |t| t.0);
