@@ -38,6 +38,8 @@ pub trait RowBytes: Copy {
     const SIZE: usize;
     fn put(&self, out: &mut Vec<u8>);
     fn get(b: &[u8]) -> Self;
+    /// Writes the `SIZE` bytes `put` appends into `out[..SIZE]`.
+    fn write(&self, out: &mut [u8]);
 }
 
 macro_rules! row_bytes_num {
@@ -49,6 +51,9 @@ macro_rules! row_bytes_num {
             }
             fn get(b: &[u8]) -> Self {
                 <$t>::from_le_bytes(b[..Self::SIZE].try_into().unwrap())
+            }
+            fn write(&self, out: &mut [u8]) {
+                out[..Self::SIZE].copy_from_slice(&self.to_le_bytes());
             }
         }
     )*};
@@ -63,6 +68,11 @@ impl<T: RowBytes + Default> RowBytes for [T; 3] {
     fn get(b: &[u8]) -> Self {
         std::array::from_fn(|k| T::get(&b[k * T::SIZE..]))
     }
+    fn write(&self, out: &mut [u8]) {
+        for (v, o) in self.iter().zip(out.chunks_exact_mut(T::SIZE)) {
+            v.write(o);
+        }
+    }
 }
 
 impl RowBytes for WavePacket {
@@ -74,6 +84,11 @@ impl RowBytes for WavePacket {
         for v in [self.return_point_location, self.x_t, self.y_t, self.z_t] {
             v.put(out);
         }
+    }
+    fn write(&self, out: &mut [u8]) {
+        let mut v = Vec::with_capacity(Self::SIZE);
+        self.put(&mut v);
+        out[..Self::SIZE].copy_from_slice(&v);
     }
     fn get(b: &[u8]) -> Self {
         WavePacket {
@@ -359,6 +374,40 @@ impl PointBatch {
     }
 
     /// Element size of optional column `k`.
+    /// Column `k` as byte planes, with its value width: of each value's little-endian bytes
+    /// ([`Self::column_le`]), all the first, then all the second, and so on (what a node page
+    /// compresses), made without the bytes in between.
+    pub fn column_planes(&self, k: usize) -> Option<(usize, Vec<u8>)> {
+        fn planes<T: RowBytes>(c: &[T]) -> Vec<u8> {
+            let (n, w) = (c.len(), T::SIZE);
+            let mut out = vec![0u8; n * w];
+            let mut value = [0u8; 64];
+            for (i, v) in c.iter().enumerate() {
+                v.write(&mut value);
+                for (b, &byte) in value[..w].iter().enumerate() {
+                    out[b * n + i] = byte;
+                }
+            }
+            out
+        }
+        let mut i = 0;
+        let mut out = None;
+        macro_rules! get {
+            ($f:ident, $t:ty, $a:ident) => {
+                if i == k {
+                    out = self
+                        .$f
+                        .as_ref()
+                        .map(|c| (<$t as RowBytes>::SIZE, planes(c)));
+                }
+                i += 1;
+            };
+        }
+        for_each_column!(get);
+        let _ = i;
+        out
+    }
+
     pub fn column_size(k: usize) -> usize {
         let mut i = 0;
         let mut size = 0;

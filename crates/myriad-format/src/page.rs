@@ -70,9 +70,10 @@ fn shuffle(bytes: &[u8], width: usize) -> Vec<u8> {
     }
     let n = bytes.len() / width;
     let mut out = vec![0u8; bytes.len()];
-    for (i, e) in bytes.chunks_exact(width).enumerate() {
-        for (b, &v) in e.iter().enumerate() {
-            out[b * n + i] = v;
+    // Plane by plane: each written in order.
+    for (b, plane) in out.chunks_exact_mut(n.max(1)).enumerate() {
+        for (o, e) in plane.iter_mut().zip(bytes.chunks_exact(width)) {
+            *o = e[b];
         }
     }
     out
@@ -120,21 +121,13 @@ struct Column {
 }
 
 #[cfg(not(target_arch = "wasm32"))]
-fn compress_column(id: u8, width: usize, mut raw: Vec<u8>) -> Column {
-    let encoding = if id == GPS_TIME_COLUMN {
-        delta_u64(&mut raw);
-        ENC_DELTA_PLANES
-    } else {
-        ENC_PLANES
-    };
-    let planes = shuffle(&raw, width);
-    let stored = crate::codec::compress(&planes, ZSTD_LEVEL);
+fn compress_column(id: u8, encoding: u8, width: usize, planes: Vec<u8>) -> Column {
     Column {
         id,
         encoding,
         width: width as u8,
-        raw_len: raw.len(),
-        stored,
+        raw_len: planes.len(),
+        stored: crate::codec::compress(&planes, ZSTD_LEVEL),
     }
 }
 
@@ -181,18 +174,21 @@ pub fn encode(batch: &PointBatch, q: &Quantization) -> Vec<u8> {
     }
     let widths = bits.map(|b| (b as usize).div_ceil(8));
     let mut columns = Vec::new();
-    // Positions: the three axes one after the other, each in its own byte planes.
-    let mut planes = Vec::with_capacity(n * widths.iter().sum::<usize>());
+    // Positions: the three axes one after the other, each in its own byte planes (written
+    // straight to their planes).
+    let mut planes = vec![0u8; n * widths.iter().sum::<usize>()];
+    let mut base = 0;
     for a in 0..3 {
-        let mut raw = Vec::with_capacity(n * widths[a]);
         let mut prev = 0u64;
-        for v in &ints {
+        for (i, v) in ints.iter().enumerate() {
             let rel = v[a].wrapping_sub(origin[a]) as u64;
             let out = zigzag(rel.wrapping_sub(prev), widths[a]);
             prev = rel;
-            raw.extend_from_slice(&out.to_le_bytes()[..widths[a]]);
+            for b in 0..widths[a] {
+                planes[base + b * n + i] = (out >> (8 * b)) as u8;
+            }
         }
-        planes.extend(shuffle(&raw, widths[a]));
+        base += n * widths[a];
     }
     columns.push(Column {
         id: POSITION_COLUMN,
@@ -202,12 +198,25 @@ pub fn encode(batch: &PointBatch, q: &Quantization) -> Vec<u8> {
         stored: crate::codec::compress(&planes, ZSTD_LEVEL),
     });
     for k in 0..PointBatch::COLUMNS {
-        if let Some((width, raw)) = batch.column_le(k) {
-            columns.push(compress_column(k as u8 + 1, width, raw));
+        let id = k as u8 + 1;
+        if id == GPS_TIME_COLUMN {
+            if let Some((width, mut raw)) = batch.column_le(k) {
+                delta_u64(&mut raw);
+                let planes = shuffle(&raw, width);
+                columns.push(compress_column(id, ENC_DELTA_PLANES, width, planes));
+            }
+        } else if let Some((width, planes)) = batch.column_planes(k) {
+            columns.push(compress_column(id, ENC_PLANES, width, planes));
         }
     }
     if let Some(e) = &batch.extra_bytes {
-        columns.push(compress_column(EXTRA_COLUMN, batch.extra_stride, e.clone()));
+        let planes = shuffle(e, batch.extra_stride);
+        columns.push(compress_column(
+            EXTRA_COLUMN,
+            ENC_PLANES,
+            batch.extra_stride,
+            planes,
+        ));
     }
 
     let body: usize = columns.iter().map(|c| c.stored.len()).sum();
