@@ -180,6 +180,9 @@ struct Scatter<'a> {
     spilled: bool,
     buffered: usize,
     limit: usize,
+    /// Points the scatter expects in all, and those added so far: how big a chunk will grow.
+    expected: f64,
+    added: u64,
     compress: bool,
 }
 
@@ -190,6 +193,7 @@ impl<'a> Scatter<'a> {
         schema: &'a Schema,
         limit: usize,
         compress: bool,
+        expected: u64,
     ) -> Scatter<'a> {
         Scatter {
             folder,
@@ -201,6 +205,8 @@ impl<'a> Scatter<'a> {
             picks: Vec::new(),
             spilled: false,
             buffered: 0,
+            expected: expected as f64,
+            added: 0,
             limit,
             compress,
         }
@@ -227,6 +233,10 @@ impl Scatter<'_> {
 
     /// Adds the points `picked` of `batch`, which fall in the cells `cells` (one each).
     fn add(&mut self, batch: &PointBatch, picked: &[u32], cells: &[[u32; 3]]) -> Result<()> {
+        let seen = (self.added + picked.len() as u64).max(1);
+        self.added = seen;
+        // Points the write buffers hold without spilling.
+        let fits = (self.limit / self.row.max(1)) as f64;
         let mut last: Option<([u32; 3], usize)> = None;
         for (&i, &cell) in picked.iter().zip(cells) {
             // Consecutive points mostly share a cell.
@@ -248,6 +258,17 @@ impl Scatter<'_> {
         }
         for (slot, picks) in self.slots.iter_mut().zip(&mut self.picks) {
             if !picks.is_empty() {
+                let (len, want) = (slot.1.len(), slot.1.len() + picks.len());
+                if want > slot.1.capacity() && !self.spilled && self.expected <= fits {
+                    // Where every point is expected to stay in memory: grown to what the
+                    // chunk will hold if the rest of the input falls as the part read so far
+                    // did (between what it needs and double, as a vector would grow): fewer
+                    // reallocations, each copying and faulting in its points again.
+                    let projected =
+                        (slot.2 + picks.len() as u64) as f64 * self.expected / seen as f64;
+                    let target = (projected * 1.05) as usize;
+                    slot.1.reserve_exact(target.clamp(want, 2 * want.max(1024)) - len);
+                }
                 slot.1.extend_gather(batch, picks);
                 slot.2 += picks.len() as u64;
                 self.buffered += picks.len() * self.row;
@@ -499,7 +520,14 @@ pub fn distribute_with(
     let folder = SpillFolder(folder);
     let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
     let compress = declared.saturating_mul(row) > options.compress_above;
-    let mut scatter = Scatter::new(&folder.0, level, &schema, options.buffer_bytes, compress);
+    let mut scatter = Scatter::new(
+        &folder.0,
+        level,
+        &schema,
+        options.buffer_bytes,
+        compress,
+        declared,
+    );
     let (mut picked, mut cells) = (Vec::new(), Vec::new());
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
@@ -642,7 +670,8 @@ fn rescatter(
     buffer_bytes: usize,
     compress: bool,
 ) -> Result<Vec<Chunk>> {
-    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, compress);
+    let expected = chunks.iter().map(|c| c.points).sum();
+    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, compress, expected);
     let row = PointBatch::with_schema(schema, 0).row_size();
     let mut outside = 0;
     for chunk in chunks {

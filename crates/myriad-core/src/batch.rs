@@ -514,6 +514,27 @@ impl PointBatch {
     }
 
     /// Appends `other`, which must carry the same columns.
+    /// Room for exactly `additional` more points in every column (`Vec::reserve_exact`).
+    pub fn reserve_exact(&mut self, additional: usize) {
+        self.positions.reserve_exact(additional);
+        macro_rules! res {
+            ($f:ident, $t:ty, $a:ident) => {
+                if let Some(c) = &mut self.$f {
+                    c.reserve_exact(additional);
+                }
+            };
+        }
+        for_each_column!(res);
+        if let Some(e) = &mut self.extra_bytes {
+            e.reserve_exact(additional * self.extra_stride);
+        }
+    }
+
+    /// The points every column has room for.
+    pub fn capacity(&self) -> usize {
+        self.positions.capacity()
+    }
+
     /// Appends the points `indices` of `other` (which has the same columns): `append` of a
     /// `gather`, without the batch between.
     pub fn extend_gather(&mut self, other: &PointBatch, indices: &[u32]) {
