@@ -106,6 +106,22 @@ pub fn build_sorted(
     cube: &Aabb,
     max_depth: u32,
 ) -> Mospt {
+    let mut m = build_places(batch, &sorted, sorted_codes, cube, max_depth);
+    for o in &mut m.order {
+        *o = sorted[*o as usize];
+    }
+    m
+}
+
+/// [`build_sorted`], with `order` naming each point by its place in `sorted` rather than by
+/// its index in `batch`.
+pub fn build_places(
+    batch: &PointBatch,
+    sorted: &[u32],
+    sorted_codes: &[u64],
+    cube: &Aabb,
+    max_depth: u32,
+) -> Mospt {
     let n = sorted.len();
     assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
     assert_eq!(sorted_codes.len(), n);
@@ -278,8 +294,8 @@ pub fn build_sorted(
         .chain(prefix[..levels - 1].iter().map(|&p| p as usize))
         .collect();
     let mut order = vec![0u32; n];
-    for (&i, &l) in sorted.iter().zip(&level) {
-        order[next[l as usize]] = i;
+    for (p, &l) in level.iter().enumerate() {
+        order[next[l as usize]] = p as u32;
         next[l as usize] += 1;
     }
     let spacing = (0..levels)

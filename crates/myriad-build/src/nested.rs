@@ -105,20 +105,14 @@ pub fn build_subtree_with<E>(
     params: &NestedParams,
     emit: &mut dyn FnMut(BuiltNode) -> Result<(), E>,
 ) -> Result<(), E> {
-    // Sorted once by Morton code, and gathered once in that order: every node below is a list
-    // of places in the sorted batch, ascending (Morton order within the node), and its codes
-    // relative to its own cube are the chunk's shifted by its depth below it. Only a node's kept
-    // points are gathered; the rest moves down as places, never copied.
+    // Sorted once by Morton code: every node below is a list of its points' indices in that
+    // order, and its codes relative to its own cube are the chunk's shifted by its depth below
+    // it. Only a node's kept points are gathered; the rest moves down as indices, never copied.
     let codes = mospt::codes(&batch, &key.bounds(root));
     let order = mospt::sort_order(&codes);
-    let sorted = batch.gather(&order);
-    drop(batch);
-    let codes: Vec<u64> = order.iter().map(|&i| codes[i as usize]).collect();
-    drop(order);
-    let batch = sorted;
     let below = (1u64 << (3 * mospt::CODE_LEVELS)) - 1;
     let top = 3 * (mospt::CODE_LEVELS - 1);
-    let mut work = vec![(key, (0..batch.len() as u32).collect::<Vec<u32>>())];
+    let mut work = vec![(key, order)];
     while let Some((node_key, ids)) = work.pop() {
         if ids.is_empty() {
             continue;
@@ -145,19 +139,15 @@ pub fn build_subtree_with<E>(
             node.shape.contour = Some(ntree::contour(&own.positions, &pca));
             (node, (keep < n).then(|| m.order[..keep].to_vec()))
         } else {
-            let m = mospt::build_sorted(&batch, ids.clone(), &node_codes, &cube, depth);
+            let mut m = mospt::build_places(&batch, &ids, &node_codes, &cube, depth);
             let keep = if leaf {
                 n
             } else {
                 fitting_prefix(&m, params.capacity)
             };
-            // `ids` ascends, so each kept index is found by bisection.
-            let kept = (keep < n).then(|| {
-                m.order[..keep]
-                    .iter()
-                    .map(|i| ids.binary_search(i).expect("a node's own point") as u32)
-                    .collect::<Vec<u32>>()
-            });
+            let kept = (keep < n).then(|| m.order[..keep].to_vec());
+            m.order.truncate(keep);
+            m.order.iter_mut().for_each(|p| *p = ids[*p as usize]);
             (node_from_prefix(node_key, &batch, &m, keep), kept)
         };
         if let Some(kept) = kept {
