@@ -267,7 +267,8 @@ impl Scatter<'_> {
                     let projected =
                         (slot.2 + picks.len() as u64) as f64 * self.expected / seen as f64;
                     let target = (projected * 1.05) as usize;
-                    slot.1.reserve_exact(target.clamp(want, 2 * want.max(1024)) - len);
+                    slot.1
+                        .reserve_exact(target.clamp(want, 2 * want.max(1024)) - len);
                 }
                 slot.1.extend_gather(batch, picks);
                 slot.2 += picks.len() as u64;

@@ -90,6 +90,7 @@ impl MwNode {
                 contour: None,
             },
             splats: Some((self.splats, self.aggregate)),
+            acquisition: false,
         }
     }
 

@@ -38,6 +38,8 @@ pub struct BuiltNode {
     pub shape: NodeShape,
     /// Normals and radii of the points, and whether they are aggregates (`mwkd`).
     pub splats: Option<(Splats, bool)>,
+    /// Whether each level's points are in acquisition order already (as the writer puts them).
+    pub acquisition: bool,
 }
 
 /// How many points of a MOSPT a node with at most `capacity` points keeps: the prefix of the
@@ -65,16 +67,26 @@ pub(crate) fn node_from_prefix(
         .take_while(|&&p| (p as usize) < keep)
         .count()
         + 1;
+    let prefix: Vec<u64> = m.prefix[..kept_levels]
+        .iter()
+        .map(|&p| p.min(keep as u64))
+        .collect();
+    let spacing = m.spacing[..kept_levels].to_vec();
+    // Put in the order the writer wants before the one gather.
+    let kept = &m.order[..keep];
+    let order: Vec<u32> =
+        crate::nodes::acquisition_permutation(batch, Some(kept), keep, &prefix, &spacing)
+            .into_iter()
+            .map(|p| kept[p as usize])
+            .collect();
     BuiltNode {
         key,
-        points: batch.gather(&m.order[..keep]),
-        prefix: m.prefix[..kept_levels]
-            .iter()
-            .map(|&p| p.min(keep as u64))
-            .collect(),
-        spacing: m.spacing[..kept_levels].to_vec(),
+        points: batch.gather(&order),
+        prefix,
+        spacing,
         shape: NodeShape::default(),
         splats: None,
+        acquisition: true,
     }
 }
 
@@ -198,6 +210,7 @@ pub(crate) fn leaf_node(
         spacing: m.spacing,
         shape: NodeShape::default(),
         splats: None,
+        acquisition: false,
     }
 }
 

@@ -17,6 +17,7 @@ pub(crate) struct Pending {
     shape: NodeShape,
     /// Normals and radii spilled next to the rows (`mwkd`), and whether they are aggregates.
     splats: Option<(PathBuf, bool)>,
+    acquisition: bool,
 }
 
 /// Puts the points of each level of detail of a node in acquisition order (GPS time) when the
@@ -28,34 +29,62 @@ pub(crate) struct Pending {
 /// to stratum k (the last takes the rest), so that a prefix draws a thin even sample of the
 /// whole node rather than a run of scan lines; each stratum stays in acquisition order.
 fn acquisition_order(node: &mut BuiltNode) {
+    if node.acquisition {
+        return;
+    }
+    let n = node.points.len();
+    let order = acquisition_permutation(&node.points, None, n, &node.prefix, &node.spacing);
+    if order.iter().enumerate().all(|(i, &o)| i as u32 == o) {
+        return;
+    }
+    node.points = node.points.gather(&order);
+    if let Some((s, _)) = &mut node.splats {
+        s.normals = order.iter().map(|&i| s.normals[i as usize]).collect();
+        s.radii = order.iter().map(|&i| s.radii[i as usize]).collect();
+    }
+    node.acquisition = true;
+}
+
+/// The order [`acquisition_order`] puts a node's `n` points in, as places `0..n`: the node's
+/// i-th point is `source`'s `indices[i]` (its i-th without `indices`), levels by `prefix` and
+/// `spacing`. A builder that gathers a node from a larger batch orders it this way first and
+/// gathers once.
+pub(crate) fn acquisition_permutation(
+    source: &PointBatch,
+    indices: Option<&[u32]>,
+    n: usize,
+    prefix: &[u64],
+    spacing: &[f64],
+) -> Vec<u32> {
     const STRATA: u32 = 4;
-    let times = node.points.gps_time.as_ref();
+    let at = |i: usize| indices.map_or(i, |x| x[i] as usize);
+    let times = source.gps_time.as_ref();
     // Sort keys; a time orders as `total_cmp` does; without times, the order the points have.
     let key = |i: usize| match times {
         Some(t) => {
-            let b = t[i].to_bits();
+            let b = t[at(i)].to_bits();
             b ^ (((b as i64) >> 63) as u64 | 1 << 63)
         }
         None => i as u64,
     };
-    let last = node.prefix.len().saturating_sub(1);
-    let mut order: Vec<u32> = Vec::with_capacity(node.points.len());
+    let last = prefix.len().saturating_sub(1);
+    let mut order: Vec<u32> = Vec::with_capacity(n);
     let mut start = 0usize;
-    for (level, &end) in node.prefix.iter().enumerate() {
-        let end = end as usize;
+    for (level, &end) in prefix.iter().enumerate() {
+        let end = (end as usize).min(n);
         // (key, point), sorted by key; the radix sort is stable and the points ascend, so
         // equal times keep the points' order.
         let mut keyed: Vec<(u64, u32)> = (start..end).map(|i| (key(i), i as u32)).collect();
         if times.is_some() {
             crate::radix::sort_by_key(&mut keyed, |k| k.0);
         }
-        let cell = 2.0 * node.spacing.get(level).copied().unwrap_or(0.0);
+        let cell = 2.0 * spacing.get(level).copied().unwrap_or(0.0);
         if level == last && cell > 0.0 && end - start > STRATA as usize {
             // Dealt into strata, each kept in acquisition order.
             let mut strata: Vec<Vec<u32>> = vec![Vec::new(); STRATA as usize];
             let mut seen: std::collections::HashMap<[i64; 3], u32> = Default::default();
             for k in &keyed {
-                let p = node.points.positions[k.1 as usize];
+                let p = source.positions[at(k.1 as usize)];
                 let rank = seen
                     .entry(p.map(|v| (v / cell).floor() as i64))
                     .or_insert(0);
@@ -68,14 +97,7 @@ fn acquisition_order(node: &mut BuiltNode) {
         }
         start = end;
     }
-    if order.iter().enumerate().all(|(i, &o)| i as u32 == o) {
-        return;
-    }
-    node.points = node.points.gather(&order);
-    if let Some((s, _)) = &mut node.splats {
-        s.normals = order.iter().map(|&i| s.normals[i as usize]).collect();
-        s.radii = order.iter().map(|&i| s.radii[i as usize]).collect();
-    }
+    order
 }
 
 pub(crate) fn write(writer: &DatasetWriter, mut node: BuiltNode) -> Result<u64> {
@@ -123,6 +145,7 @@ pub(crate) fn spill(node: BuiltNode, dir: &Path) -> Result<Pending> {
         spacing: node.spacing,
         shape: node.shape,
         splats,
+        acquisition: node.acquisition,
     })
 }
 
@@ -169,6 +192,7 @@ pub(crate) fn unspill(p: Pending, schema: &Schema) -> Result<BuiltNode> {
         spacing: p.spacing,
         shape: p.shape,
         splats,
+        acquisition: p.acquisition,
     })
 }
 
@@ -196,6 +220,7 @@ mod tests {
             spacing: vec![0.1],
             shape: NodeShape::default(),
             splats: None,
+            acquisition: false,
         };
         // The cells of 0.2 m that the first quarter of the points reaches.
         let reach = |node: &BuiltNode| {
@@ -217,6 +242,37 @@ mod tests {
     }
 
     #[test]
+    fn nodes_gathered_in_acquisition_order() {
+        // A builder's node (its points ordered by index, then gathered once) is the node the
+        // writer would make of the same points gathered in level order.
+        let schema = Schema::new(vec![myriad_core::Attribute::GpsTime]);
+        let mut b = PointBatch::with_schema(&schema, 0);
+        let mut seed = 7u64;
+        for _ in 0..5000 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let r = |s: u64, k: u32| ((s >> k) & 0xffff) as f64 / 65536.0;
+            b.positions.push([r(seed, 0), r(seed, 16), r(seed, 32)]);
+            b.gps_time.as_mut().unwrap().push(r(seed, 48) * 100.0);
+        }
+        let cube = myriad_core::Aabb::new([0.0; 3], [1.0; 3]);
+        let m = crate::mospt::build(&b, &cube, 5);
+        for keep in [1, 300, 5000] {
+            let node = crate::nested::node_from_prefix(NodeKey::ROOT, &b, &m, keep);
+            assert!(node.acquisition);
+            let mut plain = BuiltNode {
+                points: b.gather(&m.order[..keep]),
+                acquisition: false,
+                ..node.clone()
+            };
+            acquisition_order(&mut plain);
+            assert_eq!(node.points.positions, plain.points.positions, "keep {keep}");
+            assert_eq!(node.points.gps_time, plain.points.gps_time);
+        }
+    }
+
+    #[test]
     fn levels_in_acquisition_order() {
         let schema = Schema::new(vec![myriad_core::Attribute::GpsTime]);
         let mut b = PointBatch::with_schema(&schema, 0);
@@ -232,6 +288,7 @@ mod tests {
             spacing: vec![4.0, 2.0, 1.0],
             shape: NodeShape::default(),
             splats: None,
+            acquisition: false,
         };
         acquisition_order(&mut node);
         let t = node.points.gps_time.as_ref().unwrap();

@@ -175,6 +175,7 @@ pub(crate) fn read(path: &Path, plan: &BuildPlan, index: usize) -> Result<(Value
             spacing,
             shape: shape_from(&n["shape"]).ok_or_else(|| bad("node shape"))?,
             splats: None,
+            acquisition: false,
         });
     }
     if at != rows.len() {
