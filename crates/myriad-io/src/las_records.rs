@@ -114,66 +114,70 @@ pub fn decode(
     q: &Quantization,
     batch: &mut PointBatch,
 ) {
-    let n = bytes.len() / record_len;
-    batch.positions.reserve(n);
+    // Column by column: one tight loop over the records per field, each extending its column
+    // by an iterator of known length (no per-point capacity checks).
+    let records = || bytes.chunks_exact(record_len);
+    batch.positions.extend(records().map(|r| {
+        [
+            i32_at(r, 0) as f64 * q.scale[0] + q.offset[0],
+            i32_at(r, 4) as f64 * q.scale[1] + q.offset[1],
+            i32_at(r, 8) as f64 * q.scale[2] + q.offset[2],
+        ]
+    }));
     macro_rules! col {
-        ($f:ident) => {
+        ($f:ident, $r:ident => $v:expr) => {
             batch
                 .$f
                 .as_mut()
                 .expect(concat!("batch lacks ", stringify!($f)))
+                .extend(records().map(|$r| $v))
         };
     }
-    for r in bytes.chunks_exact(record_len) {
-        batch.positions.push([
-            i32_at(r, 0) as f64 * q.scale[0] + q.offset[0],
-            i32_at(r, 4) as f64 * q.scale[1] + q.offset[1],
-            i32_at(r, 8) as f64 * q.scale[2] + q.offset[2],
-        ]);
-        col!(intensity).push(u16_at(r, 12));
-        let (b14, b15) = (r[14], r[15]);
-        if layout.extended {
-            col!(return_number).push(b14 & 0x0F);
-            col!(number_of_returns).push(b14 >> 4);
-            col!(classification_flags).push(b15 & 0x0F);
-            col!(scanner_channel).push((b15 >> 4) & 0x03);
-            col!(scan_flags).push(b15 >> 6);
-            col!(classification).push(r[16]);
-            col!(user_data).push(r[17]);
-            col!(scan_angle).push((i16::from_le_bytes([r[18], r[19]]) as f64 * 0.006) as f32);
-            col!(point_source_id).push(u16_at(r, 20));
-        } else {
-            col!(return_number).push(b14 & 0x07);
-            col!(number_of_returns).push((b14 >> 3) & 0x07);
-            col!(scan_flags).push(b14 >> 6);
-            col!(classification).push(b15 & 0x1F);
-            col!(classification_flags).push(b15 >> 5);
-            col!(scan_angle).push(r[16] as i8 as f32);
-            col!(user_data).push(r[17]);
-            col!(point_source_id).push(u16_at(r, 18));
-        }
-        if let Some(o) = layout.gps {
-            col!(gps_time).push(f64_at(r, o));
-        }
-        if let Some(o) = layout.rgb {
-            col!(rgb).push([u16_at(r, o), u16_at(r, o + 2), u16_at(r, o + 4)]);
-        }
-        if let Some(o) = layout.nir {
-            col!(nir).push(u16_at(r, o));
-        }
-        if let Some(o) = layout.wave {
-            col!(wave_packet).push(WavePacket {
-                descriptor_index: r[o],
-                byte_offset: u64::from_le_bytes(r[o + 1..o + 9].try_into().unwrap()),
-                size: u32::from_le_bytes(r[o + 9..o + 13].try_into().unwrap()),
-                return_point_location: f32_at(r, o + 13),
-                x_t: f32_at(r, o + 17),
-                y_t: f32_at(r, o + 21),
-                z_t: f32_at(r, o + 25),
-            });
-        }
-        if record_len > layout.base_len {
-            col!(extra_bytes).extend_from_slice(&r[layout.base_len..]);
+    col!(intensity, r => u16_at(r, 12));
+    if layout.extended {
+        col!(return_number, r => r[14] & 0x0F);
+        col!(number_of_returns, r => r[14] >> 4);
+        col!(classification_flags, r => r[15] & 0x0F);
+        col!(scanner_channel, r => (r[15] >> 4) & 0x03);
+        col!(scan_flags, r => r[15] >> 6);
+        col!(classification, r => r[16]);
+        col!(user_data, r => r[17]);
+        col!(scan_angle, r => (i16::from_le_bytes([r[18], r[19]]) as f64 * 0.006) as f32);
+        col!(point_source_id, r => u16_at(r, 20));
+    } else {
+        col!(return_number, r => r[14] & 0x07);
+        col!(number_of_returns, r => (r[14] >> 3) & 0x07);
+        col!(scan_flags, r => r[14] >> 6);
+        col!(classification, r => r[15] & 0x1F);
+        col!(classification_flags, r => r[15] >> 5);
+        col!(scan_angle, r => r[16] as i8 as f32);
+        col!(user_data, r => r[17]);
+        col!(point_source_id, r => u16_at(r, 18));
+    }
+    if let Some(o) = layout.gps {
+        col!(gps_time, r => f64_at(r, o));
+    }
+    if let Some(o) = layout.rgb {
+        col!(rgb, r => [u16_at(r, o), u16_at(r, o + 2), u16_at(r, o + 4)]);
+    }
+    if let Some(o) = layout.nir {
+        col!(nir, r => u16_at(r, o));
+    }
+    if let Some(o) = layout.wave {
+        col!(wave_packet, r => WavePacket {
+            descriptor_index: r[o],
+            byte_offset: u64::from_le_bytes(r[o + 1..o + 9].try_into().unwrap()),
+            size: u32::from_le_bytes(r[o + 9..o + 13].try_into().unwrap()),
+            return_point_location: f32_at(r, o + 13),
+            x_t: f32_at(r, o + 17),
+            y_t: f32_at(r, o + 21),
+            z_t: f32_at(r, o + 25),
+        });
+    }
+    if record_len > layout.base_len {
+        let extra = batch.extra_bytes.as_mut().expect("batch lacks extra_bytes");
+        for r in records() {
+            extra.extend_from_slice(&r[layout.base_len..]);
         }
     }
 }
