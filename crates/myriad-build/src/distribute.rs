@@ -431,9 +431,11 @@ fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] 
     let n = (1u64 << level) as f64;
     let mut outside = false;
     let c = std::array::from_fn(|a| {
-        let v = ((p[a] - root.min[a]) / side * n).floor();
+        // In [0, n) exactly when its floor is; `as` truncates (the floor, from 0 up) and
+        // saturates (below 0 and NaN to 0), so no library call for the floor.
+        let v = (p[a] - root.min[a]) / side * n;
         outside |= !(0.0..n).contains(&v);
-        v.clamp(0.0, n - 1.0) as u32
+        (v as u32).min(n as u32 - 1)
     });
     *clamped += outside as u64;
     c
