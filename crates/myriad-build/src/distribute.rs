@@ -262,13 +262,15 @@ impl Scatter<'_> {
                 if want > slot.1.capacity() && !self.spilled && self.expected <= fits {
                     // Where every point is expected to stay in memory: grown to what the
                     // chunk will hold if the rest of the input falls as the part read so far
-                    // did (between what it needs and double, as a vector would grow): fewer
-                    // reallocations, each copying and faulting in its points again.
+                    // did, but by at least half (so a chunk whose points come late, or an
+                    // input that declares too few, still grows geometrically) and at most
+                    // double, as a vector would: fewer reallocations, each copying and faulting
+                    // in its points again.
                     let projected =
                         (slot.2 + picks.len() as u64) as f64 * self.expected / seen as f64;
-                    let target = (projected * 1.05) as usize;
-                    slot.1
-                        .reserve_exact(target.clamp(want, 2 * want.max(1024)) - len);
+                    let least = want.max(len + len / 2).max(1024);
+                    let target = ((projected * 1.05) as usize).clamp(least, 2 * want.max(1024));
+                    slot.1.reserve_exact(target - len);
                 }
                 slot.1.extend_gather(batch, picks);
                 slot.2 += picks.len() as u64;
