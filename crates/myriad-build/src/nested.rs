@@ -119,7 +119,8 @@ pub fn build_subtree_with<E>(
 ) -> Result<(), E> {
     // Sorted once by Morton code: every node below is a list of its points' indices in that
     // order, and its codes relative to its own cube are the chunk's shifted by its depth below
-    // it. Only a node's kept points are gathered; the rest moves down as indices, never copied.
+    // it. The rest moves down as indices, never copied; a node gathers only the points it keeps
+    // (a layered node, whose n-tree works on a batch, all of its points).
     let codes = mospt::codes(&batch, &key.bounds(root));
     let order = mospt::sort_order(&codes);
     let below = (1u64 << (3 * mospt::CODE_LEVELS)) - 1;

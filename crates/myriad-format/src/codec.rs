@@ -2,23 +2,29 @@
 //! Rust, decoding only) in WebAssembly, where the web viewer decodes pages and zstd's C sources
 //! do not build.
 
-/// Compresses `b` at `level`, with this thread's compression context (made once per thread and
-/// level, not per column: making one took 3 % of encoding KY's pages).
+/// Compresses `b` at `level`, with this thread's compression context for that level (made once
+/// per thread and level, not per column: making one took 3 % of encoding KY's pages; node pages
+/// and splat pages use different levels, so each keeps its own).
 #[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn compress(b: &[u8], level: i32) -> Vec<u8> {
     use std::cell::RefCell;
     thread_local! {
-        static CONTEXT: RefCell<Option<(i32, zstd::bulk::Compressor<'static>)>> =
-            const { RefCell::new(None) };
+        static CONTEXTS: RefCell<Vec<(i32, zstd::bulk::Compressor<'static>)>> =
+            const { RefCell::new(Vec::new()) };
     }
-    CONTEXT.with(|c| {
+    CONTEXTS.with(|c| {
         let mut c = c.borrow_mut();
-        if c.as_ref().is_none_or(|(l, _)| *l != level) {
-            let z = zstd::bulk::Compressor::new(level).expect("zstd context");
-            *c = Some((level, z));
-        }
-        let (_, z) = c.as_mut().expect("made above");
-        z.compress(b).expect("zstd compresses in memory")
+        let at = match c.iter().position(|(l, _)| *l == level) {
+            Some(at) => at,
+            None => {
+                c.push((
+                    level,
+                    zstd::bulk::Compressor::new(level).expect("zstd context"),
+                ));
+                c.len() - 1
+            }
+        };
+        c[at].1.compress(b).expect("zstd compresses in memory")
     })
 }
 
