@@ -82,7 +82,8 @@ pub(crate) fn acquisition_permutation(
         if level == last && cell > 0.0 && end - start > STRATA as usize {
             // Dealt into strata, each kept in acquisition order.
             let mut strata: Vec<Vec<u32>> = vec![Vec::new(); STRATA as usize];
-            let mut seen: std::collections::HashMap<[i64; 3], u32> = Default::default();
+            let mut seen: rustc_hash::FxHashMap<[i64; 3], u32> =
+                rustc_hash::FxHashMap::with_capacity_and_hasher(end - start, Default::default());
             for k in &keyed {
                 let p = source.positions[at(k.1 as usize)];
                 let rank = seen

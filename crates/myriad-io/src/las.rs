@@ -56,9 +56,12 @@ pub struct LasSource {
 }
 
 /// Raw record blocks from the producer thread, and the part of the last block not yet decoded.
+/// A block's buffer goes back to the producer once decoded (`spent`), to be filled again: no
+/// copy out of the `las` crate's buffer, and no fresh memory to fault in for every block.
 struct RecordStream {
-    rx: Receiver<Result<Vec<u8>>>,
-    pending: Vec<u8>,
+    rx: Receiver<Result<las::PointData>>,
+    spent: SyncSender<las::PointData>,
+    pending: Option<las::PointData>,
     at: usize,
 }
 
@@ -328,7 +331,13 @@ fn locate_laz_damage(
 }
 
 /// The producer thread: reads `total` records in blocks and sends them, or the first error.
-fn produce_records(path: PathBuf, data_at: u64, total: u64, tx: SyncSender<Result<Vec<u8>>>) {
+fn produce_records(
+    path: PathBuf,
+    data_at: u64,
+    total: u64,
+    tx: SyncSender<Result<las::PointData>>,
+    spent: Receiver<las::PointData>,
+) {
     let pos = Arc::new(AtomicU64::new(0));
     let opened = File::open(&path)
         .map_err(|e| Error::io(&path, e))
@@ -347,9 +356,7 @@ fn produce_records(path: PathBuf, data_at: u64, total: u64, tx: SyncSender<Resul
             return;
         }
     };
-    let mut data = las::PointDataBuilder::new()
-        .for_header(reader.header())
-        .build();
+    let builder = las::PointDataBuilder::new().for_header(reader.header());
     // LAZ in blocks of whole chunks, as many per core: none waits on another's last chunk (KY,
     // 50,000-point chunks on 2 cores: 8 a block, not 10.5, made reading ~5 % shorter).
     let chunk = reader.header().laz_vlr().map(|v| v.chunk_size() as u64);
@@ -363,8 +370,9 @@ fn produce_records(path: PathBuf, data_at: u64, total: u64, tx: SyncSender<Resul
     let mut read = 0u64;
     while read < total {
         let want = (total - read).min(block);
+        let mut data = spent.try_recv().unwrap_or_else(|_| builder.clone().build());
         let block = match reader.fill_points(want, &mut data) {
-            Ok(got) if got == want => Ok(data.raw_bytes().to_vec()),
+            Ok(got) if got == want => Ok(data),
             Ok(got) => Err(Error::at_byte(
                 &path,
                 if reader.header().point_format().is_compressed {
@@ -412,21 +420,29 @@ impl PointSource for LasSource {
         }
         let stream = self.stream.get_or_insert_with(|| {
             let (tx, rx) = sync_channel(1);
+            let (spent, spent_rx) = sync_channel(2);
             let (path, total) = (self.info.path.clone(), self.remaining);
             let data_at = self.data_at;
             std::thread::Builder::new()
                 .name("las-reader".into())
-                .spawn(move || produce_records(path, data_at, total, tx))
+                .spawn(move || produce_records(path, data_at, total, tx, spent_rx))
                 .expect("spawn LAS reader thread");
             RecordStream {
                 rx,
-                pending: Vec::new(),
+                spent,
+                pending: None,
                 at: 0,
             }
         });
-        if stream.at == stream.pending.len() {
+        let pending_len =
+            |p: &Option<las::PointData>| p.as_ref().map_or(0, |d| d.raw_bytes().len());
+        if stream.at == pending_len(&stream.pending) {
+            if let Some(done) = stream.pending.take() {
+                // Back to the producer to refill; dropped if it has enough, or has ended.
+                let _ = stream.spent.try_send(done);
+            }
             stream.pending = match stream.rx.recv() {
-                Ok(block) => block?,
+                Ok(block) => Some(block?),
                 Err(_) => {
                     return Err(Error::at_byte(
                         &self.info.path,
@@ -437,9 +453,10 @@ impl PointSource for LasSource {
             };
             stream.at = 0;
         }
-        let left = (stream.pending.len() - stream.at) / self.record_len;
+        let pending = stream.pending.as_ref().map_or(&[][..], |d| d.raw_bytes());
+        let left = (pending.len() - stream.at) / self.record_len;
         let n = left.min(crate::batch_len(max)).min(self.remaining as usize);
-        let bytes = &stream.pending[stream.at..stream.at + n * self.record_len];
+        let bytes = &pending[stream.at..stream.at + n * self.record_len];
         let extra = self.record_len - self.layout.base_len;
         let mut batch = las_records::batch_for(&self.layout, extra, n);
         las_records::decode(
