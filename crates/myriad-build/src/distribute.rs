@@ -262,14 +262,18 @@ impl Scatter<'_> {
                 if want > slot.1.capacity() && !self.spilled && self.expected <= fits {
                     // Where every point is expected to stay in memory: grown to what the
                     // chunk will hold if the rest of the input falls as the part read so far
-                    // did, but by at least half (so a chunk whose points come late, or an
-                    // input that declares too few, still grows geometrically) and at most
-                    // double, as a vector would: fewer reallocations, each copying and faulting
-                    // in its points again.
+                    // did, and a quarter more, but by at least half (so a chunk whose points
+                    // come late, or an input that declares too few, still grows
+                    // geometrically): few reallocations, each copying and faulting in its
+                    // points again (KY: 39 copying 3.7 M points, against 71 copying 9.4 M when
+                    // growth was capped at double). Room reserved and never filled is address
+                    // space, not memory.
                     let projected =
                         (slot.2 + picks.len() as u64) as f64 * self.expected / seen as f64;
                     let least = want.max(len + len / 2).max(1024);
-                    let target = ((projected * 1.05) as usize).clamp(least, 2 * want.max(1024));
+                    // No more than the points yet to come could hold.
+                    let most = want + (self.expected - seen as f64).max(0.0) as usize;
+                    let target = ((projected * 1.25) as usize).min(most).max(least);
                     slot.1.reserve_exact(target - len);
                 }
                 slot.1.extend_gather(batch, picks);
