@@ -106,7 +106,7 @@ pub fn build_sorted(
     cube: &Aabb,
     max_depth: u32,
 ) -> Mospt {
-    let mut m = build_places(batch, &sorted, sorted_codes, cube, max_depth);
+    let mut m = build_places(batch, &sorted, sorted_codes, cube, max_depth, None);
     for o in &mut m.order {
         *o = sorted[*o as usize];
     }
@@ -114,13 +114,17 @@ pub fn build_sorted(
 }
 
 /// [`build_sorted`], with `order` naming each point by its place in `sorted` rather than by
-/// its index in `batch`.
+/// its index in `batch`. With `fit`, `order` holds only the prefix a node of at most `fit`
+/// points keeps (the deepest level whose prefix fits, at least the root point: what
+/// [`crate::nested::fitting_prefix`] takes of the whole order), and `prefix` is still the
+/// whole tree's: a node that passes the rest down needs no order of the rest.
 pub fn build_places(
     batch: &PointBatch,
     sorted: &[u32],
     sorted_codes: &[u64],
     cube: &Aabb,
     max_depth: u32,
+    fit: Option<usize>,
 ) -> Mospt {
     let n = sorted.len();
     assert!(n <= u32::MAX as usize, "a node holds at most 2^32 points");
@@ -234,6 +238,26 @@ pub fn build_places(
     for l in 1..begin.len() {
         begin[l] += begin[l - 1];
     }
+    // Occupied cells of level l: one more than the boundaries parting at l or above it. These
+    // are the prefix counts: levels 0..=l hold one point per cell of level l.
+    let cells = |l: usize| if m == 0 { 0 } else { 1 + begin[l + 1] as u64 };
+    // The level whose groups make up the kept prefix, when only that is wanted.
+    let kept_level = fit.map(|cap| {
+        (0..=depth as usize)
+            .rev()
+            .find(|&l| cells(l) as usize <= cap)
+            .unwrap_or(0)
+    });
+    let mut kept_reps: Vec<u32> = Vec::new();
+    let mut snapshot = |l: usize, end: &[u32], current: &[Cell]| {
+        if kept_level == Some(l) {
+            let mut s = 0;
+            while s < m {
+                kept_reps.push(current[s].rep);
+                s = end[s] as usize;
+            }
+        }
+    };
     let mut fill = begin.clone();
     let mut bounds = vec![0u32; m.saturating_sub(1)];
     for j in 1..m {
@@ -246,6 +270,7 @@ pub fn build_places(
     let mut end: Vec<u32> = (1..=m as u32).collect();
     let mut first: Vec<u32> = (0..=m as u32).map(|e| e.saturating_sub(1)).collect();
     let mut children = Vec::with_capacity(8);
+    snapshot(depth as usize, &end, &current);
     for l in (0..depth as usize).rev() {
         let parting = &bounds[begin[l + 1]..begin[l + 2]];
         let mut i = 0;
@@ -276,28 +301,39 @@ pub fn build_places(
             end[s] = e as u32;
             first[e] = s as u32;
         }
+        snapshot(l, &end, &current);
     }
     if m > 0 {
         level[current[0].rep as usize] = 0;
     }
 
-    // Level order; within a level, Morton order: a counting sort by level keeps `sorted`'s order.
+    // Level order; within a level, Morton order: a counting sort by level keeps `sorted`'s order
+    // (the kept groups' representatives are in Morton order too).
     let levels = depth as usize + 2;
-    let mut prefix = vec![0u64; levels];
-    for &l in &level {
-        prefix[l as usize] += 1;
-    }
-    for l in 1..levels {
-        prefix[l] += prefix[l - 1];
-    }
+    let mut prefix: Vec<u64> = (0..=depth as usize).map(cells).collect();
+    prefix.push(n as u64);
     let mut next: Vec<usize> = std::iter::once(0)
         .chain(prefix[..levels - 1].iter().map(|&p| p as usize))
         .collect();
-    let mut order = vec![0u32; n];
-    for (p, &l) in level.iter().enumerate() {
-        order[next[l as usize]] = p as u32;
-        next[l as usize] += 1;
-    }
+    let order = match kept_level {
+        Some(k) => {
+            let mut order = vec![0u32; prefix[k] as usize];
+            for &p in &kept_reps {
+                let l = level[p as usize] as usize;
+                order[next[l]] = p;
+                next[l] += 1;
+            }
+            order
+        }
+        None => {
+            let mut order = vec![0u32; n];
+            for (p, &l) in level.iter().enumerate() {
+                order[next[l as usize]] = p as u32;
+                next[l as usize] += 1;
+            }
+            order
+        }
+    };
     let spacing = (0..levels)
         .map(|l| side / (1u64 << (l.min(depth as usize))) as f64)
         .collect();
@@ -408,6 +444,32 @@ mod tests {
                 .map(|i| [(i * 97 % 65536) as u16, (i * 13 % 65536) as u16, 7])
                 .collect();
             check(&batch(&pts, Some(&colours)), &unit(), depth);
+        }
+    }
+
+    #[test]
+    fn a_fitted_order_is_the_whole_orders_fitting_prefix() {
+        for (n, seed, depth, cap) in [(20_000, 7, 7, 5000), (20_000, 8, 7, 1), (3000, 9, 21, 700)] {
+            let pts = random_points(n, seed);
+            let colours: Vec<[u16; 3]> = (0..n)
+                .map(|i| [(i * 31 % 65536) as u16, (i * 7 % 65536) as u16, 9])
+                .collect();
+            let b = batch(&pts, Some(&colours));
+            let codes = codes(&b, &unit());
+            let sorted = sort_order(&codes);
+            let sc: Vec<u64> = sorted.iter().map(|&i| codes[i as usize]).collect();
+            let whole = build_places(&b, &sorted, &sc, &unit(), depth, None);
+            let fitted = build_places(&b, &sorted, &sc, &unit(), depth, Some(cap));
+            let keep = crate::nested::fitting_prefix(&whole, cap);
+            assert!(
+                keep < n && (keep <= cap || keep == 1),
+                "n {n}: keeps {keep}"
+            );
+            assert_eq!(fitted.order, whole.order[..keep], "n {n}, cap {cap}");
+            assert_eq!(
+                (&fitted.prefix, &fitted.spacing),
+                (&whole.prefix, &whole.spacing)
+            );
         }
     }
 

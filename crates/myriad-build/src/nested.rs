@@ -152,12 +152,15 @@ pub fn build_subtree_with<E>(
             node.shape.contour = Some(ntree::contour(&own.positions, &pca));
             (node, (keep < n).then(|| m.order[..keep].to_vec()))
         } else {
-            let mut m = mospt::build_places(&batch, &ids, &node_codes, &cube, depth);
+            // A node that passes points down orders only those it keeps.
+            let fit = (!leaf).then_some(params.capacity);
+            let mut m = mospt::build_places(&batch, &ids, &node_codes, &cube, depth, fit);
             let keep = if leaf {
                 n
             } else {
                 fitting_prefix(&m, params.capacity)
             };
+            debug_assert_eq!(m.order.len(), keep);
             let kept = (keep < n).then(|| m.order[..keep].to_vec());
             m.order.truncate(keep);
             m.order.iter_mut().for_each(|p| *p = ids[*p as usize]);
