@@ -136,18 +136,17 @@ pub fn build_places(
         .fold(0.0f64, f64::max)
         .max(f64::MIN_POSITIVE);
     // Codes at `max_depth`, in sorted order.
-    let sc: Vec<u64> = sorted_codes
-        .iter()
-        .map(|c| c >> (3 * (CODE_LEVELS - max_depth)))
-        .collect();
+    let base = 3 * (CODE_LEVELS - max_depth);
+    let sc = |i: usize| sorted_codes[i] >> base;
 
     // The effective depth: the first level whose cells already separate the points as well as
     // `max_depth` does; finer levels would add nothing. Two neighbours in Morton order whose
     // codes differ first separate at the level given by their highest differing bit.
-    let depth = sc
+    let depth = sorted_codes
         .windows(2)
-        .filter(|w| w[0] != w[1])
-        .map(|w| max_depth - (63 - (w[0] ^ w[1]).leading_zeros()) / 3)
+        .map(|w| (w[0] >> base) ^ (w[1] >> base))
+        .filter(|&x| x != 0)
+        .map(|x| max_depth - (63 - x.leading_zeros()) / 3)
         .max()
         .unwrap_or(0);
 
@@ -199,10 +198,10 @@ pub fn build_places(
     let mut current: Vec<Cell> = Vec::new();
     let mut start = 0;
     while start < n {
-        let key = sc[start] >> shift_of(depth);
+        let key = sc(start) >> shift_of(depth);
         let mut end = start;
         let mut sum = [0.0; 3];
-        while end < n && sc[end] >> shift_of(depth) == key {
+        while end < n && sc(end) >> shift_of(depth) == key {
             (0..3).for_each(|k| sum[k] += values[end][k]);
             end += 1;
         }
@@ -229,7 +228,7 @@ pub fn build_places(
     // however deep the tree.
     let m = current.len();
     let parts_at = |j: usize| {
-        let x = sc[current[j - 1].start] ^ sc[current[j].start];
+        let x = sc(current[j - 1].start) ^ sc(current[j].start);
         (max_depth - (63 - x.leading_zeros()) / 3) as usize
     };
     // Boundaries by the level they part at (a counting sort), ascending within a level.
