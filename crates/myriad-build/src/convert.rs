@@ -191,6 +191,9 @@ pub const MIN_MEMORY: u64 = 512 << 20;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plan {
     pub buffer_bytes: usize,
+    /// What the buffers may hold when every point is expected to stay in memory until its
+    /// chunk is built: the budget less the chunks being built.
+    pub resident_bytes: usize,
     pub chunk_points: u64,
     /// Threads that fit the budget (at most those asked for).
     pub threads: usize,
@@ -208,8 +211,10 @@ pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
     let threads = threads.clamp(1, ((free * 3 / 4) / least).max(1) as usize);
     let per_thread = (free * 3 / 4 / threads as u64).saturating_sub(family);
     let chunk_points = (per_thread / BUILD_BYTES_PER_POINT).clamp(MIN_CHUNK_POINTS, 2_000_000);
+    let building = threads as u64 * (chunk_points * BUILD_BYTES_PER_POINT + family);
     Plan {
         buffer_bytes: buffer_bytes as usize,
+        resident_bytes: free.saturating_sub(building).max(buffer_bytes) as usize,
         chunk_points,
         threads,
     }
@@ -406,6 +411,7 @@ pub fn convert(
         &DistributeOptions {
             chunk_points: options.chunk_points.unwrap_or(plan.chunk_points),
             buffer_bytes: plan.buffer_bytes,
+            resident_bytes: plan.resident_bytes,
             compress_above: SPILL_COMPRESS_ABOVE,
             min_chunks: 8 * plan.threads as u64,
             temp_dir,
@@ -693,6 +699,13 @@ mod tests {
                         + 9 * params.capacity as u64 * BUILD_BYTES_PER_POINT / 2);
                 assert!(2 * p.buffer_bytes as u64 + (160 << 20) <= memory);
                 assert!(build + (160 << 20) <= memory, "{memory} {threads}: {p:?}");
+                // Points kept from reading to building, beside the chunks being built: within
+                // the budget, or no more than the buffers hold anyway.
+                assert!(
+                    p.resident_bytes as u64 + build + (160 << 20) <= memory
+                        || p.resident_bytes == p.buffer_bytes,
+                    "{memory} {threads}: {p:?}"
+                );
                 assert!(p.threads >= 1 && p.threads <= threads);
             }
         }

@@ -34,6 +34,10 @@ pub struct DistributeOptions {
     pub chunk_points: u64,
     /// Memory for the chunks' write buffers, in bytes.
     pub buffer_bytes: usize,
+    /// When the declared points fit in this many bytes (when larger than `buffer_bytes`), the
+    /// buffers hold them all: nothing is written to disk and read back, and each chunk goes to
+    /// its build as it is.
+    pub resident_bytes: usize,
     /// Compress spill files (zstd level 1) when the inputs would spill more than this many
     /// bytes: it halves the disk a big build needs, at about 1.5 s of a core per 400 MB.
     pub compress_above: u64,
@@ -192,14 +196,22 @@ impl<'a> Scatter<'a> {
         level: u32,
         schema: &'a Schema,
         limit: usize,
+        resident: usize,
         compress: bool,
         expected: u64,
     ) -> Scatter<'a> {
+        let row = PointBatch::with_schema(schema, 0).row_size();
+        // Every point expected to fit in `resident`: the buffers may hold them all.
+        let limit = if expected.saturating_mul(row as u64) <= resident as u64 {
+            limit.max(resident)
+        } else {
+            limit
+        };
         Scatter {
             folder,
             level,
             schema,
-            row: PointBatch::with_schema(schema, 0).row_size(),
+            row,
             cells: HashMap::new(),
             slots: Vec::new(),
             picks: Vec::new(),
@@ -534,6 +546,7 @@ pub fn distribute_with(
         level,
         &schema,
         options.buffer_bytes,
+        options.resident_bytes,
         compress,
         declared,
     );
@@ -680,7 +693,7 @@ fn rescatter(
     compress: bool,
 ) -> Result<Vec<Chunk>> {
     let expected = chunks.iter().map(|c| c.points).sum();
-    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, compress, expected);
+    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, 0, compress, expected);
     let row = PointBatch::with_schema(schema, 0).row_size();
     let mut outside = 0;
     for chunk in chunks {

@@ -77,6 +77,7 @@ fn nothing_lost_chunks_fit_and_spill_files_go() {
     let options = DistributeOptions {
         chunk_points: 20_000,
         buffer_bytes: 256 << 10,
+        resident_bytes: 0,
         compress_above: 0,
         min_chunks: 1,
         temp_dir: spill.clone(),
@@ -171,6 +172,7 @@ fn inputs_with_different_extra_bytes_are_refused() {
     let options = DistributeOptions {
         chunk_points: 10,
         buffer_bytes: 1 << 16,
+        resident_bytes: 0,
         compress_above: u64::MAX,
         min_chunks: 1,
         temp_dir: d.clone(),
@@ -205,6 +207,7 @@ fn chunks_and_tops_form_one_nested_octree() {
         &DistributeOptions {
             chunk_points: 15_000,
             buffer_bytes: 1 << 20,
+            resident_bytes: 0,
             compress_above: u64::MAX,
             min_chunks: 1,
             temp_dir: d.clone(),
@@ -334,6 +337,7 @@ fn chunks_that_fit_in_memory_are_not_spilled() {
         let options = DistributeOptions {
             chunk_points: 1_000_000,
             buffer_bytes,
+            resident_bytes: 0,
             compress_above: u64::MAX,
             min_chunks: 8,
             temp_dir: spill.clone(),

@@ -291,6 +291,9 @@ fn convert(a: ConvertBenchArgs) -> Result<()> {
                 rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
                 peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
                 if let Some(peer) = &peer {
+                    // Ours is measured (its size is in the summary): gone before the peer
+                    // writes, so that both fit on the disk for a large input.
+                    std::fs::remove_file(&a.output).ok();
                     // The peer in the same minute, into a folder next to our output.
                     let dir = a.output.with_extension("potreeconverter");
                     let _ = std::fs::remove_dir_all(&dir);
