@@ -110,7 +110,9 @@ pub struct Distribution {
 }
 
 impl Distribution {
-    /// Reads a chunk's points back.
+    /// Reads a chunk's points back, once: its spill file is removed as soon as they are in
+    /// memory, so that the spill files and the dataset being written are not both on disk
+    /// whole (500 M points: 11.9 GB of spill files and 6.7 GB of dataset).
     pub fn load(&self, chunk: &Chunk) -> Result<PointBatch> {
         let resident = self
             .resident
@@ -140,6 +142,8 @@ impl Distribution {
                 chunk.points
             )));
         }
+        // Nothing reads it again; what is left goes with the folder.
+        std::fs::remove_file(&chunk.path).ok();
         Ok(b)
     }
 
