@@ -14,6 +14,7 @@ pub mod atomic;
 pub mod copc;
 pub mod e57;
 pub mod las;
+mod las_extra;
 mod las_guard;
 mod las_records;
 pub mod mesh;
