@@ -161,8 +161,7 @@ pub fn build_subtree_with<E>(
                 fitting_prefix(&m, params.capacity)
             };
             debug_assert_eq!(m.order.len(), keep);
-            let kept = (keep < n).then(|| m.order[..keep].to_vec());
-            m.order.truncate(keep);
+            let kept = (keep < n).then(|| m.order.clone());
             m.order.iter_mut().for_each(|p| *p = ids[*p as usize]);
             (node_from_prefix(node_key, &batch, &m, keep), kept)
         };

@@ -373,7 +373,6 @@ impl PointBatch {
         out
     }
 
-    /// Element size of optional column `k`.
     /// Column `k` as byte planes, with its value width: of each value's little-endian bytes
     /// ([`Self::column_le`]), all the first, then all the second, and so on (what a node page
     /// compresses), made without the bytes in between.
@@ -408,6 +407,7 @@ impl PointBatch {
         out
     }
 
+    /// Element size of optional column `k`.
     pub fn column_size(k: usize) -> usize {
         let mut i = 0;
         let mut size = 0;
@@ -513,7 +513,6 @@ impl PointBatch {
         }
     }
 
-    /// Appends `other`, which must carry the same columns.
     /// Room for exactly `additional` more points in every column (`Vec::reserve_exact`).
     pub fn reserve_exact(&mut self, additional: usize) {
         self.positions.reserve_exact(additional);
@@ -559,6 +558,7 @@ impl PointBatch {
         }
     }
 
+    /// Appends `other`, which must carry the same columns.
     pub fn append(&mut self, other: &PointBatch) {
         self.positions.extend_from_slice(&other.positions);
         macro_rules! app {
