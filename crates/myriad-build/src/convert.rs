@@ -31,7 +31,8 @@ use std::time::Instant;
 pub const DEFAULT_CAPACITY: usize = 1 << 16;
 pub const DEFAULT_INNER_DEPTH: u32 = 7;
 pub const DEFAULT_MAX_LEVEL: u32 = 20;
-/// Spill files are compressed when they would exceed this (8 GB, about 150 M points).
+/// Spill files of rows (points not on a LAS input's grid) are compressed when they would exceed
+/// this (8 GB, about 150 M points).
 pub const SPILL_COMPRESS_ABOVE: u64 = 8 << 30;
 
 /// The hierarchy a dataset is built as (`convert --structure`).

@@ -13,13 +13,16 @@
 //! Inputs of different formats merge: the dataset schema is the union of theirs, and a point
 //! lacking an attribute gets its zero. Extra bytes are kept when all inputs have the same ones.
 //!
-//! Spill files are rows of [`PointBatch::put_row`] in the merged schema. They live in a private
-//! folder that is removed when the [`Distribution`] is dropped, on success and on failure.
+//! Spill files are frames of points in the merged schema ([`crate::spill`]: node pages where the
+//! points lie on a LAS input's grid, rows otherwise). They live in a private folder that is
+//! removed when the [`Distribution`] is dropped, on success and on failure.
 
+use crate::spill::{Codec, Frames, encode_frame};
 use myriad_core::{Aabb, Attribute, Error, PointBatch, Result, Schema};
+use myriad_format::Quantization;
 use myriad_io::{OpenOptions, PointSource};
 use std::collections::HashMap;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Name of the spill folder, followed by the process id.
@@ -38,8 +41,9 @@ pub struct DistributeOptions {
     /// buffers hold them all: nothing is written to disk and read back, and each chunk goes to
     /// its build as it is.
     pub resident_bytes: usize,
-    /// Compress spill files (zstd level 1) when the inputs would spill more than this many
-    /// bytes: it halves the disk a big build needs, at about 1.5 s of a core per 400 MB.
+    /// Compress spill files of rows (zstd level 1) when the inputs would spill more than this
+    /// many bytes: it halves the disk a big build needs, at about 1.5 s of a core per 400 MB.
+    /// Points on a LAS input's grid are written as node pages, compressed whatever this says.
     pub compress_above: u64,
     /// At least this many chunks (about), so that every thread has work until the end.
     pub min_chunks: u64,
@@ -124,15 +128,15 @@ impl Distribution {
             debug_assert_eq!(b.len() as u64, chunk.points);
             return Ok(b);
         }
-        let mut b = PointBatch::with_schema(&self.schema, chunk.points as usize);
-        let row = b.row_size();
+        let mut b = PointBatch::with_schema(&self.schema, 0);
         let mut frames = Frames::open(&chunk.path)?;
-        while let Some(rows) = frames.next_frame()? {
-            if rows.len() % row != 0 {
-                return Err(frames.error("spill frame ends inside a row"));
-            }
-            for r in rows.chunks_exact(row) {
-                b.push_row(r);
+        while let Some(f) = frames.next_frame(&self.schema)? {
+            if b.is_empty() {
+                // The first frame as it is; the rest appended, with room for them all.
+                b = f;
+                b.reserve_exact((chunk.points as usize).saturating_sub(b.len()));
+            } else {
+                b.append(&f);
             }
         }
         if b.len() as u64 != chunk.points {
@@ -191,7 +195,7 @@ struct Scatter<'a> {
     /// Points the scatter expects in all, and those added so far: how big a chunk will grow.
     expected: f64,
     added: u64,
-    compress: bool,
+    codec: Codec,
 }
 
 impl<'a> Scatter<'a> {
@@ -201,7 +205,7 @@ impl<'a> Scatter<'a> {
         schema: &'a Schema,
         limit: usize,
         resident: usize,
-        compress: bool,
+        codec: Codec,
         expected: u64,
     ) -> Scatter<'a> {
         let row = PointBatch::with_schema(schema, 0).row_size();
@@ -224,7 +228,7 @@ impl<'a> Scatter<'a> {
             expected: expected as f64,
             added: 0,
             limit,
-            compress,
+            codec,
         }
     }
 }
@@ -324,13 +328,7 @@ impl Scatter<'_> {
     fn flush(&mut self) -> Result<()> {
         use rayon::prelude::*;
         self.spilled |= self.slots.iter().any(|(_, b, _)| !b.is_empty());
-        let (folder, level, row, compress, schema) = (
-            self.folder,
-            self.level,
-            self.row,
-            self.compress,
-            self.schema,
-        );
+        let (folder, level, codec, schema) = (self.folder, self.level, self.codec, self.schema);
         self.slots
             .par_iter_mut()
             .filter(|(_, b, _)| !b.is_empty())
@@ -341,13 +339,10 @@ impl Scatter<'_> {
                     .append(true)
                     .open(&path)
                     .map_err(|e| Error::io(&path, e))?;
-                let mut rows = Vec::with_capacity(buf.len() * row);
-                for i in 0..buf.len() {
-                    buf.put_row(i, &mut rows);
-                }
+                let frame = encode_frame(buf, codec);
                 // Freed, not cleared: capacities would otherwise outgrow the budget.
                 *buf = PointBatch::with_schema(schema, 0);
-                write_frame(&mut f, &rows, compress).map_err(|e| Error::io(&path, e))
+                f.write_all(&frame).map_err(|e| Error::io(&path, e))
             })?;
         self.buffered = 0;
         Ok(())
@@ -556,14 +551,25 @@ pub fn distribute_with(
     std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
     let folder = SpillFolder(folder);
     let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
-    let compress = declared.saturating_mul(row) > options.compress_above;
+    let codec = Codec {
+        compress: declared.saturating_mul(row) > options.compress_above,
+        // The grid of the first input with one, its step's size (a negative LAS scale mirrors
+        // the records, not the coordinates). Frames are checked to lie on it.
+        grid: infos
+            .iter()
+            .find_map(|i| Some((i.scale?, i.offset?)))
+            .map(|(s, offset)| Quantization {
+                scale: s.map(f64::abs),
+                offset,
+            }),
+    };
     let mut scatter = Scatter::new(
         &folder.0,
         level,
         &schema,
         options.buffer_bytes,
         options.resident_bytes,
-        compress,
+        codec,
         declared,
     );
     let (mut picked, mut cells) = (Vec::new(), Vec::new());
@@ -655,7 +661,7 @@ pub fn distribute_with(
             &schema,
             &folder.0,
             options.buffer_bytes,
-            compress,
+            codec,
         )?;
         root
     } else {
@@ -686,7 +692,7 @@ pub fn distribute_with(
                     &schema,
                     &folder.0,
                     share.max(1 << 20),
-                    compress,
+                    codec,
                 )
             })
             .collect::<Result<_>>()?;
@@ -719,22 +725,14 @@ fn rescatter(
     schema: &Schema,
     folder: &Path,
     buffer_bytes: usize,
-    compress: bool,
+    codec: Codec,
 ) -> Result<Vec<Chunk>> {
     let expected = chunks.iter().map(|c| c.points).sum();
-    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, 0, compress, expected);
-    let row = PointBatch::with_schema(schema, 0).row_size();
+    let mut scatter = Scatter::new(folder, level, schema, buffer_bytes, 0, codec, expected);
     let mut outside = 0;
     for chunk in chunks {
         let mut frames = Frames::open(&chunk.path)?;
-        while let Some(rows) = frames.next_frame()? {
-            if rows.len() % row != 0 {
-                return Err(frames.error("spill frame ends inside a row"));
-            }
-            let mut b = PointBatch::with_schema(schema, rows.len() / row);
-            for r in rows.chunks_exact(row) {
-                b.push_row(r);
-            }
+        while let Some(b) = frames.next_frame(schema)? {
             let cells: Vec<[u32; 3]> = b
                 .positions
                 .iter()
@@ -747,76 +745,4 @@ fn rescatter(
     }
     scatter.flush()?;
     Ok(scatter.chunks())
-}
-
-/// Spill files are frames: raw length (u32), stored length (u32), then the rows, compressed by
-/// zstd at level 1 when `compress` (and it helps; stored length = raw length means raw).
-/// Compression halves the disk a big build needs (a billion points of LAS format 3 would
-/// otherwise spill 52 GB); small builds skip its cost.
-fn write_frame(f: &mut std::fs::File, rows: &[u8], compress: bool) -> std::io::Result<()> {
-    let z = if compress {
-        Some(zstd::bulk::compress(rows, 1)?).filter(|z| z.len() < rows.len())
-    } else {
-        None
-    };
-    let stored = z.as_deref().unwrap_or(rows);
-    let mut head = [0u8; 8];
-    head[..4].copy_from_slice(&(rows.len() as u32).to_le_bytes());
-    head[4..].copy_from_slice(&(stored.len() as u32).to_le_bytes());
-    f.write_all(&head)?;
-    f.write_all(stored)
-}
-
-/// Reads the frames of a spill file one after the other.
-struct Frames {
-    file: std::io::BufReader<std::fs::File>,
-    path: PathBuf,
-    at: u64,
-}
-
-impl Frames {
-    fn open(path: &Path) -> Result<Frames> {
-        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        Ok(Frames {
-            file: std::io::BufReader::with_capacity(1 << 20, file),
-            path: path.to_path_buf(),
-            at: 0,
-        })
-    }
-
-    fn error(&self, message: impl Into<String>) -> Error {
-        Error::at_byte(&self.path, self.at, message)
-    }
-
-    fn next_frame(&mut self) -> Result<Option<Vec<u8>>> {
-        let mut head = [0u8; 8];
-        let mut got = 0;
-        while got < 8 {
-            match self
-                .file
-                .read(&mut head[got..])
-                .map_err(|e| Error::io(&self.path, e))?
-            {
-                0 if got == 0 => return Ok(None),
-                0 => return Err(self.error("spill file ends inside a frame head")),
-                k => got += k,
-            }
-        }
-        let raw = u32::from_le_bytes(head[..4].try_into().unwrap()) as usize;
-        let len = u32::from_le_bytes(head[4..].try_into().unwrap()) as usize;
-        let mut z = vec![0u8; len];
-        self.file
-            .read_exact(&mut z)
-            .map_err(|_| self.error("spill file ends inside a frame"))?;
-        let rows = if len == raw {
-            z
-        } else {
-            zstd::bulk::decompress(&z, raw).map_err(|e| self.error(e.to_string()))?
-        };
-        if rows.len() != raw {
-            return Err(self.error("spill frame has the wrong length"));
-        }
-        self.at += 8 + len as u64;
-        Ok(Some(rows))
-    }
 }

@@ -19,4 +19,5 @@ mod nodes;
 pub mod ntree;
 pub mod partition;
 mod radix;
+mod spill;
 mod tops;

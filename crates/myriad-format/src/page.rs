@@ -82,17 +82,50 @@ fn shuffle(bytes: &[u8], width: usize) -> Vec<u8> {
 }
 
 fn unshuffle(bytes: &[u8], width: usize) -> Vec<u8> {
-    if width <= 1 {
-        return bytes.to_vec();
+    /// A value's bytes gathered from its planes, the width known to the compiler (the node
+    /// pages' columns are 2, 4, 6 and 8 bytes wide): a third of the time of the loop over any
+    /// width.
+    fn fixed<const W: usize>(bytes: &[u8]) -> Vec<u8> {
+        let n = bytes.len() / W;
+        let mut out = vec![0u8; bytes.len()];
+        let planes: [&[u8]; W] = std::array::from_fn(|b| &bytes[b * n..(b + 1) * n]);
+        for (i, e) in out.chunks_exact_mut(W).enumerate() {
+            for (v, plane) in e.iter_mut().zip(&planes) {
+                *v = plane[i];
+            }
+        }
+        out
     }
-    let n = bytes.len() / width;
-    let mut out = vec![0u8; bytes.len()];
-    for (i, e) in out.chunks_exact_mut(width).enumerate() {
-        for (b, v) in e.iter_mut().enumerate() {
-            *v = bytes[b * n + i];
+    match width {
+        0 | 1 => bytes.to_vec(),
+        2 => fixed::<2>(bytes),
+        3 => fixed::<3>(bytes),
+        4 => fixed::<4>(bytes),
+        6 => fixed::<6>(bytes),
+        8 => fixed::<8>(bytes),
+        _ => {
+            let n = bytes.len() / width;
+            let mut out = vec![0u8; bytes.len()];
+            for (i, e) in out.chunks_exact_mut(width).enumerate() {
+                for (b, v) in e.iter_mut().enumerate() {
+                    *v = bytes[b * n + i];
+                }
+            }
+            out
         }
     }
-    out
+}
+
+/// The `n` values of `width` bytes in byte planes, as integers: plane by plane, each shifted
+/// into place (no element copied through a buffer of its width).
+fn plane_values(planes: &[u8], n: usize, width: usize) -> Vec<u64> {
+    let mut values = vec![0u64; n];
+    for (b, plane) in planes.chunks_exact(n.max(1)).take(width).enumerate() {
+        for (v, &byte) in values.iter_mut().zip(plane) {
+            *v |= (byte as u64) << (8 * b);
+        }
+    }
+    values
 }
 
 /// Replaces little-endian u64 elements by their wrapping difference to the previous one.
@@ -332,22 +365,21 @@ pub fn decode(page: &[u8], schema: &Schema, q: &Quantization) -> Result<PointBat
                 let mut axes: [Vec<i64>; 3] = Default::default();
                 let mut p = 0;
                 for a in 0..3 {
-                    let raw = unshuffle(&planes[p..p + n * widths[a]], widths[a]);
-                    p += n * widths[a];
-                    axes[a] = if widths[a] == 0 {
+                    let w = widths[a];
+                    let raw = plane_values(&planes[p..p + n * w], n, w);
+                    p += n * w;
+                    axes[a] = if w == 0 {
                         vec![origin[a]; n]
                     } else {
-                        let mask = if widths[a] == 8 {
+                        let mask = if w == 8 {
                             u64::MAX
                         } else {
-                            (1u64 << (8 * widths[a])) - 1
+                            (1u64 << (8 * w)) - 1
                         };
                         let mut prev = 0u64;
-                        raw.chunks_exact(widths[a])
-                            .map(|e| {
-                                let mut b = [0u8; 8];
-                                b[..widths[a]].copy_from_slice(e);
-                                let rel = prev.wrapping_add(unzigzag(u64::from_le_bytes(b))) & mask;
+                        raw.into_iter()
+                            .map(|z| {
+                                let rel = prev.wrapping_add(unzigzag(z)) & mask;
                                 prev = rel;
                                 origin[a].wrapping_add(rel as i64)
                             })
