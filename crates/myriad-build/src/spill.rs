@@ -48,12 +48,15 @@ pub(crate) fn encode_frame(batch: &PointBatch, codec: Codec) -> Vec<u8> {
         out.extend_from_slice(body);
         out
     };
-    if let Some(q) = codec.grid.filter(|q| on_grid(&batch.positions, q)) {
-        let mut body = Vec::new();
+    if let Some((q, page)) = codec
+        .grid
+        .and_then(|q| Some((q, myriad_format::page::encode_on_grid(batch, &q)?)))
+    {
+        let mut body = Vec::with_capacity(48 + page.len());
         for v in q.scale.iter().chain(&q.offset) {
             body.extend_from_slice(&v.to_le_bytes());
         }
-        body.extend_from_slice(&myriad_format::page::encode(batch, &q));
+        body.extend_from_slice(&page);
         return head(FRAME_PAGE, batch.len(), &body);
     }
     let mut rows = Vec::with_capacity(batch.len() * batch.row_size());
@@ -69,13 +72,6 @@ pub(crate) fn encode_frame(batch: &PointBatch, codec: Codec) -> Vec<u8> {
         Some(z) => head(FRAME_ROWS_ZSTD, rows.len(), &z),
         None => head(FRAME_ROWS, rows.len(), &rows),
     }
-}
-
-/// Whether every position comes back from `q`'s integers with the same bits.
-fn on_grid(positions: &[[f64; 3]], q: &Quantization) -> bool {
-    positions
-        .iter()
-        .all(|&p| q.to_world(q.to_int(p)).map(f64::to_bits) == p.map(f64::to_bits))
 }
 
 /// Reads the frames of a spill file one after the other.

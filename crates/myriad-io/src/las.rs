@@ -43,7 +43,8 @@ impl Seek for Tracked {
 
 /// Reads LAS/LAZ. Records are read (and LAZ decompressed on all cores) by a producer thread one
 /// block ahead, while the caller decodes the previous block into columns: decoding overlaps
-/// decompression instead of following it.
+/// decompression instead of following it. LAZ of more than one block has two producers taking
+/// the blocks in turn ([`produce_records`]).
 pub struct LasSource {
     info: SourceInfo,
     header: las::Header,
@@ -56,17 +57,21 @@ pub struct LasSource {
     stream: Option<RecordStream>,
 }
 
-/// Raw record blocks from the producer thread, and the part of the last block not yet decoded.
-/// A block's buffer goes back to the producer once decoded (`spent`), to be filled again: no
+/// Raw record blocks from the producer threads, and the part of the last block not yet decoded.
+/// A block's buffer goes back to its producer once decoded, to be filled again: no
 /// copy out of the `las` crate's buffer, and no fresh memory to fault in for every block.
 struct RecordStream {
-    rx: Receiver<Result<las::PointData>>,
-    spent: SyncSender<las::PointData>,
-    pending: Option<las::PointData>,
+    /// Per producer: its blocks, and the way back for their buffers. The blocks come from the
+    /// producers in turn.
+    producers: Vec<(Receiver<Result<las::PointData>>, SyncSender<las::PointData>)>,
+    /// The producer of the next block.
+    next: usize,
+    /// The block being read, and its producer.
+    pending: Option<(las::PointData, usize)>,
     at: usize,
 }
 
-/// Records per block the producer thread reads: several LAZ chunks, so that decompression runs
+/// Records per block a producer thread reads: several LAZ chunks, so that decompression runs
 /// on all cores, and a few tens of megabytes at most.
 const PRODUCER_BLOCK: u64 = 1 << 19;
 
@@ -331,11 +336,28 @@ fn locate_laz_damage(
     None
 }
 
-/// The producer thread: reads `total` records in blocks and sends them, or the first error.
+/// Records per block for `header`'s file: LAZ in blocks of whole chunks, as many per core, so
+/// that none waits on another's last chunk (KY, 50,000-point chunks on 2 cores: 8 a block, not
+/// 10.5, made reading ~5 % shorter).
+fn producer_block(header: &las::Header) -> u64 {
+    match header.laz_vlr().map(|v| v.chunk_size() as u64) {
+        Ok(c) if c > 0 && c != u32::MAX as u64 => {
+            let cores = rayon::current_num_threads().max(1) as u64;
+            (PRODUCER_BLOCK / (c * cores)).max(1) * cores * c
+        }
+        _ => PRODUCER_BLOCK,
+    }
+}
+
+/// A producer thread: reads every `stride`-th block of records from the `first`, of `total`
+/// records in all, and sends them, or the first error. LAZ is read by two producers in turn:
+/// one's blocks decompress while the other's last chunks finish (a block's chunks run in
+/// parallel, and the cores wait for the slowest), so that the cores are not left waiting.
 fn produce_records(
     path: PathBuf,
     data_at: u64,
     total: u64,
+    (first, stride): (u64, u64),
     tx: SyncSender<Result<las::PointData>>,
     spent: Receiver<las::PointData>,
 ) {
@@ -358,21 +380,21 @@ fn produce_records(
         }
     };
     let builder = las::PointDataBuilder::new().for_header(reader.header());
-    // LAZ in blocks of whole chunks, as many per core: none waits on another's last chunk (KY,
-    // 50,000-point chunks on 2 cores: 8 a block, not 10.5, made reading ~5 % shorter).
-    let chunk = reader.header().laz_vlr().map(|v| v.chunk_size() as u64);
-    let block = match chunk {
-        Ok(c) if c > 0 && c != u32::MAX as u64 => {
-            let cores = rayon::current_num_threads().max(1) as u64;
-            (PRODUCER_BLOCK / (c * cores)).max(1) * cores * c
-        }
-        _ => PRODUCER_BLOCK,
-    };
-    let mut read = 0u64;
+    let block = producer_block(reader.header());
+    if block == 0 {
+        return;
+    }
+    let mut at = 0u64; // where the reader stands
+    let mut read = first * block;
     while read < total {
         let want = (total - read).min(block);
         let mut data = spent.try_recv().unwrap_or_else(|_| builder.clone().build());
-        let block = match reader.fill_points(want, &mut data) {
+        let sought = if at == read {
+            Ok(())
+        } else {
+            reader.seek(read)
+        };
+        let result = match sought.and_then(|()| reader.fill_points(want, &mut data)) {
             Ok(got) if got == want => Ok(data),
             Ok(got) => Err(Error::at_byte(
                 &path,
@@ -398,11 +420,12 @@ fn produce_records(
                 )),
             },
         };
-        let failed = block.is_err();
-        if tx.send(block).is_err() || failed {
+        let failed = result.is_err();
+        if tx.send(result).is_err() || failed {
             return; // the source was dropped, or the error is delivered
         }
-        read += want;
+        at = read + want;
+        read += stride * block;
     }
 }
 
@@ -420,33 +443,50 @@ impl PointSource for LasSource {
             return Ok(None);
         }
         let stream = self.stream.get_or_insert_with(|| {
-            let (tx, rx) = sync_channel(1);
-            let (spent, spent_rx) = sync_channel(2);
             let (path, total) = (self.info.path.clone(), self.remaining);
             let data_at = self.data_at;
-            std::thread::Builder::new()
-                .name("las-reader".into())
-                .spawn(move || produce_records(path, data_at, total, tx, spent_rx))
-                .expect("spawn LAS reader thread");
+            // Two producers in turn for LAZ of more than one block (see `produce_records`).
+            let compressed = self.header.point_format().is_compressed;
+            let stride = if compressed && total > producer_block(&self.header) {
+                2
+            } else {
+                1
+            };
+            let producers = (0..stride)
+                .map(|first| {
+                    let (tx, rx) = sync_channel(1);
+                    let (spent, spent_rx) = sync_channel(2);
+                    let path = path.clone();
+                    std::thread::Builder::new()
+                        .name("las-reader".into())
+                        .spawn(move || {
+                            produce_records(path, data_at, total, (first, stride), tx, spent_rx)
+                        })
+                        .expect("spawn LAS reader thread");
+                    (rx, spent)
+                })
+                .collect();
             RecordStream {
-                rx,
-                spent,
+                producers,
+                next: 0,
                 pending: None,
                 at: 0,
             }
         });
-        if stream.at == stream.pending.as_ref().map_or(0, |d| d.raw_bytes().len()) {
-            // Back to the producer to refill; dropped if it has enough, or has ended.
-            if let Some(done) = stream.pending.take() {
-                let _ = stream.spent.try_send(done);
+        if stream.at == stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) {
+            // Back to its producer to refill; dropped if it has enough, or has ended.
+            if let Some((done, from)) = stream.pending.take() {
+                let _ = stream.producers[from].1.try_send(done);
             }
-            let block = stream.rx.recv().map_err(|_| {
+            let from = stream.next;
+            stream.next = (from + 1) % stream.producers.len();
+            let block = stream.producers[from].0.recv().map_err(|_| {
                 Error::at_byte(&self.info.path, 0, "the reader thread stopped early")
             })?;
-            stream.pending = Some(block?);
+            stream.pending = Some((block?, from));
             stream.at = 0;
         }
-        let pending = stream.pending.as_ref().map_or(&[][..], |d| d.raw_bytes());
+        let pending = stream.pending.as_ref().map_or(&[][..], |d| d.0.raw_bytes());
         let left = (pending.len() - stream.at) / self.record_len;
         let n = left.min(crate::batch_len(max)).min(self.remaining as usize);
         let bytes = &pending[stream.at..stream.at + n * self.record_len];

@@ -353,6 +353,65 @@ fn laz_layer_sizes_are_checked() {
     );
 }
 
+/// A LAZ file of several blocks (read by two producers in turn) gives every point once, in
+/// order; a header that declares more points than the chunks hold is an error, not a hang.
+#[test]
+fn laz_of_many_blocks_reads_in_order() {
+    let schema = Schema::new(vec![Attribute::Intensity, Attribute::GpsTime]);
+    let d = std::env::temp_dir().join(format!("myriad-lazblocks-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("blocks.laz");
+    let opts = LasWriteOptions::for_schema(&schema, [0.01; 3], [0.0; 3]).unwrap();
+    let mut sink = LasSink::create(&p, opts, true).unwrap();
+    let n = 1_500_000usize;
+    for start in (0..n).step_by(100_000) {
+        let mut b = PointBatch::with_schema(&schema, 100_000);
+        for i in start..start + 100_000 {
+            b.positions
+                .push([(i % 1000) as f64, (i / 1000) as f64 * 0.5, (i % 7) as f64]);
+        }
+        b.intensity = Some((start..start + 100_000).map(|i| i as u16).collect());
+        b.gps_time = Some((start..start + 100_000).map(|i| i as f64).collect());
+        sink.write(&b).unwrap();
+    }
+    assert_eq!(sink.finish().unwrap(), n as u64);
+    let read_all = |path: &PathBuf| -> myriad_core::Result<usize> {
+        let mut src = open(path, &OpenOptions::default())?;
+        let mut next = 0usize;
+        while let Some(b) = src.read_batch(1 << 16)? {
+            let gps = b.gps_time.as_ref().unwrap();
+            for (k, &t) in gps.iter().enumerate() {
+                let i = next + k;
+                assert_eq!(t, i as f64, "point {i} out of order");
+                assert_eq!(
+                    b.positions[k],
+                    [(i % 1000) as f64, (i / 1000) as f64 * 0.5, (i % 7) as f64]
+                );
+                assert_eq!(b.intensity.as_ref().unwrap()[k], i as u16);
+            }
+            next += b.len();
+        }
+        Ok(next)
+    };
+    assert_eq!(read_all(&p).unwrap(), n);
+    // The header says 2.5 M points: the error names the file and comes after the points that
+    // are there, from whichever producer meets it first in file order.
+    let mut bytes = std::fs::read(&p).unwrap();
+    bytes[107..111].copy_from_slice(&2_500_000u32.to_le_bytes());
+    if bytes[25] >= 4 {
+        bytes[247..255].copy_from_slice(&2_500_000u64.to_le_bytes());
+    }
+    let lie = tmp("blocks-lie.laz", &bytes);
+    let err = read_all(&lie)
+        .expect_err("more points declared than held")
+        .to_string();
+    assert!(
+        err.contains("blocks-lie.laz") && err.contains("2500000"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// Every scan of an E57 file is read, each with its own pose (rotation and translation) applied,
 /// and points without valid coordinates are skipped and counted.
 #[test]
