@@ -44,7 +44,7 @@ impl Seek for Tracked {
 /// Reads LAS/LAZ. Records are read (and LAZ decompressed on all cores) by a producer thread one
 /// block ahead, while the caller decodes the previous block into columns: decoding overlaps
 /// decompression instead of following it. LAZ of more than one block has two producers taking
-/// the blocks in turn ([`produce_records`]).
+/// the blocks in turn (`produce_records`).
 pub struct LasSource {
     info: SourceInfo,
     header: las::Header,
