@@ -340,13 +340,22 @@ fn locate_laz_damage(
 /// that none waits on another's last chunk (KY, 50,000-point chunks on 2 cores: 8 a block, not
 /// 10.5, made reading ~5 % shorter).
 fn producer_block(header: &las::Header) -> u64 {
-    match header.laz_vlr().map(|v| v.chunk_size() as u64) {
-        Ok(c) if c > 0 && c != u32::MAX as u64 => {
+    match fixed_chunk(header) {
+        Some(c) => {
             let cores = rayon::current_num_threads().max(1) as u64;
             (PRODUCER_BLOCK / (c * cores)).max(1) * cores * c
         }
-        _ => PRODUCER_BLOCK,
+        None => PRODUCER_BLOCK,
     }
+}
+
+/// The points per LAZ chunk, when the file is LAZ of chunks of one fixed size.
+fn fixed_chunk(header: &las::Header) -> Option<u64> {
+    if !header.point_format().is_compressed {
+        return None;
+    }
+    let c = header.laz_vlr().ok()?.chunk_size() as u64;
+    (c > 0 && c != u32::MAX as u64).then_some(c)
 }
 
 /// A producer thread: reads every `stride`-th block of records from the `first`, of `total`
@@ -446,8 +455,12 @@ impl PointSource for LasSource {
             let (path, total) = (self.info.path.clone(), self.remaining);
             let data_at = self.data_at;
             // Two producers in turn for LAZ of more than one block (see `produce_records`).
-            let compressed = self.header.point_format().is_compressed;
-            let stride = if compressed && total > producer_block(&self.header) {
+            // Only where blocks are whole fixed-size chunks: each producer seeks to its blocks,
+            // and the `laz` crate seeks right only to the start of a chunk of the fixed size (in
+            // a file of variable chunks, COPC's, it takes the point's index for its place in the
+            // chunk).
+            let chunked = fixed_chunk(&self.header).is_some();
+            let stride = if chunked && total > producer_block(&self.header) {
                 2
             } else {
                 1
