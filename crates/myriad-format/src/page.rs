@@ -55,7 +55,7 @@ impl Quantization {
 /// that `round` is on baseline x86-64 and without a branch: the truncation is exact and so is
 /// the fraction it leaves (below 2^52; above, `v` is whole and the fraction 0).
 #[inline]
-pub fn round_to_i64(v: f64) -> i64 {
+fn round_to_i64(v: f64) -> i64 {
     let t = v as i64;
     let fraction = v - t as f64;
     t.saturating_add((fraction >= 0.5) as i64 - (fraction <= -0.5) as i64)
@@ -93,8 +93,7 @@ fn shuffle(bytes: &[u8], width: usize) -> Vec<u8> {
 
 fn unshuffle(bytes: &[u8], width: usize) -> Vec<u8> {
     /// A value's bytes gathered from its planes, the width known to the compiler (the node
-    /// pages' columns are 2, 4, 6 and 8 bytes wide): a third of the time of the loop over any
-    /// width.
+    /// pages' columns are 2, 4, 6 and 8 bytes wide), so that the loop over the planes unrolls.
     fn fixed<const W: usize>(bytes: &[u8]) -> Vec<u8> {
         let n = bytes.len() / W;
         let mut out = vec![0u8; bytes.len()];

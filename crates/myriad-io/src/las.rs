@@ -43,8 +43,8 @@ impl Seek for Tracked {
 
 /// Reads LAS/LAZ. Records are read (and LAZ decompressed on all cores) by a producer thread one
 /// block ahead, while the caller decodes the previous block into columns: decoding overlaps
-/// decompression instead of following it. LAZ of more than one block has two producers taking
-/// the blocks in turn (`produce_records`).
+/// decompression instead of following it. LAZ of fixed-size chunks and more than one block has
+/// two producers taking the blocks in turn (`produce_records`).
 pub struct LasSource {
     info: SourceInfo,
     header: las::Header,
@@ -359,7 +359,8 @@ fn fixed_chunk(header: &las::Header) -> Option<u64> {
 }
 
 /// A producer thread: reads every `stride`-th block of records from the `first`, of `total`
-/// records in all, and sends them, or the first error. LAZ is read by two producers in turn:
+/// records in all, and sends them, or the first error. LAZ of fixed-size chunks is read by two
+/// producers in turn:
 /// one's blocks decompress while the other's last chunks finish (a block's chunks run in
 /// parallel, and the cores wait for the slowest), so that the cores are not left waiting.
 fn produce_records(
@@ -390,9 +391,6 @@ fn produce_records(
     };
     let builder = las::PointDataBuilder::new().for_header(reader.header());
     let block = producer_block(reader.header());
-    if block == 0 {
-        return;
-    }
     let mut at = 0u64; // where the reader stands
     let mut read = first * block;
     while read < total {
