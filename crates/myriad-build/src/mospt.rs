@@ -76,14 +76,16 @@ pub fn codes(batch: &PointBatch, cube: &Aabb) -> Vec<u64> {
 
 /// The order that sorts `codes`.
 pub fn sort_order(codes: &[u64]) -> Vec<u32> {
-    // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache. The
-    // radix sort is stable, so equal codes keep their indices' order.
+    // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache. No two
+    // pairs are equal, so the unstable sort leaves equal codes in their indices' order. The
+    // radix sort made eight passes over a chunk of 63-bit codes: 39 ns a pair at 450 k pairs,
+    // 60-72 at 2 M (a chunk of a large build), against 32 and 37 for this sort.
     let mut pairs: Vec<(u64, u32)> = codes
         .iter()
         .enumerate()
         .map(|(i, &c)| (c, i as u32))
         .collect();
-    crate::radix::sort_by_key(&mut pairs, |p| p.0);
+    pairs.sort_unstable();
     pairs.into_iter().map(|p| p.1).collect()
 }
 

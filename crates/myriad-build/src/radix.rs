@@ -1,7 +1,8 @@
-//! A stable least-significant-digit radix sort on 64-bit keys, for the build's two big sorts
-//! (Morton codes of a chunk, acquisition times of a node). No crate of this workspace's
-//! dependencies sorts by radix; `sort_unstable` on KY took 6 % of a convert's cycles, and a
-//! radix sort skips the digits every key shares (the high bits of a node's GPS times).
+//! A stable least-significant-digit radix sort on 64-bit keys, for a node's acquisition times.
+//! No crate of this workspace's dependencies sorts by radix; it skips the digits every key
+//! shares (the high bits of a node's GPS times), and on a node's at most 65,536 points it beats
+//! `sort_unstable` (18 ns a pair against 28 at 65 k random pairs). A chunk's Morton codes are
+//! sorted by `sort_unstable` ([`crate::mospt::sort_order`]), which wins at a chunk's size.
 
 /// Sorts `items` by `key`, stably (equal keys keep their order), one pass per byte of the key
 /// that is not the same in every item.

@@ -239,21 +239,27 @@ fn encode_ints(batch: &PointBatch, ints: &[[i64; 3]]) -> Vec<u8> {
     }
     let widths = bits.map(|b| (b as usize).div_ceil(8));
     let mut columns = Vec::new();
-    // Positions: the three axes one after the other, each in its own byte planes (written
-    // straight to their planes).
+    // Positions: the three axes one after the other, each in its own byte planes. An axis's
+    // differences first, then its planes one by one, each a loop the compiler vectorizes
+    // (writing each value's bytes to its planes at once took 35.3 ns a point for a whole
+    // 65,536-point page, against 33.4).
     let mut planes = vec![0u8; n * widths.iter().sum::<usize>()];
-    let mut base = 0;
+    let mut differences = vec![0u64; n];
+    let mut rest = &mut planes[..];
     for a in 0..3 {
         let mut prev = 0u64;
-        for (i, v) in ints.iter().enumerate() {
+        for (d, v) in differences.iter_mut().zip(ints) {
             let rel = v[a].wrapping_sub(origin[a]) as u64;
-            let out = zigzag(rel.wrapping_sub(prev), widths[a]);
+            *d = zigzag(rel.wrapping_sub(prev), widths[a]);
             prev = rel;
-            for b in 0..widths[a] {
-                planes[base + b * n + i] = (out >> (8 * b)) as u8;
+        }
+        let (axis, after) = rest.split_at_mut(n * widths[a]);
+        for (b, plane) in axis.chunks_exact_mut(n.max(1)).enumerate() {
+            for (o, d) in plane.iter_mut().zip(&differences) {
+                *o = (d >> (8 * b)) as u8;
             }
         }
-        base += n * widths[a];
+        rest = after;
     }
     columns.push(Column {
         id: POSITION_COLUMN,
