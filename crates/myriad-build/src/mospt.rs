@@ -449,6 +449,25 @@ mod tests {
     }
 
     #[test]
+    fn the_morton_order_keeps_equal_codes_in_input_order() {
+        // Many equal codes (few distinct values, some at the extremes): the order must be the
+        // stable sort's, which the nested build and the leaves' last level rely on.
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let codes: Vec<u64> = (0..50_000)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                [0, 1, 1 << 62, (1 << 63) - 1, x % 97][(x >> 40) as usize % 5]
+            })
+            .collect();
+        let mut stable: Vec<u32> = (0..codes.len() as u32).collect();
+        stable.sort_by_key(|&i| codes[i as usize]);
+        assert_eq!(sort_order(&codes), stable);
+        assert!(sort_order(&[]).is_empty());
+    }
+
+    #[test]
     fn a_fitted_order_is_the_whole_orders_fitting_prefix() {
         for (n, seed, depth, cap) in [(20_000, 7, 7, 5000), (20_000, 8, 7, 1), (3000, 9, 21, 700)] {
             let pts = random_points(n, seed);
