@@ -28,6 +28,8 @@ const FRAME_ROWS_ZSTD: u32 = 1;
 const FRAME_PAGE: u32 = 2;
 /// Bytes before a frame's body: kind, raw length, stored length (u32 each).
 const FRAME_HEAD: usize = 12;
+/// Bytes of the grid before a page frame's page: scale and offset (f64 each).
+const GRID_BYTES: usize = 48;
 
 /// A spill frame of `batch`'s points: its kind, its raw length (bytes of rows; points of a
 /// page) and its stored length, then the body.
@@ -118,19 +120,23 @@ impl Frames {
             .read_exact(&mut body)
             .map_err(|_| self.error("spill file ends inside a frame"))?;
         let batch = match kind {
-            FRAME_PAGE if len >= 48 => {
+            FRAME_PAGE if len < GRID_BYTES => {
+                return Err(self.error("spill page frame shorter than its grid"));
+            }
+            FRAME_PAGE => {
                 let f = |k: usize| f64::from_le_bytes(body[8 * k..8 * k + 8].try_into().unwrap());
                 let q = Quantization {
                     scale: [f(0), f(1), f(2)],
                     offset: [f(3), f(4), f(5)],
                 };
-                let b = myriad_format::page::decode(&body[48..], schema, &q).map_err(|e| {
-                    Error::at_byte(
-                        &self.path,
-                        self.at + (FRAME_HEAD + 48 + e.at) as u64,
-                        e.message,
-                    )
-                })?;
+                let b =
+                    myriad_format::page::decode(&body[GRID_BYTES..], schema, &q).map_err(|e| {
+                        Error::at_byte(
+                            &self.path,
+                            self.at + (FRAME_HEAD + GRID_BYTES + e.at) as u64,
+                            e.message,
+                        )
+                    })?;
                 if b.len() != raw {
                     return Err(self.error("spill frame has the wrong point count"));
                 }
@@ -230,7 +236,7 @@ mod tests {
         };
         let page = encode_frame(&on, grid);
         assert_eq!(kind(&page), FRAME_PAGE);
-        // A node page: far smaller than the rows (58 bytes a point here).
+        // A node page: far smaller than the rows (55 bytes a point here).
         assert!(
             page.len() < on.len() * on.row_size() / 3,
             "{} bytes",

@@ -93,7 +93,8 @@ fn shuffle(bytes: &[u8], width: usize) -> Vec<u8> {
 
 fn unshuffle(bytes: &[u8], width: usize) -> Vec<u8> {
     /// A value's bytes gathered from its planes, the width known to the compiler (the node
-    /// pages' columns are 2, 4, 6 and 8 bytes wide), so that the loop over the planes unrolls.
+    /// pages' columns are 2, 4, 6 and 8 bytes wide, extra bytes often 3), so that the loop over
+    /// the planes unrolls.
     fn fixed<const W: usize>(bytes: &[u8]) -> Vec<u8> {
         let n = bytes.len() / W;
         let mut out = vec![0u8; bytes.len()];
