@@ -74,11 +74,6 @@ pub fn codes(batch: &PointBatch, cube: &Aabb) -> Vec<u64> {
         .collect()
 }
 
-/// The order that sorts `codes`.
-pub fn sort_order(codes: &[u64]) -> Vec<u32> {
-    sort_codes(codes).0
-}
-
 /// The order that sorts `codes`, and the codes in that order.
 pub fn sort_codes(codes: &[u64]) -> (Vec<u32>, Vec<u64>) {
     // Sort (code, index) pairs: sorting indices by a looked-up key would miss the cache. No two
@@ -466,11 +461,10 @@ mod tests {
             .collect();
         let mut stable: Vec<u32> = (0..codes.len() as u32).collect();
         stable.sort_by_key(|&i| codes[i as usize]);
-        assert_eq!(sort_order(&codes), stable);
-        assert!(sort_order(&[]).is_empty());
-        // The codes come with the order, each its point's.
         let (order, sorted) = sort_codes(&codes);
         assert_eq!(order, stable);
+        assert!(sort_codes(&[]).0.is_empty());
+        // The codes come with the order, each its point's.
         let expected: Vec<u64> = stable.iter().map(|&i| codes[i as usize]).collect();
         assert_eq!(sorted, expected);
     }
@@ -483,9 +477,7 @@ mod tests {
                 .map(|i| [(i * 31 % 65536) as u16, (i * 7 % 65536) as u16, 9])
                 .collect();
             let b = batch(&pts, Some(&colours));
-            let codes = codes(&b, &unit());
-            let sorted = sort_order(&codes);
-            let sc: Vec<u64> = sorted.iter().map(|&i| codes[i as usize]).collect();
+            let (sorted, sc) = sort_codes(&codes(&b, &unit()));
             let whole = build_places(&b, &sorted, &sc, &unit(), depth, None);
             let fitted = build_places(&b, &sorted, &sc, &unit(), depth, Some(cap));
             let keep = crate::nested::fitting_prefix(&whole, cap);
