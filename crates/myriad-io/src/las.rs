@@ -238,6 +238,58 @@ impl LasSource {
     }
 }
 
+/// Starts the producer threads that read (and decompress) `total` records from `path`.
+fn start_stream(path: &Path, header: &las::Header, data_at: u64, total: u64) -> RecordStream {
+    // Two producers in turn for LAZ of more than one block (see `produce_records`).
+    // Only where blocks are whole fixed-size chunks: each producer seeks to its blocks,
+    // and the `laz` crate seeks right only to the start of a chunk of the fixed size (in
+    // a file of variable chunks, COPC's, it takes the point's index for its place in the
+    // chunk).
+    let chunked = fixed_chunk(header).is_some();
+    let stride = if chunked && total > producer_block(header) {
+        2
+    } else {
+        1
+    };
+    let producers = (0..stride)
+        .map(|first| {
+            let (tx, rx) = sync_channel(1);
+            let (spent, spent_rx) = sync_channel(2);
+            let path = path.to_path_buf();
+            std::thread::Builder::new()
+                .name("las-reader".into())
+                .spawn(move || produce_records(path, data_at, total, (first, stride), tx, spent_rx))
+                .expect("spawn LAS reader thread");
+            (rx, spent)
+        })
+        .collect();
+    RecordStream {
+        producers,
+        next: 0,
+        pending: None,
+        at: 0,
+    }
+}
+
+impl RecordStream {
+    /// Hands the block read to the end back to its producer to refill (dropped if it has
+    /// enough, or has ended) and takes the next block, from the producers in turn.
+    fn advance(&mut self, path: &Path) -> Result<()> {
+        if let Some((done, from)) = self.pending.take() {
+            let _ = self.producers[from].1.try_send(done);
+        }
+        let from = self.next;
+        self.next = (from + 1) % self.producers.len();
+        let block = self.producers[from]
+            .0
+            .recv()
+            .map_err(|_| Error::at_byte(path, 0, "the reader thread stopped early"))?;
+        self.pending = Some((block?, from));
+        self.at = 0;
+        Ok(())
+    }
+}
+
 /// An error from the `las` reader, at the byte the file handle had reached.
 fn read_error(path: &Path, at: u64, read: u64, total: u64, e: las::Error) -> Error {
     if is_eof(&e) {
@@ -449,53 +501,13 @@ impl PointSource for LasSource {
         if self.remaining == 0 {
             return Ok(None);
         }
-        let stream = self.stream.get_or_insert_with(|| {
-            let (path, total) = (self.info.path.clone(), self.remaining);
-            let data_at = self.data_at;
-            // Two producers in turn for LAZ of more than one block (see `produce_records`).
-            // Only where blocks are whole fixed-size chunks: each producer seeks to its blocks,
-            // and the `laz` crate seeks right only to the start of a chunk of the fixed size (in
-            // a file of variable chunks, COPC's, it takes the point's index for its place in the
-            // chunk).
-            let chunked = fixed_chunk(&self.header).is_some();
-            let stride = if chunked && total > producer_block(&self.header) {
-                2
-            } else {
-                1
-            };
-            let producers = (0..stride)
-                .map(|first| {
-                    let (tx, rx) = sync_channel(1);
-                    let (spent, spent_rx) = sync_channel(2);
-                    let path = path.clone();
-                    std::thread::Builder::new()
-                        .name("las-reader".into())
-                        .spawn(move || {
-                            produce_records(path, data_at, total, (first, stride), tx, spent_rx)
-                        })
-                        .expect("spawn LAS reader thread");
-                    (rx, spent)
-                })
-                .collect();
-            RecordStream {
-                producers,
-                next: 0,
-                pending: None,
-                at: 0,
-            }
-        });
+        let (path, header) = (&self.info.path, &self.header);
+        let (data_at, total) = (self.data_at, self.remaining);
+        let stream = self
+            .stream
+            .get_or_insert_with(|| start_stream(path, header, data_at, total));
         if stream.at == stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) {
-            // Back to its producer to refill; dropped if it has enough, or has ended.
-            if let Some((done, from)) = stream.pending.take() {
-                let _ = stream.producers[from].1.try_send(done);
-            }
-            let from = stream.next;
-            stream.next = (from + 1) % stream.producers.len();
-            let block = stream.producers[from].0.recv().map_err(|_| {
-                Error::at_byte(&self.info.path, 0, "the reader thread stopped early")
-            })?;
-            stream.pending = Some((block?, from));
-            stream.at = 0;
+            stream.advance(path)?;
         }
         let pending = stream.pending.as_ref().map_or(&[][..], |d| d.0.raw_bytes());
         let left = (pending.len() - stream.at) / self.record_len;
@@ -516,25 +528,25 @@ impl PointSource for LasSource {
     }
 }
 
-/// Reads every point record of a LAS/LAZ file as raw bytes, decoding nothing: the speed of the
-/// `las`/`laz` crates alone (LAZ decompressed on all cores), the baseline for [`LasSource`].
+/// Reads every point record of a LAS/LAZ file as raw bytes, decoding none into columns: the
+/// speed of the `las`/`laz` crates alone, the baseline for [`LasSource`], read by the same
+/// producer threads (LAZ decompressed on all cores, two producers in turn): what reading could
+/// reach if decoding records cost nothing. Returns the records read.
 pub fn read_raw_records(path: &Path) -> Result<u64> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
-        .map_err(|e| header_error(path, e))?;
-    let mut data = las::PointDataBuilder::new()
-        .for_header(reader.header())
-        .build();
-    let mut n = 0;
-    loop {
-        let got = reader
-            .fill_points(crate::MAX_BATCH as u64, &mut data)
-            .map_err(|e| header_error(path, e))?;
-        if got == 0 {
-            return Ok(n);
+    let source = LasSource::open(path)?;
+    let total = source.remaining;
+    let mut stream = start_stream(path, &source.header, source.data_at, total);
+    let mut read = 0u64;
+    while read < total {
+        stream.advance(path)?;
+        let records =
+            stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) / source.record_len;
+        if records == 0 {
+            return Err(Error::at_byte(path, 0, "the reader thread stopped early"));
         }
-        n += got;
+        read += records as u64;
     }
+    Ok(read)
 }
 
 fn crs_of(header: &las::Header) -> Option<String> {

@@ -355,6 +355,8 @@ fn laz_layer_sizes_are_checked() {
 
 /// A LAZ file of several blocks (read by two producers in turn) gives every point once, in
 /// order; a header that declares more points than the chunks hold is an error, not a hang.
+/// `read_raw_records` (the `bench` baseline, the same producers) counts the same records and
+/// fails the same way.
 #[test]
 fn laz_of_many_blocks_reads_in_order() {
     let schema = Schema::new(vec![Attribute::Intensity, Attribute::GpsTime]);
@@ -394,6 +396,7 @@ fn laz_of_many_blocks_reads_in_order() {
         Ok(next)
     };
     assert_eq!(read_all(&p).unwrap(), n);
+    assert_eq!(myriad_io::las::read_raw_records(&p).unwrap(), n as u64);
     // The header says 2.5 M points: the error names the file and comes after the points that
     // are there, from whichever producer meets it first in file order.
     let mut bytes = std::fs::read(&p).unwrap();
@@ -403,6 +406,13 @@ fn laz_of_many_blocks_reads_in_order() {
     }
     let lie = tmp("blocks-lie.laz", &bytes);
     let err = read_all(&lie)
+        .expect_err("more points declared than held")
+        .to_string();
+    assert!(
+        err.contains("blocks-lie.laz") && err.contains("2500000"),
+        "{err}"
+    );
+    let err = myriad_io::las::read_raw_records(&lie)
         .expect_err("more points declared than held")
         .to_string();
     assert!(
