@@ -130,6 +130,8 @@ pub fn append(
     report: &dyn Report,
 ) -> Result<AppendSummary> {
     let start = Instant::now();
+    myriad_io::atomic::refuse_input_as_output(dataset, inputs)?;
+    myriad_io::atomic::refuse_repeated_inputs(inputs)?;
     convert::remove_stale(dataset);
     let ds = Dataset::open(dataset)?;
     let mut meta = ds.meta.clone();

@@ -283,7 +283,8 @@ pub struct Summary {
 }
 
 /// Removes what a killed build left next to `output`: spill folders and partial outputs whose
-/// process is gone.
+/// process is gone ([`myriad_io::claim`]: their lock is free and they are older than this
+/// process), never those of a build still running, on this machine or another.
 pub fn remove_stale(output: &Path) {
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -292,27 +293,20 @@ pub fn remove_stale(output: &Path) {
     let Some(name) = output.file_name().and_then(|n| n.to_str()) else {
         return;
     };
+    myriad_io::claim::remove_stale_folders(dir, SPILL_PREFIX);
     let partial = format!(".{name}.");
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
-    let dead = |pid: &str| {
-        pid.parse::<u32>()
-            .is_ok_and(|p| p != std::process::id() && !Path::new("/proc").join(pid).exists())
-    };
     for e in entries.flatten() {
         let file = e.file_name();
         let Some(f) = file.to_str() else { continue };
-        if let Some(pid) = f.strip_prefix(SPILL_PREFIX) {
-            if dead(pid) {
-                let _ = std::fs::remove_dir_all(e.path());
-            }
-        } else if let Some(rest) = f.strip_prefix(&partial) {
-            if let Some(pid) = rest.strip_suffix(".partial") {
-                if dead(pid) {
-                    let _ = std::fs::remove_file(e.path());
-                }
-            }
+        if f.starts_with(&partial)
+            && f.ends_with(".partial")
+            && e.path().is_file()
+            && myriad_io::claim::is_stale_file(&e.path())
+        {
+            let _ = std::fs::remove_file(e.path());
         }
     }
 }
@@ -367,6 +361,29 @@ pub(crate) fn quantization(
     Ok(Quantization { scale, offset })
 }
 
+/// Extensions of the formats Myriad reads or writes other than datasets: a dataset written
+/// under one of them would be taken for a scan.
+const NOT_A_DATASET: &[&str] = &[
+    "las", "laz", "ply", "pcd", "xyz", "txt", "csv", "pts", "e57", "png", "json", "glb", "gltf",
+];
+
+/// The output of a build: a dataset name in a folder that exists, not one of the inputs
+/// (`--force` included), and no input given twice.
+pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
+    if let Some(e) = out.extension().and_then(|e| e.to_str())
+        && NOT_A_DATASET.contains(&e.to_ascii_lowercase().as_str())
+    {
+        return Err(Error::Invalid(format!(
+            "{}: convert writes a dataset (.myr), not .{e} (`myriad export` and `extract` \
+             write LAS, LAZ, COPC and PLY)",
+            out.display()
+        )));
+    }
+    myriad_io::atomic::require_folder(out)?;
+    myriad_io::atomic::refuse_input_as_output(out, inputs)?;
+    myriad_io::atomic::refuse_repeated_inputs(inputs)
+}
+
 /// Converts `inputs` into a dataset at `options.output`.
 pub fn convert(
     inputs: &[PathBuf],
@@ -381,6 +398,7 @@ pub fn convert(
             out.display()
         )));
     }
+    check_output(out, inputs)?;
     check_memory(options.memory)?;
     if !(options.precision.is_finite() && options.precision > 0.0) {
         return Err(Error::Invalid(

@@ -25,7 +25,7 @@ use std::collections::HashMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// Name of the spill folder, followed by the process id.
+/// Name of the spill folder, followed by the process's tag ([`myriad_io::claim::tag`]).
 pub const SPILL_PREFIX: &str = ".myriad-build-";
 
 /// Deepest chunk level (a 21-bit cell index per axis).
@@ -110,7 +110,7 @@ pub struct Distribution {
     /// spill files, and its points are never turned into rows.
     resident: std::sync::Mutex<HashMap<[u32; 3], PointBatch>>,
     /// Held so that dropping the distribution removes the spill files.
-    _spill: SpillFolder,
+    _spill: myriad_io::claim::Folder,
 }
 
 impl Distribution {
@@ -154,7 +154,7 @@ impl Distribution {
     /// The private folder of the spill files (removed with the distribution), for other
     /// temporary files of the build.
     pub fn spill_dir(&self) -> &Path {
-        &self._spill.0
+        self._spill.path()
     }
 
     /// The cube of a chunk's cell.
@@ -166,14 +166,6 @@ impl Distribution {
 }
 
 #[derive(Debug)]
-struct SpillFolder(PathBuf);
-
-impl Drop for SpillFolder {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// Write buffers of the chunks of one level, flushed to their files when `limit` is reached.
 /// A buffer holds its points as a batch; they become rows only when written to a spill file.
 struct Scatter<'a> {
@@ -545,11 +537,7 @@ pub fn distribute_with(
     };
     let keep = options.grid.as_ref().and_then(|g| g.cells.as_ref());
 
-    let folder = options
-        .temp_dir
-        .join(format!("{SPILL_PREFIX}{}", std::process::id()));
-    std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
-    let folder = SpillFolder(folder);
+    let folder = myriad_io::claim::Folder::create(&options.temp_dir, SPILL_PREFIX)?;
     let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
     let codec = Codec {
         compress: declared.saturating_mul(row) > options.compress_above,
@@ -564,7 +552,7 @@ pub fn distribute_with(
             }),
     };
     let mut scatter = Scatter::new(
-        &folder.0,
+        folder.path(),
         level,
         &schema,
         options.buffer_bytes,
@@ -659,7 +647,7 @@ pub fn distribute_with(
             &root,
             level + 1,
             &schema,
-            &folder.0,
+            folder.path(),
             options.buffer_bytes,
             codec,
         )?;
@@ -690,7 +678,7 @@ pub fn distribute_with(
                     &root,
                     chunk.level + 1,
                     &schema,
-                    &folder.0,
+                    folder.path(),
                     share.max(1 << 20),
                     codec,
                 )

@@ -371,6 +371,8 @@ fn export_octree(
         }
     }
     flush(&mut group, &mut summary)?;
+    // Nothing of a dataset that changed on its server while it was read.
+    ds.check_unchanged()?;
     summary.bytes = match sink {
         Sink::Copc(s) => s.finish()?.bytes,
         Sink::Potree(s) => s.finish()?.bytes,

@@ -105,6 +105,28 @@ pub(crate) fn prefix_for(n: &NodeEntry, spacing: Option<f64>) -> usize {
 /// Writes the points of `ds` that the options select to `out` (.las, .laz or .ply). Damaged
 /// nodes are reported in the summary and skipped.
 pub fn extract(ds: &Dataset, out: &Path, o: &ExtractOptions) -> Result<ExtractSummary> {
+    extract_within(ds, out, o, u64::MAX, &|| false)
+}
+
+/// Why [`extract_within`] stopped before the end.
+pub const TOO_MANY_POINTS: &str = "the box holds more than";
+pub const CANCELLED: &str = "extraction cancelled";
+
+/// [`extract`], refusing a selection of more than `max_points` points (at once where the
+/// nodes wholly inside the box already hold more, else as soon as the count passes it) and
+/// stopping at the next node once `cancelled` says so; nothing is written then.
+pub fn extract_within(
+    ds: &Dataset,
+    out: &Path,
+    o: &ExtractOptions,
+    max_points: u64,
+    cancelled: &dyn Fn() -> bool,
+) -> Result<ExtractSummary> {
+    let too_many = || {
+        Error::Invalid(format!(
+            "{TOO_MANY_POINTS} {max_points} points: ask for a smaller box or a coarser spacing"
+        ))
+    };
     let ext = out
         .extension()
         .and_then(|e| e.to_str())
@@ -119,7 +141,25 @@ pub fn extract(ds: &Dataset, out: &Path, o: &ExtractOptions) -> Result<ExtractSu
     };
     let (nodes, mut damage) = hierarchy_for(ds, o);
     let mut summary = ExtractSummary::default();
-    for n in wanted(ds, nodes, o) {
+    let nodes = wanted(ds, nodes, o);
+    if max_points < u64::MAX {
+        let surely: u64 = nodes
+            .iter()
+            .filter(|n| {
+                let cube = n.bounds_in(&ds.meta.root);
+                o.bbox
+                    .is_none_or(|b| (0..3).all(|a| b.min[a] <= cube.min[a] && cube.max[a] <= b.max[a]))
+            })
+            .map(|n| prefix_for(n, o.spacing) as u64)
+            .sum();
+        if surely > max_points {
+            return Err(too_many());
+        }
+    }
+    for n in nodes {
+        if cancelled() {
+            return Err(Error::Invalid(CANCELLED.into()));
+        }
         let mut batch = match ds.read_node(&n) {
             Ok(b) => b,
             Err(d) => {
@@ -137,11 +177,16 @@ pub fn extract(ds: &Dataset, out: &Path, o: &ExtractOptions) -> Result<ExtractSu
             continue;
         }
         summary.points += batch.len() as u64;
+        if summary.points > max_points {
+            return Err(too_many());
+        }
         match &mut sink {
             Sink::Las(s) => s.write(&batch)?,
             Sink::Ply(s) => s.write(&batch)?,
         }
     }
+    // Nothing of a dataset that changed on its server while it was read.
+    ds.check_unchanged()?;
     match sink {
         Sink::Las(s) => s.finish()?,
         Sink::Ply(s) => s.finish()?,

@@ -173,6 +173,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         return Err(Error::Invalid("--parts must be at least 1".into()));
     }
     convert::check_memory(o.memory)?;
+    myriad_io::atomic::refuse_repeated_inputs(inputs)?;
     let mut infos = Vec::new();
     let mut planned = Vec::new();
     let mut las_header = None;
@@ -579,14 +580,6 @@ pub struct MergeSummary {
     pub seconds: f64,
 }
 
-/// Removes the merge's spill folder however it ends.
-struct Folder(PathBuf);
-impl Drop for Folder {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// Merges the parts of `plan` in `dir` into one dataset at `out`.
 pub fn merge(
     plan: &BuildPlan,
@@ -610,8 +603,8 @@ pub fn merge(
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let spill_dir = Folder(parent.join(format!("{SPILL_PREFIX}{}", std::process::id())));
-    std::fs::create_dir_all(&spill_dir.0).map_err(|e| Error::io(&spill_dir.0, e))?;
+    // Removed however the merge ends.
+    let spill_dir = myriad_io::claim::Folder::create(&parent, SPILL_PREFIX)?;
     // Every part there and from this plan, before anything is written.
     let mut heads = Vec::new();
     let mut pending = Vec::new();
@@ -637,7 +630,7 @@ pub fn merge(
             parts.push(ds);
         }
         for n in nodes {
-            pending.push(convert::spill(n, &spill_dir.0)?);
+            pending.push(convert::spill(n, spill_dir.path())?);
         }
         heads.push(head);
     }
@@ -713,7 +706,7 @@ pub fn merge(
         schema: &plan.dataset.schema,
         writer: &writer,
         pool: &pool,
-        spill_dir: &spill_dir.0,
+        spill_dir: spill_dir.path(),
     }
     .build(pending, None, report)?;
 

@@ -109,6 +109,11 @@ pub trait ByteSource: Send + Sync {
     fn fetched(&self) -> Option<(u64, u64)> {
         None
     }
+    /// Why the source is no longer the one opened (a resource replaced on its server), once it
+    /// is known: what was read since may mix versions.
+    fn changed(&self) -> Option<String> {
+        None
+    }
 }
 
 /// A local file, read with positioned reads (no shared cursor).
@@ -193,6 +198,15 @@ impl Dataset {
     /// Requests made and bytes fetched so far, for a dataset read over a network.
     pub fn fetched(&self) -> Option<(u64, u64)> {
         self.bytes.fetched()
+    }
+
+    /// An error naming the dataset when its source changed while it was read (a dataset on a
+    /// web server replaced): a command's results from it cannot be trusted.
+    pub fn check_unchanged(&self) -> Result<()> {
+        match self.bytes.changed() {
+            Some(m) => Err(Error::Invalid(format!("{}: {m}", self.path.display()))),
+            None => Ok(()),
+        }
     }
 
     /// Opens a dataset from any byte source; `name` labels errors.

@@ -5,6 +5,12 @@
 //! them: a server that ignores `Range` is refused at once with an error that says so, failed
 //! reads are retried with backoff, at most [`MAX_IN_FLIGHT`] requests are out at a time, and the
 //! bytes fetched are counted.
+//!
+//! Every read is of one version of the resource: the first answer's `ETag` goes with every later
+//! request as `If-Range` (a server whose file changed answers with the whole new file instead
+//! of the range), and each answer's ETag and length are compared with the first's. Once the
+//! resource has changed, this read and every later one fail with [`CHANGED`], and
+//! [`ByteSource::changed`] says so: a command stops there, never mixing pages of two versions.
 
 use crate::ByteSource;
 use myriad_core::{Error, Result};
@@ -18,6 +24,8 @@ use std::time::Duration;
 pub const MAX_IN_FLIGHT: usize = 8;
 /// Attempts per read: a failed connection, a timeout or a 5xx/429 answer is tried again.
 const ATTEMPTS: u32 = 4;
+/// The start of the error of a read after the resource changed on its server.
+pub const CHANGED: &str = "changed on the server while it was read";
 
 /// Whether `path` names a dataset on a web server rather than a file.
 pub fn is_url(path: &Path) -> bool {
@@ -36,6 +44,10 @@ pub struct HttpBytes {
     freed: Condvar,
     requests: AtomicU64,
     fetched: AtomicU64,
+    /// The first answer's validator (none when the server gives none: the length is compared).
+    etag: Option<String>,
+    /// Set once an answer came from another version.
+    changed: Mutex<Option<String>>,
 }
 
 /// What went wrong with one request: worth another attempt or not.
@@ -64,11 +76,14 @@ impl HttpBytes {
             freed: Condvar::new(),
             requests: AtomicU64::new(0),
             fetched: AtomicU64::new(0),
+            etag: None,
+            changed: Mutex::new(None),
         };
-        let (head, total) =
+        let (head, total, etag) =
             (h.range(0, crate::HEADER_LEN)).map_err(|e| Error::io(Path::new(url), e))?;
         h.len = total;
         h.head = head;
+        h.etag = etag;
         Ok(h)
     }
 
@@ -80,8 +95,12 @@ impl HttpBytes {
         )
     }
 
-    /// Reads `len` bytes at `offset` (retrying); also returns the resource's whole length.
-    fn range(&self, offset: u64, len: usize) -> io::Result<(Vec<u8>, u64)> {
+    /// Reads `len` bytes at `offset` (retrying); also returns the resource's whole length and
+    /// validator.
+    fn range(&self, offset: u64, len: usize) -> io::Result<(Vec<u8>, u64, Option<String>)> {
+        if let Some(m) = self.changed.lock().expect("changed lock").clone() {
+            return Err(io::Error::other(m));
+        }
         {
             let mut free = self.slots.lock().expect("slots lock");
             while *free == 0 {
@@ -116,19 +135,43 @@ impl HttpBytes {
         result
     }
 
-    fn attempt(&self, offset: u64, len: usize) -> std::result::Result<(Vec<u8>, u64), Failure> {
+    /// Marks the resource as changed; the error every read gives from now on.
+    fn changed_now(&self, why: String) -> Failure {
+        let m = format!("{CHANGED} ({why}): start again");
+        *self.changed.lock().expect("changed lock") = Some(m.clone());
+        Failure::Fatal(m)
+    }
+
+    fn attempt(
+        &self,
+        offset: u64,
+        len: usize,
+    ) -> std::result::Result<(Vec<u8>, u64, Option<String>), Failure> {
         let last = offset + len.max(1) as u64 - 1;
         self.requests.fetch_add(1, Ordering::Relaxed);
-        let mut r = self
+        let mut req = self
             .agent
             .get(&self.url)
             .header("Range", format!("bytes={offset}-{last}"))
-            .header("Accept-Encoding", "identity")
-            .call()
-            .map_err(|e| Failure::Retry(e.to_string()))?;
+            .header("Accept-Encoding", "identity");
+        if let Some(e) = &self.etag {
+            req = req.header("If-Range", e);
+        }
+        let mut r = req.call().map_err(|e| Failure::Retry(e.to_string()))?;
         let status = r.status().as_u16();
+        let etag = r
+            .headers()
+            .get("etag")
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_string);
         match status {
             206 => {}
+            200 if self.etag.is_some() => {
+                return Err(self.changed_now(format!(
+                    "a whole file came for If-Range {}",
+                    self.etag.as_deref().unwrap_or_default()
+                )));
+            }
             200 => {
                 return Err(Failure::Fatal(
                     "the server ignores Range requests (it answered 200 with the whole file); \
@@ -157,6 +200,17 @@ impl HttpBytes {
                 "asked for bytes from {offset}, got them from {start}"
             )));
         }
+        // Not the first request: the same version as the first's, or nothing.
+        if self.len != u64::MAX {
+            if let (Some(was), Some(now)) = (&self.etag, &etag)
+                && was != now
+            {
+                return Err(self.changed_now(format!("ETag {was}, now {now}")));
+            }
+            if total != self.len {
+                return Err(self.changed_now(format!("{} bytes, now {total}", self.len)));
+            }
+        }
         let body = r
             .body_mut()
             .with_config()
@@ -171,7 +225,7 @@ impl HttpBytes {
                 body.len()
             )));
         }
-        Ok((body, total))
+        Ok((body, total, etag))
     }
 }
 
@@ -200,10 +254,13 @@ impl ByteSource for HttpBytes {
         if offset.saturating_add(len as u64) <= self.head.len() as u64 {
             return Ok(self.head[offset as usize..offset as usize + len].to_vec());
         }
-        self.range(offset, len).map(|(b, _)| b)
+        self.range(offset, len).map(|(b, _, _)| b)
     }
     fn fetched(&self) -> Option<(u64, u64)> {
         Some(self.stats())
+    }
+    fn changed(&self) -> Option<String> {
+        self.changed.lock().expect("changed lock").clone()
     }
 }
 

@@ -1,5 +1,7 @@
 //! Outputs that appear atomically: written under a hidden temporary name in the destination's
-//! folder, renamed over the final name only when complete, removed if dropped before that.
+//! folder, renamed over the final name only when complete, removed if dropped before that. The
+//! temporary name carries the process's [`crate::claim::tag`] and the file is locked while it is
+//! written, so that a later run removes it only once its writer is gone.
 
 use myriad_core::{Error, Result};
 use std::fs::{File, OpenOptions};
@@ -9,6 +11,8 @@ pub struct AtomicFile {
     target: PathBuf,
     temp: PathBuf,
     committed: bool,
+    /// Holds the temporary file's lock until it is renamed or removed.
+    _lock: File,
 }
 
 impl AtomicFile {
@@ -28,12 +32,14 @@ impl AtomicFile {
             .ok_or_else(|| Error::unsupported(target, "output has no file name"))?;
         let mut temp_name = std::ffi::OsString::from(".");
         temp_name.push(name);
-        temp_name.push(format!(".{}.partial", std::process::id()));
+        temp_name.push(format!(".{}.partial", crate::claim::tag()));
         let temp = target.with_file_name(temp_name);
+        let lock = crate::claim::create_locked(&temp)?;
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,
             committed: false,
+            _lock: lock,
         })
     }
 
@@ -68,6 +74,76 @@ impl Drop for AtomicFile {
     }
 }
 
+/// The same file by device and inode (however it is spelled: `a.las`, `dir/../a.las`, a link).
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+/// Refuses an output that is one of the inputs, or a folder holding one (`--force` included):
+/// nothing the user gave is replaced.
+pub fn refuse_input_as_output<P: AsRef<Path>>(output: &Path, inputs: &[P]) -> Result<()> {
+    let Ok(out) = std::fs::metadata(output) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let input = input.as_ref();
+        let Ok(m) = std::fs::metadata(input) else {
+            continue;
+        };
+        let inside = out.is_dir()
+            && input
+                .canonicalize()
+                .ok()
+                .zip(output.canonicalize().ok())
+                .is_some_and(|(i, o)| i.starts_with(o));
+        if same_file(&out, &m) || inside {
+            return Err(Error::Invalid(format!(
+                "{}: the output is the input {} (it would be replaced): choose another output",
+                output.display(),
+                input.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an input given twice (the same file by device and inode): its points would count
+/// twice.
+pub fn refuse_repeated_inputs<P: AsRef<Path>>(inputs: &[P]) -> Result<()> {
+    let mut seen: Vec<(&Path, std::fs::Metadata)> = Vec::new();
+    for input in inputs {
+        let input = input.as_ref();
+        let Ok(m) = std::fs::metadata(input) else {
+            continue;
+        };
+        if m.is_file()
+            && let Some((first, _)) = seen.iter().find(|(_, s)| same_file(s, &m))
+        {
+            return Err(Error::Invalid(format!(
+                "{}: given twice (also as {}); each input is read once, give it once",
+                input.display(),
+                first.display()
+            )));
+        }
+        seen.push((input, m));
+    }
+    Ok(())
+}
+
+/// Refuses an output whose folder does not exist (rather than making folders up to the root
+/// from a mistyped path).
+pub fn require_folder(output: &Path) -> Result<()> {
+    match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => Err(Error::Invalid(format!(
+            "{}: the folder {} does not exist (make it first)",
+            output.display(),
+            d.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -96,6 +172,31 @@ mod tests {
         assert_eq!(std::fs::read(&target).unwrap(), b"done");
         assert!(AtomicFile::create(&target, false).is_err());
         assert!(AtomicFile::create(&target, true).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_input_is_never_the_output_nor_given_twice() {
+        let dir = std::env::temp_dir().join(format!("myriad-inout-{}", std::process::id()));
+        let sub = dir.join("sub");
+        std::fs::create_dir_all(&sub).unwrap();
+        let a = dir.join("a.las");
+        std::fs::write(&a, b"scan").unwrap();
+        let b = dir.join("b.las");
+        std::fs::write(&b, b"scan").unwrap();
+        let spelled = sub.join("..").join("a.las");
+        let e = refuse_input_as_output(&spelled, &[&b, &a]).unwrap_err().to_string();
+        assert!(e.contains("is the input") && e.contains("a.las"), "{e}");
+        assert!(refuse_input_as_output(&dir, &[&a]).is_err(), "a folder holding the input");
+        assert!(refuse_input_as_output(&dir.join("c.myr"), &[&a, &b]).is_ok());
+        assert!(refuse_input_as_output(&b, &[&a]).is_ok());
+        let e = refuse_repeated_inputs(&[&a, &b, &spelled]).unwrap_err().to_string();
+        assert!(e.contains("given twice"), "{e}");
+        assert!(refuse_repeated_inputs(&[&a, &b]).is_ok());
+        let e = require_folder(&dir.join("no/such/x.myr")).unwrap_err().to_string();
+        assert!(e.contains("does not exist"), "{e}");
+        assert!(require_folder(&sub.join("x.myr")).is_ok());
+        assert!(require_folder(Path::new("x.myr")).is_ok());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -11,6 +11,7 @@
 //! appears under its name only when complete.
 
 pub mod atomic;
+pub mod claim;
 pub mod copc;
 pub mod e57;
 pub mod las;

@@ -10,7 +10,7 @@
 //! LZF is decoded here (20 lines) rather than through a C binding so that a corrupt block is a
 //! clean error with its byte offset.
 
-use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
+use crate::read_util::{OffsetReader, Scalar, parse_f64, quote, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::path::Path;
@@ -133,7 +133,7 @@ impl PcdSource {
             let rest = &toks[1..];
             let num = |s: &str| -> Result<u64> {
                 s.parse()
-                    .map_err(|_| Error::at_line(path, line_no, format!("not a number: \"{s}\"")))
+                    .map_err(|_| Error::at_line(path, line_no, format!("not a number: \"{}\"", quote(s.as_bytes()))))
             };
             match key.to_ascii_uppercase().as_str() {
                 k if k.starts_with('#') => {}
@@ -180,7 +180,7 @@ impl PcdSource {
                     return Err(Error::at_line(
                         path,
                         line_no,
-                        format!("unknown PCD header key \"{other}\""),
+                        format!("unknown PCD header key \"{}\"", quote(other.as_bytes())),
                     ));
                 }
             }
@@ -491,7 +491,7 @@ impl PointSource for PcdSource {
                             Error::at_line(
                                 &self.info.path,
                                 self.line,
-                                format!("not a number: \"{}\"", String::from_utf8_lossy(t)),
+                                format!("not a number: \"{}\"", quote(t)),
                             )
                         })?);
                     }

@@ -5,7 +5,7 @@
 //! are skipped. Vertex records are read in blocks, so memory does not grow with the file.
 
 use crate::atomic::AtomicFile;
-use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
+use crate::read_util::{OffsetReader, Scalar, parse_f64, quote, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::io::{BufWriter, Write};
@@ -125,14 +125,14 @@ impl PlySource {
                         "ascii" => Encoding::Ascii,
                         "binary_little_endian" => Encoding::BinaryLe,
                         "binary_big_endian" => Encoding::BinaryBe,
-                        other => return Err(bad(format!("unknown PLY format \"{other}\""))),
+                        other => return Err(bad(format!("unknown PLY format \"{}\"", quote(other.as_bytes())))),
                     })
                 }
                 ["comment", ..] | ["obj_info", ..] | [] => {}
                 ["element", name, count] => {
                     let count = count
                         .parse::<u64>()
-                        .map_err(|_| bad(format!("bad element count \"{count}\"")))?;
+                        .map_err(|_| bad(format!("bad element count \"{}\"", quote(count.as_bytes()))))?;
                     elements.push(Element {
                         name: name.to_string(),
                         count,
@@ -377,7 +377,7 @@ impl PlySource {
                         Error::at_line(
                             &self.info.path,
                             self.line,
-                            format!("not a number: \"{}\"", String::from_utf8_lossy(t)),
+                            format!("not a number: \"{}\"", quote(t)),
                         )
                     })
                 };

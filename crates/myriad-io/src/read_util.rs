@@ -19,6 +19,21 @@ pub fn read_prefix(path: &Path, buf: &mut [u8]) -> Result<usize> {
     Ok(n)
 }
 
+/// Most bytes of one line of a text format (PLY and PCD headers, text and ASCII records).
+pub const MAX_LINE: usize = 64 << 10;
+
+/// At most 80 bytes of `bytes` as text for an error message, with "..." where cut.
+pub fn quote(bytes: &[u8]) -> String {
+    const MOST: usize = 80;
+    let cut = bytes.len() > MOST;
+    let mut t = String::from_utf8_lossy(&bytes[..bytes.len().min(MOST)]).into_owned();
+    t = t.escape_debug().to_string();
+    if cut {
+        t.push_str(&format!("... ({} bytes)", bytes.len()));
+    }
+    t
+}
+
 /// A buffered file reader that tracks the byte offset of the next byte it returns.
 pub struct OffsetReader {
     pub path: PathBuf,
@@ -36,13 +51,25 @@ impl OffsetReader {
         })
     }
 
-    /// Reads one line including its terminator into `line`; returns false at end of file.
+    /// Reads one line including its terminator into `line`; returns false at end of file. A
+    /// line longer than [`MAX_LINE`] bytes is an error naming where it starts (a binary file
+    /// named as text, or `/dev/zero`, would otherwise grow one line without end).
     pub fn read_line(&mut self, line: &mut Vec<u8>) -> Result<bool> {
         line.clear();
-        let n = self
-            .inner
+        let n = (&mut self.inner)
+            .take(MAX_LINE as u64 + 1)
             .read_until(b'\n', line)
             .map_err(|e| Error::io(&self.path, e))?;
+        if n > MAX_LINE && line.last() != Some(&b'\n') {
+            return Err(Error::at_byte(
+                &self.path,
+                self.offset,
+                format!(
+                    "a line longer than {MAX_LINE} bytes, the most a line of text or a header \
+                     may hold (is this a binary file?)"
+                ),
+            ));
+        }
         self.offset += n as u64;
         Ok(n > 0)
     }

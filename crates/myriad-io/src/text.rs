@@ -15,7 +15,7 @@
 //! the header count. Lines starting with `#` or `//` are comments. PTS intensities (-2048..2047)
 //! are stretched to 0..65535; colours 0..255 are widened to 16 bits.
 
-use crate::read_util::{OffsetReader, Scalar, parse_f64, to_u16_channel};
+use crate::read_util::{OffsetReader, Scalar, parse_f64, quote, to_u16_channel};
 use crate::{Format, PointSource, SourceInfo};
 use myriad_core::{Attribute, Error, PointBatch, PointRecord, Result, Schema};
 use std::path::Path;
@@ -156,7 +156,7 @@ impl TextSource {
                 return Err(Error::at_line(
                     path,
                     line_no,
-                    format!("not a number: \"{}\"", String::from_utf8_lossy(bad)),
+                    format!("not a number: \"{}\"", quote(bad)),
                 ));
             }
             break Some(toks.len());
@@ -246,7 +246,7 @@ impl TextSource {
                 Error::at_line(
                     &self.info.path,
                     self.line,
-                    format!("not a number: \"{}\"", String::from_utf8_lossy(t)),
+                    format!("not a number: \"{}\"", quote(t)),
                 )
             })?;
             match *c {

@@ -1,9 +1,11 @@
 //! `GET /x/NAME?box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ[&spacing=S]`: the original points of a served
 //! dataset inside a box (at a level of detail), as a LAZ file in the input's point format, made
-//! by `extract` on a blocking thread into a temporary file that is unlinked once open and
-//! streamed from there. At most [`MAX_AT_ONCE`] run at a time; the others wait.
+//! by `extract` on a blocking thread into a temporary file in the server's scratch folder that
+//! is unlinked once open and streamed from there. At most [`MAX_AT_ONCE`] run at a time; the
+//! others wait. A box of more than `Limits::max_points` points is refused (413), and an
+//! extraction whose client has left stops at its next node.
 
-use myriad_build::extract::{ExtractOptions, extract};
+use myriad_build::extract::{CANCELLED, ExtractOptions, TOO_MANY_POINTS, extract_within};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use std::path::{Path, PathBuf};
@@ -58,24 +60,54 @@ pub fn parse_query(q: &str) -> Result<Query, String> {
     })
 }
 
+/// Where a download is made and how large it may be.
+pub struct Limits {
+    pub max_points: u64,
+    pub scratch: PathBuf,
+}
+
+/// Why a download was not made.
+#[derive(Debug, PartialEq)]
+pub enum Failed {
+    /// More points than `Limits::max_points` (the answer's text).
+    TooLarge(String),
+    /// The client left.
+    Cancelled,
+    Other(String),
+}
+
 /// Extracts into a temporary file, opens it and unlinks it: the open file and its points.
-pub fn run(dataset: &Path, q: &Query) -> Result<(std::fs::File, u64), String> {
+pub fn run(
+    dataset: &Path,
+    q: &Query,
+    limits: &Limits,
+    cancelled: &dyn Fn() -> bool,
+) -> Result<(std::fs::File, u64), Failed> {
     static SERIAL: AtomicU64 = AtomicU64::new(0);
-    let tmp: PathBuf = std::env::temp_dir().join(format!(
-        "myriad-serve-{}-{}.laz",
-        std::process::id(),
+    let tmp: PathBuf = limits.scratch.join(format!(
+        "box-{}.laz",
         SERIAL.fetch_add(1, Ordering::Relaxed)
     ));
-    let ds = Dataset::open(dataset).map_err(|e| e.to_string())?;
+    let ds = Dataset::open(dataset).map_err(|e| Failed::Other(e.to_string()))?;
     let o = ExtractOptions {
         bbox: Some(q.bbox),
         spacing: q.spacing,
         force: true,
     };
-    let summary = extract(&ds, &tmp, &o).map_err(|e| e.to_string());
-    let file = std::fs::File::open(&tmp).map_err(|e| e.to_string());
+    let summary = extract_within(&ds, &tmp, &o, limits.max_points, cancelled).map_err(|e| {
+        let m = e.to_string();
+        if m.contains(CANCELLED) {
+            Failed::Cancelled
+        } else if m.contains(TOO_MANY_POINTS) {
+            Failed::TooLarge(m)
+        } else {
+            Failed::Other(m)
+        }
+    });
+    let file = std::fs::File::open(&tmp).map_err(|e| Failed::Other(e.to_string()));
     let _ = std::fs::remove_file(&tmp);
-    Ok((file?, summary?.points))
+    let summary = summary?;
+    Ok((file?, summary.points))
 }
 
 #[cfg(test)]

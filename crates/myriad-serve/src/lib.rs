@@ -7,12 +7,18 @@
 //!
 //! It is read-only and serves the files of its [`Catalog`] alone: a request's path is looked
 //! up among the names the catalog made when it started, never joined to a folder, so `..` and
-//! its encodings find nothing. Connections are bounded (`Options::max_connections`; more wait
-//! to be accepted), a client has `Options::header_timeout` to send its request head and
-//! `Options::max_header_bytes` for it (431 beyond), and a failing connection ends alone.
+//! its encodings find nothing. Connections are bounded (`Options::max_connections`; when full,
+//! the connection idle the longest is shed for a new one), a client has
+//! `Options::header_timeout` to send its request head and `Options::max_header_bytes` for it
+//! (431 beyond), idle connections close after `Options::idle_timeout`, and a failing
+//! connection ends alone ([`conn`] says how). Answers stream from the files (multi-range ones
+//! too, their overlapping ranges merged) through a memory budget per connection and in all.
+//! A client that hangs up costs nothing: SIGPIPE is ignored, and its unfinished work is
+//! dropped.
 
 pub mod browser;
 mod catalog;
+mod conn;
 pub mod download;
 pub mod range;
 mod viewer;
@@ -20,31 +26,44 @@ mod viewer;
 pub use catalog::{Catalog, Kind, href};
 
 use bytes::Bytes;
-use futures_util::TryStreamExt;
+use conn::{Budget, Owned};
 use http_body_util::{BodyExt, Full, StreamBody, combinators::BoxBody};
 use hyper::body::{Frame, Incoming};
 use hyper::header::{self, HeaderValue};
 use hyper::{Method, Request, Response, StatusCode};
 use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
 use range::Ranges;
+use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::io;
 use std::net::SocketAddr;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
-use tokio::io::AsyncReadExt;
+use tokio::sync::Semaphore;
 
 type Body = BoxBody<Bytes, io::Error>;
 
 /// Limits of the server.
 #[derive(Debug, Clone, Copy)]
 pub struct Options {
-    /// Connections served at once; more wait in the listen queue.
+    /// Connections served at once; when full, the connection idle the longest is closed for a
+    /// new one (a new one that finds none idle waits up to `header_timeout`).
     pub max_connections: usize,
-    /// Time a client has to send its request head (slow clients are dropped).
+    /// Time a client has from connecting to send its first request head (silent and slow
+    /// clients are dropped).
     pub header_timeout: Duration,
+    /// A connection on which nothing moved for this long while no request of it is being
+    /// worked on is closed (keep-alive, clients that stop reading).
+    pub idle_timeout: Duration,
     /// Most bytes of a request head (at least 8192).
     pub max_header_bytes: usize,
+    /// Most bytes of file data held in memory by all answers at once.
+    pub max_memory: usize,
+    /// Most points a box download (`/x/`) may hold: a larger box is answered 413.
+    pub max_box_points: u64,
+    /// Stop on SIGINT and SIGTERM (removing the server's temporary files) instead of dying.
+    pub stop_on_signals: bool,
     /// A line on stderr for each request answered: method, path, range, status, bytes.
     pub log: bool,
 }
@@ -54,19 +73,83 @@ impl Default for Options {
         Options {
             max_connections: 512,
             header_timeout: Duration::from_secs(10),
+            idle_timeout: Duration::from_secs(30),
             max_header_bytes: 16 << 10,
+            max_memory: 256 << 20,
+            max_box_points: 20_000_000,
+            stop_on_signals: false,
             log: false,
         }
     }
 }
 
-/// Most bytes of a multi-range answer (it is assembled in memory).
-const MAX_MULTIPART: u64 = 64 << 20;
 const BOUNDARY: &str = "myriad-byteranges-7d1f3a";
+/// File data is read and written in pieces of this size.
+const CHUNK: usize = 256 << 10;
+/// Box downloads whose LAZ files wait to be sent or are being sent, at once (each is a
+/// temporary file on disk); more wait their turn.
+const SPOOLED_AT_ONCE: usize = 8;
+/// The prefix of a server's folder of temporary files under the system's temporary folder.
+const SCRATCH_PREFIX: &str = ".myriad-serve-scratch-";
+
+/// What the server has done about its clients, counted since it started.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Stats {
+    /// Box downloads whose extraction began, finished, was dropped because the client left,
+    /// and refused as too large.
+    pub downloads_started: u64,
+    pub downloads_finished: u64,
+    pub downloads_cancelled: u64,
+    pub downloads_refused: u64,
+    /// Connections closed for sending no request in time, for idling, because their client
+    /// hung up during a request, and shed for a new client.
+    pub closed_no_request: u64,
+    pub closed_idle: u64,
+    pub closed_hung_up: u64,
+    pub shed: u64,
+}
+
+#[derive(Default)]
+struct Counters([AtomicU64; 8]);
+
+impl Counters {
+    fn add(&self, i: usize) {
+        self.0[i].fetch_add(1, Ordering::Relaxed);
+    }
+    fn get(&self) -> Stats {
+        let g = |i: usize| self.0[i].load(Ordering::Relaxed);
+        Stats {
+            downloads_started: g(0),
+            downloads_finished: g(1),
+            downloads_cancelled: g(2),
+            downloads_refused: g(3),
+            closed_no_request: g(4),
+            closed_idle: g(5),
+            closed_hung_up: g(6),
+            shed: g(7),
+        }
+    }
+}
+
+/// What every connection of a server shares.
+struct Shared {
+    catalog: Catalog,
+    options: Options,
+    memory: Arc<Semaphore>,
+    registry: conn::Registry,
+    counters: Counters,
+    /// Box downloads extracting at once, and spooled at once.
+    extracting: Semaphore,
+    spooled: Arc<Semaphore>,
+    /// The server's temporary files (box downloads), removed when it stops; one a killed
+    /// server left is removed by the next server to start.
+    scratch: myriad_io::claim::Folder,
+}
 
 /// A running server; dropping it stops it.
 pub struct Server {
     pub addr: SocketAddr,
+    shared: Arc<Shared>,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
@@ -74,6 +157,18 @@ pub struct Server {
 impl Server {
     /// Binds `bind` (port 0: any free port) and serves `catalog` on a thread of its own.
     pub fn start(catalog: Catalog, bind: SocketAddr, options: Options) -> io::Result<Server> {
+        // A client that hangs up while its answer is written must cost a failed write, not
+        // the process (hyper writes with writev, which has no MSG_NOSIGNAL).
+        #[cfg(unix)]
+        // SAFETY: setting a signal's disposition to "ignore" has no preconditions.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+        }
+        let tmp = std::env::temp_dir();
+        myriad_io::claim::remove_stale_folders(&tmp, SCRATCH_PREFIX);
+        remove_stale_partials(&tmp);
+        let scratch = myriad_io::claim::Folder::create(&tmp, SCRATCH_PREFIX)
+            .map_err(|e| io::Error::other(e.to_string()))?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .enable_all()
             .thread_name("myriad-serve")
@@ -81,18 +176,46 @@ impl Server {
         let listener = runtime.block_on(tokio::net::TcpListener::bind(bind))?;
         let addr = listener.local_addr()?;
         let (stop, stopped) = tokio::sync::oneshot::channel();
-        let catalog = Arc::new(catalog);
+        let shared = Arc::new(Shared {
+            catalog,
+            options,
+            memory: Arc::new(Semaphore::new(
+                options.max_memory.max(conn::PER_CONNECTION) >> 10,
+            )),
+            registry: conn::Registry::default(),
+            counters: Counters::default(),
+            extracting: Semaphore::new(download::MAX_AT_ONCE),
+            spooled: Arc::new(Semaphore::new(SPOOLED_AT_ONCE)),
+            scratch,
+        });
+        let s = shared.clone();
         let thread = std::thread::Builder::new()
             .name("myriad-serve-accept".into())
-            .spawn(move || runtime.block_on(accept(listener, catalog, options, stopped)))?;
+            .spawn(move || {
+                runtime.block_on(accept(listener, s, stopped));
+                // Connections still open are dropped with the runtime.
+                runtime.shutdown_timeout(Duration::from_secs(1));
+            })?;
         Ok(Server {
             addr,
+            shared,
             stop: Some(stop),
             thread: Some(thread),
         })
     }
 
-    /// Serves until the process ends.
+    /// What the server has done about its clients so far.
+    pub fn stats(&self) -> Stats {
+        self.shared.counters.get()
+    }
+
+    /// The folder of the server's temporary files.
+    pub fn scratch(&self) -> &std::path::Path {
+        self.shared.scratch.path()
+    }
+
+    /// Serves until the process ends, or until SIGINT or SIGTERM with
+    /// `Options::stop_on_signals`; the server's temporary files are removed then.
     pub fn wait(mut self) {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
@@ -111,18 +234,53 @@ impl Drop for Server {
     }
 }
 
+/// Removes the partial downloads that servers before the scratch folder left in `tmp`.
+fn remove_stale_partials(tmp: &std::path::Path) {
+    let Ok(entries) = std::fs::read_dir(tmp) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let n = e.file_name();
+        let n = n.to_string_lossy();
+        if n.starts_with(".myriad-serve-")
+            && n.ends_with(".partial")
+            && e.path().is_file()
+            && myriad_io::claim::is_stale_file(&e.path())
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+async fn signalled(on: bool) {
+    if !on {
+        return std::future::pending().await;
+    }
+    use tokio::signal::unix::{SignalKind, signal};
+    match (
+        signal(SignalKind::interrupt()),
+        signal(SignalKind::terminate()),
+    ) {
+        (Ok(mut i), Ok(mut t)) => {
+            tokio::select! {
+                _ = i.recv() => {}
+                _ = t.recv() => {}
+            }
+        }
+        _ => std::future::pending().await,
+    }
+}
+
 async fn accept(
     listener: tokio::net::TcpListener,
-    catalog: Arc<Catalog>,
-    o: Options,
+    shared: Arc<Shared>,
     mut stop: tokio::sync::oneshot::Receiver<()>,
 ) {
-    let slots = Arc::new(tokio::sync::Semaphore::new(o.max_connections.max(1)));
-    loop {
-        let permit = tokio::select! {
-            p = slots.clone().acquire_owned() => p.expect("semaphore open"),
-            _ = &mut stop => return,
-        };
+    let o = shared.options;
+    let slots = Arc::new(Semaphore::new(o.max_connections.max(1)));
+    let signals = signalled(o.stop_on_signals);
+    tokio::pin!(signals);
+    'accept: loop {
         let stream = tokio::select! {
             r = listener.accept() => match r {
                 Ok((s, _)) => s,
@@ -133,20 +291,65 @@ async fn accept(
                 }
             },
             _ = &mut stop => return,
+            _ = &mut signals => return,
+        };
+        // Full: shed the idlest connection for this one, or wait for a slot (a while).
+        let permit = match slots.clone().try_acquire_owned() {
+            Ok(p) => p,
+            Err(_) => {
+                let waited = std::time::Instant::now();
+                loop {
+                    if shared.registry.shed_idlest() {
+                        shared.counters.add(7);
+                    }
+                    tokio::select! {
+                        p = slots.clone().acquire_owned() => break p.expect("semaphore open"),
+                        _ = tokio::time::sleep(conn::SHED_AFTER) => {
+                            if waited.elapsed() > o.header_timeout {
+                                continue 'accept;
+                            }
+                        }
+                        _ = &mut stop => return,
+                        _ = &mut signals => return,
+                    }
+                }
+            }
         };
         let _ = stream.set_nodelay(true);
-        let catalog = catalog.clone();
+        let shared = shared.clone();
         tokio::spawn(async move {
             let _permit = permit;
-            let service =
-                hyper::service::service_fn(move |req| handle(catalog.clone(), req, o.log));
+            use std::os::fd::AsRawFd;
+            let fd = stream.as_raw_fd();
+            let activity = conn::Activity::new();
+            shared.registry.add(&activity);
+            let io = conn::Watched {
+                inner: stream,
+                activity: activity.clone(),
+            };
+            let budget = Budget::new(shared.memory.clone());
+            let (s, a) = (shared.clone(), activity.clone());
+            let service = hyper::service::service_fn(move |req| {
+                let busy = a.request();
+                handle(s.clone(), budget.clone(), req, busy)
+            });
             let mut b = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new());
             b.http1()
                 .timer(TokioTimer::new())
                 .header_read_timeout(o.header_timeout)
                 .max_buf_size(o.max_header_bytes.max(8192));
-            b.http2().timer(TokioTimer::new());
-            let _ = b.serve_connection(TokioIo::new(stream), service).await;
+            b.http2()
+                .timer(TokioTimer::new())
+                .max_concurrent_streams(32)
+                .max_header_list_size(o.max_header_bytes.max(8192) as u32);
+            let served = b.serve_connection(TokioIo::new(io), service);
+            let why = conn::watch(served, &activity, fd, o.header_timeout, o.idle_timeout).await;
+            match why {
+                conn::Closed::NoRequest => shared.counters.add(4),
+                conn::Closed::Idle => shared.counters.add(5),
+                conn::Closed::HungUp => shared.counters.add(6),
+                conn::Closed::Done | conn::Closed::Shed => {}
+            }
         });
     }
 }
@@ -196,17 +399,15 @@ pub(crate) fn percent_decode(s: &str) -> Option<String> {
     String::from_utf8(out).ok()
 }
 
-/// Box downloads running at once.
-static DOWNLOADS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(download::MAX_AT_ONCE);
-
 async fn handle(
-    catalog: Arc<Catalog>,
+    shared: Arc<Shared>,
+    budget: Budget,
     req: Request<Incoming>,
-    log: bool,
+    _busy: conn::Busy,
 ) -> Result<Response<Body>, Infallible> {
-    let mut r = route(&catalog, &req).await;
+    let mut r = route(&shared, &budget, &req).await;
     cors(&mut r);
-    if log {
+    if shared.options.log {
         let text =
             |v: Option<&HeaderValue>| v.and_then(|v| v.to_str().ok()).unwrap_or("-").to_string();
         eprintln!(
@@ -221,7 +422,8 @@ async fn handle(
     Ok(r)
 }
 
-async fn route(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
+async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -> Response<Body> {
+    let catalog = &shared.catalog;
     let method = req.method();
     if ![Method::GET, Method::HEAD, Method::OPTIONS].contains(method) {
         let mut r = status(
@@ -282,7 +484,7 @@ async fn route(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
         };
         return match catalog.file(&name) {
             Some(f) if f.kind == Kind::Dataset => {
-                box_download(f, &name, req.uri().query().unwrap_or("")).await
+                box_download(shared, budget, f, &name, req.uri().query().unwrap_or("")).await
             }
             _ => status(StatusCode::NOT_FOUND, "no such dataset"),
         };
@@ -294,7 +496,7 @@ async fn route(catalog: &Catalog, req: &Request<Incoming>) -> Response<Body> {
         return status(StatusCode::BAD_REQUEST, "malformed path");
     };
     match catalog.file(&name) {
-        Some(f) => match file(f, req).await {
+        Some(f) => match file(f, budget, req).await {
             Ok(r) => r,
             Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
         },
@@ -336,7 +538,8 @@ fn asset(
     r
 }
 
-/// Ranges up to this size are read in one go on a blocking thread; larger answers stream.
+/// One range up to this size is read in one go with the file's opening (one trip to the
+/// blocking pool for most requests); larger answers stream in [`CHUNK`]s.
 const READ_AT_ONCE: u64 = 4 << 20;
 
 /// What one request for a file comes to, decided on a blocking thread with the file open.
@@ -349,30 +552,46 @@ struct Plan {
 enum Answer {
     NotModified,
     Unsatisfiable,
-    /// The whole file, or one range: read (`Some`) or to be streamed from the file, which is
-    /// positioned at its start.
+    /// The whole file, or one range: read (`Some`, within the bytes taken from the budget
+    /// beforehand) or to be streamed from the file.
     One {
         range: Option<(u64, u64)>,
         data: Option<Vec<u8>>,
         file: std::fs::File,
     },
-    /// Several ranges, read.
-    Many(Vec<((u64, u64), Vec<u8>)>),
-    TooLarge,
+    /// Several ranges (overlapping ones merged), to be streamed.
+    Many(Vec<(u64, u64)>, std::fs::File),
 }
 
-/// Opens the file, takes its validator, resolves the request's ranges and reads what is small
-/// (one trip to the blocking pool for most requests).
+/// Ranges sorted and merged where they overlap or touch, when any do (RFC 9110 lets a server
+/// coalesce them); as asked otherwise.
+fn merge_ranges(mut v: Vec<(u64, u64)>) -> Vec<(u64, u64)> {
+    let mut sorted = v.clone();
+    sorted.sort_unstable();
+    if sorted.windows(2).all(|w| w[1].0 > w[0].1.saturating_add(1)) {
+        return v;
+    }
+    v.clear();
+    for (a, b) in sorted {
+        match v.last_mut() {
+            Some(last) if a <= last.1.saturating_add(1) => last.1 = last.1.max(b),
+            _ => v.push((a, b)),
+        }
+    }
+    v
+}
+
+/// Opens the file, takes its validator, resolves the request's ranges and reads one range of
+/// at most `read_up_to` bytes.
 fn plan(
     path: &std::path::Path,
     range: Option<String>,
     if_range: Option<String>,
     if_none_match: Option<String>,
-    head: bool,
+    read_up_to: u64,
 ) -> io::Result<Plan> {
-    use std::io::Seek;
     use std::os::unix::fs::FileExt;
-    let mut file = std::fs::File::open(path)?;
+    let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
     let len = meta.len();
     let mtime = meta
@@ -394,11 +613,6 @@ fn plan(
         (Some(h), _) => range::parse(&h, len),
         (None, _) => Ranges::Whole,
     };
-    let read = |a: u64, b: u64| -> io::Result<Vec<u8>> {
-        let mut buf = vec![0; (b - a + 1) as usize];
-        file.read_exact_at(&mut buf, a)?;
-        Ok(buf)
-    };
     let answer = match ranges {
         Ranges::Unsatisfiable => Answer::Unsatisfiable,
         Ranges::Whole => Answer::One {
@@ -406,35 +620,57 @@ fn plan(
             data: None,
             file,
         },
-        Ranges::Some(v) if v.len() == 1 => {
-            let (a, b) = v[0];
-            let data = (!head && b - a < READ_AT_ONCE)
-                .then(|| read(a, b))
-                .transpose()?;
-            file.seek(io::SeekFrom::Start(a))?;
-            Answer::One {
-                range: Some((a, b)),
-                data,
-                file,
-            }
-        }
         Ranges::Some(v) => {
-            if v.iter().map(|(a, b)| b - a + 1).sum::<u64>() > MAX_MULTIPART {
-                Answer::TooLarge
+            let v = merge_ranges(v);
+            if v.len() == 1 {
+                let (a, b) = v[0];
+                let data = if b - a < read_up_to {
+                    let mut buf = vec![0; (b - a + 1) as usize];
+                    file.read_exact_at(&mut buf, a)?;
+                    Some(buf)
+                } else {
+                    None
+                };
+                Answer::One {
+                    range: Some((a, b)),
+                    data,
+                    file,
+                }
             } else {
-                Answer::Many(
-                    v.into_iter()
-                        .map(|(a, b)| Ok(((a, b), read(a, b)?)))
-                        .collect::<io::Result<_>>()?,
-                )
+                Answer::Many(v, file)
             }
         }
     };
     Ok(Plan { len, etag, answer })
 }
 
+/// The bytes a request's `Range` can come to when it is one range of known size (to take them
+/// from the budget before the file is opened); 0 otherwise.
+fn one_range_bytes(range: Option<&str>) -> u64 {
+    let Some(specs) = range.and_then(|h| h.split_once('=')).map(|(_, s)| s.trim()) else {
+        return 0;
+    };
+    if specs.contains(',') {
+        return 0;
+    }
+    match specs.split_once('-') {
+        Some(("", n)) => n.trim().parse().unwrap_or(0),
+        Some((a, b)) if !b.trim().is_empty() => {
+            match (a.trim().parse::<u64>(), b.trim().parse::<u64>()) {
+                (Ok(a), Ok(b)) if b >= a => b - a + 1,
+                _ => 0,
+            }
+        }
+        _ => 0,
+    }
+}
+
 /// One served file, as the request asks for it.
-async fn file(f: &catalog::File, req: &Request<Incoming>) -> io::Result<Response<Body>> {
+async fn file(
+    f: &catalog::File,
+    budget: &Budget,
+    req: &Request<Incoming>,
+) -> io::Result<Response<Body>> {
     let head = req.method() == Method::HEAD;
     let header = |h: header::HeaderName| {
         req.headers()
@@ -447,11 +683,19 @@ async fn file(f: &catalog::File, req: &Request<Incoming>) -> io::Result<Response
         header(header::IF_RANGE),
         header(header::IF_NONE_MATCH),
     );
+    // A small range is read with the opening: its bytes are taken from the budget first.
+    let want = one_range_bytes(range.as_deref());
+    let (held, read_up_to) = if !head && want > 0 && want <= READ_AT_ONCE {
+        (Some(budget.take(want as usize).await), want)
+    } else {
+        (None, 0)
+    };
     let path = f.path.clone();
-    let Plan { len, etag, answer } =
-        tokio::task::spawn_blocking(move || plan(&path, range, if_range, if_none_match, head))
-            .await
-            .map_err(io::Error::other)??;
+    let Plan { len, etag, answer } = tokio::task::spawn_blocking(move || {
+        plan(&path, range, if_range, if_none_match, read_up_to)
+    })
+    .await
+    .map_err(io::Error::other)??;
     let unsatisfiable = |text: &str| {
         let mut r = status(StatusCode::RANGE_NOT_SATISFIABLE, text);
         r.headers_mut().insert(
@@ -467,14 +711,19 @@ async fn file(f: &catalog::File, req: &Request<Incoming>) -> io::Result<Response
             r
         }
         Answer::Unsatisfiable => unsatisfiable("range not satisfiable"),
-        Answer::TooLarge => unsatisfiable("ranges too large"),
         Answer::One { range, data, file } => {
             let (a, b) = range.unwrap_or((0, len.saturating_sub(1)));
             let n = if len == 0 { 0 } else { b - a + 1 };
-            let body = match (head, data) {
-                (true, _) => full(Bytes::new()),
-                (false, Some(d)) => full(d),
-                (false, None) => stream(tokio::fs::File::from_std(file), n),
+            let body = match (head, data, held) {
+                (true, _, _) => full(Bytes::new()),
+                (false, Some(d), Some(h)) => full(Bytes::from_owner(Owned { data: d, _held: h })),
+                (false, Some(d), None) => full(d),
+                (false, None, _) => pieces(
+                    Arc::new(file),
+                    VecDeque::from([Piece::File(a, n)]),
+                    budget.clone(),
+                    None,
+                ),
             };
             let mut r = Response::new(body);
             let h = r.headers_mut();
@@ -488,21 +737,28 @@ async fn file(f: &catalog::File, req: &Request<Incoming>) -> io::Result<Response
             }
             r
         }
-        Answer::Many(parts) => {
-            let mut body = Vec::new();
-            for ((a, b), data) in parts {
-                body.extend_from_slice(
-                    format!(
-                        "\r\n--{BOUNDARY}\r\nContent-Type: {}\r\nContent-Range: bytes {a}-{b}/{len}\r\n\r\n",
-                        f.content_type
-                    )
-                    .as_bytes(),
+        Answer::Many(parts, file) => {
+            drop(held);
+            let mut list = VecDeque::new();
+            let mut n = 0u64;
+            for (a, b) in parts {
+                let head = format!(
+                    "\r\n--{BOUNDARY}\r\nContent-Type: {}\r\nContent-Range: bytes {a}-{b}/{len}\r\n\r\n",
+                    f.content_type
                 );
-                body.extend_from_slice(&data);
+                n += head.len() as u64 + (b - a + 1);
+                list.push_back(Piece::Text(Bytes::from(head)));
+                list.push_back(Piece::File(a, b - a + 1));
             }
-            body.extend_from_slice(format!("\r\n--{BOUNDARY}--\r\n").as_bytes());
-            let n = body.len();
-            let mut r = Response::new(if head { full(Bytes::new()) } else { full(body) });
+            let tail = format!("\r\n--{BOUNDARY}--\r\n");
+            n += tail.len() as u64;
+            list.push_back(Piece::Text(Bytes::from(tail)));
+            let body = if head {
+                full(Bytes::new())
+            } else {
+                pieces(Arc::new(file), list, budget.clone(), None)
+            };
+            let mut r = Response::new(body);
             *r.status_mut() = StatusCode::PARTIAL_CONTENT;
             let h = r.headers_mut();
             h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
@@ -522,26 +778,80 @@ async fn file(f: &catalog::File, req: &Request<Incoming>) -> io::Result<Response
     Ok(r)
 }
 
+/// Sets its flag when dropped: the request it belongs to was abandoned (or is done).
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
 /// The points of a dataset in a box, as LAZ ([`download`]).
-async fn box_download(f: &catalog::File, name: &str, query: &str) -> Response<Body> {
+async fn box_download(
+    shared: &Arc<Shared>,
+    budget: &Budget,
+    f: &catalog::File,
+    name: &str,
+    query: &str,
+) -> Response<Body> {
     let q = match download::parse_query(query) {
         Ok(q) => q,
         Err(m) => return status(StatusCode::BAD_REQUEST, &m),
     };
-    let _turn = DOWNLOADS.acquire().await.expect("never closed");
+    // A place for its file first (held until it is sent), then a turn to extract.
+    let spooled = shared
+        .spooled
+        .clone()
+        .acquire_owned()
+        .await
+        .expect("never closed");
+    let _turn = shared.extracting.acquire().await.expect("never closed");
+    let cancelled = Arc::new(AtomicBool::new(false));
+    let _cancel = CancelOnDrop(cancelled.clone());
+    shared.counters.add(0);
+    let limits = download::Limits {
+        max_points: shared.options.max_box_points,
+        scratch: shared.scratch.path().to_path_buf(),
+    };
     let path = f.path.clone();
-    let made = tokio::task::spawn_blocking(move || download::run(&path, &q)).await;
+    let s = shared.clone();
+    let made = tokio::task::spawn_blocking(move || {
+        let r = download::run(&path, &q, &limits, &|| cancelled.load(Ordering::Relaxed));
+        if matches!(r, Err(download::Failed::Cancelled)) {
+            s.counters.add(2);
+        }
+        r
+    })
+    .await;
+    drop(_turn);
     let (file, points) = match made {
         Ok(Ok(r)) => r,
-        Ok(Err(m)) => return status(StatusCode::INTERNAL_SERVER_ERROR, &m),
+        Ok(Err(download::Failed::TooLarge(m))) => {
+            shared.counters.add(3);
+            return status(StatusCode::PAYLOAD_TOO_LARGE, &m);
+        }
+        Ok(Err(download::Failed::Cancelled)) => {
+            return status(StatusCode::SERVICE_UNAVAILABLE, "cancelled");
+        }
+        Ok(Err(download::Failed::Other(m))) => {
+            return status(StatusCode::INTERNAL_SERVER_ERROR, &m);
+        }
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };
+    shared.counters.add(1);
     let len = match file.metadata() {
         Ok(m) => m.len(),
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };
     let stem = name.trim_end_matches(".myr").replace(['"', '/', '\\'], "_");
-    let mut r = Response::new(stream(tokio::fs::File::from_std(file), len));
+    let body = pieces(
+        Arc::new(file),
+        VecDeque::from([Piece::File(0, len)]),
+        budget.clone(),
+        Some(spooled),
+    );
+    let mut r = Response::new(body);
     let h = r.headers_mut();
     h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
     h.insert(
@@ -555,8 +865,50 @@ async fn box_download(f: &catalog::File, name: &str, query: &str) -> Response<Bo
     r
 }
 
-/// `len` bytes of the file from where it stands, in chunks as the client takes them.
-fn stream(file: tokio::fs::File, len: u64) -> Body {
-    let chunks = tokio_util::io::ReaderStream::with_capacity(file.take(len), 256 << 10);
-    StreamBody::new(chunks.map_ok(Frame::data)).boxed()
+/// A piece of an answer's body: text of its own, or bytes of the file (offset, length).
+enum Piece {
+    Text(Bytes),
+    File(u64, u64),
+}
+
+/// A body of `list`'s pieces in order, the file's read in [`CHUNK`]s as the client takes them,
+/// each held in the budget until written; `keep` lives as long as the body.
+fn pieces(
+    file: Arc<std::fs::File>,
+    list: VecDeque<Piece>,
+    budget: Budget,
+    keep: Option<tokio::sync::OwnedSemaphorePermit>,
+) -> Body {
+    let chunks = futures_util::stream::unfold(
+        (list, file, budget, keep),
+        |(mut list, file, budget, keep)| async move {
+            let piece = list.pop_front()?;
+            let bytes = match piece {
+                Piece::Text(b) => Ok(b),
+                Piece::File(at, len) => {
+                    let n = len.min(CHUNK as u64);
+                    if n < len {
+                        list.push_front(Piece::File(at + n, len - n));
+                    }
+                    let held = budget.take(n as usize).await;
+                    let f = file.clone();
+                    let read = tokio::task::spawn_blocking(move || {
+                        use std::os::unix::fs::FileExt;
+                        let mut data = vec![0; n as usize];
+                        f.read_exact_at(&mut data, at).map(|_| data)
+                    })
+                    .await
+                    .map_err(io::Error::other)
+                    .and_then(|r| r);
+                    read.map(|data| Bytes::from_owner(Owned { data, _held: held }))
+                }
+            };
+            if bytes.is_err() {
+                // Nothing more after a failed read: the client sees a short body.
+                list.clear();
+            }
+            Some((bytes.map(Frame::data), (list, file, budget, keep)))
+        },
+    );
+    StreamBody::new(chunks).boxed()
 }

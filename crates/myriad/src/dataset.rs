@@ -444,6 +444,7 @@ pub fn extract(a: ExtractArgs) -> Result<()> {
             bail!("--spacing must be a positive length");
         }
     }
+    myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
     let s = extract::extract(
         &ds,
@@ -490,6 +491,8 @@ pub fn verify(a: VerifyArgs) -> Result<()> {
         let bar = ProgressBar::new(ds.meta.points);
         let r = extract::verify(&ds, |n| bar.inc(n));
         bar.finish_and_clear();
+        // Pages of two versions are no verdict on either.
+        ds.check_unchanged()?;
         for d in &r.damage {
             println!("damaged: {}", ds.damage_error(d));
         }

@@ -45,6 +45,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
             a.output.display()
         );
     };
+    myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
     let mut o = ExportOptions::new(target);
     o.bbox = a.bbox;

@@ -156,6 +156,7 @@ pub fn drawn(
 }
 
 pub fn run(a: MeshArgs) -> Result<()> {
+    myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     if a.output.exists() && !a.force {
         bail!(
             "{}: output exists (use --force to replace it)",

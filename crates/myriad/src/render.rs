@@ -177,6 +177,14 @@ pub struct RenderArgs {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
+    if !a
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        bail!("{}: render writes a PNG image (.png)", a.output.display());
+    }
+    myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     if a.output.exists() && !a.force {
         bail!(
             "{}: output exists (use --force to replace it)",
@@ -289,7 +297,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let (img, stats) =
             scene.frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo, None);
         let frame = t.elapsed();
+        ds.check_unchanged()?;
         write_png(&a.output, 2 * a.width, a.height, &img)?;
+        let damaged = warn_damage(&scene);
         println!(
             "{}: both eyes side by side ({}x{} each, {} apart): {} points in {} nodes, frame {:.1} ms ({}, {:?} path, {})",
             a.output.display(),
@@ -307,6 +317,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 "single pass"
             },
         );
+        if a.full && damaged > 0 {
+            bail!(
+                "{damaged} damaged page{} in {}: {} lacks their points",
+                if damaged == 1 { "" } else { "s" },
+                a.dataset.display(),
+                a.output.display()
+            );
+        }
         return Ok(());
     }
     // First image: as soon as the first selected node (the root) is in.
@@ -375,10 +393,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
             t.elapsed().as_secs_f64() * 1e3,
         );
     }
+    // An image of two versions of a dataset replaced on its server is no image of either.
+    ds.check_unchanged()?;
     write_png(&a.output, a.width, a.height, &img)?;
-    for why in scene.loader.failed_pages().values() {
-        eprintln!("warning: {why}");
-    }
+    let damaged = warn_damage(&scene);
     if let Some((requests, bytes)) = ds.fetched() {
         println!(
             "fetched {} bytes in {requests} range requests ({:.2} % of the dataset's {} bytes)",
@@ -402,7 +420,32 @@ pub fn run(a: RenderArgs) -> Result<()> {
         raster.path,
     );
     debug_assert_eq!(stats.points, selection.points);
+    // The reference image of every point is not one when points are missing.
+    if a.full && damaged > 0 {
+        bail!(
+            "{damaged} damaged page{} in {}: {} lacks their points (`myriad verify` lists them)",
+            if damaged == 1 { "" } else { "s" },
+            a.dataset.display(),
+            a.output.display()
+        );
+    }
     Ok(())
+}
+
+/// Warns of each damaged hierarchy page and node page the scene met, naming it; their count.
+fn warn_damage(scene: &Scene) -> usize {
+    let mut lines: Vec<&String> = scene
+        .loader
+        .failed_pages()
+        .values()
+        .chain(scene.loader.failed().values())
+        .collect();
+    lines.sort();
+    lines.dedup();
+    for why in &lines {
+        eprintln!("warning: {why}");
+    }
+    lines.len()
 }
 
 /// A standard view (overview, top, close) of `view_bounds`, else `render`'s default camera

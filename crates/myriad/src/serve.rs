@@ -20,9 +20,18 @@ pub struct ServeArgs {
     /// Open the index page in a browser
     #[arg(long)]
     open: bool,
-    /// Connections served at once
+    /// Connections served at once (when full, the one idle the longest is closed for a new one)
     #[arg(long, default_value_t = 512)]
     max_connections: usize,
+    /// Seconds a client has from connecting to send its first request
+    #[arg(long, default_value_t = 10.0)]
+    header_timeout: f64,
+    /// Seconds after which a connection on which nothing moves is closed
+    #[arg(long, default_value_t = 30.0)]
+    idle_timeout: f64,
+    /// Most points a box download (/x/) may hold; a larger box is answered 413
+    #[arg(long, default_value_t = 20_000_000)]
+    max_box_points: u64,
     /// Print a line on stderr for each request: method, path, range, status, bytes
     #[arg(long)]
     log: bool,
@@ -51,11 +60,21 @@ pub fn run(a: ServeArgs) -> Result<()> {
         .names()
         .map(|(n, kind, len)| (n.to_string(), kind, len))
         .collect();
+    let seconds = |s: f64, flag: &str| -> Result<std::time::Duration> {
+        if !(s.is_finite() && s > 0.0 && s <= 86_400.0) {
+            anyhow::bail!("{flag} must be a number of seconds from 0 to 86400");
+        }
+        Ok(std::time::Duration::from_secs_f64(s))
+    };
     let server = Server::start(
         catalog,
         a.bind,
         Options {
             max_connections: a.max_connections,
+            header_timeout: seconds(a.header_timeout, "--header-timeout")?,
+            idle_timeout: seconds(a.idle_timeout, "--idle-timeout")?,
+            max_box_points: a.max_box_points,
+            stop_on_signals: true,
             log: a.log,
             ..Options::default()
         },
@@ -67,7 +86,8 @@ pub fn run(a: ServeArgs) -> Result<()> {
     for (n, kind, len) in &names {
         writeln!(
             out,
-            "  {base}/d/{n} ({} bytes)",
+            "  {base}/d/{} ({} bytes)",
+            href(n),
             crate::info::thousands(*len)
         )?;
         if *kind == Kind::Dataset {
@@ -88,6 +108,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
             eprintln!("warning: could not open a browser ({e}); open {page}");
         }
     }
+    // Until Ctrl-C or SIGTERM; the server's temporary files go with it.
     server.wait();
     Ok(())
 }

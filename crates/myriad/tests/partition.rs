@@ -221,3 +221,57 @@ fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
     drop(slurm);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Parts of one plan built at the same time into one folder, each the first process of a PID
+/// namespace of its own (as in containers, or on other nodes where PIDs repeat): none removes
+/// or shares another's spill folder, and the merge holds every record once. Needs `unshare`
+/// and the right to make namespaces (root, as in CI); skipped otherwise.
+#[test]
+fn parts_at_once_in_separate_pid_namespaces_keep_their_work() {
+    let probe = Command::new("unshare")
+        .args(["--pid", "--fork", "--mount-proc", "true"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        eprintln!("SKIPPED: unshare --pid is not available here (needs root)");
+        return;
+    }
+    let d = tempdir("partition-pidns");
+    let (west, east, want) = two_scans(&d);
+    let plan = make_plan(&d, &[&west, &east], "plan.json");
+    let parts = d.join("parts");
+    std::fs::create_dir_all(&parts).unwrap();
+    // Three rounds of the four parts at once: each round, every part is PID 1 and spills into
+    // the shared folder while the others start, run and finish around it.
+    for round in 0..3 {
+        let children: Vec<_> = (0..4)
+            .map(|i| {
+                Command::new("unshare")
+                    .args(["--pid", "--fork", "--mount-proc"])
+                    .arg(env!("CARGO_BIN_EXE_myriad"))
+                    .args(["convert", "--plan", s(&plan), "-o", s(&parts), "--force"])
+                    .args(["--part", &i.to_string(), "--threads", "1"])
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for (i, c) in children.into_iter().enumerate() {
+            let out = c.wait_with_output().unwrap();
+            assert!(
+                out.status.success(),
+                "round {round}, part {i}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        let left: Vec<String> = std::fs::read_dir(&parts)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
+    let merged = d.join("merged.myr");
+    ok(&["merge", s(&plan), s(&parts), "-o", s(&merged)]);
+    holds(&merged, &want);
+}

@@ -185,3 +185,43 @@ fn datasets_over_http_and_scans_opened_directly() {
     assert!(r.stderr.contains("using"), "{}", r.stderr);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A dataset replaced on the server while it is read (issue 40): the reads after the change
+/// fail naming it instead of mixing pages of two versions, and the dataset says so; a command
+/// writes nothing from it.
+#[test]
+fn a_dataset_replaced_while_read_fails_instead_of_mixing_versions() {
+    let d = tempdir("remote-version");
+    let scan = d.join("scan.las");
+    let r = myriad(&["synth", "-o", s(&scan), "--points", "100000"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let site = d.join("site.myr");
+    let other = d.join("other.myr");
+    for (out, cap) in [(&site, "3000"), (&other, "1000")] {
+        let r = myriad(&["convert", s(&scan), "-o", s(out), "--capacity", cap]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+    }
+    let server = serve(&[s(&site)], Stdio::inherit());
+    let url = format!("{}/d/site.myr", server.base);
+    let ds = myriad_format::Dataset::open(std::path::Path::new(&url)).unwrap();
+    let (before, damage) = ds.nodes();
+    assert!(damage.is_empty() && !before.is_empty());
+    assert!(ds.check_unchanged().is_ok());
+    // Replaced as `convert --append` and `--force` do: a new file renamed over the old.
+    let tmp = d.join(".site.myr.new");
+    std::fs::copy(&other, &tmp).unwrap();
+    std::fs::rename(&tmp, &site).unwrap();
+    let read = ds.read_node(&before[before.len() / 2]);
+    let e = read.expect_err("a page of the new file was taken for the old one's");
+    assert!(e.message.contains("changed on the server"), "{}", e.message);
+    let e = ds.check_unchanged().unwrap_err().to_string();
+    assert!(e.contains("site.myr") && e.contains("changed on the server"), "{e}");
+    // Every read from then on fails the same way, even where the bytes would match.
+    assert!(ds.read_node(&before[0]).is_err() || before[0].page.length == 0);
+    // A fresh open reads the new version whole.
+    let out = d.join("new.las");
+    let r = myriad(&["extract", &url, "-o", s(&out)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = myriad(&["verify", &url]);
+    assert_eq!(r.code, 0, "{}", r.stdout);
+}
