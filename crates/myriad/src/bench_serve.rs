@@ -4,6 +4,13 @@
 //! `--seconds`; one answer in 64 is compared with the file. Reported: requests/s, MB/s, median
 //! and 99th-percentile latency, errors, and the server's resident memory over the run (all its
 //! processes), sampled twice a second.
+//!
+//! `--hostile` runs each server a second time with rude clients beside the normal ones (what a
+//! server must survive, issue 40): clients that send a request for the whole file and hang up
+//! without reading, 64 silent sockets (reopened when closed), 16 clients asking 32 overlapping
+//! 2 MB ranges and never reading, and, for a dataset served by Myriad, 4 slow readers of box
+//! downloads (`/x/`, 4 KiB a tenth of a second). The normal clients' latency and the server's
+//! peak memory during it are the figures.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -28,6 +35,120 @@ pub struct ServeBenchArgs {
     /// nginx binary for the side-by-side run [default: nginx on PATH; none: skipped]
     #[arg(long)]
     nginx: Option<PathBuf>,
+    /// Also run each server with rude clients beside the normal ones (hang-ups, idle sockets,
+    /// multi-range floods, slow box downloads)
+    #[arg(long)]
+    hostile: bool,
+}
+
+/// Rude clients against `url` until `stop`: their threads (joined by the caller).
+fn hostile(url: &str, box_url: Option<String>, len: u64, stop: &Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>> {
+    use std::io::{Read, Write};
+    let rest = url.trim_start_matches("http://");
+    let (host, path) = rest.split_once('/').expect("a URL with a path");
+    let addr: std::net::SocketAddr = host.parse().expect("a numeric address");
+    let path = format!("/{path}");
+    let mut threads = Vec::new();
+    let spawn = |f: Box<dyn FnOnce() + Send>| std::thread::spawn(f);
+    // Hang-ups: a request for everything, then closed unread.
+    {
+        let (stop, path) = (stop.clone(), path.clone());
+        threads.push(spawn(Box::new(move || {
+            while !stop.load(Ordering::Relaxed) {
+                if let Ok(mut c) = std::net::TcpStream::connect(addr) {
+                    let _ = write!(c, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n");
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        })));
+    }
+    // Silent sockets, reopened when the server closes them.
+    {
+        let stop = stop.clone();
+        threads.push(spawn(Box::new(move || {
+            let mut socks: Vec<Option<std::net::TcpStream>> = (0..64).map(|_| None).collect();
+            while !stop.load(Ordering::Relaxed) {
+                for s in socks.iter_mut() {
+                    let closed = match s {
+                        Some(c) => {
+                            let _ = c.set_nonblocking(true);
+                            let mut b = [0u8; 64];
+                            matches!(c.read(&mut b), Ok(0))
+                        }
+                        None => true,
+                    };
+                    if closed {
+                        *s = std::net::TcpStream::connect(addr).ok();
+                    }
+                }
+                std::thread::sleep(Duration::from_millis(200));
+            }
+        })));
+    }
+    // Multi-range floods, never read, held 2 s.
+    let last = len.min(2 << 20) - 1;
+    let ranges: Vec<String> = (0..32).map(|_| format!("0-{last}")).collect();
+    let ranges = ranges.join(",");
+    for _ in 0..16 {
+        let (stop, path, ranges) = (stop.clone(), path.clone(), ranges.clone());
+        threads.push(spawn(Box::new(move || {
+            while !stop.load(Ordering::Relaxed) {
+                if let Ok(mut c) = std::net::TcpStream::connect(addr) {
+                    let _ = write!(
+                        c,
+                        "GET {path} HTTP/1.1\r\nHost: x\r\nRange: bytes={ranges}\r\n\r\n"
+                    );
+                    for _ in 0..20 {
+                        if stop.load(Ordering::Relaxed) {
+                            break;
+                        }
+                        std::thread::sleep(Duration::from_millis(100));
+                    }
+                }
+            }
+        })));
+    }
+    // Slow readers of box downloads.
+    if let Some(bx) = box_url {
+        for _ in 0..4 {
+            let (stop, bx) = (stop.clone(), bx.clone());
+            threads.push(spawn(Box::new(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    let Ok(mut c) = std::net::TcpStream::connect(addr) else {
+                        break;
+                    };
+                    let _ = write!(c, "GET {bx} HTTP/1.1\r\nHost: x\r\n\r\n");
+                    let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
+                    let mut b = [0u8; 4096];
+                    while !stop.load(Ordering::Relaxed) {
+                        match c.read(&mut b) {
+                            Ok(0) | Err(_) => break,
+                            Ok(_) => std::thread::sleep(Duration::from_millis(100)),
+                        }
+                    }
+                }
+            })));
+        }
+    }
+    threads
+}
+
+/// The path of a box download of the middle tenth of a dataset's extent (None: not a dataset).
+fn box_path(file: &Path) -> Option<String> {
+    let ds = myriad_format::Dataset::open(file).ok()?;
+    let b = ds.meta.bounds;
+    let c = |a: usize, f: f64| b.min[a] + (b.max[a] - b.min[a]) * f;
+    let name = file.file_name()?.to_string_lossy();
+    Some(format!(
+        "/x/{}?box={},{},{},{},{},{}",
+        myriad_serve::href(&name),
+        c(0, 0.45),
+        c(1, 0.45),
+        b.min[2],
+        c(0, 0.55),
+        c(1, 0.55),
+        b.max[2]
+    ))
 }
 
 /// A server process (and, for nginx, its workers), stopped when dropped.
@@ -167,7 +288,7 @@ struct Load {
     seconds: f64,
 }
 
-fn load(server: &Running, file: &Path, a: &ServeBenchArgs) -> Result<Load> {
+fn load(server: &Running, file: &Path, a: &ServeBenchArgs, rude: Option<Option<String>>) -> Result<Load> {
     let len = std::fs::metadata(file)?.len();
     if len < 4096 {
         bail!("{}: too small to read ranges from", file.display());
@@ -184,6 +305,7 @@ fn load(server: &Running, file: &Path, a: &ServeBenchArgs) -> Result<Load> {
             }
         })
     };
+    let rude = rude.map(|bx| hostile(&server.url, bx, len, &stop));
     let t0 = Instant::now();
     let clients: Vec<_> = (0..a.clients)
         .map(|i| {
@@ -260,6 +382,9 @@ fn load(server: &Running, file: &Path, a: &ServeBenchArgs) -> Result<Load> {
     }
     out.seconds = t0.elapsed().as_secs_f64();
     let _ = sampler.join();
+    for t in rude.into_iter().flatten() {
+        let _ = t.join();
+    }
     out.rss = std::mem::take(&mut *rss.lock().unwrap());
     Ok(out)
 }
@@ -305,15 +430,32 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
         "{:<8} {:>9} {:>9} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8}",
         "server", "req/s", "MB/s", "p50 ms", "p99 ms", "errors", "RSS MB", "max MB", "end MB"
     );
+    let bx = box_path(&a.file);
     let s = start_myriad(&a.file)?;
-    report("myriad", &mut load(&s, &a.file, &a)?);
+    report("myriad", &mut load(&s, &a.file, &a, None)?);
+    if a.hostile {
+        report("+hostile", &mut load(&s, &a.file, &a, Some(bx))?);
+    }
     drop(s);
     match nginx {
         Some(n) => {
             let s = start_nginx(&n, &a.file)?;
-            report("nginx", &mut load(&s, &a.file, &a)?);
+            report("nginx", &mut load(&s, &a.file, &a, None)?);
+            if a.hostile {
+                report("+hostile", &mut load(&s, &a.file, &a, Some(None))?);
+            }
         }
         None => println!("nginx: not found (apt-get install nginx-light), skipped"),
+    }
+    if a.hostile {
+        println!(
+            "+hostile: the same clients beside 100 hang-ups/s, 64 idle sockets, 16 floods of 32 overlapping 2 MB ranges{}",
+            if bx.is_some() {
+                ", 4 slow box downloads (Myriad only)"
+            } else {
+                ""
+            }
+        );
     }
     Ok(())
 }
