@@ -147,8 +147,9 @@ pub fn extract_within(
             .iter()
             .filter(|n| {
                 let cube = n.bounds_in(&ds.meta.root);
-                o.bbox
-                    .is_none_or(|b| (0..3).all(|a| b.min[a] <= cube.min[a] && cube.max[a] <= b.max[a]))
+                o.bbox.is_none_or(|b| {
+                    (0..3).all(|a| b.min[a] <= cube.min[a] && cube.max[a] <= b.max[a])
+                })
             })
             .map(|n| prefix_for(n, o.spacing) as u64)
             .sum();

@@ -185,15 +185,24 @@ mod tests {
         let b = dir.join("b.las");
         std::fs::write(&b, b"scan").unwrap();
         let spelled = sub.join("..").join("a.las");
-        let e = refuse_input_as_output(&spelled, &[&b, &a]).unwrap_err().to_string();
+        let e = refuse_input_as_output(&spelled, &[&b, &a])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("is the input") && e.contains("a.las"), "{e}");
-        assert!(refuse_input_as_output(&dir, &[&a]).is_err(), "a folder holding the input");
+        assert!(
+            refuse_input_as_output(&dir, &[&a]).is_err(),
+            "a folder holding the input"
+        );
         assert!(refuse_input_as_output(&dir.join("c.myr"), &[&a, &b]).is_ok());
         assert!(refuse_input_as_output(&b, &[&a]).is_ok());
-        let e = refuse_repeated_inputs(&[&a, &b, &spelled]).unwrap_err().to_string();
+        let e = refuse_repeated_inputs(&[&a, &b, &spelled])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("given twice"), "{e}");
         assert!(refuse_repeated_inputs(&[&a, &b]).is_ok());
-        let e = require_folder(&dir.join("no/such/x.myr")).unwrap_err().to_string();
+        let e = require_folder(&dir.join("no/such/x.myr"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("does not exist"), "{e}");
         assert!(require_folder(&sub.join("x.myr")).is_ok());
         assert!(require_folder(Path::new("x.myr")).is_ok());

@@ -90,7 +90,9 @@ pub fn create_locked(path: &Path) -> Result<File> {
     f.try_lock().map_err(|e| {
         Error::io(
             path,
-            std::io::Error::other(format!("cannot lock it ({e}): is another process using it?")),
+            std::io::Error::other(format!(
+                "cannot lock it ({e}): is another process using it?"
+            )),
         )
     })?;
     Ok(f)

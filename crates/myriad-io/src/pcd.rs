@@ -132,8 +132,13 @@ impl PcdSource {
             let Some(key) = toks.first() else { continue };
             let rest = &toks[1..];
             let num = |s: &str| -> Result<u64> {
-                s.parse()
-                    .map_err(|_| Error::at_line(path, line_no, format!("not a number: \"{}\"", quote(s.as_bytes()))))
+                s.parse().map_err(|_| {
+                    Error::at_line(
+                        path,
+                        line_no,
+                        format!("not a number: \"{}\"", quote(s.as_bytes())),
+                    )
+                })
             };
             match key.to_ascii_uppercase().as_str() {
                 k if k.starts_with('#') => {}

@@ -125,14 +125,19 @@ impl PlySource {
                         "ascii" => Encoding::Ascii,
                         "binary_little_endian" => Encoding::BinaryLe,
                         "binary_big_endian" => Encoding::BinaryBe,
-                        other => return Err(bad(format!("unknown PLY format \"{}\"", quote(other.as_bytes())))),
+                        other => {
+                            return Err(bad(format!(
+                                "unknown PLY format \"{}\"",
+                                quote(other.as_bytes())
+                            )));
+                        }
                     })
                 }
                 ["comment", ..] | ["obj_info", ..] | [] => {}
                 ["element", name, count] => {
-                    let count = count
-                        .parse::<u64>()
-                        .map_err(|_| bad(format!("bad element count \"{}\"", quote(count.as_bytes()))))?;
+                    let count = count.parse::<u64>().map_err(|_| {
+                        bad(format!("bad element count \"{}\"", quote(count.as_bytes())))
+                    })?;
                     elements.push(Element {
                         name: name.to_string(),
                         count,

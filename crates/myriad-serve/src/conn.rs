@@ -243,7 +243,10 @@ pub(crate) struct Budget {
 }
 
 /// Bytes taken from a [`Budget`], given back when dropped.
-pub(crate) struct Held(#[allow(dead_code)] OwnedSemaphorePermit, #[allow(dead_code)] OwnedSemaphorePermit);
+pub(crate) struct Held(
+    #[allow(dead_code)] OwnedSemaphorePermit,
+    #[allow(dead_code)] OwnedSemaphorePermit,
+);
 
 /// Most bytes one connection's answers hold at once.
 pub(crate) const PER_CONNECTION: usize = 16 << 20;

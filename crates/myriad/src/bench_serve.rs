@@ -42,7 +42,12 @@ pub struct ServeBenchArgs {
 }
 
 /// Rude clients against `url` until `stop`: their threads (joined by the caller).
-fn hostile(url: &str, box_url: Option<String>, len: u64, stop: &Arc<AtomicBool>) -> Vec<std::thread::JoinHandle<()>> {
+fn hostile(
+    url: &str,
+    box_url: Option<String>,
+    len: u64,
+    stop: &Arc<AtomicBool>,
+) -> Vec<std::thread::JoinHandle<()>> {
     use std::io::{Read, Write};
     let rest = url.trim_start_matches("http://");
     let (host, path) = rest.split_once('/').expect("a URL with a path");
@@ -288,7 +293,12 @@ struct Load {
     seconds: f64,
 }
 
-fn load(server: &Running, file: &Path, a: &ServeBenchArgs, rude: Option<Option<String>>) -> Result<Load> {
+fn load(
+    server: &Running,
+    file: &Path,
+    a: &ServeBenchArgs,
+    rude: Option<Option<String>>,
+) -> Result<Load> {
     let len = std::fs::metadata(file)?.len();
     if len < 4096 {
         bail!("{}: too small to read ranges from", file.display());
@@ -434,7 +444,7 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
     let s = start_myriad(&a.file)?;
     report("myriad", &mut load(&s, &a.file, &a, None)?);
     if a.hostile {
-        report("+hostile", &mut load(&s, &a.file, &a, Some(bx))?);
+        report("+hostile", &mut load(&s, &a.file, &a, Some(bx.clone()))?);
     }
     drop(s);
     match nginx {

@@ -13,9 +13,17 @@ use std::time::{Duration, Instant};
 fn refused(args: &[&str], expect: &str) {
     let r = myriad(args);
     assert_eq!(r.code, 1, "{args:?}: {}", r.stderr);
-    let errors: Vec<&str> = r.stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    let errors: Vec<&str> = r
+        .stderr
+        .lines()
+        .filter(|l| l.starts_with("error:"))
+        .collect();
     assert_eq!(errors.len(), 1, "{args:?}: {}", r.stderr);
-    assert!(errors[0].contains(expect), "{args:?}: {expect:?} not in {}", errors[0]);
+    assert!(
+        errors[0].contains(expect),
+        "{args:?}: {expect:?} not in {}",
+        errors[0]
+    );
     assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
 }
 
@@ -28,7 +36,10 @@ fn outputs_never_replace_inputs_and_inputs_count_once() {
     let spelled = d.join("sub").join("..").join("a.las");
     // convert onto its input, as itself or spelled otherwise; a dataset under a LAS name.
     refused(&["convert", s(&las), "-o", s(&las), "--force"], "not .las");
-    refused(&["convert", s(&las), "-o", s(&spelled), "--force"], "not .las");
+    refused(
+        &["convert", s(&las), "-o", s(&spelled), "--force"],
+        "not .las",
+    );
     refused(&["convert", s(&las), "-o", s(&d.join("x.las"))], "not .las");
     assert!(!d.join("x.las").exists());
     assert_eq!(std::fs::read(&las).unwrap(), bytes, "the input was changed");
@@ -40,11 +51,25 @@ fn outputs_never_replace_inputs_and_inputs_count_once() {
     assert!(!d.join("no").exists());
     // The same input twice: refused, not 40,000 points.
     refused(
-        &["convert", s(&las), s(&spelled), "-o", s(&d.join("twice.myr"))],
+        &[
+            "convert",
+            s(&las),
+            s(&spelled),
+            "-o",
+            s(&d.join("twice.myr")),
+        ],
         "given twice",
     );
     refused(
-        &["plan", s(&las), s(&las), "-o", s(&d.join("p.json")), "--parts", "2"],
+        &[
+            "plan",
+            s(&las),
+            s(&las),
+            "-o",
+            s(&d.join("p.json")),
+            "--parts",
+            "2",
+        ],
         "given twice",
     );
     assert!(!d.join("twice.myr").exists());
@@ -53,7 +78,10 @@ fn outputs_never_replace_inputs_and_inputs_count_once() {
     let r = myriad(&["convert", s(&las), "-o", s(&myr)]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     let dataset = std::fs::read(&myr).unwrap();
-    refused(&["convert", s(&las), "--append", s(&myr), s(&las)], "given twice");
+    refused(
+        &["convert", s(&las), "--append", s(&myr), s(&las)],
+        "given twice",
+    );
     // render, extract, export, mesh onto the dataset: refused, the dataset as it was.
     refused(&["render", s(&myr), "-o", s(&myr), "--force"], "PNG");
     let png_named = d.join("b.png");
@@ -67,7 +95,11 @@ fn outputs_never_replace_inputs_and_inputs_count_once() {
         &["export", s(&myr), "--to", "potree", "-o", s(&d), "--force"],
         "is the input",
     );
-    assert_eq!(std::fs::read(&myr).unwrap(), dataset, "the dataset was changed");
+    assert_eq!(
+        std::fs::read(&myr).unwrap(),
+        dataset,
+        "the dataset was changed"
+    );
     let r = myriad(&["verify", s(&myr)]);
     assert_eq!(r.code, 0, "{}", r.stderr);
 }
@@ -134,7 +166,11 @@ fn a_line_of_any_length_is_refused_with_the_limit() {
         s(&d.join("t.myr")),
     ]);
     assert_eq!(r.code, 1, "{}", r.stderr);
-    assert!(r.stderr.contains("line 2") && r.stderr.contains("not a number"), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("line 2") && r.stderr.contains("not a number"),
+        "{}",
+        r.stderr
+    );
     assert!(r.stderr.len() < 400, "{}", r.stderr);
 }
 
@@ -162,14 +198,32 @@ fn render_full_of_a_damaged_dataset_names_the_damage_and_fails() {
     std::fs::write(&myr, &bytes).unwrap();
     let png = d.join("s.png");
     let r = myriad(&[
-        "render", s(&myr), "-o", s(&png), "--full", "--raster", "cpu", "--width", "160",
-        "--height", "120",
+        "render",
+        s(&myr),
+        "-o",
+        s(&png),
+        "--full",
+        "--raster",
+        "cpu",
+        "--width",
+        "160",
+        "--height",
+        "120",
     ]);
     assert_eq!(r.code, 1, "{}", r.stderr);
-    let warnings = r.stderr.lines().filter(|l| l.starts_with("warning:")).count();
+    let warnings = r
+        .stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .count();
     assert!(warnings >= 3, "{}", r.stderr);
     for n in &hit {
-        assert!(r.stderr.contains(&format!("node {}", n.key)), "{} not named: {}", n.key, r.stderr);
+        assert!(
+            r.stderr.contains(&format!("node {}", n.key)),
+            "{} not named: {}",
+            n.key,
+            r.stderr
+        );
     }
     assert!(r.stderr.contains("error: 3 damaged pages"), "{}", r.stderr);
 }

@@ -69,7 +69,10 @@ fn serve(inputs: &[&Path], args: &[&str], tmp: &Path) -> Serving {
         }
     }
     std::thread::spawn(move || for _ in out.lines() {});
-    let base = lines[0].split(" on ").nth(1).expect("serving N files on URL");
+    let base = lines[0]
+        .split(" on ")
+        .nth(1)
+        .expect("serving N files on URL");
     let addr = base
         .trim_start_matches("http://")
         .trim_end_matches('/')
@@ -91,7 +94,11 @@ fn get(addr: SocketAddr, path: &str, extra: &str, within: Duration) -> (u16, Vec
     let mut out = Vec::new();
     c.read_to_end(&mut out)
         .unwrap_or_else(|e| panic!("GET {path}: no answer in {within:?}: {e}"));
-    assert!(t.elapsed() <= within + Duration::from_millis(200), "GET {path} took {:?}", t.elapsed());
+    assert!(
+        t.elapsed() <= within + Duration::from_millis(200),
+        "GET {path} took {:?}",
+        t.elapsed()
+    );
     let split = out
         .windows(4)
         .position(|w| w == b"\r\n\r\n")
@@ -103,10 +110,20 @@ fn get(addr: SocketAddr, path: &str, extra: &str, within: Duration) -> (u16, Vec
 
 const SECOND: Duration = Duration::from_secs(1);
 
+/// The tests here run one at a time: each measures answer times and memory, which the others'
+/// floods would disturb on a two-core machine.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn alone() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn files(d: &Path) -> (PathBuf, Vec<u8>) {
     let dir = d.join("files");
     std::fs::create_dir_all(&dir).unwrap();
-    let big: Vec<u8> = (0..(4u32 << 20)).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8).collect();
+    let big: Vec<u8> = (0..(4u32 << 20))
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+        .collect();
     std::fs::write(dir.join("big.bin"), &big).unwrap();
     std::fs::write(dir.join("a b%2e.json"), b"{\"odd\": true}").unwrap();
     (dir, big)
@@ -114,11 +131,19 @@ fn files(d: &Path) -> (PathBuf, Vec<u8>) {
 
 #[test]
 fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
+    let _alone = alone();
     let d = tempdir("hostile-conn");
     let (dir, big) = files(&d);
     let mut server = serve(
         &[&dir],
-        &["--max-connections", "8", "--header-timeout", "2", "--idle-timeout", "2"],
+        &[
+            "--max-connections",
+            "8",
+            "--header-timeout",
+            "2",
+            "--idle-timeout",
+            "2",
+        ],
         &d.join("tmp"),
     );
     let addr = server.addr;
@@ -133,7 +158,10 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
     let url = line.split_whitespace().next().unwrap();
     assert!(url.ends_with("/d/files/a%20b%252e.json"), "{line}");
     let path = url.split_once(&addr.to_string()).unwrap().1;
-    assert_eq!(get(addr, path, "", SECOND), (200, b"{\"odd\": true}".to_vec()));
+    assert_eq!(
+        get(addr, path, "", SECOND),
+        (200, b"{\"odd\": true}".to_vec())
+    );
 
     // 1. Requests for a 4 MB file from clients that close without reading: the server used to
     // die of SIGPIPE after a few of them.
@@ -173,7 +201,10 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
                 Err(_) => break false,
             }
         };
-        assert!(closed, "silent socket {i} still open after the header timeout");
+        assert!(
+            closed,
+            "silent socket {i} still open after the header timeout"
+        );
     }
 
     // An idle keep-alive connection is closed after the idle timeout.
@@ -184,7 +215,11 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
     let t = Instant::now();
     let mut all = Vec::new();
     let _ = keep.read_to_end(&mut all);
-    assert!(all.starts_with(b"HTTP/1.1 200"), "{}", String::from_utf8_lossy(&all));
+    assert!(
+        all.starts_with(b"HTTP/1.1 200"),
+        "{}",
+        String::from_utf8_lossy(&all)
+    );
     let idle = t.elapsed();
     assert!(
         idle > Duration::from_millis(1_500) && idle < SECOND * 4,
@@ -195,12 +230,18 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
 
 #[test]
 fn multi_range_floods_stream_within_a_memory_bound() {
+    let _alone = alone();
     let d = tempdir("hostile-ranges");
     let (dir, big) = files(&d);
     let mut server = serve(&[&dir], &["--idle-timeout", "30"], &d.join("tmp"));
     let addr = server.addr;
     // Overlapping ranges are merged: one range comes back.
-    let (status, body) = get(addr, "/d/files/big.bin", "Range: bytes=0-99, 50-149\r\n", SECOND);
+    let (status, body) = get(
+        addr,
+        "/d/files/big.bin",
+        "Range: bytes=0-99, 50-149\r\n",
+        SECOND,
+    );
     assert_eq!((status, &body[..]), (206, &big[..150]));
     // Ranges apart: multipart, streamed, each part's bytes.
     let (status, body) = get(
@@ -247,12 +288,16 @@ fn multi_range_floods_stream_within_a_memory_bound() {
     drop(flood);
     std::thread::sleep(SECOND);
     let after = server.rss_mib();
-    assert!(after - base < 100.0, "{after:.0} MiB after the flood, {base:.0} before");
+    assert!(
+        after - base < 100.0,
+        "{after:.0} MiB after the flood, {base:.0} before"
+    );
     assert!(server.alive());
 }
 
 #[test]
 fn box_downloads_are_capped_cancelled_and_leave_no_files() {
+    let _alone = alone();
     let d = tempdir("hostile-box");
     let las = synth(&d, "site.las", 200_000);
     let site = d.join("site.myr");
@@ -334,7 +379,10 @@ fn box_downloads_are_capped_cancelled_and_leave_no_files() {
         if let Some(s) = server.child.try_wait().unwrap() {
             break s;
         }
-        assert!(t.elapsed() < SECOND * 10, "still running 10 s after SIGTERM");
+        assert!(
+            t.elapsed() < SECOND * 10,
+            "still running 10 s after SIGTERM"
+        );
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(status.success(), "{status:?}");
@@ -343,6 +391,7 @@ fn box_downloads_are_capped_cancelled_and_leave_no_files() {
 
 #[test]
 fn abandoned_box_downloads_stop_instead_of_running_on() {
+    let _alone = alone();
     let d = tempdir("hostile-cancel");
     let las = synth(&d, "big.las", 1_000_000);
     let site = d.join("big.myr");
@@ -375,10 +424,16 @@ fn abandoned_box_downloads_stop_instead_of_running_on() {
     drop(burst);
     std::thread::sleep(SECOND);
     let stats = server.stats();
-    assert!(stats.downloads_started <= 4, "abandoned downloads started: {stats:?}");
+    assert!(
+        stats.downloads_started <= 4,
+        "abandoned downloads started: {stats:?}"
+    );
     assert!(stats.downloads_cancelled >= 1, "{stats:?}");
     assert_eq!(stats.downloads_finished, 0, "{stats:?}");
-    assert_eq!(stats.downloads_started, stats.downloads_cancelled, "{stats:?}");
+    assert_eq!(
+        stats.downloads_started, stats.downloads_cancelled,
+        "{stats:?}"
+    );
     // Abandoned one after another: each stops when its client leaves.
     for _ in 0..5 {
         let mut c = TcpStream::connect(server.addr).unwrap();
@@ -392,7 +447,14 @@ fn abandoned_box_downloads_stop_instead_of_running_on() {
     std::thread::sleep(SECOND);
     let stats = server.stats();
     assert_eq!(stats.downloads_finished, 0, "{stats:?}");
-    assert_eq!(stats.downloads_started, stats.downloads_cancelled, "{stats:?}");
+    assert_eq!(
+        stats.downloads_started, stats.downloads_cancelled,
+        "{stats:?}"
+    );
     // The server's scratch folder holds nothing once they are gone.
-    assert_eq!(std::fs::read_dir(server.scratch()).unwrap().count(), 1, "only its lock");
+    assert_eq!(
+        std::fs::read_dir(server.scratch()).unwrap().count(),
+        1,
+        "only its lock"
+    );
 }

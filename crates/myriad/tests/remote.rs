@@ -215,7 +215,10 @@ fn a_dataset_replaced_while_read_fails_instead_of_mixing_versions() {
     let e = read.expect_err("a page of the new file was taken for the old one's");
     assert!(e.message.contains("changed on the server"), "{}", e.message);
     let e = ds.check_unchanged().unwrap_err().to_string();
-    assert!(e.contains("site.myr") && e.contains("changed on the server"), "{e}");
+    assert!(
+        e.contains("site.myr") && e.contains("changed on the server"),
+        "{e}"
+    );
     // Every read from then on fails the same way, even where the bytes would match.
     assert!(ds.read_node(&before[0]).is_err() || before[0].page.length == 0);
     // A fresh open reads the new version whole.
