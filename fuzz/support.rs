@@ -73,7 +73,7 @@ fn fix_node_page(b: &mut [u8], r: std::ops::Range<usize>) {
 }
 
 /// Fixes the CRCs the root hierarchy page holds (node pages, child pages) in place.
-fn fix_root_page(b: &mut Vec<u8>, r: std::ops::Range<usize>) {
+fn fix_root_page(b: &mut [u8], r: std::ops::Range<usize>) {
     let Some(e) = u32_at(b, r.start + 4) else { return };
     let Some(c) = u32_at(b, r.start + 8) else { return };
     let mut at = r.start + 12;

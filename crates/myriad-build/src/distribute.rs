@@ -505,10 +505,10 @@ pub fn distribute_with(
     for path in inputs {
         let mut src = myriad_io::open(path, open)?;
         let info = src.info().clone();
-        if las_header.is_none() {
-            if let Some(h) = src.las_header() {
-                las_header = Some(myriad_io::las::header_to_bytes(h)?);
-            }
+        if las_header.is_none()
+            && let Some(h) = src.las_header()
+        {
+            las_header = Some(myriad_io::las::header_to_bytes(h)?);
         }
         let ((n, b), kept) = match (info.points, info.bounds) {
             (Some(n), Some(b)) => ((n, b), Some(src)),
@@ -599,10 +599,10 @@ pub fn distribute_with(
                         root.max
                     )));
                 }
-                if let Some((at, cells)) = keep {
-                    if !cells.contains(&cell.map(|c| c >> (level - at))) {
-                        continue;
-                    }
+                if let Some((at, cells)) = keep
+                    && !cells.contains(&cell.map(|c| c >> (level - at)))
+                {
+                    continue;
                 }
                 actual.extend(p);
                 picked.push(i as u32);

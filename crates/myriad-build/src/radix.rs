@@ -24,7 +24,7 @@ pub fn sort_by_key<T: Copy>(items: &mut Vec<T>, key: impl Fn(&T) -> u64) {
     let mut to = from.clone();
     for (d, c) in counts.iter().enumerate() {
         // A byte all keys share moves nothing.
-        if c.iter().any(|&k| k == n) {
+        if c.contains(&n) {
             continue;
         }
         let mut next = [0usize; 256];

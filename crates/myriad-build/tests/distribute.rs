@@ -202,7 +202,7 @@ fn chunks_and_tops_form_one_nested_octree() {
     };
     myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
     let dist = distribute(
-        &[las.clone()],
+        std::slice::from_ref(&las),
         &OpenOptions::default(),
         &DistributeOptions {
             chunk_points: 15_000,

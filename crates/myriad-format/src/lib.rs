@@ -104,6 +104,9 @@ impl Header {
 /// Bytes addressed by offset: a file, later an HTTP resource. Shared between threads.
 pub trait ByteSource: Send + Sync {
     fn len(&self) -> u64;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
     fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>>;
     /// Requests made and bytes fetched, for sources over a network.
     fn fetched(&self) -> Option<(u64, u64)> {

@@ -76,7 +76,7 @@ fn check_header(path: &Path, file_size: u64) -> Result<u64> {
         ));
     }
     // Pages end in a 4-byte checksum; the e57 crate reads pages of at most 1 MiB.
-    if !(8..=1 << 20).contains(&page) || file_size % page != 0 {
+    if !(8..=1 << 20).contains(&page) || !file_size.is_multiple_of(page) {
         return Err(Error::at_byte(
             path,
             40,

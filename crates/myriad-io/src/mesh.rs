@@ -124,7 +124,7 @@ pub fn glb_bytes(mesh: &Mesh) -> Vec<u8> {
         "buffers": [{"byteLength": bin.len()}],
     });
     let mut json = serde_json::to_vec(&json).expect("a JSON value serializes");
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let length = 12 + 8 + json.len() + 8 + bin.len();

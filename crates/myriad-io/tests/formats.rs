@@ -15,7 +15,7 @@ fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
     p
 }
 
-fn read(path: &PathBuf, columns: Option<&str>) -> (Box<dyn PointSource>, PointBatch) {
+fn read(path: &std::path::Path, columns: Option<&str>) -> (Box<dyn PointSource>, PointBatch) {
     let mut src = open(
         path,
         &OpenOptions {
@@ -483,7 +483,8 @@ fn e57_two_scans(grid: bool) -> (Box<dyn PointSource>, PointBatch) {
         proto.push(index(RecordName::ColumnIndex));
     }
     let mut w = E57Writer::from_file(&p, "file-guid").unwrap();
-    let scans: [(&str, Option<Transform>, Vec<[f64; 4]>); 2] = [
+    type Scan<'a> = (&'a str, Option<Transform>, Vec<[f64; 4]>);
+    let scans: [Scan; 2] = [
         (
             "a",
             None,

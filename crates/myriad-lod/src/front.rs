@@ -433,13 +433,13 @@ mod tests {
         let right = Camera {
             position: [8.0, 0.5, 3.0],
             target: [8.0, 0.5, 0.0],
-            ..above.clone()
+            ..above
         };
         assert_eq!(keys(&select(&h, &right, &o(100))), vec![b.key]);
         // Seen from below, the up-facing nodes are culled, when culling is on.
         let below = Camera {
             position: [5.0, 0.5, -30.0],
-            ..above.clone()
+            ..above
         };
         assert_eq!(select(&h, &below, &o(250)).nodes.len(), 2);
         h.cull_backfaces = true;

@@ -141,7 +141,7 @@ impl Hierarchy {
 
     /// Where the page rooted at `key` lies, as the loaded page above it lists it.
     pub fn page_ref(&self, key: &NodeKey) -> Option<ChildPage> {
-        if key.level == 0 || key.level % PAGE_LEVELS != 0 {
+        if key.level == 0 || !key.level.is_multiple_of(PAGE_LEVELS) {
             return None;
         }
         let above = self.pages.get(&page_root(key.parent()))?;
@@ -156,7 +156,8 @@ impl Hierarchy {
     /// The pages below `key` that hold its children and are not loaded yet (only a node on
     /// a page's last level has children on other pages).
     pub fn unloaded_below(&self, key: &NodeKey) -> impl Iterator<Item = ChildPage> + '_ {
-        let page = ((key.level + 1) % PAGE_LEVELS == 0)
+        let page = (key.level + 1)
+            .is_multiple_of(PAGE_LEVELS)
             .then(|| self.pages.get(&page_root(*key)))
             .flatten();
         let key = *key;
@@ -331,7 +332,7 @@ mod tests {
     fn page(root: NodeKey, below: &[NodeKey]) -> HierarchyPage {
         let mut nodes = vec![entry(root)];
         let mut k = root;
-        while (k.level + 1) % PAGE_LEVELS != 0 {
+        while !(k.level + 1).is_multiple_of(PAGE_LEVELS) {
             k = k.child(0);
             nodes.push(entry(k));
         }

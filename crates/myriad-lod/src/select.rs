@@ -411,18 +411,15 @@ pub fn merge(alone: Vec<Selection>, budget: u64) -> Vec<Selection> {
     let mut out: Vec<Selection> = vec![Selection::default(); alone.len()];
     let mut next = vec![0usize; alone.len()];
     let mut total = 0u64;
-    loop {
-        // The dataset whose next node has the highest benefit.
-        let Some(k) = (0..alone.len())
-            .filter(|&k| next[k] < alone[k].nodes.len())
-            .max_by(|&a, &b| {
-                alone[a].nodes[next[a]]
-                    .benefit
-                    .total_cmp(&alone[b].nodes[next[b]].benefit)
-            })
-        else {
-            break;
-        };
+    // The dataset whose next node has the highest benefit.
+    while let Some(k) = (0..alone.len())
+        .filter(|&k| next[k] < alone[k].nodes.len())
+        .max_by(|&a, &b| {
+            alone[a].nodes[next[a]]
+                .benefit
+                .total_cmp(&alone[b].nodes[next[b]].benefit)
+        })
+    {
         let mut n = alone[k].nodes[next[k]].clone();
         next[k] += 1;
         let room = budget - total;

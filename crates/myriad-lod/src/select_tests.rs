@@ -78,7 +78,7 @@ fn kd_nodes_are_selected_by_their_stored_bounds() {
     assert_eq!(s.nodes[1].key, near.key);
     // A camera at x = 5.5 looking along +x culls the near child by its bounds; a child out
     // of view does not stop the pull-up, so the root takes the far child's spacing.
-    let mut cam2 = cam.clone();
+    let mut cam2 = cam;
     cam2.position = [5.5, 0.5, 0.5];
     cam2.target = [9.0, 0.5, 0.5];
     let s = select(&h, &cam2, &o);
@@ -134,7 +134,7 @@ fn contours_cull_and_weigh_flat_nodes() {
         position: [0.5, 0.5, 20.0],
         target: [0.5, 0.5, 0.5],
         up: [0.0, 1.0, 0.0],
-        ..cam.clone()
+        ..cam
     };
     let edge = Camera {
         position: [0.5, -19.0, 0.999],

@@ -393,9 +393,10 @@ mod tests {
             if n.key.cell[0] == 13 {
                 return Err("node 13 is damaged".into());
             }
-            let mut b = PointBatch::default();
-            b.positions = vec![[0.0; 3]; n.points as usize];
-            Ok(b)
+            Ok(PointBatch {
+                positions: vec![[0.0; 3]; n.points as usize],
+                ..Default::default()
+            })
         }
     }
 

@@ -137,6 +137,9 @@ enum Pipelines {
     Cpu,
 }
 
+/// An image size and the hidden-area ellipse made for it.
+type Ellipse = ((u32, u32), std::sync::Arc<Vec<bool>>);
+
 /// The rasterizer's pipelines and frame targets.
 pub struct Rasterizer {
     pipelines: Pipelines,
@@ -151,7 +154,7 @@ pub struct Rasterizer {
     /// Where frames go instead of being read back ([`Rasterizer::present_to`]).
     present: Mutex<Option<wgpu::TextureView>>,
     /// The last hidden-area ellipse made, by image size ([`crate::stereo::hidden_area`]).
-    pub(crate) ellipse: Mutex<Option<((u32, u32), std::sync::Arc<Vec<bool>>)>>,
+    pub(crate) ellipse: Mutex<Option<Ellipse>>,
     pub path: Path,
     /// Precision per batch (Schütz 2022): a draw's points are read with as few position words
     /// as leave them within half this many pixels of where all words put them (0: all words).
@@ -833,7 +836,7 @@ impl Rasterizer {
 /// The camera and style of a frame supersampled `f` times: `f` times the pixels on each side,
 /// fixed point sizes and the largest adaptive size `f` times as many pixels.
 pub(crate) fn supersampled(camera: &Camera, style: &Style, f: u32) -> (Camera, Style) {
-    let mut c = camera.clone();
+    let mut c = *camera;
     c.width = camera.width.max(1) * f;
     c.height = camera.height.max(1) * f;
     let mut s = *style;
@@ -879,7 +882,7 @@ impl Rasterizer {
             let limits = d.limits();
             let (w, h) = (camera.width.max(1) as u64, camera.height.max(1) as u64);
             let fits = |f: u64| {
-                w * h * f * f * 8 <= limits.max_storage_buffer_binding_size as u64
+                w * h * f * f * 8 <= limits.max_storage_buffer_binding_size
                     && (w.max(h) * f) <= limits.max_texture_dimension_2d as u64
             };
             while f > 1 && !fits(f as u64) {

@@ -650,7 +650,7 @@ impl Scene {
         Request {
             hierarchy: self.hierarchy.clone(),
             camera: *camera,
-            options: options.clone(),
+            options: *options,
             culling: self.culling(clip),
             resident,
             hidden: self.hidden.clone(),

@@ -75,6 +75,12 @@ pub struct Selector {
     serial: u64,
 }
 
+impl Default for Selector {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl Selector {
     pub fn new() -> Selector {
         let shared: Shared = Arc::new((Mutex::new(State::default()), Condvar::new()));

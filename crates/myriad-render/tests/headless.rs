@@ -113,7 +113,7 @@ fn many_points_fill_a_plane() {
     for (gpu, r) in &paths() {
         let points = points(gpu);
         let img = r.render(
-            &gpu,
+            gpu,
             &cam,
             &[points.all(0.0)],
             &[],
@@ -249,7 +249,7 @@ fn paraboloids_meet_halfway() {
     for (gpu, r) in &paths() {
         let p = p(gpu);
         let img = r.render(
-            &gpu,
+            gpu,
             &cam,
             &[p.all(0.0)],
             &[],
@@ -291,7 +291,7 @@ fn eye_dome_lighting_darkens_behind_edges_only() {
         let p = p(gpu);
         let plain = r.render(gpu, &cam, &[p.all(0.0)], &[], &fixed(2.0, Shape::Square));
         let lit = r.render(
-            &gpu,
+            gpu,
             &cam,
             &[p.all(0.0)],
             &[],

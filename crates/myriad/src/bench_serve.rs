@@ -329,7 +329,7 @@ fn load(
                     .timeout_global(Some(Duration::from_secs(30)))
                     .build()
                     .into();
-                let mut seed = 0x9e37_79b9_7f4a_7c15u64 ^ (i as u64 + 1) * 0x1234_5678_9abc_def1;
+                let mut seed = 0x9e37_79b9_7f4a_7c15u64 ^ ((i as u64 + 1) * 0x1234_5678_9abc_def1);
                 let mut next = move || {
                     seed ^= seed << 13;
                     seed ^= seed >> 7;

@@ -439,10 +439,10 @@ pub struct ExtractArgs {
 }
 
 pub fn extract(a: ExtractArgs) -> Result<()> {
-    if let Some(s) = a.spacing {
-        if !(s.is_finite() && s > 0.0) {
-            bail!("--spacing must be a positive length");
-        }
+    if let Some(s) = a.spacing
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--spacing must be a positive length");
     }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;

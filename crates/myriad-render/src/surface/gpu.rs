@@ -123,11 +123,11 @@ fn run(
         return Err("the GPU clusters in the frustum grid only".into());
     };
     let cells = dims.iter().map(|&v| v as u64).product::<u64>();
-    let limit = d.limits().max_storage_buffer_binding_size as u64;
+    let limit = d.limits().max_storage_buffer_binding_size;
     if cells * STRIDE * 4 > limit || cells > u32::MAX as u64 / 2 {
         return Err(format!(
             "a grid of {cells} cells needs {} MB a binding, the device allows {} MB",
-            cells * STRIDE * 4 >> 20,
+            (cells * STRIDE * 4) >> 20,
             limit >> 20
         ));
     }
