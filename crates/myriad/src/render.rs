@@ -317,15 +317,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 "single pass"
             },
         );
-        if a.full && damaged > 0 {
-            bail!(
-                "{damaged} damaged page{} in {}: {} lacks their points",
-                if damaged == 1 { "" } else { "s" },
-                a.dataset.display(),
-                a.output.display()
-            );
-        }
-        return Ok(());
+        return full_image_whole(&a, damaged);
     }
     // First image: as soon as the first selected node (the root) is in.
     let first = scene.update(&cam, &options);
@@ -420,7 +412,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         raster.path,
     );
     debug_assert_eq!(stats.points, selection.points);
-    // The reference image of every point is not one when points are missing.
+    full_image_whole(&a, damaged)
+}
+
+/// The reference image of every point (`--full`) is not one when `damaged` pages are missing.
+fn full_image_whole(a: &RenderArgs, damaged: usize) -> Result<()> {
     if a.full && damaged > 0 {
         bail!(
             "{damaged} damaged page{} in {}: {} lacks their points (`myriad verify` lists them)",

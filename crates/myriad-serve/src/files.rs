@@ -1,0 +1,304 @@
+//! Answers for the files of the catalog: the validator (`ETag`, `If-None-Match`, `If-Range`),
+//! the ranges (one read at once up to [`READ_AT_ONCE`], several merged where they overlap and
+//! sent as `multipart/byteranges`), and bodies streamed from the file in [`CHUNK`]s through the
+//! connection's memory [`Budget`].
+
+use crate::conn::{Budget, Owned};
+use crate::range::{self, Ranges};
+use crate::{BOUNDARY, Body, CHUNK, catalog, full, status};
+use bytes::Bytes;
+use http_body_util::{BodyExt, StreamBody};
+use hyper::body::{Frame, Incoming};
+use hyper::header::{self, HeaderValue};
+use hyper::{Method, Request, Response, StatusCode};
+use std::collections::VecDeque;
+use std::io;
+use std::sync::Arc;
+
+/// One range up to this size is read in one go with the file's opening (one trip to the
+/// blocking pool for most requests); larger answers stream in [`CHUNK`]s.
+const READ_AT_ONCE: u64 = 4 << 20;
+
+/// What one request for a file comes to, decided on a blocking thread with the file open.
+struct Plan {
+    len: u64,
+    etag: String,
+    answer: Answer,
+}
+
+enum Answer {
+    NotModified,
+    Unsatisfiable,
+    /// The whole file, or one range: read (`Some`, within the bytes taken from the budget
+    /// beforehand) or to be streamed from the file.
+    One {
+        range: Option<(u64, u64)>,
+        data: Option<Vec<u8>>,
+        file: std::fs::File,
+    },
+    /// Several ranges (overlapping ones merged), to be streamed.
+    Many(Vec<(u64, u64)>, std::fs::File),
+}
+
+/// Ranges sorted and merged where they overlap or touch, when any do (RFC 9110 lets a server
+/// coalesce them); as asked otherwise.
+fn merge_ranges(mut v: Vec<(u64, u64)>) -> Vec<(u64, u64)> {
+    let mut sorted = v.clone();
+    sorted.sort_unstable();
+    if sorted.windows(2).all(|w| w[1].0 > w[0].1.saturating_add(1)) {
+        return v;
+    }
+    v.clear();
+    for (a, b) in sorted {
+        match v.last_mut() {
+            Some(last) if a <= last.1.saturating_add(1) => last.1 = last.1.max(b),
+            _ => v.push((a, b)),
+        }
+    }
+    v
+}
+
+/// Opens the file, takes its validator, resolves the request's ranges and reads one range of
+/// at most `read_up_to` bytes.
+fn plan(
+    path: &std::path::Path,
+    range: Option<String>,
+    if_range: Option<String>,
+    if_none_match: Option<String>,
+    read_up_to: u64,
+) -> io::Result<Plan> {
+    use std::os::unix::fs::FileExt;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    let len = meta.len();
+    let mtime = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    let etag = format!("\"{len:x}-{mtime:x}\"");
+    if if_none_match.is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*")) {
+        return Ok(Plan {
+            len,
+            etag,
+            answer: Answer::NotModified,
+        });
+    }
+    // If-Range with another validator: the whole file (the ranges would be of another version).
+    let ranges = match (range, if_range) {
+        (Some(_), Some(v)) if v.trim() != etag => Ranges::Whole,
+        (Some(h), _) => range::parse(&h, len),
+        (None, _) => Ranges::Whole,
+    };
+    let answer = match ranges {
+        Ranges::Unsatisfiable => Answer::Unsatisfiable,
+        Ranges::Whole => Answer::One {
+            range: None,
+            data: None,
+            file,
+        },
+        Ranges::Some(v) => {
+            let v = merge_ranges(v);
+            if v.len() == 1 {
+                let (a, b) = v[0];
+                let data = if b - a < read_up_to {
+                    let mut buf = vec![0; (b - a + 1) as usize];
+                    file.read_exact_at(&mut buf, a)?;
+                    Some(buf)
+                } else {
+                    None
+                };
+                Answer::One {
+                    range: Some((a, b)),
+                    data,
+                    file,
+                }
+            } else {
+                Answer::Many(v, file)
+            }
+        }
+    };
+    Ok(Plan { len, etag, answer })
+}
+
+/// The bytes a request's `Range` can come to when it is one range of known size (to take them
+/// from the budget before the file is opened); 0 otherwise.
+fn one_range_bytes(range: Option<&str>) -> u64 {
+    let Some(specs) = range.and_then(|h| h.split_once('=')).map(|(_, s)| s.trim()) else {
+        return 0;
+    };
+    if specs.contains(',') {
+        return 0;
+    }
+    match specs.split_once('-') {
+        Some(("", n)) => n.trim().parse().unwrap_or(0),
+        Some((a, b)) if !b.trim().is_empty() => {
+            match (a.trim().parse::<u64>(), b.trim().parse::<u64>()) {
+                (Ok(a), Ok(b)) if b >= a => b - a + 1,
+                _ => 0,
+            }
+        }
+        _ => 0,
+    }
+}
+
+/// One served file, as the request asks for it.
+pub(crate) async fn file(
+    f: &catalog::File,
+    budget: &Budget,
+    req: &Request<Incoming>,
+) -> io::Result<Response<Body>> {
+    let head = req.method() == Method::HEAD;
+    let header = |h: header::HeaderName| {
+        req.headers()
+            .get(h)
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_string)
+    };
+    let (range, if_range, if_none_match) = (
+        header(header::RANGE),
+        header(header::IF_RANGE),
+        header(header::IF_NONE_MATCH),
+    );
+    // A small range is read with the opening: its bytes are taken from the budget first.
+    let want = one_range_bytes(range.as_deref());
+    let (held, read_up_to) = if !head && want > 0 && want <= READ_AT_ONCE {
+        (Some(budget.take(want as usize).await), want)
+    } else {
+        (None, 0)
+    };
+    let path = f.path.clone();
+    let Plan { len, etag, answer } = tokio::task::spawn_blocking(move || {
+        plan(&path, range, if_range, if_none_match, read_up_to)
+    })
+    .await
+    .map_err(io::Error::other)??;
+    let unsatisfiable = |text: &str| {
+        let mut r = status(StatusCode::RANGE_NOT_SATISFIABLE, text);
+        r.headers_mut().insert(
+            header::CONTENT_RANGE,
+            HeaderValue::from_str(&format!("bytes */{len}")).expect("ascii"),
+        );
+        r
+    };
+    let mut r = match answer {
+        Answer::NotModified => {
+            let mut r = Response::new(full(Bytes::new()));
+            *r.status_mut() = StatusCode::NOT_MODIFIED;
+            r
+        }
+        Answer::Unsatisfiable => unsatisfiable("range not satisfiable"),
+        Answer::One { range, data, file } => {
+            let (a, b) = range.unwrap_or((0, len.saturating_sub(1)));
+            let n = if len == 0 { 0 } else { b - a + 1 };
+            let body = match (head, data, held) {
+                (true, _, _) => full(Bytes::new()),
+                (false, Some(d), Some(h)) => full(Bytes::from_owner(Owned { data: d, _held: h })),
+                (false, Some(d), None) => full(d),
+                (false, None, _) => pieces(
+                    Arc::new(file),
+                    VecDeque::from([Piece::File(a, n)]),
+                    budget.clone(),
+                    None,
+                ),
+            };
+            let mut r = Response::new(body);
+            let h = r.headers_mut();
+            h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
+            if range.is_some() {
+                *r.status_mut() = StatusCode::PARTIAL_CONTENT;
+                r.headers_mut().insert(
+                    header::CONTENT_RANGE,
+                    HeaderValue::from_str(&format!("bytes {a}-{b}/{len}")).expect("ascii"),
+                );
+            }
+            r
+        }
+        Answer::Many(parts, file) => {
+            drop(held);
+            let mut list = VecDeque::new();
+            let mut n = 0u64;
+            for (a, b) in parts {
+                let head = format!(
+                    "\r\n--{BOUNDARY}\r\nContent-Type: {}\r\nContent-Range: bytes {a}-{b}/{len}\r\n\r\n",
+                    f.content_type
+                );
+                n += head.len() as u64 + (b - a + 1);
+                list.push_back(Piece::Text(Bytes::from(head)));
+                list.push_back(Piece::File(a, b - a + 1));
+            }
+            let tail = format!("\r\n--{BOUNDARY}--\r\n");
+            n += tail.len() as u64;
+            list.push_back(Piece::Text(Bytes::from(tail)));
+            let body = if head {
+                full(Bytes::new())
+            } else {
+                pieces(Arc::new(file), list, budget.clone(), None)
+            };
+            let mut r = Response::new(body);
+            *r.status_mut() = StatusCode::PARTIAL_CONTENT;
+            let h = r.headers_mut();
+            h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
+            h.insert(
+                header::CONTENT_TYPE,
+                HeaderValue::from_str(&format!("multipart/byteranges; boundary={BOUNDARY}"))
+                    .expect("ascii"),
+            );
+            r
+        }
+    };
+    let h = r.headers_mut();
+    h.insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
+    h.insert(header::ETAG, HeaderValue::from_str(&etag).expect("ascii"));
+    h.entry(header::CONTENT_TYPE)
+        .or_insert(HeaderValue::from_static(f.content_type));
+    Ok(r)
+}
+
+/// A piece of an answer's body: text of its own, or bytes of the file (offset, length).
+pub(crate) enum Piece {
+    Text(Bytes),
+    File(u64, u64),
+}
+
+/// A body of `list`'s pieces in order, the file's read in [`CHUNK`]s as the client takes them,
+/// each held in the budget until written; `keep` lives as long as the body.
+pub(crate) fn pieces(
+    file: Arc<std::fs::File>,
+    list: VecDeque<Piece>,
+    budget: Budget,
+    keep: Option<tokio::sync::OwnedSemaphorePermit>,
+) -> Body {
+    let chunks = futures_util::stream::unfold(
+        (list, file, budget, keep),
+        |(mut list, file, budget, keep)| async move {
+            let piece = list.pop_front()?;
+            let bytes = match piece {
+                Piece::Text(b) => Ok(b),
+                Piece::File(at, len) => {
+                    let n = len.min(CHUNK as u64);
+                    if n < len {
+                        list.push_front(Piece::File(at + n, len - n));
+                    }
+                    let held = budget.take(n as usize).await;
+                    let f = file.clone();
+                    let read = tokio::task::spawn_blocking(move || {
+                        use std::os::unix::fs::FileExt;
+                        let mut data = vec![0; n as usize];
+                        f.read_exact_at(&mut data, at).map(|_| data)
+                    })
+                    .await
+                    .map_err(io::Error::other)
+                    .and_then(|r| r);
+                    read.map(|data| Bytes::from_owner(Owned { data, _held: held }))
+                }
+            };
+            if bytes.is_err() {
+                // Nothing more after a failed read: the client sees a short body.
+                list.clear();
+            }
+            Some((bytes.map(Frame::data), (list, file, budget, keep)))
+        },
+    );
+    StreamBody::new(chunks).boxed()
+}
