@@ -3,9 +3,11 @@
 //! (`nested::take_up`, `kd::take_up`; mwkd: aggregates of them, `mwkd::take_up`); the children
 //! are then final and written; the parent is spilled and becomes a child one level up.
 
-use crate::convert::{Pending, Report, Structure, spill, unspill, write};
 use crate::kd;
 use crate::nested::{self, BuiltNode, NestedParams};
+use crate::nodes::{Pending, spill, unspill, write};
+use crate::report::Report;
+use crate::structure::Structure;
 use myriad_core::{Aabb, NodeKey, Result, Schema};
 use myriad_format::DatasetWriter;
 use rayon::prelude::*;

@@ -332,7 +332,7 @@ pub fn append(
                     if node.key == cell {
                         top = Some(node);
                     } else {
-                        convert::write(&writer, node)?;
+                        crate::nodes::write(&writer, node)?;
                         written += 1;
                     }
                     Ok::<(), Error>(())
@@ -373,7 +373,7 @@ pub fn append(
     // 5. The levels above the cut, from the cells' top nodes.
     report.phase("merging", roots.len() as u64);
     for node in nested::build_tops(roots, &root, &params) {
-        convert::write(&writer, node)?;
+        crate::nodes::write(&writer, node)?;
         rebuilt += 1;
     }
     let (written, _, _) = writer.totals();

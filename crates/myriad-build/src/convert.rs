@@ -21,7 +21,9 @@ use crate::above::Above;
 use crate::distribute::{self, DistributeOptions, SPILL_PREFIX};
 use crate::kd;
 use crate::nested::{self, BuiltNode, NestedParams};
-pub(crate) use crate::nodes::{Pending, spill, unspill, write};
+use crate::nodes::{Pending, spill, write};
+pub use crate::report::{Report, Silent};
+pub use crate::structure::Structure;
 use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result};
 use myriad_format::{DatasetWriter, Metadata, Quantization};
 use myriad_io::OpenOptions;
@@ -34,53 +36,6 @@ pub const DEFAULT_MAX_LEVEL: u32 = 20;
 /// Spill files of rows (points not on a LAS input's grid) are compressed when they would exceed
 /// this (8 GB, about 150 M points).
 pub const SPILL_COMPRESS_ABOVE: u64 = 8 << 30;
-
-/// The hierarchy a dataset is built as (`convert --structure`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Structure {
-    /// Nested octree of MOSPTs (Scheiblauer 2006, 003).
-    Octree,
-    /// Octree whose nodes' representatives come from an adaptive n-tree, with contours (000).
-    Layered,
-    /// Balanced binary kd-tree with median splits (002).
-    Kd,
-    /// Multi-way kd-tree of aggregates drawn as splats (004).
-    Mwkd,
-}
-
-impl Structure {
-    pub const ALL: [Structure; 4] = [
-        Structure::Octree,
-        Structure::Layered,
-        Structure::Kd,
-        Structure::Mwkd,
-    ];
-
-    /// The name `--structure` takes and the metadata stores.
-    pub fn name(self) -> &'static str {
-        match self {
-            Structure::Octree => "octree",
-            Structure::Layered => "layered",
-            Structure::Kd => "kd",
-            Structure::Mwkd => "mwkd",
-        }
-    }
-
-    /// The name the dataset's metadata stores: the octree's is "nested-octree".
-    pub fn stored_name(self) -> &'static str {
-        match self {
-            Structure::Octree => "nested-octree",
-            s => s.name(),
-        }
-    }
-
-    pub fn parse(s: &str) -> std::result::Result<Structure, String> {
-        Structure::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown structure {s:?} (octree, layered, kd, mwkd)"))
-    }
-}
 
 #[derive(Debug, Clone)]
 pub struct ConvertOptions {
@@ -246,19 +201,6 @@ fn largest_first<T: Sync, R: Send>(
     let mut done = done.into_inner().expect("results");
     done.sort_by_key(|(i, _)| *i);
     done.into_iter().map(|(_, r)| r).collect()
-}
-
-/// Follows a build: phases with a total of work units, and progress within them.
-pub trait Report: Sync {
-    fn phase(&self, name: &'static str, total: u64);
-    fn advance(&self, n: u64);
-}
-
-/// A [`Report`] that says nothing.
-pub struct Silent;
-impl Report for Silent {
-    fn phase(&self, _: &'static str, _: u64) {}
-    fn advance(&self, _: u64) {}
 }
 
 #[derive(Debug, Clone)]

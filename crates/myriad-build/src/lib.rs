@@ -7,6 +7,7 @@
 
 mod above;
 pub mod append;
+pub mod cached;
 pub mod convert;
 pub mod distribute;
 pub mod export;
@@ -17,7 +18,9 @@ pub mod mwkd;
 pub mod nested;
 mod nodes;
 pub mod ntree;
+mod order;
 pub mod partition;
 mod radix;
+pub mod report;
 mod spill;
-mod tops;
+pub mod structure;

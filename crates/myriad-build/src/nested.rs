@@ -75,7 +75,7 @@ pub(crate) fn node_from_prefix(
     // Put in the order the writer wants before the one gather.
     let kept = &m.order[..keep];
     let order: Vec<u32> =
-        crate::nodes::acquisition_permutation(batch, Some(kept), keep, &prefix, &spacing)
+        crate::order::acquisition_permutation(batch, Some(kept), keep, &prefix, &spacing)
             .into_iter()
             .map(|p| kept[p as usize])
             .collect();

@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod mesh;
 pub mod pca;
 pub mod schema;
+pub mod units;
 
 pub use batch::{Numbers, PointBatch, PointRecord, RowBytes, WavePacket};
 pub use error::{Error, Location, Result};

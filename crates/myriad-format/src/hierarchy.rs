@@ -3,7 +3,6 @@
 //! reader of a dataset of any size opens it by reading the root page alone, and walks down only
 //! where it needs to. Byte layout: docs/format.md.
 
-use crate::splat::SplatInfo;
 use myriad_core::{Aabb, NodeKey, Obb};
 
 pub const HIERARCHY_MAGIC: &[u8; 4] = b"MYRH";
@@ -16,6 +15,18 @@ pub struct PageRef {
     pub offset: u64,
     pub length: u32,
     pub crc: u32,
+}
+
+/// Where a node's splat page lies and what a reader needs with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplatInfo {
+    pub page: PageRef,
+    /// Smallest and largest splat radius of the node.
+    pub radius: [f32; 2],
+    /// Normal cone: unit axis and the cosine of its half angle (-1: normals in every direction).
+    pub cone: [f32; 4],
+    /// The node's points are aggregates made for drawing (inner nodes), not original points.
+    pub aggregate: bool,
 }
 
 /// One node: its key, where its page lies, and its level-of-detail prefixes.

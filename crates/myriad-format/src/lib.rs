@@ -34,6 +34,21 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
+
+/// Whether `path` is a dataset: a URL (over HTTP only datasets are read), or a file that starts
+/// with [`MAGIC`].
+#[cfg(not(target_arch = "wasm32"))]
+pub fn is_dataset(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    if remote::is_url(path) {
+        return true;
+    }
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && &head == MAGIC
+}
 /// 2: hierarchy entries carry optional node bounds, contours and splat pages (the kd, layered and
 /// mwkd structures).
 pub const FORMAT_VERSION: u32 = 2;

@@ -5,22 +5,10 @@
 //! radius range, the node's normal cone and whether its points are aggregates (inner nodes) or
 //! original points (leaves).
 
-use crate::hierarchy::PageRef;
+pub use crate::hierarchy::SplatInfo;
 
 /// Cells per side of a cube-map face.
 pub const FACE_CELLS: u32 = 104;
-
-/// Where a node's splat page lies and what a reader needs with it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SplatInfo {
-    pub page: PageRef,
-    /// Smallest and largest splat radius of the node.
-    pub radius: [f32; 2],
-    /// Normal cone: unit axis and the cosine of its half angle (-1: normals in every direction).
-    pub cone: [f32; 4],
-    /// The node's points are aggregates made for drawing (inner nodes), not original points.
-    pub aggregate: bool,
-}
 
 /// The smallest cone holding both normal cones `a` and `b` (unit axis, cosine of the half
 /// angle; -1: every direction): what a node's cone must hold of its children's, so that a node

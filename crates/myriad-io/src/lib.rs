@@ -14,6 +14,7 @@ pub mod atomic;
 pub mod claim;
 pub mod copc;
 pub mod e57;
+pub mod image;
 pub mod las;
 mod las_extra;
 mod las_guard;
@@ -23,6 +24,7 @@ pub mod pcd;
 pub mod placement;
 pub mod ply;
 pub mod potree;
+pub mod process;
 mod read_util;
 pub mod text;
 

@@ -1,7 +1,7 @@
 //! The drawn nodes of a frame as a small array octree that the shaders walk per point, for
 //! adaptive point sizes (003 section 4.4, 002 section 5.1).
 
-use crate::select::Selection;
+use crate::selection::Selection;
 use myriad_core::{Aabb, NodeKey};
 use std::collections::HashMap;
 

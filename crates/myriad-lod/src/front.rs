@@ -2,7 +2,8 @@
 //! nodes replace their parents when drawn (inner nodes hold aggregates), so a frame draws a cut
 //! through the tree rather than a subtree from the root.
 
-use crate::select::{Candidate, Hierarchy, SelectOptions, Selected, Selection, nearest_depth};
+use crate::hierarchy::Hierarchy;
+use crate::selection::{Candidate, SelectOptions, Selected, Selection, nearest_depth};
 use crate::view::Camera;
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;

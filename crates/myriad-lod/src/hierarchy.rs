@@ -8,7 +8,7 @@
 //! only. [`PageCache`] bounds the memory: the pages the last frames did not use go first, with
 //! the pages below them (unreachable without them); the root page always stays.
 
-use crate::select::Selection;
+use crate::selection::Selection;
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::hierarchy::{PAGE_LEVELS, page_root};
 use myriad_format::{ChildPage, HierarchyPage, NodeEntry};

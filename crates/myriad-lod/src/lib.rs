@@ -12,18 +12,21 @@ pub mod occlusion;
 pub mod pace;
 pub mod prefetch;
 pub mod select;
+pub mod selection;
 pub mod stream;
 pub mod view;
 
 pub use cache::Lru;
+pub use drawn::DrawnTree;
 pub use front::{backfacing, select_front};
+pub use hierarchy::Hierarchy;
 pub use hierarchy::PageCache;
 pub use occlusion::{DepthMap, Occluder, Occlusion};
 pub use pace::Pace;
 pub use prefetch::prefetch;
 pub use select::{
-    DrawnTree, Hierarchy, SelectOptions, Selected, Selection, merge, point_spacing, select,
-    select_many, select_occluded, select_occluded_from, select_where,
+    merge, point_spacing, select, select_many, select_occluded, select_occluded_from, select_where,
 };
+pub use selection::{SelectOptions, Selected, Selection};
 pub use stream::{Loader, PageReader};
 pub use view::{Camera, Clip, Frustum, robust_bounds};

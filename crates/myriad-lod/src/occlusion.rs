@@ -312,9 +312,10 @@ impl<'a> Occluder<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::select::select_occluded;
     use crate::select::tests::entry;
-    use crate::select::{Hierarchy, SelectOptions, select_occluded};
     use crate::stream::Loaded;
+    use crate::{Hierarchy, SelectOptions};
     use myriad_core::Aabb;
 
     /// Looking along +x from x = -20 at the middle of a wall in the plane x = 2 (y and z from

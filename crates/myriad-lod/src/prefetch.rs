@@ -1,6 +1,8 @@
 //! Prefetching (004 section IV): the nodes the view will want next, loaded before it does.
 
-use crate::select::{Hierarchy, SelectOptions, Selection, select_where};
+use crate::hierarchy::Hierarchy;
+use crate::select::select_where;
+use crate::selection::{SelectOptions, Selection};
 use crate::view::Camera;
 use myriad_core::{Aabb, NodeKey};
 

@@ -7,108 +7,22 @@
 //!
 //! Adaptive point size (003 section 4.4, 002 section 5.1): each selected node gets the spacing
 //! of the finest level it draws; where nodes are octree cells, the shaders then size each point
-//! from the finest drawn node around it ([`DrawnTree`]); in kd-trees, a node all of whose
+//! from the finest drawn node around it ([`crate::DrawnTree`]); in kd-trees, a node all of whose
 //! children in view are drawn takes their finest spacing, pulled up the tree.
 //!
 //! The structures whose nodes are not plain octree cells: layered nodes carry a contour, kd
 //! nodes their box; both are culled by it and weighed by its projected area. mwkd trees, whose
 //! nodes replace their parents, are selected as a front ([`crate::front`]).
 
-pub use crate::drawn::DrawnTree;
-pub use crate::hierarchy::Hierarchy;
+use crate::hierarchy::Hierarchy;
 use crate::occlusion::Occluder;
+pub(crate) use crate::selection::{Candidate, nearest_depth, nearest_depth_of};
+pub use crate::selection::{SelectOptions, Selected, Selection};
 use crate::view::{Camera, Frustum};
 use myriad_core::{Aabb, NodeKey, Obb};
+use myriad_format::NodeEntry;
 use myriad_format::hierarchy::PAGE_LEVELS;
-use myriad_format::{ChildPage, NodeEntry};
 use std::collections::{BinaryHeap, HashMap};
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SelectOptions {
-    /// Most points drawn.
-    pub budget: u64,
-    /// Spacing, in pixels, below which a level adds nothing visible (003: usually 1 or 2).
-    pub min_pixels: f64,
-}
-
-impl Default for SelectOptions {
-    fn default() -> Self {
-        SelectOptions {
-            budget: 1_000_000,
-            min_pixels: 1.0,
-        }
-    }
-}
-
-/// A node to draw this frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Selected {
-    pub key: NodeKey,
-    /// Points to draw: a prefix of the node.
-    pub points: u32,
-    /// Spacing of the finest level drawn, in world units (a point's size comes from the finest
-    /// drawn node around it: [`DrawnTree`]).
-    /// from the finest fully drawn descendants (the adaptive point size).
-    pub spacing: f64,
-    pub benefit: f64,
-    /// Smallest eye depth of the node's cube (clamped to the near plane), for point sizes.
-    pub depth: f64,
-}
-
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Selection {
-    /// In the order they were chosen (highest benefit first).
-    pub nodes: Vec<Selected>,
-    pub points: u64,
-    /// Whether the budget stopped the traversal.
-    pub budget_reached: bool,
-    /// Nodes culled as hidden ([`crate::occlusion`]; their subtrees not visited), and which.
-    pub culled: usize,
-    pub hidden: Vec<NodeKey>,
-    /// Hierarchy pages not loaded yet below nodes the traversal would have refined, best first:
-    /// what to load so that the view refines ([`crate::hierarchy`]).
-    pub pages: Vec<ChildPage>,
-    /// The loaded pages (by their root's key) whose root the traversal reached.
-    pub used_pages: Vec<NodeKey>,
-    /// Nodes to load ahead, not to draw ([`prefetch`]), best first.
-    pub prefetch: Vec<NodeKey>,
-}
-
-pub(crate) struct Candidate {
-    pub(crate) benefit: f64,
-    pub(crate) key: NodeKey,
-}
-impl PartialEq for Candidate {
-    fn eq(&self, o: &Self) -> bool {
-        self.benefit == o.benefit && self.key == o.key
-    }
-}
-impl Eq for Candidate {}
-impl PartialOrd for Candidate {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Candidate {
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.benefit
-            .total_cmp(&o.benefit)
-            .then_with(|| o.key.cmp(&self.key))
-    }
-}
-
-/// The nearest eye depth of a box (its corners; clamped to the near plane).
-pub(crate) fn nearest_depth(cam: &Camera, b: &Aabb) -> f64 {
-    nearest_depth_of(cam, &b.corners())
-}
-
-fn nearest_depth_of(cam: &Camera, corners: &[[f64; 3]; 8]) -> f64 {
-    corners
-        .iter()
-        .map(|&p| cam.to_eye(p)[2])
-        .fold(f64::INFINITY, f64::min)
-        .max(cam.near)
-}
 
 /// The distance between neighbouring points of each level of detail of a node. A level's cell
 /// size is that distance where the level has a point in every occupied cell, which holds for the

@@ -1,6 +1,7 @@
 //! Tests of `select.rs` (shared with the front's and occlusion's tests: `tree`, `entry`).
 
 use super::*;
+use crate::DrawnTree;
 use myriad_format::PageRef;
 
 /// The selection's point count is its nodes' and each node comes after its parent.

@@ -242,6 +242,29 @@ impl Camera {
         close.fit_depth(bounds);
         [("overview", overview), ("top", top), ("close", close)]
     }
+
+    /// The standard view `name` of `view` (see [`Camera::standard_views`]), or the overview
+    /// (`framing` at 60 degrees) when None, its depth fitted to `all`: what the benchmarks and
+    /// `mesh --view` look from. None: no view of that name.
+    pub fn view(
+        name: Option<&str>,
+        view: &Aabb,
+        all: &Aabb,
+        width: u32,
+        height: u32,
+    ) -> Option<Camera> {
+        let mut cam = match name {
+            Some(v) => {
+                Camera::standard_views(view, width, height)
+                    .into_iter()
+                    .find(|(n, _)| *n == v)?
+                    .1
+            }
+            None => Camera::framing(view, width, height, 60.0),
+        };
+        cam.fit_depth(all);
+        Some(cam)
+    }
 }
 
 /// The box holding all but `fraction` of `points` at each end of each axis (outliers, such as

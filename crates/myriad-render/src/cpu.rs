@@ -5,12 +5,14 @@
 //! compute, so that it draws the same images. It is the reference the GPU paths are tested
 //! against, and what `myriad render` uses when there is no GPU adapter.
 
-use crate::{Draw, PointSize, Shape, Style};
+use crate::points::{Draw, Layout, frame_origin};
+use crate::post::{GBuffer, pack_normal};
+use crate::{Clip, PointSize, Shape, Style};
 use myriad_lod::Camera;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
-/// As `depth_key` in raster.wgsl.
+/// As `depth_key` in compute.wgsl.
 fn depth_key(w: f32, far: f32) -> u32 {
     ((1.0 - w / far).clamp(0.0, 1.0) * 4294967040.0) as u32 + 1
 }
@@ -87,11 +89,11 @@ fn mul(m: &[[f32; 4]; 4], p: [f32; 3]) -> [f32; 4] {
 }
 
 /// The eye normal of a splat (`splat_shape`'s) facing the eye, packed, as `splat_normal_code` in
-/// raster.wgsl.
+/// compute.wgsl.
 fn splat_normal_code(sp: [f32; 4]) -> u32 {
     let len = (sp[1] * sp[1] + sp[2] * sp[2] + sp[3] * sp[3]).sqrt();
     let k = if sp[3] > 0.0 { -1.0 } else { 1.0 } / len;
-    crate::post::pack_normal([sp[1] * k, sp[2] * k, sp[3] * k])
+    pack_normal([sp[1] * k, sp[2] * k, sp[3] * k])
 }
 
 /// Draws the points into a g-buffer, as [`crate::Rasterizer::render`]'s point pass and
@@ -103,7 +105,7 @@ pub(crate) fn gbuffer(
     style: &Style,
     normals: bool,
     precision: f32,
-) -> crate::post::GBuffer {
+) -> GBuffer {
     gbuffers(&[(*camera, None)], draws, tree, style, normals, precision)
         .pop()
         .expect("one eye")
@@ -120,7 +122,7 @@ pub(crate) fn gbuffers(
     style: &Style,
     normals: bool,
     precision: f32,
-) -> Vec<crate::post::GBuffer> {
+) -> Vec<GBuffer> {
     let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>)> = eyes
         .iter()
         .map(|(camera, _)| {
@@ -162,7 +164,7 @@ pub(crate) fn gbuffers(
         .map(|t| {
             let (w, h) = (t.camera.width.max(1), t.camera.height.max(1));
             let far = t.camera.far as f32;
-            let mut g = crate::post::GBuffer::new(w, h);
+            let mut g = GBuffer::new(w, h);
             g.depth
                 .par_iter_mut()
                 .zip(g.colour.par_iter_mut())
@@ -275,7 +277,7 @@ fn points_pass(
     // Positions decoded once, relative to the first eye's frame origin, for every eye.
     let camera = targets[0].camera;
     let (scale, fixed, max_size) = sizes(style);
-    let o = crate::raster::frame_origin(draws, camera);
+    let o = frame_origin(draws, camera);
     let eyes: Vec<Eye> = targets
         .iter()
         .map(|t| Eye {
@@ -291,9 +293,9 @@ fn points_pass(
             },
         })
         .collect();
-    let [clip_min, clip_max] = crate::Clip::uniforms(style.clip, o);
+    let [clip_min, clip_max] = Clip::uniforms(style.clip, o);
     for draw in draws.iter().filter(|d| d.count > 0) {
-        let layout = crate::raster::Layout::of(draw, o, camera, precision);
+        let layout = Layout::of(draw, o, camera, precision);
         let (words, stride) = (draw.points.words, draw.points.len as usize);
         let spacing = (draw.spacing * scale) as f32;
         let node = draw.node.map_or(u32::MAX, |n| n.0);
@@ -307,7 +309,7 @@ fn points_pass(
         });
         let data = draw.points.cpu_words();
         let colours = &data[draw.points.arrays() as usize * stride..][..draw.count as usize];
-        // Oriented splats (as raster.wgsl) where the draw has them and sizes are adaptive.
+        // Oriented splats (as compute.wgsl) where the draw has them and sizes are adaptive.
         let splats = match (draw.points.cpu_splats(), draw.points.splat_range(), fixed) {
             (Some(codes), Some(range), None) => Some((&codes[..draw.count as usize], range)),
             _ => None,

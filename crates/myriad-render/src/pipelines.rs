@@ -1,6 +1,46 @@
-//! Render targets and render pipelines the quad path and the surfaces share.
+//! Making the long-lived GPU objects (shader modules, compute and render pipelines, targets)
+//! that the point paths, the post passes, the queries and the surfaces keep from frame to frame.
 
 use crate::Gpu;
+
+/// Threads per workgroup of every compute pass (`@workgroup_size` in the shaders).
+pub(crate) const WORKGROUP: u32 = 128;
+
+/// Workgroups for `n` threads, as a 2D dispatch within the 65535 limit per dimension.
+pub(crate) fn groups(n: u32) -> (u32, u32) {
+    let g = n.div_ceil(WORKGROUP).max(1);
+    let x = g.min(65535);
+    (x, g.div_ceil(x))
+}
+
+pub(crate) fn module(gpu: &Gpu, label: &str, src: &str) -> wgpu::ShaderModule {
+    gpu.device()
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        })
+}
+
+pub(crate) fn compute(gpu: &Gpu, src: &str, entry: &str) -> wgpu::ComputePipeline {
+    compute_in(gpu, &module(gpu, entry, src), entry)
+}
+
+/// The pipeline of one entry point of a compiled module.
+pub(crate) fn compute_in(
+    gpu: &Gpu,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    gpu.device()
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: None,
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+}
 
 /// A 2D texture of one image size and its view.
 pub(crate) fn target(

@@ -15,6 +15,7 @@
 
 use crate::Gpu;
 use myriad_format::page::Quantization;
+use myriad_lod::Camera;
 use wgpu::util::DeviceExt;
 
 /// Bits of an axis in one position word.
@@ -298,7 +299,7 @@ impl Points {
     /// is nearest to the eye (all of them when the box reaches the near plane, for f32, when
     /// `pixels` is 0, and for splats: many overlapping discs at nearly one depth, whose order
     /// the smallest shift changes).
-    pub fn read_words(&self, camera: &myriad_lod::Camera, pixels: f32) -> u32 {
+    pub fn read_words(&self, camera: &Camera, pixels: f32) -> u32 {
         if self.words <= 1 || pixels <= 0.0 || self.splats.is_some() {
             return self.arrays();
         }
@@ -322,8 +323,8 @@ impl Points {
     }
 
     /// Draw the first `count` points, `spacing` apart in the world (for adaptive sizes).
-    pub fn prefix(&self, count: u32, spacing: f64) -> crate::Draw<'_> {
-        crate::Draw {
+    pub fn prefix(&self, count: u32, spacing: f64) -> Draw<'_> {
+        Draw {
             points: self,
             count: count.min(self.len),
             spacing,
@@ -332,7 +333,7 @@ impl Points {
     }
 
     /// Draw all points.
-    pub fn all(&self, spacing: f64) -> crate::Draw<'_> {
+    pub fn all(&self, spacing: f64) -> Draw<'_> {
         self.prefix(self.len, spacing)
     }
 }
@@ -388,6 +389,45 @@ fn quantize(
     }
     let extent = std::array::from_fn(|a| (k_hi[a] - k_lo[a]) as f64 * g.scale[a]);
     (origin, step, words, extent, data)
+}
+
+/// Part of a [`Points`] to draw in a frame.
+#[derive(Clone, Copy)]
+pub struct Draw<'a> {
+    pub points: &'a Points,
+    pub count: u32,
+    /// World spacing of these points, for adaptive point sizes.
+    pub spacing: f64,
+    /// The node these points belong to, as its index in the drawn tree passed to
+    /// [`crate::Rasterizer::render`] and its cube: each point then takes the spacing of the finest
+    /// drawn node around it ([`myriad_lod::DrawnTree`]). None: `spacing` for every point.
+    pub node: Option<(u32, myriad_core::Aabb)>,
+}
+
+/// Where a draw's points are for a frame drawn relative to `origin`: their origin there, the
+/// first word's step, their words and how many to read, as `decode` in draw.wgsl takes them.
+pub(crate) struct Layout {
+    pub offset: [f32; 3],
+    pub unit: [f32; 3],
+    pub words: u32,
+    pub read: u32,
+}
+
+impl Layout {
+    pub(crate) fn of(draw: &Draw, origin: [f64; 3], camera: &Camera, precision: f32) -> Layout {
+        let o = draw.points.origin;
+        Layout {
+            offset: std::array::from_fn(|a| (o[a] - origin[a]) as f32),
+            unit: draw.points.unit(),
+            words: draw.points.words,
+            read: draw.points.read_words(camera, precision),
+        }
+    }
+}
+
+/// The origin a frame's positions are drawn relative to (on every path): the first draw's.
+pub(crate) fn frame_origin(draws: &[Draw], camera: &Camera) -> [f64; 3] {
+    draws.first().map_or(camera.position, |d| d.points.origin)
 }
 
 #[cfg(test)]

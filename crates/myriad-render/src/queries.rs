@@ -1,19 +1,23 @@
 //! Occlusion queries (Scheiblauer's 003): after a frame, the boxes of nodes are tested against
 //! its depth; a box of which no pixel passes the depth test is hidden, and the next selection
 //! culls its node (`myriad_lod::Occlusion::Queries`). On the GPU paths, hardware occlusion
-//! queries (`shaders/queries.wgsl`: the frame's depth first written into a depth texture as
+//! queries (`queries.wgsl`: the frame's depth first written into a depth texture as
 //! near / w, then each box's twelve triangles drawn without colour or depth writes, one query
 //! each); on the CPU path, the same test on the CPU: each triangle's pixel centres, near / w
 //! interpolated as the GPU does (it is affine in the image), against the frame's depth. A box
 //! reaching the near plane is visible without a test (clipped triangles could miss the eye's
 //! surroundings).
 
-use crate::raster::{Path, Rasterizer};
-use crate::{Gpu, raster};
+use crate::device::{Gpu, lock};
+use crate::pipelines::{module, target};
+use crate::targets::{Path, Targets};
 use myriad_lod::Camera;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
+
+/// The queries' shader: the frame's depth into a depth texture, and the boxes.
+pub const QUERIES_WGSL: &str = include_str!("queries.wgsl");
 
 /// The triangles of a box by corner (as `FACES` in queries.wgsl).
 const FACES: [usize; 36] = [
@@ -29,8 +33,16 @@ pub(crate) struct Last {
     pub depth: Option<Vec<f32>>,
 }
 
-/// The query pipelines, made when first asked for.
-pub(crate) struct Pipelines {
+/// A rasterizer's occlusion queries: their pipelines, made when first asked for, and what the
+/// last frame left for them.
+#[derive(Default)]
+pub(crate) struct Queries {
+    pipelines: OnceLock<Pipelines>,
+    last: Mutex<Option<Last>>,
+}
+
+/// The query pipelines.
+struct Pipelines {
     boxes: wgpu::RenderPipeline,
     /// The path's depth into the query depth texture.
     depth: wgpu::RenderPipeline,
@@ -57,8 +69,8 @@ fn depth_state(compare: wgpu::CompareFunction, write: bool) -> wgpu::DepthStenci
 }
 
 impl Pipelines {
-    pub(crate) fn new(gpu: &Gpu, path: Path) -> Pipelines {
-        let module = raster::module(gpu, "queries", crate::QUERIES_WGSL);
+    fn new(gpu: &Gpu, path: Path) -> Pipelines {
+        let module = module(gpu, "queries", QUERIES_WGSL);
         let pipeline = |label, vertex, fragment: Option<&str>, depth| {
             gpu.wgpu().expect("a GPU path").0.create_render_pipeline(
                 &wgpu::RenderPipelineDescriptor {
@@ -164,7 +176,7 @@ fn cpu_visible(camera: &Camera, depth: &[f32], corners: &[[f64; 3]; 8]) -> bool 
     false
 }
 
-/// Occlusion queries submitted and not read yet ([`Rasterizer::query_submit`]).
+/// Occlusion queries submitted and not read yet ([`crate::Rasterizer::query_submit`]).
 pub struct QueryTicket {
     /// Per box: known (`Ok`: visible or not), or the index of its GPU query.
     boxes: Vec<Result<bool, usize>>,
@@ -173,6 +185,18 @@ pub struct QueryTicket {
 }
 
 impl QueryTicket {
+    /// Whether any pixel of each box passed, waiting for the GPU's results.
+    pub fn wait(mut self, gpu: &Gpu) -> Vec<bool> {
+        if let Some((_, ready)) = &self.gpu {
+            let (d, _) = gpu.wgpu().expect("queries made on a GPU");
+            while !ready.load(Ordering::Acquire) {
+                d.poll(wgpu::PollType::wait_indefinitely())
+                    .expect("wait for the queries");
+            }
+        }
+        self.poll(gpu).expect("the results are in")
+    }
+
     /// Whether any pixel of each box passed, once the results are in; never waits.
     pub fn poll(&mut self, gpu: &Gpu) -> Option<Vec<bool>> {
         let counts = match &self.gpu {
@@ -202,33 +226,26 @@ impl QueryTicket {
     }
 }
 
-impl Rasterizer {
-    /// Occlusion queries against the depth of the last frame [`Rasterizer::render`] drew: for
-    /// each box (its corners as `myriad_core::Aabb::corners`), whether any pixel of it passes
-    /// the depth test (hardware occlusion queries on the GPU paths, their mirror on the CPU). A
-    /// box reaching the near plane is visible; before any frame, every box is. Waits for the
-    /// results.
-    pub fn query(&self, gpu: &Gpu, boxes: &[[[f64; 3]; 8]]) -> Vec<bool> {
-        let mut ticket = self.query_submit(gpu, boxes);
-        if let Some((_, ready)) = &ticket.gpu {
-            let (d, _) = gpu.wgpu().expect("queries made on a GPU");
-            while !ready.load(Ordering::Acquire) {
-                d.poll(wgpu::PollType::wait_indefinitely())
-                    .expect("wait for the queries");
-            }
-        }
-        ticket.poll(gpu).expect("the results are in")
+impl Queries {
+    /// What the frame just drawn leaves for the queries after it.
+    pub fn set_last(&self, last: Last) {
+        *lock(&self.last) = Some(last);
     }
 
-    /// [`Rasterizer::query`] without waiting: the results come from the ticket when the GPU
-    /// has them (on the CPU path, at once).
-    pub fn query_submit(&self, gpu: &Gpu, boxes: &[[[f64; 3]; 8]]) -> QueryTicket {
-        self.keep_depth();
+    /// Submits the queries of `boxes` against the last frame drawn by `path` into `targets`
+    /// (see [`crate::Rasterizer::query_submit`]).
+    pub fn submit(
+        &self,
+        gpu: &Gpu,
+        path: Path,
+        targets: &Mutex<Option<Targets>>,
+        boxes: &[[[f64; 3]; 8]],
+    ) -> QueryTicket {
         let mut ticket = QueryTicket {
             boxes: vec![Ok(true); boxes.len()],
             gpu: None,
         };
-        let last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        let last = lock(&self.last);
         let Some(last) = last.as_ref() else {
             return ticket;
         };
@@ -241,7 +258,7 @@ impl Rasterizer {
         }
         match &last.depth {
             // The CPU path before it was asked to keep its depth: nothing known.
-            None if self.path == Path::Cpu => {}
+            None if path == Path::Cpu => {}
             Some(depth) => {
                 for &i in &tested {
                     ticket.boxes[i] = Ok(cpu_visible(cam, depth, &boxes[i]));
@@ -251,7 +268,13 @@ impl Rasterizer {
                 for (k, &i) in tested.iter().enumerate() {
                     ticket.boxes[i] = Err(k);
                 }
-                ticket.gpu = Some(self.gpu_queries(gpu, last, tested.iter().map(|&i| &boxes[i])));
+                ticket.gpu = Some(self.gpu_queries(
+                    gpu,
+                    path,
+                    targets,
+                    last,
+                    tested.iter().map(|&i| &boxes[i]),
+                ));
             }
         }
         ticket
@@ -262,11 +285,13 @@ impl Rasterizer {
     fn gpu_queries<'a>(
         &self,
         gpu: &Gpu,
+        path: Path,
+        targets: &Mutex<Option<Targets>>,
         last: &Last,
         boxes: impl Iterator<Item = &'a [[f64; 3]; 8]>,
     ) -> (wgpu::Buffer, Arc<AtomicBool>) {
         let (d, queue) = gpu.wgpu().expect("a GPU path");
-        let p = self.queries.get_or_init(|| Pipelines::new(gpu, self.path));
+        let p = self.pipelines.get_or_init(|| Pipelines::new(gpu, path));
         let cam = &last.camera;
         let o = last.origin;
         let corners: Vec<[f32; 4]> = boxes
@@ -298,14 +323,14 @@ impl Rasterizer {
             contents: bytemuck::cast_slice(&corners),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = lock(targets);
         let t = guard.as_mut().expect("a frame was drawn");
         let mut enc = d.create_command_encoder(&Default::default());
         let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         {
             let (w, h, _) = t.size;
             let view = t.query_depth.get_or_insert_with(|| {
-                raster::target(
+                target(
                     gpu,
                     "query depth",
                     (w, h),

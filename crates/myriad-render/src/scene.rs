@@ -77,10 +77,9 @@ pub struct Scene {
     alone: Option<crate::selector::Answer>,
 }
 
-/// How much wider than the view prefetching looks by default, and the most nodes it asks for
-/// in a frame.
+/// How much wider than the view prefetching looks by default.
 pub const DEFAULT_PREFETCH: f64 = 1.3;
-pub const PREFETCH_NODES: usize = 64;
+pub use crate::selector::PREFETCH_NODES;
 
 /// Memory for hierarchy pages a scene keeps by default (about 1.5 million nodes' entries).
 pub const DEFAULT_HIERARCHY_BYTES: usize = 256 << 20;

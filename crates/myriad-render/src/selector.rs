@@ -19,6 +19,9 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+/// The most nodes prefetching asks for in a frame.
+pub const PREFETCH_NODES: usize = 64;
+
 /// How a scene selects beyond camera and budget (its settings when asked).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Culling {
@@ -133,15 +136,8 @@ pub(crate) fn select_for(
     };
     let mut s = select_occluded_from(h, camera, options, &keep, occluder.as_mut(), previous);
     if how.prefetch > 1.0 {
-        s.prefetch = myriad_lod::prefetch(
-            h,
-            camera,
-            options,
-            &keep,
-            &s,
-            how.prefetch,
-            crate::scene::PREFETCH_NODES,
-        );
+        s.prefetch =
+            myriad_lod::prefetch(h, camera, options, &keep, &s, how.prefetch, PREFETCH_NODES);
     }
     s
 }

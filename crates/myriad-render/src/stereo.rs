@@ -2,7 +2,7 @@
 //!
 //! - Single-pass stereo (002 section 4.3): each point decoded once and projected into both eyes'
 //!   images: on the CPU path into each eye's framebuffer (`cpu::gbuffers`), on the compute path
-//!   by one dispatch into a frame twice as wide (raster.wgsl's `draw_point` per eye, each eye's
+//!   by one dispatch into a frame twice as wide (compute.wgsl's `draw_point` per eye, each eye's
 //!   pixels clipped to its half), so a point at an eye's border never reaches the other eye's
 //!   image; on the quad path by one instanced draw of twice the points, each square clamped to
 //!   its eye's columns. Two passes (one frame per eye) are the baseline.
@@ -127,7 +127,7 @@ impl Rasterizer {
         let mut out = if self.path == Path::Cpu {
             let passes = style.passes;
             let f = self.factor(gpu, &eyes[0], &passes);
-            let eyes = eyes.map(|e| crate::raster::supersampled(&e, style, f));
+            let eyes = eyes.map(|e| crate::style::supersampled(&e, style, f));
             let style = &eyes[0].1;
             // The masks at the supersampled size (the image's where there is no supersampling).
             let big = mask
@@ -160,14 +160,14 @@ impl Rasterizer {
                 .into_iter()
                 .zip(&list)
                 .map(|(g, (camera, mask))| {
-                    let view = crate::post::View::new(camera, &passes, style.background, f);
+                    let view = crate::post::View::new(camera, passes.sun(), style.background, f);
                     crate::post::run_masked(g, &passes, &view, *mask)
                 })
                 .collect();
             side_by_side(&images, w, h)
         } else {
             // The masks for the GPU's point pass (the compute path) and post passes to skip.
-            let hidden = |eyes| crate::post::gpu::Hidden {
+            let hidden = |eyes| crate::post::Hidden {
                 eyes,
                 width: w as usize,
             };

@@ -16,7 +16,11 @@ const ATOMICS: Capabilities =
 
 #[test]
 fn shaders_validate() {
-    validate("raster.wgsl", myriad_render::RASTER_WGSL, ATOMICS);
+    validate(
+        "draw.wgsl + compute.wgsl",
+        myriad_render::RASTER_WGSL,
+        ATOMICS,
+    );
     validate(
         "gbuffer.wgsl + fb_atomic.wgsl",
         &myriad_render::gbuffer_source(myriad_render::FB_ATOMIC_WGSL),

@@ -41,7 +41,7 @@ static FILES: [(&str, Asset); 6] = [
     (
         "draw.wgsl",
         Asset::new(
-            include_bytes!("../../myriad-render/src/shaders/draw.wgsl"),
+            include_bytes!("../../myriad-render/src/draw.wgsl"),
             "text/plain; charset=utf-8",
         ),
     ),

@@ -79,7 +79,7 @@ impl App {
 
 /// The surface's choices: kind (or off), normals, neighbours, grid; what the last one took.
 pub(crate) fn surface_panel(ui: &mut egui::Ui, s: &mut Surfaces) {
-    ui.label("surface (seed 001)");
+    ui.label("surface");
     let current = if s.on {
         format!("{:?}", s.params.kind).to_lowercase()
     } else {

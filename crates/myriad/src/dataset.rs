@@ -1,17 +1,18 @@
-//! `myriad convert`, `extract`, `verify`, and `info` on a dataset.
+//! `myriad convert`, `extract` and `verify`.
 
 use anyhow::{Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use myriad_build::convert::{self, ConvertOptions};
 use myriad_build::extract::{self, ExtractOptions};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
-use crate::info::{print_bounds, print_crs, thousands};
+use crate::build_options::BuildArgs;
+use crate::progress::{Bar, global_threads, print_memory_and_skipped};
+use myriad_core::units::thousands;
 
 #[derive(Args)]
 pub struct ConvertArgs {
@@ -52,102 +53,6 @@ pub struct ConvertArgs {
     json: bool,
 }
 
-/// The options a build takes, in `convert` and `plan`.
-#[derive(Args)]
-pub struct BuildArgs {
-    /// Hierarchy to build: octree (nested octree of MOSPTs, 003), layered (octree with adaptive
-    /// n-tree representatives and contours, 000), kd (balanced kd-tree, 002), mwkd (multi-way
-    /// kd-tree of aggregates drawn as splats, 004)
-    #[arg(long, default_value = "octree")]
-    pub(crate) structure: String,
-    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
-    #[arg(long, value_parser = convert::parse_size)]
-    pub(crate) memory: Option<u64>,
-    /// Worker threads [default: all cores]
-    #[arg(long)]
-    pub(crate) threads: Option<usize>,
-    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
-    #[arg(long, default_value_t = 0.0001)]
-    pub(crate) precision: f64,
-    /// Most points per node
-    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
-    pub(crate) capacity: usize,
-    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
-    #[arg(long)]
-    pub(crate) columns: Option<String>,
-    /// Ignore SCAN.placement files next to inputs (see README)
-    #[arg(long)]
-    pub(crate) no_placement: bool,
-}
-
-impl BuildArgs {
-    /// The structure named, and the capacity checked.
-    pub(crate) fn structure(&self) -> Result<convert::Structure> {
-        if self.capacity < 64 {
-            bail!("--capacity {} is too small (at least 64)", self.capacity);
-        }
-        Ok(match self.structure.as_str() {
-            "nested-octree" => convert::Structure::Octree,
-            s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
-        })
-    }
-
-    /// How the inputs are opened.
-    pub(crate) fn open_options(&self) -> myriad_io::OpenOptions {
-        myriad_io::OpenOptions {
-            columns: self.columns.clone(),
-            sidecar_placements: !self.no_placement,
-            ..Default::default()
-        }
-    }
-}
-
-/// A progress bar per phase on a terminal (indicatif draws nothing when stderr is not one).
-pub(crate) struct Bar {
-    bar: Mutex<Option<ProgressBar>>,
-}
-
-impl Bar {
-    pub(crate) fn new() -> Bar {
-        Bar {
-            bar: Mutex::new(None),
-        }
-    }
-
-    pub(crate) fn clear(&self) {
-        if let Some(b) = self.bar.lock().unwrap().take() {
-            b.finish_and_clear();
-        }
-    }
-}
-
-impl convert::Report for Bar {
-    fn phase(&self, name: &'static str, total: u64) {
-        let b = ProgressBar::new(total);
-        let unit = match name {
-            "merging" => "nodes",
-            "writing" => "steps",
-            _ => "points",
-        };
-        b.set_style(
-            ProgressStyle::with_template(&format!(
-                "{{prefix:>9}} [{{bar:40}}] {{human_pos}}/{{human_len}} {unit} {{per_sec:0}} ETA {{eta}}"
-            ))
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        b.set_prefix(name);
-        if let Some(old) = self.bar.lock().unwrap().replace(b) {
-            old.finish_and_clear();
-        }
-    }
-    fn advance(&self, n: u64) {
-        if let Some(b) = &*self.bar.lock().unwrap() {
-            b.inc(n);
-        }
-    }
-}
-
 pub fn convert(a: ConvertArgs) -> Result<()> {
     if let Some(d) = &a.append {
         return append(&a, d);
@@ -183,9 +88,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     o.open.sidecar_placements = !a.build.no_placement;
     let bar = Bar::new();
     let s = convert::convert(&a.inputs, &o, &bar)?;
-    if let Some(b) = bar.bar.lock().unwrap().take() {
-        b.finish_and_clear();
-    }
+    bar.clear();
     let rate = s.points as f64 / s.seconds;
     let bpp = s.bytes as f64 / s.points as f64;
     if a.json {
@@ -197,7 +100,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
                 "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
                 "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
                 "trimmed": s.trimmed,
-                "peak_rss_bytes": crate::bench::peak_rss_bytes(),
+                "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
                 "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
             })
         );
@@ -260,7 +163,7 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
                 "levels_grown": s.grown,
                 "seconds": s.seconds, "bytes": s.bytes,
                 "skipped_non_finite": s.skipped_non_finite,
-                "peak_rss_bytes": crate::bench::peak_rss_bytes(),
+                "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
             })
         );
         return Ok(());
@@ -291,117 +194,6 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
     );
     println!("  time        {:.2} s", s.seconds);
     print_memory_and_skipped(s.skipped_non_finite);
-    Ok(())
-}
-
-/// LAZ decompression runs on rayon's global pool: it gets the build's number of threads.
-pub(crate) fn global_threads(t: usize) {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(t.max(1))
-        .build_global()
-        .ok();
-}
-
-/// A build summary's last lines: peak memory, and the points skipped for NaN or infinite
-/// coordinates (when there were any).
-pub(crate) fn print_memory_and_skipped(skipped: u64) {
-    if let Some(p) = crate::bench::peak_rss_bytes() {
-        println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
-    }
-    if skipped > 0 {
-        println!(
-            "  skipped     {} with NaN/infinite coordinates",
-            thousands(skipped)
-        );
-    }
-}
-
-/// Is `path` a dataset (by its magic)?
-pub fn is_dataset(path: &Path) -> bool {
-    use std::io::Read;
-    // Over HTTP only datasets are read.
-    if myriad_format::remote::is_url(path) {
-        return true;
-    }
-    let mut head = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok()
-        && &head == myriad_format::MAGIC
-}
-
-pub fn info(path: &Path, as_json: bool) -> Result<()> {
-    let ds = Dataset::open(path)?;
-    let m = &ds.meta;
-    // Per level: nodes, points, and the finest spacing; from the metadata (one read however
-    // large the dataset), or by walking every hierarchy page where a dataset written before
-    // the table was kept there lacks it.
-    let (levels, damage) = if m.levels.is_empty() {
-        let (nodes, damage) = ds.nodes();
-        for d in &damage {
-            eprintln!("warning: {}", ds.damage_error(d));
-        }
-        (myriad_format::Level::table(&nodes), Some(damage.len()))
-    } else {
-        (m.levels.clone(), None)
-    };
-    let bpp = ds.file_length as f64 / m.points.max(1) as f64;
-    if as_json {
-        println!(
-            "{}",
-            json!({
-                "path": path.display().to_string(),
-                "format": "myriad",
-                "version": myriad_format::FORMAT_VERSION,
-                "points": m.points,
-                "nodes": m.nodes,
-                "depth": m.depth,
-                "structure": m.structure,
-                "parameters": m.parameters,
-                "bounds": json!({"min": m.bounds.min, "max": m.bounds.max}),
-                "root": json!({"min": m.root.min, "max": m.root.max}),
-                "scale": m.quantization.scale,
-                "offset": m.quantization.offset,
-                "crs": m.crs,
-                "attributes": m.schema.names(),
-                "file_size": ds.file_length,
-                "bytes_per_point": bpp,
-                "sources": m.sources,
-                "levels": levels.iter().map(|l| json!({"level": l.level, "nodes": l.nodes, "points": l.points, "node_size": l.spacing.is_finite().then_some(l.spacing)})).collect::<Vec<_>>(),
-                "damaged_hierarchy_pages": damage,
-            })
-        );
-        return Ok(());
-    }
-    let b = m.bounds;
-    println!("{}", path.display());
-    println!(
-        "  format      Myriad dataset {}",
-        myriad_format::FORMAT_VERSION
-    );
-    println!("  structure   {} {}", m.structure, m.parameters);
-    println!("  points      {}", thousands(m.points));
-    println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
-    print_bounds(&b);
-    println!("  attributes  {}", m.schema);
-    let q = m.quantization;
-    println!("  scale       {} {} {}", q.scale[0], q.scale[1], q.scale[2]);
-    print_crs(m.crs.as_deref());
-    println!(
-        "  file size   {} bytes, {:.2} bytes per point",
-        thousands(ds.file_length),
-        bpp
-    );
-    println!("  level      nodes         points   node size");
-    for l in &levels {
-        println!(
-            "  {:>5} {:>10} {:>14} {:>11.3}",
-            l.level,
-            thousands(l.nodes),
-            thousands(l.points),
-            l.spacing
-        );
-    }
     Ok(())
 }
 

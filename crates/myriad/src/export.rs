@@ -8,8 +8,9 @@ use myriad_format::Dataset;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::dataset::{Bar, parse_box};
-use crate::info::thousands;
+use crate::dataset::parse_box;
+use crate::progress::Bar;
+use myriad_core::units::thousands;
 
 #[derive(Args)]
 pub struct ExportArgs {
@@ -82,7 +83,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         secs,
         s.points as f64 / secs.max(1e-9) / 1e6
     );
-    if let Some(p) = crate::bench::peak_rss_bytes() {
+    if let Some(p) = myriad_io::process::peak_rss_bytes() {
         println!("peak resident memory: {:.0} MB", p as f64 / 1e6);
     }
     if let Some(d) = s.damage.first() {

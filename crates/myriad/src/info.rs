@@ -2,6 +2,8 @@
 
 use anyhow::Result;
 use clap::Args;
+use myriad_core::units::thousands;
+use myriad_format::Dataset;
 use myriad_io::{OpenOptions, SourceInfo};
 use serde_json::json;
 use std::path::PathBuf;
@@ -46,12 +48,12 @@ pub fn run(args: InfoArgs) -> Result<()> {
         sidecar_placements: !args.no_placement,
     };
     for path in &args.files {
-        if crate::dataset::is_dataset(path)
+        if myriad_format::is_dataset(path)
             || path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("myr"))
         {
-            crate::dataset::info(path, args.json)?;
+            dataset_info(path, args.json)?;
             continue;
         }
         let mut src = myriad_io::open(path, &options)?;
@@ -106,18 +108,6 @@ fn to_json(r: &Report) -> serde_json::Value {
     })
 }
 
-pub fn thousands(n: u64) -> String {
-    let s = n.to_string();
-    let mut out = String::new();
-    for (k, c) in s.chars().enumerate() {
-        if k > 0 && (s.len() - k).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
-
 fn print_human(r: &Report) {
     let i = &r.info;
     println!("{}", i.path.display());
@@ -168,4 +158,80 @@ pub fn print_crs(crs: Option<&str>) {
         Some(c) => println!("  crs         {c}"),
         None => println!("  crs         none"),
     }
+}
+
+/// `info` on a dataset: its metadata and the table of its levels.
+fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
+    let ds = Dataset::open(path)?;
+    let m = &ds.meta;
+    // Per level: nodes, points, and the finest spacing; from the metadata (one read however
+    // large the dataset), or by walking every hierarchy page where a dataset written before
+    // the table was kept there lacks it.
+    let (levels, damage) = if m.levels.is_empty() {
+        let (nodes, damage) = ds.nodes();
+        for d in &damage {
+            eprintln!("warning: {}", ds.damage_error(d));
+        }
+        (myriad_format::Level::table(&nodes), Some(damage.len()))
+    } else {
+        (m.levels.clone(), None)
+    };
+    let bpp = ds.file_length as f64 / m.points.max(1) as f64;
+    if as_json {
+        println!(
+            "{}",
+            json!({
+                "path": path.display().to_string(),
+                "format": "myriad",
+                "version": myriad_format::FORMAT_VERSION,
+                "points": m.points,
+                "nodes": m.nodes,
+                "depth": m.depth,
+                "structure": m.structure,
+                "parameters": m.parameters,
+                "bounds": json!({"min": m.bounds.min, "max": m.bounds.max}),
+                "root": json!({"min": m.root.min, "max": m.root.max}),
+                "scale": m.quantization.scale,
+                "offset": m.quantization.offset,
+                "crs": m.crs,
+                "attributes": m.schema.names(),
+                "file_size": ds.file_length,
+                "bytes_per_point": bpp,
+                "sources": m.sources,
+                "levels": levels.iter().map(|l| json!({"level": l.level, "nodes": l.nodes, "points": l.points, "node_size": l.spacing.is_finite().then_some(l.spacing)})).collect::<Vec<_>>(),
+                "damaged_hierarchy_pages": damage,
+            })
+        );
+        return Ok(());
+    }
+    let b = m.bounds;
+    println!("{}", path.display());
+    println!(
+        "  format      Myriad dataset {}",
+        myriad_format::FORMAT_VERSION
+    );
+    println!("  structure   {} {}", m.structure, m.parameters);
+    println!("  points      {}", thousands(m.points));
+    println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
+    print_bounds(&b);
+    println!("  attributes  {}", m.schema);
+    let q = m.quantization;
+    println!("  scale       {} {} {}", q.scale[0], q.scale[1], q.scale[2]);
+    print_crs(m.crs.as_deref());
+    println!(
+        "  file size   {} bytes, {:.2} bytes per point",
+        thousands(ds.file_length),
+        bpp
+    );
+    println!("  level      nodes         points   node size");
+    for l in &levels {
+        println!(
+            "  {:>5} {:>10} {:>14} {:>11.3}",
+            l.level,
+            thousands(l.nodes),
+            thousands(l.points),
+            l.spacing
+        );
+    }
+    Ok(())
 }

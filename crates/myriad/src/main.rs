@@ -2,25 +2,14 @@
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
 mod bench;
-mod bench_culling;
-mod bench_export;
-mod bench_open;
-mod bench_partition;
-mod bench_passes;
-mod bench_positions;
-mod bench_prefetch;
-mod bench_render;
-mod bench_serve;
-mod bench_stereo;
-mod bench_structures;
-mod bench_surface;
-mod bench_web;
+mod build_options;
 mod cached;
 mod dataset;
 mod export;
 mod info;
 mod mesh;
 mod partition;
+mod progress;
 mod render;
 mod serve;
 mod synth;
@@ -60,7 +49,7 @@ enum Command {
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
     Render(render::RenderArgs),
-    /// Write the surface a view's points make (seed 001) as a mesh: PLY or glTF
+    /// Write the surface a view's points make as a mesh: PLY or glTF
     Mesh(mesh::MeshArgs),
     /// Open datasets in a window: navigate, measure, clip (level of detail while you move)
     View(view::ViewArgs),
@@ -68,7 +57,9 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
-    /// Measure reading and synthesis speed (medians over several runs, with baselines)
+    /// Benchmarks: reading, synthesis, conversion, rendering and its passes, structures,
+    /// culling, surfaces, stereo, export, opening, serving, prefetching, the web viewer and
+    /// builds in parts (medians over runs, next to a baseline or a peer tool)
     #[command(subcommand)]
     Bench(bench::BenchCommand),
 }

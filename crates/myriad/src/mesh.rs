@@ -4,70 +4,10 @@
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
-use myriad_lod::SelectOptions;
 use myriad_render::Scene;
-use myriad_render::surface::{self, Built, Density, Kind, Normals, Surface};
+use myriad_render::surface::{self, Built, Kind};
 use std::path::PathBuf;
 use std::sync::Arc;
-
-fn parse_neighbours(s: &str) -> Result<u32, String> {
-    match s {
-        "0" => Ok(0),
-        "1" => Ok(1),
-        "3" => Ok(3),
-        _ => Err(format!("\"{s}\": 0, 1 or 3")),
-    }
-}
-
-/// The options of a surface (seed 001), as `render`, `view` and `mesh` take them.
-#[derive(Args, Clone, Debug)]
-pub struct SurfaceArgs {
-    /// Columns, rows and depth layers of the view-frustum grid
-    #[arg(long, value_parser = surface::parse_grid, default_value = "150x150x50")]
-    pub grid: [u32; 3],
-    /// Cell normals: tensor (the point distribution tensor's minor eigenvector) or cells (towards
-    /// the empty neighbour cells, faster, rougher)
-    #[arg(long, value_parser = Normals::parse, default_value = "tensor")]
-    pub normals: Normals,
-    /// Neighbours a point may move to, per point: 0 (no move), 1 (along its largest offset) or
-    /// 3 (along each axis)
-    #[arg(long, value_parser = parse_neighbours, default_value = "3")]
-    pub neighbours: u32,
-    /// Cluster only: the same as --neighbours 0
-    #[arg(long)]
-    pub no_move: bool,
-    /// The density that moves points: count (points per cell) or planarity (of the cell's
-    /// point distribution tensor)
-    #[arg(long, value_parser = Density::parse, default_value = "count")]
-    pub density: Density,
-    /// The exponent of the move's weights (seed 001 equation 8)
-    #[arg(long, default_value_t = 2.0)]
-    pub gamma: f64,
-    /// The lower bound of the move's weights, 0 to 0.5
-    #[arg(long, default_value_t = 0.1)]
-    pub lb: f64,
-}
-
-impl SurfaceArgs {
-    /// The surface of this kind with these options.
-    pub fn surface(&self, kind: Kind) -> Result<Surface> {
-        if !(self.gamma > 0.0 && self.gamma <= 16.0) {
-            bail!("--gamma must be above 0 and at most 16");
-        }
-        if !(0.0..0.5).contains(&self.lb) {
-            bail!("--lb must be from 0 to below 0.5");
-        }
-        Ok(Surface {
-            kind,
-            grid: self.grid,
-            normals: self.normals,
-            neighbours: if self.no_move { 0 } else { self.neighbours },
-            density: self.density,
-            gamma: self.gamma,
-            lb: self.lb,
-        })
-    }
-}
 
 #[derive(Args)]
 pub struct MeshArgs {
@@ -80,13 +20,13 @@ pub struct MeshArgs {
     #[arg(long, value_parser = Kind::parse, default_value = "quads")]
     pub surface: Kind,
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the whole dataset from above at 45 degrees]
-    #[arg(long, value_parser = crate::render::parse_floats::<6>, allow_hyphen_values = true)]
+    #[arg(long, value_parser = myriad_core::units::parse_floats::<6>, allow_hyphen_values = true)]
     pub camera: Option<[f64; 6]>,
     /// One of the standard views instead of --camera: overview, top, close
     #[arg(long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
     pub view: Option<String>,
     /// Up direction
-    #[arg(long, value_parser = crate::render::parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
+    #[arg(long, value_parser = myriad_core::units::parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
     pub up: [f64; 3],
     /// Vertical field of view in degrees
     #[arg(long, default_value_t = 60.0)]
@@ -97,14 +37,14 @@ pub struct MeshArgs {
     #[arg(long, default_value_t = 720)]
     pub height: u32,
     /// Most points drawn, and so clustered
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     pub budget: u64,
     /// Colour of the cells: rgb, intensity, elevation, classification, return, source, level,
     /// uniform
-    #[arg(long, value_parser = crate::render::parse_color, default_value = "rgb")]
+    #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "rgb")]
     pub color: myriad_render::ColorBy,
     #[command(flatten)]
-    pub options: SurfaceArgs,
+    pub options: myriad_render::args::SurfaceArgs,
     /// Replace an existing output
     #[arg(long)]
     pub force: bool,
@@ -122,33 +62,19 @@ pub fn drawn(
     colour: myriad_render::ColorBy,
 ) -> Result<(Scene, myriad_lod::Camera)> {
     let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(dataset)?)?);
-    let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
-    if scene.hierarchy.pages() == 0
-        && let Err(d) = ds.hierarchy_page(&ds.root_page())
-    {
-        bail!("{} (nothing left to draw)", ds.damage_error(&d));
-    }
-    scene.set_colour(colour);
+    let all = ds.meta.bounds;
     let (w, h, fov) = size;
-    let mut cam = match view {
-        Some(v) => crate::render::view_camera(Some(v), &scene.view_bounds, &ds.meta.bounds, w, h)?,
-        None => crate::render::camera(
-            &scene.view_bounds,
-            &ds.meta.bounds,
-            eye_target,
-            up,
-            w,
-            h,
-            fov,
-        )?,
-    };
-    cam.fov_y = fov;
-    // u64::MAX: every point (no level of detail).
-    let options = SelectOptions {
-        budget,
-        min_pixels: if budget == u64::MAX { 0.0 } else { 1.0 },
-    };
-    scene.last = scene.converge(&cam, &options, None);
+    let (scene, cam) = surface::drawn_scene(ds, budget, colour, |bounds| {
+        let mut cam = match view {
+            Some(v) => myriad_lod::Camera::view(Some(v), bounds, &all, w, h)
+                .ok_or_else(|| format!("no standard view \"{v}\""))?,
+            None => crate::render::camera(bounds, &all, eye_target, up, w, h, fov)
+                .map_err(|e| e.to_string())?,
+        };
+        cam.fov_y = fov;
+        Ok(cam)
+    })
+    .map_err(anyhow::Error::msg)?;
     for why in scene.loader.failed_pages().values() {
         eprintln!("warning: {why}");
     }
@@ -177,7 +103,7 @@ pub fn run(a: MeshArgs) -> Result<()> {
     if !(a.fov > 0.0 && a.fov < 180.0) {
         bail!("--fov must be between 0 and 180 degrees");
     }
-    let s = a.options.surface(a.surface)?;
+    let s = a.options.surface(a.surface).map_err(anyhow::Error::msg)?;
     let (scene, cam) = drawn(
         &a.dataset,
         a.camera,
@@ -197,11 +123,11 @@ pub fn run(a: MeshArgs) -> Result<()> {
     println!(
         "{}: {} cells from {} points in view ({} moved), {} vertices, {} triangles; cluster {:.1} ms, move {:.1} ms, reduce {:.1} ms, reconstruct {:.1} ms",
         a.output.display(),
-        crate::info::thousands(c.cells.len() as u64),
-        crate::info::thousands(c.inside as u64),
-        crate::info::thousands(c.moved as u64),
-        crate::info::thousands(built.mesh.positions.len() as u64),
-        crate::info::thousands(built.mesh.triangles.len() as u64),
+        myriad_core::units::thousands(c.cells.len() as u64),
+        myriad_core::units::thousands(c.inside as u64),
+        myriad_core::units::thousands(c.moved as u64),
+        myriad_core::units::thousands(built.mesh.positions.len() as u64),
+        myriad_core::units::thousands(built.mesh.triangles.len() as u64),
         c.cluster.as_secs_f64() * 1e3,
         c.moving.as_secs_f64() * 1e3,
         c.reduce.as_secs_f64() * 1e3,

@@ -10,8 +10,8 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::dataset::Bar;
-use crate::info::thousands;
+use crate::progress::Bar;
+use myriad_core::units::thousands;
 
 #[derive(Args)]
 pub struct PlanArgs {
@@ -28,7 +28,7 @@ pub struct PlanArgs {
     // convert's options: --structure octree or layered only (kd and mwkd build on one machine
     // only); --memory and --threads are each part's.
     #[command(flatten)]
-    build: crate::dataset::BuildArgs,
+    build: crate::build_options::BuildArgs,
     /// Replace an existing plan
     #[arg(long)]
     force: bool,
@@ -141,7 +141,7 @@ pub fn convert_planned(
     let plan = BuildPlan::load(plan_path)?;
     // The threads the plan sized the chunks for, unless told otherwise.
     let threads = threads.unwrap_or(plan.threads);
-    crate::dataset::global_threads(threads);
+    crate::progress::global_threads(threads);
     let bar = Bar::new();
     let Some(part) = part else {
         let o = plan.convert_options(None, output, threads);
@@ -152,7 +152,7 @@ pub fn convert_planned(
                 "{}",
                 json!({"output": output.display().to_string(), "points": s.points,
                        "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,
-                       "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+                       "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
             );
         } else {
             println!("{}", output.display());
@@ -185,7 +185,7 @@ pub fn convert_planned(
             json!({"part": index, "dataset": (s.points > 0).then(|| myr.display().to_string()),
                    "tops": tops.display().to_string(), "points": s.points, "nodes": s.nodes,
                    "inputs_read": opened, "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
         );
         return Ok(());
     }
@@ -208,7 +208,7 @@ pub fn convert_planned(
     );
     println!("  nodes       {}", thousands(s.nodes));
     println!("  time        {:.2} s", s.seconds);
-    crate::dataset::print_memory_and_skipped(s.skipped_non_finite);
+    crate::progress::print_memory_and_skipped(s.skipped_non_finite);
     Ok(())
 }
 
@@ -246,7 +246,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
             json!({"output": a.output.display().to_string(), "points": s.points,
                    "nodes": s.nodes, "pages_copied": s.copied, "nodes_built": s.built,
                    "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": crate::bench::peak_rss_bytes()})
+                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
         );
         return Ok(());
     }
@@ -264,7 +264,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         plan.partition_level
     );
     println!("  time        {:.2} s", s.seconds);
-    crate::dataset::print_memory_and_skipped(0);
+    crate::progress::print_memory_and_skipped(0);
     Ok(())
 }
 

@@ -1,79 +1,20 @@
 //! `myriad render DATASET -o OUT.png`: a headless image through the LOD selection and the
 //! compute rasterizer.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
 use myriad_core::Aabb;
+use myriad_core::units::parse_floats;
 use myriad_format::Dataset;
+use myriad_io::image::write_png;
 use myriad_lod::{Camera, Occlusion, SelectOptions};
+use myriad_render::args::{
+    parse_color, parse_lod_threshold, parse_passes, parse_path, parse_point_size, parse_shape,
+};
 use myriad_render::{ColorBy, Edl, Gpu, Passes, Path, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
-
-pub(crate) fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| t.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("\"{s}\": expected {N} comma-separated numbers"))?;
-    v.try_into()
-        .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
-}
-
-pub(crate) fn parse_color(s: &str) -> Result<ColorBy, String> {
-    ColorBy::parse(s).ok_or_else(|| {
-        format!("\"{s}\": one of rgb, intensity, elevation, classification, return, source, level, uniform")
-    })
-}
-
-pub(crate) fn parse_passes(s: &str) -> Result<Passes, String> {
-    Passes::parse(s)
-}
-
-pub(crate) fn parse_point_size(s: &str) -> Result<PointSize, String> {
-    if s == "adaptive" {
-        return Ok(PointSize::adaptive());
-    }
-    if let Some(scale) = s.strip_prefix("adaptive:") {
-        return match scale.parse::<f32>() {
-            Ok(v) if (0.1..=10.0).contains(&v) => Ok(PointSize::Adaptive {
-                scale: v,
-                max: 32.0,
-            }),
-            _ => Err(format!(
-                "\"{s}\": the scale of adaptive:SCALE is from 0.1 to 10"
-            )),
-        };
-    }
-    s.strip_prefix("fixed:")
-        .and_then(|v| v.parse::<f32>().ok())
-        .filter(|v| (1.0..=64.0).contains(v))
-        .map(PointSize::Fixed)
-        .ok_or_else(|| {
-            format!("\"{s}\": expected adaptive, adaptive:SCALE or fixed:PX with PX from 1 to 64")
-        })
-}
-
-pub(crate) fn parse_lod_threshold(s: &str) -> Result<f64, String> {
-    s.parse::<f64>()
-        .ok()
-        .filter(|v| *v > 0.0 && *v <= 64.0)
-        .ok_or_else(|| format!("\"{s}\": pixels above 0 and at most 64"))
-}
-
-pub(crate) fn parse_shape(s: &str) -> Result<Shape, String> {
-    Shape::parse(s).ok_or_else(|| format!("\"{s}\": one of square, round, paraboloid"))
-}
-
-pub(crate) fn parse_path(s: &str) -> Result<Path, String> {
-    match s {
-        "compute" => Ok(Path::Compute),
-        "quads" => Ok(Path::Quads),
-        "cpu" => Ok(Path::Cpu),
-        _ => Err(format!("\"{s}\": compute, quads or cpu")),
-    }
-}
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -99,7 +40,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 60.0)]
     fov: f64,
     /// Most points drawn
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
@@ -139,19 +80,18 @@ pub struct RenderArgs {
     #[arg(long = "raster", value_parser = parse_path)]
     path: Option<Path>,
     /// Cull nodes hidden behind nearer ones: software (a coarse depth buffer filled by the
-    /// nodes already selected, seed 000), queries (the nodes' boxes tested against each frame's
-    /// depth, hardware occlusion queries on a GPU, seed 003: they act from the next frame) or
-    /// off
+    /// nodes already selected), queries (the nodes' boxes tested against each frame's depth,
+    /// hardware occlusion queries on a GPU: they act from the next frame) or off
     #[arg(long, value_parser = Occlusion::parse, default_value = "software")]
     occlusion: Occlusion,
     /// Cells per side of the occlusion depth buffer
     #[arg(long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
           value_parser = clap::value_parser!(u32).range(8..=1024))]
     occlusion_size: u32,
-    /// Pixels a level's point spacing must cover to be drawn (003's tables use 1 and 2)
+    /// Pixels a level's point spacing must cover to be drawn (1 or 2 are usual)
     #[arg(long, value_parser = parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
-    /// Stereo (seed 002): the left and right eyes side by side, each --width x --height, from
+    /// Stereo: the left and right eyes side by side, each --width x --height, from
     /// one selection for both eyes (single-pass on the CPU path)
     #[arg(long, conflicts_with = "surface")]
     stereo: bool,
@@ -165,12 +105,12 @@ pub struct RenderArgs {
     /// inscribed in each eye's image)
     #[arg(long, requires = "stereo")]
     hidden_area: bool,
-    /// Draw the surface the points make instead of the points (seed 001): quads (cell-filling),
+    /// Draw the surface the points make instead of the points: quads (cell-filling),
     /// boxes or splats, one per cell of a grid in the view frustum, lit by a headlight
     #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
     surface: Option<myriad_render::surface::Kind>,
     #[command(flatten)]
-    surface_options: crate::mesh::SurfaceArgs,
+    surface_options: myriad_render::args::SurfaceArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -211,7 +151,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let surface = a
         .surface
         .map(|k| a.surface_options.surface(k))
-        .transpose()?;
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
     let (gpu, why) = match a.path {
@@ -306,7 +247,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             a.width,
             a.height,
             a.ipd,
-            crate::info::thousands(stats.points),
+            myriad_core::units::thousands(stats.points),
             stats.nodes,
             frame.as_secs_f64() * 1e3,
             gpu.name,
@@ -373,10 +314,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let c = &built.clustering;
         println!(
             "surface: {} cells ({} triangles) from {} points in view ({} moved); cluster {:.1} ms, move {:.1} ms, reduce {:.1} ms, reconstruct {:.1} ms, made in {:.1} ms, drawn in {:.1} ms",
-            crate::info::thousands(c.cells.len() as u64),
-            crate::info::thousands(built.mesh.triangles.len() as u64),
-            crate::info::thousands(c.inside as u64),
-            crate::info::thousands(c.moved as u64),
+            myriad_core::units::thousands(c.cells.len() as u64),
+            myriad_core::units::thousands(built.mesh.triangles.len() as u64),
+            myriad_core::units::thousands(c.inside as u64),
+            myriad_core::units::thousands(c.moved as u64),
             c.cluster.as_secs_f64() * 1e3,
             c.moving.as_secs_f64() * 1e3,
             c.reduce.as_secs_f64() * 1e3,
@@ -392,15 +333,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some((requests, bytes)) = ds.fetched() {
         println!(
             "fetched {} bytes in {requests} range requests ({:.2} % of the dataset's {} bytes)",
-            crate::info::thousands(bytes),
+            myriad_core::units::thousands(bytes),
             100.0 * bytes as f64 / ds.file_length.max(1) as f64,
-            crate::info::thousands(ds.file_length)
+            myriad_core::units::thousands(ds.file_length)
         );
     }
     println!(
         "{}: {} points in {} nodes ({} hidden nodes culled), {:.1} bytes a point in the point buffers ({:.1} read per drawn point), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
         a.output.display(),
-        crate::info::thousands(stats.points),
+        myriad_core::units::thousands(stats.points),
         stats.nodes,
         stats.culled,
         stats.gpu_bytes as f64 / stats.gpu_points.max(1) as f64,
@@ -444,28 +385,6 @@ fn warn_damage(scene: &Scene) -> usize {
     lines.len()
 }
 
-/// A standard view (overview, top, close) of `view_bounds`, else `render`'s default camera
-/// (60 degrees, z up), its depth range fitted to `all`: what the benchmarks look from.
-pub fn view_camera(
-    name: Option<&str>,
-    view_bounds: &Aabb,
-    all: &Aabb,
-    width: u32,
-    height: u32,
-) -> Result<Camera> {
-    match name {
-        Some(v) => {
-            let views = Camera::standard_views(view_bounds, width, height);
-            let Some(&(_, mut cam)) = views.iter().find(|(n, _)| *n == v) else {
-                bail!("no standard view \"{v}\"");
-            };
-            cam.fit_depth(all);
-            Ok(cam)
-        }
-        None => camera(view_bounds, all, None, [0.0, 0.0, 1.0], width, height, 60.0),
-    }
-}
-
 /// The camera `--camera` asks for, or the data (`view`) framed from above at 45 degrees; near
 /// and far planes around everything there is (`all`).
 pub fn camera(
@@ -497,19 +416,4 @@ pub fn camera(
     }
     cam.fit_depth(all);
     Ok(cam)
-}
-
-pub fn write_png(path: &std::path::Path, w: u32, h: u32, rgba: &[u8]) -> Result<()> {
-    let file = myriad_io::atomic::AtomicFile::create(path, true)?;
-    {
-        let f = file.open_write()?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w, h);
-        enc.set_color(png::ColorType::Rgba);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc.write_header().context("PNG header")?;
-        writer.write_image_data(rgba).context("PNG data")?;
-        writer.finish().context("PNG end")?;
-    }
-    file.commit()?;
-    Ok(())
 }

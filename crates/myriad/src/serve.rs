@@ -46,7 +46,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
             .file_name()
             .map(|n| n.to_string_lossy().to_lowercase());
         let raw = input.is_dir()
-            || crate::dataset::is_dataset(input)
+            || myriad_format::is_dataset(input)
             || name.is_some_and(|n| n.ends_with(".copc.laz"));
         if raw {
             catalog.add_input(input)?;
@@ -88,7 +88,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
             out,
             "  {base}/d/{} ({} bytes)",
             href(n),
-            crate::info::thousands(*len)
+            myriad_core::units::thousands(*len)
         )?;
         if *kind == Kind::Dataset {
             writeln!(out, "    in the browser: {base}/view/{}", href(n))?;

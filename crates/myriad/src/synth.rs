@@ -21,7 +21,7 @@ pub struct SynthArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Number of points: 1000000, 1e6, 250k, 100M, 2G
-    #[arg(long, value_parser = parse_count)]
+    #[arg(long, value_parser = myriad_core::units::parse_count)]
     points: u64,
     #[arg(long, value_enum, default_value = "city")]
     scene: Scene,
@@ -30,28 +30,6 @@ pub struct SynthArgs {
     /// Replace the output if it exists
     #[arg(long)]
     force: bool,
-}
-
-/// Parses counts such as 1000, 1e6, 2.5M, 100k, 2G.
-pub fn parse_count(s: &str) -> Result<u64, String> {
-    let t = s.trim().replace('_', "");
-    let (num, mult) = match t.chars().last() {
-        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
-        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
-        Some('g' | 'G' | 'b' | 'B') => (&t[..t.len() - 1], 1e9),
-        _ => (&t[..], 1.0),
-    };
-    if let Ok(n) = num.parse::<u64>() {
-        return n
-            .checked_mul(mult as u64)
-            .ok_or_else(|| format!("{s} is too large"));
-    }
-    match num.parse::<f64>() {
-        Ok(v) if v >= 0.0 && (v * mult).fract() == 0.0 && v * mult < 1.8e19 => {
-            Ok((v * mult) as u64)
-        }
-        _ => Err(format!("\"{s}\" is not a whole number of points")),
-    }
 }
 
 pub fn run(a: SynthArgs) -> Result<()> {
@@ -90,22 +68,4 @@ pub fn run(a: SynthArgs) -> Result<()> {
         n as f64 / secs / 1e6
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_count;
-
-    #[test]
-    fn counts() {
-        let check = |s: &str, v: Option<u64>| assert_eq!(parse_count(s).ok(), v, "{s}");
-        check("1000", Some(1000));
-        check("1e6", Some(1_000_000));
-        check("2.5M", Some(2_500_000));
-        check("100k", Some(100_000));
-        check("2G", Some(2_000_000_000));
-        check("1.5", None);
-        check("abc", None);
-        check("-5", None);
-    }
 }

@@ -1,9 +1,10 @@
 //! `myriad view DATASET...`: the interactive viewer (crate myriad-viewer).
 
-use crate::render::{parse_color, parse_floats, parse_point_size, parse_shape};
 use anyhow::{Result, bail};
 use clap::Args;
+use myriad_core::units::parse_floats;
 use myriad_format::Dataset;
+use myriad_render::args::{parse_color, parse_point_size, parse_shape};
 use myriad_render::{ColorBy, Edl, Passes, PointSize, Shape, Style};
 use myriad_viewer::ViewOptions;
 use std::path::PathBuf;
@@ -26,7 +27,7 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 60.0)]
     fov: f64,
     /// Most points drawn, shared by all datasets
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "2M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
     /// Point size: fixed:PX, adaptive or adaptive:SCALE
     #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
@@ -36,7 +37,7 @@ pub struct ViewArgs {
     shape: Shape,
     /// Post passes: fill, shade, ssao, edl, blur, aa, or none (as render's; also checkboxes
     /// in the window)
-    #[arg(long, value_parser = crate::render::parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
+    #[arg(long, value_parser = myriad_render::args::parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
     passes: Passes,
     /// Eye-dome lighting: adds edl to --passes
     #[arg(long)]
@@ -71,14 +72,14 @@ pub struct ViewArgs {
     #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
     occlusion: myriad_lod::Occlusion,
     /// Pixels a level's point spacing must cover to be drawn
-    #[arg(long, value_parser = crate::render::parse_lod_threshold, default_value = "1")]
+    #[arg(long, value_parser = myriad_render::args::parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
-    /// Show the surface the points make (seed 001): quads, boxes or splats; the panel switches
+    /// Show the surface the points make: quads, boxes or splats; the panel switches
     #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
     surface: Option<myriad_render::surface::Kind>,
     #[command(flatten)]
-    surface_options: crate::mesh::SurfaceArgs,
-    /// Both eyes side by side (seed 002), from the first dataset, for a check without a headset
+    surface_options: myriad_render::args::SurfaceArgs,
+    /// Both eyes side by side, from the first dataset, for a check without a headset
     #[arg(long)]
     stereo: bool,
     /// With --stereo: the distance between the eyes, in the dataset's units
@@ -220,7 +221,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
         surface: a
             .surface
             .map(|k| a.surface_options.surface(k))
-            .transpose()?,
+            .transpose()
+            .map_err(anyhow::Error::msg)?,
         stereo: a.stereo.then_some(a.ipd),
     };
     myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)

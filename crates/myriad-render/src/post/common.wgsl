@@ -1,5 +1,5 @@
-// What every post pass shares (mod.rs holds their CPU mirrors): the uniforms, the g-buffer it
-// reads (src_*) and the one it writes (dst_*), one pixel per thread.
+// What every post pass shares (each pass's .rs file beside it holds its CPU mirror): the
+// uniforms, the g-buffer it reads (src_*) and the one it writes (dst_*), one pixel per thread.
 
 struct Post {
     // The g-buffer's size (the image's times `factor`) and the image's.

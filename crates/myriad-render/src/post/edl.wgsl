@@ -1,5 +1,5 @@
 // Eye-dome lighting (Boucheny 2009): a pixel darkened by how far it lies behind its neighbours
-// at `edl_radius` pixels, in log depth, so edges and relief show without normals. Mirror: mod.rs.
+// at `edl_radius` pixels, in log depth, so edges and relief show without normals. Mirror: edl.rs.
 
 @compute @workgroup_size(128)
 fn edl(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {

@@ -1,5 +1,5 @@
 // The image: each pixel the mean of its factor x factor block of the g-buffer, the background
-// where nothing was drawn. Mirror: mod.rs.
+// where nothing was drawn. Mirror: finish.rs.
 
 @group(0) @binding(3) var<storage, read_write> image: array<u32>;
 // Or a texture (a window's, on the same device): no readback.

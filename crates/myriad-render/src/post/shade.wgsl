@@ -1,4 +1,4 @@
-// Deferred shading: ambient, a headlight along the view direction and a sun. Mirror: mod.rs.
+// Deferred shading: ambient, a headlight along the view direction and a sun. Mirror: shade.rs.
 
 @compute @workgroup_size(128)
 fn shade(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {

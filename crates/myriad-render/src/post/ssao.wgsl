@@ -1,5 +1,5 @@
 // Screen-space ambient occlusion: neighbours at two radii in eight directions, as points in eye
-// space; those above the pixel's tangent plane occlude it, less with distance. Mirror: mod.rs.
+// space; those above the pixel's tangent plane occlude it, less with distance. Mirror: ssao.rs.
 
 @compute @workgroup_size(128)
 fn ssao(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {

@@ -133,7 +133,7 @@ fn run(
     }
     // The pipelines (compiled once in a session that keeps them) are not counted in the steps'
     // times; uploads and readbacks are.
-    let module = crate::raster::module(gpu, "cluster.wgsl", RECONSTRUCT_WGSL);
+    let module = crate::pipelines::module(gpu, "cluster.wgsl", RECONSTRUCT_WGSL);
     let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7)
         .map(|b| wgpu::BindGroupLayoutEntry {
             binding: b,

@@ -1,9 +1,9 @@
 //! The surface's triangles drawn on the GPU (`draw.wgsl`), the mirror of `cpu.rs`: a render
 //! pipeline with a depth test into the quad path's targets, then the post passes on the GPU
-//! (`post::gpu`, the g-buffer read as `fb_quads.wgsl` reads the quad path's), read back.
+//! (`post::chain`, the g-buffer read as `fb_quads.wgsl` reads the quad path's), read back.
 
 use crate::post::View;
-use crate::post::gpu::{Buffers, Chain};
+use crate::post::{Buffers, Chain};
 use crate::{FB_QUADS_WGSL, Gpu, Style};
 use myriad_core::Mesh;
 use myriad_lod::Camera;
@@ -36,8 +36,8 @@ pub struct Drawer {
 
 impl Drawer {
     pub fn new(gpu: &Gpu) -> Drawer {
-        let module = crate::raster::module(gpu, "surface draw", DRAW_WGSL);
-        let pipeline = crate::raster::targets_pipeline(
+        let module = crate::pipelines::module(gpu, "surface draw", DRAW_WGSL);
+        let pipeline = crate::pipelines::targets_pipeline(
             gpu,
             "surface",
             &module,
@@ -127,9 +127,9 @@ impl Drawer {
         let mut passes = style.passes;
         passes.shade.get_or_insert_with(crate::Shade::default);
         let f = passes.factor();
-        let c = crate::raster::supersampled(camera, style, f).0;
+        let c = crate::style::supersampled(camera, style, f).0;
         let (w, h) = (c.width, c.height);
-        let view = View::new(&c, &passes, style.background, f);
+        let view = View::new(&c, passes.sun(), style.background, f);
         let (r, u, fw) = c.basis();
         let o = c.position;
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
@@ -144,7 +144,7 @@ impl Drawer {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let target = |label, format| crate::raster::target(gpu, label, (w, h), format, usage);
+        let target = |label, format| crate::pipelines::target(gpu, label, (w, h), format, usage);
         let colour = target("surface colour", wgpu::TextureFormat::Rgba8Unorm);
         let normal = target("surface normal", wgpu::TextureFormat::Rgba8Unorm);
         let depth = target("surface depth", wgpu::TextureFormat::Depth32Float);

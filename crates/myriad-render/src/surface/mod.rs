@@ -27,6 +27,7 @@
 
 pub mod cluster;
 mod cpu;
+mod drawn;
 pub mod gpu;
 mod gpu_draw;
 mod reconstruct;
@@ -36,6 +37,7 @@ mod worker;
 
 pub use cluster::{Cell, Clustering, cluster, moved_cell, weight};
 pub(crate) use cpu::gbuffer;
+pub use drawn::drawn_scene;
 pub use gpu_draw::{DRAW_WGSL, Drawer};
 pub use reconstruct::{distances, reconstruct};
 pub use worker::{Made, Worker};
@@ -477,8 +479,8 @@ pub fn draw(camera: &Camera, mesh: &Mesh, style: &crate::Style) -> Vec<u8> {
     let mut passes = style.passes;
     passes.shade.get_or_insert_with(crate::Shade::default);
     let f = passes.factor();
-    let c = crate::raster::supersampled(camera, style, f).0;
-    let view = crate::post::View::new(&c, &passes, style.background, f);
+    let c = crate::style::supersampled(camera, style, f).0;
+    let view = crate::post::View::new(&c, passes.sun(), style.background, f);
     crate::post::run(gbuffer(&c, mesh), &passes, &view)
 }
 

@@ -6,7 +6,7 @@
 //! PSNR of the standard views at the quality budget against the image of every point with f32
 //! positions.
 
-use crate::bench_render::{RenderBenchArgs, frame_times, psnr};
+use super::{RenderBenchArgs, frame_times, psnr};
 use anyhow::Result;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
@@ -63,8 +63,8 @@ pub fn compare(
         "positions on the GPU, adaptive size: bytes per point on the GPU and read per drawn point \
          and the upload from an empty GPU cache in the overview at {} points, its median frame; \
          PSNR of the three standard views at {} points against every point (f32)",
-        crate::info::thousands(a.frame_budget),
-        crate::info::thousands(a.budget)
+        myriad_core::units::thousands(a.frame_budget),
+        myriad_core::units::thousands(a.budget)
     );
     println!(
         "{:<22} {:>7} {:>7} {:>10} {:>9} {:>26} {:>8}",

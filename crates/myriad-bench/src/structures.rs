@@ -7,7 +7,7 @@
 //! cameras; with 1-pixel points the full images are the same for all, since all hold the same
 //! points); and the median frame time of the whole pipeline at `--frame-budget` in the overview.
 
-use crate::bench_render::{frame_times, quality};
+use crate::render::{frame_times, quality};
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_build::convert::Structure;
@@ -22,10 +22,10 @@ pub struct StructuresBenchArgs {
     /// The point cloud to convert
     file: PathBuf,
     /// Point budget of the images compared with the full one
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "1M")]
     budget: u64,
     /// Point budget of the timed frames
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     frame_budget: u64,
     #[arg(long, default_value_t = 1280)]
     width: u32,
@@ -174,9 +174,9 @@ pub fn run(a: StructuresBenchArgs) -> Result<()> {
         raster.path,
         a.width,
         a.height,
-        crate::info::thousands(a.budget),
+        myriad_core::units::thousands(a.budget),
         a.frames,
-        crate::info::thousands(a.frame_budget),
+        myriad_core::units::thousands(a.frame_budget),
     );
     let views = names.join("/");
     println!(

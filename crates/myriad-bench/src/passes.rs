@@ -8,11 +8,11 @@
 //! the image of every point drawn with the same passes, for no pass, fill, fill+blur and the
 //! default chain.
 
-use crate::bench_render::{frame_times, quality};
-use crate::render::write_png;
+use crate::render::{frame_times, quality};
 use anyhow::Result;
 use clap::Args;
 use myriad_format::Dataset;
+use myriad_io::image::write_png;
 use myriad_lod::Camera;
 use myriad_render::{ColorBy, DEFAULT_PASSES, Passes, Rasterizer, Scene, Style};
 use std::path::PathBuf;
@@ -26,7 +26,7 @@ pub struct PassesBenchArgs {
     #[arg(long, default_value = "1280x720,2160x2160")]
     sizes: String,
     /// Point budget of the timed frames
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "1M")]
     frame_budget: u64,
     /// Timed frames per configuration
     #[arg(long, default_value_t = 7)]
@@ -40,7 +40,7 @@ pub struct PassesBenchArgs {
     #[arg(long, default_value_t = 720)]
     height: u32,
     /// Colour scheme of every image
-    #[arg(long, value_parser = crate::render::parse_color, default_value = "rgb")]
+    #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "rgb")]
     color: ColorBy,
     /// Skip the timing (quality only)
     #[arg(long)]
@@ -49,7 +49,7 @@ pub struct PassesBenchArgs {
     #[arg(long)]
     no_quality: bool,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
     /// Write the quality images into this folder (NAME-VIEW-BUDGET-CHAIN.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -73,7 +73,7 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
     let budgets = a
         .budgets
         .split(',')
-        .map(|b| crate::synth::parse_count(b.trim()).map_err(anyhow::Error::msg))
+        .map(|b| myriad_core::units::parse_count(b.trim()).map_err(anyhow::Error::msg))
         .collect::<Result<Vec<_>>>()?;
     println!("{}, {:?} path", gpu.name, raster.path);
     if let Some(dir) = &a.images {
@@ -105,12 +105,12 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
         scene.set_colour(a.color);
         println!(
             "\n{name}: {} points",
-            crate::info::thousands(ds.meta.points)
+            myriad_core::units::thousands(ds.meta.points)
         );
         if !a.no_timing {
             println!(
                 "frame time, overview, budget {}, median of {} frames; cost = median - median of none",
-                crate::info::thousands(a.frame_budget),
+                myriad_core::units::thousands(a.frame_budget),
                 a.frames
             );
             for &(w, h) in &sizes {
@@ -137,7 +137,7 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
                     }
                     println!(
                         "{w}x{h} {label:<8} {:>9} points  median {median:>8.1} ms  cost {:>+8.1} ms  (min {:.1}, max {:.1})",
-                        crate::info::thousands(points),
+                        myriad_core::units::thousands(points),
                         median - base,
                         times[0].0 * 1e3,
                         times[times.len() - 1].0 * 1e3,
@@ -161,7 +161,7 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
         for (view, mut cam) in views {
             cam.fit_depth(&ds.meta.bounds);
             for &budget in &budgets {
-                print!("{view:<10} {:>9}", crate::info::thousands(budget));
+                print!("{view:<10} {:>9}", myriad_core::units::thousands(budget));
                 let mut values = Vec::new();
                 for (label, chain) in &chains {
                     let style = Style {
@@ -174,7 +174,7 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
                     values.push(q.psnr);
                     if let Some(dir) = &a.images {
                         let chain = label.replace('+', "-");
-                        let b = crate::info::thousands(budget).replace(',', "");
+                        let b = myriad_core::units::thousands(budget).replace(',', "");
                         let file = dir.join(format!("{name}-{view}-{b}-{chain}.png"));
                         write_png(&file, a.width, a.height, &q.lod)?;
                         let file = dir.join(format!("{name}-{view}-full-{chain}.png"));

@@ -134,7 +134,7 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
     println!(
         "{}: {} points, medians of {} runs",
         a.dataset.display(),
-        crate::info::thousands(points),
+        myriad_core::units::thousands(points),
         a.runs.max(1)
     );
     println!(

@@ -30,7 +30,7 @@ pub struct PrefetchBenchArgs {
     width: u32,
     #[arg(long, default_value_t = 720)]
     height: u32,
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
     /// Drop the file from the page cache before each run
     #[arg(long)]
@@ -39,7 +39,7 @@ pub struct PrefetchBenchArgs {
     #[arg(long, value_parser = ["overview", "top", "close"])]
     view: Option<String>,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
 }
 
 struct Run {
@@ -50,7 +50,7 @@ struct Run {
 
 fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gpu) -> Result<Run> {
     if a.cold {
-        crate::bench_open::drop_cache(path)?;
+        crate::open::drop_cache(path)?;
     }
     let raster = Rasterizer::new(gpu);
     let style = Style::default();
@@ -61,7 +61,7 @@ fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gp
     let ds = Arc::new(Dataset::open(path)?);
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
     scene.prefetch = widen;
-    let start = crate::render::view_camera(
+    let start = crate::view_camera(
         a.view.as_deref(),
         &scene.view_bounds,
         &ds.meta.bounds,
@@ -116,7 +116,7 @@ pub fn run(a: PrefetchBenchArgs) -> Result<()> {
         a.width,
         a.height,
         a.view.as_deref().unwrap_or("render's default"),
-        crate::info::thousands(a.budget),
+        myriad_core::units::thousands(a.budget),
         a.degrees,
         a.frames,
         if a.cold { "cold" } else { "warm" },

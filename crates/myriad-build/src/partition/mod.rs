@@ -14,12 +14,13 @@
 //!
 //! Octree and layered structures only: kd and mwkd trees group chunks across the whole scan.
 
+mod tops;
+
 use crate::above::Above;
 use crate::append::cell_of;
 use crate::convert::{self, Planned, Report, Structure};
 use crate::distribute::{self, Grid, SPILL_PREFIX};
 use crate::nested::NestedParams;
-use crate::tops;
 use myriad_core::{Aabb, Error, NodeKey, Result};
 use myriad_format::{Dataset, DatasetWriter, Metadata};
 use myriad_io::OpenOptions;
@@ -630,7 +631,7 @@ pub fn merge(
             parts.push(ds);
         }
         for n in nodes {
-            pending.push(convert::spill(n, spill_dir.path())?);
+            pending.push(crate::nodes::spill(n, spill_dir.path())?);
         }
         heads.push(head);
     }

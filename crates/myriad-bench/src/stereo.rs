@@ -6,7 +6,7 @@
 //! instanced draw on the quad path). On the quad path each is timed with the nodes drawn front
 //! to back (002's reverse painter's order) and in the selection's order.
 
-use crate::bench::median;
+use crate::median;
 use anyhow::Result;
 use clap::Args;
 use myriad_format::Dataset;
@@ -25,7 +25,7 @@ pub struct StereoBenchArgs {
     #[arg(long, default_value_t = 2160)]
     size: u32,
     /// Point budget of both eyes together
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
     /// Distance between the eyes, in the datasets' units
     #[arg(long, default_value_t = 0.064)]
@@ -34,14 +34,14 @@ pub struct StereoBenchArgs {
     #[arg(long, default_value_t = 5)]
     frames: usize,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
     /// Rasterizer: compute, quads or cpu [default: the device's]; on the quad path every frame
     /// is also timed with the nodes in the selection's order, not front to back
-    #[arg(long = "raster", value_parser = crate::render::parse_path)]
+    #[arg(long = "raster", value_parser = myriad_render::args::parse_path)]
     path: Option<Path>,
     /// Post passes over each eye's image, comma-separated (as `render --passes`; the hidden
-    /// area skips them too) [default: none, as 002's table]
-    #[arg(long, value_parser = crate::render::parse_passes)]
+    /// area skips them too) [default: none]
+    #[arg(long, value_parser = myriad_render::args::parse_passes)]
     passes: Option<myriad_render::Passes>,
     /// The standard view the eyes look from: overview, top or close (the data reach the
     /// corners, where the hidden area is)
@@ -74,9 +74,12 @@ pub fn run(a: StereoBenchArgs) -> Result<()> {
         min_pixels: 1.0,
     };
     for path in &a.datasets {
-        let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(path)?)?);
+        let ds = Arc::new(Dataset::open(&myriad_build::cached::dataset_for(
+            path,
+            &myriad_build::convert::Silent,
+        )?)?);
         let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
-        let cam = crate::render::view_camera(
+        let cam = crate::view_camera(
             Some(&a.view),
             &scene.view_bounds,
             &ds.meta.bounds,
@@ -148,7 +151,7 @@ fn row(label: &str, frames: usize, mut frame: impl FnMut() -> u64) {
     }
     println!(
         "| {label} | {} | {:.1} |",
-        crate::info::thousands(points),
+        myriad_core::units::thousands(points),
         median(ms)
     );
 }

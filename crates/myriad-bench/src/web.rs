@@ -31,7 +31,7 @@ pub struct WebBenchArgs {
     #[arg(long, default_value_t = 720)]
     height: u32,
     /// Point budget of both viewers
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "1M")]
     budget: u64,
     /// Myriad's renderer: webgpu or webgl2 [default: the viewer's: WebGPU where it works]
     #[arg(long, value_parser = ["webgpu", "webgl2"])]

@@ -9,11 +9,11 @@
 //! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
 //! against the image of every point with culling off.
 
-use crate::bench_render::psnr;
-use crate::render::write_png;
+use crate::render::psnr;
 use anyhow::Result;
 use clap::Args;
 use myriad_format::Dataset;
+use myriad_io::image::write_png;
 use myriad_lod::{Camera, Occlusion, SelectOptions};
 use myriad_render::{ColorBy, Rasterizer, Scene, Style};
 use std::path::PathBuf;
@@ -35,10 +35,10 @@ pub struct CullingBenchArgs {
     #[arg(long, default_value_t = 720)]
     height: u32,
     /// Colour scheme of every image (elevation: scans without colours still show)
-    #[arg(long, value_parser = crate::render::parse_color, default_value = "elevation")]
+    #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "elevation")]
     color: ColorBy,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
     /// Write the images into this folder (NAME-VIEW-METHOD-BUDGET.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -71,7 +71,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
     let mut budgets: Vec<u64> = a
         .budgets
         .split(',')
-        .map(|b| crate::synth::parse_count(b.trim()).map_err(anyhow::Error::msg))
+        .map(|b| myriad_core::units::parse_count(b.trim()).map_err(anyhow::Error::msg))
         .collect::<Result<_>>()?;
     budgets.push(u64::MAX);
     println!("{}, {:?} path", gpu.name, raster.path);
@@ -88,7 +88,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
         scene.set_colour(a.color);
         println!(
             "\n{name}: {} points, {} nodes; {}x{}, frame times median of {}",
-            crate::info::thousands(ds.meta.points),
+            myriad_core::units::thousands(ds.meta.points),
             ds.meta.nodes,
             a.width,
             a.height,
@@ -177,12 +177,12 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                     let b = if budget == u64::MAX {
                         "none".to_string()
                     } else {
-                        crate::info::thousands(budget)
+                        myriad_core::units::thousands(budget)
                     };
                     println!(
                         "{view:<8} {method:<9} {b:>9} {:>7} {:>11} {:>7} {:>10.2} {:>9.2} {:>9.1} {:>7.2}",
                         stats.nodes,
-                        crate::info::thousands(stats.points),
+                        myriad_core::units::thousands(stats.points),
                         stats.culled,
                         median(1),
                         median(2),

@@ -1,35 +1,27 @@
 //! The post passes on the GPU: one compute dispatch per pass over the g-buffer, ping-ponging
 //! between two sets of buffers (depth, colour, normal: one array each, so that a g-buffer of
 //! 2160 x 2160 supersampled twice still fits a storage binding), then the finish pass into the
-//! image. The same passes as `mod.rs` runs on the CPU.
+//! image. The same passes as `mod.rs`'s `run` on the CPU.
 
-use super::{Passes, View};
+use super::gbuffer::{View, gbuffer_source};
+use super::passes::Passes;
+use super::{blur, edl, fill, finish, normals, shade, ssao};
 use crate::Gpu;
+use crate::pipelines::{compute, compute_in, groups, module};
 
-macro_rules! pass_source {
-    ($file:literal) => {
-        concat!(include_str!("common.wgsl"), include_str!($file))
-    };
-}
-
-/// The WGSL of every pass (common.wgsl with the pass), by entry point; the g-buffer pass is
-/// [`gbuffer_source`].
+/// The WGSL of every pass (common.wgsl with the pass, from the pass's file), by entry point;
+/// the g-buffer pass is [`gbuffer_source`].
 pub const PASS_SOURCES: [(&str, &str); 9] = [
-    ("fill_rows", pass_source!("fill.wgsl")),
-    ("fill_columns", pass_source!("fill.wgsl")),
-    ("normals", pass_source!("normals.wgsl")),
-    ("shade", pass_source!("shade.wgsl")),
-    ("ssao", pass_source!("ssao.wgsl")),
-    ("edl", pass_source!("edl.wgsl")),
-    ("blur", pass_source!("blur.wgsl")),
-    ("finish", pass_source!("finish.wgsl")),
-    ("finish_texture", pass_source!("finish.wgsl")),
+    ("fill_rows", fill::SOURCE),
+    ("fill_columns", fill::SOURCE),
+    ("normals", normals::SOURCE),
+    ("shade", shade::SOURCE),
+    ("ssao", ssao::SOURCE),
+    ("edl", edl::SOURCE),
+    ("blur", blur::SOURCE),
+    ("finish", finish::SOURCE),
+    ("finish_texture", finish::SOURCE),
 ];
-
-/// The g-buffer pass reading a path's framebuffer (`fb_atomic.wgsl` or `fb_quads.wgsl`).
-pub fn gbuffer_source(framebuffer: &str) -> String {
-    concat!(include_str!("common.wgsl"), include_str!("gbuffer.wgsl")).to_string() + framebuffer
-}
 
 /// As `Post` in common.wgsl.
 #[repr(C)]
@@ -60,7 +52,7 @@ struct Uniforms {
     pad: [u32; 3],
 }
 
-/// The compute pipelines of the chain.
+/// The compute pipelines of the chain, kept for the rasterizer's life.
 pub(crate) struct Chain {
     gbuffer: wgpu::ComputePipeline,
     passes: Vec<(&'static str, wgpu::ComputePipeline)>,
@@ -161,7 +153,6 @@ impl Buffers {
 
 impl Chain {
     pub fn new(gpu: &Gpu, framebuffer: &str) -> Chain {
-        use crate::raster::{compute, compute_in, module};
         // One module per source: fill.wgsl and finish.wgsl hold two entry points each.
         let mut modules: Vec<(&str, wgpu::ShaderModule)> = Vec::new();
         let mut passes = Vec::new();
@@ -267,7 +258,7 @@ impl Chain {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &bind, &[]);
-            let (x, y) = crate::raster::groups(pixels);
+            let (x, y) = groups(pixels);
             pass.dispatch_workgroups(x, y, 1);
         };
         let pixels = view.width * view.height;

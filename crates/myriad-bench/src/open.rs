@@ -32,7 +32,7 @@ pub struct OpenBenchArgs {
     #[arg(long)]
     fixture: Option<PathBuf>,
     /// Points of the fixture (k, M, G suffixes)
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "10G")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "10G")]
     fixture_points: u64,
     /// Cold and warm runs of each
     #[arg(long, default_value_t = 5)]
@@ -42,13 +42,13 @@ pub struct OpenBenchArgs {
     #[arg(long, default_value_t = 720)]
     height: u32,
     /// Point budget (as `render`'s default)
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
     /// A standard view (overview, top, close) instead of `render`'s default view
     #[arg(long, value_parser = ["overview", "top", "close"])]
     view: Option<String>,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
 }
 
 /// Drops the file's pages from the page cache (and the whole cache where allowed). Whether
@@ -84,7 +84,7 @@ fn open_and_draw(path: &Path, a: &OpenBenchArgs, gpu: &myriad_render::Gpu) -> Re
     let t0 = Instant::now();
     let ds = Arc::new(Dataset::open(path)?);
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
-    let cam = crate::render::view_camera(
+    let cam = crate::view_camera(
         a.view.as_deref(),
         &scene.view_bounds,
         &ds.meta.bounds,
@@ -155,7 +155,7 @@ pub fn run(a: OpenBenchArgs) -> Result<()> {
         a.width,
         a.height,
         a.view.as_deref().unwrap_or("render's default"),
-        crate::info::thousands(a.budget),
+        myriad_core::units::thousands(a.budget),
         a.runs,
         a.runs
     );
@@ -181,9 +181,9 @@ pub fn run(a: OpenBenchArgs) -> Result<()> {
         let secs = |d: Duration| d.as_secs_f64();
         println!(
             "\n{name}: {} points, {} nodes, {} hierarchy pages{}",
-            crate::info::thousands(ds.meta.points),
-            crate::info::thousands(ds.meta.nodes),
-            crate::info::thousands(all_pages as u64),
+            myriad_core::units::thousands(ds.meta.points),
+            myriad_core::units::thousands(ds.meta.nodes),
+            myriad_core::units::thousands(all_pages as u64),
             if whole_cache {
                 " (whole page cache dropped too)"
             } else {

@@ -1,8 +1,8 @@
 //! A part's `.tops` file ([`crate::partition`]): its level-P nodes as they were before the
 //! levels above took points from them, for the merge.
 
+use super::{BuildPlan, PartSummary};
 use crate::nested::BuiltNode;
-use crate::partition::{BuildPlan, PartSummary};
 use myriad_core::{Aabb, Error, NodeKey, Obb, PointBatch, Result};
 use myriad_format::NodeShape;
 use serde_json::{Value, json};

@@ -32,7 +32,7 @@ struct Draw {
     eye_forward: vec4<f32>,
     // Quad path, this draw's splats: smallest and largest radius, z 1 when it has splats.
     radius: vec4<f32>,
-    // Quad path, this draw's points (as `Range` in raster.wgsl): its origin relative to the
+    // Quad path, this draw's points (as `Range` in compute.wgsl): its origin relative to the
     // frame's, its first word's step per axis, and its place: base, stride, words, read (`decode`).
     offset: vec4<f32>,
     unit: vec4<f32>,

@@ -10,10 +10,12 @@
 //! (selection, GPU cache lookups, drawing, resolve and readback), and its parts; in the overview,
 //! without a pixel threshold, so that the frames draw the whole budget.
 
-use crate::render::write_png;
+mod positions;
+
 use anyhow::{Result, bail};
 use clap::Args;
 use myriad_format::Dataset;
+use myriad_io::image::write_png;
 use myriad_lod::{Camera, SelectOptions, point_spacing};
 use myriad_render::{Gpu, PointSize, Points, Rasterizer, Scene, Style, colours};
 use std::path::PathBuf;
@@ -25,10 +27,10 @@ pub struct RenderBenchArgs {
     #[arg(required = true)]
     datasets: Vec<PathBuf>,
     /// Point budget of the images compared with the full one
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "1M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "1M")]
     pub(crate) budget: u64,
     /// Point budget of the timed frames
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     pub(crate) frame_budget: u64,
     #[arg(long, default_value_t = 1280)]
     pub(crate) width: u32,
@@ -44,7 +46,7 @@ pub struct RenderBenchArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
     /// Write every image compared into this folder (NAME-VIEW-full|lod|random-MODE.png)
     #[arg(long)]
     images: Option<PathBuf>,
@@ -122,7 +124,7 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
         raster.path,
         a.width,
         a.height,
-        crate::info::thousands(a.budget)
+        myriad_core::units::thousands(a.budget)
     );
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir)?;
@@ -138,13 +140,13 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
         scene.read_every_page(&ds);
         let total = scene.hierarchy.points();
         if a.positions_only {
-            println!("\n{name}: {} points", crate::info::thousands(total));
-            crate::bench_positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
+            println!("\n{name}: {} points", myriad_core::units::thousands(total));
+            positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
             continue;
         }
         println!(
             "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8}",
-            crate::info::thousands(total),
+            myriad_core::units::thousands(total),
             "view",
             "size",
             "points",
@@ -179,7 +181,7 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                 }
                 println!(
                     "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2}",
-                    crate::info::thousands(points),
+                    myriad_core::units::thousands(points),
                     ours - theirs
                 );
                 if let Some(dir) = &a.images {
@@ -218,8 +220,8 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             println!(
                 "frame, {mode} size, budget {}: {} points in {} frames: median {:.1} ms (selection \
                  {:.1} ms, drawing and readback {:.1} ms; min {:.1}, max {:.1}), {:.1} M points/s",
-                crate::info::thousands(a.frame_budget),
-                crate::info::thousands(points),
+                myriad_core::units::thousands(a.frame_budget),
+                myriad_core::units::thousands(points),
                 times.len(),
                 frame * 1e3,
                 select * 1e3,
@@ -229,7 +231,7 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                 points as f64 / frame / 1e6,
             );
         }
-        crate::bench_positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
+        positions::compare(&mut scene, &ds, &gpu, &mut raster, &a)?;
     }
     if lost > 0 {
         println!("\nthe random baseline was as good or better in {lost} of the views");

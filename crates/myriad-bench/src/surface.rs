@@ -12,8 +12,7 @@
 //! leaves empty. Then, as table 1's last columns, the frame of the points and of each kind of
 //! surface element.
 
-use crate::bench::median;
-use crate::mesh::drawn;
+use crate::median;
 use anyhow::Result;
 use clap::Args;
 use myriad_core::Aabb;
@@ -27,12 +26,12 @@ pub struct SurfaceBenchArgs {
     #[arg(required = true)]
     datasets: Vec<PathBuf>,
     /// Points clustered: what the view selects within this budget
-    #[arg(long, value_parser = crate::synth::parse_count, default_value = "5M")]
+    #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
     /// The full method's options (the variants change one each)
     #[command(flatten)]
-    options: crate::mesh::SurfaceArgs,
-    /// Cluster every point of the dataset in view (the paper's setting), not a level of detail
+    options: myriad_render::args::SurfaceArgs,
+    /// Cluster every point of the dataset in view, not a level of detail
     #[arg(long)]
     all: bool,
     /// The standard view
@@ -46,12 +45,36 @@ pub struct SurfaceBenchArgs {
     #[arg(long, default_value_t = 5)]
     runs: usize,
     /// Cluster, move and reduce on the GPU (`--gpu`, lavapipe too) or the CPU (`--cpu`); the
-    /// octree baseline is always the CPU's, as in the paper
+    /// octree baseline is always the CPU's
     #[command(flatten)]
-    device: crate::bench_render::Device,
+    device: crate::render::Device,
     /// Write the images (points, each variant's quads, the full method's boxes and splats) here
     #[arg(long)]
     images: Option<PathBuf>,
+}
+
+/// The scene the standard view `view` selects from `path` at `budget`, loaded, and its camera
+/// (what `myriad mesh --view` clusters).
+fn drawn(
+    path: &std::path::Path,
+    view: &str,
+    (w, h): (u32, u32),
+    budget: u64,
+) -> Result<(myriad_render::Scene, myriad_lod::Camera)> {
+    let found = myriad_build::cached::dataset_for(path, &myriad_build::convert::Silent)?;
+    let ds = std::sync::Arc::new(myriad_format::Dataset::open(&found)?);
+    let all = ds.meta.bounds;
+    let (scene, cam) = surface::drawn_scene(ds, budget, ColorBy::Rgb, |bounds| {
+        let mut cam = myriad_lod::Camera::view(Some(view), bounds, &all, w, h)
+            .ok_or_else(|| format!("no standard view \"{view}\""))?;
+        cam.fov_y = 60.0;
+        Ok(cam)
+    })
+    .map_err(anyhow::Error::msg)?;
+    for why in scene.loader.failed_pages().values() {
+        eprintln!("warning: {why}");
+    }
+    Ok((scene, cam))
 }
 
 struct Row {
@@ -86,22 +109,15 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
     println!(
         "{}; {:?}; {} view at {}x{}, budget {}, medians of {runs} runs",
         device.name,
-        a.options.surface(Kind::Quads)?,
+        a.options.surface(Kind::Quads).map_err(anyhow::Error::msg)?,
         a.view,
         a.width,
         a.height,
         a.budget
     );
     for path in &a.datasets {
-        let (mut scene, cam) = drawn(
-            path,
-            None,
-            Some(&a.view),
-            [0.0, 0.0, 1.0],
-            (a.width, a.height, 60.0),
-            if a.all { u64::MAX } else { a.budget },
-            ColorBy::Rgb,
-        )?;
+        let budget = if a.all { u64::MAX } else { a.budget };
+        let (mut scene, cam) = drawn(path, &a.view, (a.width, a.height), budget)?;
         let (points, colours) = surface::drawn_points(&scene, None);
         // The points as `render` draws them, on a transparent background: what they cover.
         let style = Style {
@@ -124,14 +140,14 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
             .file_stem()
             .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
         if let Some(dir) = &a.images {
-            crate::render::write_png(
+            myriad_io::image::write_png(
                 &dir.join(format!("{name}-points.png")),
                 a.width,
                 a.height,
                 &image,
             )?;
         }
-        let full = a.options.surface(Kind::Quads)?;
+        let full = a.options.surface(Kind::Quads).map_err(anyhow::Error::msg)?;
         let variants: [(&str, Surface); 5] = [
             ("full", full),
             (
@@ -210,7 +226,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
                     .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
                     .collect();
                 let file = format!("{name}-{slug}.png");
-                crate::render::write_png(&dir.join(file), a.width, a.height, &img)?;
+                myriad_io::image::write_png(&dir.join(file), a.width, a.height, &img)?;
             }
             let row = Row {
                 name: label,
@@ -265,8 +281,8 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
 
         println!(
             "\n{name}: {} points drawn, {} in view (octree levels {level})",
-            crate::info::thousands(points.len() as u64),
-            crate::info::thousands(full_built.clustering.inside as u64)
+            myriad_core::units::thousands(points.len() as u64),
+            myriad_core::units::thousands(full_built.clustering.inside as u64)
         );
         println!(
             "| variant | cells | moved | cluster ms | move ms | reduce ms | reconstruct ms | frame ms | RMS | p95 | holes % |"
@@ -276,8 +292,8 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
             println!(
                 "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.4} | {:.4} | {:.2} |",
                 r.name,
-                crate::info::thousands(r.cells as u64),
-                crate::info::thousands(r.moved as u64),
+                myriad_core::units::thousands(r.cells as u64),
+                myriad_core::units::thousands(r.moved as u64),
                 r.ms[0],
                 r.ms[1],
                 r.ms[2],
@@ -293,7 +309,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
         println!("|---|---|---|---|");
         println!(
             "| points | {} | - | {:.1} |",
-            crate::info::thousands(points.len() as u64),
+            myriad_core::units::thousands(points.len() as u64),
             median(point_ms)
         );
         for kind in [Kind::Splats, Kind::Boxes, Kind::Quads] {
@@ -308,7 +324,7 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
                 ms.push(t.elapsed().as_secs_f64() * 1e3);
             }
             if let Some(dir) = &a.images {
-                crate::render::write_png(
+                myriad_io::image::write_png(
                     &dir.join(format!("{name}-full-{kind:?}.png").to_lowercase()),
                     a.width,
                     a.height,
@@ -317,8 +333,8 @@ pub fn run(a: SurfaceBenchArgs) -> Result<()> {
             }
             println!(
                 "| {kind:?} | {} | {} | {:.1} |",
-                crate::info::thousands(full_built.clustering.cells.len() as u64),
-                crate::info::thousands(mesh.triangles.len() as u64),
+                myriad_core::units::thousands(full_built.clustering.cells.len() as u64),
+                myriad_core::units::thousands(mesh.triangles.len() as u64),
                 median(ms)
             );
         }

@@ -1,0 +1,177 @@
+//! `myriad bench convert FILE...`: conversion speed, peak memory and size, each run a separate
+//! `myriad convert` process, next to the raw LAS/LAZ decode of the same file (and PotreeConverter
+//! 2 with `--peer`).
+
+use crate::median;
+use anyhow::Result;
+use clap::Args;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct ConvertBenchArgs {
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Memory budget passed to convert (e.g. 2GB)
+    #[arg(long)]
+    memory: Option<String>,
+    /// Node capacities to compare, e.g. 16384,65536 [default: convert's default]
+    #[arg(long, value_delimiter = ',')]
+    capacity: Vec<usize>,
+    /// Worker threads passed to convert
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Where the dataset is written (removed at the end)
+    #[arg(short, long, default_value = "myriad-bench-convert.myr")]
+    output: PathBuf,
+    /// Also run PotreeConverter 2 on each file in the same runs (alternating with convert)
+    #[arg(long)]
+    peer: bool,
+    /// PotreeConverter 2 [default: ../shared/peers/potreeconverter/PotreeConverter when present]
+    #[arg(long)]
+    peer_path: Option<PathBuf>,
+}
+
+pub fn run(a: ConvertBenchArgs) -> Result<()> {
+    let exe = std::env::current_exe()?;
+    let peer = match (
+        a.peer,
+        a.peer_path.clone().or_else(crate::export::default_peer),
+    ) {
+        (false, _) => None,
+        (true, Some(p)) => Some(p),
+        (true, None) => anyhow::bail!(
+            "--peer: PotreeConverter not found (give --peer-path; ../shared/peers has a build)"
+        ),
+    };
+    let capacities: Vec<Option<usize>> = if a.capacity.is_empty() {
+        vec![None]
+    } else {
+        a.capacity.iter().map(|&c| Some(c)).collect()
+    };
+    println!(
+        "{:<40} {:>9} {:>11} {:>8} {:>10} {:>9} {:>8} {:>10} {:>12} {:>6}",
+        "file",
+        "capacity",
+        "points",
+        "seconds",
+        "M pts/s",
+        "peak MB",
+        "B/pt",
+        "input B/pt",
+        "raw M pts/s",
+        "ratio"
+    );
+    for path in &a.files {
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |f| f.to_string_lossy().into_owned(),
+        );
+        let input_bytes = std::fs::metadata(path)?.len();
+        let is_las = matches!(
+            myriad_io::detect(path)?,
+            myriad_io::Format::Las | myriad_io::Format::Laz
+        );
+        for cap in &capacities {
+            let (mut secs, mut rates, mut raws, mut peaks) = (vec![], vec![], vec![], vec![]);
+            let (mut peer_secs, mut peer_peaks, mut walls) = (vec![], vec![], vec![]);
+            let mut last = serde_json::Value::Null;
+            for _ in 0..a.runs.max(1) {
+                // Baseline first, in the same minute: the las/laz crates decoding the file.
+                if is_las {
+                    let t = Instant::now();
+                    let n = myriad_io::las::read_raw_records(path)?;
+                    raws.push(n as f64 / t.elapsed().as_secs_f64());
+                }
+                let mut cmd = std::process::Command::new(&exe);
+                cmd.arg("convert").arg(path).arg("-o").arg(&a.output);
+                cmd.args(["--force", "--json"]);
+                if let Some(m) = &a.memory {
+                    cmd.args(["--memory", m]);
+                }
+                if let Some(c) = cap {
+                    cmd.args(["--capacity", &c.to_string()]);
+                }
+                if let Some(t) = a.threads {
+                    cmd.args(["--threads", &t.to_string()]);
+                }
+                let wall = Instant::now();
+                let out = cmd.output()?;
+                walls.push(wall.elapsed().as_secs_f64());
+                if !out.status.success() {
+                    anyhow::bail!(
+                        "convert failed: {}",
+                        String::from_utf8_lossy(&out.stderr).trim()
+                    );
+                }
+                last = serde_json::from_slice(&out.stdout)?;
+                secs.push(last["seconds"].as_f64().unwrap_or(f64::NAN));
+                rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
+                peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
+                if let Some(peer) = &peer {
+                    // Ours is measured (its size is in the summary): gone before the peer
+                    // writes, so that both fit on the disk for a large input.
+                    std::fs::remove_file(&a.output).ok();
+                    // The peer in the same minute, into a folder next to our output.
+                    let dir = a.output.with_extension("potreeconverter");
+                    let _ = std::fs::remove_dir_all(&dir);
+                    let (t, m) = crate::export::measured(
+                        std::process::Command::new(peer)
+                            .arg(path)
+                            .arg("-o")
+                            .arg(&dir),
+                    )?;
+                    let _ = std::fs::remove_dir_all(&dir);
+                    peer_secs.push(t);
+                    peer_peaks.push(m as f64);
+                }
+            }
+            std::fs::remove_file(&a.output).ok();
+            let points = last["points"].as_u64().unwrap_or(0);
+            let ours = median(rates);
+            let (raw, ratio) = if raws.is_empty() {
+                ("-".to_string(), "-".to_string())
+            } else {
+                let r = median(raws);
+                (
+                    format!("{:.2}", r / 1e6),
+                    format!("{:.0}%", 100.0 * ours / r),
+                )
+            };
+            println!(
+                "{name:<40} {:>9} {points:>11} {:>8.2} {:>10.2} {:>9.0} {:>8.2} {:>10.2} {raw:>12} {ratio:>6}",
+                cap.map_or("default".to_string(), |c| c.to_string()),
+                median(secs.clone()),
+                ours / 1e6,
+                peaks.iter().cloned().fold(0.0, f64::max) / 1e6,
+                last["bytes_per_point"].as_f64().unwrap_or(f64::NAN),
+                input_bytes as f64 / points.max(1) as f64,
+            );
+            if !peer_secs.is_empty() {
+                // Both as wall time of the whole process.
+                let t = median(peer_secs.clone());
+                let w = median(walls.clone());
+                println!(
+                    "{:<40} PotreeConverter 2: {t:.2} s, {:.2} M pts/s, {:.0} MB peak; convert {w:.2} s: {:.2}x its speed (runs, convert/peer: {})",
+                    "",
+                    points as f64 / t / 1e6,
+                    peer_peaks.iter().cloned().fold(0.0, f64::max) / 1e6,
+                    t / w,
+                    peer_secs
+                        .iter()
+                        .zip(&walls)
+                        .map(|(p, o)| format!("{:.2}/{:.2} s", o, p))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+        }
+    }
+    println!(
+        "medians of {} runs; peak MB is the largest peak RSS of the convert processes; ratio = convert / raw decode",
+        a.runs
+    );
+    Ok(())
+}

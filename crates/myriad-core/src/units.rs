@@ -1,0 +1,74 @@
+//! Numbers as people write them on a command line and read them in a report: counts such as
+//! `5M` or `2.5e6`, lists of coordinates, and counts with thousands separators.
+
+/// Parses counts such as 1000, 1e6, 2.5M, 100k, 2G.
+pub fn parse_count(s: &str) -> Result<u64, String> {
+    let t = s.trim().replace('_', "");
+    let (num, mult) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
+        Some('g' | 'G' | 'b' | 'B') => (&t[..t.len() - 1], 1e9),
+        _ => (&t[..], 1.0),
+    };
+    if let Ok(n) = num.parse::<u64>() {
+        return n
+            .checked_mul(mult as u64)
+            .ok_or_else(|| format!("{s} is too large"));
+    }
+    match num.parse::<f64>() {
+        Ok(v) if v >= 0.0 && (v * mult).fract() == 0.0 && v * mult < 1.8e19 => {
+            Ok((v * mult) as u64)
+        }
+        _ => Err(format!("\"{s}\" is not a whole number of points")),
+    }
+}
+
+/// `n` with a comma between each group of three digits: 7,213,406.
+pub fn thousands(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (k, c) in s.chars().enumerate() {
+        if k > 0 && (s.len() - k).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// `N` comma-separated numbers, such as a camera's `EX,EY,EZ,TX,TY,TZ`.
+pub fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("\"{s}\": expected {N} comma-separated numbers"))?;
+    v.try_into()
+        .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts() {
+        let check = |s: &str, v: Option<u64>| assert_eq!(parse_count(s).ok(), v, "{s}");
+        check("1000", Some(1000));
+        check("1e6", Some(1_000_000));
+        check("2.5M", Some(2_500_000));
+        check("100k", Some(100_000));
+        check("2G", Some(2_000_000_000));
+        check("1.5", None);
+        check("abc", None);
+        check("-5", None);
+    }
+
+    #[test]
+    fn separators_and_lists() {
+        assert_eq!(thousands(7213406), "7,213,406");
+        assert_eq!(thousands(999), "999");
+        assert_eq!(parse_floats::<3>("1, -2.5,3"), Ok([1.0, -2.5, 3.0]));
+        assert!(parse_floats::<3>("1,2").is_err());
+    }
+}

@@ -1,0 +1,55 @@
+//! The options a build takes, as `convert` and `plan` share them.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_build::convert;
+
+/// The options a build takes, in `convert` and `plan`.
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Hierarchy to build: octree (nested octree of MOSPTs), layered (octree with adaptive
+    /// n-tree representatives and contours), kd (balanced kd-tree), mwkd (multi-way kd-tree of
+    /// aggregates drawn as splats)
+    #[arg(long, default_value = "octree")]
+    pub(crate) structure: String,
+    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
+    #[arg(long, value_parser = convert::parse_size)]
+    pub(crate) memory: Option<u64>,
+    /// Worker threads [default: all cores]
+    #[arg(long)]
+    pub(crate) threads: Option<usize>,
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
+    #[arg(long, default_value_t = 0.0001)]
+    pub(crate) precision: f64,
+    /// Most points per node
+    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
+    pub(crate) capacity: usize,
+    /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
+    #[arg(long)]
+    pub(crate) columns: Option<String>,
+    /// Ignore SCAN.placement files next to inputs (see README)
+    #[arg(long)]
+    pub(crate) no_placement: bool,
+}
+
+impl BuildArgs {
+    /// The structure named, and the capacity checked.
+    pub(crate) fn structure(&self) -> Result<convert::Structure> {
+        if self.capacity < 64 {
+            bail!("--capacity {} is too small (at least 64)", self.capacity);
+        }
+        Ok(match self.structure.as_str() {
+            "nested-octree" => convert::Structure::Octree,
+            s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
+        })
+    }
+
+    /// How the inputs are opened.
+    pub(crate) fn open_options(&self) -> myriad_io::OpenOptions {
+        myriad_io::OpenOptions {
+            columns: self.columns.clone(),
+            sidecar_placements: !self.no_placement,
+            ..Default::default()
+        }
+    }
+}
