@@ -8,6 +8,7 @@ pub mod convert;
 pub mod culling;
 pub mod export;
 pub mod open;
+pub mod open_scan;
 pub mod partition;
 pub mod passes;
 pub mod prefetch;

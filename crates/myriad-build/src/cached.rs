@@ -1,8 +1,10 @@
-//! Any scan opens directly: `render`, `view` and `serve` given a scan rather than a dataset
-//! convert it (with the defaults of `convert` and its progress bar) into a dataset kept next to
-//! the scan, or in the user's cache folder where the scan's folder takes no files, and use that
-//! dataset again while the scan is unchanged (same path, size and modification time, same
-//! format version).
+//! Any scan opens directly: `render` and `view` given a scan rather than a dataset (and `serve`
+//! a scan file) convert it (with the defaults of `convert` and its progress bar) into a dataset
+//! kept next to the scan, or in the user's cache folder where the scan's folder takes no files,
+//! and use that dataset again while the scan is unchanged (same path, size and modification
+//! time, same format version). A folder of LAS/LAZ tiles (one survey cut into files) is one
+//! scan: its tiles become one dataset, kept in the folder, made again when a tile changes, comes
+//! or goes.
 
 use crate::convert::{self, ConvertOptions, Report};
 use myriad_core::{Error, Result};
@@ -39,38 +41,122 @@ fn takes_files(dir: &Path) -> bool {
     ok
 }
 
-/// `path` itself when it is a dataset (or a URL), else the dataset made from it, the
-/// conversion's progress told to `report`.
-pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
-    // A .myr file is read as a dataset whatever it holds (a damaged one is named as such).
-    if myriad_format::is_dataset(path) || path.extension().is_some_and(|e| e == "myr") {
-        return Ok(path.to_path_buf());
+/// Where a scan's dataset is kept: beside it, or in the user's cache folder; the names of its
+/// earlier versions start with `prefix`.
+struct Places {
+    folder: PathBuf,
+    beside: PathBuf,
+    cached: Option<PathBuf>,
+    prefix: String,
+}
+
+/// Whether a file is a LAS or LAZ tile by its name; hidden files (a name starting with a dot:
+/// our own temporary outputs, a desktop's metadata files) are not.
+fn is_tile(path: &Path) -> bool {
+    path.is_file()
+        && !path
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        && path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
+}
+
+/// The scan files at `path`: the file itself, or a folder's LAS and LAZ files (not its
+/// subfolders), sorted by name.
+pub fn inputs_of(path: &Path) -> Result<Vec<PathBuf>> {
+    if !path.is_dir() {
+        return Ok(vec![path.to_path_buf()]);
     }
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    if !meta.is_file() {
-        return Err(Error::Invalid(format!("{}: not a file", path.display())));
+    let mut tiles: Vec<PathBuf> = std::fs::read_dir(path)
+        .map_err(|e| Error::io(path, e))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| is_tile(p))
+        .collect();
+    tiles.sort();
+    if tiles.is_empty() {
+        return Err(Error::Invalid(format!(
+            "{}: a folder with no LAS or LAZ file in it",
+            path.display()
+        )));
     }
+    Ok(tiles)
+}
+
+/// The places of the dataset of the scan at `path` as it is now: its files' paths, sizes and
+/// modification times, and the format version, make the key.
+fn places(path: &Path) -> Result<Places> {
     let canonical = path.canonicalize().map_err(|e| Error::io(path, e))?;
-    let mtime = meta
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
-    let key = fnv(&[
-        canonical.as_os_str().as_encoded_bytes(),
-        &meta.len().to_le_bytes(),
-        &mtime.to_le_bytes(),
-        &myriad_format::FORMAT_VERSION.to_le_bytes(),
-    ]);
+    let dir = canonical.is_dir();
+    let mut parts: Vec<Vec<u8>> = Vec::new();
+    for f in inputs_of(&canonical)? {
+        let meta = std::fs::metadata(&f).map_err(|e| Error::io(&f, e))?;
+        if !meta.is_file() {
+            return Err(Error::Invalid(format!("{}: not a file", f.display())));
+        }
+        let mtime = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or(0, |d| d.as_nanos());
+        parts.push(f.as_os_str().as_encoded_bytes().to_vec());
+        parts.push(meta.len().to_le_bytes().to_vec());
+        parts.push(mtime.to_le_bytes().to_vec());
+    }
+    parts.push(myriad_format::FORMAT_VERSION.to_le_bytes().to_vec());
+    let key = fnv(&parts.iter().map(|p| p.as_slice()).collect::<Vec<_>>());
     let name = canonical
         .file_name()
         .map_or("scan".into(), |n| n.to_string_lossy().to_string());
-    let folder = canonical.parent().unwrap_or(Path::new("/"));
+    // A folder's dataset is kept in the folder, a file's beside it.
+    let folder = if dir {
+        canonical.clone()
+    } else {
+        canonical.parent().unwrap_or(Path::new("/")).to_path_buf()
+    };
     // Per scan path (two scans of one name share the cache folder), then per version of it.
     let place = fnv(&[canonical.as_os_str().as_encoded_bytes()]) as u32;
     let prefix = format!(".{name}.myriad-{place:08x}-");
-    let beside = folder.join(format!("{prefix}{key:016x}.myr"));
-    let cached = cache_dir().map(|d| d.join(format!("{prefix}{key:016x}.myr")));
+    Ok(Places {
+        beside: folder.join(format!("{prefix}{key:016x}.myr")),
+        cached: cache_dir().map(|d| d.join(format!("{prefix}{key:016x}.myr"))),
+        folder,
+        prefix,
+    })
+}
+
+/// Whether `path` is read as a dataset: a dataset's magic, a URL, or a `.myr` name (a damaged
+/// one is named as such when opened).
+fn is_dataset(path: &Path) -> bool {
+    myriad_format::is_dataset(path) || path.extension().is_some_and(|e| e == "myr")
+}
+
+/// The dataset already made from the scan at `path` as it is now, if there is one (`path`
+/// itself when it is a dataset); converts nothing.
+pub fn existing(path: &Path) -> Option<PathBuf> {
+    if is_dataset(path) {
+        return Some(path.to_path_buf());
+    }
+    let p = places(path).ok()?;
+    std::iter::once(&p.beside)
+        .chain(p.cached.as_ref())
+        .find(|c| c.is_file() && Dataset::open(c).is_ok())
+        .cloned()
+}
+
+/// `path` itself when it is a dataset (or a URL), else the dataset made from it, the
+/// conversion's progress told to `report`.
+pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
+    if is_dataset(path) {
+        return Ok(path.to_path_buf());
+    }
+    let Places {
+        folder,
+        beside,
+        cached,
+        prefix,
+    } = places(path)?;
     for c in std::iter::once(&beside).chain(cached.as_ref()) {
         if c.is_file() && Dataset::open(c).is_ok() {
             eprintln!(
@@ -81,7 +167,7 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
             return Ok(c.clone());
         }
     }
-    let target = if takes_files(folder) {
+    let target = if takes_files(&folder) {
         beside
     } else {
         let c = cached.ok_or_else(|| {
@@ -98,7 +184,7 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
     );
     let mut o = ConvertOptions::new(&target);
     o.force = true;
-    convert::convert(&[path.to_path_buf()], &o, report)?;
+    convert::convert(&inputs_of(path)?, &o, report)?;
     // Conversions of earlier versions of the scan go.
     let dir = target.parent().expect("a dataset has a folder");
     if let Ok(entries) = std::fs::read_dir(dir) {

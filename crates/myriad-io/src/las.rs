@@ -47,12 +47,12 @@ impl Seek for Tracked {
 /// two producers taking the blocks in turn (`produce_records`).
 pub struct LasSource {
     info: SourceInfo,
-    header: las::Header,
-    layout: Layout,
-    quant: Quantization,
-    record_len: usize,
+    pub(crate) header: las::Header,
+    pub(crate) layout: Layout,
+    pub(crate) quant: Quantization,
+    pub(crate) record_len: usize,
     /// Offset of the point data.
-    data_at: u64,
+    pub(crate) data_at: u64,
     remaining: u64,
     stream: Option<RecordStream>,
 }

@@ -18,6 +18,7 @@ pub mod image;
 pub mod las;
 mod las_extra;
 mod las_guard;
+pub mod las_preview;
 mod las_records;
 pub mod mesh;
 pub mod pcd;

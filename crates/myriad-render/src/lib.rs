@@ -18,7 +18,7 @@
 //! each), `targets` (a frame's buffers of one size), `draw` (the uniforms both GPU paths share),
 //! the three point paths `compute`, `quads` and `cpu` (each beside its `.wgsl`), `queries`
 //! (occlusion queries), `frame` (the [`Rasterizer`]: a frame from end to end), then `stereo`,
-//! `surface`, `selector` and `scene` on top.
+//! `surface`, `preview`, `selector` and `scene` on top.
 
 mod compute;
 mod cpu;
@@ -34,6 +34,7 @@ mod style;
 mod targets;
 
 pub mod args;
+pub mod preview;
 pub mod scene;
 pub mod selector;
 pub mod stereo;

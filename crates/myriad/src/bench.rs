@@ -38,6 +38,10 @@ pub enum BenchCommand {
     /// Opening: time to the first image and to convergence (cold and warm page cache), pages
     /// read and hierarchy memory, next to reading every hierarchy page
     Open(myriad_bench::open::OpenBenchArgs),
+    /// A raw scan (LAS/LAZ file or folder of tiles) before any dataset of it: time to the first
+    /// image cold and bytes read, `convert` alone and the finished dataset's image, the PSNR of
+    /// what shows 1, 2, 5, 10 and 30 s in
+    OpenScan(myriad_bench::open_scan::OpenScanBenchArgs),
     /// `myriad serve` under concurrent random range reads, next to nginx in the same run:
     /// requests/s, MB/s, latency, errors, server memory
     Serve(myriad_bench::serve::ServeBenchArgs),
@@ -64,6 +68,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Stereo(a) => myriad_bench::stereo::run(a),
         BenchCommand::Export(a) => myriad_bench::export::run(a),
         BenchCommand::Open(a) => myriad_bench::open::run(a),
+        BenchCommand::OpenScan(a) => myriad_bench::open_scan::run(a),
         BenchCommand::Serve(a) => myriad_bench::serve::run(a),
         BenchCommand::Prefetch(a) => myriad_bench::prefetch::run(a),
         BenchCommand::Web(a) => myriad_bench::web::run(a),

@@ -57,9 +57,11 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Write a simulated laser scan of a procedural scene (LAS or LAZ)
     Synth(synth::SynthArgs),
-    /// Benchmarks: reading, synthesis, conversion, rendering and its passes, structures,
-    /// culling, surfaces, stereo, export, opening, serving, prefetching, the web viewer and
-    /// builds in parts (medians over runs, next to a baseline or a peer tool)
+    /// Measure speed, memory and image quality, each next to a baseline or a peer tool
+    ///
+    /// One subcommand per benchmark: reading, synthesis, conversion, rendering and its passes,
+    /// structures, culling, surfaces, stereo, export, opening, serving, prefetching, the web
+    /// viewer and builds in parts. Each prints medians over several runs.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
 }

@@ -18,7 +18,8 @@ use std::time::Instant;
 
 #[derive(Args)]
 pub struct RenderArgs {
-    /// The dataset (.myr)
+    /// The dataset (.myr), or a scan or a folder of LAS/LAZ tiles (converted once into a
+    /// dataset kept next to it)
     dataset: PathBuf,
     /// The image to write (.png)
     #[arg(short, long)]
@@ -105,6 +106,11 @@ pub struct RenderArgs {
     /// inscribed in each eye's image)
     #[arg(long, requires = "stereo")]
     hidden_area: bool,
+    /// Draw the first image there is without waiting: a LAS/LAZ scan whose dataset is not
+    /// built yet is drawn from a preview read without decoding it (the first point of each LAZ
+    /// chunk, LAS records at a stride), and not converted; a dataset as without it
+    #[arg(long, conflicts_with_all = ["stereo", "surface"])]
+    no_wait: bool,
     /// Draw the surface the points make instead of the points: quads (cell-filling),
     /// boxes or splats, one per cell of a grid in the view frustum, lit by a headlight
     #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
@@ -154,7 +160,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
-    let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
     let (gpu, why) = match a.path {
         Some(Path::Cpu) => (Gpu::cpu(), None),
         // A GPU path asked for: any adapter, a software one too.
@@ -188,6 +193,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
             inside: !a.clip_outside,
         }),
     };
+    if a.no_wait && myriad_build::cached::existing(&a.dataset).is_none() {
+        let files = myriad_build::cached::inputs_of(&a.dataset)?;
+        let mut other = None;
+        for f in &files {
+            match myriad_io::detect(f)? {
+                myriad_io::Format::Las | myriad_io::Format::Laz => {}
+                k => other = Some(k),
+            }
+        }
+        match other {
+            None => return render_preview(&a, &files, &gpu, &raster, &style, t0),
+            Some(f) => eprintln!(
+                "warning: {}: no preview of {} files: converting it first",
+                a.dataset.display(),
+                f.name()
+            ),
+        }
+    }
+    let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
     let options = SelectOptions {
         budget: if a.full { u64::MAX } else { a.budget },
         min_pixels: if a.full { 0.0 } else { a.lod_threshold },
@@ -355,6 +379,89 @@ pub fn run(a: RenderArgs) -> Result<()> {
     debug_assert_eq!(stats.points, selection.points);
     full_image_whole(&a, damaged)
 }
+
+/// `render --no-wait` of a LAS/LAZ scan, or a folder of tiles, without its dataset: its preview
+/// (each file's), drawn at once.
+fn render_preview(
+    a: &RenderArgs,
+    files: &[PathBuf],
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    style: &Style,
+    t0: Instant,
+) -> Result<()> {
+    let tiles = myriad_io::las_preview::preview_files(files, PREVIEW_POINTS)?;
+    if files.len() > 1 {
+        let say = |what: &str, m: &std::collections::BTreeMap<String, usize>, then: &str| {
+            if m.len() > 1 {
+                eprintln!(
+                    "warning: {}: the {} tiles have {} {what}: {then}",
+                    a.dataset.display(),
+                    files.len(),
+                    m.len()
+                );
+            }
+        };
+        say(
+            "coordinate systems",
+            &tiles.crs,
+            "drawn in their own coordinates, nothing reprojected",
+        );
+        say(
+            "scales",
+            &tiles.scales,
+            "each tile's points at its own scale",
+        );
+        say(
+            "point formats",
+            &tiles.formats,
+            "each drawn with the attributes it has (elevation where the colour asked for is missing)",
+        );
+    }
+    let sample = myriad_render::preview::Sample::new(&tiles.samples, a.color);
+    if sample.positions.is_empty() {
+        bail!("{}: no points to preview", a.dataset.display());
+    }
+    let cam = match a.view.as_deref() {
+        Some(v) => {
+            let mut cam = Camera::view(Some(v), &sample.view, &sample.all, a.width, a.height)
+                .expect("clap checked the view");
+            cam.fov_y = a.fov;
+            cam
+        }
+        None => camera(
+            &sample.view,
+            &sample.all,
+            a.camera,
+            a.up,
+            a.width,
+            a.height,
+            a.fov,
+        )?,
+    };
+    let img = sample.draw(gpu, raster, &cam, style);
+    write_png(&a.output, a.width, a.height, &img)?;
+    let of = if files.len() > 1 {
+        format!("the {} tiles'", files.len())
+    } else {
+        "the scan's".into()
+    };
+    println!(
+        "{}: a preview of {} of {of} {} points ({}; {} bytes read), first image after {:.2} s ({}, {:?} path); no dataset built (render without --no-wait builds it)",
+        a.output.display(),
+        myriad_core::units::thousands(sample.positions.len() as u64),
+        myriad_core::units::thousands(tiles.total),
+        tiles.how,
+        myriad_core::units::thousands(tiles.bytes_read),
+        t0.elapsed().as_secs_f64(),
+        gpu.name,
+        raster.path,
+    );
+    Ok(())
+}
+
+/// The most points a preview reads.
+const PREVIEW_POINTS: usize = 1 << 20;
 
 /// The reference image of every point (`--full`) is not one when `damaged` pages are missing.
 fn full_image_whole(a: &RenderArgs, damaged: usize) -> Result<()> {

@@ -12,7 +12,8 @@ use std::sync::Arc;
 
 #[derive(Args)]
 pub struct ViewArgs {
-    /// Datasets (.myr), shown together
+    /// Datasets (.myr), shown together; a scan or a folder of LAS/LAZ tiles is converted once
+    /// into a dataset kept next to it
     #[arg(required = true)]
     datasets: Vec<PathBuf>,
     /// Window size in pixels

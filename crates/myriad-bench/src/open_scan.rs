@@ -1,0 +1,157 @@
+//! `myriad bench open-scan SCAN...`: how soon a raw scan (a LAS/LAZ file, or a folder of tiles)
+//! shows, before any dataset of it exists. Per scan: the first image, cold (the files' pages
+//! dropped from the page cache first, as `bench open` does): the preview `render --no-wait`
+//! draws (headers, LAZ chunk tables, the first point of each chunk; LAS records at a stride),
+//! and the bytes it reads; then `convert` alone, a separate `myriad convert` process as a user
+//! runs it, and the image of the finished dataset from the same camera; and the PSNR against that
+//! final image of what a viewer opened at the start shows 1, 2, 5, 10 and 30 s in. There is no
+//! progressive build yet: until the dataset is built that is the preview. Medians of `--runs`;
+//! every image on the CPU path, the passes `render`'s default.
+
+use crate::median;
+use crate::render::psnr;
+use anyhow::{Result, bail};
+use clap::Args;
+use myriad_format::Dataset;
+use myriad_lod::{Camera, SelectOptions};
+use myriad_render::preview::Sample;
+use myriad_render::{ColorBy, Gpu, Passes, Rasterizer, Scene, Style};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct OpenScanBenchArgs {
+    /// LAS/LAZ files, or folders of them (each folder one scan)
+    #[arg(required = true)]
+    scans: Vec<PathBuf>,
+    /// Cold runs of the first image, and `convert` runs (medians)
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Colour of both images (as `render --color`; a scan whose RGB is all zero compares
+    /// black with black in rgb)
+    #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "rgb")]
+    color: ColorBy,
+    /// Where each scan's dataset is built (removed at the end)
+    #[arg(short, long, default_value = "myriad-bench-open-scan.myr")]
+    output: PathBuf,
+}
+
+/// The times the PSNR is given at, in seconds from the start.
+const AT: [f64; 5] = [1.0, 2.0, 5.0, 10.0, 30.0];
+
+pub fn run(a: OpenScanBenchArgs) -> Result<()> {
+    let runs = a.runs.max(1);
+    let gpu = Gpu::cpu();
+    let raster = Rasterizer::new(&gpu);
+    let style = Style {
+        passes: Passes::default_chain(),
+        ..Style::default()
+    };
+    let exe = std::env::current_exe()?;
+    println!(
+        "{}x{} on the {}, medians of {runs} runs; first image cold; PSNR (dB) against the finished dataset's image",
+        a.width, a.height, gpu.name
+    );
+    println!(
+        "{:<40} {:>13} {:>8} {:>10} {:>9} {:>9} {:>9}  PSNR at {}",
+        "scan",
+        "points",
+        "sampled",
+        "bytes read",
+        "first s",
+        "convert s",
+        "final s",
+        AT.map(|t| format!("{t} s")).join(" / ")
+    );
+    let mut whole_cache = true;
+    for scan in &a.scans {
+        let files = myriad_build::cached::inputs_of(scan)?;
+        // The first image, cold.
+        let mut firsts = Vec::new();
+        let mut first = None;
+        for _ in 0..runs {
+            for f in &files {
+                whole_cache &= crate::open::drop_cache(f)?;
+            }
+            let t = Instant::now();
+            let tiles = myriad_io::las_preview::preview_files(&files, 1 << 20)?;
+            let sample = Sample::new(&tiles.samples, a.color);
+            let Some(cam) = Camera::view(None, &sample.view, &sample.all, a.width, a.height) else {
+                bail!("{}: no view", scan.display());
+            };
+            let img = sample.draw(&gpu, &raster, &cam, &style);
+            firsts.push(t.elapsed().as_secs_f64());
+            first = Some((img, cam, sample.positions.len(), tiles));
+        }
+        let (preview, cam, sampled, tiles) = first.expect("one run at least");
+        // `convert` alone, as a user runs it.
+        let mut converts = Vec::new();
+        for _ in 0..runs {
+            for f in &files {
+                crate::open::drop_cache(f)?;
+            }
+            let t = Instant::now();
+            let out = std::process::Command::new(&exe)
+                .arg("convert")
+                .args(&files)
+                .arg("-o")
+                .arg(&a.output)
+                .arg("--force")
+                .output()?;
+            if !out.status.success() {
+                bail!(
+                    "{}: convert failed: {}",
+                    scan.display(),
+                    String::from_utf8_lossy(&out.stderr).trim()
+                );
+            }
+            converts.push(t.elapsed().as_secs_f64());
+        }
+        // The finished dataset's image from the same camera, as `render` draws it.
+        let t = Instant::now();
+        let ds = Arc::new(Dataset::open(&a.output)?);
+        let mut scene = Scene::open(ds, 2 << 30, 1 << 30);
+        scene.set_colour(a.color);
+        let options = SelectOptions {
+            budget: 5_000_000,
+            min_pixels: 1.0,
+        };
+        scene.last = scene.converge(&cam, &options, None);
+        let (done, _) = scene.frame(&gpu, &raster, &cam, &options, &style);
+        let convert = median(converts);
+        let at_end = convert + t.elapsed().as_secs_f64();
+        let p = psnr(&preview, &done);
+        let name = scan.file_name().map_or_else(
+            || scan.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        println!(
+            "{:<40} {:>13} {:>8} {:>10} {:>9.3} {:>9.2} {:>9.2}  {}",
+            name,
+            myriad_core::units::thousands(tiles.total),
+            myriad_core::units::thousands(sampled as u64),
+            myriad_core::units::thousands(tiles.bytes_read),
+            median(firsts),
+            convert,
+            at_end,
+            AT.map(|s| if s < at_end {
+                format!("{p:.1}")
+            } else {
+                "final".into()
+            })
+            .join(" / ")
+        );
+    }
+    std::fs::remove_file(&a.output).ok();
+    if !whole_cache {
+        println!(
+            "(the files' pages were dropped from the page cache; the whole cache could not be)"
+        );
+    }
+    Ok(())
+}

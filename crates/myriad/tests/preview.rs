@@ -1,0 +1,211 @@
+//! `render --no-wait`: a scan without its dataset drawn at once from a preview read without
+//! decoding it, nothing converted; with its dataset, drawn as without `--no-wait`.
+
+mod common;
+use common::*;
+
+fn lit(path: &std::path::Path) -> Vec<bool> {
+    let (_, _, px) = decode_png(path);
+    px.chunks_exact(4)
+        .map(|p| p[0] != 0 || p[1] != 0 || p[2] != 0)
+        .collect()
+}
+
+fn datasets_in(d: &std::path::Path) -> usize {
+    std::fs::read_dir(d)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".myr"))
+        .count()
+}
+
+#[test]
+fn render_no_wait_draws_a_scans_preview_and_converts_nothing() {
+    let d = tempdir("nowait");
+    let size = ["--width", "320", "--height", "240"];
+    let laz = synth(&d, "scan.laz", 600_000);
+    let before = std::fs::read(&laz).unwrap();
+    let first = d.join("first.png");
+    let mut args = vec!["render", s(&laz), "-o", s(&first), "--no-wait"];
+    args.extend(size);
+    let out = ok(&args);
+    // One point a LAZ chunk (the writer's chunks hold 50,000 points).
+    assert!(
+        out.contains("a preview of 12 of the scan's 600,000 points"),
+        "{out}"
+    );
+    assert_eq!(datasets_in(&d), 0, "nothing converted");
+    assert_eq!(std::fs::read(&laz).unwrap(), before, "the scan as it was");
+    let preview = lit(&first);
+    assert!(
+        preview.iter().filter(|&&l| l).count() > 50,
+        "the preview draws"
+    );
+
+    // A LAS scan: records at a stride, here every one of them; the picture the full render
+    // draws, nearly.
+    let las = synth(&d, "scan.las", 200_000);
+    let (first_las, full_las) = (d.join("first-las.png"), d.join("full-las.png"));
+    let mut args = vec!["render", s(&las), "-o", s(&first_las), "--no-wait"];
+    args.extend(size);
+    let out = ok(&args);
+    assert!(
+        out.contains("a preview of 200,000 of the scan's 200,000 points"),
+        "{out}"
+    );
+    assert_eq!(datasets_in(&d), 0, "nothing converted");
+    let mut args = vec!["render", s(&las), "-o", s(&full_las)];
+    args.extend(size);
+    ok(&args);
+    assert_eq!(datasets_in(&d), 1, "the render without --no-wait converts");
+    let (a, b) = (lit(&first_las), lit(&full_las));
+    let both = a.iter().zip(&b).filter(|(x, y)| **x && **y).count();
+    let full = b.iter().filter(|&&l| l).count();
+    assert!(
+        both * 10 >= full * 9,
+        "the preview covers {both} of the full image's {full} lit pixels"
+    );
+
+    // With its dataset, --no-wait draws the dataset: the image of the render without it.
+    let again = d.join("again.png");
+    let mut args = vec!["render", s(&las), "-o", s(&again), "--no-wait"];
+    args.extend(size);
+    let out = ok(&args);
+    assert!(!out.contains("a preview"), "{out}");
+    assert_eq!(
+        std::fs::read(&again).unwrap(),
+        std::fs::read(&full_las).unwrap()
+    );
+
+    // A scan that is not there: one line, exit 1.
+    let r = myriad(&[
+        "render",
+        "missing.laz",
+        "-o",
+        s(&d.join("m.png")),
+        "--no-wait",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    assert!(r.stderr.contains("missing.laz"), "{}", r.stderr);
+}
+
+/// A folder of LAS/LAZ tiles is one scan: `--no-wait` previews every tile's chunks at once,
+/// `render` makes one dataset of them in the folder (the records `convert` of the tiles makes)
+/// and uses it again while no tile changes; a tile added makes it again.
+#[test]
+fn a_folder_of_tiles_is_one_scan() {
+    let d = tempdir("tiles");
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    let mut want = Vec::new();
+    for (i, n) in [(0, 150_000u64), (1, 120_000), (2, 100_000)] {
+        let p = tiles.join(format!("tile{i}.laz"));
+        let r = myriad(&[
+            "synth",
+            "-o",
+            s(&p),
+            "--points",
+            &n.to_string(),
+            "--seed",
+            &(10 + i).to_string(),
+        ]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        want.extend(records(&p));
+    }
+    want.sort();
+    // Not a tile: left out.
+    std::fs::write(tiles.join("notes.txt"), "not a scan").unwrap();
+    let first = d.join("first.png");
+    let out = ok(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&first),
+        "--no-wait",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    // 3 + 3 + 2 chunks of 50,000 points.
+    assert!(
+        out.contains("a preview of 8 of the 3 tiles' 370,000 points"),
+        "{out}"
+    );
+    let made = |dir: &std::path::Path| -> Vec<std::path::PathBuf> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|e| e == "myr"))
+            .collect()
+    };
+    assert!(made(&tiles).is_empty(), "--no-wait converts nothing");
+    let full = d.join("full.png");
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&full),
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("converting into"), "{}", r.stderr);
+    let ds = made(&tiles);
+    assert_eq!(ds.len(), 1, "one dataset, in the folder");
+    holds(&ds[0], &want);
+    // Unchanged tiles: the same dataset again, no conversion.
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&full),
+        "--force",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("using"), "{}", r.stderr);
+    // A tile more: made again, the old one gone.
+    let extra = tiles.join("tile3.las");
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&extra),
+        "--points",
+        "30000",
+        "--seed",
+        "13",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    want.extend(records(&extra));
+    want.sort();
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&full),
+        "--force",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("converting into"), "{}", r.stderr);
+    let ds = made(&tiles);
+    assert_eq!(ds.len(), 1, "the earlier dataset removed: {ds:?}");
+    holds(&ds[0], &want);
+    // A folder without a tile: one line, exit 1.
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let r = myriad(&["render", s(&empty), "-o", s(&d.join("e.png"))]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("no LAS or LAZ file"), "{}", r.stderr);
+}
