@@ -126,6 +126,41 @@ fn places(path: &Path) -> Result<Places> {
     })
 }
 
+/// What the tiles of one scan disagree on (coordinate systems, scales, point formats), each in
+/// a sentence saying what the dataset of them does about it; their headers only are read.
+fn disagreements(tiles: &[PathBuf]) -> Result<Vec<String>> {
+    use std::collections::BTreeSet;
+    let (mut crs, mut scales, mut formats) = (BTreeSet::new(), BTreeSet::new(), BTreeSet::new());
+    for t in tiles {
+        let src = myriad_io::open(t, &myriad_io::OpenOptions::default())?;
+        let info = src.info();
+        crs.insert(info.crs.clone());
+        scales.insert(format!("{:?}", info.scale.unwrap_or_default()));
+        formats.insert(info.version.clone());
+    }
+    let n = tiles.len();
+    let mut out = Vec::new();
+    if crs.len() > 1 {
+        out.push(format!(
+            "the {n} tiles have {} coordinate systems: the dataset takes the first tile's, nothing is reprojected",
+            crs.len()
+        ));
+    }
+    if scales.len() > 1 {
+        out.push(format!(
+            "the {n} tiles have {} scales: the dataset's grid takes the finest of them",
+            scales.len()
+        ));
+    }
+    if formats.len() > 1 {
+        out.push(format!(
+            "the {n} tiles have {} point formats: the dataset holds every attribute any tile has (points without one take its default)",
+            formats.len()
+        ));
+    }
+    Ok(out)
+}
+
 /// Whether `path` is read as a dataset: a dataset's magic, a URL, or a `.myr` name (a damaged
 /// one is named as such when opened).
 fn is_dataset(path: &Path) -> bool {
@@ -182,9 +217,15 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
         path.display(),
         target.display()
     );
+    let inputs = inputs_of(path)?;
+    if inputs.len() > 1 {
+        for why in disagreements(&inputs)? {
+            eprintln!("warning: {}: {why}", path.display());
+        }
+    }
     let mut o = ConvertOptions::new(&target);
     o.force = true;
-    convert::convert(&inputs_of(path)?, &o, report)?;
+    convert::convert(&inputs, &o, report)?;
     // Conversions of earlier versions of the scan go.
     let dir = target.parent().expect("a dataset has a folder");
     if let Ok(entries) = std::fs::read_dir(dir) {

@@ -163,9 +163,27 @@ pub struct Tiles {
     pub formats: BTreeMap<String, usize>,
 }
 
-/// The previews of `files` (LAS or LAZ each), at most `most` points in all.
+/// The previews of `files` (LAS or LAZ each), at most `most` points in all: several files
+/// opened and sampled at once (each open reads a header, VLRs and a chunk table, small reads
+/// that wait on the disk).
 pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles> {
+    const AT_ONCE: usize = 16;
     let per_file = (most / files.len().max(1)).max(1);
+    let one = |f: &std::path::PathBuf| -> Result<(LasSource, Preview)> {
+        let src = LasSource::open(f)?;
+        let p = src.preview(f, per_file)?;
+        Ok((src, p))
+    };
+    let per = files.len().div_ceil(AT_ONCE).max(1);
+    let done: Vec<Result<(LasSource, Preview)>> = std::thread::scope(|s| {
+        let jobs: Vec<_> = files
+            .chunks(per)
+            .map(|group| s.spawn(move || group.iter().map(one).collect::<Vec<_>>()))
+            .collect();
+        jobs.into_iter()
+            .flat_map(|j| j.join().expect("a preview thread panicked"))
+            .collect()
+    });
     let mut t = Tiles {
         samples: Vec::with_capacity(files.len()),
         total: 0,
@@ -175,9 +193,8 @@ pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles>
         scales: BTreeMap::new(),
         formats: BTreeMap::new(),
     };
-    for f in files {
-        let src = LasSource::open(f)?;
-        let p = src.preview(f, per_file)?;
+    for r in done {
+        let (src, p) = r?;
         let info = src.info();
         *t.crs
             .entry(info.crs.clone().unwrap_or_else(|| "none".into()))

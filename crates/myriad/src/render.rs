@@ -442,7 +442,10 @@ fn render_preview(
     let img = sample.draw(gpu, raster, &cam, style);
     write_png(&a.output, a.width, a.height, &img)?;
     let of = if files.len() > 1 {
-        format!("the {} tiles'", files.len())
+        format!(
+            "the {} tiles'",
+            myriad_core::units::thousands(files.len() as u64)
+        )
     } else {
         "the scan's".into()
     };

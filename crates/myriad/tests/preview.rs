@@ -209,3 +209,72 @@ fn a_folder_of_tiles_is_one_scan() {
     assert_eq!(r.code, 1, "{}", r.stderr);
     assert!(r.stderr.contains("no LAS or LAZ file"), "{}", r.stderr);
 }
+
+/// Tiles that disagree on their coordinate system, scale and point format: each said in one line,
+/// with what is done about it, by the preview and by the conversion; the dataset holds them all.
+#[test]
+fn tiles_that_disagree_are_said_to() {
+    use myriad_core::{Attribute, PointBatch, Schema};
+    use myriad_io::las::{LasSink, LasWriteOptions};
+    let d = tempdir("disagree");
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    // A synthetic city tile (point format 3, 1 mm, a UTM CRS) and a plain one (intensity only,
+    // 1 cm, no CRS).
+    let r = myriad(&["synth", "-o", s(&tiles.join("a.laz")), "--points", "60000"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let schema = Schema::new(vec![Attribute::Intensity]);
+    let opts = LasWriteOptions::for_schema(&schema, [0.01; 3], [0.0; 3]).unwrap();
+    let mut sink = LasSink::create(&tiles.join("b.las"), opts, true).unwrap();
+    let mut b = PointBatch::with_schema(&schema, 0);
+    for i in 0..5000 {
+        b.positions.push([
+            500_000.0 + (i % 100) as f64,
+            4_400_000.0 + (i / 100) as f64,
+            10.0,
+        ]);
+    }
+    b.intensity = Some(vec![100; 5000]);
+    sink.write(&b).unwrap();
+    sink.finish().unwrap();
+    let said = |stderr: &str| {
+        ["coordinate systems", "scales", "point formats"]
+            .map(|w| stderr.lines().filter(|l| l.contains(w)).count())
+    };
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&d.join("p.png")),
+        "--no-wait",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_eq!(said(&r.stderr), [1, 1, 1], "{}", r.stderr);
+    assert!(r.stderr.contains("nothing reprojected"), "{}", r.stderr);
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&d.join("f.png")),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_eq!(said(&r.stderr), [1, 1, 1], "{}", r.stderr);
+    assert!(r.stderr.contains("takes the first tile's"), "{}", r.stderr);
+    let ds = std::fs::read_dir(&tiles)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|e| e == "myr"))
+        .expect("a dataset in the folder");
+    let info = ok(&["info", s(&ds), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&info).unwrap();
+    assert_eq!(v["points"], 65_000, "{info}");
+}
