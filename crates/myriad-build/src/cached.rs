@@ -161,6 +161,52 @@ fn disagreements(tiles: &[PathBuf]) -> Result<Vec<String>> {
     Ok(out)
 }
 
+/// A small dataset of the preview of the scan at `path` (a file or a folder of LAS/LAZ tiles;
+/// `myriad_io::las_preview`), made in `dir` in a moment: what a viewer shows while the scan's
+/// own dataset is built. Positions (to the millimetre), intensity, class and colour, where the
+/// samples have them.
+pub fn preview_dataset(path: &Path, dir: &Path) -> Result<PathBuf> {
+    use myriad_core::{Attribute, PointBatch, Schema};
+    let files = inputs_of(path)?;
+    let tiles = myriad_io::las_preview::preview_files(&files, 1 << 18)?;
+    let rgb = tiles.samples.iter().any(|s| s.rgb.is_some());
+    let mut attributes = vec![Attribute::Intensity, Attribute::Classification];
+    if rgb {
+        attributes.push(Attribute::Rgb);
+    }
+    let schema = Schema::new(attributes);
+    let n: usize = tiles.samples.iter().map(|s| s.len()).sum();
+    let mut b = PointBatch::with_schema(&schema, n);
+    let (mut intensity, mut class, mut colour) = (Vec::new(), Vec::new(), Vec::new());
+    for s in &tiles.samples {
+        let k = s.len();
+        b.positions.extend_from_slice(&s.positions);
+        intensity.extend(s.intensity.clone().unwrap_or_else(|| vec![0; k]));
+        class.extend(s.classification.clone().unwrap_or_else(|| vec![0; k]));
+        colour.extend(s.rgb.clone().unwrap_or_else(|| vec![[0; 3]; k]));
+    }
+    b.intensity = Some(intensity);
+    b.classification = Some(class);
+    b.rgb = rgb.then_some(colour);
+    if n == 0 {
+        return Err(Error::Invalid(format!(
+            "{}: no points to preview",
+            path.display()
+        )));
+    }
+    let origin = b.positions[0].map(f64::floor);
+    let las = dir.join("preview.las");
+    let options = myriad_io::las::LasWriteOptions::for_schema(&schema, [0.001; 3], origin)?;
+    let mut sink = myriad_io::las::LasSink::create(&las, options, true)?;
+    sink.write(&b)?;
+    sink.finish()?;
+    let out = dir.join("preview.myr");
+    let mut o = ConvertOptions::new(&out);
+    o.force = true;
+    convert::convert(&[las], &o, &convert::Silent)?;
+    Ok(out)
+}
+
 /// Whether `path` is read as a dataset: a dataset's magic, a URL, or a `.myr` name (a damaged
 /// one is named as such when opened).
 fn is_dataset(path: &Path) -> bool {

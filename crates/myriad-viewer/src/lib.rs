@@ -7,8 +7,10 @@
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
+mod builds;
 pub mod measure;
 pub mod nav;
+mod options;
 mod present;
 mod report;
 mod surface;
@@ -16,6 +18,7 @@ pub mod vr;
 pub mod vr_nav;
 mod vr_vulkan;
 
+pub use builds::Builds;
 use eframe::egui;
 use eframe::egui_wgpu;
 use eframe::wgpu;
@@ -25,45 +28,12 @@ use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
 use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
+pub use options::ViewOptions;
 use present::{Presented, passes_panel};
 use report::{HELP, describe, report_orbit, write_png};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// What the command line gives the viewer.
-pub struct ViewOptions {
-    pub width: u32,
-    pub height: u32,
-    /// Eye and target; None: the data framed from above at 45 degrees.
-    pub camera: Option<([f64; 3], [f64; 3])>,
-    pub fov: f64,
-    pub budget: u64,
-    pub style: Style,
-    pub colour: ColorBy,
-    /// Write the window to this PNG once the view has converged.
-    pub screenshot: Option<PathBuf>,
-    /// Close the window after that screenshot.
-    pub exit_after_converged: bool,
-    /// Scripted navigation first: orbit this many frames (8 pixels of drag each), then print the
-    /// frame times seen while moving.
-    pub orbit_frames: u32,
-    /// Draw on the window's GPU adapter even where it is a software one (lavapipe), which the
-    /// CPU path otherwise replaces.
-    pub gpu: bool,
-    /// On a GPU, read each frame back and upload it as an egui texture (as before the frame
-    /// went straight to the window), to compare.
-    pub readback: bool,
-    /// Hold this frame rate by adjusting the budget (`budget` is then its most).
-    pub target_fps: Option<f64>,
-    pub occlusion: myriad_lod::Occlusion,
-    /// Pixels a level's spacing must cover to be drawn.
-    pub lod_threshold: f64,
-    /// Show the surface the points make (seed 001) instead of the points.
-    pub surface: Option<myriad_render::surface::Surface>,
-    /// Both eyes side by side, this far apart (seed 002), from the first visible dataset.
-    pub stereo: Option<f64>,
-}
 
 struct Layer {
     name: String,
@@ -123,6 +93,10 @@ struct App {
     clip_inside: bool,
     surfaces: surface::Surfaces,
     stereo: surface::StereoView,
+    /// Datasets still being built, their layers showing a preview; and the caches' shares a
+    /// layer's new scene gets.
+    builds: Option<Builds>,
+    shares: (usize, usize),
 }
 
 /// Opens the window and runs until it is closed.
@@ -197,6 +171,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         clip_on: false,
         clip_inside: true,
         surfaces: surface::Surfaces::new(o.surface),
+        builds: o.builds,
+        shares: (ram, gpu_bytes),
         stereo: surface::StereoView {
             on: o.stereo.is_some(),
             ipd: o.stereo.unwrap_or(0.064),
@@ -749,6 +725,7 @@ impl App {
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
+        self.take_builds();
         egui::Panel::left("settings")
             .default_size(230.0)
             .show(ui, |ui| {
@@ -859,8 +836,10 @@ impl eframe::App for App {
                     });
                 });
         }
-        // Converged: the selection of this view in, every node of it drawn, nothing loading.
+        // Converged: the selection of this view in, every node of it drawn, nothing loading,
+        // no dataset still being built.
         let converged = self.orbit_left == 0
+            && self.builds.as_ref().is_none_or(Builds::done)
             && !self.stats.is_empty()
             && self
                 .stats

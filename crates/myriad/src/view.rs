@@ -109,12 +109,38 @@ pub fn run(a: ViewArgs) -> Result<()> {
         bail!("--target-fps must be 0 (off) or from 1 to 240");
     }
     let mut datasets = Vec::new();
-    for p in &a.datasets {
-        let ds = Dataset::open(&crate::cached::dataset_for(p)?)?;
+    // A LAS/LAZ scan (or folder of tiles) without its dataset shows its preview at once while
+    // its dataset is built on a thread of its own (not in VR, which converts first).
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (mut building, mut scratch) = (0, Vec::new());
+    for (i, p) in a.datasets.iter().enumerate() {
         let name = p.file_name().map_or_else(
             || p.display().to_string(),
             |n| n.to_string_lossy().to_string(),
         );
+        if !a.vr && myriad_build::cached::existing(p).is_none() && previewable(p)? {
+            let dir = myriad_io::claim::Folder::create(&std::env::temp_dir(), "myriad-preview-")?;
+            let preview = myriad_build::cached::preview_dataset(p, dir.path())?;
+            eprintln!(
+                "{}: showing its preview while its dataset is built",
+                p.display()
+            );
+            datasets.push((
+                format!("{name} (preview)"),
+                Arc::new(Dataset::open(&preview)?),
+            ));
+            scratch.push(dir);
+            building += 1;
+            let (tx, p) = (tx.clone(), p.clone());
+            std::thread::spawn(move || {
+                let built = crate::cached::dataset_for(&p)
+                    .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
+                    .map_err(|e| format!("{e:#}"));
+                let _ = tx.send((i, built));
+            });
+            continue;
+        }
+        let ds = Dataset::open(&crate::cached::dataset_for(p)?)?;
         datasets.push((name, Arc::new(ds)));
     }
     if a.vr {
@@ -225,6 +251,25 @@ pub fn run(a: ViewArgs) -> Result<()> {
             .transpose()
             .map_err(anyhow::Error::msg)?,
         stereo: a.stereo.then_some(a.ipd),
+        builds: (building > 0).then(|| myriad_viewer::Builds::new(rx, building)),
     };
-    myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg)
+    let shown = myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg);
+    drop(scratch);
+    shown
+}
+
+/// Whether `path` is a LAS/LAZ scan or a folder of them (what has a preview).
+fn previewable(path: &std::path::Path) -> Result<bool> {
+    if myriad_format::is_dataset(path) {
+        return Ok(false);
+    }
+    for f in myriad_build::cached::inputs_of(path)? {
+        if !matches!(
+            myriad_io::detect(&f)?,
+            myriad_io::Format::Las | myriad_io::Format::Laz
+        ) {
+            return Ok(false);
+        }
+    }
+    Ok(true)
 }

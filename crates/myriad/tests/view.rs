@@ -134,3 +134,89 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A scan without its dataset: the window opens on its preview at once, the dataset is built
+/// behind it and drawn once in (the screenshot waits for it), and kept next to the scan.
+#[test]
+fn the_viewer_shows_a_scans_preview_while_its_dataset_is_built() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("xvfb-preview");
+    let laz = d.join("s.laz");
+    let st = myriad()
+        .args(["synth", "-o", laz.to_str().unwrap(), "--points", "300k"])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let shot = d.join("shot.png");
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_myriad"))
+        .args([
+            "view",
+            laz.to_str().unwrap(),
+            "--width",
+            "900",
+            "--height",
+            "600",
+        ])
+        .args([
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--exit-after-converged",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t.elapsed() > Duration::from_secs(240) {
+            let _ = child.kill();
+            panic!("the viewer did not exit within 240 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !status.success() && stderr.contains("No suitable graphics adapter") {
+        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+        return;
+    }
+    assert!(status.success(), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("showing its preview while its dataset is built"),
+        "{stderr}"
+    );
+    assert!(
+        stdout.contains("s.laz: its dataset is built, drawn from now on"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("screenshot written"), "{stdout}");
+    let datasets = std::fs::read_dir(&d)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".myr"))
+        .count();
+    assert_eq!(datasets, 1, "the dataset kept next to the scan");
+    let (w, h, img) = decode_png(&shot);
+    let lit = (0..h as usize)
+        .flat_map(|y| ((w as usize / 2)..w as usize).map(move |x| (y, x)))
+        .filter(|&(y, x)| img[(y * w as usize + x) * 4..][..3] != [0, 0, 0])
+        .count();
+    assert!(
+        lit * 4 > (h as usize) * (w as usize / 2),
+        "{lit} pixels lit"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,0 +1,41 @@
+//! What the command line gives the viewer.
+
+use crate::Builds;
+use myriad_render::{ColorBy, Style};
+use std::path::PathBuf;
+
+/// What the command line gives the viewer.
+pub struct ViewOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Eye and target; None: the data framed from above at 45 degrees.
+    pub camera: Option<([f64; 3], [f64; 3])>,
+    pub fov: f64,
+    pub budget: u64,
+    pub style: Style,
+    pub colour: ColorBy,
+    /// Write the window to this PNG once the view has converged.
+    pub screenshot: Option<PathBuf>,
+    /// Close the window after that screenshot.
+    pub exit_after_converged: bool,
+    /// Scripted navigation first: orbit this many frames (8 pixels of drag each), then print the
+    /// frame times seen while moving.
+    pub orbit_frames: u32,
+    /// Draw on the window's GPU adapter even where it is a software one (lavapipe), which the
+    /// CPU path otherwise replaces.
+    pub gpu: bool,
+    /// On a GPU, read each frame back and upload it as an egui texture (as before the frame
+    /// went straight to the window), to compare.
+    pub readback: bool,
+    /// Hold this frame rate by adjusting the budget (`budget` is then its most).
+    pub target_fps: Option<f64>,
+    pub occlusion: myriad_lod::Occlusion,
+    /// Pixels a level's spacing must cover to be drawn.
+    pub lod_threshold: f64,
+    /// Show the surface the points make (seed 001) instead of the points.
+    pub surface: Option<myriad_render::surface::Surface>,
+    /// Both eyes side by side, this far apart (seed 002), from the first visible dataset.
+    pub stereo: Option<f64>,
+    /// Datasets being built while their layers show a preview.
+    pub builds: Option<Builds>,
+}
