@@ -50,6 +50,16 @@ struct Places {
     prefix: String,
 }
 
+impl Places {
+    /// The dataset made before at one of the places, if one is there and opens.
+    fn made(&self) -> Option<PathBuf> {
+        std::iter::once(&self.beside)
+            .chain(self.cached.as_ref())
+            .find(|c| c.is_file() && Dataset::open(c).is_ok())
+            .cloned()
+    }
+}
+
 /// Whether a file is a LAS or LAZ tile by its name; hidden files (a name starting with a dot:
 /// our own temporary outputs, a desktop's metadata files) are not.
 fn is_tile(path: &Path) -> bool {
@@ -129,33 +139,33 @@ fn places(path: &Path) -> Result<Places> {
 /// What the tiles of one scan disagree on (coordinate systems, scales, point formats), each in
 /// a sentence saying what the dataset of them does about it; their headers only are read.
 fn disagreements(tiles: &[PathBuf]) -> Result<Vec<String>> {
-    use std::collections::BTreeSet;
-    let (mut crs, mut scales, mut formats) = (BTreeSet::new(), BTreeSet::new(), BTreeSet::new());
+    let mut infos = Vec::with_capacity(tiles.len());
     for t in tiles {
-        let src = myriad_io::open(t, &myriad_io::OpenOptions::default())?;
-        let info = src.info();
-        crs.insert(info.crs.clone());
-        scales.insert(format!("{:?}", info.scale.unwrap_or_default()));
-        formats.insert(info.version.clone());
+        infos.push(
+            myriad_io::open(t, &myriad_io::OpenOptions::default())?
+                .info()
+                .clone(),
+        );
     }
+    let d = myriad_io::Differences::of(&infos);
     let n = tiles.len();
     let mut out = Vec::new();
-    if crs.len() > 1 {
+    if d.crs > 1 {
         out.push(format!(
             "the {n} tiles have {} coordinate systems: the dataset takes the first tile's, nothing is reprojected",
-            crs.len()
+            d.crs
         ));
     }
-    if scales.len() > 1 {
+    if d.scales > 1 {
         out.push(format!(
             "the {n} tiles have {} scales: the dataset's grid takes the finest of them",
-            scales.len()
+            d.scales
         ));
     }
-    if formats.len() > 1 {
+    if d.formats > 1 {
         out.push(format!(
             "the {n} tiles have {} point formats: the dataset holds every attribute any tile has (points without one take its default)",
-            formats.len()
+            d.formats
         ));
     }
     Ok(out)
@@ -219,11 +229,7 @@ pub fn existing(path: &Path) -> Option<PathBuf> {
     if is_dataset(path) {
         return Some(path.to_path_buf());
     }
-    let p = places(path).ok()?;
-    std::iter::once(&p.beside)
-        .chain(p.cached.as_ref())
-        .find(|c| c.is_file() && Dataset::open(c).is_ok())
-        .cloned()
+    places(path).ok()?.made()
 }
 
 /// `path` itself when it is a dataset (or a URL), else the dataset made from it, the
@@ -232,22 +238,21 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
     if is_dataset(path) {
         return Ok(path.to_path_buf());
     }
+    let places = places(path)?;
+    if let Some(c) = places.made() {
+        eprintln!(
+            "{}: using {} (converted before; the scan is unchanged)",
+            path.display(),
+            c.display()
+        );
+        return Ok(c);
+    }
     let Places {
         folder,
         beside,
         cached,
         prefix,
-    } = places(path)?;
-    for c in std::iter::once(&beside).chain(cached.as_ref()) {
-        if c.is_file() && Dataset::open(c).is_ok() {
-            eprintln!(
-                "{}: using {} (converted before; the scan is unchanged)",
-                path.display(),
-                c.display()
-            );
-            return Ok(c.clone());
-        }
-    }
+    } = places;
     let target = if takes_files(&folder) {
         beside
     } else {

@@ -9,7 +9,6 @@ use crate::PointSource;
 use crate::las::LasSource;
 use crate::las_records::{batch_for, decode};
 use myriad_core::{Error, PointBatch, Result};
-use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
@@ -157,10 +156,8 @@ pub struct Tiles {
     pub bytes_read: u64,
     /// How the samples were taken (the last file's way; LAS and LAZ tiles mixed say LAZ's).
     pub how: &'static str,
-    /// Coordinate systems (WKT, or "none"), scales and formats, each with how many files have it.
-    pub crs: BTreeMap<String, usize>,
-    pub scales: BTreeMap<String, usize>,
-    pub formats: BTreeMap<String, usize>,
+    /// What the files disagree on.
+    pub differences: crate::Differences,
 }
 
 /// The previews of `files` (LAS or LAZ each), at most `most` points in all: several files
@@ -184,25 +181,15 @@ pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles>
             .flat_map(|j| j.join().expect("a preview thread panicked"))
             .collect()
     });
+    let done = done.into_iter().collect::<Result<Vec<_>>>()?;
     let mut t = Tiles {
         samples: Vec::with_capacity(files.len()),
         total: 0,
         bytes_read: 0,
         how: "",
-        crs: BTreeMap::new(),
-        scales: BTreeMap::new(),
-        formats: BTreeMap::new(),
+        differences: crate::Differences::of(done.iter().map(|(src, _)| src.info())),
     };
-    for r in done {
-        let (src, p) = r?;
-        let info = src.info();
-        *t.crs
-            .entry(info.crs.clone().unwrap_or_else(|| "none".into()))
-            .or_default() += 1;
-        *t.scales
-            .entry(format!("{:?}", info.scale.unwrap_or_default()))
-            .or_default() += 1;
-        *t.formats.entry(info.version.clone()).or_default() += 1;
+    for (src, p) in done {
         t.total += src.header().number_of_points();
         t.bytes_read += p.bytes_read;
         if t.how.is_empty() || src.header().point_format().is_compressed {

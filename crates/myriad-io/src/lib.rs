@@ -112,6 +112,33 @@ pub struct SourceInfo {
     pub origins: Vec<[f64; 3]>,
 }
 
+/// How many different coordinate systems, scales and format versions some files have (1 each
+/// where they agree): what the tiles of one survey may disagree on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Differences {
+    pub crs: usize,
+    pub scales: usize,
+    pub formats: usize,
+}
+
+impl Differences {
+    pub fn of<'a>(infos: impl IntoIterator<Item = &'a SourceInfo>) -> Differences {
+        use std::collections::BTreeSet;
+        let (mut crs, mut scales, mut formats) =
+            (BTreeSet::new(), BTreeSet::new(), BTreeSet::new());
+        for i in infos {
+            crs.insert(i.crs.clone());
+            scales.insert(i.scale.map(|s| s.map(f64::to_bits)));
+            formats.insert(i.version.clone());
+        }
+        Differences {
+            crs: crs.len(),
+            scales: scales.len(),
+            formats: formats.len(),
+        }
+    }
+}
+
 /// A streaming reader of one file. Not `Send`: the `las` reader is not, so a source is opened on
 /// the thread that reads it.
 pub trait PointSource {

@@ -4,7 +4,7 @@
 //! splats' normals where the passes need them. Its CPU mirror is `cpu.rs`.
 
 use crate::Gpu;
-use crate::draw::{DRAW_WGSL, Frame, UniformArray, radius_of, tree_buffer};
+use crate::draw::{Frame, UniformArray, radius_of, tree_buffer};
 use crate::pipelines::{WORKGROUP, compute, groups};
 use crate::points::{Draw, Layout};
 use crate::targets::Targets;
@@ -126,7 +126,6 @@ pub(crate) struct ComputePass {
 
 impl ComputePass {
     pub fn new(gpu: &Gpu) -> ComputePass {
-        debug_assert!(RASTER_WGSL.starts_with(DRAW_WGSL));
         ComputePass {
             raster: compute(gpu, RASTER_WGSL, "rasterize"),
         }

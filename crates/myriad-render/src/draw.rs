@@ -8,9 +8,6 @@ use myriad_core::Aabb;
 use myriad_lod::Camera;
 use wgpu::util::DeviceExt;
 
-/// draw.wgsl: decoding, point sizes and splat shapes, shared by compute.wgsl and quads.wgsl.
-pub(crate) const DRAW_WGSL: &str = include_str!("draw.wgsl");
-
 /// One draw's uniforms (as `Draw` in draw.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]

@@ -18,7 +18,10 @@ impl Sample {
     /// The points of `batches` (one sample per file, say) coloured by `colour`, elevation
     /// ramps over all of them.
     pub fn new(batches: &[PointBatch], colour: ColorBy) -> Sample {
-        let positions: Vec<[f64; 3]> = batches.iter().flat_map(|b| b.positions.clone()).collect();
+        let positions: Vec<[f64; 3]> = batches
+            .iter()
+            .flat_map(|b| b.positions.iter().copied())
+            .collect();
         let all = robust_bounds(&positions, 0.0);
         let view = robust_bounds(&positions, 0.005);
         let rgba = batches

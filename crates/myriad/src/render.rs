@@ -229,24 +229,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     scene.set_colour(a.color);
     scene.occlusion = a.occlusion;
     scene.occlusion_size = a.occlusion_size;
-    let cam = match a.view.as_deref() {
-        Some(v) => {
-            let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
-            let mut cam = views.iter().find(|(n, _)| *n == v).expect("clap checked").1;
-            cam.fov_y = a.fov;
-            cam.fit_depth(&ds.meta.bounds);
-            cam
-        }
-        None => camera(
-            &scene.view_bounds,
-            &ds.meta.bounds,
-            a.camera,
-            a.up,
-            a.width,
-            a.height,
-            a.fov,
-        )?,
-    };
+    let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
     if a.stereo {
         if !(a.ipd >= 0.0 && a.ipd.is_finite()) {
             bail!("--ipd must be a distance of 0 or more");
@@ -392,53 +375,34 @@ fn render_preview(
 ) -> Result<()> {
     let tiles = myriad_io::las_preview::preview_files(files, PREVIEW_POINTS)?;
     if files.len() > 1 {
-        let say = |what: &str, m: &std::collections::BTreeMap<String, usize>, then: &str| {
-            if m.len() > 1 {
+        let d = tiles.differences;
+        for (k, what, then) in [
+            (
+                d.crs,
+                "coordinate systems",
+                "drawn in their own coordinates, nothing reprojected",
+            ),
+            (d.scales, "scales", "each tile's points at its own scale"),
+            (
+                d.formats,
+                "point formats",
+                "each drawn with the attributes it has (elevation where the colour asked for is missing)",
+            ),
+        ] {
+            if k > 1 {
                 eprintln!(
-                    "warning: {}: the {} tiles have {} {what}: {then}",
+                    "warning: {}: the {} tiles have {k} {what}: {then}",
                     a.dataset.display(),
-                    files.len(),
-                    m.len()
+                    files.len()
                 );
             }
-        };
-        say(
-            "coordinate systems",
-            &tiles.crs,
-            "drawn in their own coordinates, nothing reprojected",
-        );
-        say(
-            "scales",
-            &tiles.scales,
-            "each tile's points at its own scale",
-        );
-        say(
-            "point formats",
-            &tiles.formats,
-            "each drawn with the attributes it has (elevation where the colour asked for is missing)",
-        );
+        }
     }
     let sample = myriad_render::preview::Sample::new(&tiles.samples, a.color);
     if sample.positions.is_empty() {
         bail!("{}: no points to preview", a.dataset.display());
     }
-    let cam = match a.view.as_deref() {
-        Some(v) => {
-            let mut cam = Camera::view(Some(v), &sample.view, &sample.all, a.width, a.height)
-                .expect("clap checked the view");
-            cam.fov_y = a.fov;
-            cam
-        }
-        None => camera(
-            &sample.view,
-            &sample.all,
-            a.camera,
-            a.up,
-            a.width,
-            a.height,
-            a.fov,
-        )?,
-    };
+    let cam = view_of(a, &sample.view, &sample.all)?;
     let img = sample.draw(gpu, raster, &cam, style);
     write_png(&a.output, a.width, a.height, &img)?;
     let of = if files.len() > 1 {
@@ -493,6 +457,20 @@ fn warn_damage(scene: &Scene) -> usize {
         eprintln!("warning: {why}");
     }
     lines.len()
+}
+
+/// The camera `--view` or `--camera` asks for (default: `view` framed from above at 45
+/// degrees), near and far planes around `all`.
+fn view_of(a: &RenderArgs, view: &Aabb, all: &Aabb) -> Result<Camera> {
+    match a.view.as_deref() {
+        Some(v) => {
+            let mut cam =
+                Camera::view(Some(v), view, all, a.width, a.height).expect("clap checked the view");
+            cam.fov_y = a.fov;
+            Ok(cam)
+        }
+        None => camera(view, all, a.camera, a.up, a.width, a.height, a.fov),
+    }
 }
 
 /// The camera `--camera` asks for, or the data (`view`) framed from above at 45 degrees; near

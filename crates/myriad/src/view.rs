@@ -110,17 +110,30 @@ pub fn run(a: ViewArgs) -> Result<()> {
     }
     let mut datasets = Vec::new();
     // A LAS/LAZ scan (or folder of tiles) without its dataset shows its preview at once while
-    // its dataset is built on a thread of its own (not in VR, which converts first).
-    let (tx, rx) = std::sync::mpsc::channel();
-    let (mut building, mut scratch) = (0, Vec::new());
+    // its dataset is built behind it (not in VR, which converts first).
+    // The previews' datasets, one subfolder each, in a folder of this process's (those of
+    // viewers that were killed go first).
+    let (mut to_build, mut scratch) = (Vec::new(), None);
+    myriad_io::claim::remove_stale_folders(&std::env::temp_dir(), "myriad-preview-");
     for (i, p) in a.datasets.iter().enumerate() {
         let name = p.file_name().map_or_else(
             || p.display().to_string(),
             |n| n.to_string_lossy().to_string(),
         );
         if !a.vr && myriad_build::cached::existing(p).is_none() && previewable(p)? {
-            let dir = myriad_io::claim::Folder::create(&std::env::temp_dir(), "myriad-preview-")?;
-            let preview = myriad_build::cached::preview_dataset(p, dir.path())?;
+            if scratch.is_none() {
+                scratch = Some(myriad_io::claim::Folder::create(
+                    &std::env::temp_dir(),
+                    "myriad-preview-",
+                )?);
+            }
+            let dir = scratch
+                .as_ref()
+                .expect("made above")
+                .path()
+                .join(i.to_string());
+            std::fs::create_dir_all(&dir).map_err(|e| myriad_core::Error::io(&dir, e))?;
+            let preview = myriad_build::cached::preview_dataset(p, &dir)?;
             eprintln!(
                 "{}: showing its preview while its dataset is built",
                 p.display()
@@ -129,15 +142,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
                 format!("{name} (preview)"),
                 Arc::new(Dataset::open(&preview)?),
             ));
-            scratch.push(dir);
-            building += 1;
-            let (tx, p) = (tx.clone(), p.clone());
-            std::thread::spawn(move || {
-                let built = crate::cached::dataset_for(&p)
-                    .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
-                    .map_err(|e| format!("{e:#}"));
-                let _ = tx.send((i, built));
-            });
+            to_build.push((i, p.clone()));
             continue;
         }
         let ds = Dataset::open(&crate::cached::dataset_for(p)?)?;
@@ -251,7 +256,23 @@ pub fn run(a: ViewArgs) -> Result<()> {
             .transpose()
             .map_err(anyhow::Error::msg)?,
         stereo: a.stereo.then_some(a.ipd),
-        builds: (building > 0).then(|| myriad_viewer::Builds::new(rx, building)),
+        builds: (!to_build.is_empty()).then(|| {
+            // One build at a time, on a thread of its own: builds in one process share its
+            // scratch names, and the cores are the viewer's too.
+            let (tx, rx) = std::sync::mpsc::channel();
+            let n = to_build.len();
+            std::thread::spawn(move || {
+                for (i, p) in to_build {
+                    let built = crate::cached::dataset_for(&p)
+                        .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
+                        .map_err(|e| format!("{e:#}"));
+                    if tx.send((i, built)).is_err() {
+                        return;
+                    }
+                }
+            });
+            myriad_viewer::Builds::new(rx, n)
+        }),
     };
     let shown = myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg);
     drop(scratch);

@@ -20,6 +20,40 @@ fn tempdir(name: &str) -> PathBuf {
     d
 }
 
+/// `myriad view ARGS` under Xvfb until it exits by itself (a hang past 240 s fails the test
+/// instead of blocking CI): whether it succeeded, its stdout and stderr; None, saying so, where
+/// the window has no Vulkan driver.
+fn view_under_xvfb(args: &[&str]) -> Option<(bool, String, String)> {
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_myriad"))
+        .arg("view")
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t.elapsed() > Duration::from_secs(240) {
+            let _ = child.kill();
+            panic!("the viewer did not exit within 240 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    if !status.success() && stderr.contains("No suitable graphics adapter") {
+        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+        return None;
+    }
+    Some((status.success(), stdout, stderr))
+}
+
 #[test]
 fn the_viewer_opens_converges_and_shows_the_scan() {
     if Command::new("xvfb-run").arg("--help").output().is_err() {
@@ -59,47 +93,23 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
     // adapter (lavapipe: `--gpu`), drawing straight into the window's texture.
     let run = |extra: &[&str]| -> bool {
         let shot = d.join(format!("shot{}.png", extra.len()));
-        let mut child = Command::new("xvfb-run")
-            .args(["-a", "-s", "-screen 0 1024x768x24"])
-            .arg(env!("CARGO_BIN_EXE_myriad"))
-            .args([
-                "view",
-                ds.to_str().unwrap(),
-                "--width",
-                "900",
-                "--height",
-                "600",
-                "--orbit-frames",
-                "10",
-                "--screenshot",
-                shot.to_str().unwrap(),
-                "--exit-after-converged",
-            ])
-            .args(extra)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        // The viewer exits by itself; a hang fails the test instead of blocking CI.
-        let t = Instant::now();
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break s;
-            }
-            if t.elapsed() > Duration::from_secs(240) {
-                let _ = child.kill();
-                panic!("the viewer did not exit within 240 s");
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        };
-        let out = child.wait_with_output().unwrap();
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        if !status.success() && stderr.contains("No suitable graphics adapter") {
-            eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+        let mut args = vec![
+            ds.to_str().unwrap(),
+            "--width",
+            "900",
+            "--height",
+            "600",
+            "--orbit-frames",
+            "10",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--exit-after-converged",
+        ];
+        args.extend(extra);
+        let Some((ok, stdout, stderr)) = view_under_xvfb(&args) else {
             return false;
-        }
-        assert!(status.success(), "{extra:?}: {stdout}\n{stderr}");
+        };
+        assert!(ok, "{extra:?}: {stdout}\n{stderr}");
         assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
         assert!(stdout.contains("screenshot written"), "{stdout}");
         // The window as shown: panels on the left, the scan in the view. The view (right of the
@@ -135,8 +145,9 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// A scan without its dataset: the window opens on its preview at once, the dataset is built
-/// behind it and drawn once in (the screenshot waits for it), and kept next to the scan.
+/// Scans without their datasets: the window opens on their previews at once, the datasets are
+/// built behind them and drawn once in (the screenshot waits for them), and kept next to the
+/// scans.
 #[test]
 fn the_viewer_shows_a_scans_preview_while_its_dataset_is_built() {
     if Command::new("xvfb-run").arg("--help").output().is_err() {
@@ -144,71 +155,62 @@ fn the_viewer_shows_a_scans_preview_while_its_dataset_is_built() {
         return;
     }
     let d = tempdir("xvfb-preview");
-    let laz = d.join("s.laz");
-    let st = myriad()
-        .args(["synth", "-o", laz.to_str().unwrap(), "--points", "300k"])
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
-    let shot = d.join("shot.png");
-    let mut child = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_myriad"))
-        .args([
-            "view",
-            laz.to_str().unwrap(),
-            "--width",
-            "900",
-            "--height",
-            "600",
-        ])
-        .args([
-            "--screenshot",
-            shot.to_str().unwrap(),
-            "--exit-after-converged",
-        ])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if t.elapsed() > Duration::from_secs(240) {
-            let _ = child.kill();
-            panic!("the viewer did not exit within 240 s");
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !status.success() && stderr.contains("No suitable graphics adapter") {
-        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
-        return;
+    // Two scans: two previews side by side, each replaced by its own dataset.
+    let (laz, other) = (d.join("s.laz"), d.join("t.laz"));
+    for (p, seed) in [(&laz, "1"), (&other, "2")] {
+        let st = myriad()
+            .args([
+                "synth",
+                "-o",
+                p.to_str().unwrap(),
+                "--points",
+                "300k",
+                "--seed",
+                seed,
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
     }
-    assert!(status.success(), "{stdout}\n{stderr}");
-    assert!(
-        stderr.contains("showing its preview while its dataset is built"),
+    let shot = d.join("shot.png");
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+        laz.to_str().unwrap(),
+        other.to_str().unwrap(),
+        "--width",
+        "900",
+        "--height",
+        "600",
+        "--screenshot",
+        shot.to_str().unwrap(),
+        "--exit-after-converged",
+    ]) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    assert_eq!(
+        stderr
+            .matches("showing its preview while its dataset is built")
+            .count(),
+        2,
         "{stderr}"
     );
-    assert!(
-        stdout.contains("s.laz: its dataset is built, drawn from now on"),
-        "{stdout}"
-    );
+    for name in ["s.laz", "t.laz"] {
+        assert!(
+            stdout.contains(&format!("{name}: its dataset is built, drawn from now on")),
+            "{stdout}"
+        );
+    }
     assert!(stdout.contains("screenshot written"), "{stdout}");
     let datasets = std::fs::read_dir(&d)
         .unwrap()
         .flatten()
         .filter(|e| e.file_name().to_string_lossy().ends_with(".myr"))
         .count();
-    assert_eq!(datasets, 1, "the dataset kept next to the scan");
+    assert_eq!(datasets, 2, "each dataset kept next to its scan");
     let (w, h, img) = decode_png(&shot);
     let lit = (0..h as usize)
         .flat_map(|y| ((w as usize / 2)..w as usize).map(move |x| (y, x)))
