@@ -8,7 +8,7 @@ cd "$(dirname "$0")/../.."
 out=crates/myriad-serve/viewer
 stamp() {
     # The crates compiled into it and the workspace manifest (its versions and the wasm profile).
-    find crates/myriad-core crates/myriad-format crates/myriad-lod crates/myriad-web \
+    find crates/myriad-core crates/myriad-format crates/myriad-measure crates/myriad-lod crates/myriad-web \
         \( -name '*.rs' -o -name Cargo.toml \) -not -path '*/tests/*' | LC_ALL=C sort |
         while read -r f; do printf '%s\n' "$f"; cat "$f"; done | cat - Cargo.toml |
         sha256sum | cut -d' ' -f1

@@ -12,6 +12,7 @@ pub mod open_scan;
 pub mod partition;
 pub mod passes;
 pub mod prefetch;
+pub mod profile;
 pub mod read;
 pub mod render;
 pub mod serve;
@@ -19,6 +20,7 @@ pub mod stereo;
 pub mod structures;
 pub mod surface;
 pub mod synth;
+pub mod volume;
 pub mod web;
 
 use anyhow::{Result, bail};

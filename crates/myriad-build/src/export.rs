@@ -14,6 +14,7 @@ use myriad_core::{Aabb, Attribute, Error, NodeKey, PointBatch, Result};
 use myriad_format::{Damage, Dataset, NodeEntry};
 use myriad_io::copc::CopcSink;
 use myriad_io::potree::{Frame, PotreeSink};
+use myriad_measure::Filter;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -64,6 +65,8 @@ pub struct ExportOptions {
     pub bbox: Option<Aabb>,
     /// Only the levels of detail whose spacing is at least this.
     pub spacing: Option<f64>,
+    /// Only the points this filter keeps (classes, attribute ranges).
+    pub filter: Filter,
     pub force: bool,
     /// Memory budget of the re-placing build (kd, mwkd), in bytes.
     pub memory: u64,
@@ -78,6 +81,7 @@ impl ExportOptions {
             target,
             bbox: None,
             spacing: None,
+            filter: Filter::all(),
             force: false,
             memory: convert::default_memory(),
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -114,6 +118,8 @@ pub fn export(
     o: &ExportOptions,
     report: &dyn Report,
 ) -> Result<ExportSummary> {
+    // An attribute the dataset lacks is said before anything is written.
+    (o.filter.bind(&ds.meta.schema)).map_err(Error::Invalid)?;
     if matches!(o.target, Target::Las | Target::Laz) {
         let want = if o.target == Target::Las {
             "las"
@@ -137,6 +143,8 @@ pub fn export(
                 bbox: o.bbox,
                 spacing: o.spacing,
                 force: o.force,
+                filter: o.filter.clone(),
+                ..Default::default()
             },
         )?;
         report.advance(s.points);
@@ -161,6 +169,7 @@ pub fn export(
             bbox: o.bbox,
             spacing: o.spacing,
             force: o.force,
+            ..Default::default()
         },
     );
     if is_octree(&nodes) {
@@ -211,6 +220,8 @@ fn replace(
             bbox: o.bbox,
             spacing: o.spacing,
             force: true,
+            filter: o.filter.clone(),
+            ..Default::default()
         },
     )?;
     report.advance(s.points);
@@ -320,8 +331,10 @@ fn export_octree(
         bbox: o.bbox,
         spacing: o.spacing,
         force: o.force,
+        ..Default::default()
     };
     let wanted = extract::wanted(ds, nodes, &extract_options);
+    let filter = (o.filter.bind(&m.schema)).map_err(Error::Invalid)?;
     report.phase("exporting", wanted.iter().map(|n| n.points as u64).sum());
     let mut group: Vec<NodeEntry> = Vec::new();
     let mut in_group = 0u64;
@@ -336,6 +349,7 @@ fn export_octree(
                         let keep: Vec<bool> = b.positions.iter().map(|&p| bx.contains(p)).collect();
                         b.retain_mask(&keep);
                     }
+                    filter.retain(&mut b);
                     if copc {
                         normals_as_extra(&mut b);
                     }

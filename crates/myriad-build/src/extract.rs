@@ -6,13 +6,19 @@ use myriad_core::{Aabb, Attribute, Error, NodeKey, Result, Schema};
 use myriad_format::{Damage, Dataset, NodeEntry};
 use myriad_io::las::{LasSink, LasWriteOptions};
 use myriad_io::ply::PlySink;
+use myriad_measure::{Filter, Region};
 use std::collections::HashSet;
 use std::path::Path;
+use std::sync::Arc;
 
 #[derive(Debug, Clone, Default)]
 pub struct ExtractOptions {
     /// Only points inside this box (bounds inclusive).
     pub bbox: Option<Aabb>,
+    /// Only points in this region too (a profile's corridor, a polygon).
+    pub region: Option<Arc<dyn Region>>,
+    /// Only the points this filter keeps (classes, attribute ranges).
+    pub filter: Filter,
     /// Only the levels of detail whose point spacing is at least this; `None`: every point.
     pub spacing: Option<f64>,
     pub force: bool,
@@ -62,22 +68,23 @@ pub(crate) fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
 /// The hierarchy's entries, read only from the pages whose subtrees meet the box (all without
 /// one), and the damage met on the way.
 pub(crate) fn hierarchy_for(ds: &Dataset, o: &ExtractOptions) -> (Vec<NodeEntry>, Vec<Damage>) {
-    match o.bbox {
-        Some(b) => ds.nodes_where(&|cube| {
-            (0..3).all(|a| cube.min[a] <= b.max[a] && b.min[a] <= cube.max[a])
-        }),
-        None => ds.nodes(),
+    if o.bbox.is_none() && o.region.is_none() {
+        return ds.nodes();
     }
+    ds.nodes_where(&|cube| meets(o, cube))
+}
+
+/// Whether a node's cube may hold points of the box and the region.
+fn meets(o: &ExtractOptions, cube: &Aabb) -> bool {
+    o.bbox.is_none_or(|b| Region::meets(&b, cube))
+        && o.region.as_ref().is_none_or(|r| r.meets(cube))
 }
 
 pub(crate) fn wanted(ds: &Dataset, nodes: Vec<NodeEntry>, o: &ExtractOptions) -> Vec<NodeEntry> {
     nodes
         .into_iter()
         .filter(|n| {
-            let cube = n.bounds_in(&ds.meta.root);
-            let meets = o
-                .bbox
-                .is_none_or(|b| (0..3).all(|a| cube.min[a] <= b.max[a] && b.min[a] <= cube.max[a]));
+            let meets = meets(o, &n.bounds_in(&ds.meta.root));
             let coarse_enough = match o.spacing {
                 Some(s) => n.spacing.first().is_some_and(|&top| top >= s),
                 None => true,
@@ -139,10 +146,12 @@ pub fn extract_within(
             return Err(Error::unsupported(out, "extract writes .las, .laz or .ply"));
         }
     };
+    let filter = (o.filter.bind(&ds.meta.schema)).map_err(Error::Invalid)?;
     let (nodes, mut damage) = hierarchy_for(ds, o);
     let mut summary = ExtractSummary::default();
     let nodes = wanted(ds, nodes, o);
-    if max_points < u64::MAX {
+    // Nodes wholly in the box hold that many points surely, when nothing else filters them.
+    if max_points < u64::MAX && o.region.is_none() && filter.is_all() {
         let surely: u64 = nodes
             .iter()
             .filter(|n| {
@@ -170,8 +179,15 @@ pub fn extract_within(
         };
         summary.nodes_read += 1;
         batch.truncate(prefix_for(&n, o.spacing));
-        if let Some(b) = &o.bbox {
-            let keep: Vec<bool> = batch.positions.iter().map(|&p| b.contains(p)).collect();
+        if o.bbox.is_some() || o.region.is_some() || !filter.is_all() {
+            let keep: Vec<bool> = (0..batch.len())
+                .map(|i| {
+                    let p = batch.positions[i];
+                    o.bbox.is_none_or(|b| b.contains(p))
+                        && o.region.as_ref().is_none_or(|r| r.contains(p))
+                        && filter.keeps(&batch, i)
+                })
+                .collect();
             batch.retain_mask(&keep);
         }
         if batch.is_empty() {

@@ -69,6 +69,7 @@ fn extracted(ds: &Dataset, dir: &Path, bbox: Option<Aabb>, spacing: Option<f64>)
             bbox,
             spacing,
             force: true,
+            ..Default::default()
         },
     )
     .unwrap();

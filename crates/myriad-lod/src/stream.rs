@@ -48,6 +48,42 @@ impl PageReader for Dataset {
     }
 }
 
+/// A reader whose nodes hold only the points a filter keeps (`--classes`, `--where`): the
+/// level of detail is drawn from the points kept, and nothing filtered out is ever drawn.
+pub struct Filtered {
+    pub inner: Arc<dyn PageReader>,
+    pub filter: myriad_measure::Bound,
+}
+
+impl PageReader for Filtered {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        let mut b = self.inner.read(node)?;
+        self.filter.retain(&mut b);
+        Ok(b)
+    }
+    fn read_splats(&self, node: &NodeEntry) -> Result<Option<Splats>, String> {
+        let Some(s) = self.inner.read_splats(node)? else {
+            return Ok(None);
+        };
+        // The same points as `read` keeps (the page is read again: only splat datasets pay).
+        let keep = self.filter.mask(&self.inner.read(node)?);
+        let pick = |i: &usize| keep.get(*i).copied().unwrap_or(false);
+        Ok(Some(Splats {
+            normals: (s.normals.iter().enumerate())
+                .filter(|(i, _)| pick(i))
+                .map(|(_, n)| *n)
+                .collect(),
+            radii: (s.radii.iter().enumerate())
+                .filter(|(i, _)| pick(i))
+                .map(|(_, r)| *r)
+                .collect(),
+        }))
+    }
+    fn read_hierarchy(&self, page: &ChildPage) -> Result<HierarchyPage, String> {
+        self.inner.read_hierarchy(page)
+    }
+}
+
 /// A resident node: its points (what it derefs to) and, in `mwkd` datasets, their splats.
 #[derive(Debug, Clone, Default)]
 pub struct Loaded {

@@ -171,6 +171,16 @@ impl Scene {
     /// The view bounds are those of the root node's points (a sample of the whole) without the
     /// outer 0.5 % on each side of each axis.
     pub fn open(dataset: Arc<myriad_format::Dataset>, ram_bytes: usize, gpu_bytes: usize) -> Scene {
+        Scene::open_filtered(dataset, myriad_measure::Bound::all(), ram_bytes, gpu_bytes)
+    }
+
+    /// [`Scene::open`] drawing only the points `filter` keeps.
+    pub fn open_filtered(
+        dataset: Arc<myriad_format::Dataset>,
+        filter: myriad_measure::Bound,
+        ram_bytes: usize,
+        gpu_bytes: usize,
+    ) -> Scene {
         let meta = &dataset.meta;
         let mut h = match dataset.hierarchy_page(&dataset.root_page()) {
             Ok(page) => Hierarchy::from_root_page(meta.root, page, meta.depth),
@@ -187,6 +197,8 @@ impl Scene {
             }
             // Resident from the start (the first frame draws it), unless it has splats to read.
             if root.splats.is_none() {
+                let mut b = b;
+                filter.retain(&mut b);
                 root_node = Some(myriad_lod::stream::Loaded {
                     points: b,
                     splats: None,
@@ -206,7 +218,15 @@ impl Scene {
         );
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get().clamp(2, 8));
         let grid = meta.quantization;
-        let mut scene = Scene::new(dataset, h, view_bounds, threads, ram_bytes, gpu_bytes);
+        let reader: Arc<dyn PageReader> = if filter.is_all() {
+            dataset
+        } else {
+            Arc::new(myriad_lod::stream::Filtered {
+                inner: dataset,
+                filter,
+            })
+        };
+        let mut scene = Scene::new(reader, h, view_bounds, threads, ram_bytes, gpu_bytes);
         if let Some(n) = root_node {
             scene.loader.insert(NodeKey::ROOT, n);
         }

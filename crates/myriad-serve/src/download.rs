@@ -93,6 +93,7 @@ pub fn run(
         bbox: Some(q.bbox),
         spacing: q.spacing,
         force: true,
+        ..Default::default()
     };
     let summary = extract_within(&ds, &tmp, &o, limits.max_points, cancelled).map_err(|e| {
         let m = e.to_string();

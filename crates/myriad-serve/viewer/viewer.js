@@ -84,6 +84,8 @@ const settings = {
   // webgl2 or webgpu; default: WebGPU on a hardware adapter, else WebGL2.
   renderer: params.get("renderer"),
   clip: null, // {box: [6], inside: bool}
+  // ASPRS classes not drawn (their points are dropped as nodes are decoded).
+  hidden: new Set((params.get("hide") || "").split(",").filter((c) => c !== "").map(Number)),
 };
 let camera = null;
 const nodes = new Map(); // key string -> {key, origin, count, buffer vao, positions, spacing, tree}
@@ -102,6 +104,7 @@ function cameraLink() {
   if (c.up[2] !== 1) p.set("up", c.up.join(","));
   if (settings.budget !== 2000000) p.set("budget", settings.budget);
   if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
+  if (settings.hidden.size) p.set("hide", [...settings.hidden].join(","));
   if (settings.clip) p.set("clip", settings.clip.box.join(",") + (settings.clip.inside ? "" : ",outside"));
   return `${location.origin}${location.pathname}#${p.toString().replace(/%2C/g, ",")}`;
 }
@@ -233,9 +236,11 @@ function load() {
     const origin = [n.cube[0], n.cube[1], n.cube[2]];
     const vb = state.info.view_bounds;
     call(w, { type: "decode", key: n.key, page: n.page, total: n.total, origin,
-      scheme: settings.scheme, z: [vb[2], vb[5]] }).then((m) => {
+      scheme: settings.scheme, z: [vb[2], vb[5]], hidden: [...settings.hidden] }).then((m) => {
       w.busy -= 1;
       upload(node, origin, n.cube[3], m.positions, m.colours);
+      node.classes = m.classes;
+      classList();
       node.state = "loaded";
       dirty = true;
       requestSelection();
@@ -386,7 +391,7 @@ async function pick(x, y, radius = 6) {
   if (!hit) return null;
   const w = decoders.reduce((a, b) => (b.busy < a.busy ? b : a));
   const m = await call(w, { type: "point", key: hit.sel.key, page: hit.sel.page, total: hit.sel.total,
-    origin: hit.node.origin, index: hit.index });
+    origin: hit.node.origin, index: hit.index, hidden: [...settings.hidden] });
   const p = { node: hit.sel.key.join("-"), index: hit.index, ...m.point };
   state.picked = p;
   document.getElementById("picked").textContent = Object.entries(p)
@@ -395,6 +400,41 @@ async function pick(x, y, radius = 6) {
 }
 
 // ---- interface ----
+// The classes of the nodes loaded, each with its colour, name and points there, and a box
+// that shows or hides it.
+let classesShown = "";
+function classList() {
+  const counts = new Map();
+  for (const n of nodes.values()) {
+    for (const [c, k] of n.classes || []) counts.set(c, (counts.get(c) || 0) + k);
+  }
+  for (const c of settings.hidden) if (!counts.has(c)) counts.set(c, 0);
+  const list = [...counts.entries()].sort((a, b) => a[0] - b[0]);
+  const key = list.map(([c, k]) => `${c}:${k}:${settings.hidden.has(c)}`).join(",");
+  if (key === classesShown) return;
+  classesShown = key;
+  const el = document.getElementById("classes");
+  el.textContent = list.length ? "classes (points loaded)" : "";
+  for (const [c, k] of list) {
+    const info = state.info.classes[c];
+    const row = document.createElement("label");
+    row.className = "class";
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.dataset.class = c;
+    box.checked = !settings.hidden.has(c);
+    box.onchange = () => {
+      if (box.checked) settings.hidden.delete(c); else settings.hidden.add(c);
+      reload();
+    };
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.background = `rgb(${info.colour.join(",")})`;
+    row.append(box, swatch, ` ${c} ${info.name}: ${k.toLocaleString()}`);
+    el.append(row);
+  }
+}
+
 function status() {
   const s = document.getElementById("status");
   s.textContent = `${state.points.toLocaleString()} points in ${state.nodes} nodes` +

@@ -83,9 +83,12 @@ async function fetchPage(page) {
   return b;
 }
 
+// The node, its origin, then the hidden classes as 8 words of 32 flags.
 function nodeArgs(m) {
+  const words = [0, 0, 0, 0, 0, 0, 0, 0];
+  for (const c of m.hidden || []) words[c >> 5] += 2 ** (c & 31);
   return [m.key[0], m.key[1], m.key[2], m.key[3], m.page[0], m.page[1], m.page[2], m.total,
-    m.origin[0], m.origin[1], m.origin[2]];
+    m.origin[0], m.origin[1], m.origin[2], ...words];
 }
 
 async function decode(m) {
@@ -99,7 +102,13 @@ async function decode(m) {
     if (count === 0xffffffff) throw new Error(new TextDecoder().decode(out.subarray(4)));
     const positions = new Float32Array(out.buffer.slice(4, 4 + count * 12));
     const colours = new Uint8Array(out.buffer.slice(4 + count * 12, 4 + count * 16));
-    return { positions, colours };
+    // Then the node's points per class (hidden ones included).
+    const view = new DataView(out.buffer, 4 + count * 16);
+    const classes = [];
+    for (let i = 0; i < view.getUint32(0, true); i++) {
+      classes.push([view.getUint32(4 + 8 * i, true), view.getUint32(8 + 8 * i, true)]);
+    }
+    return { positions, colours, classes };
   } finally {
     wasm.exports.myr_free(p, page.byteLength);
   }
@@ -138,7 +147,7 @@ onmessage = async (e) => {
       postMessage({ id: m.id, selection: answer, stats });
     } else if (m.type === "decode") {
       const d = await decode(m);
-      postMessage({ id: m.id, positions: d.positions, colours: d.colours, stats },
+      postMessage({ id: m.id, positions: d.positions, colours: d.colours, classes: d.classes, stats },
         [d.positions.buffer, d.colours.buffer]);
     } else if (m.type === "point") {
       postMessage({ id: m.id, point: await point(m), stats });

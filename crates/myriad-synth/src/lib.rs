@@ -9,6 +9,7 @@ mod e57;
 mod rng;
 pub mod scan;
 pub mod scene;
+pub mod stockpiles;
 
 use myriad_core::{Error, PointBatch, Result, Schema};
 use myriad_io::las::{LasSink, LasWriteOptions};
@@ -25,6 +26,9 @@ pub enum SceneKind {
     Terrain,
     /// Terrestrial scans of furnished rooms, two stations per room.
     Indoor,
+    /// Cones and ridges of material of known volume on sloping ground ([`stockpiles`]); epoch
+    /// 2 is a later survey with the first pile gone.
+    Stockpiles { epoch: u32 },
 }
 
 #[derive(Debug, Clone)]
@@ -56,6 +60,7 @@ pub fn schema() -> Schema {
 enum Scanner<'a> {
     Air(scan::Airborne<'a>),
     Indoor(scan::Indoor),
+    Piles(stockpiles::Site),
 }
 
 impl Scanner<'_> {
@@ -66,6 +71,7 @@ impl Scanner<'_> {
             match self {
                 Scanner::Air(a) => a.pulse(k, &mut cache, &mut out),
                 Scanner::Indoor(s) => s.pulse(k, &mut cache, &mut out),
+                Scanner::Piles(s) => s.pulse(k, &mut out),
             }
         }
         for p in &mut out.positions {
@@ -101,6 +107,9 @@ where
             ))
         }
         SceneKind::Indoor => Scanner::Indoor(scan::Indoor::plan(options.points, options.seed)),
+        SceneKind::Stockpiles { epoch } => {
+            Scanner::Piles(stockpiles::Site::plan(options.points, options.seed, epoch))
+        }
     };
     // Several blocks per thread per wave, so that uneven blocks still keep every core busy.
     let wave = (rayon::current_num_threads() * 6).max(2) as u64;
@@ -200,7 +209,12 @@ mod tests {
 
     #[test]
     fn exact_count_and_deterministic() {
-        for scene in [SceneKind::City, SceneKind::Terrain, SceneKind::Indoor] {
+        for scene in [
+            SceneKind::City,
+            SceneKind::Terrain,
+            SceneKind::Indoor,
+            SceneKind::Stockpiles { epoch: 1 },
+        ] {
             let a = collect(scene, 100_003, 7);
             assert_eq!(a.len(), 100_003, "{scene:?}");
             assert!(a.is_consistent());

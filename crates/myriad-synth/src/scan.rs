@@ -343,7 +343,7 @@ impl<'a> Airborne<'a> {
 }
 
 #[inline]
-fn push<T>(c: &mut Option<Vec<T>>, v: T) {
+pub(crate) fn push<T>(c: &mut Option<Vec<T>>, v: T) {
     if let Some(c) = c {
         c.push(v);
     }

@@ -4,7 +4,6 @@
 
 use crate::{App, Layer};
 use myriad_format::Dataset;
-use myriad_render::Scene;
 use std::sync::Arc;
 use std::sync::mpsc::Receiver;
 
@@ -41,7 +40,7 @@ impl App {
                 continue;
             };
             match built {
-                Ok(ds) => swap(layer, ds, self.shares, self.colour),
+                Ok(ds) => swap(layer, ds, &self.filter, self.shares, self.colour),
                 Err(why) => eprintln!("error: {why} (the preview stays)"),
             }
         }
@@ -52,16 +51,12 @@ impl App {
 fn swap(
     layer: &mut Layer,
     ds: Arc<Dataset>,
-    (ram, gpu): (usize, usize),
+    filter: &myriad_measure::Filter,
+    shares: (usize, usize),
     colour: myriad_render::ColorBy,
 ) {
-    let old = &layer.scene;
-    let mut scene = Scene::open(ds, ram, gpu);
-    scene.set_colour(colour);
-    scene.occlusion = old.occlusion;
-    scene.upload_limit = old.upload_limit;
-    scene.query_wait = old.query_wait;
-    layer.scene = scene;
+    layer.scene = crate::classes::reopen(&layer.scene, ds.clone(), filter, shares, colour);
+    layer.dataset = ds;
     if let Some(name) = layer.name.strip_suffix(" (preview)") {
         layer.name = name.to_string();
     }

@@ -8,6 +8,7 @@
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
 mod builds;
+mod classes;
 pub mod measure;
 pub mod nav;
 mod options;
@@ -38,6 +39,7 @@ use std::time::Instant;
 struct Layer {
     name: String,
     scene: Scene,
+    dataset: Arc<Dataset>,
     visible: bool,
 }
 
@@ -97,6 +99,9 @@ struct App {
     /// layer's new scene gets.
     builds: Option<Builds>,
     shares: (usize, usize),
+    /// The command line's filter, and the overview's classes: points there, shown.
+    filter: myriad_measure::Filter,
+    classes: std::collections::BTreeMap<u8, (u64, bool)>,
 }
 
 /// Opens the window and runs until it is closed.
@@ -110,8 +115,15 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     let mut layers = Vec::new();
     let mut bounds = Aabb::EMPTY;
     let mut all = Aabb::EMPTY;
+    let mut classes = std::collections::BTreeMap::new();
     for (name, ds) in datasets {
-        let mut scene = Scene::open(ds.clone(), ram, gpu_bytes);
+        for (c, n) in classes::overview_classes(&ds) {
+            let shown = o.filter.classes.as_ref().is_none_or(|l| l.contains(&c));
+            classes.entry(c).or_insert((0, shown)).0 += n;
+        }
+        let bound = (o.filter.bind(&ds.meta.schema))
+            .map_err(|e| format!("{}: {e}", ds.path().display()))?;
+        let mut scene = Scene::open_filtered(ds.clone(), bound, ram, gpu_bytes);
         scene.set_colour(o.colour);
         scene.occlusion = o.occlusion;
         // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
@@ -125,6 +137,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         layers.push(Layer {
             name,
             scene,
+            dataset: ds,
             visible: true,
         });
     }
@@ -173,6 +186,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         surfaces: surface::Surfaces::new(o.surface),
         builds: o.builds,
         shares: (ram, gpu_bytes),
+        filter: o.filter,
+        classes,
         stereo: surface::StereoView {
             on: o.stereo.is_some(),
             ipd: o.stereo.unwrap_or(0.064),
@@ -317,6 +332,7 @@ impl App {
                 l.scene.set_colour(self.colour);
             }
         }
+        self.classes_panel(ui);
         passes_panel(ui, &mut self.style.passes);
         ui.separator();
         surface::surface_panel(ui, &mut self.surfaces);

@@ -14,6 +14,8 @@ pub struct ViewOptions {
     pub budget: u64,
     pub style: Style,
     pub colour: ColorBy,
+    /// Only the points this filter keeps (`--classes`, `--where`).
+    pub filter: myriad_measure::Filter,
     /// Write the window to this PNG once the view has converged.
     pub screenshot: Option<PathBuf>,
     /// Close the window after that screenshot.

@@ -89,6 +89,12 @@ impl Viewer {
             "view_bounds": aabb_json(&self.view_bounds),
             "attributes": m.schema.names(),
             "crs": m.crs,
+            // The ASPRS classes' names and colours (as `render` colours them), for the class list.
+            "classes": (0..=255u8).map(|c| json!({
+                "class": c,
+                "name": myriad_measure::filter::class_name(c),
+                "colour": myriad_core::colour::class_colour(c),
+            })).collect::<Vec<_>>(),
         })
     }
 
@@ -171,6 +177,31 @@ pub fn entry(key: NodeKey, page: PageRef, points: u32) -> NodeEntry {
 pub struct Decoded {
     pub positions: Vec<f32>,
     pub colours: Vec<[u8; 4]>,
+    /// The node's points per class, hidden ones included: (class, count) for each class present.
+    pub classes: Vec<(u8, u32)>,
+}
+
+/// Classes hidden: a flag per ASPRS class number.
+pub type Hidden = [bool; 256];
+
+/// Drops the points of hidden classes (a batch without classes keeps all), and counts each
+/// class's points before.
+pub fn keep_shown(b: &mut PointBatch, hidden: &Hidden) -> Vec<(u8, u32)> {
+    let Some(c) = &b.classification else {
+        return Vec::new();
+    };
+    let mut counts = [0u32; 256];
+    for &k in c {
+        counts[k as usize] += 1;
+    }
+    if hidden.iter().any(|&h| h) {
+        let keep: Vec<bool> = c.iter().map(|&k| !hidden[k as usize]).collect();
+        b.retain_mask(&keep);
+    }
+    (0..=255u8)
+        .filter(|&k| counts[k as usize] > 0)
+        .map(|k| (k, counts[k as usize]))
+        .collect()
 }
 
 /// Checks and decodes the page of node `e` (bytes as fetched), coloured as `myriad render`
@@ -182,17 +213,23 @@ pub fn decode(
     origin: [f64; 3],
     scheme: ColorBy,
     z_range: (f64, f64),
+    hidden: &Hidden,
 ) -> Result<Decoded, String> {
-    let b = ds
+    let mut b = ds
         .decode_node(e, bytes, &ds.meta.schema)
         .map_err(|d| ds.damage_error(&d).to_string())?;
+    let classes = keep_shown(&mut b, hidden);
     let positions = b
         .positions
         .iter()
         .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
         .collect();
     let colours = colours(&b, b.len(), scheme, z_range, e.key.level);
-    Ok(Decoded { positions, colours })
+    Ok(Decoded {
+        positions,
+        colours,
+        classes,
+    })
 }
 
 /// Every attribute of point `i` of a decoded node, world coordinates in full.

@@ -3,7 +3,7 @@
 //! the next call; the JavaScript copies them out. Range reads go out through one import,
 //! `env.myr_read`, which the selection worker answers with a synchronous request.
 
-use crate::{Ask, Viewer, decode, entry, point_json};
+use crate::{Ask, Hidden, Viewer, decode, entry, keep_shown, point_json};
 use myriad_core::NodeKey;
 use myriad_core::colour::ColorBy;
 use myriad_format::{ByteSource, Dataset, PageRef};
@@ -225,8 +225,9 @@ const SCHEMES: [&str; 8] = [
 /// 0xffffffff and an error message.
 ///
 /// # Safety
-/// `page` holds `page_len` bytes and `args` 11 f64s (level, x, y, z, offset, length, crc,
-/// points, then the origin), written by the JavaScript.
+/// `page` holds `page_len` bytes and `args` 19 f64s (level, x, y, z, offset, length, crc,
+/// points, the origin, then the hidden classes as 8 words of 32 bits), written by the
+/// JavaScript.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn myr_decode(
     page: *const u8,
@@ -237,22 +238,44 @@ pub unsafe extern "C" fn myr_decode(
     z_hi: f64,
 ) -> u32 {
     // SAFETY: the caller's promise.
-    let (b, a) = unsafe { (bytes(page, page_len), std::slice::from_raw_parts(args, 11)) };
+    let (b, a) = unsafe {
+        (
+            bytes(page, page_len),
+            std::slice::from_raw_parts(args, ARGS),
+        )
+    };
     let e = node_entry(a);
     let scheme = SCHEMES
         .get(scheme as usize)
         .and_then(|s| ColorBy::parse(s))
         .unwrap_or(ColorBy::Rgb);
-    let r = with_dataset(|ds| decode(ds, &e, b, [a[8], a[9], a[10]], scheme, (z_lo, z_hi)));
+    let hidden = hidden_classes(a);
+    let r = with_dataset(|ds| {
+        decode(
+            ds,
+            &e,
+            b,
+            [a[8], a[9], a[10]],
+            scheme,
+            (z_lo, z_hi),
+            &hidden,
+        )
+    });
     match r {
         Some(Ok(d)) => {
             let n = d.colours.len();
-            let mut out = Vec::with_capacity(4 + n * 16);
+            let mut out = Vec::with_capacity(8 + n * 16 + d.classes.len() * 8);
             out.extend_from_slice(&(n as u32).to_le_bytes());
             for v in &d.positions {
                 out.extend_from_slice(&v.to_le_bytes());
             }
             out.extend(d.colours.iter().flatten());
+            // Then the node's classes: a count, and (class, points) pairs of u32.
+            out.extend_from_slice(&(d.classes.len() as u32).to_le_bytes());
+            for (c, k) in &d.classes {
+                out.extend_from_slice(&(*c as u32).to_le_bytes());
+                out.extend_from_slice(&k.to_le_bytes());
+            }
             answer(out)
         }
         Some(Err(m)) => {
@@ -266,6 +289,14 @@ pub unsafe extern "C" fn myr_decode(
             answer(out)
         }
     }
+}
+
+/// f64s of a node's arguments: see [`myr_decode`].
+const ARGS: usize = 19;
+
+/// The hidden classes of a node's arguments: 8 words of 32 flags after the origin.
+fn hidden_classes(a: &[f64]) -> Hidden {
+    std::array::from_fn(|c| (a[11 + c / 32] as u32) >> (c % 32) & 1 == 1)
 }
 
 fn node_entry(a: &[f64]) -> myriad_format::NodeEntry {
@@ -293,11 +324,19 @@ pub unsafe extern "C" fn myr_point(
     index: u32,
 ) -> u32 {
     // SAFETY: the caller's promise.
-    let (b, a) = unsafe { (bytes(page, page_len), std::slice::from_raw_parts(args, 11)) };
+    let (b, a) = unsafe {
+        (
+            bytes(page, page_len),
+            std::slice::from_raw_parts(args, ARGS),
+        )
+    };
     let e = node_entry(a);
-    let r = with_dataset(|ds| {
-        ds.decode_node(&e, b, &ds.meta.schema)
-            .map_err(|d| ds.damage_error(&d).to_string())
+    // The index is into the points shown, as drawn.
+    let r = with_dataset(|ds| -> Result<_, String> {
+        let mut batch = (ds.decode_node(&e, b, &ds.meta.schema))
+            .map_err(|d| ds.damage_error(&d).to_string())?;
+        keep_shown(&mut batch, &hidden_classes(a));
+        Ok(batch)
     });
     match r {
         Some(Ok(batch)) if (index as usize) < batch.len() => {

@@ -113,7 +113,16 @@ fn selection_decoding_and_damage() {
     let page = &bytes[e.page.offset as usize..][..e.page.length as usize];
     let origin = e.key.bounds(&ds.meta.root).min;
     let z = (0.0, 40.0);
-    let got = decode(&v.dataset, e, page, origin, ColorBy::Elevation, z).unwrap();
+    let got = decode(
+        &v.dataset,
+        e,
+        page,
+        origin,
+        ColorBy::Elevation,
+        z,
+        &[false; 256],
+    )
+    .unwrap();
     let stored = ds.read_node(e).unwrap();
     assert_eq!(
         got.colours,
@@ -129,7 +138,7 @@ fn selection_decoding_and_damage() {
     // A damaged page: the error names the file and the byte.
     let mut bad = page.to_vec();
     bad[40] ^= 0x55;
-    let err = decode(&v.dataset, e, &bad, origin, ColorBy::Rgb, z)
+    let err = decode(&v.dataset, e, &bad, origin, ColorBy::Rgb, z, &[false; 256])
         .err()
         .unwrap();
     assert!(

@@ -50,6 +50,11 @@ pub enum BenchCommand {
     /// Time to the first image and to convergence in the browser: Myriad's web viewer next to
     /// Potree 1.8 on PotreeConverter's output, from the same server, in headless Chromium
     Web(myriad_bench::web::WebBenchArgs),
+    /// A cross-section, cold and warm: time, points, nodes read, next to extracting its box
+    Profile(myriad_bench::profile::ProfileBenchArgs),
+    /// A volume over a polygon, cold and warm: time, points, nodes read, next to extracting
+    /// its box
+    Volume(myriad_bench::volume::VolumeBenchArgs),
     /// A build on one machine next to the same build as N parts and a merge on Slurm (the
     /// cluster SLURM_CONF names), same cores: wall time, each part's time and peak memory, merge
     Partition(myriad_bench::partition::PartitionBenchArgs),
@@ -72,6 +77,8 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Serve(a) => myriad_bench::serve::run(a),
         BenchCommand::Prefetch(a) => myriad_bench::prefetch::run(a),
         BenchCommand::Web(a) => myriad_bench::web::run(a),
+        BenchCommand::Profile(a) => myriad_bench::profile::run(a),
+        BenchCommand::Volume(a) => myriad_bench::volume::run(a),
         BenchCommand::Partition(a) => myriad_bench::partition::run_bench(a),
     }
 }

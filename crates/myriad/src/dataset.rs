@@ -225,6 +225,8 @@ pub struct ExtractArgs {
     /// Level of detail: points at about this spacing [default: every original point]
     #[arg(long)]
     spacing: Option<f64>,
+    #[command(flatten)]
+    filter: crate::measure::FilterArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -244,7 +246,9 @@ pub fn extract(a: ExtractArgs) -> Result<()> {
         &ExtractOptions {
             bbox: a.bbox,
             spacing: a.spacing,
+            filter: a.filter.filter()?,
             force: a.force,
+            ..Default::default()
         },
     )?;
     for d in &s.damage {

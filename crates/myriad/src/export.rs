@@ -31,6 +31,8 @@ pub struct ExportArgs {
     /// Memory budget of the octree build that kd and mwkd datasets go through: 512MB, 2GB
     #[arg(long, value_parser = myriad_build::convert::parse_size)]
     memory: Option<u64>,
+    #[command(flatten)]
+    filter: crate::measure::FilterArgs,
     /// Replace an existing output (a folder only when it holds a Potree dataset)
     #[arg(long)]
     force: bool,
@@ -51,6 +53,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let mut o = ExportOptions::new(target);
     o.bbox = a.bbox;
     o.spacing = a.spacing;
+    o.filter = a.filter.filter()?;
     o.force = a.force;
     if let Some(m) = a.memory {
         o.memory = m;

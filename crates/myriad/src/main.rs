@@ -7,6 +7,7 @@ mod cached;
 mod dataset;
 mod export;
 mod info;
+mod measure;
 mod mesh;
 mod partition;
 mod progress;
@@ -45,6 +46,10 @@ enum Command {
     Extract(dataset::ExtractArgs),
     /// Write a dataset as COPC or Potree 2.0 (for other viewers and tools), or LAS/LAZ
     Export(export::ExportArgs),
+    /// Cut a cross-section along a line: its points to CSV, LAS/LAZ, DXF or a PNG of the profile
+    Profile(measure::ProfileArgs),
+    /// Measure the volume over a polygon above a base (the rim's plane, an elevation, an earlier survey)
+    Volume(measure::VolumeArgs),
     /// Read every page of a dataset, check checksums and invariants, name damaged nodes
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
@@ -103,6 +108,8 @@ fn main() -> ExitCode {
         Command::Info(a) => info::run(a),
         Command::Extract(a) => dataset::extract(a),
         Command::Export(a) => export::run(a),
+        Command::Profile(a) => measure::profile(a),
+        Command::Volume(a) => measure::volume(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
         Command::Mesh(a) => mesh::run(a),

@@ -117,6 +117,8 @@ pub struct RenderArgs {
     surface: Option<myriad_render::surface::Kind>,
     #[command(flatten)]
     surface_options: myriad_render::args::SurfaceArgs,
+    #[command(flatten)]
+    filter: crate::measure::FilterArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
@@ -154,6 +156,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if !(a.edl_radius >= 0.5 && a.edl_radius <= 32.0) {
         bail!("--edl-radius must be from 0.5 to 32 pixels");
     }
+    let filter = a.filter.filter()?;
     let surface = a
         .surface
         .map(|k| a.surface_options.surface(k))
@@ -203,7 +206,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         }
         match other {
-            None => return render_preview(&a, &files, &gpu, &raster, &style, t0),
+            None => return render_preview(&a, &files, &filter, &gpu, &raster, &style, t0),
             Some(f) => eprintln!(
                 "warning: {}: no preview of {} files: converting it first",
                 a.dataset.display(),
@@ -218,7 +221,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     // Caches as the viewer's: 2 GiB of decoded points, 1 GiB on the GPU (what a frame uses is
     // kept even beyond them).
-    let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
+    let bound = filter.bind(&ds.meta.schema).map_err(anyhow::Error::msg)?;
+    let mut scene = Scene::open_filtered(ds.clone(), bound, 2 << 30, 1 << 30);
     // The root's hierarchy page (the only one read before drawing) damaged: nothing can be
     // drawn. Pages below are read as the view reaches them; damage there is reported below.
     if scene.hierarchy.pages() == 0
@@ -368,6 +372,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
 fn render_preview(
     a: &RenderArgs,
     files: &[PathBuf],
+    filter: &myriad_measure::Filter,
     gpu: &Gpu,
     raster: &Rasterizer,
     style: &Style,
@@ -398,7 +403,12 @@ fn render_preview(
             }
         }
     }
-    let sample = myriad_render::preview::Sample::new(&tiles.samples, a.color);
+    let mut samples = tiles.samples;
+    for b in &mut samples {
+        let bound = filter.bind(&b.schema()).map_err(anyhow::Error::msg)?;
+        bound.retain(b);
+    }
+    let sample = myriad_render::preview::Sample::new(&samples, a.color);
     if sample.positions.is_empty() {
         bail!("{}: no points to preview", a.dataset.display());
     }

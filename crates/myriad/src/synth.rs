@@ -13,6 +13,8 @@ enum Scene {
     City,
     Terrain,
     Indoor,
+    /// Cones and ridges of known volume on sloping ground, for `myriad volume`
+    Stockpiles,
 }
 
 #[derive(Args)]
@@ -27,6 +29,9 @@ pub struct SynthArgs {
     scene: Scene,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// --scene stockpiles: the survey (2: the same site later, its first pile taken away)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=2))]
+    epoch: u32,
     /// Replace the output if it exists
     #[arg(long)]
     force: bool,
@@ -42,6 +47,7 @@ pub fn run(a: SynthArgs) -> Result<()> {
             Scene::City => SceneKind::City,
             Scene::Terrain => SceneKind::Terrain,
             Scene::Indoor => SceneKind::Indoor,
+            Scene::Stockpiles => SceneKind::Stockpiles { epoch: a.epoch },
         },
         seed: a.seed,
     };
@@ -67,5 +73,43 @@ pub fn run(a: SynthArgs) -> Result<()> {
         a.output.display(),
         n as f64 / secs / 1e6
     );
+    if let SceneKind::Stockpiles { epoch } = options.scene {
+        print_piles(a.points, a.seed, epoch);
+    }
     Ok(())
+}
+
+/// Each pile of the stockpile site with its volume and a polygon around it for `myriad volume`.
+fn print_piles(points: u64, seed: u64, epoch: u32) {
+    use myriad_synth::stockpiles::{Shape, Site};
+    let site = Site::plan(points, seed, epoch);
+    let standing = site.piles().len();
+    let all = site.all_piles();
+    for (i, p) in all.iter().enumerate() {
+        let gone = epoch >= 2 && i == 0;
+        let what = match p.shape {
+            Shape::Cone { radius } => format!("cone r {radius:.2} m"),
+            Shape::Prism { length, width, .. } => format!("ridge {length:.2} x {width:.2} m"),
+        };
+        println!(
+            "pile {}: {what}, {:.2} m high, {:.3} m3{}  --polygon {}",
+            i + 1,
+            p.height,
+            p.volume(),
+            if gone {
+                " (taken away in this epoch)"
+            } else {
+                ""
+            },
+            p.polygon(3.0, myriad_synth::ORIGIN)
+        );
+    }
+    if all.is_empty() {
+        println!(
+            "no pile: the site is smaller than one {} m plot; more --points",
+            myriad_synth::stockpiles::PLOT
+        );
+    } else {
+        println!("{standing} piles standing");
+    }
 }

@@ -46,6 +46,8 @@ pub struct ViewArgs {
     /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform
     #[arg(long, value_parser = parse_color, default_value = "rgb")]
     color: ColorBy,
+    #[command(flatten)]
+    filter: crate::measure::FilterArgs,
     /// Draw on the window's GPU adapter (with --vr: the runtime's) even where it is a software
     /// one (lavapipe); without it, a software adapter leaves the drawing to the CPU path
     #[arg(long)]
@@ -242,6 +244,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             clip: None,
         },
         colour: a.color,
+        filter: a.filter.filter()?,
         screenshot: a.screenshot,
         exit_after_converged: a.exit_after_converged,
         orbit_frames: a.orbit_frames,

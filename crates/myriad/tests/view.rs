@@ -5,6 +5,7 @@
 
 mod common;
 use common::decode_png;
+use myriad_core::colour::class_colour;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -127,8 +128,10 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
                 }
             }
         }
+        // (Filtered to the ground without hole filling, fewer pixels show: checked below.)
+        let filtered = extra.contains(&"--classes");
         assert!(
-            lit * 4 > total,
+            lit * 4 > total || (filtered && lit * 20 > total),
             "{extra:?}: {lit} of {total} pixels of the view show the scan"
         );
         true
@@ -141,6 +144,27 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         run(&["--gpu", "--surface", "quads", "--grid", "100x80x30"]);
         // Both eyes side by side (seed 002).
         run(&["--stereo", "--ipd", "5"]);
+    }
+    // Filtered: ground only, coloured by class, no pass blending colours: no building drawn.
+    if run(&[
+        "--classes",
+        "2",
+        "--color",
+        "classification",
+        "--passes",
+        "none",
+    ]) {
+        let (w, h, img) = decode_png(&d.join("shot6.png"));
+        let (ground, building) = (class_colour(2), class_colour(6));
+        let (mut g, mut b) = (0, 0);
+        for y in 0..h as usize {
+            for x in (w as usize / 2)..w as usize {
+                let p = &img[(y * w as usize + x) * 4..][..3];
+                g += (p == ground) as usize;
+                b += (p == building) as usize;
+            }
+        }
+        assert!(g > 10_000 && b == 0, "{g} ground and {b} building pixels");
     }
     let _ = std::fs::remove_dir_all(&d);
 }

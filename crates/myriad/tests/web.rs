@@ -346,6 +346,57 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
     assert_eq!(count, inside, "points in the box's download");
     drop(b);
 
+    // The class list: buildings hidden by their box, none of their colour is drawn, and the
+    // link keeps them hidden.
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!("{}/view/s.myr#color=classification&edl=0", server.base),
+        W,
+        H,
+    )
+    .unwrap();
+    let before = converge(&mut b);
+    let building = myriad_core::colour::class_colour(6);
+    let of_buildings = |b: &mut Browser| {
+        b.eval("document.getElementById('panel').style.display = 'none'; new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            .unwrap();
+        let (_, _, px) = png(&b.screenshot().unwrap());
+        b.eval("document.getElementById('panel').style.display = ''")
+            .unwrap();
+        px.iter()
+            .filter(|p| (0..3).all(|k| (p[k] as i32 - building[k] as i32).abs() <= 4))
+            .count()
+    };
+    let shown = of_buildings(&mut b);
+    assert!(shown > 2000, "{shown} pixels of buildings' colour");
+    let rows = b
+        .eval("[...document.querySelectorAll('#classes label.class')].map(l => l.textContent)")
+        .unwrap();
+    assert!(rows.to_string().contains("6 building: "), "{rows}");
+    b.eval("document.querySelector('#classes input[data-class=\"6\"]').click()")
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let after = converge(&mut b);
+    let buildings = entries
+        .iter()
+        .map(|e| ds.read_node(e).unwrap())
+        .flat_map(|b| b.classification.unwrap())
+        .filter(|&c| c == 6)
+        .count() as u64;
+    assert_eq!(
+        after["points"].as_u64().unwrap(),
+        before["points"].as_u64().unwrap() - buildings,
+        "{after}"
+    );
+    assert_eq!(
+        of_buildings(&mut b),
+        0,
+        "buildings' colour drawn while hidden"
+    );
+    let link = b.eval("myriad.link()").unwrap();
+    assert!(link.as_str().unwrap().contains("hide=6"), "{link}");
+    drop(b);
+
     // A damaged node page: the viewer shows the rest and says which file, node and byte.
     let mut b = Browser::launch(&exe).unwrap();
     b.open(&format!("{}/view/bad.myr", server.base), W, H)

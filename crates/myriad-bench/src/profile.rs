@@ -1,0 +1,120 @@
+//! `myriad bench profile DATASET...`: a cross-section of the dataset, cold (the dataset's pages
+//! dropped from the page cache first) and warm: its time, points, and the nodes read of the
+//! dataset's nodes; next to the baseline a user without the tool has, `extract` of the
+//! corridor's plan box (every height) to LAS, cold, then cut in another program. The line
+//! defaults to 1 km (or 90 % of the data's extent, when smaller) east-west through the data's
+//! centre, 2 m wide.
+
+use anyhow::{Result, anyhow};
+use clap::Args;
+use myriad_build::extract::{ExtractOptions, extract};
+use myriad_core::Aabb;
+use myriad_core::colour::ColorBy;
+use myriad_format::Dataset;
+use myriad_measure::corridor::parse_xy_list;
+use myriad_measure::{Bound, Corridor};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::median;
+use crate::open::drop_cache;
+
+#[derive(Args)]
+pub struct ProfileBenchArgs {
+    /// Datasets (.myr)
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// The line: X1,Y1,X2,Y2[,...] [default: 1 km east-west through the data's centre]
+    #[arg(long, allow_hyphen_values = true)]
+    line: Option<String>,
+    /// The corridor's width
+    #[arg(long, default_value_t = 2.0)]
+    width: f64,
+    /// Cold and warm runs of each
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+}
+
+/// A line of `length` (at most 90 % of the data's width) east-west through the centre.
+pub(crate) fn default_line(b: &Aabb, length: f64) -> Vec<[f64; 2]> {
+    let c = b.center();
+    let half = (length.min(0.9 * (b.max[0] - b.min[0]))) / 2.0;
+    vec![[c[0] - half, c[1]], [c[0] + half, c[1]]]
+}
+
+/// Seconds of `f`, after dropping `path`'s pages when `cold`.
+pub(crate) fn timed<T>(path: &Path, cold: bool, f: impl FnOnce() -> Result<T>) -> Result<(f64, T)> {
+    if cold {
+        drop_cache(path)?;
+    }
+    let t = Instant::now();
+    let v = f()?;
+    Ok((t.elapsed().as_secs_f64(), v))
+}
+
+pub fn run(a: ProfileBenchArgs) -> Result<()> {
+    let tmp = std::env::temp_dir().join(format!("myriad-bench-profile-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp)?;
+    for path in &a.datasets {
+        let ds = Dataset::open(path)?;
+        let line = match &a.line {
+            Some(l) => parse_xy_list(l, "--line", 2).map_err(|e| anyhow!(e))?,
+            None => default_line(&ds.meta.bounds, 1000.0),
+        };
+        let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
+        let (mut cold, mut warm, mut base) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut points, mut nodes, mut base_points) = (0, 0, 0);
+        for _ in 0..a.runs.max(1) {
+            for is_cold in [true, false] {
+                let (t, p) = timed(path, is_cold, || {
+                    let ds = Dataset::open(path)?;
+                    myriad_measure::profile::profile(&ds, &corridor, &Bound::all(), ColorBy::Rgb)
+                        .map_err(|e| anyhow!(e))
+                })?;
+                (points, nodes) = (p.len(), p.nodes_read);
+                if is_cold { cold.push(t) } else { warm.push(t) }
+            }
+            let (lo, hi) = corridor.plan_bounds();
+            let b = ds.meta.bounds;
+            let bbox = Aabb::new([lo[0], lo[1], b.min[2]], [hi[0], hi[1], b.max[2]]);
+            let out = tmp.join("box.las");
+            let (t, s) = timed(path, true, || {
+                let ds = Dataset::open(path)?;
+                Ok(extract(
+                    &ds,
+                    &out,
+                    &ExtractOptions {
+                        bbox: Some(bbox),
+                        force: true,
+                        ..Default::default()
+                    },
+                )?)
+            })?;
+            base_points = s.points;
+            base.push(t);
+        }
+        println!(
+            "{}: {} points, {} nodes",
+            path.display(),
+            ds.meta.points,
+            ds.meta.nodes
+        );
+        println!(
+            "  profile     {:.3} km x {} m: {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
+            corridor.length() / 1000.0,
+            a.width,
+            points,
+            nodes,
+            median(cold),
+            median(warm),
+            a.runs.max(1)
+        );
+        println!(
+            "  baseline    extract of its plan box to LAS, cold: {} points, {:.3} s",
+            base_points,
+            median(base)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    Ok(())
+}

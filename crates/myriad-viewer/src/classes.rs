@@ -1,0 +1,107 @@
+//! Filters in the viewer: `view --classes`/`--where` from the command line, and the class list
+//! in the panel (each class of the overview shown or hidden). A change reopens each layer's
+//! scene with the new filter (its settings and the view kept), so the level of detail is
+//! drawn from the points kept and nothing filtered out is drawn.
+
+use crate::{App, Layer};
+use eframe::egui;
+use myriad_core::NodeKey;
+use myriad_format::Dataset;
+use myriad_measure::Filter;
+use myriad_measure::filter::class_name;
+use myriad_render::{ColorBy, Scene};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// The classes of the dataset's root node (the overview: a sample of the whole) and their
+/// points there.
+pub fn overview_classes(ds: &Dataset) -> BTreeMap<u8, u64> {
+    let mut out = BTreeMap::new();
+    let Ok(page) = ds.hierarchy_page(&ds.root_page()) else {
+        return out;
+    };
+    let Some(root) = page.nodes.iter().find(|n| n.key == NodeKey::ROOT) else {
+        return out;
+    };
+    if let Ok(b) = ds.read_node(root)
+        && let Some(c) = &b.classification
+    {
+        for &k in c {
+            *out.entry(k).or_insert(0) += 1;
+        }
+    }
+    out
+}
+
+/// A scene of `ds` drawing what `filter` keeps (all of it where the dataset lacks what the
+/// filter reads, with a warning), with `old`'s settings.
+pub fn reopen(
+    old: &Scene,
+    ds: Arc<Dataset>,
+    filter: &Filter,
+    (ram, gpu): (usize, usize),
+    colour: ColorBy,
+) -> Scene {
+    let bound = filter.bind(&ds.meta.schema).unwrap_or_else(|e| {
+        eprintln!("warning: {}: {e}: drawn unfiltered", ds.path().display());
+        myriad_measure::Bound::all()
+    });
+    let mut scene = Scene::open_filtered(ds, bound, ram, gpu);
+    scene.set_colour(colour);
+    scene.occlusion = old.occlusion;
+    scene.upload_limit = old.upload_limit;
+    scene.query_wait = old.query_wait;
+    scene
+}
+
+impl Layer {
+    pub(crate) fn refilter(&mut self, filter: &Filter, shares: (usize, usize), colour: ColorBy) {
+        self.scene = reopen(&self.scene, self.dataset.clone(), filter, shares, colour);
+    }
+}
+
+impl App {
+    /// The filter the view draws: the command line's conditions, and the classes ticked.
+    fn filter(&self) -> Filter {
+        let mut f = self.filter.clone();
+        if self.classes.values().any(|&(_, shown)| !shown) {
+            f.classes = Some(
+                (self.classes.iter())
+                    .filter(|(_, (_, shown))| *shown)
+                    .map(|(c, _)| *c)
+                    .collect(),
+            );
+        }
+        f
+    }
+
+    /// The class list: a box per class of the overview with its colour, name and points there.
+    pub(crate) fn classes_panel(&mut self, ui: &mut egui::Ui) {
+        if self.classes.is_empty() {
+            return;
+        }
+        let mut changed = false;
+        egui::CollapsingHeader::new("classes (points in the overview)")
+            .default_open(false)
+            .show(ui, |ui| {
+                for (c, (count, shown)) in self.classes.iter_mut() {
+                    ui.horizontal(|ui| {
+                        let [r, g, b] = myriad_core::colour::class_colour(*c);
+                        let (rect, _) =
+                            ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+                        ui.painter()
+                            .rect_filled(rect, 0.0, egui::Color32::from_rgb(r, g, b));
+                        changed |= ui
+                            .checkbox(shown, format!("{c} {}: {count}", class_name(*c)))
+                            .changed();
+                    });
+                }
+            });
+        if changed {
+            let f = self.filter();
+            for l in &mut self.layers {
+                l.refilter(&f, self.shares, self.colour);
+            }
+        }
+    }
+}

@@ -1,0 +1,261 @@
+//! `myriad profile` and `myriad volume`, and the filters (`--classes`, `--where`) that
+//! `extract`, `export`, `render` and `profile` share.
+
+use anyhow::{Result, anyhow, bail};
+use clap::Args;
+use myriad_build::extract::{self, ExtractOptions};
+use myriad_core::colour::ColorBy;
+use myriad_format::Dataset;
+use myriad_measure::corridor::parse_xy_list;
+use myriad_measure::files::{save_drawing, write_atomic};
+use myriad_measure::volume::{self, Base};
+use myriad_measure::{Corridor, Filter, Polygon};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use myriad_core::units::thousands;
+
+/// Which points a command keeps.
+#[derive(Args, Clone, Default)]
+pub struct FilterArgs {
+    /// Only these ASPRS classes: numbers or names, as 2,6 or ground,building or 3-5
+    #[arg(long, value_name = "LIST")]
+    pub classes: Option<String>,
+    /// Only points where these hold, as intensity>100, return_number=1, gps_time=1000..2000
+    /// (conditions joined by commas or "and"; repeatable; `myriad info` lists the attributes)
+    #[arg(long = "where", value_name = "CONDITIONS", allow_hyphen_values = true)]
+    pub conditions: Vec<String>,
+}
+
+impl FilterArgs {
+    pub fn filter(&self) -> Result<Filter> {
+        Filter::parse(self.classes.as_deref(), &self.conditions).map_err(|e| anyhow!(e))
+    }
+}
+
+#[derive(Args)]
+pub struct ProfileArgs {
+    /// The dataset (.myr, or its URL)
+    dataset: PathBuf,
+    /// The section line in plan: X1,Y1,X2,Y2[,X3,Y3...] in the dataset's coordinates
+    #[arg(long, allow_hyphen_values = true)]
+    line: String,
+    /// The corridor's width: points within half of it on either side of the line
+    #[arg(long)]
+    width: f64,
+    /// Output: .csv (x, y, z, distance, offset, attributes), .las/.laz (the points as they
+    /// are), .dxf (the profile line, the points, the section line) or .png (the profile drawn)
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    filter: FilterArgs,
+    /// Colours of a .png: rgb, intensity, elevation, classification, return, source
+    #[arg(long = "color", default_value = "rgb", value_parser = parse_colour)]
+    colour: ColorBy,
+    /// Width of a .png in pixels
+    #[arg(long, default_value_t = 1600)]
+    pixels: u32,
+    /// Replace an existing output
+    #[arg(long)]
+    force: bool,
+}
+
+fn parse_colour(s: &str) -> Result<ColorBy, String> {
+    ColorBy::parse(s).ok_or_else(|| {
+        format!("\"{s}\": expected rgb, intensity, elevation, classification, return or source")
+    })
+}
+
+fn extension(p: &Path) -> String {
+    p.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
+pub fn profile(a: ProfileArgs) -> Result<()> {
+    let line = parse_xy_list(&a.line, "--line", 2).map_err(|e| anyhow!(e))?;
+    let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
+    let filter = a.filter.filter()?;
+    let ext = extension(&a.output);
+    if !matches!(ext.as_str(), "csv" | "las" | "laz" | "dxf" | "png") {
+        bail!(
+            "{}: profile writes .csv, .las, .laz, .dxf or .png",
+            a.output.display()
+        );
+    }
+    if !(64..=16384).contains(&a.pixels) {
+        bail!("--pixels {}: between 64 and 16384", a.pixels);
+    }
+    myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
+    let ds = Dataset::open(&a.dataset)?;
+    let start = Instant::now();
+    if matches!(ext.as_str(), "las" | "laz") {
+        let s = extract::extract(
+            &ds,
+            &a.output,
+            &ExtractOptions {
+                region: Some(Arc::new(corridor.clone())),
+                filter,
+                force: a.force,
+                ..Default::default()
+            },
+        )?;
+        if let Some(d) = s.damage.first() {
+            bail!("{} (the profile would lack its points)", ds.damage_error(d));
+        }
+        println!(
+            "{}: {} points within {} m of a {:.3} m line, from {} nodes, {:.2} s",
+            a.output.display(),
+            thousands(s.points),
+            a.width / 2.0,
+            corridor.length(),
+            thousands(s.nodes_read),
+            start.elapsed().as_secs_f64()
+        );
+        if s.points == 0 {
+            println!("the corridor holds no point: the file is empty");
+        }
+        return Ok(());
+    }
+    let bound = filter.bind(&ds.meta.schema).map_err(|e| anyhow!(e))?;
+    let p = myriad_measure::profile::profile(&ds, &corridor, &bound, a.colour)
+        .map_err(|e| anyhow!(e))?;
+    match ext.as_str() {
+        "csv" => write_atomic(&a.output, a.force, |w| p.write_csv(w))?,
+        "dxf" => save_drawing(
+            &myriad_measure::files::profile_drawing(&p, &corridor),
+            &a.output,
+            a.force,
+        )?,
+        _ => {
+            if p.is_empty() {
+                bail!(
+                    "the corridor holds no point: no picture to draw (is the line in the dataset's coordinates? `myriad info` gives its bounds)"
+                );
+            }
+            let (w, h, rgba, exaggeration) = p.plot(a.pixels);
+            myriad_io::atomic::AtomicFile::create(&a.output, a.force).and_then(|f| {
+                myriad_io::image::write_png(f.temp_path(), w, h, &rgba)?;
+                f.commit()
+            })?;
+            println!(
+                "{}: {w} x {h} pixels, vertical exaggeration {exaggeration:.2}",
+                a.output.display()
+            );
+        }
+    }
+    let (z0, z1) = p.z_range();
+    println!(
+        "{}: {} points within {} m of a {:.3} m line (elevation {z0:.3} to {z1:.3}), from {} nodes, {:.2} s",
+        a.output.display(),
+        thousands(p.len() as u64),
+        a.width / 2.0,
+        corridor.length(),
+        thousands(p.nodes_read),
+        start.elapsed().as_secs_f64()
+    );
+    if p.is_empty() {
+        println!("the corridor holds no point: the file has no rows");
+    }
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct VolumeArgs {
+    /// The dataset (.myr, or its URL)
+    dataset: PathBuf,
+    /// The polygon in plan: X1,Y1,X2,Y2,X3,Y3[,...] in the dataset's coordinates
+    #[arg(long, allow_hyphen_values = true)]
+    polygon: String,
+    /// The base: rim (a plane fitted to the points on the polygon's edge), an elevation, or
+    /// an earlier dataset of the same ground (.myr)
+    #[arg(long, default_value = "rim", allow_hyphen_values = true)]
+    base: String,
+    /// The grid's cell size [default: about twice the points' spacing]
+    #[arg(long)]
+    cell: Option<f64>,
+    #[command(flatten)]
+    filter: FilterArgs,
+    /// Print the result as one JSON object
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn volume(a: VolumeArgs) -> Result<()> {
+    let pts = parse_xy_list(&a.polygon, "--polygon", 3).map_err(|e| anyhow!(e))?;
+    let polygon = Polygon::new(&pts).map_err(|e| anyhow!(e))?;
+    let ds = Dataset::open(&a.dataset)?;
+    let earlier;
+    let base = match a.base.as_str() {
+        "rim" => Base::Rim,
+        b => match b.parse::<f64>() {
+            Ok(z) if z.is_finite() => Base::Elevation(z),
+            _ if myriad_format::is_dataset(Path::new(b)) || b.starts_with("http") => {
+                earlier = Dataset::open(Path::new(b))?;
+                Base::Surface(&earlier)
+            }
+            _ => bail!("--base \"{b}\": expected rim, an elevation or a dataset (.myr)"),
+        },
+    };
+    let bound = a
+        .filter
+        .filter()?
+        .bind(&ds.meta.schema)
+        .map_err(|e| anyhow!(e))?;
+    let start = Instant::now();
+    let v = volume::volume(&ds, &polygon, base, a.cell, &bound).map_err(|e| anyhow!(e))?;
+    let secs = start.elapsed().as_secs_f64();
+    let base_text = match (&base, v.plane) {
+        (Base::Rim, Some(p)) => format!(
+            "plane fitted to {} rim points, {:.3} m at the first vertex, slopes {:.4} east, {:.4} north",
+            thousands(v.rim_points),
+            p[0],
+            p[1],
+            p[2]
+        ),
+        (Base::Elevation(z), _) => format!("elevation {z}"),
+        _ => format!("the surface of {}", a.base),
+    };
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "fill": v.fill, "cut": v.cut, "net": v.net(), "area": v.area,
+                "cell": v.cell, "cells": v.cells, "empty_cells": v.empty_cells,
+                "base_empty_cells": v.base_empty_cells, "points": v.points,
+                "rim_points": v.rim_points, "plane": v.plane, "base": base_text,
+                "nodes_read": v.nodes_read, "seconds": secs,
+            })
+        );
+        return Ok(());
+    }
+    println!("{}", a.dataset.display());
+    println!("  fill        {:.3} m3 above the base", v.fill);
+    println!("  cut         {:.3} m3 below the base", v.cut);
+    println!("  net         {:.3} m3", v.net());
+    println!(
+        "  area        {:.3} m2 ({} cells of {} m)",
+        v.area,
+        thousands(v.cells),
+        v.cell
+    );
+    println!("  base        {base_text}");
+    let empty = |n: u64| {
+        format!(
+            "{} ({:.1} %), filled from their neighbours",
+            thousands(n),
+            100.0 * n as f64 / v.cells.max(1) as f64
+        )
+    };
+    println!("  empty cells {}", empty(v.empty_cells));
+    if matches!(base, Base::Surface(_)) {
+        println!("  empty cells {} of the base", empty(v.base_empty_cells));
+    }
+    println!(
+        "  points      {} from {} nodes, {secs:.2} s",
+        thousands(v.points),
+        thousands(v.nodes_read)
+    );
+    Ok(())
+}

@@ -1,0 +1,572 @@
+//! The surveyor's tools as a user runs them: `volume` on the synthetic stockpiles against their
+//! analytic volumes (and two epochs against the pile taken away), `profile` to CSV, LAS, DXF
+//! and PNG checked against the geometry (and, where `MYRIAD_PYTHON` has them, by laspy and
+//! ezdxf), the filters of `extract`, and the one-line errors of bad input.
+
+mod common;
+use common::{myriad, ok, s, tempdir};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+fn fails(args: &[&str], says: &str) {
+    let r = myriad(args);
+    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
+    let line = r.stderr.trim();
+    assert!(line.contains(says), "{args:?}: {line}");
+    assert_eq!(line.lines().count(), 1, "one line: {line}");
+}
+
+/// A pile line of `synth --scene stockpiles`: (volume, polygon).
+fn piles(out: &str) -> Vec<(f64, String)> {
+    out.lines()
+        .filter(|l| l.starts_with("pile "))
+        .map(|l| {
+            let v = l.split(" m high, ").nth(1).unwrap();
+            let v: f64 = v.split(" m3").next().unwrap().parse().unwrap();
+            (v, l.split("--polygon ").nth(1).unwrap().trim().to_string())
+        })
+        .collect()
+}
+
+fn json(out: &str) -> serde_json::Value {
+    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"))
+}
+
+fn stockpiles(d: &Path, epoch: &str) -> (PathBuf, Vec<(f64, String)>) {
+    let las = d.join(format!("piles{epoch}.las"));
+    let myr = d.join(format!("piles{epoch}.myr"));
+    let out = ok(&[
+        "synth",
+        "--scene",
+        "stockpiles",
+        "--points",
+        "1M",
+        "--epoch",
+        epoch,
+        "-o",
+        s(&las),
+    ]);
+    ok(&["convert", s(&las), "-o", s(&myr)]);
+    (myr, piles(&out))
+}
+
+#[test]
+fn stockpile_volumes_within_one_percent() {
+    let d = tempdir("measure-volume");
+    let (myr, piles) = stockpiles(&d, "1");
+    assert!(piles.len() >= 30, "{} piles", piles.len());
+    for (analytic, polygon) in piles.iter().take(8) {
+        let v = json(&ok(&["volume", s(&myr), "--polygon", polygon, "--json"]));
+        let fill = v["fill"].as_f64().unwrap();
+        let err = (fill - analytic).abs() / analytic;
+        assert!(
+            err < 0.01,
+            "fill {fill} vs {analytic}: {:.2} %",
+            100.0 * err
+        );
+        assert!(v["cut"].as_f64().unwrap() < 0.005 * analytic, "{v}");
+        assert!(v["rim_points"].as_u64().unwrap() > 100, "{v}");
+    }
+    // A given elevation: the plane's slope under the pile counts too, so only sanity here.
+    let (analytic, polygon) = &piles[0];
+    let v = json(&ok(&[
+        "volume",
+        s(&myr),
+        "--polygon",
+        polygon,
+        "--base",
+        "90",
+        "--json",
+    ]));
+    assert!(v["fill"].as_f64().unwrap() > 10.0 * analytic, "{v}");
+    assert_eq!(v["cut"].as_f64().unwrap(), 0.0);
+
+    // A later survey with the first pile gone: cut against the earlier surface is that pile.
+    let (later, piles2) = stockpiles(&d, "2");
+    assert_eq!(piles2.len(), piles.len());
+    let v = json(&ok(&[
+        "volume",
+        s(&later),
+        "--polygon",
+        polygon,
+        "--base",
+        s(&myr),
+        "--json",
+    ]));
+    let cut = v["cut"].as_f64().unwrap();
+    assert!(
+        (cut - analytic).abs() < 0.01 * analytic,
+        "cut {cut} vs {analytic}"
+    );
+    assert!(v["fill"].as_f64().unwrap() < 0.005 * analytic, "{v}");
+    // The other piles stand: neither cut nor fill over the second.
+    let (_, polygon2) = &piles[1];
+    let v = json(&ok(&[
+        "volume",
+        s(&later),
+        "--polygon",
+        polygon2,
+        "--base",
+        s(&myr),
+        "--json",
+    ]));
+    assert!(v["net"].as_f64().unwrap().abs() < 0.01 * piles[1].0, "{v}");
+    let text = ok(&["volume", s(&myr), "--polygon", polygon]);
+    assert!(
+        text.contains("fill") && text.contains("m3 above the base"),
+        "{text}"
+    );
+
+    // Bad polygons and bases: one line each.
+    fails(
+        &["volume", s(&myr), "--polygon", "0,0,10,10,10,0,0,10"],
+        "crosses itself",
+    );
+    fails(&["volume", s(&myr), "--polygon", "0,0,10,10"], "at least 3");
+    fails(
+        &["volume", s(&myr), "--polygon", "0,0,10,0,0,10"],
+        "holds no point",
+    );
+    fails(
+        &["volume", s(&myr), "--polygon", polygon, "--base", "nowhere"],
+        "--base \"nowhere\"",
+    );
+    fails(
+        &["volume", s(&myr), "--polygon", polygon, "--cell", "0"],
+        "--cell 0",
+    );
+}
+
+/// Distance along and across a polyline, computed here on its own: the nearest segment.
+fn station(line: &[[f64; 2]], p: [f64; 2]) -> (f64, f64, f64) {
+    let mut best = (f64::INFINITY, 0.0, 0.0);
+    let mut start = 0.0;
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        let t = (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / (len * len)).clamp(0.0, 1.0);
+        let f = [a[0] + t * d[0], a[1] + t * d[1]];
+        let dist = ((p[0] - f[0]).powi(2) + (p[1] - f[1]).powi(2)).sqrt();
+        let side = (d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0])).signum();
+        if dist < best.0 {
+            best = (dist, start + t * len, dist * side);
+        }
+        start += len;
+    }
+    best
+}
+
+fn python_with(modules: &str) -> Option<String> {
+    let candidates = std::env::var("MYRIAD_PYTHON")
+        .into_iter()
+        .chain(["python3".to_string()]);
+    candidates.into_iter().find(|py| {
+        Command::new(py)
+            .args(["-c", &format!("import {modules}")])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    })
+}
+
+#[test]
+fn profile_to_csv_las_dxf_png() {
+    let d = tempdir("measure-profile");
+    let las = d.join("city.las");
+    let myr = d.join("city.myr");
+    ok(&["synth", "--points", "300k", "-o", s(&las)]);
+    ok(&["convert", s(&las), "-o", s(&myr)]);
+    let ds = myriad_format::Dataset::open(&myr).unwrap();
+    let b = ds.meta.bounds;
+    let (w, h) = (b.max[0] - b.min[0], b.max[1] - b.min[1]);
+    // An L across the city: 3 m wide.
+    let line = [
+        [b.min[0] + 0.1 * w, b.min[1] + 0.2 * h],
+        [b.min[0] + 0.8 * w, b.min[1] + 0.3 * h],
+        [b.min[0] + 0.7 * w, b.min[1] + 0.9 * h],
+    ];
+    let line_arg = line
+        .iter()
+        .map(|p| format!("{},{}", p[0], p[1]))
+        .collect::<Vec<_>>()
+        .join(",");
+    let width = 3.0;
+    let all = d.join("all.las");
+    ok(&["extract", s(&myr), "-o", s(&all)]);
+    // Every point of the scan within 1.5 m of the line, found here by brute force.
+    let mut expect: Vec<[i64; 3]> = Vec::new();
+    let mut src = myriad_io::open(&all, &Default::default()).unwrap();
+    while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH).unwrap() {
+        for p in &b.positions {
+            if station(&line, [p[0], p[1]]).0 <= width / 2.0 {
+                expect.push(p.map(|v| (v * 1000.0).round() as i64));
+            }
+        }
+    }
+    expect.sort();
+    assert!(
+        expect.len() > 1000,
+        "{} points in the corridor",
+        expect.len()
+    );
+
+    let csv = d.join("profile.csv");
+    let out = ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &line_arg,
+        "--width",
+        "3",
+        "-o",
+        s(&csv),
+    ]);
+    assert!(
+        out.contains(&format!(
+            "{} points",
+            myriad_core::units::thousands(expect.len() as u64)
+        )),
+        "{out}"
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut rows = text.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    assert_eq!(&header[..5], ["x", "y", "z", "distance", "offset"]);
+    assert!(header.contains(&"classification") && header.contains(&"intensity"));
+    let mut got = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    for r in rows {
+        let v: Vec<f64> = r.split(',').map(|t| t.parse().unwrap()).collect();
+        let (_, along, across) = station(&line, [v[0], v[1]]);
+        assert!((v[3] - along).abs() < 1e-3, "distance {} vs {along}", v[3]);
+        assert!((v[4] - across).abs() < 1e-3, "offset {} vs {across}", v[4]);
+        assert!(v[3] >= last, "sorted along the line");
+        last = v[3];
+        got.push([v[0], v[1], v[2]].map(|c| (c * 1000.0).round() as i64));
+    }
+    got.sort();
+    assert_eq!(got, expect, "the CSV holds exactly the corridor's points");
+
+    let corridor = d.join("profile.laz");
+    ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &line_arg,
+        "--width",
+        "3",
+        "-o",
+        s(&corridor),
+    ]);
+    let mut got = Vec::new();
+    let mut src = myriad_io::open(&corridor, &Default::default()).unwrap();
+    while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH).unwrap() {
+        got.extend(
+            b.positions
+                .iter()
+                .map(|p| p.map(|v| (v * 1000.0).round() as i64)),
+        );
+    }
+    got.sort();
+    assert_eq!(got, expect, "the LAZ holds exactly the corridor's points");
+
+    let dxf = d.join("profile.dxf");
+    ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &line_arg,
+        "--width",
+        "3",
+        "-o",
+        s(&dxf),
+    ]);
+    let png = d.join("profile.png");
+    let out = ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &line_arg,
+        "--width",
+        "3",
+        "-o",
+        s(&png),
+        "--pixels",
+        "800",
+        "--color",
+        "classification",
+    ]);
+    assert!(out.contains("800 x "), "{out}");
+    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let mut reader = img.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.width, 800);
+    let ground = myriad_core::colour::class_colour(2);
+    let lit = buf
+        .chunks(info.color_type.samples())
+        .filter(|p| p[..3] == ground)
+        .count();
+    assert!(lit > 200, "{lit} pixels of ground colour in the profile");
+
+    // Read by the field's readers: the corridor by laspy against the whole scan, the drawing
+    // by ezdxf.
+    match python_with("laspy, lazrs, ezdxf, numpy") {
+        None => eprintln!(
+            "SKIPPED: no Python with laspy[lazrs] and ezdxf (MYRIAD_PYTHON); .ci/run installs them"
+        ),
+        Some(py) => {
+            let script = format!(
+                r#"
+import laspy, ezdxf, numpy as np, sys
+line = np.array({line:?})
+def dist(x, y):
+    best = np.full(len(x), np.inf)
+    for a, b in zip(line[:-1], line[1:]):
+        d = b - a
+        t = np.clip(((x - a[0]) * d[0] + (y - a[1]) * d[1]) / d.dot(d), 0, 1)
+        best = np.minimum(best, np.hypot(x - a[0] - t * d[0], y - a[1] - t * d[1]))
+    return best
+full = laspy.read(sys.argv[1]); cut = laspy.read(sys.argv[2])
+inside = dist(np.asarray(full.x), np.asarray(full.y)) <= 1.5
+key = lambda l, m: sorted(zip(l.X[m].tolist(), l.Y[m].tolist(), l.Z[m].tolist()))
+assert key(full, inside) == key(cut, np.ones(len(cut.X), bool)), "laspy: corridor differs"
+assert set(np.asarray(cut.classification).tolist()) <= set(np.asarray(full.classification).tolist())
+doc = ezdxf.readfile(sys.argv[3])
+msp = doc.modelspace()
+points = msp.query("POINT"); polys = msp.query("LWPOLYLINE")
+assert len(points) == len(cut.X), (len(points), len(cut.X))
+assert len(polys) == 2, len(polys)
+assert {{p.dxf.layer for p in points}} == {{"POINTS"}}
+prof = [p for p in polys if p.dxf.layer == "PROFILE"][0]
+xs = [v[0] for v in prof.get_points()]
+assert xs == sorted(xs) and xs[-1] <= {length} + 1e-6, "profile line along the section"
+print("ok", len(points))
+"#,
+                line = line.map(|p| p.to_vec()),
+                length = {
+                    let mut l = 0.0;
+                    for w in line.windows(2) {
+                        l += ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+                    }
+                    l
+                }
+            );
+            let r = Command::new(&py)
+                .args(["-c", &script, s(&all), s(&corridor), s(&dxf)])
+                .output()
+                .unwrap();
+            assert!(
+                r.status.success(),
+                "{}{}",
+                String::from_utf8_lossy(&r.stdout),
+                String::from_utf8_lossy(&r.stderr)
+            );
+            assert_eq!(
+                String::from_utf8_lossy(&r.stdout).trim(),
+                format!("ok {}", expect.len())
+            );
+        }
+    }
+
+    // A line away from the data: a valid empty file, and said.
+    let empty = d.join("empty.csv");
+    let out = ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        "0,0,10,10",
+        "--width",
+        "2",
+        "-o",
+        s(&empty),
+    ]);
+    assert!(out.contains("holds no point"), "{out}");
+    assert_eq!(
+        std::fs::read_to_string(&empty).unwrap().lines().count(),
+        1,
+        "the header only"
+    );
+    fails(
+        &[
+            "profile",
+            s(&myr),
+            "--line",
+            &line_arg,
+            "--width",
+            "0",
+            "-o",
+            s(&d.join("z.csv")),
+        ],
+        "--width 0",
+    );
+    fails(
+        &[
+            "profile",
+            s(&myr),
+            "--line",
+            "1,2,3",
+            "--width",
+            "2",
+            "-o",
+            s(&d.join("z.csv")),
+        ],
+        "odd count",
+    );
+    fails(
+        &[
+            "profile",
+            s(&myr),
+            "--line",
+            &line_arg,
+            "--width",
+            "2",
+            "--classes",
+            "grond",
+            "-o",
+            s(&d.join("z.csv")),
+        ],
+        "\"grond\": no such class",
+    );
+    fails(
+        &[
+            "profile",
+            s(&myr),
+            "--line",
+            &line_arg,
+            "--width",
+            "2",
+            "--where",
+            "amplitude>2",
+            "-o",
+            s(&d.join("z.csv")),
+        ],
+        "no attribute \"amplitude\"",
+    );
+    assert!(!d.join("z.csv").exists());
+}
+
+#[test]
+fn extract_keeps_exactly_the_filtered_records() {
+    let d = tempdir("measure-filter");
+    let las = d.join("city.las");
+    let myr = d.join("city.myr");
+    ok(&["synth", "--points", "200k", "-o", s(&las)]);
+    ok(&["convert", s(&las), "-o", s(&myr)]);
+    let all = common::records(&las);
+    let class = |r: &Vec<i64>| r[5];
+    let some = d.join("some.las");
+    ok(&["extract", s(&myr), "-o", s(&some), "--classes", "2,6"]);
+    let expect: Vec<Vec<i64>> = all
+        .iter()
+        .filter(|r| matches!(class(r), 2 | 6))
+        .cloned()
+        .collect();
+    assert!(expect.len() > 1000 && expect.len() < all.len());
+    assert_eq!(common::records(&some), expect);
+    // Names, and a condition on the intensity.
+    let bright = d.join("bright.laz");
+    ok(&[
+        "extract",
+        s(&myr),
+        "-o",
+        s(&bright),
+        "--classes",
+        "building",
+        "--where",
+        "intensity>=2000 and return_number=1",
+    ]);
+    let expect: Vec<Vec<i64>> = all
+        .iter()
+        .filter(|r| class(r) == 6 && r[4] >= 2000 && r[6] == 1)
+        .cloned()
+        .collect();
+    assert!(!expect.is_empty());
+    assert_eq!(common::records(&bright), expect);
+    // Drawn: with classes coloured and no pass blending them, every lit pixel is ground's.
+    let png = d.join("ground.png");
+    ok(&[
+        "render",
+        s(&myr),
+        "-o",
+        s(&png),
+        "--classes",
+        "2",
+        "--color",
+        "classification",
+        "--passes",
+        "none",
+        "--raster",
+        "cpu",
+        "--width",
+        "320",
+        "--height",
+        "200",
+    ]);
+    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let mut reader = img.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let ground = myriad_core::colour::class_colour(2);
+    let (mut lit, mut other) = (0, 0);
+    for p in buf.chunks(info.color_type.samples()) {
+        if p[..3] == ground {
+            lit += 1;
+        } else if p[..3] != [0, 0, 0] {
+            other += 1;
+        }
+    }
+    assert!(lit > 5000, "{lit} ground pixels");
+    assert_eq!(other, 0, "pixels of other colours than ground's");
+    // Unfiltered, buildings show.
+    ok(&[
+        "render",
+        s(&myr),
+        "-o",
+        s(&png),
+        "--color",
+        "classification",
+        "--passes",
+        "none",
+        "--raster",
+        "cpu",
+        "--width",
+        "320",
+        "--height",
+        "200",
+        "--force",
+    ]);
+    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let mut reader = img.read_info().unwrap();
+    let info = reader.next_frame(&mut buf).unwrap();
+    let building = myriad_core::colour::class_colour(6);
+    let n = buf
+        .chunks(info.color_type.samples())
+        .filter(|p| p[..3] == building)
+        .count();
+    assert!(n > 500, "{n} building pixels unfiltered");
+    fails(
+        &[
+            "render",
+            s(&myr),
+            "-o",
+            s(&d.join("x.png")),
+            "--where",
+            "nir>3",
+        ],
+        "no attribute \"nir\"",
+    );
+    fails(
+        &[
+            "extract",
+            s(&myr),
+            "-o",
+            s(&d.join("x.las")),
+            "--where",
+            "intensity~2",
+        ],
+        "expected NAME OP VALUE",
+    );
+    assert!(!d.join("x.las").exists());
+}
