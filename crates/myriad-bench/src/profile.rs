@@ -93,6 +93,9 @@ pub fn run(a: ProfileBenchArgs) -> Result<()> {
             base_points = s.points;
             base.push(t);
         }
+        let u = myriad_measure::measurement::unit_name(
+            (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
+        );
         println!(
             "{}: {} points, {} nodes",
             path.display(),
@@ -100,8 +103,8 @@ pub fn run(a: ProfileBenchArgs) -> Result<()> {
             ds.meta.nodes
         );
         println!(
-            "  profile     {:.3} km x {} m: {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
-            corridor.length() / 1000.0,
+            "  profile     {:.1} x {} {u}: {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
+            corridor.length(),
             a.width,
             points,
             nodes,

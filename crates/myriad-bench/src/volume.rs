@@ -84,6 +84,9 @@ pub fn run(a: VolumeBenchArgs) -> Result<()> {
             base.push(t);
         }
         let v = last.expect("one run");
+        let u = myriad_measure::measurement::unit_name(
+            (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
+        );
         println!(
             "{}: {} points, {} nodes",
             path.display(),
@@ -91,7 +94,7 @@ pub fn run(a: VolumeBenchArgs) -> Result<()> {
             ds.meta.nodes
         );
         println!(
-            "  volume      {:.0} m2, {} cells of {} m: fill {:.1} m3, cut {:.1} m3, {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
+            "  volume      {:.0} {u}2, {} cells of {} {u}: fill {:.1} {u}3, cut {:.1} {u}3, {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
             v.area,
             v.cells,
             v.cell,

@@ -50,11 +50,22 @@ fn drawing(layers: &[(&str, u8)]) -> Drawing {
     d
 }
 
+/// At most this many points in a drawing (the `dxf` crate holds a drawing in memory, a few
+/// hundred bytes a point entity).
+pub const MAX_DXF_POINTS: usize = 2_000_000;
+
 /// A profile as a drawing: on `PROFILE` the profile line (the highest point of each step of half
 /// the width along the line) as a 2D polyline of (distance along, elevation); on `POINTS` every
 /// point of the corridor as a 3D point in the dataset's coordinates; on `LINE` the section
 /// line in plan.
-pub fn profile_drawing(p: &Profile, corridor: &Corridor) -> Drawing {
+pub fn profile_drawing(p: &Profile, corridor: &Corridor) -> Result<Drawing> {
+    if p.len() > MAX_DXF_POINTS {
+        return Err(Error::Invalid(format!(
+            "the corridor holds {} points, more than a DXF takes here ({MAX_DXF_POINTS}): a \
+             narrower --width, or a .laz output",
+            p.len()
+        )));
+    }
     let mut d = drawing(&[(PROFILE_LAYER, 1), (POINTS_LAYER, 7), (LINE_LAYER, 3)]);
     let top = p.top_line((p.width / 2.0).max(1e-3));
     if top.len() >= 2 {
@@ -68,7 +79,7 @@ pub fn profile_drawing(p: &Profile, corridor: &Corridor) -> Drawing {
         e.common.layer = POINTS_LAYER.into();
         d.add_entity(e);
     }
-    d
+    Ok(d)
 }
 
 /// A polygon (a volume's footprint) as a closed polyline on layer `name` at `elevation`.

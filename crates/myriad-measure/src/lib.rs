@@ -3,6 +3,7 @@
 //! - [`filter`]: classes and attribute ranges (`--classes`, `--where`);
 //! - [`corridor`] and [`profile`]: cross-sections along a polyline, to CSV, DXF and PNG (LAS and
 //!   LAZ through `myriad_build::extract` with the corridor as its region);
+//! - [`measurement`]: point, distance, height, area, angle, circle, azimuth, in m / ft / US ft;
 //! - [`polygon`] and [`volume`]: volumes over a polygon above a base (a plane fitted to the rim,
 //!   an elevation, or an earlier dataset), cut and fill apart.
 //!
@@ -13,6 +14,7 @@ pub mod corridor;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod files;
 pub mod filter;
+pub mod measurement;
 pub mod polygon;
 pub mod profile;
 pub mod volume;

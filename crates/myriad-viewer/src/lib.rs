@@ -23,7 +23,7 @@ pub use builds::Builds;
 use eframe::egui;
 use eframe::egui_wgpu;
 use eframe::wgpu;
-use measure::{Kind, Measurement};
+use measure::{Kind, Measurement, Units};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
@@ -82,8 +82,11 @@ struct App {
     orbit_times: Vec<(f64, f64)>,
     /// The measuring tool in use, if any.
     tool: Option<Kind>,
-    /// Measurements, the one being made last.
+    /// Measurements, the one being made last; the units their lengths show in, and metres per
+    /// unit of the first dataset's coordinates (from its CRS).
     measurements: Vec<Measurement>,
+    units: Units,
+    data_metres: Option<f64>,
     /// Saved views: name, camera, pivot.
     bookmarks: Vec<(String, Camera, [f64; 3])>,
     /// Screenshots saved from the panel.
@@ -144,6 +147,9 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     if layers.is_empty() {
         return Err("no dataset to view".into());
     }
+    let data_metres = (layers.first())
+        .and_then(|l| l.dataset.meta.crs.as_deref())
+        .and_then(measure::metres_per_unit);
     let mut nav = Nav::framing(&bounds, &all, o.fov);
     if let Some((eye, target)) = o.camera {
         nav.look(eye, target);
@@ -178,6 +184,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         orbit_times: Vec::new(),
         tool: None,
         measurements: Vec::new(),
+        units: Units::Data,
+        data_metres,
         bookmarks: Vec::new(),
         shots: 0,
         clip: [[0.25, 0.75]; 3],
@@ -407,17 +415,23 @@ impl App {
         }
         ui.separator();
         ui.label("measure");
-        ui.horizontal(|ui| {
-            for (kind, name) in [
-                (Kind::Distance, "distance"),
-                (Kind::Height, "height"),
-                (Kind::Area, "area"),
-            ] {
-                if ui.selectable_label(self.tool == Some(kind), name).clicked() {
+        ui.horizontal_wrapped(|ui| {
+            for kind in Kind::ALL {
+                if ui
+                    .selectable_label(self.tool == Some(kind), kind.name())
+                    .clicked()
+                {
                     self.start_measuring(kind);
                 }
             }
         });
+        egui::ComboBox::from_label("units")
+            .selected_text(format!("{:?}", self.units))
+            .show_ui(ui, |ui| {
+                for u in [Units::Data, Units::Metres, Units::Feet, Units::UsFeet] {
+                    ui.selectable_value(&mut self.units, u, format!("{u:?}"));
+                }
+            });
         ui.horizontal(|ui| {
             if ui.button("stop").clicked() {
                 self.tool = None;
@@ -427,7 +441,7 @@ impl App {
             }
         });
         for m in &self.measurements {
-            if let Some(l) = m.label() {
+            if let Some(l) = m.label(self.units, self.data_metres) {
                 ui.monospace(l);
             }
         }
@@ -558,7 +572,9 @@ impl App {
             for p in pts.iter().flatten() {
                 painter.circle_filled(*p, 4.0, colour);
             }
-            if let (Some(label), Some(Some(at))) = (m.label(), pts.last()) {
+            if let (Some(label), Some(Some(at))) =
+                (m.label(self.units, self.data_metres), pts.last())
+            {
                 painter.text(
                     *at + egui::vec2(8.0, -8.0),
                     egui::Align2::LEFT_BOTTOM,
@@ -604,6 +620,10 @@ impl App {
             (egui::Key::M, Kind::Distance),
             (egui::Key::N, Kind::Height),
             (egui::Key::A, Kind::Area),
+            (egui::Key::O, Kind::Angle),
+            (egui::Key::C, Kind::Circle),
+            (egui::Key::Z, Kind::Azimuth),
+            (egui::Key::I, Kind::Point),
         ] {
             if pressed(key) && !self.nav.fly {
                 self.start_measuring(kind);

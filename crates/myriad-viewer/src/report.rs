@@ -107,6 +107,10 @@ pub(crate) const HELP: &[(&str, &str)] = &[
         "M / N / A",
         "measure distance / height / area: click points, right click ends",
     ),
+    (
+        "O / C / Z / I",
+        "measure an angle (3 points) / a circle (3) / an azimuth (2) / a point",
+    ),
     ("Esc", "stop measuring"),
     (
         "G",

@@ -89,6 +89,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
+    let u = units_of(&ds);
     let start = Instant::now();
     if matches!(ext.as_str(), "las" | "laz") {
         let s = extract::extract(
@@ -105,7 +106,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
             bail!("{} (the profile would lack its points)", ds.damage_error(d));
         }
         println!(
-            "{}: {} points within {} m of a {:.3} m line, from {} nodes, {:.2} s",
+            "{}: {} points within {} {u} of a {:.3} {u} line, from {} nodes, {:.2} s",
             a.output.display(),
             thousands(s.points),
             a.width / 2.0,
@@ -124,7 +125,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     match ext.as_str() {
         "csv" => write_atomic(&a.output, a.force, |w| p.write_csv(w))?,
         "dxf" => save_drawing(
-            &myriad_measure::files::profile_drawing(&p, &corridor),
+            &myriad_measure::files::profile_drawing(&p, &corridor)?,
             &a.output,
             a.force,
         )?,
@@ -147,7 +148,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     }
     let (z0, z1) = p.z_range();
     println!(
-        "{}: {} points within {} m of a {:.3} m line (elevation {z0:.3} to {z1:.3}), from {} nodes, {:.2} s",
+        "{}: {} points within {} {u} of a {:.3} {u} line (elevation {z0:.3} to {z1:.3}), from {} nodes, {:.2} s",
         a.output.display(),
         thousands(p.len() as u64),
         a.width / 2.0,
@@ -159,6 +160,13 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
         println!("the corridor holds no point: the file has no rows");
     }
     Ok(())
+}
+
+/// The units the dataset's CRS gives its coordinates ("units" where it says none).
+fn units_of(ds: &Dataset) -> &'static str {
+    myriad_measure::measurement::unit_name(
+        (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
+    )
 }
 
 #[derive(Args)]
@@ -230,12 +238,13 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         );
         return Ok(());
     }
+    let u = units_of(&ds);
     println!("{}", a.dataset.display());
-    println!("  fill        {:.3} m3 above the base", v.fill);
-    println!("  cut         {:.3} m3 below the base", v.cut);
-    println!("  net         {:.3} m3", v.net());
+    println!("  fill        {:.3} {u}3 above the base", v.fill);
+    println!("  cut         {:.3} {u}3 below the base", v.cut);
+    println!("  net         {:.3} {u}3", v.net());
     println!(
-        "  area        {:.3} m2 ({} cells of {} m)",
+        "  area        {:.3} {u}2 ({} cells of {} {u})",
         v.area,
         thousands(v.cells),
         v.cell
