@@ -7,6 +7,8 @@
 //! - [`polygon`] and [`volume`]: volumes over a polygon above a base (a plane fitted to the rim,
 //!   an elevation, or an earlier dataset), cut and fill apart.
 //!
+//! - [`geojson`]: the results for GIS programs, with the CRS named.
+//!
 //! Every tool reads the original points, at full resolution, from the pages whose nodes meet
 //! its region ([`read_region`]), whatever a view draws.
 
@@ -14,6 +16,7 @@ pub mod corridor;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod files;
 pub mod filter;
+pub mod geojson;
 pub mod measurement;
 pub mod polygon;
 pub mod profile;

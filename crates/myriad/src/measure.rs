@@ -45,7 +45,8 @@ pub struct ProfileArgs {
     #[arg(long)]
     width: f64,
     /// Output: .csv (x, y, z, distance, offset, attributes), .las/.laz (the points as they
-    /// are), .dxf (the profile line, the points, the section line) or .png (the profile drawn)
+    /// are), .dxf (the profile line, the points, the section line), .png (the profile drawn)
+    /// or .geojson (the section line and its figures)
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
@@ -78,9 +79,12 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
     let filter = a.filter.filter()?;
     let ext = extension(&a.output);
-    if !matches!(ext.as_str(), "csv" | "las" | "laz" | "dxf" | "png") {
+    if !matches!(
+        ext.as_str(),
+        "csv" | "las" | "laz" | "dxf" | "png" | "geojson"
+    ) {
         bail!(
-            "{}: profile writes .csv, .las, .laz, .dxf or .png",
+            "{}: profile writes .csv, .las, .laz, .dxf, .png or .geojson",
             a.output.display()
         );
     }
@@ -124,6 +128,26 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
         .map_err(|e| anyhow!(e))?;
     match ext.as_str() {
         "csv" => write_atomic(&a.output, a.force, |w| p.write_csv(w))?,
+        "geojson" => {
+            use myriad_measure::geojson::{collection, feature, line_geometry};
+            let (z0, z1) = p.z_range();
+            let f = feature(
+                line_geometry(corridor.line()),
+                serde_json::json!({
+                    "dataset": a.dataset.display().to_string(), "length": corridor.length(),
+                    "width": corridor.width(), "points": p.len(),
+                    "z_min": z0, "z_max": z1, "units": u,
+                    // The profile line: (distance along, elevation), the highest point per
+                    // half-width step.
+                    "profile": p.top_line((p.width / 2.0).max(1e-3)),
+                }),
+            );
+            let doc = collection(vec![f], ds.meta.crs.as_deref());
+            write_atomic(&a.output, a.force, |w| {
+                serde_json::to_writer_pretty(&mut *w, &doc)?;
+                writeln!(w)
+            })?
+        }
         "dxf" => save_drawing(
             &myriad_measure::files::profile_drawing(&p, &corridor)?,
             &a.output,
@@ -188,11 +212,23 @@ pub struct VolumeArgs {
     /// Print the result as one JSON object
     #[arg(long)]
     json: bool,
+    /// Also write the polygon with its volumes as GeoJSON (the CRS named, for QGIS and GDAL)
+    #[arg(long, value_name = "FILE")]
+    geojson: Option<PathBuf>,
+    /// Replace an existing --geojson file
+    #[arg(long)]
+    force: bool,
 }
 
 pub fn volume(a: VolumeArgs) -> Result<()> {
     let pts = parse_xy_list(&a.polygon, "--polygon", 3).map_err(|e| anyhow!(e))?;
     let polygon = Polygon::new(&pts).map_err(|e| anyhow!(e))?;
+    if let Some(g) = &a.geojson {
+        myriad_io::atomic::refuse_input_as_output(g, &[&a.dataset])?;
+        if g.exists() && !a.force {
+            bail!("{}: output exists (use --force to replace it)", g.display());
+        }
+    }
     let ds = Dataset::open(&a.dataset)?;
     let earlier;
     let base = match a.base.as_str() {
@@ -225,6 +261,23 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         (Base::Elevation(z), _) => format!("elevation {z}"),
         _ => format!("the surface of {}", a.base),
     };
+    if let Some(g) = &a.geojson {
+        use myriad_measure::geojson::{collection, feature, polygon_geometry};
+        let f = feature(
+            polygon_geometry(polygon.vertices(), None),
+            serde_json::json!({
+                "dataset": a.dataset.display().to_string(),
+                "fill": v.fill, "cut": v.cut, "net": v.net(), "area": v.area, "cell": v.cell,
+                "cells": v.cells, "empty_cells": v.empty_cells, "base": base_text,
+                "points": v.points, "units": units_of(&ds),
+            }),
+        );
+        let doc = collection(vec![f], ds.meta.crs.as_deref());
+        write_atomic(g, a.force, |w| {
+            serde_json::to_writer_pretty(&mut *w, &doc)?;
+            writeln!(w)
+        })?;
+    }
     if a.json {
         println!(
             "{}",

@@ -111,6 +111,38 @@ fn stockpile_volumes_within_one_percent() {
         "--json",
     ]));
     assert!(v["net"].as_f64().unwrap().abs() < 0.01 * piles[1].0, "{v}");
+    // As GeoJSON, read by shapely: the polygon's area, the volumes, the CRS.
+    let gj = d.join("pile.geojson");
+    ok(&["volume", s(&myr), "--polygon", polygon, "--geojson", s(&gj)]);
+    match python_with("shapely") {
+        None => eprintln!("SKIPPED: no Python with shapely (MYRIAD_PYTHON); .ci/run installs it"),
+        Some(py) => {
+            let script = r#"
+import json, sys
+from shapely.geometry import shape
+doc = json.load(open(sys.argv[1]))
+assert doc["crs"]["properties"]["name"] == "urn:ogc:def:crs:EPSG::32633", doc.get("crs")
+(f,) = doc["features"]
+g = shape(f["geometry"])
+assert g.is_valid and g.geom_type == "Polygon"
+p = f["properties"]
+assert abs(g.area - p["area"]) < 1e-6 * p["area"], (g.area, p["area"])
+assert p["units"] == "m" and p["fill"] > 0
+print(round(p["fill"], 3))
+"#;
+            let r = Command::new(&py)
+                .args(["-c", script, s(&gj)])
+                .output()
+                .unwrap();
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            let fill: f64 = String::from_utf8_lossy(&r.stdout).trim().parse().unwrap();
+            assert!((fill - analytic).abs() < 0.01 * analytic, "{fill}");
+        }
+    }
+    fails(
+        &["volume", s(&myr), "--polygon", polygon, "--geojson", s(&gj)],
+        "output exists",
+    );
     let text = ok(&["volume", s(&myr), "--polygon", polygon]);
     assert!(
         text.contains("fill") && text.contains("m3 above the base"),
@@ -282,6 +314,29 @@ fn profile_to_csv_las_dxf_png() {
         "-o",
         s(&dxf),
     ]);
+    let gj = d.join("profile.geojson");
+    ok(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &line_arg,
+        "--width",
+        "3",
+        "-o",
+        s(&gj),
+    ]);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&gj).unwrap()).unwrap();
+    let f = &doc["features"][0];
+    assert_eq!(f["geometry"]["type"], "LineString");
+    assert_eq!(
+        f["properties"]["points"].as_u64(),
+        Some(expect.len() as u64)
+    );
+    assert_eq!(
+        doc["crs"]["properties"]["name"],
+        "urn:ogc:def:crs:EPSG::32633"
+    );
     let png = d.join("profile.png");
     let out = ok(&[
         "profile",
