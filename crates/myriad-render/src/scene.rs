@@ -520,7 +520,15 @@ impl Scene {
             .iter()
             .filter_map(|n| {
                 let p = self.buffers.get(&n.key)?;
-                let mut d = p.prefix(n.points, n.spacing);
+                // A filtered node holds fewer points than the selection counted: the same share
+                // of those kept (the kept points keep their level-of-detail order).
+                let total = self.hierarchy.get(&n.key).map_or(p.len, |e| e.points);
+                let count = if p.len < total {
+                    (n.points as u64 * p.len as u64).div_ceil(total as u64) as u32
+                } else {
+                    n.points
+                };
+                let mut d = p.prefix(count, n.spacing);
                 if cells {
                     d.node = Some((tree.index[&n.key] + base, self.hierarchy.bounds(&n.key)));
                 }

@@ -148,6 +148,43 @@ fn copc_is_read_by_laspy_and_copclib() {
     }
     assert!(v["boxes"][1].as_u64().unwrap() > 0, "{v}");
     assert_eq!(v["boxes"][2], 0);
+
+    // Filtered: ground and buildings only, as laspy reads the COPC, and as many as extract keeps.
+    let some = d.join("some.copc.laz");
+    ok(&["export", s(&myr), "-o", s(&some), "--classes", "2,6"]);
+    let las = d.join("some.las");
+    let e = ok(&["extract", s(&myr), "-o", s(&las), "--classes", "2,6"]);
+    let kept: u64 = e
+        .stdout
+        .split(": ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .replace(',', "")
+        .parse()
+        .unwrap();
+    let out = Command::new(&py)
+        .args([
+            "-c",
+            "import laspy, sys, numpy as np; l = laspy.read(sys.argv[1]); \
+             print(len(l.points), sorted(set(np.asarray(l.classification).tolist())))",
+            s(&some),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        said.trim(),
+        format!("{kept} [2, 6]"),
+        "laspy on the filtered COPC"
+    );
 }
 
 #[test]
