@@ -1,9 +1,9 @@
 //! Colour schemes: what a point's colour shows.
 
-use crate::PointBatch;
+use crate::{Column, PointBatch, Schema};
 
 /// What a point's colour shows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ColorBy {
     /// Its RGB (16-bit, scaled down; 8-bit values stored in 16-bit fields taken as they are);
     /// the elevation ramp where there is none.
@@ -21,6 +21,148 @@ pub enum ColorBy {
     Level,
     /// One light grey for every point, whatever its attributes: with shading on, the shape alone.
     Uniform,
+    /// Any column through a gradient over a range ([`Ramp`]).
+    Ramp(Ramp),
+}
+
+/// The gradients a [`Ramp`] maps values through, low to high.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gradient {
+    /// Blue, green, yellow, red (the elevation colours).
+    Spectral,
+    /// Perceptually even, dark violet to yellow, readable by the colour-blind.
+    Viridis,
+    /// A rainbow, dark blue through green and yellow to dark red (after Google's Turbo).
+    Turbo,
+    /// Black to white.
+    Grey,
+}
+
+impl Gradient {
+    pub const NAMES: &str = "spectral, viridis, turbo, grey";
+
+    pub fn parse(s: &str) -> Option<Gradient> {
+        Some(match s.to_ascii_lowercase().as_str() {
+            "spectral" | "rainbow" => Gradient::Spectral,
+            "viridis" => Gradient::Viridis,
+            "turbo" => Gradient::Turbo,
+            "grey" | "gray" => Gradient::Grey,
+            _ => return None,
+        })
+    }
+
+    /// The colour at `t` in 0..1 (clamped).
+    pub fn at(self, t: f64) -> [u8; 3] {
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+        match self {
+            Gradient::Spectral => ramp(t),
+            Gradient::Grey => [(t * 255.0).round() as u8; 3],
+            Gradient::Viridis => stops(&VIRIDIS, t),
+            Gradient::Turbo => stops(&TURBO, t),
+        }
+    }
+}
+
+/// Viridis at nine even steps (matplotlib's colour map, to 8 bits).
+const VIRIDIS: [[u8; 3]; 9] = [
+    [68, 1, 84],
+    [71, 45, 123],
+    [59, 82, 139],
+    [44, 114, 142],
+    [33, 145, 140],
+    [40, 174, 128],
+    [94, 201, 98],
+    [173, 220, 48],
+    [253, 231, 37],
+];
+
+/// A rainbow after Google's Turbo, approximated at eleven even steps.
+const TURBO: [[u8; 3]; 11] = [
+    [48, 18, 59],
+    [65, 69, 171],
+    [70, 117, 237],
+    [57, 162, 252],
+    [27, 207, 212],
+    [36, 236, 166],
+    [97, 252, 108],
+    [164, 252, 59],
+    [250, 186, 57],
+    [230, 95, 24],
+    [122, 4, 3],
+];
+
+/// Linear between even stops.
+fn stops(s: &[[u8; 3]], t: f64) -> [u8; 3] {
+    let x = t * (s.len() - 1) as f64;
+    let i = (x.floor() as usize).min(s.len() - 2);
+    let f = x - i as f64;
+    std::array::from_fn(|k| (s[i][k] as f64 * (1.0 - f) + s[i + 1][k] as f64 * f).round() as u8)
+}
+
+/// A column's values mapped through a gradient: `range[0]` low, `range[1]` high.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ramp {
+    pub column: Column,
+    pub gradient: Gradient,
+    pub range: [f64; 2],
+}
+
+impl Ramp {
+    /// The 2nd and 98th percentiles of the column in `sample` (the dataset's overview): a
+    /// range few outliers stretch. `None` where the sample holds no value of it.
+    pub fn fit(column: Column, sample: &PointBatch) -> Option<[f64; 2]> {
+        let mut v: Vec<f64> = (0..sample.len())
+            .map(|i| column.value(sample, i))
+            .filter(|v| v.is_finite())
+            .collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        let (lo, hi) = (at(0.02), at(0.98));
+        Some(if hi > lo { [lo, hi] } else { [lo, lo + 1.0] })
+    }
+}
+
+/// What `--color NAME [--gradient G] [--range LOW,HIGH]` asks for, against a dataset's schema:
+/// a scheme by its name (without a gradient or a range), else a ramp over the column `NAME`
+/// (elevation for `elevation`), through `G` (viridis, or spectral for elevation), over the range
+/// given or [`Ramp::fit`] to `sample`.
+pub fn choose(
+    name: &str,
+    gradient: Option<Gradient>,
+    range: Option<[f64; 2]>,
+    schema: &Schema,
+    sample: &PointBatch,
+) -> Result<ColorBy, String> {
+    if gradient.is_none()
+        && range.is_none()
+        && let Some(c) = ColorBy::parse(name)
+    {
+        return Ok(c);
+    }
+    let column = Column::find(name, schema).ok_or_else(|| {
+        format!(
+            "--color \"{name}\": no such scheme (rgb, intensity, elevation, classification, \
+             return, source, level, uniform) or attribute of this dataset (it has: x, y, z, {})",
+            schema.names().join(", ")
+        )
+    })?;
+    let gradient = gradient.unwrap_or(if matches!(column, Column::Axis(2)) {
+        Gradient::Spectral
+    } else {
+        Gradient::Viridis
+    });
+    let range = match range {
+        Some(r) => r,
+        None => Ramp::fit(column, sample).unwrap_or([0.0, 1.0]),
+    };
+    Ok(ColorBy::Ramp(Ramp {
+        column,
+        gradient,
+        range,
+    }))
 }
 
 impl ColorBy {
@@ -147,6 +289,13 @@ pub fn colours(
         },
         ColorBy::Level => vec![rgba(palette(level)); n],
         ColorBy::Uniform => vec![[210, 210, 210, 255]; n],
+        ColorBy::Ramp(r) => {
+            let [lo, hi] = r.range;
+            let span = if hi > lo { hi - lo } else { 1.0 };
+            (0..n)
+                .map(|i| rgba(r.gradient.at((r.column.value(b, i) - lo) / span)))
+                .collect()
+        }
     }
 }
 
@@ -191,5 +340,48 @@ mod tests {
             Some(ColorBy::Classification)
         );
         assert_eq!(ColorBy::parse("purple"), None);
+    }
+
+    #[test]
+    fn ramps_over_any_column() {
+        let schema = Schema::new(vec![Attribute::Intensity, Attribute::GpsTime]);
+        let mut b = PointBatch::with_schema(&schema, 101);
+        for i in 0..101 {
+            b.positions.push([0.0, 0.0, i as f64]);
+            b.intensity.as_mut().unwrap().push(i as u16 * 10);
+            b.gps_time.as_mut().unwrap().push(1000.0 + i as f64);
+        }
+        let c = choose(
+            "gps_time",
+            Some(Gradient::Grey),
+            Some([1000.0, 1100.0]),
+            &schema,
+            &b,
+        )
+        .unwrap();
+        let px = colours(&b, 101, c, (0.0, 1.0), 0);
+        assert_eq!(px[0], [0, 0, 0, 255]);
+        assert_eq!(px[100], [255, 255, 255, 255]);
+        assert!(
+            px.windows(2).all(|w| w[0][0] <= w[1][0]),
+            "rises with the value"
+        );
+        // Fitted to the sample: 2nd to 98th percentile.
+        let ColorBy::Ramp(r) =
+            choose("intensity", Some(Gradient::Viridis), None, &schema, &b).unwrap()
+        else {
+            panic!("a ramp")
+        };
+        assert_eq!(r.range, [20.0, 980.0]);
+        assert_eq!(Gradient::Viridis.at(0.0), [68, 1, 84]);
+        assert_eq!(Gradient::Viridis.at(1.0), [253, 231, 37]);
+        assert_eq!(Gradient::Turbo.at(0.5), [36, 236, 166]);
+        // A scheme by name stays one; an unknown name is refused, naming what there is.
+        assert_eq!(
+            choose("intensity", None, None, &schema, &b),
+            Ok(ColorBy::Intensity)
+        );
+        let e = choose("amplitude", None, None, &schema, &b).unwrap_err();
+        assert!(e.contains("\"amplitude\"") && e.contains("gps_time"), "{e}");
     }
 }

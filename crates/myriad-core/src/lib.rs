@@ -8,6 +8,7 @@
 
 pub mod batch;
 pub mod colour;
+pub mod column;
 pub mod error;
 pub mod geometry;
 pub mod mesh;
@@ -16,6 +17,7 @@ pub mod schema;
 pub mod units;
 
 pub use batch::{Numbers, PointBatch, PointRecord, RowBytes, WavePacket};
+pub use column::Column;
 pub use error::{Error, Location, Result};
 pub use geometry::{Aabb, Affine, NodeKey, Obb};
 pub use mesh::Mesh;

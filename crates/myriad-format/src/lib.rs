@@ -357,6 +357,13 @@ impl Dataset {
         (nodes, damage)
     }
 
+    /// The root node's points: a sample of the whole (what a colour ramp's range is fitted to).
+    pub fn overview(&self) -> Option<PointBatch> {
+        let page = self.hierarchy_page(&self.root_page()).ok()?;
+        let root = page.nodes.iter().find(|n| n.key == NodeKey::ROOT)?;
+        self.read_node(root).ok()
+    }
+
     /// Reads and decodes a node's points, with every column of the dataset.
     pub fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
         self.read_node_columns(e, &self.meta.schema)

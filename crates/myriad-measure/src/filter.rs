@@ -10,7 +10,7 @@
 //!   dataset's attribute names (`myriad info` lists them), `x`, `y`, `z`, `red`, `green`,
 //!   `blue`, or an extra-bytes dimension's name.
 
-use myriad_core::{Attribute, ExtraDim, ExtraType, PointBatch, Schema};
+use myriad_core::{Attribute, Column, PointBatch, Schema};
 
 /// The ASPRS standard classes (LAS 1.4 R15, table 17) by number; a class of 19 or more is
 /// "user class N".
@@ -237,7 +237,7 @@ impl Filter {
         }
         let mut fields = Vec::new();
         for c in &self.conditions {
-            let field = Field::find(&c.name, schema).ok_or_else(|| {
+            let field = Column::find(&c.name, schema).ok_or_else(|| {
                 format!(
                     "--where: this dataset has no attribute \"{}\" (it has: {})",
                     c.name,
@@ -258,144 +258,11 @@ impl Filter {
     }
 }
 
-/// A column a condition reads (or a file of points writes).
-#[derive(Debug, Clone)]
-pub(crate) enum Field {
-    Axis(usize),
-    Intensity,
-    ReturnNumber,
-    NumberOfReturns,
-    Classification,
-    ScannerChannel,
-    ScanAngle,
-    UserData,
-    PointSourceId,
-    GpsTime,
-    Rgb(usize),
-    Nir,
-    Extra(ExtraDim),
-}
-
-impl Field {
-    /// The columns of `schema` as numbers, with the names a CSV header gives them (colours
-    /// and normals one column per component; undocumented extra bytes left out).
-    pub(crate) fn columns(schema: &Schema) -> Vec<(String, Field)> {
-        let mut out = Vec::new();
-        for a in &schema.attributes {
-            let one = |n: &str, f: Field| vec![(n.to_string(), f)];
-            out.extend(match a {
-                Attribute::Intensity => one("intensity", Field::Intensity),
-                Attribute::ReturnNumber => one("return_number", Field::ReturnNumber),
-                Attribute::NumberOfReturns => one("number_of_returns", Field::NumberOfReturns),
-                Attribute::Classification => one("classification", Field::Classification),
-                Attribute::ScannerChannel => one("scanner_channel", Field::ScannerChannel),
-                Attribute::ScanAngle => one("scan_angle", Field::ScanAngle),
-                Attribute::UserData => one("user_data", Field::UserData),
-                Attribute::PointSourceId => one("point_source_id", Field::PointSourceId),
-                Attribute::GpsTime => one("gps_time", Field::GpsTime),
-                Attribute::Rgb => vec![
-                    ("red".into(), Field::Rgb(0)),
-                    ("green".into(), Field::Rgb(1)),
-                    ("blue".into(), Field::Rgb(2)),
-                ],
-                Attribute::Nir => one("nir", Field::Nir),
-                Attribute::Extra(d) if !matches!(d.data_type, ExtraType::Undocumented(_)) => {
-                    one(&d.name, Field::Extra(d.clone()))
-                }
-                _ => vec![],
-            });
-        }
-        out
-    }
-
-    fn find(name: &str, schema: &Schema) -> Option<Field> {
-        let n = name.trim().to_ascii_lowercase();
-        let n = n.strip_prefix("extra:").unwrap_or(&n).replace(' ', "_");
-        let has = |a: Attribute| schema.has(&a);
-        let f = match n.as_str() {
-            "x" => Field::Axis(0),
-            "y" => Field::Axis(1),
-            "z" | "elevation" => Field::Axis(2),
-            "intensity" if has(Attribute::Intensity) => Field::Intensity,
-            "return_number" | "return" if has(Attribute::ReturnNumber) => Field::ReturnNumber,
-            "number_of_returns" | "returns" if has(Attribute::NumberOfReturns) => {
-                Field::NumberOfReturns
-            }
-            "classification" | "class" if has(Attribute::Classification) => Field::Classification,
-            "scanner_channel" if has(Attribute::ScannerChannel) => Field::ScannerChannel,
-            "scan_angle" if has(Attribute::ScanAngle) => Field::ScanAngle,
-            "user_data" if has(Attribute::UserData) => Field::UserData,
-            "point_source_id" | "point_source" | "source" if has(Attribute::PointSourceId) => {
-                Field::PointSourceId
-            }
-            "gps_time" | "time" if has(Attribute::GpsTime) => Field::GpsTime,
-            "red" if has(Attribute::Rgb) => Field::Rgb(0),
-            "green" if has(Attribute::Rgb) => Field::Rgb(1),
-            "blue" if has(Attribute::Rgb) => Field::Rgb(2),
-            "nir" if has(Attribute::Nir) => Field::Nir,
-            _ => schema.attributes.iter().find_map(|a| match a {
-                Attribute::Extra(d) if d.name.to_ascii_lowercase().replace(' ', "_") == n => {
-                    Some(Field::Extra(d.clone()))
-                }
-                _ => None,
-            })?,
-        };
-        Some(f)
-    }
-
-    /// The value of point `i`; NaN where the batch lacks the column.
-    pub(crate) fn value(&self, b: &PointBatch, i: usize) -> f64 {
-        let get = |c: &Option<Vec<_>>| -> Option<f64> { c.as_ref().map(|c: &Vec<u8>| c[i] as f64) };
-        let v = match self {
-            Field::Axis(a) => Some(b.positions[i][*a]),
-            Field::Intensity => b.intensity.as_ref().map(|c| c[i] as f64),
-            Field::ReturnNumber => get(&b.return_number),
-            Field::NumberOfReturns => get(&b.number_of_returns),
-            Field::Classification => get(&b.classification),
-            Field::ScannerChannel => get(&b.scanner_channel),
-            Field::ScanAngle => b.scan_angle.as_ref().map(|c| c[i] as f64),
-            Field::UserData => get(&b.user_data),
-            Field::PointSourceId => b.point_source_id.as_ref().map(|c| c[i] as f64),
-            Field::GpsTime => b.gps_time.as_ref().map(|c| c[i]),
-            Field::Rgb(k) => b.rgb.as_ref().map(|c| c[i][*k] as f64),
-            Field::Nir => b.nir.as_ref().map(|c| c[i] as f64),
-            Field::Extra(d) => b.extra_bytes.as_ref().and_then(|e| {
-                let at = i * b.extra_stride + d.offset;
-                extra_value(e.get(at..at + d.data_type.size())?, d)
-            }),
-        };
-        v.unwrap_or(f64::NAN)
-    }
-}
-
-/// An extra-bytes value as a number, with its scale and offset; `None` for undocumented bytes.
-pub fn extra_value(bytes: &[u8], d: &ExtraDim) -> Option<f64> {
-    let arr = |n: usize| -> [u8; 8] {
-        let mut a = [0u8; 8];
-        a[..n].copy_from_slice(&bytes[..n]);
-        a
-    };
-    let raw = match d.data_type {
-        ExtraType::Undocumented(_) => return None,
-        ExtraType::U8 => bytes[0] as f64,
-        ExtraType::I8 => bytes[0] as i8 as f64,
-        ExtraType::U16 => u16::from_le_bytes([bytes[0], bytes[1]]) as f64,
-        ExtraType::I16 => i16::from_le_bytes([bytes[0], bytes[1]]) as f64,
-        ExtraType::U32 => u32::from_le_bytes(bytes[..4].try_into().ok()?) as f64,
-        ExtraType::I32 => i32::from_le_bytes(bytes[..4].try_into().ok()?) as f64,
-        ExtraType::U64 => u64::from_le_bytes(arr(8)) as f64,
-        ExtraType::I64 => i64::from_le_bytes(arr(8)) as f64,
-        ExtraType::F32 => f32::from_le_bytes(bytes[..4].try_into().ok()?) as f64,
-        ExtraType::F64 => f64::from_le_bytes(arr(8)),
-    };
-    Some(raw * d.scale.unwrap_or(1.0) + d.add_offset.unwrap_or(0.0))
-}
-
 /// A [`Filter`] resolved against one dataset's columns.
 #[derive(Debug, Clone)]
 pub struct Bound {
     classes: Option<[bool; 256]>,
-    fields: Vec<(Field, Condition)>,
+    fields: Vec<(Column, Condition)>,
 }
 
 impl Bound {
@@ -439,6 +306,7 @@ impl Bound {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use myriad_core::{ExtraDim, ExtraType};
 
     fn batch() -> PointBatch {
         let schema = Schema::new(vec![Attribute::Intensity, Attribute::Classification]);

@@ -2,7 +2,6 @@
 //! each with its distance along the line and its offset across it, sorted along the line; as
 //! CSV rows, a 2D plot (PNG) and, in `files`, a CAD drawing.
 
-use crate::filter::Field;
 use crate::{Bound, Corridor, read_region};
 use myriad_core::colour::{ColorBy, colours};
 use myriad_format::Dataset;
@@ -181,7 +180,7 @@ pub fn profile(
     colour: ColorBy,
 ) -> Result<Profile, String> {
     let schema = &ds.meta.schema;
-    let fields = Field::columns(schema);
+    let fields = myriad_core::Column::columns(schema);
     let scale = ds.meta.quantization.scale;
     let finest = scale.iter().copied().fold(f64::INFINITY, f64::min);
     let mut p = Profile {

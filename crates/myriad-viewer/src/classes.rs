@@ -5,7 +5,6 @@
 
 use crate::{App, Layer};
 use eframe::egui;
-use myriad_core::NodeKey;
 use myriad_format::Dataset;
 use myriad_measure::Filter;
 use myriad_measure::filter::class_name;
@@ -17,16 +16,8 @@ use std::sync::Arc;
 /// points there.
 pub fn overview_classes(ds: &Dataset) -> BTreeMap<u8, u64> {
     let mut out = BTreeMap::new();
-    let Ok(page) = ds.hierarchy_page(&ds.root_page()) else {
-        return out;
-    };
-    let Some(root) = page.nodes.iter().find(|n| n.key == NodeKey::ROOT) else {
-        return out;
-    };
-    if let Ok(b) = ds.read_node(root)
-        && let Some(c) = &b.classification
-    {
-        for &k in c {
+    if let Some(c) = ds.overview().and_then(|b| b.classification) {
+        for k in c {
             *out.entry(k).or_insert(0) += 1;
         }
     }

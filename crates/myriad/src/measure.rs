@@ -4,7 +4,7 @@
 use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use myriad_build::extract::{self, ExtractOptions};
-use myriad_core::colour::ColorBy;
+use myriad_core::colour::{ColorBy, Gradient};
 use myriad_format::Dataset;
 use myriad_measure::corridor::parse_xy_list;
 use myriad_measure::files::{save_drawing, write_atomic};
@@ -34,6 +34,51 @@ impl FilterArgs {
     }
 }
 
+/// What a point's colour shows.
+#[derive(Args, Clone)]
+pub struct ColourArgs {
+    /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform (one
+    /// grey: the shape by shading alone), or any attribute (gps_time, scan_angle,
+    /// point_source_id, an extra-bytes dimension by name) through --gradient
+    #[arg(long = "color", default_value = "rgb")]
+    pub colour: String,
+    /// A gradient for the colour's values: spectral, viridis, turbo, grey [default: viridis;
+    /// spectral for elevation]
+    #[arg(long, value_parser = parse_gradient)]
+    pub gradient: Option<Gradient>,
+    /// The values the gradient spans: LOW,HIGH [default: the 2nd to 98th percentile of the
+    /// overview's]
+    #[arg(long, value_parser = myriad_core::units::parse_floats::<2>, allow_hyphen_values = true)]
+    pub range: Option<[f64; 2]>,
+}
+
+fn parse_gradient(s: &str) -> Result<Gradient, String> {
+    Gradient::parse(s).ok_or_else(|| format!("\"{s}\": expected one of {}", Gradient::NAMES))
+}
+
+impl ColourArgs {
+    /// The colour for a dataset of `schema` whose overview is `sample`.
+    pub fn choose(
+        &self,
+        schema: &myriad_core::Schema,
+        sample: &myriad_core::PointBatch,
+    ) -> Result<ColorBy> {
+        if let Some([lo, hi]) = self.range
+            && !(lo < hi)
+        {
+            bail!("--range {lo},{hi}: the low end must be below the high end");
+        }
+        myriad_core::colour::choose(&self.colour, self.gradient, self.range, schema, sample)
+            .map_err(|e| anyhow!(e))
+    }
+
+    /// [`ColourArgs::choose`] for a dataset, fitted to its overview.
+    pub fn for_dataset(&self, ds: &Dataset) -> Result<ColorBy> {
+        let sample = ds.overview().unwrap_or_default();
+        self.choose(&ds.meta.schema, &sample)
+    }
+}
+
 #[derive(Args)]
 pub struct ProfileArgs {
     /// The dataset (.myr, or its URL)
@@ -51,21 +96,14 @@ pub struct ProfileArgs {
     output: PathBuf,
     #[command(flatten)]
     filter: FilterArgs,
-    /// Colours of a .png: rgb, intensity, elevation, classification, return, source
-    #[arg(long = "color", default_value = "rgb", value_parser = parse_colour)]
-    colour: ColorBy,
+    #[command(flatten)]
+    colour: ColourArgs,
     /// Width of a .png in pixels
     #[arg(long, default_value_t = 1600)]
     pixels: u32,
     /// Replace an existing output
     #[arg(long)]
     force: bool,
-}
-
-fn parse_colour(s: &str) -> Result<ColorBy, String> {
-    ColorBy::parse(s).ok_or_else(|| {
-        format!("\"{s}\": expected rgb, intensity, elevation, classification, return or source")
-    })
 }
 
 fn extension(p: &Path) -> String {
@@ -124,8 +162,9 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
         return Ok(());
     }
     let bound = filter.bind(&ds.meta.schema).map_err(|e| anyhow!(e))?;
-    let p = myriad_measure::profile::profile(&ds, &corridor, &bound, a.colour)
-        .map_err(|e| anyhow!(e))?;
+    let colour = a.colour.for_dataset(&ds)?;
+    let p =
+        myriad_measure::profile::profile(&ds, &corridor, &bound, colour).map_err(|e| anyhow!(e))?;
     match ext.as_str() {
         "csv" => write_atomic(&a.output, a.force, |w| p.write_csv(w))?,
         "geojson" => {

@@ -9,9 +9,9 @@ use myriad_format::Dataset;
 use myriad_io::image::write_png;
 use myriad_lod::{Camera, Occlusion, SelectOptions};
 use myriad_render::args::{
-    parse_color, parse_lod_threshold, parse_passes, parse_path, parse_point_size, parse_shape,
+    parse_lod_threshold, parse_passes, parse_path, parse_point_size, parse_shape,
 };
-use myriad_render::{ColorBy, Edl, Gpu, Passes, Path, PointSize, Rasterizer, Scene, Shape, Style};
+use myriad_render::{Edl, Gpu, Passes, Path, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -46,10 +46,8 @@ pub struct RenderArgs {
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
     full: bool,
-    /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform (one
-    /// grey: the shape by shading alone)
-    #[arg(long, value_parser = parse_color, default_value = "rgb")]
-    color: ColorBy,
+    #[command(flatten)]
+    colour: crate::measure::ColourArgs,
     /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
     #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
     point_size: PointSize,
@@ -230,7 +228,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     {
         bail!("{} (nothing left to draw)", ds.damage_error(&d));
     }
-    scene.set_colour(a.color);
+    scene.set_colour(a.colour.for_dataset(&ds)?);
     scene.occlusion = a.occlusion;
     scene.occlusion_size = a.occlusion_size;
     let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
@@ -408,7 +406,9 @@ fn render_preview(
         let bound = filter.bind(&b.schema()).map_err(anyhow::Error::msg)?;
         bound.retain(b);
     }
-    let sample = myriad_render::preview::Sample::new(&samples, a.color);
+    let overview = samples.first().cloned().unwrap_or_default();
+    let colour = a.colour.choose(&overview.schema(), &overview)?;
+    let sample = myriad_render::preview::Sample::new(&samples, colour);
     if sample.positions.is_empty() {
         bail!("{}: no points to preview", a.dataset.display());
     }

@@ -4,8 +4,8 @@ use anyhow::{Result, bail};
 use clap::Args;
 use myriad_core::units::parse_floats;
 use myriad_format::Dataset;
-use myriad_render::args::{parse_color, parse_point_size, parse_shape};
-use myriad_render::{ColorBy, Edl, Passes, PointSize, Shape, Style};
+use myriad_render::args::{parse_point_size, parse_shape};
+use myriad_render::{Edl, Passes, PointSize, Shape, Style};
 use myriad_viewer::ViewOptions;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -43,9 +43,8 @@ pub struct ViewArgs {
     /// Eye-dome lighting: adds edl to --passes
     #[arg(long)]
     edl: bool,
-    /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform
-    #[arg(long, value_parser = parse_color, default_value = "rgb")]
-    color: ColorBy,
+    #[command(flatten)]
+    colour: crate::measure::ColourArgs,
     #[command(flatten)]
     filter: crate::measure::FilterArgs,
     /// Draw on the window's GPU adapter (with --vr: the runtime's) even where it is a software
@@ -243,7 +242,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
             background: [0, 0, 0, 255],
             clip: None,
         },
-        colour: a.color,
+        colour: match datasets.first() {
+            Some((_, ds)) => a.colour.for_dataset(ds)?,
+            None => myriad_render::ColorBy::Rgb,
+        },
         filter: a.filter.filter()?,
         screenshot: a.screenshot,
         exit_after_converged: a.exit_after_converged,
