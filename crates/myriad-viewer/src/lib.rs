@@ -320,7 +320,10 @@ impl App {
             });
         let before = self.colour;
         egui::ComboBox::from_label("colour")
-            .selected_text(format!("{:?}", self.colour))
+            .selected_text(match self.colour {
+                ColorBy::Ramp(r) => format!("{:?} ramp", r.column),
+                c => format!("{c:?}"),
+            })
             .show_ui(ui, |ui| {
                 for c in [
                     ColorBy::Rgb,
@@ -335,6 +338,28 @@ impl App {
                     ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
                 }
             });
+        // A ramp (`--color ATTRIBUTE`): its gradient and range.
+        if let ColorBy::Ramp(r) = &mut self.colour {
+            egui::ComboBox::from_label("gradient")
+                .selected_text(format!("{:?}", r.gradient))
+                .show_ui(ui, |ui| {
+                    use myriad_core::colour::Gradient;
+                    for g in [
+                        Gradient::Spectral,
+                        Gradient::Viridis,
+                        Gradient::Turbo,
+                        Gradient::Grey,
+                    ] {
+                        ui.selectable_value(&mut r.gradient, g, format!("{g:?}"));
+                    }
+                });
+            let span = (r.range[1] - r.range[0]).abs().max(1e-6);
+            ui.horizontal(|ui| {
+                ui.label("range");
+                ui.add(egui::DragValue::new(&mut r.range[0]).speed(span / 100.0));
+                ui.add(egui::DragValue::new(&mut r.range[1]).speed(span / 100.0));
+            });
+        }
         if self.colour != before {
             for l in &mut self.layers {
                 l.scene.set_colour(self.colour);

@@ -145,6 +145,8 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         // Both eyes side by side (seed 002).
         run(&["--stereo", "--ipd", "5"]);
     }
+    // Any attribute through a gradient (the panel then offers the gradient and the range).
+    run(&["--color", "gps_time", "--gradient", "turbo"]);
     // Filtered: ground only, coloured by class, no pass blending colours: no building drawn.
     if run(&[
         "--classes",
