@@ -52,9 +52,58 @@ pub(crate) fn timed<T>(path: &Path, cold: bool, f: impl FnOnce() -> Result<T>) -
     Ok((t.elapsed().as_secs_f64(), v))
 }
 
-pub fn run(a: ProfileBenchArgs) -> Result<()> {
-    let tmp = std::env::temp_dir().join(format!("myriad-bench-profile-{}", std::process::id()));
+/// Medians of `runs` cold and warm runs of `tool` on a freshly opened `path`, the last run's
+/// result, and the baseline: `extract` of the plan box `lo`..`hi` (every height) to LAS, cold,
+/// its median and its points.
+pub(crate) struct Timings<T> {
+    pub cold: f64,
+    pub warm: f64,
+    pub last: T,
+    pub baseline: f64,
+    pub baseline_points: u64,
+}
+
+pub(crate) fn cold_warm_and_box<T>(
+    path: &Path,
+    runs: usize,
+    (lo, hi): ([f64; 2], [f64; 2]),
+    tool: impl Fn(&Dataset) -> Result<T>,
+) -> Result<Timings<T>> {
+    let tmp = std::env::temp_dir().join(format!("myriad-bench-box-{}", std::process::id()));
     std::fs::create_dir_all(&tmp)?;
+    let (mut cold, mut warm, mut base) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut last, mut baseline_points) = (None, 0);
+    for _ in 0..runs.max(1) {
+        for is_cold in [true, false] {
+            let (t, v) = timed(path, is_cold, || tool(&Dataset::open(path)?))?;
+            last = Some(v);
+            if is_cold { cold.push(t) } else { warm.push(t) }
+        }
+        let (t, s) = timed(path, true, || {
+            let ds = Dataset::open(path)?;
+            let b = ds.meta.bounds;
+            let bbox = Aabb::new([lo[0], lo[1], b.min[2]], [hi[0], hi[1], b.max[2]]);
+            let o = ExtractOptions {
+                bbox: Some(bbox),
+                force: true,
+                ..Default::default()
+            };
+            Ok(extract(&ds, &tmp.join("box.las"), &o)?)
+        })?;
+        baseline_points = s.points;
+        base.push(t);
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    Ok(Timings {
+        cold: median(cold),
+        warm: median(warm),
+        last: last.expect("one run"),
+        baseline: median(base),
+        baseline_points,
+    })
+}
+
+pub fn run(a: ProfileBenchArgs) -> Result<()> {
     for path in &a.datasets {
         let ds = Dataset::open(path)?;
         let line = match &a.line {
@@ -62,40 +111,11 @@ pub fn run(a: ProfileBenchArgs) -> Result<()> {
             None => default_line(&ds.meta.bounds, 1000.0),
         };
         let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
-        let (mut cold, mut warm, mut base) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut points, mut nodes, mut base_points) = (0, 0, 0);
-        for _ in 0..a.runs.max(1) {
-            for is_cold in [true, false] {
-                let (t, p) = timed(path, is_cold, || {
-                    let ds = Dataset::open(path)?;
-                    myriad_measure::profile::profile(&ds, &corridor, &Bound::all(), ColorBy::Rgb)
-                        .map_err(|e| anyhow!(e))
-                })?;
-                (points, nodes) = (p.len(), p.nodes_read);
-                if is_cold { cold.push(t) } else { warm.push(t) }
-            }
-            let (lo, hi) = corridor.plan_bounds();
-            let b = ds.meta.bounds;
-            let bbox = Aabb::new([lo[0], lo[1], b.min[2]], [hi[0], hi[1], b.max[2]]);
-            let out = tmp.join("box.las");
-            let (t, s) = timed(path, true, || {
-                let ds = Dataset::open(path)?;
-                Ok(extract(
-                    &ds,
-                    &out,
-                    &ExtractOptions {
-                        bbox: Some(bbox),
-                        force: true,
-                        ..Default::default()
-                    },
-                )?)
-            })?;
-            base_points = s.points;
-            base.push(t);
-        }
-        let u = myriad_measure::measurement::unit_name(
-            (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
-        );
+        let t = cold_warm_and_box(path, a.runs, corridor.plan_bounds(), |ds| {
+            myriad_measure::profile::profile(ds, &corridor, &Bound::all(), ColorBy::Rgb)
+                .map_err(|e| anyhow!(e))
+        })?;
+        let u = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
         println!(
             "{}: {} points, {} nodes",
             path.display(),
@@ -106,18 +126,16 @@ pub fn run(a: ProfileBenchArgs) -> Result<()> {
             "  profile     {:.1} x {} {u}: {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
             corridor.length(),
             a.width,
-            points,
-            nodes,
-            median(cold),
-            median(warm),
+            t.last.len(),
+            t.last.nodes_read,
+            t.cold,
+            t.warm,
             a.runs.max(1)
         );
         println!(
             "  baseline    extract of its plan box to LAS, cold: {} points, {:.3} s",
-            base_points,
-            median(base)
+            t.baseline_points, t.baseline
         );
     }
-    let _ = std::fs::remove_dir_all(&tmp);
     Ok(())
 }

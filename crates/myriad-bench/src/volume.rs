@@ -6,16 +6,13 @@
 
 use anyhow::{Result, anyhow};
 use clap::Args;
-use myriad_build::extract::{ExtractOptions, extract};
-use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_measure::corridor::parse_xy_list;
 use myriad_measure::volume::{Base, volume};
 use myriad_measure::{Bound, Polygon};
 use std::path::PathBuf;
 
-use crate::median;
-use crate::profile::timed;
+use crate::profile::cold_warm_and_box;
 
 #[derive(Args)]
 pub struct VolumeBenchArgs {
@@ -34,8 +31,6 @@ pub struct VolumeBenchArgs {
 }
 
 pub fn run(a: VolumeBenchArgs) -> Result<()> {
-    let tmp = std::env::temp_dir().join(format!("myriad-bench-volume-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp)?;
     for path in &a.datasets {
         let ds = Dataset::open(path)?;
         let b = ds.meta.bounds;
@@ -53,40 +48,11 @@ pub fn run(a: VolumeBenchArgs) -> Result<()> {
             }
         };
         let polygon = Polygon::new(&pts).map_err(|e| anyhow!(e))?;
-        let (mut cold, mut warm, mut base) = (Vec::new(), Vec::new(), Vec::new());
-        let mut last = None;
-        let mut base_points = 0;
-        for _ in 0..a.runs.max(1) {
-            for is_cold in [true, false] {
-                let (t, v) = timed(path, is_cold, || {
-                    let ds = Dataset::open(path)?;
-                    volume(&ds, &polygon, Base::Rim, a.cell, &Bound::all()).map_err(|e| anyhow!(e))
-                })?;
-                last = Some(v);
-                if is_cold { cold.push(t) } else { warm.push(t) }
-            }
-            let (lo, hi) = polygon.plan_bounds();
-            let bbox = Aabb::new([lo[0], lo[1], b.min[2]], [hi[0], hi[1], b.max[2]]);
-            let out = tmp.join("box.las");
-            let (t, s) = timed(path, true, || {
-                let ds = Dataset::open(path)?;
-                Ok(extract(
-                    &ds,
-                    &out,
-                    &ExtractOptions {
-                        bbox: Some(bbox),
-                        force: true,
-                        ..Default::default()
-                    },
-                )?)
-            })?;
-            base_points = s.points;
-            base.push(t);
-        }
-        let v = last.expect("one run");
-        let u = myriad_measure::measurement::unit_name(
-            (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
-        );
+        let t = cold_warm_and_box(path, a.runs, polygon.plan_bounds(), |ds| {
+            volume(ds, &polygon, Base::Rim, a.cell, &Bound::all()).map_err(|e| anyhow!(e))
+        })?;
+        let v = &t.last;
+        let u = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
         println!(
             "{}: {} points, {} nodes",
             path.display(),
@@ -102,16 +68,14 @@ pub fn run(a: VolumeBenchArgs) -> Result<()> {
             v.cut,
             v.points,
             v.nodes_read,
-            median(cold),
-            median(warm),
+            t.cold,
+            t.warm,
             a.runs.max(1)
         );
         println!(
             "  baseline    extract of its box to LAS, cold: {} points, {:.3} s",
-            base_points,
-            median(base)
+            t.baseline_points, t.baseline
         );
     }
-    let _ = std::fs::remove_dir_all(&tmp);
     Ok(())
 }

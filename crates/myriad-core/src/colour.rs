@@ -39,6 +39,12 @@ pub enum Gradient {
 }
 
 impl Gradient {
+    pub const ALL: [Gradient; 4] = [
+        Gradient::Spectral,
+        Gradient::Viridis,
+        Gradient::Turbo,
+        Gradient::Grey,
+    ];
     pub const NAMES: &str = "spectral, viridis, turbo, grey";
 
     pub fn parse(s: &str) -> Option<Gradient> {
@@ -128,13 +134,13 @@ impl Ramp {
 /// What `--color NAME [--gradient G] [--range LOW,HIGH]` asks for, against a dataset's schema:
 /// a scheme by its name (without a gradient or a range), else a ramp over the column `NAME`
 /// (elevation for `elevation`), through `G` (viridis, or spectral for elevation), over the range
-/// given or [`Ramp::fit`] to `sample`.
+/// given or [`Ramp::fit`] to `sample` (asked for only then: a dataset's overview is a read).
 pub fn choose(
     name: &str,
     gradient: Option<Gradient>,
     range: Option<[f64; 2]>,
     schema: &Schema,
-    sample: &PointBatch,
+    sample: impl FnOnce() -> PointBatch,
 ) -> Result<ColorBy, String> {
     if gradient.is_none()
         && range.is_none()
@@ -156,7 +162,7 @@ pub fn choose(
     });
     let range = match range {
         Some(r) => r,
-        None => Ramp::fit(column, sample).unwrap_or([0.0, 1.0]),
+        None => Ramp::fit(column, &sample()).unwrap_or([0.0, 1.0]),
     };
     Ok(ColorBy::Ramp(Ramp {
         column,
@@ -356,7 +362,7 @@ mod tests {
             Some(Gradient::Grey),
             Some([1000.0, 1100.0]),
             &schema,
-            &b,
+            || b.clone(),
         )
         .unwrap();
         let px = colours(&b, 101, c, (0.0, 1.0), 0);
@@ -367,9 +373,10 @@ mod tests {
             "rises with the value"
         );
         // Fitted to the sample: 2nd to 98th percentile.
-        let ColorBy::Ramp(r) =
-            choose("intensity", Some(Gradient::Viridis), None, &schema, &b).unwrap()
-        else {
+        let ColorBy::Ramp(r) = choose("intensity", Some(Gradient::Viridis), None, &schema, || {
+            b.clone()
+        })
+        .unwrap() else {
             panic!("a ramp")
         };
         assert_eq!(r.range, [20.0, 980.0]);
@@ -378,10 +385,10 @@ mod tests {
         assert_eq!(Gradient::Turbo.at(0.5), [36, 236, 166]);
         // A scheme by name stays one; an unknown name is refused, naming what there is.
         assert_eq!(
-            choose("intensity", None, None, &schema, &b),
+            choose("intensity", None, None, &schema, || b.clone()),
             Ok(ColorBy::Intensity)
         );
-        let e = choose("amplitude", None, None, &schema, &b).unwrap_err();
+        let e = choose("amplitude", None, None, &schema, || b.clone()).unwrap_err();
         assert!(e.contains("\"amplitude\"") && e.contains("gps_time"), "{e}");
     }
 }

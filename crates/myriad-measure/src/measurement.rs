@@ -121,6 +121,11 @@ pub fn unit_name(metres: Option<f64>) -> &'static str {
     }
 }
 
+/// The name of the unit of a CRS's coordinates ([`unit_name`] of [`metres_per_unit`]).
+pub fn crs_units(crs: Option<&str>) -> &'static str {
+    unit_name(crs.and_then(metres_per_unit))
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Measurement {
     pub kind: Kind,

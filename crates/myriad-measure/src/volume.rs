@@ -253,8 +253,7 @@ pub fn volume(
         }
         Base::Surface(earlier) => {
             let mut g2 = Grid::new(polygon, cell)?;
-            let bound = filter.clone();
-            read_region(earlier, polygon, &bound, |b| {
+            read_region(earlier, polygon, filter, |b| {
                 for p in &b.positions {
                     if let Some(k) = g2.index(p[0], p[1]) {
                         g2.sum[k] += p[2];

@@ -342,6 +342,30 @@ impl<'a> Airborne<'a> {
     }
 }
 
+/// A point of a single return with no flags set (terrestrial stations, the stockpile site).
+pub(crate) fn push_single(
+    out: &mut PointBatch,
+    position: [f64; 3],
+    intensity: u16,
+    class: u8,
+    source: u16,
+    gps_time: f64,
+    rgb: [u16; 3],
+) {
+    out.positions.push(position);
+    push(&mut out.intensity, intensity);
+    push(&mut out.return_number, 1);
+    push(&mut out.number_of_returns, 1);
+    push(&mut out.classification, class);
+    push(&mut out.classification_flags, 0);
+    push(&mut out.scan_flags, 0);
+    push(&mut out.scan_angle, 0.0);
+    push(&mut out.user_data, 0);
+    push(&mut out.point_source_id, source);
+    push(&mut out.gps_time, gps_time);
+    push(&mut out.rgb, rgb);
+}
+
 #[inline]
 pub(crate) fn push<T>(c: &mut Option<Vec<T>>, v: T) {
     if let Some(c) = c {
@@ -484,21 +508,9 @@ impl Indoor {
         let cos = -(normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2]);
         let intensity = (refl * cos.abs().max(0.05) / (1.0 + (t / 8.0).powi(2)) * 60000.0)
             .clamp(1.0, 65535.0) as u16;
-        out.positions
-            .push([o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t]);
-        push(&mut out.intensity, intensity);
-        push(&mut out.return_number, 1);
-        push(&mut out.number_of_returns, 1);
-        push(&mut out.classification, class);
-        push(&mut out.classification_flags, 0);
-        push(&mut out.scan_flags, 0);
-        push(&mut out.scan_angle, 0.0);
-        push(&mut out.user_data, 0);
-        push(&mut out.point_source_id, station as u16 + 1);
-        push(
-            &mut out.gps_time,
-            2.0e6 + station as f64 * 600.0 + j as f64 * 1e-6,
-        );
-        push(&mut out.rgb, jitter(rgb, &mut rng));
+        let gps = 2.0e6 + station as f64 * 600.0 + j as f64 * 1e-6;
+        let rgb = jitter(rgb, &mut rng);
+        let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+        push_single(out, p, intensity, class, station as u16 + 1, gps, rgb);
     }
 }

@@ -6,7 +6,7 @@
 //! taken away (and the pulses jittered anew).
 
 use crate::rng::{hash3, sub, unit};
-use crate::scan::push;
+use crate::scan::push_single;
 use myriad_core::PointBatch;
 
 /// Pulses per square metre.
@@ -196,18 +196,16 @@ impl Site {
                 400 + (sub(h, 2) * 200.0) as u16,
             ),
         };
-        out.positions.push([x, y, z]);
-        push(&mut out.intensity, intensity);
-        push(&mut out.return_number, 1);
-        push(&mut out.number_of_returns, 1);
-        push(&mut out.classification, class);
-        push(&mut out.classification_flags, 0);
-        push(&mut out.scan_flags, 0);
-        push(&mut out.scan_angle, 0.0);
-        push(&mut out.user_data, 0);
-        push(&mut out.point_source_id, self.epoch as u16);
-        push(&mut out.gps_time, k as f64 * 1e-5);
-        push(&mut out.rgb, rgb);
+        let gps = k as f64 * 1e-5;
+        push_single(
+            out,
+            [x, y, z],
+            intensity,
+            class,
+            self.epoch as u16,
+            gps,
+            rgb,
+        );
     }
 }
 

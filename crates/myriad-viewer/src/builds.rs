@@ -55,7 +55,7 @@ fn swap(
     shares: (usize, usize),
     colour: myriad_render::ColorBy,
 ) {
-    layer.scene = crate::classes::reopen(&layer.scene, ds.clone(), filter, shares, colour);
+    layer.scene = crate::shown::reopen(&layer.scene, ds.clone(), filter, shares, colour);
     layer.dataset = ds;
     if let Some(name) = layer.name.strip_suffix(" (preview)") {
         layer.name = name.to_string();

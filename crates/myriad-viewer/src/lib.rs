@@ -8,12 +8,12 @@
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
 mod builds;
-mod classes;
 pub mod measure;
 pub mod nav;
 mod options;
 mod present;
 mod report;
+mod shown;
 mod surface;
 pub mod vr;
 pub mod vr_nav;
@@ -120,7 +120,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     let mut all = Aabb::EMPTY;
     let mut classes = std::collections::BTreeMap::new();
     for (name, ds) in datasets {
-        for (c, n) in classes::overview_classes(&ds) {
+        for (c, n) in shown::overview_classes(&ds) {
             let shown = o.filter.classes.as_ref().is_none_or(|l| l.contains(&c));
             classes.entry(c).or_insert((0, shown)).0 += n;
         }
@@ -318,53 +318,7 @@ impl App {
                     ui.selectable_value(&mut self.style.shape, s, format!("{s:?}"));
                 }
             });
-        let before = self.colour;
-        egui::ComboBox::from_label("colour")
-            .selected_text(match self.colour {
-                ColorBy::Ramp(r) => format!("{:?} ramp", r.column),
-                c => format!("{c:?}"),
-            })
-            .show_ui(ui, |ui| {
-                for c in [
-                    ColorBy::Rgb,
-                    ColorBy::Intensity,
-                    ColorBy::Elevation,
-                    ColorBy::Classification,
-                    ColorBy::ReturnNumber,
-                    ColorBy::PointSource,
-                    ColorBy::Level,
-                    ColorBy::Uniform,
-                ] {
-                    ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
-                }
-            });
-        // A ramp (`--color ATTRIBUTE`): its gradient and range.
-        if let ColorBy::Ramp(r) = &mut self.colour {
-            egui::ComboBox::from_label("gradient")
-                .selected_text(format!("{:?}", r.gradient))
-                .show_ui(ui, |ui| {
-                    use myriad_core::colour::Gradient;
-                    for g in [
-                        Gradient::Spectral,
-                        Gradient::Viridis,
-                        Gradient::Turbo,
-                        Gradient::Grey,
-                    ] {
-                        ui.selectable_value(&mut r.gradient, g, format!("{g:?}"));
-                    }
-                });
-            let span = (r.range[1] - r.range[0]).abs().max(1e-6);
-            ui.horizontal(|ui| {
-                ui.label("range");
-                ui.add(egui::DragValue::new(&mut r.range[0]).speed(span / 100.0));
-                ui.add(egui::DragValue::new(&mut r.range[1]).speed(span / 100.0));
-            });
-        }
-        if self.colour != before {
-            for l in &mut self.layers {
-                l.scene.set_colour(self.colour);
-            }
-        }
+        self.colour_panel(ui);
         self.classes_panel(ui);
         passes_panel(ui, &mut self.style.passes);
         ui.separator();

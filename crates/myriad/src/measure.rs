@@ -61,7 +61,7 @@ impl ColourArgs {
     pub fn choose(
         &self,
         schema: &myriad_core::Schema,
-        sample: &myriad_core::PointBatch,
+        sample: impl FnOnce() -> myriad_core::PointBatch,
     ) -> Result<ColorBy> {
         if let Some([lo, hi]) = self.range
             && !(lo < hi)
@@ -74,8 +74,7 @@ impl ColourArgs {
 
     /// [`ColourArgs::choose`] for a dataset, fitted to its overview.
     pub fn for_dataset(&self, ds: &Dataset) -> Result<ColorBy> {
-        let sample = ds.overview().unwrap_or_default();
-        self.choose(&ds.meta.schema, &sample)
+        self.choose(&ds.meta.schema, || ds.overview().unwrap_or_default())
     }
 }
 
@@ -227,9 +226,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
 
 /// The units the dataset's CRS gives its coordinates ("units" where it says none).
 fn units_of(ds: &Dataset) -> &'static str {
-    myriad_measure::measurement::unit_name(
-        (ds.meta.crs.as_deref()).and_then(myriad_measure::measurement::metres_per_unit),
-    )
+    myriad_measure::measurement::crs_units(ds.meta.crs.as_deref())
 }
 
 #[derive(Args)]

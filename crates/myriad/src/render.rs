@@ -407,7 +407,7 @@ fn render_preview(
         bound.retain(b);
     }
     let overview = samples.first().cloned().unwrap_or_default();
-    let colour = a.colour.choose(&overview.schema(), &overview)?;
+    let colour = a.colour.choose(&overview.schema(), || overview.clone())?;
     let sample = myriad_render::preview::Sample::new(&samples, colour);
     if sample.positions.is_empty() {
         bail!("{}: no points to preview", a.dataset.display());

@@ -353,16 +353,10 @@ fn profile_to_csv_las_dxf_png() {
         "classification",
     ]);
     assert!(out.contains("800 x "), "{out}");
-    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
-    let mut reader = img.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!(info.width, 800);
+    let (width, _, rgba) = common::decode_png(&png);
+    assert_eq!(width, 800);
     let ground = myriad_core::colour::class_colour(2);
-    let lit = buf
-        .chunks(info.color_type.samples())
-        .filter(|p| p[..3] == ground)
-        .count();
+    let lit = rgba.chunks(4).filter(|p| p[..3] == ground).count();
     assert!(lit > 200, "{lit} pixels of ground colour in the profile");
 
     // Read by the field's readers: the corridor by laspy against the whole scan, the drawing
@@ -539,68 +533,99 @@ fn extract_keeps_exactly_the_filtered_records() {
         .collect();
     assert!(!expect.is_empty());
     assert_eq!(common::records(&bright), expect);
-    // Drawn: with classes coloured and no pass blending them, every lit pixel is ground's.
-    let png = d.join("ground.png");
-    ok(&[
-        "render",
-        s(&myr),
-        "-o",
-        s(&png),
-        "--classes",
-        "2",
-        "--color",
-        "classification",
-        "--passes",
-        "none",
-        "--raster",
-        "cpu",
-        "--width",
-        "320",
-        "--height",
-        "200",
-    ]);
-    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
-    let mut reader = img.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
+    // Drawn on the CPU without passes (no blending of colours): what `render` prints, and the
+    // image's pixels.
+    let png = d.join("drawn.png");
+    let render = |extra: &[&str]| -> (String, Vec<[u8; 3]>) {
+        let mut args = vec![
+            "render",
+            s(&myr),
+            "-o",
+            s(&png),
+            "--force",
+            "--passes",
+            "none",
+            "--raster",
+            "cpu",
+            "--width",
+            "320",
+            "--height",
+            "200",
+        ];
+        args.extend(extra);
+        let out = ok(&args);
+        let (_, _, rgba) = common::decode_png(&png);
+        (out, rgba.chunks(4).map(|p| [p[0], p[1], p[2]]).collect())
+    };
+    // With classes coloured, every lit pixel is ground's.
+    let (_, px) = render(&["--classes", "2", "--color", "classification"]);
     let ground = myriad_core::colour::class_colour(2);
-    let (mut lit, mut other) = (0, 0);
-    for p in buf.chunks(info.color_type.samples()) {
-        if p[..3] == ground {
-            lit += 1;
-        } else if p[..3] != [0, 0, 0] {
-            other += 1;
-        }
-    }
+    let lit = px.iter().filter(|p| **p == ground).count();
+    let other = px
+        .iter()
+        .filter(|p| **p != ground && **p != [0, 0, 0])
+        .count();
     assert!(lit > 5000, "{lit} ground pixels");
     assert_eq!(other, 0, "pixels of other colours than ground's");
     // Unfiltered, buildings show.
-    ok(&[
-        "render",
-        s(&myr),
-        "-o",
-        s(&png),
-        "--color",
-        "classification",
-        "--passes",
-        "none",
-        "--raster",
-        "cpu",
-        "--width",
-        "320",
-        "--height",
-        "200",
-        "--force",
-    ]);
-    let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
-    let mut reader = img.read_info().unwrap();
-    let info = reader.next_frame(&mut buf).unwrap();
+    let (_, px) = render(&["--color", "classification"]);
     let building = myriad_core::colour::class_colour(6);
-    let n = buf
-        .chunks(info.color_type.samples())
-        .filter(|p| p[..3] == building)
-        .count();
+    let n = px.iter().filter(|p| **p == building).count();
     assert!(n > 500, "{n} building pixels unfiltered");
+    // Any attribute through a gradient: GPS time in grey, fitted to the overview's range.
+    let (_, px) = render(&["--color", "gps_time", "--gradient", "grey"]);
+    assert!(px.iter().all(|p| p[0] == p[1] && p[1] == p[2]), "grey only");
+    let levels: std::collections::HashSet<u8> = px.iter().map(|p| p[0]).collect();
+    assert!(
+        levels.len() > 50,
+        "{} grey levels of GPS time",
+        levels.len()
+    );
+    // Within a budget, a filtered node draws the share of its level of detail it keeps: ground
+    // is about its share of the points drawn unfiltered, not the budget.
+    let drawn = |extra: &[&str]| -> f64 {
+        let mut args = vec!["--budget", "5k"];
+        args.extend(extra);
+        let (out, _) = render(&args);
+        let n = out
+            .split(": ")
+            .nth(1)
+            .unwrap()
+            .split(" points")
+            .next()
+            .unwrap();
+        n.replace(',', "").parse().unwrap()
+    };
+    let share = all.iter().filter(|r| class(r) == 2).count() as f64 / all.len() as f64;
+    let (whole, only) = (drawn(&[]), drawn(&["--classes", "2"]));
+    assert!(
+        (only / (whole * share) - 1.0).abs() < 0.3,
+        "ground drew {only} of {whole}, its share {share:.3}"
+    );
+    fails(
+        &[
+            "render",
+            s(&myr),
+            "-o",
+            s(&d.join("x.png")),
+            "--color",
+            "amplitude",
+        ],
+        "--color \"amplitude\"",
+    );
+    fails(
+        &[
+            "render",
+            s(&myr),
+            "-o",
+            s(&d.join("x.png")),
+            "--color",
+            "intensity",
+            "--range",
+            "5,1",
+        ],
+        "--range 5,1",
+    );
     fails(
         &[
             "render",

@@ -1,10 +1,12 @@
-//! Filters in the viewer: `view --classes`/`--where` from the command line, and the class list
-//! in the panel (each class of the overview shown or hidden). A change reopens each layer's
-//! scene with the new filter (its settings and the view kept), so the level of detail is
-//! drawn from the points kept and nothing filtered out is drawn.
+//! What the points show in the viewer: which (`view --classes`/`--where` from the command line,
+//! and the class list in the panel, each class of the overview shown or hidden: a change reopens
+//! each layer's scene with the new filter, its settings and the view kept, so the level of detail
+//! is drawn from the points kept and nothing filtered out is drawn), and in what colour (the
+//! schemes, or a ramp's gradient and range).
 
 use crate::{App, Layer};
 use eframe::egui;
+use myriad_core::colour::Gradient;
 use myriad_format::Dataset;
 use myriad_measure::Filter;
 use myriad_measure::filter::class_name;
@@ -64,6 +66,50 @@ impl App {
             );
         }
         f
+    }
+
+    /// The colour scheme, and a ramp's (`--color ATTRIBUTE`) gradient and range.
+    pub(crate) fn colour_panel(&mut self, ui: &mut egui::Ui) {
+        let before = self.colour;
+        egui::ComboBox::from_label("colour")
+            .selected_text(match self.colour {
+                ColorBy::Ramp(r) => format!("{:?} ramp", r.column),
+                c => format!("{c:?}"),
+            })
+            .show_ui(ui, |ui| {
+                for c in [
+                    ColorBy::Rgb,
+                    ColorBy::Intensity,
+                    ColorBy::Elevation,
+                    ColorBy::Classification,
+                    ColorBy::ReturnNumber,
+                    ColorBy::PointSource,
+                    ColorBy::Level,
+                    ColorBy::Uniform,
+                ] {
+                    ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
+                }
+            });
+        if let ColorBy::Ramp(r) = &mut self.colour {
+            egui::ComboBox::from_label("gradient")
+                .selected_text(format!("{:?}", r.gradient))
+                .show_ui(ui, |ui| {
+                    for g in Gradient::ALL {
+                        ui.selectable_value(&mut r.gradient, g, format!("{g:?}"));
+                    }
+                });
+            let span = (r.range[1] - r.range[0]).abs().max(1e-6);
+            ui.horizontal(|ui| {
+                ui.label("range");
+                ui.add(egui::DragValue::new(&mut r.range[0]).speed(span / 100.0));
+                ui.add(egui::DragValue::new(&mut r.range[1]).speed(span / 100.0));
+            });
+        }
+        if self.colour != before {
+            for l in &mut self.layers {
+                l.scene.set_colour(self.colour);
+            }
+        }
     }
 
     /// The class list: a box per class of the overview with its colour, name and points there.
