@@ -1,10 +1,12 @@
 //! The tools' files on disk, each written atomically (nothing at the path until it is whole):
 //! a profile as CSV, PNG or DXF (through the `dxf` crate, DXF R2000 as CAD programs and ezdxf
-//! read it).
+//! read it); saved work ([`crate::work`]) as its sidecar, GeoJSON or DXF, and read back.
 
+use crate::measurement::Kind;
 use crate::profile::Profile;
+use crate::work::{self, Annotation, Work};
 use crate::{Corridor, Polygon};
-use dxf::entities::{Entity, EntityType, LwPolyline, ModelPoint};
+use dxf::entities::{Entity, EntityType, LwPolyline, MText, ModelPoint, Polyline, Text, Vertex};
 use dxf::enums::AcadVersion;
 use dxf::tables::Layer;
 use dxf::{Color, Drawing, LwPolylineVertex, Point};
@@ -108,4 +110,273 @@ pub fn save_drawing(d: &Drawing, path: &Path, force: bool) -> Result<()> {
         let mut w = w;
         d.save(&mut w).map_err(std::io::Error::other)
     })
+}
+
+/// Layers of saved work's drawing: annotations' titles (TEXT) and texts (MTEXT) at their
+/// points, and each kind of measurement's points as a 3D polyline (`MEASURE_DISTANCE`, ...;
+/// closed for an area) or, for a point, a POINT.
+pub const ANNOTATIONS_LAYER: &str = "ANNOTATIONS";
+pub const ANNOTATION_TEXT_LAYER: &str = "ANNOTATION_TEXT";
+
+fn measure_layer(kind: Kind) -> String {
+    format!("MEASURE_{}", kind.name().to_ascii_uppercase())
+}
+
+/// DXF keeps at most 250 characters a group: a longer text goes in pieces.
+const DXF_STRING: usize = 250;
+
+/// Saved work as a drawing (cameras are not kept: DXF has no place for them).
+pub fn work_drawing(w: &Work) -> Drawing {
+    let mut layers = vec![
+        (ANNOTATIONS_LAYER.to_string(), 2u8),
+        (ANNOTATION_TEXT_LAYER.to_string(), 2),
+    ];
+    layers.extend(Kind::ALL.iter().map(|&k| (measure_layer(k), 3u8)));
+    let named: Vec<(&str, u8)> = layers.iter().map(|(n, c)| (n.as_str(), *c)).collect();
+    let mut d = drawing(&named);
+    for a in &w.annotations {
+        let at = Point::new(a.position[0], a.position[1], a.position[2]);
+        let mut t = Entity::new(EntityType::Text(Text {
+            location: at.clone(),
+            value: a.title.clone(),
+            ..Default::default()
+        }));
+        t.common.layer = ANNOTATIONS_LAYER.into();
+        d.add_entity(t);
+        if !a.text.is_empty() {
+            // MTEXT's paragraphs are `\P`.
+            let body = a.text.replace('\n', "\\P");
+            let chars: Vec<char> = body.chars().collect();
+            let mut pieces: Vec<String> = chars
+                .chunks(DXF_STRING)
+                .map(|c| c.iter().collect())
+                .collect();
+            let last = pieces.pop().unwrap_or_default();
+            let mut m = Entity::new(EntityType::MText(MText {
+                insertion_point: at,
+                extended_text: pieces,
+                text: last,
+                ..Default::default()
+            }));
+            m.common.layer = ANNOTATION_TEXT_LAYER.into();
+            d.add_entity(m);
+        }
+    }
+    for m in &w.measurements {
+        let layer = measure_layer(m.kind);
+        if m.kind == Kind::Point {
+            let p = m.points[0];
+            let mut e = Entity::new(EntityType::ModelPoint(ModelPoint::new(Point::new(
+                p[0], p[1], p[2],
+            ))));
+            e.common.layer = layer;
+            d.add_entity(e);
+            continue;
+        }
+        let mut poly = Polyline::default();
+        for p in &m.points {
+            poly.add_vertex(
+                &mut d,
+                Vertex {
+                    location: Point::new(p[0], p[1], p[2]),
+                    ..Default::default()
+                },
+            );
+        }
+        poly.set_is_3d_polyline(true);
+        poly.set_is_closed(m.kind == Kind::Area);
+        let mut e = Entity::new(EntityType::Polyline(poly));
+        e.common.layer = layer;
+        d.add_entity(e);
+    }
+    d
+}
+
+/// Saved work from a drawing: TEXT on `ANNOTATIONS` (with the MTEXT on `ANNOTATION_TEXT` at
+/// the same point as its text), and the points and polylines on `MEASURE_*` layers.
+pub fn work_from_drawing(d: &Drawing) -> std::result::Result<Work, String> {
+    let mut w = Work::default();
+    let mut texts: Vec<([f64; 3], String)> = Vec::new();
+    for (i, e) in d.entities().enumerate() {
+        let at = format!("entity {i} on layer {}", e.common.layer);
+        let layer = e.common.layer.to_ascii_uppercase();
+        let kind = layer
+            .strip_prefix("MEASURE_")
+            .and_then(|k| Kind::from_name(&k.to_ascii_lowercase()));
+        match (&e.specific, layer.as_str(), kind) {
+            (EntityType::Text(t), ANNOTATIONS_LAYER, _) => w.annotations.push(Annotation {
+                position: [t.location.x, t.location.y, t.location.z],
+                title: t.value.chars().take(work::MAX_TITLE).collect(),
+                text: String::new(),
+                camera: None,
+            }),
+            (EntityType::MText(m), ANNOTATION_TEXT_LAYER, _) => {
+                let mut s: String = m.extended_text.concat();
+                s.push_str(&m.text);
+                let p = &m.insertion_point;
+                texts.push(([p.x, p.y, p.z], s.replace("\\P", "\n")));
+            }
+            (EntityType::ModelPoint(p), _, Some(Kind::Point)) => {
+                let l = &p.location;
+                w.measurements
+                    .push(work::measurement(Kind::Point, vec![[l.x, l.y, l.z]], &at)?);
+            }
+            (EntityType::Polyline(p), _, Some(k)) => {
+                let pts = p
+                    .vertices()
+                    .map(|v| [v.location.x, v.location.y, v.location.z])
+                    .collect();
+                w.measurements.push(work::measurement(k, pts, &at)?);
+            }
+            (EntityType::LwPolyline(p), _, Some(k)) => {
+                let z = e.common.elevation;
+                let pts = p.vertices.iter().map(|v| [v.x, v.y, z]).collect();
+                w.measurements.push(work::measurement(k, pts, &at)?);
+            }
+            _ => {}
+        }
+        if w.annotations.len() > work::MAX_ITEMS || w.measurements.len() > work::MAX_ITEMS {
+            return Err(format!(
+                "more than {} annotations or measurements",
+                work::MAX_ITEMS
+            ));
+        }
+    }
+    for (p, s) in texts {
+        if let Some(a) = w
+            .annotations
+            .iter_mut()
+            .find(|a| a.position == p && a.text.is_empty())
+        {
+            a.text = s.chars().take(work::MAX_TEXT).collect();
+        }
+    }
+    Ok(w)
+}
+
+/// The saved work of a dataset from its sidecar (none there: empty work of `crs`).
+pub fn load_work(sidecar: &Path, crs: Option<&str>) -> Result<Work> {
+    match std::fs::metadata(sidecar) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Work::new(crs)),
+        Err(e) => return Err(Error::io(sidecar, e)),
+        Ok(m) if m.len() > work::MAX_BYTES as u64 => {
+            return Err(Error::Invalid(format!(
+                "{}: larger than {} bytes: not a work file",
+                sidecar.display(),
+                work::MAX_BYTES
+            )));
+        }
+        Ok(_) => {}
+    }
+    let text = std::fs::read_to_string(sidecar).map_err(|e| Error::io(sidecar, e))?;
+    let mut w =
+        Work::parse(&text).map_err(|e| Error::Invalid(format!("{}: {e}", sidecar.display())))?;
+    if w.crs.is_none() {
+        w.crs = crs.map(str::to_string);
+    }
+    Ok(w)
+}
+
+/// Writes the sidecar atomically (replacing the one there).
+pub fn save_work(sidecar: &Path, w: &Work) -> Result<()> {
+    let text = w.to_text();
+    write_atomic(sidecar, true, |out| out.write_all(text.as_bytes()))
+}
+
+/// Saved work to `path`: `.geojson`/`.json` (GeoJSON) or `.dxf`.
+pub fn export_work(w: &Work, path: &Path, force: bool) -> Result<()> {
+    match extension(path).as_str() {
+        "geojson" | "json" => {
+            let text = serde_json::to_string_pretty(&w.to_geojson()).expect("JSON of JSON values");
+            write_atomic(path, force, |out| out.write_all(text.as_bytes()))
+        }
+        "dxf" => save_drawing(&work_drawing(w), path, force),
+        _ => Err(Error::Invalid(format!(
+            "{}: the work goes to .geojson or .dxf",
+            path.display()
+        ))),
+    }
+}
+
+/// Saved work from a `.geojson`/`.json` file (GeoJSON, or a work sidecar) or a `.dxf`.
+pub fn import_work(path: &Path) -> Result<Work> {
+    let bad = |e: String| Error::Invalid(format!("{}: {e}", path.display()));
+    let len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    match extension(path).as_str() {
+        "geojson" | "json" => {
+            if len > work::MAX_BYTES as u64 * 4 {
+                return Err(bad(format!("larger than {} bytes", work::MAX_BYTES * 4)));
+            }
+            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let v: serde_json::Value = serde_json::from_str(&text)
+                .map_err(|e| bad(format!("line {} column {}: {e}", e.line(), e.column())))?;
+            if v["myriad"] == "work" {
+                Work::from_json(&v).map_err(bad)
+            } else {
+                Work::from_geojson(&v).map_err(bad)
+            }
+        }
+        "dxf" => {
+            if len > 256 << 20 {
+                return Err(bad("larger than 256 MiB".into()));
+            }
+            let d = Drawing::load_file(path).map_err(|e| bad(e.to_string()))?;
+            work_from_drawing(&d).map_err(bad)
+        }
+        _ => Err(bad("work comes from .geojson, .json or .dxf".into())),
+    }
+}
+
+fn extension(p: &Path) -> String {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::work::View;
+
+    #[test]
+    fn work_round_trips_through_dxf() {
+        let mut w = Work::default();
+        w.annotations.push(Annotation {
+            position: [500100.25, 4400200.5, 31.125],
+            title: "gate".into(),
+            text: format!("line one\nline two {}", "x".repeat(600)),
+            camera: Some(View {
+                position: [0.0; 3],
+                target: [1.0; 3],
+            }),
+        });
+        for (k, pts) in [
+            (Kind::Distance, vec![[1.0, 2.0, 3.0], [4.0, 6.0, 3.0]]),
+            (
+                Kind::Area,
+                vec![[0.0, 0.0, 1.0], [9.0, 0.0, 2.0], [9.0, 9.0, 3.0]],
+            ),
+            (Kind::Point, vec![[7.0, 8.0, 9.0]]),
+        ] {
+            w.measurements.push(work::measurement(k, pts, "t").unwrap());
+        }
+        let dir = std::env::temp_dir().join(format!("myriad-work-dxf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("w.dxf");
+        export_work(&w, &path, true).unwrap();
+        let back = import_work(&path).unwrap();
+        assert_eq!(back.measurements, w.measurements);
+        assert_eq!(back.annotations.len(), 1);
+        let a = &back.annotations[0];
+        assert_eq!(
+            (a.position, a.title.as_str()),
+            (w.annotations[0].position, "gate")
+        );
+        assert_eq!(a.text, w.annotations[0].text);
+        assert_eq!(a.camera, None, "DXF keeps no camera");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -7,7 +7,9 @@
 //! - [`polygon`] and [`volume`]: volumes over a polygon above a base (a plane fitted to the rim,
 //!   an elevation, or an earlier dataset), cut and fill apart.
 //!
-//! - [`geojson`]: the results for GIS programs, with the CRS named.
+//! - [`geojson`]: the results for GIS programs, with the CRS named;
+//! - [`work`]: saved work, annotations and measurements in a sidecar next to the dataset
+//!   (GeoJSON and DXF through [`files`]).
 //!
 //! Every tool reads the original points, at full resolution, from the pages whose nodes meet
 //! its region ([`read_region`]), whatever a view draws.
@@ -21,6 +23,7 @@ pub mod measurement;
 pub mod polygon;
 pub mod profile;
 pub mod volume;
+pub mod work;
 
 pub use corridor::Corridor;
 pub use filter::{Bound, Filter};

@@ -21,6 +21,8 @@ pub(crate) struct File {
     pub(crate) path: PathBuf,
     pub(crate) content_type: &'static str,
     pub(crate) kind: Kind,
+    /// A dataset's saved work (`myriad_measure::work`): the sidecar beside what was given.
+    pub(crate) work: Option<PathBuf>,
     len: u64,
 }
 
@@ -77,9 +79,14 @@ impl Catalog {
         }
     }
 
-    /// Adds a file under a name of the caller's choosing (a scan's converted dataset).
-    pub fn add_file_as(&mut self, name: &str, path: &Path) -> Result<()> {
-        self.add(name.to_string(), path.to_path_buf(), None)
+    /// Adds a file under a name of the caller's choosing (a scan's converted dataset), its
+    /// saved work beside `source` (the scan).
+    pub fn add_file_as(&mut self, name: &str, path: &Path, source: &Path) -> Result<()> {
+        self.add(name.to_string(), path.to_path_buf(), None)?;
+        if let Some(f) = self.files.get_mut(name).filter(|f| f.kind == Kind::Dataset) {
+            f.work = Some(myriad_measure::work::sidecar_for(source));
+        }
+        Ok(())
     }
 
     fn add(&mut self, name: String, path: PathBuf, kind: Option<Kind>) -> Result<()> {
@@ -102,12 +109,14 @@ impl Catalog {
                 path.display()
             )));
         }
+        let work = (kind == Kind::Dataset).then(|| myriad_measure::work::sidecar_for(&path));
         self.files.insert(
             name,
             File {
                 content_type: content_type(&path),
                 path,
                 kind,
+                work,
                 len,
             },
         );

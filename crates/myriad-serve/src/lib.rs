@@ -5,7 +5,8 @@
 //! `ETag` with `If-Range` and `If-None-Match`, CORS with the preflight that `Range` forces, and
 //! an index page (gzip where the client takes it).
 //!
-//! It is read-only and serves the files of its [`Catalog`] alone: a request's path is looked
+//! It serves the files of its [`Catalog`] alone, read-only but for datasets' saved work with
+//! `Options::edit` ([`work`]): a request's path is looked
 //! up among the names the catalog made when it started, never joined to a folder, so `..` and
 //! its encodings find nothing. Connections are bounded (`Options::max_connections`; when full,
 //! the connection idle the longest is shed for a new one), a client has
@@ -23,6 +24,7 @@ pub mod download;
 mod files;
 pub mod range;
 mod viewer;
+mod work;
 
 pub use catalog::{Catalog, Kind, href};
 
@@ -66,6 +68,8 @@ pub struct Options {
     pub stop_on_signals: bool,
     /// A line on stderr for each request answered: method, path, range, status, bytes.
     pub log: bool,
+    /// Clients may save a dataset's work (PUT `/work/NAME`), which replaces its sidecar.
+    pub edit: bool,
 }
 
 impl Default for Options {
@@ -79,6 +83,7 @@ impl Default for Options {
             max_box_points: 20_000_000,
             stop_on_signals: false,
             log: false,
+            edit: false,
         }
     }
 }
@@ -144,6 +149,9 @@ struct Shared {
     /// The server's temporary files (box downloads), removed when it stops; one a killed
     /// server left is removed by the next server to start.
     scratch: myriad_io::claim::Folder,
+    /// Saved work's bodies being read at once, and one sidecar written at a time.
+    puts: Semaphore,
+    saving: Arc<std::sync::Mutex<()>>,
 }
 
 /// A running server; dropping it stops it.
@@ -187,6 +195,8 @@ impl Server {
             extracting: Semaphore::new(download::MAX_AT_ONCE),
             spooled: Arc::new(Semaphore::new(SPOOLED_AT_ONCE)),
             scratch,
+            puts: Semaphore::new(work::PUTS_AT_ONCE),
+            saving: Arc::default(),
         });
         let s = shared.clone();
         let thread = std::thread::Builder::new()
@@ -405,16 +415,26 @@ async fn handle(
     req: Request<Incoming>,
     _busy: conn::Busy,
 ) -> Result<Response<Body>, Infallible> {
-    let mut r = route(&shared, &budget, &req).await;
+    let range = req.headers().get(header::RANGE).cloned();
+    let (method, uri) = (req.method().clone(), req.uri().clone());
+    let put = method == Method::PUT && uri.path().starts_with("/work/");
+    let mut r = if put {
+        match percent_decode(&uri.path()["/work/".len()..]) {
+            Some(name) => work::put(&shared, &name, req).await,
+            None => status(StatusCode::BAD_REQUEST, "malformed path"),
+        }
+    } else {
+        route(&shared, &budget, &req).await
+    };
     cors(&mut r);
     if shared.options.log {
         let text =
             |v: Option<&HeaderValue>| v.and_then(|v| v.to_str().ok()).unwrap_or("-").to_string();
         eprintln!(
             "{} {} range={} {} {}",
-            req.method(),
-            req.uri(),
-            text(req.headers().get(header::RANGE)),
+            method,
+            uri,
+            text(range.as_ref()),
             r.status().as_u16(),
             text(r.headers().get(header::CONTENT_LENGTH)),
         );
@@ -442,7 +462,11 @@ async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -
         let h = r.headers_mut();
         h.insert(
             header::ACCESS_CONTROL_ALLOW_METHODS,
-            HeaderValue::from_static("GET, HEAD, OPTIONS"),
+            HeaderValue::from_static(if shared.options.edit {
+                "GET, HEAD, OPTIONS, PUT"
+            } else {
+                "GET, HEAD, OPTIONS"
+            }),
         );
         h.insert(
             header::ACCESS_CONTROL_ALLOW_HEADERS,
@@ -462,6 +486,12 @@ async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -
             "text/html; charset=utf-8",
             req,
         );
+    }
+    if let Some(name) = path.strip_prefix("/work/") {
+        return match percent_decode(name) {
+            Some(name) => work::get(shared, &name, method == Method::HEAD).await,
+            None => status(StatusCode::BAD_REQUEST, "malformed path"),
+        };
     }
     if let Some(name) = path.strip_prefix("/viewer/") {
         return match viewer::file(name) {

@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 6] = [
+static FILES: [(&str, Asset); 7] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -60,6 +60,10 @@ static FILES: [(&str, Asset); 6] = [
     (
         "worker.js",
         Asset::new(include_bytes!("../viewer/worker.js"), "text/javascript"),
+    ),
+    (
+        "work.js",
+        Asset::new(include_bytes!("../viewer/work.js"), "text/javascript"),
     ),
     (
         "myriad_web.wasm",

@@ -261,3 +261,103 @@ fn ranges_validators_cors_and_bad_requests() {
     drop(server);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+fn put(server: &Server, path: &str, body: &str) -> Answer {
+    send(
+        server,
+        &format!(
+            "PUT {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+}
+
+#[test]
+fn saved_work_is_shown_and_saved_only_with_edit() {
+    let d = dir("work");
+    let file = d.join("site.myr");
+    std::fs::write(&file, b"not a dataset, here").unwrap();
+    let sidecar = d.join("site.work.json");
+    let start = |edit: bool| {
+        Server::start(
+            Catalog::new(std::slice::from_ref(&file)).unwrap(),
+            "127.0.0.1:0".parse().unwrap(),
+            Options {
+                edit,
+                ..Options::default()
+            },
+        )
+        .unwrap()
+    };
+    let body = r#"{"myriad":"work","version":1,"crs":"EPSG:9999","annotations":[{"position":[1,2,3],"title":"gate","text":"north"}],"measurements":[{"kind":"distance","points":[[0,0,0],[3,4,0]]}]}"#;
+
+    // Read-only: the work (none yet) is shown, not changed.
+    let ro = start(false);
+    let a = get(&ro, "/work/site.myr", "");
+    assert_eq!(a.status, 200);
+    let v: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
+    assert_eq!(v["editable"], false);
+    assert_eq!(v["annotations"], serde_json::json!([]));
+    assert_eq!(a.header("cache-control").as_deref(), Some("no-store"));
+    assert_eq!(put(&ro, "/work/site.myr", body).status, 403);
+    assert!(!sidecar.exists());
+    assert_eq!(get(&ro, "/work/nothing.myr", "").status, 404);
+    drop(ro);
+
+    // With --edit: saved (the server's labels back), shown to the next client; the CRS
+    // stays the one kept (here the sidecar's, the file having none) whatever a client sends.
+    std::fs::write(
+        &sidecar,
+        r#"{"myriad":"work","version":1,"crs":"EPSG:9999"}"#,
+    )
+    .unwrap();
+    let rw = start(true);
+    let a = put(&rw, "/work/site.myr", body);
+    assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
+    let v: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
+    assert_eq!(v["measurements"][0]["value"], 5.0);
+    let saved = std::fs::read_to_string(&sidecar).unwrap();
+    assert!(saved.contains("\"gate\""), "{saved}");
+    let v: serde_json::Value =
+        serde_json::from_slice(&get(&rw, "/work/site.myr", "").body).unwrap();
+    assert_eq!(
+        (v["editable"].clone(), v["annotations"][0]["title"].clone()),
+        (true.into(), "gate".into())
+    );
+    let other = body.replace("EPSG:9999", "EPSG:1");
+    assert_eq!(put(&rw, "/work/site.myr", &other).status, 200);
+    let saved = std::fs::read_to_string(&sidecar).unwrap();
+    assert!(
+        saved.contains("EPSG:9999") && !saved.contains("EPSG:1\""),
+        "{saved}"
+    );
+
+    // Bad work: 400 naming the line or member, the file as it was; too large: 413.
+    let before = std::fs::read(&sidecar).unwrap();
+    let a = put(&rw, "/work/site.myr", "{\n\"myriad\": \"work\",\n");
+    assert_eq!(a.status, 400);
+    assert!(
+        String::from_utf8_lossy(&a.body).contains("line 3"),
+        "{}",
+        String::from_utf8_lossy(&a.body)
+    );
+    let a = put(
+        &rw,
+        "/work/site.myr",
+        r#"{"myriad":"work","version":1,"measurements":[{"kind":"area","points":[]}]}"#,
+    );
+    assert_eq!(a.status, 400);
+    assert!(String::from_utf8_lossy(&a.body).contains("measurements[0]"));
+    let big = send(
+        &rw,
+        "PUT /work/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 99999999\r\n\r\n",
+    );
+    assert_eq!(big.status, 413);
+    assert_eq!(
+        put(&rw, "/d/site.myr", body).status,
+        405,
+        "files stay read-only"
+    );
+    assert_eq!(std::fs::read(&sidecar).unwrap(), before);
+    assert_eq!(get(&rw, "/d/site.myr", "").status, 200, "still serving");
+}

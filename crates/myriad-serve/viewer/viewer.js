@@ -4,7 +4,8 @@
 // lighting (as edl.wgsl), positions relative to each node (no jitter at UTM or ECEF sizes).
 // Orbit (left drag), pan (right drag or shift), zoom (wheel), double-click to centre; click a
 // point for its attributes, measure distances, clip to a box and download its points as LAZ,
-// share the camera as a link. `window.myriad` exposes the state to scripts (tests).
+// share the camera as a link; annotations and measurements saved with the dataset (work.js).
+// `window.myriad` exposes the state to scripts (tests).
 "use strict";
 
 const SCHEMES = ["rgb", "intensity", "elevation", "classification", "return", "source", "level", "uniform"];
@@ -182,6 +183,7 @@ async function open() {
   for (const r of await Promise.all(ready)) if (r.info && r.info.error) throw new Error(r.info.error);
   ui();
   requestSelection();
+  loadWork().catch((e) => error(`saved work: ${e.message || e}`));
 }
 
 let selecting = false;
@@ -322,6 +324,7 @@ function draw() {
   if (converged && !state.converged) state.convergedMs = performance.now();
   state.converged = converged;
   status();
+  placeLabels();
 }
 
 function sameCamera(a, b) {
@@ -470,7 +473,7 @@ function ui() {
     if (navigator.clipboard) navigator.clipboard.writeText(l).catch(() => {});
   };
   const measure = document.getElementById("measure");
-  measure.onclick = () => { mode = mode === "measure" ? "pick" : "measure"; measure.classList.toggle("on", mode === "measure"); state.measure = []; measureText(); };
+  measure.onclick = () => setMode(mode === "measure" ? "pick" : "measure");
   const clipOn = document.getElementById("clip");
   const inputs = [...document.querySelectorAll("#clipbox input[type=number]")];
   const inside = document.getElementById("inside");
@@ -497,7 +500,20 @@ function ui() {
   navigation();
 }
 
+// What a click does: pick (a point's attributes), measure (a distance), annotate.
 let mode = "pick";
+function setMode(m) {
+  // A distance finished by leaving the measuring mode is kept with the work.
+  if (mode === "measure" && m !== "measure" && state.measure.length >= 2) {
+    keepDistance(state.measure.map((q) => q.position));
+  }
+  if (m === "measure" || mode === "measure") { state.measure = []; measureText(); }
+  mode = m;
+  document.getElementById("measure").classList.toggle("on", mode === "measure");
+  const a = document.getElementById("annotate");
+  if (a) a.classList.toggle("on", mode === "annotate");
+}
+
 function navigation() {
   let drag = null;
   canvas.addEventListener("contextmenu", (e) => e.preventDefault());
@@ -521,6 +537,7 @@ function navigation() {
     try {
       const p = await pick(e.clientX - r.left, e.clientY - r.top);
       if (p && mode === "measure") { state.measure.push({ position: [p.x, p.y, p.z] }); measureText(); }
+      if (p && mode === "annotate") { setMode("pick"); addAnnotation(p); }
     } catch (err) {
       error(String(err.message || err));
     }
@@ -578,6 +595,7 @@ window.myriad = {
   setCamera(c) { Object.assign(camera, c); cameraMoved(); },
   selection: () => selection && selection.nodes.map((n) => ({ key: n.key, points: n.points })),
   renderer: () => renderer && renderer.kind,
+  setMode,
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

@@ -13,6 +13,7 @@ pub mod nav;
 mod options;
 mod present;
 mod report;
+mod saved;
 mod shown;
 mod surface;
 pub mod vr;
@@ -105,6 +106,8 @@ struct App {
     /// The command line's filter, and the overview's classes: points there, shown.
     filter: myriad_measure::Filter,
     classes: std::collections::BTreeMap<u8, (u64, bool)>,
+    /// Annotations and the measurements as saved beside the first dataset.
+    saved: saved::Saved,
 }
 
 /// Opens the window and runs until it is closed.
@@ -147,9 +150,9 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     if layers.is_empty() {
         return Err("no dataset to view".into());
     }
-    let data_metres = (layers.first())
-        .and_then(|l| l.dataset.meta.crs.as_deref())
-        .and_then(measure::metres_per_unit);
+    let crs = layers.first().and_then(|l| l.dataset.meta.crs.clone());
+    let data_metres = crs.as_deref().and_then(measure::metres_per_unit);
+    let saved = saved::Saved::open(o.work.clone(), crs.as_deref());
     let mut nav = Nav::framing(&bounds, &all, o.fov);
     if let Some((eye, target)) = o.camera {
         nav.look(eye, target);
@@ -183,7 +186,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         orbit_left: o.orbit_frames,
         orbit_times: Vec::new(),
         tool: None,
-        measurements: Vec::new(),
+        measurements: saved.work.measurements.clone(),
+        saved,
         units: Units::Data,
         data_metres,
         bookmarks: Vec::new(),
@@ -368,13 +372,6 @@ impl App {
             vram as f64 / on_gpu.max(1) as f64,
             read as f64 / points.max(1) as f64
         ));
-        let on_gpu: u64 = self.stats.iter().map(|s| s.gpu_points).sum();
-        let read: u64 = self.stats.iter().map(|s| s.read_bytes).sum();
-        ui.label(format!(
-            "point buffers: {:.1} bytes a point, {:.1} read per drawn point",
-            vram as f64 / on_gpu.max(1) as f64,
-            read as f64 / points.max(1) as f64
-        ));
         ui.horizontal(|ui| {
             if loading > 0 {
                 ui.spinner();
@@ -423,6 +420,13 @@ impl App {
             if let Some(l) = m.label(self.units, self.data_metres) {
                 ui.monospace(l);
             }
+        }
+        ui.separator();
+        if self.saved.placing {
+            self.tool = None;
+        }
+        if let Some(v) = self.saved.panel(ui) {
+            self.nav.look(v.position, v.target);
         }
         ui.separator();
         ui.checkbox(&mut self.clip_on, "clipping box");
@@ -497,6 +501,7 @@ impl App {
 
     fn start_measuring(&mut self, kind: Kind) {
         self.tool = Some(kind);
+        self.saved.placing = false;
         if self
             .measurements
             .last()
@@ -563,6 +568,7 @@ impl App {
                 );
             }
         }
+        self.saved.draw(painter, &screen);
     }
 
     /// Mouse and keyboard over the view.
@@ -582,7 +588,9 @@ impl App {
                 ],
             )
         });
-        let pressed = |key| ui.input(|i| i.key_pressed(key));
+        // Keys typed into the panel (an annotation's title) are not shortcuts.
+        let typing = ui.ctx().egui_wants_keyboard_input();
+        let pressed = |key| !typing && ui.input(|i| i.key_pressed(key));
         if pressed(egui::Key::H) {
             self.help = !self.help;
         }
@@ -593,6 +601,11 @@ impl App {
             self.screenshot_now(ui.ctx());
         }
         if pressed(egui::Key::Escape) {
+            self.tool = None;
+            self.saved.placing = false;
+        }
+        if pressed(egui::Key::T) && !self.nav.fly {
+            self.saved.placing = !self.saved.placing;
             self.tool = None;
         }
         for (key, kind) in [
@@ -667,6 +680,14 @@ impl App {
             && let Some((x, y)) = cursor
         {
             self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
+        }
+        if self.saved.placing
+            && response.clicked()
+            && let Some((x, y)) = cursor
+            && let Some(p) = self.pick(&cam, x, y)
+        {
+            self.saved.annotate(p.position, cam.position, p.position);
+            self.saved.placing = false;
         }
         if let Some(kind) = self.tool {
             if response.clicked()
@@ -881,6 +902,11 @@ impl eframe::App for App {
                 c.request_repaint();
             });
         }
+        self.saved.sync(&self.measurements, Instant::now());
         ctx.request_repaint();
+    }
+
+    fn on_exit(&mut self) {
+        self.saved.flush();
     }
 }

@@ -40,4 +40,7 @@ pub struct ViewOptions {
     pub stereo: Option<f64>,
     /// Datasets being built while their layers show a preview.
     pub builds: Option<Builds>,
+    /// The first dataset's saved work (annotations, measurements), read on opening and
+    /// written as it changes; `None`: not kept.
+    pub work: Option<PathBuf>,
 }

@@ -111,7 +111,11 @@ pub(crate) const HELP: &[(&str, &str)] = &[
         "O / C / Z / I",
         "measure an angle (3 points) / a circle (3) / an azimuth (2) / a point",
     ),
-    ("Esc", "stop measuring"),
+    (
+        "T",
+        "annotate: click a point, then give it a title and text in the panel",
+    ),
+    ("Esc", "stop measuring or annotating"),
     (
         "G",
         "fly mode on/off: W A S D to move, Q E down/up, drag to look",

@@ -1,6 +1,7 @@
 //! The `myriad` command: argument parsing and wiring only. Library crates do the work; this file
 //! turns their errors into one line on stderr and an exit code (0 success, 1 error, 2 usage).
 
+mod annotate;
 mod bench;
 mod build_options;
 mod cached;
@@ -50,6 +51,9 @@ enum Command {
     Profile(measure::ProfileArgs),
     /// Measure the volume over a polygon above a base (the rim's plane, an elevation, an earlier survey)
     Volume(measure::VolumeArgs),
+    /// Keep annotations and measurements with a dataset (as view and serve do), and export
+    /// them to GeoJSON or DXF, or import them
+    Annotate(annotate::AnnotateArgs),
     /// Read every page of a dataset, check checksums and invariants, name damaged nodes
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
@@ -110,6 +114,7 @@ fn main() -> ExitCode {
         Command::Export(a) => export::run(a),
         Command::Profile(a) => measure::profile(a),
         Command::Volume(a) => measure::volume(a),
+        Command::Annotate(a) => annotate::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
         Command::Mesh(a) => mesh::run(a),

@@ -35,6 +35,10 @@ pub struct ServeArgs {
     /// Print a line on stderr for each request: method, path, range, status, bytes
     #[arg(long)]
     log: bool,
+    /// Let viewers save their annotations and measurements (PUT /work/NAME writes the
+    /// dataset's NAME.work.json); without it the work is shown, not changed
+    #[arg(long)]
+    edit: bool,
 }
 
 pub fn run(a: ServeArgs) -> Result<()> {
@@ -53,7 +57,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
         } else {
             let ds = crate::cached::dataset_for(input)?;
             let stem = input.file_stem().unwrap_or_default().to_string_lossy();
-            catalog.add_file_as(&format!("{stem}.myr"), &ds)?;
+            catalog.add_file_as(&format!("{stem}.myr"), &ds, input)?;
         }
     }
     let names: Vec<(String, Kind, u64)> = catalog
@@ -76,6 +80,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
             max_box_points: a.max_box_points,
             stop_on_signals: true,
             log: a.log,
+            edit: a.edit,
             ..Options::default()
         },
     )

@@ -226,7 +226,12 @@ pub fn run(a: ViewArgs) -> Result<()> {
     {
         bail!("--camera: the eye and the target are the same point");
     }
+    // The first dataset's annotations and measurements, kept beside what was given.
+    let work = (a.datasets.first())
+        .filter(|p| !myriad_format::remote::is_url(p))
+        .map(|p| myriad_measure::work::sidecar_for(p));
     let options = ViewOptions {
+        work,
         width: a.width,
         height: a.height,
         camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),

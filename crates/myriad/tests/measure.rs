@@ -650,3 +650,185 @@ fn extract_keeps_exactly_the_filtered_records() {
     );
     assert!(!d.join("x.las").exists());
 }
+
+/// `annotate`: work kept beside the dataset (what `view` and `serve` read), exported to
+/// GeoJSON (read by shapely with its CRS) and DXF (by ezdxf), imported back into another
+/// dataset's work as it was, and bad input refused in one line with the sidecar untouched.
+#[test]
+fn annotations_are_kept_exported_and_imported() {
+    let d = tempdir("annotate");
+    let laz = common::synth(&d, "site.laz", 20_000);
+    let myr = d.join("site.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let sidecar = d.join("site.work.json");
+    let out = ok(&[
+        "annotate",
+        s(&myr),
+        "--add",
+        "500010.5,4400020.25,12.125",
+        "--title",
+        "gate",
+        "--text",
+        "north side\nsee photo 12",
+        "--camera",
+        "500000,4399990,60,500010.5,4400020.25,12.125",
+        "--measure",
+        "distance:500000,4400000,10,500003,4400004,10,500003,4400004,22",
+        "--measure",
+        "area:500000,4400000,0,500010,4400000,0,500010,4400010,0",
+        "--measure",
+        "azimuth:500000,4400000,0,500001,4400001,0",
+    ]);
+    assert!(
+        out.contains("site.work.json: 1 annotations, 3 measurements, CRS EPSG:32633"),
+        "{out}"
+    );
+    assert!(
+        out.contains("measurement 1 distance: 17.000 m (3 points)"),
+        "{out}"
+    );
+    assert!(out.contains("measurement 2 area: 50.00 m² area"), "{out}");
+    assert!(out.contains("45.00° from north"), "{out}");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&sidecar).unwrap()).unwrap();
+    assert_eq!(saved["annotations"][0]["text"], "north side\nsee photo 12");
+    assert_eq!(saved["annotations"][0]["camera"]["position"][2], 60.0);
+    // The scan shares the dataset's work (the same name beside it).
+    let again = ok(&["annotate", s(&laz)]);
+    assert!(again.contains("1 annotations, 3 measurements"), "{again}");
+
+    let geojson = d.join("work.geojson");
+    let dxf = d.join("work.dxf");
+    ok(&["annotate", s(&myr), "--export", s(&geojson)]);
+    ok(&["annotate", s(&myr), "--export", s(&dxf)]);
+    fails(&["annotate", s(&myr), "--export", s(&dxf)], "work.dxf");
+    match python_with("ezdxf, shapely") {
+        None => eprintln!(
+            "SKIPPED: no Python with ezdxf and shapely (MYRIAD_PYTHON); .ci/run installs them"
+        ),
+        Some(py) => {
+            let script = r#"
+import ezdxf, json, sys, shapely.geometry as g
+j = json.load(open(sys.argv[1]))
+print(j["crs"]["properties"]["name"])
+for f in j["features"]:
+    s = g.shape(f["geometry"])
+    print(f["properties"]["myriad"], s.geom_type, round(s.length, 6), round(s.area, 6), list(s.coords)[0] if s.geom_type != "Polygon" else "")
+m = ezdxf.readfile(sys.argv[2]).modelspace()
+for e in m:
+    print("dxf", e.dxftype(), e.dxf.layer, e.dxf.text if e.dxftype() == "TEXT" else (len(list(e.points())) if e.dxftype() == "POLYLINE" else ""))
+"#;
+            let r = Command::new(py)
+                .args(["-c", script, s(&geojson), s(&dxf)])
+                .output()
+                .unwrap();
+            let out = String::from_utf8_lossy(&r.stdout);
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            eprintln!("{out}");
+            let lines: Vec<&str> = out.lines().collect();
+            assert_eq!(lines[0], "urn:ogc:def:crs:EPSG::32633");
+            assert_eq!(
+                lines[1],
+                "annotation Point 0.0 0.0 (500010.5, 4400020.25, 12.125)"
+            );
+            // shapely's lengths are in plan: 5 m, then 12 m straight up.
+            assert!(
+                lines[2].starts_with("measurement LineString 5.0 0.0"),
+                "{out}"
+            );
+            assert!(
+                lines[3].starts_with("measurement Polygon 34.142136 50.0"),
+                "{out}"
+            );
+            assert!(
+                lines[4].starts_with("measurement LineString 1.414214"),
+                "{out}"
+            );
+            let dxf: Vec<&str> = lines
+                .iter()
+                .filter(|l| l.starts_with("dxf"))
+                .copied()
+                .collect();
+            assert_eq!(
+                dxf,
+                [
+                    "dxf TEXT ANNOTATIONS gate",
+                    "dxf MTEXT ANNOTATION_TEXT ",
+                    "dxf POLYLINE MEASURE_DISTANCE 3",
+                    "dxf POLYLINE MEASURE_AREA 3",
+                    "dxf POLYLINE MEASURE_AZIMUTH 2",
+                ]
+            );
+        }
+    }
+
+    // Imported into another dataset of the same CRS: the same work (DXF keeps no camera).
+    let other = d.join("other.myr");
+    std::fs::copy(&myr, &other).unwrap();
+    ok(&["annotate", s(&other), "--import", s(&geojson)]);
+    let a: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("other.work.json")).unwrap()).unwrap();
+    assert_eq!(a["annotations"], saved["annotations"]);
+    assert_eq!(a["measurements"], saved["measurements"]);
+    ok(&["annotate", s(&other), "--clear", "--import", s(&dxf)]);
+    let b: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("other.work.json")).unwrap()).unwrap();
+    assert_eq!(b["measurements"], saved["measurements"]);
+    assert_eq!(b["annotations"][0]["text"], "north side\nsee photo 12");
+    assert_eq!(b["annotations"][0]["camera"], serde_json::Value::Null);
+
+    // Bad input: one line naming the value, exit 1, the sidecar as it was.
+    let before = std::fs::read(&sidecar).unwrap();
+    fails(
+        &["annotate", s(&myr), "--measure", "volume:1,2,3"],
+        "unknown measurement \"volume\"",
+    );
+    fails(
+        &["annotate", s(&myr), "--measure", "circle:1,2,3,4,5,6"],
+        "a circle takes 3 points, not 2",
+    );
+    fails(
+        &["annotate", s(&myr), "--measure", "distance:1,2,x"],
+        "\"x\" is not a number",
+    );
+    fails(
+        &["annotate", s(&myr), "--remove", "nothing"],
+        "no annotation of that title",
+    );
+    let foreign = d.join("foreign.geojson");
+    std::fs::write(
+        &foreign,
+        r#"{"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"urn:ogc:def:crs:EPSG::2992"}},"features":[]}"#,
+    )
+    .unwrap();
+    fails(
+        &["annotate", s(&myr), "--import", s(&foreign)],
+        "foreign.geojson: its CRS is EPSG:2992, the dataset's EPSG:32633",
+    );
+    let broken = d.join("broken.geojson");
+    std::fs::write(
+        &broken,
+        "{\"type\":\n\"FeatureCollection\",\n\"features\": [1,\n",
+    )
+    .unwrap();
+    fails(
+        &["annotate", s(&myr), "--import", s(&broken)],
+        "broken.geojson: line 4",
+    );
+    assert_eq!(std::fs::read(&sidecar).unwrap(), before);
+    // A broken sidecar is said with its line, and left as it is.
+    std::fs::write(
+        &sidecar,
+        "{\n  \"myriad\": \"work\",\n  \"version\": 1,\n  oops\n}",
+    )
+    .unwrap();
+    fails(
+        &["annotate", s(&myr), "--add", "1,2,3"],
+        "site.work.json: line 4",
+    );
+    assert!(std::fs::read_to_string(&sidecar).unwrap().contains("oops"));
+    // Removing by title.
+    std::fs::write(&sidecar, &before).unwrap();
+    let out = ok(&["annotate", s(&myr), "--remove", "gate"]);
+    assert!(out.contains("0 annotations, 3 measurements"), "{out}");
+}

@@ -248,3 +248,78 @@ fn the_viewer_shows_a_scans_preview_while_its_dataset_is_built() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Saved work in the window: the annotation and the measurement that `myriad annotate` kept
+/// beside the dataset are drawn over the view (the annotation's mark, the measurement's
+/// lines), and closing the window leaves the sidecar as it was; without them, neither colour
+/// is drawn. (The window's own editing, written back as it changes, is tested in
+/// myriad-viewer's `saved.rs`.)
+#[test]
+fn the_viewer_shows_the_saved_annotations_and_measurements() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("work");
+    let las = common::synth(&d, "w.las", 100_000);
+    let ds = d.join("w.myr");
+    let r = common::myriad(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let b = myriad_format::Dataset::open(&ds).unwrap().meta.bounds;
+    let c = b.center();
+    let (x0, x1, y) = (
+        b.min[0] + 0.3 * (b.max[0] - b.min[0]),
+        b.min[0] + 0.7 * (b.max[0] - b.min[0]),
+        c[1],
+    );
+    let at = format!("{},{},{}", c[0], c[1], b.max[2]);
+    let line = format!("distance:{x0},{y},{},{x1},{y},{}", b.max[2], b.max[2]);
+    let r = common::myriad(&[
+        "annotate",
+        ds.to_str().unwrap(),
+        "--add",
+        &at,
+        "--title",
+        "here",
+        "--measure",
+        &line,
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let sidecar = d.join("w.work.json");
+    let before = std::fs::read(&sidecar).unwrap();
+    let shot = |name: &str| -> Option<(usize, usize)> {
+        let png = d.join(name);
+        let (ok, stdout, stderr) = view_under_xvfb(&[
+            ds.to_str().unwrap(),
+            "--width",
+            "900",
+            "--height",
+            "600",
+            "--screenshot",
+            png.to_str().unwrap(),
+            "--exit-after-converged",
+        ])?;
+        assert!(ok, "{stdout}\n{stderr}");
+        let (_, _, img) = decode_png(&png);
+        let count = |c: [u8; 3]| img.chunks(4).filter(|p| p[..3] == c).count();
+        Some((count([255, 64, 200]), count([255, 210, 0])))
+    };
+    let Some((marks, lines)) = shot("with.png") else {
+        return;
+    };
+    assert!(marks >= 60, "{marks} pixels of the annotation's mark");
+    assert!(lines >= 100, "{lines} pixels of the measurement's line");
+    assert_eq!(
+        std::fs::read(&sidecar).unwrap(),
+        before,
+        "the sidecar as it was"
+    );
+    let r = common::myriad(&["annotate", ds.to_str().unwrap(), "--clear"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (marks, lines) = shot("without.png").unwrap();
+    assert!(
+        marks < 10 && lines < 10,
+        "{marks} and {lines} without any work"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,0 +1,209 @@
+//! `myriad annotate PATH`: the saved work of a dataset, a scan or a folder of tiles (the
+//! annotations and measurements `view` and `serve`'s web viewer keep in its sidecar,
+//! `NAME.work.json` beside it): list, add, remove, import from and export to GeoJSON or DXF.
+
+use anyhow::{Result, anyhow, bail};
+use clap::Args;
+use myriad_core::units::parse_floats;
+use myriad_format::Dataset;
+use myriad_measure::files::{export_work, import_work, load_work, save_work};
+use myriad_measure::measurement::Kind;
+use myriad_measure::work::{self, Annotation, View, Work, sidecar_for};
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct AnnotateArgs {
+    /// What the work belongs to: a dataset (.myr), a scan, or a folder of tiles, as given to
+    /// `view` and `serve` (the work is kept beside it as NAME.work.json)
+    path: PathBuf,
+    /// Add an annotation at X,Y,Z (with --title, --text and --camera)
+    #[arg(long, value_parser = parse_floats::<3>, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    add: Option<[f64; 3]>,
+    /// With --add: its title
+    #[arg(long, requires = "add", default_value = "")]
+    title: String,
+    /// With --add: its text
+    #[arg(long, requires = "add", default_value = "")]
+    text: String,
+    /// With --add: the view it is shown from, EX,EY,EZ,TX,TY,TZ (eye and target)
+    #[arg(long, requires = "add", value_parser = parse_floats::<6>, allow_hyphen_values = true)]
+    camera: Option<[f64; 6]>,
+    /// Add a measurement, KIND:X,Y,Z[,X,Y,Z...]: point, distance, height, area, angle, circle
+    /// or azimuth through those points (repeatable)
+    #[arg(long, value_name = "KIND:POINTS", allow_hyphen_values = true)]
+    measure: Vec<String>,
+    /// Remove the annotations of this title (repeatable)
+    #[arg(long, value_name = "TITLE")]
+    remove: Vec<String>,
+    /// Remove every annotation and measurement first
+    #[arg(long)]
+    clear: bool,
+    /// Add the annotations and measurements of a GeoJSON, DXF or work file (repeatable; its
+    /// CRS must be the dataset's)
+    #[arg(long, value_name = "FILE")]
+    import: Vec<PathBuf>,
+    /// Write the work to a .geojson (the CRS named) or .dxf file
+    #[arg(long, value_name = "FILE")]
+    export: Option<PathBuf>,
+    /// Replace an existing --export file
+    #[arg(long)]
+    force: bool,
+    /// Print the work as the sidecar's JSON instead of a list
+    #[arg(long)]
+    json: bool,
+}
+
+/// The CRS of what `path` names: its dataset's, else its (first) file's header's.
+fn crs_of(path: &Path) -> Result<Option<String>> {
+    if let Some(ds) = myriad_build::cached::existing(path) {
+        return Ok(Dataset::open(&ds)?.meta.crs.clone());
+    }
+    let inputs = myriad_build::cached::inputs_of(path)?;
+    let Some(first) = inputs.first() else {
+        bail!("{}: no scan there", path.display());
+    };
+    let src = myriad_io::open(first, &myriad_io::OpenOptions::default())?;
+    Ok(src.info().crs.clone())
+}
+
+/// `KIND:X,Y,Z,...` as a measurement.
+fn parse_measure(s: &str) -> Result<myriad_measure::measurement::Measurement> {
+    let (kind, pts) = s
+        .split_once(':')
+        .ok_or_else(|| anyhow!("--measure {s}: KIND:X,Y,Z[,X,Y,Z...]"))?;
+    let k = Kind::from_name(kind.trim()).ok_or_else(|| {
+        let names: Vec<&str> = Kind::ALL.iter().map(|k| k.name()).collect();
+        anyhow!(
+            "--measure {s}: unknown measurement \"{kind}\" (one of {})",
+            names.join(", ")
+        )
+    })?;
+    let values = pts
+        .split(',')
+        .map(|v| {
+            v.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| anyhow!("--measure {s}: \"{v}\" is not a number"))
+        })
+        .collect::<Result<Vec<f64>>>()?;
+    if values.len() % 3 != 0 {
+        bail!(
+            "--measure {s}: {} numbers, not a list of X,Y,Z",
+            values.len()
+        );
+    }
+    let points = values.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+    work::measurement(k, points, &format!("--measure {s}")).map_err(|e| anyhow!(e))
+}
+
+fn list(w: &Work, sidecar: &Path) {
+    let (units, metres) = work::units_of(w.crs.as_deref());
+    let crs = w
+        .crs
+        .as_deref()
+        .and_then(myriad_measure::geojson::epsg_code)
+        .map_or(String::new(), |c| format!(", CRS EPSG:{c}"));
+    println!(
+        "{}: {} annotations, {} measurements{crs}",
+        sidecar.display(),
+        w.annotations.len(),
+        w.measurements.len()
+    );
+    for (i, a) in w.annotations.iter().enumerate() {
+        let p = a.position;
+        let text = if a.text.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", a.text.replace('\n', " / "))
+        };
+        println!(
+            "annotation {} \"{}\" at {:.3}, {:.3}, {:.3}{text}",
+            i + 1,
+            a.title,
+            p[0],
+            p[1],
+            p[2]
+        );
+    }
+    for (i, m) in w.measurements.iter().enumerate() {
+        println!(
+            "measurement {} {}: {} ({} points)",
+            i + 1,
+            m.kind.name(),
+            m.label(units, metres).unwrap_or_default(),
+            m.points.len()
+        );
+    }
+}
+
+pub fn run(a: AnnotateArgs) -> Result<()> {
+    if myriad_format::remote::is_url(&a.path) {
+        bail!(
+            "{}: the work of a served dataset is kept by its server (serve --edit)",
+            a.path.display()
+        );
+    }
+    if !a.path.exists() {
+        bail!("{}: no such file or folder", a.path.display());
+    }
+    let sidecar = sidecar_for(&a.path);
+    let crs = crs_of(&a.path)?;
+    let mut w = load_work(&sidecar, crs.as_deref())?;
+    let before = w.clone();
+    if a.clear {
+        w.annotations.clear();
+        w.measurements.clear();
+    }
+    for t in &a.remove {
+        let n = w.annotations.len();
+        w.annotations.retain(|x| &x.title != t);
+        if w.annotations.len() == n {
+            bail!("--remove \"{t}\": no annotation of that title");
+        }
+    }
+    for f in &a.import {
+        let other = import_work(f)?;
+        w.merge(other)
+            .map_err(|e| anyhow!("{}: {e}", f.display()))?;
+    }
+    if let Some(p) = a.add {
+        if a.title.chars().count() > work::MAX_TITLE || a.text.chars().count() > work::MAX_TEXT {
+            bail!(
+                "--title: at most {} characters, --text: {}",
+                work::MAX_TITLE,
+                work::MAX_TEXT
+            );
+        }
+        w.annotations.push(Annotation {
+            position: p,
+            title: a.title.clone(),
+            text: a.text.clone(),
+            camera: a.camera.map(|c| View {
+                position: [c[0], c[1], c[2]],
+                target: [c[3], c[4], c[5]],
+            }),
+        });
+    }
+    for m in &a.measure {
+        w.measurements.push(parse_measure(m)?);
+    }
+    if w.annotations.len() > work::MAX_ITEMS || w.measurements.len() > work::MAX_ITEMS {
+        bail!("more than {} annotations or measurements", work::MAX_ITEMS);
+    }
+    if w != before {
+        save_work(&sidecar, &w)?;
+    }
+    if let Some(out) = &a.export {
+        myriad_io::atomic::refuse_input_as_output(out, &[&a.path, &sidecar])?;
+        export_work(&w, out, a.force)?;
+        eprintln!("{}: written", out.display());
+    }
+    if a.json {
+        print!("{}", w.to_text());
+    } else {
+        list(&w, &sidecar);
+    }
+    Ok(())
+}
