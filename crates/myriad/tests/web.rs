@@ -432,3 +432,165 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
         );
     }
 }
+
+/// Saved work in the browser (`serve --edit`): the annotation and the measurement that
+/// `myriad annotate` kept show where the camera projects them, with the server's label; a
+/// click places a new annotation, its title is typed in the panel, and both are there, in the
+/// sidecar too, when the page opens again.
+#[test]
+fn the_web_viewer_shows_and_saves_annotations() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-work");
+    let laz = d.join("w.laz");
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&laz),
+        "--points",
+        "100k",
+        "--scene",
+        "city",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let myr = d.join("w.myr");
+    let r = myriad(&["convert", s(&laz), "-o", s(&myr)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let b0 = Dataset::open(&myr).unwrap().meta.bounds;
+    let c = b0.center();
+    let top = b0.max[2];
+    let r = myriad(&[
+        "annotate",
+        s(&myr),
+        "--add",
+        &format!("{},{},{top}", c[0], c[1]),
+        "--title",
+        "gate",
+        "--measure",
+        &format!(
+            "distance:{},{},{top},{},{},{top}",
+            c[0] - 20.0,
+            c[1],
+            c[0] + 20.0,
+            c[1]
+        ),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let server = serve(&[s(&myr), "--edit"], std::process::Stdio::null());
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(&format!("{}/view/w.myr#renderer=webgl2", server.base), W, H)
+        .unwrap();
+    converge(&mut b);
+    let st = b
+        .wait_for(
+            "window.myriad && myriad.state.work && myriad.state.work.loaded && myriad.state.work",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    assert_eq!(st["editable"], true, "{st}");
+    assert_eq!(st["doc"]["annotations"][0]["title"], "gate", "{st}");
+    b.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        .unwrap();
+    let label = b
+        .eval(
+            "(() => { const e = document.querySelector('#labels .label.annotation'); \
+             const r = e.getBoundingClientRect(); \
+             return { text: e.textContent, left: r.left, bottom: r.bottom }; })()",
+        )
+        .unwrap();
+    let measured = b
+        .eval("document.querySelector('#labels .label.measurement').textContent")
+        .unwrap();
+    assert_eq!(measured, "40.000 m", "the server's label");
+    let cam = b.eval("myriad.camera()").unwrap();
+    let v3 = |k: &str| -> [f64; 3] { std::array::from_fn(|a| cam[k][a].as_f64().unwrap()) };
+    let camera = myriad_lod::Camera {
+        position: v3("position"),
+        target: v3("target"),
+        up: v3("up"),
+        fov_y: 60.0,
+        width: W,
+        height: H,
+        near: 1.0,
+        far: 2.0,
+    };
+    let e = camera.to_eye([c[0], c[1], top]);
+    let (sx, sy) = (
+        W as f64 / 2.0 + e[0] / e[2] * camera.focal(),
+        H as f64 / 2.0 - e[1] / e[2] * camera.focal(),
+    );
+    assert_eq!(label["text"], "gate");
+    let (lx, ly) = (
+        label["left"].as_f64().unwrap(),
+        label["bottom"].as_f64().unwrap(),
+    );
+    assert!(
+        (lx - 10.0 - sx).abs() <= 2.0 && (ly - sy).abs() <= 2.0,
+        "label at ({lx}, {ly}), the point at ({sx:.1}, {sy:.1})"
+    );
+    // Its mark is drawn there.
+    let (_, _, px) = png(&b.screenshot().unwrap());
+    let marks = px
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| {
+            let (x, y) = ((i % W as usize) as f64, (i / W as usize) as f64);
+            (x - sx).abs() <= 8.0
+                && (y - sy).abs() <= 8.0
+                && (p[0] as i32 - 255).abs() <= 6
+                && (p[1] as i32 - 64).abs() <= 6
+                && (p[2] as i32 - 200).abs() <= 6
+        })
+        .count();
+    assert!(marks >= 60, "{marks} pixels of the mark at the annotation");
+
+    // A click in annotating mode places one; its title typed in the panel; both saved.
+    let spot = px
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| lit(**p))
+        .map(|(i, _)| ((i % W as usize) as i64, (i / W as usize) as i64))
+        .filter(|&(x, _)| x > 380)
+        .min_by_key(|&(x, y)| (x - 600).pow(2) + (y - 380).pow(2))
+        .unwrap();
+    b.eval("document.getElementById('annotate').click()")
+        .unwrap();
+    b.click(spot.0 as f64, spot.1 as f64).unwrap();
+    b.wait_for(
+        "myriad.state.work.doc.annotations.length === 2 && myriad.state.work.saves >= 1",
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    b.eval(
+        "(() => { const t = document.querySelector('#work input.title[data-index=\"1\"]'); \
+         t.value = 'well'; t.dispatchEvent(new Event('change')); })()",
+    )
+    .unwrap();
+    b.wait_for("myriad.state.work.saves >= 2", Duration::from_secs(30))
+        .unwrap();
+    drop(b);
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(&format!("{}/view/w.myr#renderer=webgl2", server.base), W, H)
+        .unwrap();
+    let st = b
+        .wait_for(
+            "window.myriad && myriad.state.work && myriad.state.work.loaded && myriad.state.work",
+            Duration::from_secs(120),
+        )
+        .unwrap();
+    let titles: Vec<&str> = (st["doc"]["annotations"].as_array().unwrap().iter())
+        .map(|a| a["title"].as_str().unwrap())
+        .collect();
+    assert_eq!(titles, ["gate", "well"], "{st}");
+    let p = &st["doc"]["annotations"][1]["position"];
+    assert!(p[0].as_f64().unwrap() > b0.min[0] - 1.0, "{p}");
+    drop(b);
+    let r = myriad(&["annotate", s(&myr)]);
+    assert!(
+        r.stdout.contains("2 annotations, 1 measurements") && r.stdout.contains("\"well\""),
+        "{}",
+        r.stdout
+    );
+}
