@@ -85,6 +85,8 @@ const settings = {
   // webgl2 or webgpu; default: WebGPU on a hardware adapter, else WebGL2.
   renderer: params.get("renderer"),
   clip: null, // {box: [6], inside: bool}
+  // In the parallel (orthographic) view: the field of view to go back to.
+  parallel: Number(params.get("parallel")) || null,
   // ASPRS classes not drawn (their points are dropped as nodes are decoded).
   hidden: new Set((params.get("hide") || "").split(",").filter((c) => c !== "").map(Number)),
 };
@@ -103,6 +105,8 @@ function cameraLink() {
   const p = new URLSearchParams();
   p.set("camera", v);
   if (c.up[2] !== 1) p.set("up", c.up.join(","));
+  if (c.fov !== 60) p.set("fov", c.fov);
+  if (settings.parallel) p.set("parallel", settings.parallel);
   if (settings.budget !== 2000000) p.set("budget", settings.budget);
   if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
   if (settings.hidden.size) p.set("hide", [...settings.hidden].join(","));
@@ -445,13 +449,38 @@ function status() {
     ` | ${state.requests} range requests, ${(state.bytes / 1e6).toFixed(1)} MB`;
 }
 
-function measureText() {
-  const m = state.measure;
-  let total = 0;
-  for (let i = 1; i < m.length; i++) total += Math.sqrt(dot(sub(m[i].position, m[i - 1].position), sub(m[i].position, m[i - 1].position)));
-  state.distance = total;
-  document.getElementById("measured").textContent = m.length < 2 ? (m.length ? "1 point: click another" : "") :
-    `${m.length} points, ${total.toFixed(3)} units`;
+// Measurements: the kinds of myriad_measure::measurement::Kind::ALL, in its order, with the
+// points each takes (null: as many as clicked); the figures and labels are its own, from the
+// WebAssembly (as `view` and `myriad annotate` give them).
+const KINDS = ["point", "distance", "height", "area", "angle", "circle", "azimuth"];
+const TAKES = { point: 1, distance: null, height: 2, area: null, angle: 3, circle: 3, azimuth: 2 };
+const UNITS = ["data", "m", "ft", "US ft"];
+const measuring = { kind: params.get("measure") || "distance", units: 0 };
+let measureAsked = 0;
+async function measureText() {
+  const pts = state.measure.map((q) => q.position);
+  const asked = ++measureAsked;
+  const el = document.getElementById("measured");
+  if (!pts.length) { state.measured = null; el.textContent = ""; dirty = true; return; }
+  const m = (await call(selector, { type: "measure", kind: KINDS.indexOf(measuring.kind),
+    points: pts.flat(), units: measuring.units })).measured;
+  if (asked !== measureAsked) return;
+  m.count = pts.length;
+  state.measured = m;
+  el.textContent = m.complete ? `${m.label} (${pts.length} points)` : `${pts.length} points: click more`;
+  dirty = true;
+}
+
+// A click while measuring: the point added; a measurement of a fixed count of points that was
+// complete is kept with the work and a new one starts.
+function measurePoint(p) {
+  const n = TAKES[measuring.kind];
+  if (n && state.measure.length >= n) {
+    keepMeasurement(measuring.kind, state.measure.map((q) => q.position));
+    state.measure = [];
+  }
+  state.measure.push({ position: p });
+  measureText().catch((e) => error(String(e.message || e)));
 }
 
 function ui() {
@@ -474,6 +503,13 @@ function ui() {
   };
   const measure = document.getElementById("measure");
   measure.onclick = () => setMode(mode === "measure" ? "pick" : "measure");
+  const kind = document.getElementById("measure-kind");
+  for (const k of KINDS) kind.add(new Option(k, k));
+  kind.value = measuring.kind;
+  kind.onchange = () => { const was = mode === "measure"; setMode("pick"); measuring.kind = kind.value; if (was) setMode("measure"); };
+  const units = document.getElementById("units");
+  UNITS.forEach((u, i) => units.add(new Option(u, i)));
+  units.onchange = () => { measuring.units = Number(units.value); measureText(); };
   const clipOn = document.getElementById("clip");
   const inputs = [...document.querySelectorAll("#clipbox input[type=number]")];
   const inside = document.getElementById("inside");
@@ -497,15 +533,26 @@ function ui() {
   clipOn.onchange = apply;
   inside.onchange = apply;
   if (settings.clip) apply();
+  for (const name of Object.keys(VIEWS)) {
+    const b = document.createElement("button");
+    b.id = `view-${name}`;
+    b.textContent = name;
+    b.onclick = () => axisView(name).catch((e) => error(String(e.message || e)));
+    document.getElementById("views").append(b, " ");
+  }
+  const parallel = document.getElementById("parallel");
+  parallel.checked = !!settings.parallel;
+  parallel.onchange = () => setParallel(parallel.checked);
   navigation();
 }
 
 // What a click does: pick (a point's attributes), measure (a distance), annotate.
 let mode = "pick";
 function setMode(m) {
-  // A distance finished by leaving the measuring mode is kept with the work.
-  if (mode === "measure" && m !== "measure" && state.measure.length >= 2) {
-    keepDistance(state.measure.map((q) => q.position));
+  // A measurement finished by leaving the measuring mode is kept with the work.
+  if (mode === "measure" && m !== "measure" && state.measured && state.measured.complete &&
+      state.measured.count === state.measure.length) {
+    keepMeasurement(measuring.kind, state.measure.map((q) => q.position));
   }
   if (m === "measure" || mode === "measure") { state.measure = []; measureText(); }
   mode = m;
@@ -536,7 +583,7 @@ function navigation() {
     const r = canvas.getBoundingClientRect();
     try {
       const p = await pick(e.clientX - r.left, e.clientY - r.top);
-      if (p && mode === "measure") { state.measure.push({ position: [p.x, p.y, p.z] }); measureText(); }
+      if (p && mode === "measure") measurePoint([p.x, p.y, p.z]);
       if (p && mode === "annotate") { setMode("pick"); addAnnotation(p); }
     } catch (err) {
       error(String(err.message || err));
@@ -558,6 +605,39 @@ function navigation() {
     camera.position = add(camera.target, mul(sub(camera.position, camera.target), k));
     cameraMoved();
   }, { passive: false });
+}
+
+// ---- the six axis views and the parallel (orthographic) view (as myriad-viewer's nav.rs) ----
+const PARALLEL_FOV = 1;
+const VIEWS = {
+  top: [[0, 0, 1], [0, 1, 0]], front: [[0, -1, 0], [0, 0, 1]], right: [[1, 0, 0], [0, 0, 1]],
+  bottom: [[0, 0, -1], [0, 1, 0]], back: [[0, 1, 0], [0, 0, 1]], left: [[-1, 0, 0], [0, 0, 1]],
+};
+// Along an axis at the data's centre, at the distance that frames it for this field of view.
+async function axisView(name) {
+  const [dir, up] = VIEWS[name];
+  const f = (await call(selector, { type: "camera", width: canvas.width, height: canvas.height, fov: camera.fov })).camera;
+  const d = Math.sqrt(dot(sub(f.position, f.target), sub(f.position, f.target)));
+  camera.target = [...f.target];
+  camera.position = add(f.target, mul(dir, d));
+  camera.up = up;
+  cameraMoved();
+}
+// The field of view changed keeping the size of what is seen at the target: the eye moves
+// along the line of sight.
+function refocus(fov) {
+  const v = sub(camera.position, camera.target);
+  const d = Math.max(Math.sqrt(dot(v, v)), 1e-9);
+  const half = d * Math.tan((camera.fov * Math.PI) / 360);
+  const far = half / Math.tan((fov * Math.PI) / 360);
+  camera.position = add(camera.target, mul(v, far / d));
+  camera.fov = fov;
+  cameraMoved();
+}
+function setParallel(on) {
+  if (on && !settings.parallel) { settings.parallel = camera.fov; refocus(PARALLEL_FOV); }
+  else if (!on && settings.parallel) { const fov = settings.parallel; settings.parallel = null; refocus(fov); }
+  document.getElementById("parallel").checked = !!settings.parallel;
 }
 
 function orbit(dx, dy) {
@@ -596,6 +676,8 @@ window.myriad = {
   selection: () => selection && selection.nodes.map((n) => ({ key: n.key, points: n.points })),
   renderer: () => renderer && renderer.kind,
   setMode,
+  axisView,
+  setParallel,
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

@@ -2,7 +2,7 @@
 // (the sidecar `view` and `myriad annotate` keep beside it), drawn over the view as marks with
 // their titles and figures, listed in the panel, and, where the server takes it (`serve
 // --edit`), edited here and saved back (PUT): a click places an annotation, its title and text
-// are typed in the panel, "go" shows it from its camera, a finished distance is kept. The
+// are typed in the panel, "go" shows it from its camera, a finished measurement is kept. The
 // figures' labels are the server's (myriad_measure), not computed here.
 "use strict";
 
@@ -52,9 +52,12 @@ function addAnnotation(p) {
   saveWork();
 }
 
-function keepDistance(points) {
-  if (!work.editable || points.length < 2) return;
-  work.doc.measurements.push({ kind: "distance", points });
+// A complete measurement kept with the work (where it can be saved).
+function keepMeasurement(kind, points) {
+  if (!work.editable || !work.doc) return;
+  const n = TAKES[kind];
+  if (n ? points.length !== n : points.length < (kind === "area" ? 3 : 2)) return;
+  work.doc.measurements.push({ kind, points });
   saveWork();
 }
 
@@ -138,11 +141,20 @@ function toScreen(p) {
 // The marks and labels over the view, redrawn with each frame.
 function placeLabels() {
   const layer = document.getElementById("labels");
-  if (!work.doc || !camera) { layer.textContent = ""; return; }
+  if (!camera) { layer.textContent = ""; return; }
   const want = [];
-  for (const a of work.doc.annotations) want.push({ cls: "annotation", at: a.position, text: a.title });
-  for (const m of work.doc.measurements) {
+  const doc = work.doc || { annotations: [], measurements: [] };
+  for (const a of doc.annotations) want.push({ cls: "annotation", at: a.position, text: a.title });
+  for (const m of doc.measurements) {
     want.push({ cls: "measurement", at: m.points[m.points.length - 1], text: m.label || m.kind, line: m.points, area: m.kind === "area" });
+  }
+  // The one being made.
+  const now = state.measure.map((q) => q.position);
+  if (now.length) {
+    const m = state.measured;
+    want.push({ cls: "measurement current", at: now[now.length - 1],
+      text: m && m.complete && m.count === now.length ? m.label : `${now.length}`, line: now,
+      area: measuring.kind === "area" });
   }
   while (layer.children.length > want.length + 1) layer.lastChild.remove();
   let svg = layer.querySelector("svg");

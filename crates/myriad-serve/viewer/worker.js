@@ -149,6 +149,9 @@ onmessage = async (e) => {
       const d = await decode(m);
       postMessage({ id: m.id, positions: d.positions, colours: d.colours, classes: d.classes, stats },
         [d.positions.buffer, d.colours.buffer]);
+    } else if (m.type === "measure") {
+      const n = m.points.length;
+      postMessage({ id: m.id, measured: withArgs(m.points, (a) => json(wasm.exports.myr_measure(m.kind, a, n, m.units))), stats });
     } else if (m.type === "point") {
       postMessage({ id: m.id, point: await point(m), stats });
     }

@@ -108,6 +108,9 @@ struct App {
     classes: std::collections::BTreeMap<u8, (u64, bool)>,
     /// Annotations and the measurements as saved beside the first dataset.
     saved: saved::Saved,
+    /// The axis view and the parallel view asked for on the command line, taken on the
+    /// first frame.
+    start_view: (Option<View>, bool),
 }
 
 /// Opens the window and runs until it is closed.
@@ -188,6 +191,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         tool: None,
         measurements: saved.work.measurements.clone(),
         saved,
+        start_view: (o.view, o.parallel),
         units: Units::Data,
         data_metres,
         bookmarks: Vec::new(),
@@ -450,6 +454,20 @@ impl App {
         });
         ui.separator();
         ui.label("views");
+        ui.horizontal_wrapped(|ui| {
+            for v in View::ALL {
+                if ui.small_button(v.name()).clicked() {
+                    self.nav.standard(v, &self.bounds);
+                }
+            }
+        });
+        let mut parallel = self.nav.parallel();
+        if ui
+            .checkbox(&mut parallel, "parallel (orthographic, 0)")
+            .changed()
+        {
+            self.nav.set_parallel(parallel);
+        }
         if ui.button("save this view").clicked() {
             let n = self.bookmarks.len() + 1;
             self.bookmarks
@@ -625,13 +643,23 @@ impl App {
             self.nav.frame(&self.bounds);
         }
         for (key, view) in [
-            (egui::Key::Num1, View::Top),
-            (egui::Key::Num2, View::Front),
-            (egui::Key::Num3, View::Side),
-        ] {
+            egui::Key::Num1,
+            egui::Key::Num2,
+            egui::Key::Num3,
+            egui::Key::Num4,
+            egui::Key::Num5,
+            egui::Key::Num6,
+        ]
+        .into_iter()
+        .zip(View::ALL)
+        {
             if pressed(key) {
                 self.nav.standard(view, &self.bounds);
             }
+        }
+        if pressed(egui::Key::Num0) {
+            let on = !self.nav.parallel();
+            self.nav.set_parallel(on);
         }
         let cursor = response.hover_pos().map(|p| {
             (
@@ -725,7 +753,13 @@ impl App {
         self.nav.camera.height = height.max(1);
         if !self.framed {
             self.framed = true;
-            self.nav.frame(&self.bounds);
+            match self.start_view.0 {
+                Some(v) => self.nav.standard(v, &self.bounds),
+                None => self.nav.frame(&self.bounds),
+            }
+        }
+        if std::mem::take(&mut self.start_view.1) {
+            self.nav.set_parallel(true);
         }
         let cam = self.nav.camera;
         if self.stereo.on {

@@ -68,13 +68,49 @@ fn turn(
     )
 }
 
-/// The standard views.
+/// The six axis views.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum View {
+    /// Straight down (north up).
     Top,
+    /// From the south, looking north.
     Front,
-    Side,
+    /// From the east, looking west.
+    Right,
+    /// Straight up from below (north up).
+    Bottom,
+    /// From the north, looking south.
+    Back,
+    /// From the west, looking east.
+    Left,
 }
+
+impl View {
+    pub const ALL: [View; 6] = [
+        View::Top,
+        View::Front,
+        View::Right,
+        View::Bottom,
+        View::Back,
+        View::Left,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            View::Top => "top",
+            View::Front => "front",
+            View::Right => "right",
+            View::Bottom => "bottom",
+            View::Back => "back",
+            View::Left => "left",
+        }
+    }
+}
+
+/// The field of view of the parallel (orthographic) view, in degrees: the eye that far away
+/// that the view keeps its size at the target, lines of sight parallel to within half of it
+/// (and one level of detail across the depth), drawn by the same perspective pipeline.
+pub const PARALLEL_FOV: f64 = 1.0;
 
 pub struct Nav {
     pub camera: Camera,
@@ -85,6 +121,8 @@ pub struct Nav {
     pub speed: f64,
     /// Everything there is (for near and far planes).
     all: Aabb,
+    /// In the parallel view: the field of view to go back to.
+    parallel: Option<f64>,
 }
 
 /// Radians per pixel of mouse movement.
@@ -101,6 +139,7 @@ impl Nav {
             fly: false,
             speed: s[0].max(s[1]).max(s[2]).max(1e-3) / 10.0,
             all: *all,
+            parallel: None,
         };
         nav.fit();
         nav
@@ -130,21 +169,56 @@ impl Nav {
         self.fit();
     }
 
-    /// Straight down, from the front (looking north) or from the side (looking west), at the
-    /// framing distance.
+    /// Along an axis at the data's centre, at the framing distance.
     pub fn standard(&mut self, view: View, bounds: &Aabb) {
         self.frame(bounds);
         let c = bounds.center();
         let d = norm(sub(self.camera.position, self.camera.target));
         let (eye, up) = match view {
             View::Top => ([c[0], c[1], c[2] + d], [0.0, 1.0, 0.0]),
+            View::Bottom => ([c[0], c[1], c[2] - d], [0.0, 1.0, 0.0]),
             View::Front => ([c[0], c[1] - d, c[2]], [0.0, 0.0, 1.0]),
-            View::Side => ([c[0] + d, c[1], c[2]], [0.0, 0.0, 1.0]),
+            View::Back => ([c[0], c[1] + d, c[2]], [0.0, 0.0, 1.0]),
+            View::Right => ([c[0] + d, c[1], c[2]], [0.0, 0.0, 1.0]),
+            View::Left => ([c[0] - d, c[1], c[2]], [0.0, 0.0, 1.0]),
         };
         self.camera.position = eye;
         self.camera.target = c;
         self.camera.up = up;
         self.pivot = c;
+        self.fit();
+    }
+
+    /// Whether the view is parallel (orthographic).
+    pub fn parallel(&self) -> bool {
+        self.parallel.is_some()
+    }
+
+    /// The parallel (orthographic) view on or off, what is seen at the target kept the same
+    /// size: the eye moves along the line of sight to where [`PARALLEL_FOV`] (or, back, the
+    /// field of view it had) sees as much.
+    pub fn set_parallel(&mut self, on: bool) {
+        match (on, self.parallel) {
+            (true, None) => {
+                self.parallel = Some(self.camera.fov_y);
+                self.refocus(PARALLEL_FOV);
+            }
+            (false, Some(fov)) => {
+                self.parallel = None;
+                self.refocus(fov);
+            }
+            _ => {}
+        }
+    }
+
+    fn refocus(&mut self, fov: f64) {
+        let t = self.camera.target;
+        let v = sub(self.camera.position, t);
+        let d = norm(v).max(1e-9);
+        let half = d * (self.camera.fov_y.to_radians() / 2.0).tan();
+        let far = half / (fov.to_radians() / 2.0).tan();
+        self.camera.position = add(t, scale(v, far / d));
+        self.camera.fov_y = fov;
         self.fit();
     }
 
@@ -332,8 +406,15 @@ mod tests {
         assert!(close(n.camera.forward(), [0.0, 0.0, -1.0], 1e-9));
         n.standard(View::Front, &b);
         assert!(close(n.camera.forward(), [0.0, 1.0, 0.0], 1e-9));
-        n.standard(View::Side, &b);
-        assert!(close(n.camera.forward(), [-1.0, 0.0, 0.0], 1e-9));
+        for (v, f) in [
+            (View::Bottom, [0.0, 0.0, 1.0]),
+            (View::Back, [0.0, -1.0, 0.0]),
+            (View::Left, [1.0, 0.0, 0.0]),
+            (View::Right, [-1.0, 0.0, 0.0]),
+        ] {
+            n.standard(v, &b);
+            assert!(close(n.camera.forward(), f, 1e-9), "{v:?}");
+        }
         // W for half a second at 10 units per second: 5 units forward.
         n.speed = 10.0;
         let p = n.camera.position;
@@ -344,5 +425,37 @@ mod tests {
         n.look_around(100.0, 0.0);
         assert!(close(n.camera.position, p, 1e-9));
         assert!(!close(n.camera.forward(), [-1.0, 0.0, 0.0], 1e-3));
+    }
+
+    #[test]
+    fn the_parallel_view_keeps_the_size_at_the_target() {
+        let b = Aabb::new([0.0, 0.0, 0.0], [100.0, 100.0, 10.0]);
+        let mut n = nav();
+        n.standard(View::Top, &b);
+        let seen = |n: &Nav| {
+            let c = &n.camera;
+            let d = norm(sub(c.position, c.target));
+            2.0 * d * (c.fov_y.to_radians() / 2.0).tan()
+        };
+        let (before, fov) = (seen(&n), n.camera.fov_y);
+        n.set_parallel(true);
+        assert!(n.parallel() && n.camera.fov_y == PARALLEL_FOV);
+        assert!((seen(&n) - before).abs() < 1e-6 * before);
+        assert!(close(n.camera.forward(), [0.0, 0.0, -1.0], 1e-9));
+        // Lines of sight within half the field of view of parallel (at the top edge; across
+        // the width, the aspect ratio times that).
+        let edge = n.ray(n.camera.width as f64 / 2.0, 0.0);
+        let angle = dot(edge, n.camera.forward())
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        assert!(angle <= PARALLEL_FOV / 2.0 + 1e-9, "{angle}");
+        // The six views keep it; off gives the field of view back, the size as it was.
+        n.standard(View::Front, &b);
+        assert_eq!(n.camera.fov_y, PARALLEL_FOV);
+        n.set_parallel(false);
+        assert_eq!(n.camera.fov_y, fov);
+        n.standard(View::Top, &b);
+        assert!((seen(&n) - before).abs() < 1e-6 * before);
     }
 }

@@ -43,4 +43,7 @@ pub struct ViewOptions {
     /// The first dataset's saved work (annotations, measurements), read on opening and
     /// written as it changes; `None`: not kept.
     pub work: Option<PathBuf>,
+    /// Open in this axis view, and in the parallel (orthographic) view.
+    pub view: Option<crate::nav::View>,
+    pub parallel: bool,
 }

@@ -121,7 +121,11 @@ pub(crate) const HELP: &[(&str, &str)] = &[
         "fly mode on/off: W A S D to move, Q E down/up, drag to look",
     ),
     ("F", "frame all"),
-    ("1 / 2 / 3", "top / front / side view"),
+    (
+        "1 / 2 / 3 / 4 / 5 / 6",
+        "top / front / right / bottom / back / left view",
+    ),
+    ("0", "parallel (orthographic) view on/off"),
     ("P", "screenshot (myriad-screenshot-N.png)"),
     ("H", "this help"),
 ];

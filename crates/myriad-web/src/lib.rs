@@ -247,3 +247,29 @@ pub fn point_json(b: &PointBatch, i: usize) -> Value {
     }
     Value::Object(out)
 }
+
+/// A measurement in the viewer (`myriad_measure::measurement`, as `view` and `annotate` make it):
+/// kind `kind` (its index in `Kind::ALL`) through `points` (x, y, z each), lengths in `units`
+/// (0 the data's, 1 m, 2 ft, 3 US ft) converted from the CRS's unit: whether it is complete, its
+/// figure, its label and its segments.
+pub fn measure_json(kind: u32, points: &[f64], units: u32, crs: Option<&str>) -> Value {
+    use myriad_measure::measurement::{Kind, Measurement, Units, metres_per_unit};
+    let Some(&kind) = Kind::ALL.get(kind as usize) else {
+        return json!({ "error": format!("no measurement {kind}") });
+    };
+    let units = [Units::Data, Units::Metres, Units::Feet, Units::UsFeet]
+        .get(units as usize)
+        .copied()
+        .unwrap_or(Units::Data);
+    let m = Measurement {
+        kind,
+        points: points.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    };
+    json!({
+        "kind": kind.name(),
+        "complete": m.complete(),
+        "value": m.value(),
+        "label": m.label(units, crs.and_then(metres_per_unit)),
+        "segments": m.segments(),
+    })
+}

@@ -347,3 +347,22 @@ pub unsafe extern "C" fn myr_point(
         None => error("no dataset open"),
     }
 }
+
+/// A measurement through the points at `args` (`n` numbers, x, y, z each) in the dataset's
+/// CRS: [`crate::measure_json`].
+///
+/// # Safety
+/// `args` holds `n` f64s the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_measure(kind: u32, args: *const f64, n: u32, units: u32) -> u32 {
+    let pts: &[f64] = if n == 0 {
+        &[]
+    } else {
+        // SAFETY: as the caller promises.
+        unsafe { std::slice::from_raw_parts(args, n as usize) }
+    };
+    VIEWER.with(|s| {
+        let crs = s.borrow().as_ref().and_then(|v| v.dataset.meta.crs.clone());
+        answer_json(crate::measure_json(kind, pts, units, crs.as_deref()))
+    })
+}

@@ -162,3 +162,26 @@ fn the_committed_webassembly_is_built_from_these_sources() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The web viewer's measurements are `myriad_measure`'s: the figure, the label in the units
+/// asked for (converted from the CRS's), whether enough points are in.
+#[test]
+fn measurements_are_the_measure_crates() {
+    let utm = r#"PROJCS["WGS 84 / UTM zone 33N",UNIT["metre",1,AUTHORITY["EPSG","9001"]]]"#;
+    let area = [0.0, 0.0, 5.0, 1524.0, 0.0, 9.0, 1524.0, 1524.0, 1.0];
+    let m = myriad_web::measure_json(3, &area, 2, Some(utm));
+    assert_eq!(m["kind"], "area");
+    assert_eq!(m["complete"], true);
+    assert_eq!(m["label"], "12500000.00 ft² area");
+    let m = myriad_web::measure_json(3, &area[..6], 1, Some(utm));
+    assert_eq!(
+        (m["complete"].clone(), m["label"].clone()),
+        (false.into(), serde_json::Value::Null)
+    );
+    let m = myriad_web::measure_json(1, &[0.0, 0.0, 0.0, 3.0, 4.0, 0.0], 0, None);
+    assert_eq!(
+        (m["value"].as_f64(), m["label"].as_str()),
+        (Some(5.0), Some("5.000"))
+    );
+    assert!(myriad_web::measure_json(9, &[], 0, None)["error"].is_string());
+}

@@ -27,6 +27,12 @@ pub struct ViewArgs {
     /// Vertical field of view in degrees
     #[arg(long, default_value_t = 60.0)]
     fov: f64,
+    /// Open in an axis view: top, front, right, bottom, back or left (keys 1 to 6)
+    #[arg(long, value_parser = parse_view, conflicts_with = "camera")]
+    view: Option<myriad_viewer::nav::View>,
+    /// Open in the parallel (orthographic) view (key 0)
+    #[arg(long)]
+    parallel: bool,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -96,6 +102,17 @@ pub struct ViewArgs {
     /// With --vr: metres a data unit is shown at
     #[arg(long, default_value_t = 1.0, requires = "vr")]
     vr_scale: f64,
+}
+
+fn parse_view(s: &str) -> Result<myriad_viewer::nav::View, String> {
+    use myriad_viewer::nav::View;
+    View::ALL
+        .into_iter()
+        .find(|v| v.name() == s)
+        .ok_or_else(|| {
+            let names: Vec<&str> = View::ALL.iter().map(|v| v.name()).collect();
+            format!("{s}: one of {}", names.join(", "))
+        })
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
@@ -232,6 +249,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
         .map(|p| myriad_measure::work::sidecar_for(p));
     let options = ViewOptions {
         work,
+        view: a.view,
+        parallel: a.parallel,
         width: a.width,
         height: a.height,
         camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),

@@ -147,6 +147,8 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
     }
     // Any attribute through a gradient (the panel then offers the gradient and the range).
     run(&["--color", "gps_time", "--gradient", "turbo"]);
+    // Straight down in the parallel (orthographic) view.
+    run(&["--view", "top", "--parallel"]);
     // Filtered: ground only, coloured by class, no pass blending colours: no building drawn.
     if run(&[
         "--classes",

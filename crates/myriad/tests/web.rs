@@ -258,7 +258,7 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
     }
     let m = b
         .wait_for(
-            "myriad.state.measure.length >= 2 && myriad.state",
+            "myriad.state.measured && myriad.state.measured.count >= 2 && myriad.state",
             Duration::from_secs(30),
         )
         .unwrap();
@@ -270,7 +270,10 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
         .collect();
     let want = (0..3).map(|k| (a[k] - c[k]).powi(2)).sum::<f64>().sqrt();
     assert!(want > 1.0, "two different points: {m}");
-    assert!((m["distance"].as_f64().unwrap() - want).abs() < 1e-9, "{m}");
+    assert!(
+        (m["measured"]["value"].as_f64().unwrap() - want).abs() < 1e-9,
+        "{m}"
+    );
 
     // The link restores the camera it was made at.
     b.eval("myriad.setCamera({ position: [500010.5, 4399990.25, 80.125] })")
@@ -546,6 +549,68 @@ fn the_web_viewer_shows_and_saves_annotations() {
         .count();
     assert!(marks >= 60, "{marks} pixels of the mark at the annotation");
 
+    // An area through three clicked points: the figure `myriad annotate` gives for them; kept
+    // with the work when measuring stops.
+    let spots: Vec<(i64, i64)> = [(450, 330), (650, 330), (600, 450)]
+        .iter()
+        .map(|&(tx, ty)| {
+            px.iter()
+                .enumerate()
+                .filter(|(_, p)| lit(**p))
+                .map(|(i, _)| ((i % W as usize) as i64, (i / W as usize) as i64))
+                .filter(|&(x, _)| x > 380)
+                .min_by_key(|&(x, y)| (x - tx).pow(2) + (y - ty).pow(2))
+                .unwrap()
+        })
+        .collect();
+    b.eval(
+        "(() => { const k = document.getElementById('measure-kind'); k.value = 'area'; \
+         k.dispatchEvent(new Event('change')); document.getElementById('units').value = '1'; \
+         document.getElementById('units').dispatchEvent(new Event('change')); \
+         document.getElementById('measure').click(); })()",
+    )
+    .unwrap();
+    for &(x, y) in &spots {
+        b.click(x as f64, y as f64).unwrap();
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    let m = b
+        .wait_for(
+            "myriad.state.measured && myriad.state.measured.count === 3 && myriad.state",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    let pts: Vec<String> = (0..3)
+        .flat_map(|i| (0..3).map(move |k| (i, k)))
+        .map(|(i, k)| m["measure"][i]["position"][k].to_string())
+        .collect();
+    // (On a copy elsewhere: the CLI would otherwise write to the work the page saves.)
+    std::fs::create_dir_all(d.join("cli")).unwrap();
+    std::fs::copy(&myr, d.join("cli/w.myr")).unwrap();
+    let cli = myriad(&[
+        "annotate",
+        s(&d.join("cli/w.myr")),
+        "--measure",
+        &format!("area:{}", pts.join(",")),
+    ]);
+    let label = m["measured"]["label"].as_str().unwrap().to_string();
+    assert!(label.ends_with("m² area"), "{label}");
+    assert!(
+        cli.stdout.contains(&format!("measurement 1 area: {label}")),
+        "{label} against {}",
+        cli.stdout
+    );
+    b.eval("document.getElementById('measure').click()")
+        .unwrap();
+    b.wait_for(
+        "myriad.state.work.doc.measurements.length === 2 && myriad.state.work.saves >= 1",
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    let r = myriad(&["annotate", s(&myr), "--json"]);
+    let saved: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(saved["measurements"][1]["label"], label.as_str(), "{saved}");
+
     // A click in annotating mode places one; its title typed in the panel; both saved.
     let spot = px
         .iter()
@@ -586,10 +651,48 @@ fn the_web_viewer_shows_and_saves_annotations() {
     assert_eq!(titles, ["gate", "well"], "{st}");
     let p = &st["doc"]["annotations"][1]["position"];
     assert!(p[0].as_f64().unwrap() > b0.min[0] - 1.0, "{p}");
+    // The top view, then parallel: straight down, a 1° field of view, what is seen at the
+    // target the same size, the scan drawn.
+    converge(&mut b);
+    b.eval("document.getElementById('view-top').click()")
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    converge(&mut b);
+    let seen = |c: &Value| {
+        let v: Vec<f64> = (0..3)
+            .map(|k| c["position"][k].as_f64().unwrap() - c["target"][k].as_f64().unwrap())
+            .collect();
+        let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        (
+            2.0 * d * (c["fov"].as_f64().unwrap().to_radians() / 2.0).tan(),
+            v,
+        )
+    };
+    let (before, v) = seen(&b.eval("myriad.camera()").unwrap());
+    assert!(
+        v[0].abs() < 1e-6 && v[1].abs() < 1e-6 && v[2] > 0.0,
+        "{v:?}"
+    );
+    b.eval("document.getElementById('parallel').click()")
+        .unwrap();
+    let st = converge(&mut b);
+    let cam = b.eval("myriad.camera()").unwrap();
+    assert_eq!(cam["fov"], 1.0, "{cam}");
+    let (after, _) = seen(&cam);
+    assert!(
+        (after - before).abs() < 1e-6 * before,
+        "{before} then {after}"
+    );
+    assert!(st["points"].as_u64().unwrap() > 10_000, "{st}");
+    let link = b.eval("myriad.link()").unwrap();
+    assert!(
+        link.as_str().unwrap().contains("fov=1&parallel=60"),
+        "{link}"
+    );
     drop(b);
     let r = myriad(&["annotate", s(&myr)]);
     assert!(
-        r.stdout.contains("2 annotations, 1 measurements") && r.stdout.contains("\"well\""),
+        r.stdout.contains("2 annotations, 2 measurements") && r.stdout.contains("\"well\""),
         "{}",
         r.stdout
     );
