@@ -98,15 +98,17 @@ impl Profile {
     /// elevation up, at one scale (or stretched upwards to at least a fifth of the width, as
     /// the returned vertical exaggeration says), grid lines at round steps. RGBA rows.
     pub fn plot(&self, width: u32) -> (u32, u32, Vec<u8>, f64) {
+        let frame = self.frame(width);
         let (z0, z1) = self.z_range();
-        let margin = 16.0;
+        let Frame {
+            margin,
+            inner_h,
+            exaggeration,
+            height,
+            ..
+        } = frame;
         let inner_w = width as f64 - 2.0 * margin;
-        let per_m = inner_w / self.length.max(1e-9);
         let rise = (z1 - z0).max(1e-3);
-        let natural = rise * per_m;
-        let inner_h = natural.clamp(width as f64 / 5.0, width as f64 * 1.5);
-        let exaggeration = inner_h / natural;
-        let height = (inner_h + 2.0 * margin).round() as u32;
         let mut img = vec![0u8; (width * height * 4) as usize];
         for px in img.chunks_exact_mut(4) {
             px.copy_from_slice(&[250, 250, 250, 255]);
@@ -117,12 +119,7 @@ impl Profile {
                 img[at..at + 3].copy_from_slice(&c);
             }
         };
-        let to_px = |along: f64, z: f64| {
-            (
-                margin + along * per_m,
-                margin + inner_h - (z - z0) * per_m * exaggeration,
-            )
-        };
+        let to_px = |along: f64, z: f64| frame.to_px(along, z);
         // Grid lines every round step of about a tenth of the length.
         let step = nice_step(self.length / 10.0);
         let mut g = 0.0;
@@ -157,6 +154,81 @@ impl Profile {
             }
         }
         (width, height, img, exaggeration)
+    }
+}
+
+/// Where a profile's picture puts distance along and elevation ([`Profile::plot`]), both ways:
+/// what a view of the profile measures in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    pub margin: f64,
+    /// Pixels per unit along the line; up, this times `exaggeration`.
+    pub per_m: f64,
+    pub exaggeration: f64,
+    pub inner_h: f64,
+    pub z0: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Frame {
+    /// The pixel of (distance along, elevation).
+    pub fn to_px(&self, along: f64, z: f64) -> (f64, f64) {
+        (
+            self.margin + along * self.per_m,
+            self.margin + self.inner_h - (z - self.z0) * self.per_m * self.exaggeration,
+        )
+    }
+
+    /// The (distance along, elevation) of a pixel.
+    pub fn from_px(&self, x: f64, y: f64) -> [f64; 2] {
+        [
+            (x - self.margin) / self.per_m,
+            self.z0 + (self.margin + self.inner_h - y) / (self.per_m * self.exaggeration),
+        ]
+    }
+}
+
+/// What two points of a profile, (distance along, elevation) each, are apart: along, in height,
+/// the slope (percent and degrees) and straight.
+pub fn between(a: [f64; 2], b: [f64; 2], units: &str) -> String {
+    let (run, rise) = (b[0] - a[0], b[1] - a[1]);
+    let slope = if run.abs() > 1e-12 {
+        format!(
+            "{:+.2} % ({:+.2}°)",
+            100.0 * rise / run,
+            rise.atan2(run.abs()).to_degrees()
+        )
+    } else {
+        "vertical".into()
+    };
+    format!(
+        "along {:.3} {units}, height {:+.3} {units}, slope {slope}, distance {:.3} {units}",
+        run.abs(),
+        rise,
+        run.hypot(rise)
+    )
+}
+
+impl Profile {
+    /// The frame of a picture `width` pixels wide: one scale both ways, stretched upwards to
+    /// at least a fifth of the width (at most one and a half).
+    pub fn frame(&self, width: u32) -> Frame {
+        let (z0, z1) = self.z_range();
+        let margin = 16.0;
+        let inner_w = width as f64 - 2.0 * margin;
+        let per_m = inner_w / self.length.max(1e-9);
+        let natural = (z1 - z0).max(1e-3) * per_m;
+        let inner_h = natural.clamp(width as f64 / 5.0, width as f64 * 1.5);
+        Frame {
+            margin,
+            per_m,
+            exaggeration: inner_h / natural,
+            inner_h,
+            z0,
+            width,
+            height: (inner_h + 2.0 * margin).round() as u32,
+        }
     }
 }
 
@@ -247,5 +319,27 @@ mod tests {
             ..Profile::default()
         };
         assert_eq!(p.top_line(1.0), vec![[0.4, 3.0], [1.2, 2.0]]);
+    }
+
+    #[test]
+    fn a_pictures_pixels_map_back_to_the_profile() {
+        let p = Profile {
+            positions: vec![[0.0, 0.0, 100.0], [0.0, 0.0, 112.0]],
+            stations: vec![[0.0, 0.0], [80.0, 0.0]],
+            colours: vec![[0, 0, 0]; 2],
+            length: 80.0,
+            ..Profile::default()
+        };
+        let f = p.frame(800);
+        let (w, h, _, ex) = p.plot(800);
+        assert_eq!((w, h, ex), (800, f.height, f.exaggeration));
+        let (x, y) = f.to_px(30.0, 104.5);
+        let back = f.from_px(x, y);
+        assert!((back[0] - 30.0).abs() < 1e-9 && (back[1] - 104.5).abs() < 1e-9);
+        assert_eq!(
+            between([10.0, 100.0], [40.0, 103.0], "m"),
+            "along 30.000 m, height +3.000 m, slope +10.00 % (+5.71°), distance 30.150 m"
+        );
+        assert!(between([1.0, 0.0], [1.0, 2.0], "m").contains("slope vertical"));
     }
 }

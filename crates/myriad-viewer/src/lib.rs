@@ -14,6 +14,7 @@ mod options;
 mod present;
 mod report;
 mod saved;
+mod section;
 mod shown;
 mod surface;
 pub mod vr;
@@ -111,6 +112,9 @@ struct App {
     /// The axis view and the parallel view asked for on the command line, taken on the
     /// first frame.
     start_view: (Option<View>, bool),
+    /// The cross-section tool and its profile's window; one asked for on the command line.
+    section: section::Section,
+    start_section: Option<(Vec<[f64; 2]>, f64)>,
 }
 
 /// Opens the window and runs until it is closed.
@@ -156,6 +160,20 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
     let crs = layers.first().and_then(|l| l.dataset.meta.crs.clone());
     let data_metres = crs.as_deref().and_then(measure::metres_per_unit);
     let saved = saved::Saved::open(o.work.clone(), crs.as_deref());
+    let section = {
+        let first = &layers[0];
+        let m = &first.dataset.meta;
+        let s = m.bounds.size();
+        let spacing = (s[0] * s[1] / m.points.max(1) as f64).sqrt();
+        let stem = std::path::Path::new(&first.name)
+            .file_stem()
+            .map_or_else(|| "view".into(), |n| n.to_string_lossy().into_owned());
+        section::Section::new(
+            &stem,
+            myriad_measure::measurement::crs_units(crs.as_deref()),
+            spacing,
+        )
+    };
     let mut nav = Nav::framing(&bounds, &all, o.fov);
     if let Some((eye, target)) = o.camera {
         nav.look(eye, target);
@@ -192,6 +210,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         measurements: saved.work.measurements.clone(),
         saved,
         start_view: (o.view, o.parallel),
+        section,
+        start_section: o.section.clone(),
         units: Units::Data,
         data_metres,
         bookmarks: Vec::new(),
@@ -433,6 +453,10 @@ impl App {
             self.nav.look(v.position, v.target);
         }
         ui.separator();
+        if self.section.panel(ui) {
+            self.cut_section();
+        }
+        ui.separator();
         ui.checkbox(&mut self.clip_on, "clipping box");
         if self.clip_on {
             ui.horizontal(|ui| {
@@ -517,9 +541,18 @@ impl App {
         });
     }
 
+    /// Cuts the section line drawn across the first visible dataset.
+    fn cut_section(&mut self) {
+        let filter = self.filter();
+        if let Some(l) = self.layers.iter().find(|l| l.visible) {
+            self.section.cut(l.dataset.clone(), &filter, self.colour);
+        }
+    }
+
     fn start_measuring(&mut self, kind: Kind) {
         self.tool = Some(kind);
         self.saved.placing = false;
+        self.section.drawing = false;
         if self
             .measurements
             .last()
@@ -587,6 +620,7 @@ impl App {
             }
         }
         self.saved.draw(painter, &screen);
+        self.section.draw(painter, &screen);
     }
 
     /// Mouse and keyboard over the view.
@@ -619,6 +653,15 @@ impl App {
             self.screenshot_now(ui.ctx());
         }
         if pressed(egui::Key::Escape) {
+            self.tool = None;
+            self.saved.placing = false;
+            self.section.drawing = false;
+        }
+        if pressed(egui::Key::X) && !self.nav.fly {
+            self.section.drawing = !self.section.drawing;
+            if self.section.drawing {
+                self.section.line.clear();
+            }
             self.tool = None;
             self.saved.placing = false;
         }
@@ -709,6 +752,17 @@ impl App {
         {
             self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
         }
+        if self.section.drawing {
+            if response.clicked()
+                && let Some((x, y)) = cursor
+                && let Some(p) = self.pick(&cam, x, y)
+            {
+                self.section.line.push(p.position);
+            }
+            if response.secondary_clicked() && self.section.line.len() >= 2 {
+                self.cut_section();
+            }
+        }
         if self.saved.placing
             && response.clicked()
             && let Some((x, y)) = cursor
@@ -760,6 +814,12 @@ impl App {
         }
         if std::mem::take(&mut self.start_view.1) {
             self.nav.set_parallel(true);
+        }
+        if let Some((line, width)) = self.start_section.take() {
+            let z = self.bounds.max[2];
+            self.section.line = line.iter().map(|p| [p[0], p[1], z]).collect();
+            self.section.width = width;
+            self.cut_section();
         }
         let cam = self.nav.camera;
         if self.stereo.on {
@@ -893,6 +953,13 @@ impl eframe::App for App {
                     );
                 }
             });
+        let ds = self
+            .layers
+            .iter()
+            .find(|l| l.visible)
+            .map(|l| l.dataset.clone());
+        let filter = self.filter();
+        self.section.window(&ctx, ds.as_deref(), &filter);
         if self.help {
             egui::Window::new("Shortcuts")
                 .collapsible(false)
@@ -915,7 +982,8 @@ impl eframe::App for App {
                 .stats
                 .iter()
                 .all(|s| s.select_current && s.complete && s.in_flight == 0)
-            && self.surfaces.settled();
+            && self.surfaces.settled()
+            && self.section.settled();
         self.settled = if converged { self.settled + 1 } else { 0 };
         if self.settled >= 2
             && !self.shot_requested

@@ -46,4 +46,6 @@ pub struct ViewOptions {
     /// Open in this axis view, and in the parallel (orthographic) view.
     pub view: Option<crate::nav::View>,
     pub parallel: bool,
+    /// A cross-section to cut on opening: the line in plan and the width.
+    pub section: Option<(Vec<[f64; 2]>, f64)>,
 }

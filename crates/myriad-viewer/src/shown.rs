@@ -55,7 +55,7 @@ impl Layer {
 
 impl App {
     /// The filter the view draws: the command line's conditions, and the classes ticked.
-    fn filter(&self) -> Filter {
+    pub(crate) fn filter(&self) -> Filter {
         let mut f = self.filter.clone();
         if self.classes.values().any(|&(_, shown)| !shown) {
             f.classes = Some(

@@ -33,6 +33,12 @@ pub struct ViewArgs {
     /// Open in the parallel (orthographic) view (key 0)
     #[arg(long)]
     parallel: bool,
+    /// Open with the profile along this section line cut: X1,Y1,X2,Y2[,...] (key X draws one)
+    #[arg(long, value_name = "LINE", allow_hyphen_values = true)]
+    section: Option<String>,
+    /// With --section: the corridor's width [default: four times the points' spacing]
+    #[arg(long, requires = "section")]
+    section_width: Option<f64>,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -251,6 +257,26 @@ pub fn run(a: ViewArgs) -> Result<()> {
         work,
         view: a.view,
         parallel: a.parallel,
+        section: match &a.section {
+            None => None,
+            Some(l) => {
+                let line = myriad_measure::corridor::parse_xy_list(l, "--section", 2)
+                    .map_err(anyhow::Error::msg)?;
+                let width = match a.section_width {
+                    Some(w) => w,
+                    None => {
+                        let m = &datasets
+                            .first()
+                            .map(|d| d.1.meta.clone())
+                            .ok_or_else(|| anyhow::anyhow!("no dataset"))?;
+                        let s = m.bounds.size();
+                        4.0 * (s[0] * s[1] / m.points.max(1) as f64).sqrt()
+                    }
+                };
+                myriad_measure::Corridor::new(&line, width).map_err(anyhow::Error::msg)?;
+                Some((line, width))
+            }
+        },
         width: a.width,
         height: a.height,
         camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),

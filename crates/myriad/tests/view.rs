@@ -289,23 +289,30 @@ fn the_viewer_shows_the_saved_annotations_and_measurements() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let sidecar = d.join("w.work.json");
     let before = std::fs::read(&sidecar).unwrap();
-    let shot = |name: &str| -> Option<(usize, usize)> {
+    let shot_with = |name: &str, extra: &[&str]| -> Option<(usize, usize, usize)> {
         let png = d.join(name);
-        let (ok, stdout, stderr) = view_under_xvfb(&[
+        let mut args = vec![
             ds.to_str().unwrap(),
             "--width",
-            "900",
+            "1000",
             "--height",
-            "600",
+            "650",
             "--screenshot",
             png.to_str().unwrap(),
             "--exit-after-converged",
-        ])?;
+        ];
+        args.extend(extra);
+        let (ok, stdout, stderr) = view_under_xvfb(&args)?;
         assert!(ok, "{stdout}\n{stderr}");
         let (_, _, img) = decode_png(&png);
         let count = |c: [u8; 3]| img.chunks(4).filter(|p| p[..3] == c).count();
-        Some((count([255, 64, 200]), count([255, 210, 0])))
+        Some((
+            count([255, 64, 200]),
+            count([255, 210, 0]),
+            count([250, 250, 250]),
+        ))
     };
+    let shot = |name: &str| shot_with(name, &[]).map(|(m, l, _)| (m, l));
     let Some((marks, lines)) = shot("with.png") else {
         return;
     };
@@ -322,6 +329,14 @@ fn the_viewer_shows_the_saved_annotations_and_measurements() {
     assert!(
         marks < 10 && lines < 10,
         "{marks} and {lines} without any work"
+    );
+    // A cross-section cut on opening: its profile's window, the picture's background.
+    let section = format!("{},{y},{},{y}", b.min[0], b.max[0]);
+    let (_, _, paper) = shot_with("section.png", &["--section", &section]).unwrap();
+    let (_, _, none) = shot_with("nosection.png", &[]).unwrap();
+    assert!(
+        paper >= 40_000 && none < 1000,
+        "{paper} pixels of the profile's picture ({none} without)"
     );
     let _ = std::fs::remove_dir_all(&d);
 }
