@@ -1,5 +1,7 @@
-//! `GET /x/NAME?box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ[&spacing=S]`: the original points of a served
-//! dataset inside a box (at a level of detail), as a LAZ file in the input's point format, made
+//! `GET /x/NAME?box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ[&spacing=S][&hide=6,7]`, or
+//! `?line=X1,Y1,X2,Y2[,...]&width=W`: the original points of a served dataset inside a box (at a
+//! level of detail) or a cross-section's corridor (a profile's points, as `myriad profile` cuts
+//! them), but for the hidden classes, as a LAZ file in the input's point format, made
 //! by `extract` on a blocking thread into a temporary file in the server's scratch folder that
 //! is unlinked once open and streamed from there. At most [`MAX_AT_ONCE`] run at a time; the
 //! others wait. A box of more than `Limits::max_points` points is refused (413), and an
@@ -8,22 +10,27 @@
 use myriad_build::extract::{CANCELLED, ExtractOptions, TOO_MANY_POINTS, extract_within};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
+use myriad_measure::{Corridor, Filter};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub const MAX_AT_ONCE: usize = 2;
 
 /// What a download asks for, from the query string.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Query {
-    pub bbox: Aabb,
+    pub bbox: Option<Aabb>,
+    pub corridor: Option<Corridor>,
     pub spacing: Option<f64>,
+    /// ASPRS classes left out.
+    pub hide: Vec<u8>,
 }
 
 /// Parses `box=...&spacing=...` (values percent-decoded); the error is the answer's text.
 pub fn parse_query(q: &str) -> Result<Query, String> {
     let mut bbox = None;
     let mut spacing = None;
+    let (mut line, mut width, mut hide) = (None, None, Vec::new());
     for pair in q.split('&').filter(|p| !p.is_empty()) {
         let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
         let v = crate::percent_decode(v).ok_or("malformed query")?;
@@ -51,12 +58,43 @@ pub fn parse_query(q: &str) -> Result<Query, String> {
                 }
                 spacing = Some(s);
             }
+            "line" => {
+                line = Some(myriad_measure::corridor::parse_xy_list(&v, "line", 2)?);
+            }
+            "width" => {
+                width = Some(
+                    v.parse::<f64>()
+                        .map_err(|_| format!("width \"{v}\": not a number"))?,
+                );
+            }
+            "hide" => {
+                for c in v.split(',').filter(|c| !c.is_empty()) {
+                    hide.push(
+                        c.trim()
+                            .parse::<u8>()
+                            .map_err(|_| format!("hide \"{v}\": class numbers 0 to 255"))?,
+                    );
+                }
+            }
             other => return Err(format!("unknown parameter \"{other}\"")),
         }
     }
+    let corridor = match (line, width) {
+        (Some(l), Some(w)) => Some(Corridor::new(&l, w)?),
+        (None, None) => None,
+        _ => return Err("a line needs its width: ?line=x1,y1,x2,y2&width=w".into()),
+    };
+    if bbox.is_none() && corridor.is_none() {
+        return Err(
+            "a box or a line is needed: ?box=minx,miny,minz,maxx,maxy,maxz or ?line=x1,y1,x2,y2&width=w"
+                .into(),
+        );
+    }
     Ok(Query {
-        bbox: bbox.ok_or("a box is needed: ?box=minx,miny,minz,maxx,maxy,maxz")?,
+        bbox,
+        corridor,
         spacing,
+        hide,
     })
 }
 
@@ -90,10 +128,16 @@ pub fn run(
     ));
     let ds = Dataset::open(dataset).map_err(|e| Failed::Other(e.to_string()))?;
     let o = ExtractOptions {
-        bbox: Some(q.bbox),
+        bbox: q.bbox,
+        region: (q.corridor.clone())
+            .map(|c| std::sync::Arc::new(c) as std::sync::Arc<dyn myriad_measure::Region>),
+        filter: Filter {
+            classes: (!q.hide.is_empty())
+                .then(|| (0..=255u8).filter(|c| !q.hide.contains(c)).collect()),
+            ..Default::default()
+        },
         spacing: q.spacing,
         force: true,
-        ..Default::default()
     };
     let summary = extract_within(&ds, &tmp, &o, limits.max_points, cancelled).map_err(|e| {
         let m = e.to_string();
@@ -118,12 +162,15 @@ mod tests {
     #[test]
     fn queries() {
         let q = parse_query("box=-1,-2,-3,4,5,6&spacing=0.5").unwrap();
-        assert_eq!(q.bbox, Aabb::new([-1.0, -2.0, -3.0], [4.0, 5.0, 6.0]));
+        assert_eq!(q.bbox, Some(Aabb::new([-1.0, -2.0, -3.0], [4.0, 5.0, 6.0])));
         assert_eq!(q.spacing, Some(0.5));
         assert_eq!(
             parse_query("box=0%2C0%2C0%2C1%2C1%2C1").unwrap().bbox,
-            Aabb::new([0.0; 3], [1.0; 3])
+            Some(Aabb::new([0.0; 3], [1.0; 3]))
         );
+        let q = parse_query("line=0,0,10,0,10,5&width=2&hide=6,7").unwrap();
+        assert_eq!(q.corridor.unwrap().length(), 15.0);
+        assert_eq!(q.hide, [6, 7]);
         for bad in [
             "",
             "spacing=1",
@@ -133,6 +180,10 @@ mod tests {
             "box=0,0,0,1,1,1&spacing=-1",
             "box=0,0,0,1,1,1&x=1",
             "box=%zz",
+            "line=0,0,10,0",
+            "line=0,0&width=1",
+            "line=0,0,1,1&width=0",
+            "box=0,0,0,1,1,1&hide=300",
         ] {
             assert!(parse_query(bad).is_err(), "{bad}");
         }

@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 7] = [
+static FILES: [(&str, Asset); 8] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -64,6 +64,10 @@ static FILES: [(&str, Asset); 7] = [
     (
         "work.js",
         Asset::new(include_bytes!("../viewer/work.js"), "text/javascript"),
+    ),
+    (
+        "profile.js",
+        Asset::new(include_bytes!("../viewer/profile.js"), "text/javascript"),
     ),
     (
         "myriad_web.wasm",

@@ -4,7 +4,8 @@
 // lighting (as edl.wgsl), positions relative to each node (no jitter at UTM or ECEF sizes).
 // Orbit (left drag), pan (right drag or shift), zoom (wheel), double-click to centre; click a
 // point for its attributes, measure distances, clip to a box and download its points as LAZ,
-// share the camera as a link; annotations and measurements saved with the dataset (work.js).
+// share the camera as a link; annotations and measurements saved with the dataset (work.js);
+// cross-sections (profile.js).
 // `window.myriad` exposes the state to scripts (tests).
 "use strict";
 
@@ -543,6 +544,7 @@ function ui() {
   const parallel = document.getElementById("parallel");
   parallel.checked = !!settings.parallel;
   parallel.onchange = () => setParallel(parallel.checked);
+  profileUi();
   navigation();
 }
 
@@ -585,6 +587,7 @@ function navigation() {
       const p = await pick(e.clientX - r.left, e.clientY - r.top);
       if (p && mode === "measure") measurePoint([p.x, p.y, p.z]);
       if (p && mode === "annotate") { setMode("pick"); addAnnotation(p); }
+      if (p && mode === "section") sectionPoint([p.x, p.y, p.z]);
     } catch (err) {
       error(String(err.message || err));
     }
@@ -678,6 +681,7 @@ window.myriad = {
   setMode,
   axisView,
   setParallel,
+  cut: (line, width) => cutProfile(line, width),
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

@@ -181,5 +181,9 @@ function placeLabels() {
       }
     }
   });
+  const cut = state.section ? state.section.line.map(toScreen) : [];
+  if (cut.length >= 2 && cut.every((q) => q)) {
+    lines += `<polyline class="section" points="${cut.map((q) => q.join(",")).join(" ")}" />`;
+  }
   svg.innerHTML = lines;
 }

@@ -152,6 +152,20 @@ onmessage = async (e) => {
     } else if (m.type === "measure") {
       const n = m.points.length;
       postMessage({ id: m.id, measured: withArgs(m.points, (a) => json(wasm.exports.myr_measure(m.kind, a, n, m.units))), stats });
+    } else if (m.type === "profile") {
+      const words = [0, 0, 0, 0, 0, 0, 0, 0];
+      for (const c of m.hidden || []) words[c >> 5] += 2 ** (c & 31);
+      const n = withArgs([...m.line, ...words], (a) =>
+        wasm.exports.myr_profile(a, m.line.length, m.width, m.picture, m.scheme));
+      const out = memory(wasm.exports.myr_out(), n).slice();
+      const len = new DataView(out.buffer).getUint32(0, true);
+      const summary = JSON.parse(new TextDecoder().decode(out.subarray(4, 4 + len)));
+      if (summary.error) throw new Error(summary.error);
+      const rgba = out.slice(4 + len, 4 + len + summary.rgba);
+      const csv = new TextDecoder().decode(out.subarray(4 + len + summary.rgba));
+      postMessage({ id: m.id, summary, rgba, csv, stats }, [rgba.buffer]);
+    } else if (m.type === "between") {
+      postMessage({ id: m.id, text: json(wasm.exports.myr_between(...m.a, ...m.b)), stats });
     } else if (m.type === "point") {
       postMessage({ id: m.id, point: await point(m), stats });
     }

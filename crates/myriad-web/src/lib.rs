@@ -273,3 +273,45 @@ pub fn measure_json(kind: u32, points: &[f64], units: u32, crs: Option<&str>) ->
         "segments": m.segments(),
     })
 }
+
+/// A cross-section for the web viewer (`myriad_measure::profile`, as `myriad profile` and `view`
+/// cut it): the original points within `width / 2` of `line` but for the hidden classes,
+/// coloured by `scheme`, drawn `picture` pixels wide. A JSON summary (points, length, width,
+/// elevations, the picture's frame, units) with the RGBA picture and the points as CSV.
+pub fn cut_profile(
+    ds: &Dataset,
+    line: &[[f64; 2]],
+    width: f64,
+    picture: u32,
+    scheme: ColorBy,
+    hidden: &Hidden,
+) -> Result<(Value, Vec<u8>, Vec<u8>), String> {
+    let corridor = myriad_measure::Corridor::new(line, width)?;
+    let filter = myriad_measure::Filter {
+        classes: hidden
+            .iter()
+            .any(|&h| h)
+            .then(|| (0..=255u8).filter(|&c| !hidden[c as usize]).collect()),
+        ..Default::default()
+    };
+    let bound = filter.bind(&ds.meta.schema)?;
+    let p = myriad_measure::profile::profile(ds, &corridor, &bound, scheme)?;
+    let units = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
+    let (z0, z1) = p.z_range();
+    let mut summary = json!({
+        "points": p.len(), "length": p.length, "width": p.width, "z": [z0, z1],
+        "nodes_read": p.nodes_read, "units": units,
+    });
+    if p.is_empty() {
+        return Ok((summary, Vec::new(), Vec::new()));
+    }
+    let (w, h, rgba, _) = p.plot(picture.clamp(64, 4096));
+    let f = p.frame(w);
+    summary["frame"] = json!({
+        "margin": f.margin, "per_m": f.per_m, "exaggeration": f.exaggeration,
+        "inner_h": f.inner_h, "z0": f.z0, "width": w, "height": h,
+    });
+    let mut csv = Vec::new();
+    p.write_csv(&mut csv).map_err(|e| e.to_string())?;
+    Ok((summary, rgba, csv))
+}

@@ -366,3 +366,65 @@ pub unsafe extern "C" fn myr_measure(kind: u32, args: *const f64, n: u32, units:
         answer_json(crate::measure_json(kind, pts, units, crs.as_deref()))
     })
 }
+
+/// A cross-section ([`crate::cut_profile`]) along the line at `args` (`n` numbers, x, y each;
+/// then the hidden classes as 8 words of 32 bits), `width` wide, drawn `picture` pixels wide in
+/// colour scheme `scheme`: a u32 length and the summary's JSON, then the RGBA picture, then the
+/// CSV (lengths in the summary: `rgba`, `csv`).
+///
+/// # Safety
+/// `args` holds `n + 8` f64s the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_profile(
+    args: *const f64,
+    n: u32,
+    width: f64,
+    picture: u32,
+    scheme: u32,
+) -> u32 {
+    // SAFETY: the caller's promise.
+    let a = unsafe { std::slice::from_raw_parts(args, n as usize + 8) };
+    let line: Vec<[f64; 2]> = a[..n as usize]
+        .chunks_exact(2)
+        .map(|c| [c[0], c[1]])
+        .collect();
+    let mut hidden = [false; 256];
+    for (c, h) in hidden.iter_mut().enumerate() {
+        *h = (a[n as usize + c / 32] as u32) >> (c % 32) & 1 == 1;
+    }
+    let scheme = SCHEMES
+        .get(scheme as usize)
+        .and_then(|s| ColorBy::parse(s))
+        .unwrap_or(ColorBy::Rgb);
+    let r = with_dataset(|ds| crate::cut_profile(ds, &line, width, picture, scheme, &hidden));
+    let (mut summary, rgba, csv) = match r {
+        Some(Ok(x)) => x,
+        Some(Err(e)) => (json!({ "error": e }), Vec::new(), Vec::new()),
+        None => (
+            json!({ "error": "no dataset open" }),
+            Vec::new(),
+            Vec::new(),
+        ),
+    };
+    summary["rgba"] = rgba.len().into();
+    summary["csv"] = csv.len().into();
+    let text = summary.to_string().into_bytes();
+    let mut out = (text.len() as u32).to_le_bytes().to_vec();
+    out.extend(text);
+    out.extend(rgba);
+    out.extend(csv);
+    answer(out)
+}
+
+/// What two points of a profile are apart (`myriad_measure::profile::between`), in the
+/// dataset's units: a JSON text.
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_between(a_along: f64, a_z: f64, b_along: f64, b_z: f64) -> u32 {
+    let units = with_dataset(|ds| myriad_measure::measurement::crs_units(ds.meta.crs.as_deref()))
+        .unwrap_or("units");
+    answer_json(json!(myriad_measure::profile::between(
+        [a_along, a_z],
+        [b_along, b_z],
+        units
+    )))
+}

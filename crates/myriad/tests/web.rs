@@ -651,6 +651,77 @@ fn the_web_viewer_shows_and_saves_annotations() {
     assert_eq!(titles, ["gate", "well"], "{st}");
     let p = &st["doc"]["annotations"][1]["position"];
     assert!(p[0].as_f64().unwrap() > b0.min[0] - 1.0, "{p}");
+    // A cross-section cut in the browser: the points `myriad profile` cuts (the same CSV
+    // rows), two clicks in its picture measure between them, its LAZ link the same points.
+    converge(&mut b);
+    let (x0, x1, yl) = (b0.min[0] + 5.0, b0.max[0] - 5.0, c[1]);
+    let cut = b
+        .eval(&format!("myriad.cut([[{x0}, {yl}], [{x1}, {yl}]], 2)"))
+        .unwrap();
+    let csv = d.join("cut.csv");
+    let r = myriad(&[
+        "profile",
+        s(&myr),
+        "--line",
+        &format!("{x0},{yl},{x1},{yl}"),
+        "--width",
+        "2",
+        "-o",
+        s(&csv),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(
+        cut["points"].as_u64().unwrap() as usize,
+        rows.lines().count() - 1,
+        "{cut}"
+    );
+    assert!(cut["points"].as_u64().unwrap() > 100, "{cut}");
+    let web_csv = b.eval("myriad.state.section.csv").unwrap();
+    assert_eq!(
+        web_csv.as_str().unwrap(),
+        rows,
+        "the same rows as myriad profile's"
+    );
+    let at = b
+        .eval(
+            "(() => { const r = document.querySelector('#profile canvas').getBoundingClientRect(); \
+             return [r.left, r.top, r.width, r.height]; })()",
+        )
+        .unwrap();
+    let v = |k: usize| at[k].as_f64().unwrap();
+    b.click(v(0) + 0.25 * v(2), v(1) + 0.8 * v(3)).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    b.click(v(0) + 0.75 * v(2), v(1) + 0.3 * v(3)).unwrap();
+    let between = b
+        .wait_for("myriad.state.section.between", Duration::from_secs(30))
+        .unwrap();
+    let between = between.as_str().unwrap().to_string();
+    assert!(
+        between.starts_with("along ") && between.contains(" m, slope +"),
+        "{between}"
+    );
+    let href = b
+        .eval("document.querySelector('#profile a.laz').href")
+        .unwrap();
+    let mut laz = Vec::new();
+    use std::io::Read;
+    ureq::get(href.as_str().unwrap())
+        .call()
+        .unwrap()
+        .into_body()
+        .into_reader()
+        .read_to_end(&mut laz)
+        .unwrap();
+    assert_eq!(&laz[..4], b"LASF");
+    let count = u32::from_le_bytes(laz[107..111].try_into().unwrap()) as u64;
+    let count = if count == 0 {
+        u64::from_le_bytes(laz[247..255].try_into().unwrap())
+    } else {
+        count
+    };
+    assert_eq!(count, cut["points"].as_u64().unwrap(), "{href}");
+
     // The top view, then parallel: straight down, a 1° field of view, what is seen at the
     // target the same size, the scan drawn.
     converge(&mut b);
