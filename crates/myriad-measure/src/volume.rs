@@ -167,6 +167,30 @@ pub fn default_cell(ds: &Dataset, polygon: &Polygon) -> f64 {
     crate::profile::nice_step(2.0 * spacing)
 }
 
+/// The grid a volume was measured on, for a view to draw: each cell's surface and base
+/// heights, `None` outside the polygon (or where either is unknown).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cells {
+    pub origin: [f64; 2],
+    pub cell: f64,
+    pub nx: usize,
+    pub ny: usize,
+    pub heights: Vec<Option<(f64, f64)>>,
+}
+
+impl Cells {
+    /// The centre of cell `k` (row after row from the origin).
+    pub fn centre(&self, k: usize) -> (f64, f64) {
+        (
+            self.origin[0] + ((k % self.nx) as f64 + 0.5) * self.cell,
+            self.origin[1] + ((k / self.nx) as f64 + 0.5) * self.cell,
+        )
+    }
+}
+
+/// At most this many cells are kept for drawing ([`volume_and_cells`]).
+pub const MAX_DRAWN_CELLS: u64 = 4_000_000;
+
 /// The volume of `ds` over `polygon` above `base`, on cells of `cell` (or [`default_cell`]).
 pub fn volume(
     ds: &Dataset,
@@ -175,6 +199,28 @@ pub fn volume(
     cell: Option<f64>,
     filter: &Bound,
 ) -> Result<Volume, String> {
+    measure(ds, polygon, base, cell, filter, false).map(|(v, _)| v)
+}
+
+/// [`volume`] and the grid it was measured on (none past [`MAX_DRAWN_CELLS`]).
+pub fn volume_and_cells(
+    ds: &Dataset,
+    polygon: &Polygon,
+    base: Base<'_>,
+    cell: Option<f64>,
+    filter: &Bound,
+) -> Result<(Volume, Option<Cells>), String> {
+    measure(ds, polygon, base, cell, filter, true)
+}
+
+fn measure(
+    ds: &Dataset,
+    polygon: &Polygon,
+    base: Base<'_>,
+    cell: Option<f64>,
+    filter: &Bound,
+    keep: bool,
+) -> Result<(Volume, Option<Cells>), String> {
     let cell = match cell {
         Some(c) if c.is_finite() && c > 0.0 => c,
         Some(c) => return Err(format!("--cell {c}: a cell size must be positive")),
@@ -267,6 +313,14 @@ pub fn volume(
         }
     };
     let area = cell * cell;
+    let keep = keep && (top.len() as u64) <= MAX_DRAWN_CELLS;
+    let mut cells = keep.then(|| Cells {
+        origin: grid.origin,
+        cell,
+        nx: grid.nx,
+        ny: grid.ny,
+        heights: vec![None; top.len()],
+    });
     for k in (0..top.len()).filter(|&k| inside[k]) {
         if let (Some(t), Some(b)) = (top[k], base_at(k)) {
             let d = (t - b) * area;
@@ -275,9 +329,12 @@ pub fn volume(
             } else {
                 v.cut -= d;
             }
+            if let Some(c) = &mut cells {
+                c.heights[k] = Some((t, b));
+            }
         }
     }
-    Ok(v)
+    Ok((v, cells))
 }
 
 /// Solves a 3x3 system by Cramer's rule; `None` when it is singular.

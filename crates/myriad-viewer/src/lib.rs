@@ -17,6 +17,7 @@ mod saved;
 mod section;
 mod shown;
 mod surface;
+mod volumes;
 pub mod vr;
 pub mod vr_nav;
 mod vr_vulkan;
@@ -31,7 +32,7 @@ use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
 use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
 use nav::{Nav, View};
-pub use options::ViewOptions;
+pub use options::{ViewOptions, VolumeAsked};
 use present::{Presented, passes_panel};
 use report::{HELP, describe, report_orbit, write_png};
 use std::path::PathBuf;
@@ -115,6 +116,9 @@ struct App {
     /// The cross-section tool and its profile's window; one asked for on the command line.
     section: section::Section,
     start_section: Option<(Vec<[f64; 2]>, f64)>,
+    /// The volume tool; one asked for on the command line.
+    volumes: volumes::Volumes,
+    start_volume: Option<options::VolumeAsked>,
 }
 
 /// Opens the window and runs until it is closed.
@@ -212,6 +216,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         start_view: (o.view, o.parallel),
         section,
         start_section: o.section.clone(),
+        volumes: volumes::Volumes::new(myriad_measure::measurement::crs_units(crs.as_deref())),
+        start_volume: o.volume.clone(),
         units: Units::Data,
         data_metres,
         bookmarks: Vec::new(),
@@ -457,6 +463,10 @@ impl App {
             self.cut_section();
         }
         ui.separator();
+        if self.volumes.panel(ui) {
+            self.measure_volume();
+        }
+        ui.separator();
         ui.checkbox(&mut self.clip_on, "clipping box");
         if self.clip_on {
             ui.horizontal(|ui| {
@@ -549,10 +559,19 @@ impl App {
         }
     }
 
+    /// Measures the volume over the polygon drawn, in the first visible dataset.
+    fn measure_volume(&mut self) {
+        let filter = self.filter();
+        if let Some(l) = self.layers.iter().find(|l| l.visible) {
+            self.volumes.measure(l.dataset.clone(), &filter);
+        }
+    }
+
     fn start_measuring(&mut self, kind: Kind) {
         self.tool = Some(kind);
         self.saved.placing = false;
         self.section.drawing = false;
+        self.volumes.drawing = false;
         if self
             .measurements
             .last()
@@ -621,6 +640,7 @@ impl App {
         }
         self.saved.draw(painter, &screen);
         self.section.draw(painter, &screen);
+        self.volumes.draw(painter, &screen);
     }
 
     /// Mouse and keyboard over the view.
@@ -656,12 +676,23 @@ impl App {
             self.tool = None;
             self.saved.placing = false;
             self.section.drawing = false;
+            self.volumes.drawing = false;
+        }
+        if pressed(egui::Key::V) && !self.nav.fly {
+            self.volumes.drawing = !self.volumes.drawing;
+            if self.volumes.drawing {
+                self.volumes.polygon.clear();
+            }
+            self.section.drawing = false;
+            self.tool = None;
+            self.saved.placing = false;
         }
         if pressed(egui::Key::X) && !self.nav.fly {
             self.section.drawing = !self.section.drawing;
             if self.section.drawing {
                 self.section.line.clear();
             }
+            self.volumes.drawing = false;
             self.tool = None;
             self.saved.placing = false;
         }
@@ -752,6 +783,17 @@ impl App {
         {
             self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
         }
+        if self.volumes.drawing {
+            if response.clicked()
+                && let Some((x, y)) = cursor
+                && let Some(p) = self.pick(&cam, x, y)
+            {
+                self.volumes.polygon.push(p.position);
+            }
+            if response.secondary_clicked() && self.volumes.polygon.len() >= 3 {
+                self.measure_volume();
+            }
+        }
         if self.section.drawing {
             if response.clicked()
                 && let Some((x, y)) = cursor
@@ -820,6 +862,19 @@ impl App {
             self.section.line = line.iter().map(|p| [p[0], p[1], z]).collect();
             self.section.width = width;
             self.cut_section();
+        }
+        if let Some(options::VolumeAsked {
+            polygon,
+            base,
+            cell,
+        }) = self.start_volume.take()
+        {
+            let z = self.bounds.min[2];
+            self.volumes.polygon = polygon.iter().map(|p| [p[0], p[1], z]).collect();
+            self.volumes.base = base.map_or(volumes::Down::Rim, volumes::Down::Elevation);
+            self.volumes.cell = cell.unwrap_or(0.0);
+            self.volumes.print = true;
+            self.measure_volume();
         }
         let cam = self.nav.camera;
         if self.stereo.on {
@@ -960,6 +1015,7 @@ impl eframe::App for App {
             .map(|l| l.dataset.clone());
         let filter = self.filter();
         self.section.window(&ctx, ds.as_deref(), &filter);
+        self.volumes.take();
         if self.help {
             egui::Window::new("Shortcuts")
                 .collapsible(false)
@@ -983,7 +1039,8 @@ impl eframe::App for App {
                 .iter()
                 .all(|s| s.select_current && s.complete && s.in_flight == 0)
             && self.surfaces.settled()
-            && self.section.settled();
+            && self.section.settled()
+            && self.volumes.settled();
         self.settled = if converged { self.settled + 1 } else { 0 };
         if self.settled >= 2
             && !self.shot_requested

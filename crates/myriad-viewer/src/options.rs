@@ -48,4 +48,16 @@ pub struct ViewOptions {
     pub parallel: bool,
     /// A cross-section to cut on opening: the line in plan and the width.
     pub section: Option<(Vec<[f64; 2]>, f64)>,
+    /// A volume to measure on opening (its result printed): the polygon, an elevation for
+    /// the base (none: the rim's plane) and a cell size (none: from the spacing).
+    pub volume: Option<VolumeAsked>,
+}
+
+/// A volume asked for on the command line: the polygon, an elevation for the base (none: the
+/// rim's plane) and a cell size (none: from the spacing).
+#[derive(Debug, Clone)]
+pub struct VolumeAsked {
+    pub polygon: Vec<[f64; 2]>,
+    pub base: Option<f64>,
+    pub cell: Option<f64>,
 }

@@ -115,7 +115,15 @@ pub(crate) const HELP: &[(&str, &str)] = &[
         "T",
         "annotate: click a point, then give it a title and text in the panel",
     ),
-    ("Esc", "stop measuring or annotating"),
+    (
+        "X",
+        "profile: click points of a section line, right click cuts (width in the panel)",
+    ),
+    (
+        "V",
+        "volume: click a polygon's corners, right click measures (base and cell in the panel)",
+    ),
+    ("Esc", "stop measuring, annotating, drawing"),
     (
         "G",
         "fly mode on/off: W A S D to move, Q E down/up, drag to look",

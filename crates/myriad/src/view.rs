@@ -39,6 +39,21 @@ pub struct ViewArgs {
     /// With --section: the corridor's width [default: four times the points' spacing]
     #[arg(long, requires = "section")]
     section_width: Option<f64>,
+    /// Open measuring the volume over this polygon: X1,Y1,X2,Y2,X3,Y3[,...] (key V draws
+    /// one); the result is printed too
+    #[arg(long, value_name = "POLYGON", allow_hyphen_values = true)]
+    volume: Option<String>,
+    /// With --volume: rim (the plane fitted to the rim's points) or an elevation
+    #[arg(
+        long,
+        requires = "volume",
+        default_value = "rim",
+        allow_hyphen_values = true
+    )]
+    volume_base: String,
+    /// With --volume: the grid's cell size [default: about twice the points' spacing]
+    #[arg(long, requires = "volume")]
+    volume_cell: Option<f64>,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -257,6 +272,28 @@ pub fn run(a: ViewArgs) -> Result<()> {
         work,
         view: a.view,
         parallel: a.parallel,
+        volume: match &a.volume {
+            None => None,
+            Some(p) => {
+                let pts = myriad_measure::corridor::parse_xy_list(p, "--volume", 3)
+                    .map_err(anyhow::Error::msg)?;
+                myriad_measure::Polygon::new(&pts).map_err(anyhow::Error::msg)?;
+                let base = match a.volume_base.as_str() {
+                    "rim" => None,
+                    b => Some(b.parse::<f64>().ok().filter(|z| z.is_finite()).ok_or_else(
+                        || anyhow::anyhow!("--volume-base \"{b}\": rim or an elevation"),
+                    )?),
+                };
+                if a.volume_cell.is_some_and(|c| !(c.is_finite() && c > 0.0)) {
+                    bail!("--volume-cell: a cell size must be positive");
+                }
+                Some(myriad_viewer::VolumeAsked {
+                    polygon: pts,
+                    base,
+                    cell: a.volume_cell,
+                })
+            }
+        },
         section: match &a.section {
             None => None,
             Some(l) => {

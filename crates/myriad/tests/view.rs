@@ -340,3 +340,69 @@ fn the_viewer_shows_the_saved_annotations_and_measurements() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A volume in the window (`--volume`, as key V and clicks make one): the figure `myriad
+/// volume` gives for the same polygon, printed, and the base drawn over the view.
+#[test]
+fn the_viewer_measures_a_volume_and_draws_its_base() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("volume");
+    let las = d.join("p.las");
+    let r = common::myriad(&[
+        "synth",
+        "--scene",
+        "stockpiles",
+        "-o",
+        las.to_str().unwrap(),
+        "--points",
+        "200k",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let polygon = (r.stdout.lines().chain(r.stderr.lines()))
+        .find(|l| l.starts_with("pile 1:"))
+        .and_then(|l| l.split("--polygon ").nth(1))
+        .unwrap()
+        .trim()
+        .to_string();
+    let ds = d.join("p.myr");
+    let r = common::myriad(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = common::myriad(&[
+        "volume",
+        ds.to_str().unwrap(),
+        "--polygon",
+        &polygon,
+        "--json",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    let png = d.join("v.png");
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+        ds.to_str().unwrap(),
+        "--width",
+        "1000",
+        "--height",
+        "650",
+        "--volume",
+        &polygon,
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--exit-after-converged",
+    ]) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    let want = format!(
+        "volume: fill {:.3} m³, cut {:.3} m³",
+        v["fill"].as_f64().unwrap(),
+        v["cut"].as_f64().unwrap()
+    );
+    assert!(stdout.contains(&want), "{want} in {stdout}");
+    let (_, _, img) = decode_png(&png);
+    let base = img.chunks(4).filter(|p| p[..3] == [255, 140, 0]).count();
+    assert!(base >= 100, "{base} pixels of the base's outline");
+    let _ = std::fs::remove_dir_all(&d);
+}
