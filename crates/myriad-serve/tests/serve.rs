@@ -75,17 +75,26 @@ fn ranges_validators_cors_and_bad_requests() {
         names,
         ["potree/metadata.json", "potree/sub/octree.bin", "site.myr"]
     );
-    let server = Server::start(
-        catalog,
-        "127.0.0.1:0".parse().unwrap(),
-        Options {
-            max_connections: 8,
-            header_timeout: Duration::from_millis(500),
-            max_header_bytes: 8192,
-            ..Options::default()
-        },
-    )
-    .unwrap();
+    let options = Options {
+        max_connections: 8,
+        header_timeout: Duration::from_millis(500),
+        max_header_bytes: 8192,
+        ..Options::default()
+    };
+    // (Retried as below: the other test's server may be starting at the same moment.)
+    let mut catalog = Some(catalog);
+    let mut server = None;
+    for _ in 0..50 {
+        let c = catalog
+            .take()
+            .unwrap_or_else(|| Catalog::new(&[file.clone(), potree.clone()]).unwrap());
+        if let Ok(s) = Server::start(c, "127.0.0.1:0".parse().unwrap(), options) {
+            server = Some(s);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let server = server.expect("the server started");
 
     // The whole file.
     let a = get(&server, "/d/site.myr", "");
@@ -278,16 +287,23 @@ fn saved_work_is_shown_and_saved_only_with_edit() {
     let file = d.join("site.myr");
     std::fs::write(&file, b"not a dataset, here").unwrap();
     let sidecar = d.join("site.work.json");
+    // (Retried: a server starting at the same moment in this process, the other test's,
+    // briefly holds the scratch folders' locks while it looks for stale ones.)
     let start = |edit: bool| {
-        Server::start(
-            Catalog::new(std::slice::from_ref(&file)).unwrap(),
-            "127.0.0.1:0".parse().unwrap(),
-            Options {
-                edit,
-                ..Options::default()
-            },
-        )
-        .unwrap()
+        for _ in 0..50 {
+            if let Ok(s) = Server::start(
+                Catalog::new(std::slice::from_ref(&file)).unwrap(),
+                "127.0.0.1:0".parse().unwrap(),
+                Options {
+                    edit,
+                    ..Options::default()
+                },
+            ) {
+                return s;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        panic!("the server did not start");
     };
     let body = r#"{"myriad":"work","version":1,"crs":"EPSG:9999","annotations":[{"position":[1,2,3],"title":"gate","text":"north"}],"measurements":[{"kind":"distance","points":[[0,0,0],[3,4,0]]}]}"#;
 
