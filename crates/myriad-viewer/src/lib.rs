@@ -567,11 +567,17 @@ impl App {
         }
     }
 
-    fn start_measuring(&mut self, kind: Kind) {
-        self.tool = Some(kind);
+    /// No tool takes clicks: measuring, annotating, a section line, a volume's polygon.
+    fn stop_tools(&mut self) {
+        self.tool = None;
         self.saved.placing = false;
         self.section.drawing = false;
         self.volumes.drawing = false;
+    }
+
+    fn start_measuring(&mut self, kind: Kind) {
+        self.stop_tools();
+        self.tool = Some(kind);
         if self
             .measurements
             .last()
@@ -673,32 +679,28 @@ impl App {
             self.screenshot_now(ui.ctx());
         }
         if pressed(egui::Key::Escape) {
-            self.tool = None;
-            self.saved.placing = false;
-            self.section.drawing = false;
-            self.volumes.drawing = false;
+            self.stop_tools();
         }
         if pressed(egui::Key::V) && !self.nav.fly {
-            self.volumes.drawing = !self.volumes.drawing;
-            if self.volumes.drawing {
+            let on = !self.volumes.drawing;
+            self.stop_tools();
+            self.volumes.drawing = on;
+            if on {
                 self.volumes.polygon.clear();
             }
-            self.section.drawing = false;
-            self.tool = None;
-            self.saved.placing = false;
         }
         if pressed(egui::Key::X) && !self.nav.fly {
-            self.section.drawing = !self.section.drawing;
-            if self.section.drawing {
+            let on = !self.section.drawing;
+            self.stop_tools();
+            self.section.drawing = on;
+            if on {
                 self.section.line.clear();
             }
-            self.volumes.drawing = false;
-            self.tool = None;
-            self.saved.placing = false;
         }
         if pressed(egui::Key::T) && !self.nav.fly {
-            self.saved.placing = !self.saved.placing;
-            self.tool = None;
+            let on = !self.saved.placing;
+            self.stop_tools();
+            self.saved.placing = on;
         }
         for (key, kind) in [
             (egui::Key::M, Kind::Distance),
