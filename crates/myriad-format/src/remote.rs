@@ -11,6 +11,12 @@
 //! of the range), and each answer's ETag and length are compared with the first's. Once the
 //! resource has changed, this read and every later one fail with [`CHANGED`], and
 //! [`ByteSource::changed`] says so: a command stops there, never mixing pages of two versions.
+//!
+//! A private server's token goes with every request: [`set_headers`] (the command line's
+//! `--header "NAME: VALUE"`), else the environment's `MYRIAD_HEADER` (headers, one a line) and
+//! `MYRIAD_TOKEN` (as `Authorization: Bearer TOKEN`). A 401 or 403 answer says what to give.
+//! `https://` is checked against Mozilla's roots, or only against the certificates of the PEM
+//! file `MYRIAD_CA_CERT` names (a server's own, self-signed one).
 
 use crate::ByteSource;
 use myriad_core::{Error, Result};
@@ -26,6 +32,77 @@ pub const MAX_IN_FLIGHT: usize = 8;
 const ATTEMPTS: u32 = 4;
 /// The start of the error of a read after the resource changed on its server.
 pub const CHANGED: &str = "changed on the server while it was read";
+
+static HEADERS: std::sync::OnceLock<Vec<(String, String)>> = std::sync::OnceLock::new();
+
+/// `NAME: VALUE` as a header (the name checked).
+pub fn parse_header(s: &str) -> std::result::Result<(String, String), String> {
+    let (k, v) = s
+        .split_once(':')
+        .ok_or_else(|| format!("--header \"{s}\": NAME: VALUE expected"))?;
+    let k = k.trim();
+    if k.is_empty()
+        || !k
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"-_".contains(&b))
+    {
+        return Err(format!("--header \"{s}\": \"{k}\" is not a header name"));
+    }
+    if v.bytes().any(|b| b == b'\r' || b == b'\n') {
+        return Err(format!("--header \"{k}\": a value of one line"));
+    }
+    Ok((k.to_string(), v.trim().to_string()))
+}
+
+/// The headers every request sends from now on (the first call wins; call it before
+/// opening anything).
+pub fn set_headers(h: Vec<(String, String)>) {
+    let _ = HEADERS.set(h);
+}
+
+/// The headers requests carry: [`set_headers`]'s, else the environment's.
+fn headers() -> &'static [(String, String)] {
+    HEADERS.get_or_init(|| {
+        let mut out = Vec::new();
+        if let Ok(t) = std::env::var("MYRIAD_TOKEN")
+            && !t.trim().is_empty()
+        {
+            out.push(("Authorization".into(), format!("Bearer {}", t.trim())));
+        }
+        if let Ok(h) = std::env::var("MYRIAD_HEADER") {
+            out.extend(h.lines().filter(|l| !l.trim().is_empty()).filter_map(|l| {
+                parse_header(l)
+                    .map_err(|e| eprintln!("warning: MYRIAD_HEADER: {e}"))
+                    .ok()
+            }));
+        }
+        out
+    })
+}
+
+/// The certificates `https://` trusts: those of `MYRIAD_CA_CERT` where it names a PEM file,
+/// else Mozilla's.
+fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
+    use ureq::tls::{PemItem, RootCerts, TlsConfig};
+    let Ok(file) = std::env::var("MYRIAD_CA_CERT") else {
+        return Ok(TlsConfig::default());
+    };
+    let pem = std::fs::read(&file).map_err(|e| format!("MYRIAD_CA_CERT {file}: {e}"))?;
+    let mut certs = Vec::new();
+    for item in ureq::tls::parse_pem(&pem) {
+        match item {
+            Ok(PemItem::Certificate(c)) => certs.push(c.to_owned()),
+            Ok(_) => {}
+            Err(e) => return Err(format!("MYRIAD_CA_CERT {file}: {e}")),
+        }
+    }
+    if certs.is_empty() {
+        return Err(format!("MYRIAD_CA_CERT {file}: no certificate in it"));
+    }
+    Ok(TlsConfig::builder()
+        .root_certs(RootCerts::Specific(std::sync::Arc::new(certs)))
+        .build())
+}
 
 /// Whether `path` names a dataset on a web server rather than a file.
 pub fn is_url(path: &Path) -> bool {
@@ -60,7 +137,9 @@ impl HttpBytes {
     /// Asks for the first [`crate::HEADER_LEN`] bytes of `url` (kept: the dataset header): the
     /// answer must be 206 with a `Content-Range` that gives the resource's length.
     pub fn open(url: &str) -> Result<HttpBytes> {
+        let tls = trusted().map_err(|e| Error::io(Path::new(url), io::Error::other(e)))?;
         let agent: ureq::Agent = ureq::Agent::config_builder()
+            .tls_config(tls)
             .http_status_as_error(false)
             .timeout_connect(Some(Duration::from_secs(10)))
             .timeout_recv_body(Some(Duration::from_secs(60)))
@@ -157,7 +236,20 @@ impl HttpBytes {
         if let Some(e) = &self.etag {
             req = req.header("If-Range", e);
         }
-        let mut r = req.call().map_err(|e| Failure::Retry(e.to_string()))?;
+        for (k, v) in headers() {
+            req = req.header(k.as_str(), v.as_str());
+        }
+        let mut r = req.call().map_err(|e| {
+            let m = e.to_string();
+            if m.contains("certificate") {
+                // Not worth another attempt.
+                Failure::Fatal(format!(
+                    "{m} (a server's own certificate is trusted with MYRIAD_CA_CERT=CERT.pem)"
+                ))
+            } else {
+                Failure::Retry(m)
+            }
+        })?;
         let status = r.status().as_u16();
         let etag = r
             .headers()
@@ -185,6 +277,14 @@ impl HttpBytes {
                 )));
             }
             429 | 500..=599 => return Err(Failure::Retry(format!("HTTP {status}"))),
+            401 | 403 => {
+                let why = r.body_mut().read_to_string().unwrap_or_default();
+                return Err(Failure::Fatal(format!(
+                    "HTTP {status}: {} (a private server: give its token with --header \
+                     \"Authorization: Bearer TOKEN\" or MYRIAD_TOKEN, or a signed link)",
+                    why.trim()
+                )));
+            }
             s => return Err(Failure::Fatal(format!("HTTP {s}"))),
         }
         let range = r

@@ -48,6 +48,38 @@ impl Volume {
     pub fn net(&self) -> f64 {
         self.fill - self.cut
     }
+
+    /// The base's height at `(x, y)`: `elevation` where the base was one, else the rim's plane
+    /// (about `polygon`'s first vertex); `None` for a dataset's surface.
+    pub fn base_at(
+        &self,
+        polygon: &Polygon,
+        elevation: Option<f64>,
+        x: f64,
+        y: f64,
+    ) -> Option<f64> {
+        if let Some(z) = elevation {
+            return Some(z);
+        }
+        let [a, b, c] = self.plane?;
+        let o = polygon.vertices()[0];
+        Some(a + b * (x - o[0]) + c * (y - o[1]))
+    }
+
+    /// The figures on one line, lengths in `units` (as the viewers show them).
+    pub fn summary(&self, units: &str) -> String {
+        let u = units;
+        format!(
+            "fill {:.3} {u}³, cut {:.3} {u}³, net {:.3} {u}³ over {:.3} {u}², {} cells of {} {u} ({} without points)",
+            self.fill,
+            self.cut,
+            self.net(),
+            self.area,
+            self.cells,
+            self.cell,
+            self.empty_cells
+        )
+    }
 }
 
 /// The grid over the polygon's box.
@@ -185,6 +217,43 @@ impl Cells {
             self.origin[0] + ((k % self.nx) as f64 + 0.5) * self.cell,
             self.origin[1] + ((k / self.nx) as f64 + 0.5) * self.cell,
         )
+    }
+}
+
+/// A square of cells as a view draws it: its centre, half its side, the surface's height (of
+/// its first cell) and whether that is above the base (fill) or below it (cut).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Block {
+    pub centre: [f64; 2],
+    pub half: f64,
+    pub top: f64,
+    pub fill: bool,
+}
+
+impl Cells {
+    /// The cells inside the polygon in squares of `step` x `step` cells, `step` as small as
+    /// keeps them to about `max`.
+    pub fn blocks(&self, max: usize) -> Vec<Block> {
+        let inside = self.heights.iter().filter(|h| h.is_some()).count().max(1);
+        let step = ((inside as f64 / max.max(1) as f64).sqrt().ceil() as usize).max(1);
+        let half = 0.5 * self.cell * step as f64;
+        let mut out = Vec::new();
+        for j in (0..self.ny).step_by(step) {
+            for i in (0..self.nx).step_by(step) {
+                let k = j * self.nx + i;
+                let Some((top, under)) = self.heights[k] else {
+                    continue;
+                };
+                let (x, y) = self.centre(k);
+                out.push(Block {
+                    centre: [x - 0.5 * self.cell + half, y - 0.5 * self.cell + half],
+                    half,
+                    top,
+                    fill: top >= under,
+                });
+            }
+        }
+        out
     }
 }
 

@@ -1,7 +1,8 @@
-//! `GET /x/NAME?box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ[&spacing=S][&hide=6,7]`, or
+//! `GET /x/NAME?box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ[&spacing=S][&hide=6,7][&where=CONDITIONS]`, or
 //! `?line=X1,Y1,X2,Y2[,...]&width=W`: the original points of a served dataset inside a box (at a
 //! level of detail) or a cross-section's corridor (a profile's points, as `myriad profile` cuts
-//! them), but for the hidden classes, as a LAZ file in the input's point format, made
+//! them), but for the hidden classes and the points that fail the conditions (`--where`'s
+//! syntax), as a LAZ file in the input's point format, made
 //! by `extract` on a blocking thread into a temporary file in the server's scratch folder that
 //! is unlinked once open and streamed from there. At most [`MAX_AT_ONCE`] run at a time; the
 //! others wait. A box of more than `Limits::max_points` points is refused (413), and an
@@ -24,6 +25,8 @@ pub struct Query {
     pub spacing: Option<f64>,
     /// ASPRS classes left out.
     pub hide: Vec<u8>,
+    /// Conditions the points kept meet.
+    pub conditions: Vec<myriad_measure::filter::Condition>,
 }
 
 /// Parses `box=...&spacing=...` (values percent-decoded); the error is the answer's text.
@@ -31,6 +34,7 @@ pub fn parse_query(q: &str) -> Result<Query, String> {
     let mut bbox = None;
     let mut spacing = None;
     let (mut line, mut width, mut hide) = (None, None, Vec::new());
+    let mut conditions = Vec::new();
     for pair in q.split('&').filter(|p| !p.is_empty()) {
         let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
         let v = crate::percent_decode(v).ok_or("malformed query")?;
@@ -76,6 +80,11 @@ pub fn parse_query(q: &str) -> Result<Query, String> {
                     );
                 }
             }
+            // A signed link's (checked before).
+            "expires" | "sig" => {}
+            "where" => {
+                conditions.extend(Filter::parse_where(&v).map_err(|e| format!("where: {e}"))?)
+            }
             other => return Err(format!("unknown parameter \"{other}\"")),
         }
     }
@@ -95,6 +104,7 @@ pub fn parse_query(q: &str) -> Result<Query, String> {
         corridor,
         spacing,
         hide,
+        conditions,
     })
 }
 
@@ -111,6 +121,8 @@ pub enum Failed {
     TooLarge(String),
     /// The client left.
     Cancelled,
+    /// The query names what the dataset lacks (an attribute, classes): the answer's text.
+    Bad(String),
     Other(String),
 }
 
@@ -127,15 +139,19 @@ pub fn run(
         SERIAL.fetch_add(1, Ordering::Relaxed)
     ));
     let ds = Dataset::open(dataset).map_err(|e| Failed::Other(e.to_string()))?;
+    let filter = Filter {
+        classes: (!q.hide.is_empty())
+            .then(|| (0..=255u8).filter(|c| !q.hide.contains(c)).collect()),
+        conditions: q.conditions.clone(),
+    };
+    filter
+        .bind(&ds.meta.schema)
+        .map_err(|e| Failed::Bad(e.trim_start_matches("--").to_string()))?;
     let o = ExtractOptions {
         bbox: q.bbox,
         region: (q.corridor.clone())
             .map(|c| std::sync::Arc::new(c) as std::sync::Arc<dyn myriad_measure::Region>),
-        filter: Filter {
-            classes: (!q.hide.is_empty())
-                .then(|| (0..=255u8).filter(|c| !q.hide.contains(c)).collect()),
-            ..Default::default()
-        },
+        filter,
         spacing: q.spacing,
         force: true,
     };
@@ -169,6 +185,14 @@ mod tests {
             Some(Aabb::new([0.0; 3], [1.0; 3]))
         );
         let q = parse_query("line=0,0,10,0,10,5&width=2&hide=6,7").unwrap();
+        let w =
+            parse_query("box=0,0,0,1,1,1&where=intensity%3E100%20and%20return_number=1").unwrap();
+        assert_eq!(w.conditions.len(), 2);
+        assert!(
+            parse_query("box=0,0,0,1,1,1&where=intensity")
+                .unwrap_err()
+                .starts_with("where: ")
+        );
         assert_eq!(q.corridor.unwrap().length(), 15.0);
         assert_eq!(q.hide, [6, 7]);
         for bad in [

@@ -15,14 +15,18 @@
 //! connection ends alone ([`conn`] says how). Answers stream from the files (multi-range ones
 //! too, their overlapping ranges merged) through a memory budget per connection and in all.
 //! A client that hangs up costs nothing: SIGPIPE is ignored, and its unfinished work is
-//! dropped.
+//! dropped. A private server ([`access`], `Server::start_with`) answers only the requests that
+//! carry its token, its one-time link's cookie or a signed link (401, or 403 for an expired
+//! link, before anything of a dataset is read).
 
+pub mod access;
 pub mod browser;
 mod catalog;
 mod conn;
 pub mod download;
 mod files;
 pub mod range;
+pub mod tls;
 mod viewer;
 mod work;
 
@@ -152,6 +156,10 @@ struct Shared {
     /// Saved work's bodies being read at once, and one sidecar written at a time.
     puts: Semaphore,
     saving: Arc<std::sync::Mutex<()>>,
+    /// Who may read (none: everyone).
+    access: Option<access::Access>,
+    /// TLS on every connection (none: plain HTTP).
+    tls: Option<tls::TlsAcceptor>,
 }
 
 /// A running server; dropping it stops it.
@@ -165,6 +173,21 @@ pub struct Server {
 impl Server {
     /// Binds `bind` (port 0: any free port) and serves `catalog` on a thread of its own.
     pub fn start(catalog: Catalog, bind: SocketAddr, options: Options) -> io::Result<Server> {
+        Server::start_with(catalog, bind, options, None, None)
+    }
+
+    /// [`Server::start`], private where `access` says who may read, over TLS where `tls` is
+    /// given (its cookies then marked `Secure`).
+    pub fn start_with(
+        catalog: Catalog,
+        bind: SocketAddr,
+        options: Options,
+        mut access: Option<access::Access>,
+        tls: Option<tls::TlsAcceptor>,
+    ) -> io::Result<Server> {
+        if let Some(a) = &mut access {
+            a.secure = tls.is_some();
+        }
         // A client that hangs up while its answer is written must cost a failed write, not
         // the process (hyper writes with writev, which has no MSG_NOSIGNAL).
         #[cfg(unix)]
@@ -197,6 +220,8 @@ impl Server {
             scratch,
             puts: Semaphore::new(work::PUTS_AT_ONCE),
             saving: Arc::default(),
+            access,
+            tls,
         });
         let s = shared.clone();
         let thread = std::thread::Builder::new()
@@ -217,6 +242,11 @@ impl Server {
     /// What the server has done about its clients so far.
     pub fn stats(&self) -> Stats {
         self.shared.counters.get()
+    }
+
+    /// A new one-time link's path (`/login/CODE`) for a private server.
+    pub fn one_time_link(&self) -> Option<String> {
+        (self.shared.access.as_ref()).map(|a| format!("/login/{}", a.one_time_code()))
     }
 
     /// The folder of the server's temporary files.
@@ -352,7 +382,20 @@ async fn accept(
                 .timer(TokioTimer::new())
                 .max_concurrent_streams(32)
                 .max_header_list_size(o.max_header_bytes.max(8192) as u32);
-            let served = b.serve_connection(TokioIo::new(io), service);
+            // The TLS handshake, where there is one, under the same watch as a first request.
+            let tls = shared.tls.clone();
+            let served = async move {
+                match tls {
+                    None => {
+                        let _ = b.serve_connection(TokioIo::new(io), service).await;
+                    }
+                    Some(acceptor) => {
+                        if let Ok(s) = acceptor.accept(io).await {
+                            let _ = b.serve_connection(TokioIo::new(s), service).await;
+                        }
+                    }
+                }
+            };
             let why = conn::watch(served, &activity, fd, o.header_timeout, o.idle_timeout).await;
             match why {
                 conn::Closed::NoRequest => shared.counters.add(4),
@@ -418,7 +461,20 @@ async fn handle(
     let range = req.headers().get(header::RANGE).cloned();
     let (method, uri) = (req.method().clone(), req.uri().clone());
     let put = method == Method::PUT && uri.path().starts_with("/work/");
-    let mut r = if put {
+    let mut cookie = None;
+    let denied = match &shared.access {
+        Some(a) => match admit(a, &req) {
+            Ok(c) => {
+                cookie = c;
+                None
+            }
+            Err(r) => Some(*r),
+        },
+        None => None,
+    };
+    let mut r = if let Some(r) = denied {
+        r
+    } else if put {
         match percent_decode(&uri.path()["/work/".len()..]) {
             Some(name) => work::put(&shared, &name, req).await,
             None => status(StatusCode::BAD_REQUEST, "malformed path"),
@@ -426,6 +482,9 @@ async fn handle(
     } else {
         route(&shared, &budget, &req).await
     };
+    if let Some(c) = cookie.and_then(|c| HeaderValue::from_str(&c).ok()) {
+        r.headers_mut().append(header::SET_COOKIE, c);
+    }
     cors(&mut r);
     if shared.options.log {
         let text =
@@ -440,6 +499,74 @@ async fn handle(
         );
     }
     Ok(r)
+}
+
+/// Whether a private server answers `req`: `Ok` with a cookie to set (a one-time link's
+/// session, a signed link's), or the answer that refuses it (401, 403; a one-time link's
+/// redirect).
+fn admit(
+    a: &access::Access,
+    req: &Request<Incoming>,
+) -> Result<Option<String>, Box<Response<Body>>> {
+    use access::Verdict;
+    let path = req.uri().path();
+    if req.method() == Method::OPTIONS || path.starts_with("/viewer/") {
+        return Ok(None);
+    }
+    if let Some(code) = path.strip_prefix("/login/") {
+        return Err(Box::new(match a.redeem(code) {
+            Some(session) => {
+                let mut r = status(StatusCode::SEE_OTHER, "signed in");
+                let h = r.headers_mut();
+                h.insert(header::LOCATION, HeaderValue::from_static("/"));
+                if let Ok(c) =
+                    HeaderValue::from_str(&a.cookie(access::SESSION_COOKIE, &session, None))
+                {
+                    h.insert(header::SET_COOKIE, c);
+                }
+                r
+            }
+            None => unauthorized("this one-time link was used already, or is not one"),
+        }));
+    }
+    let h = req.headers();
+    let auth = h.get(header::AUTHORIZATION).and_then(|v| v.to_str().ok());
+    // HTTP/2 may send the cookies as several fields.
+    let cookies: Vec<&str> = (h.get_all(header::COOKIE).iter())
+        .filter_map(|v| v.to_str().ok())
+        .collect();
+    let cookies = cookies.join("; ");
+    let now = access::now();
+    match a.check(path, req.uri().query(), auth, Some(&cookies), now) {
+        Verdict::Allowed => Ok(None),
+        Verdict::AllowedSetting(v, until) => Ok(Some(a.cookie(
+            access::LINK_COOKIE,
+            &v,
+            Some(until.saturating_sub(now)),
+        ))),
+        Verdict::Missing => Err(Box::new(unauthorized(
+            "private: give the token (Authorization: Bearer TOKEN), or open the one-time or signed link",
+        ))),
+        Verdict::Wrong => Err(Box::new(unauthorized(
+            "the token, cookie or link signature is not right",
+        ))),
+        Verdict::Expired(t) => Err(Box::new(status(
+            StatusCode::FORBIDDEN,
+            &format!(
+                "this link expired {} s ago; ask for a new one",
+                now.saturating_sub(t)
+            ),
+        ))),
+    }
+}
+
+fn unauthorized(text: &str) -> Response<Body> {
+    let mut r = status(StatusCode::UNAUTHORIZED, text);
+    r.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"myriad\""),
+    );
+    r
 }
 
 async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -> Response<Body> {
@@ -623,6 +750,9 @@ async fn box_download(
         }
         Ok(Err(download::Failed::Cancelled)) => {
             return status(StatusCode::SERVICE_UNAVAILABLE, "cancelled");
+        }
+        Ok(Err(download::Failed::Bad(m))) => {
+            return status(StatusCode::BAD_REQUEST, &m);
         }
         Ok(Err(download::Failed::Other(m))) => {
             return status(StatusCode::INTERNAL_SERVER_ERROR, &m);

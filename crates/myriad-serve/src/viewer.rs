@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 8] = [
+static FILES: [(&str, Asset); 9] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -68,6 +68,10 @@ static FILES: [(&str, Asset); 8] = [
     (
         "profile.js",
         Asset::new(include_bytes!("../viewer/profile.js"), "text/javascript"),
+    ),
+    (
+        "volume.js",
+        Asset::new(include_bytes!("../viewer/volume.js"), "text/javascript"),
     ),
     (
         "myriad_web.wasm",

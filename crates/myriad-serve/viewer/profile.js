@@ -57,8 +57,7 @@ async function cutProfile(line, width) {
   const q = new URLSearchParams();
   q.set("line", line.flat().join(","));
   q.set("width", width);
-  if (settings.hidden.size) q.set("hide", [...settings.hidden].join(","));
-  panel.querySelector("a.laz").href = `/x/${encodeURIComponent(state.dataset)}?${q.toString().replace(/%2C/g, ",")}`;
+  panel.querySelector("a.laz").href = `/x/${encodeURIComponent(state.dataset)}?${q.toString().replace(/%2C/g, ",")}${filterQuery()}`;
   const csv = panel.querySelector("a.csv");
   if (csv.href) URL.revokeObjectURL(csv.href);
   csv.href = URL.createObjectURL(new Blob([section.csv], { type: "text/csv" }));
@@ -118,12 +117,10 @@ function profileUi() {
     const on = mode !== "section";
     if (on) { section.line = []; sectionWidth(); }
     setMode(on ? "section" : "pick");
-    document.getElementById("section").classList.toggle("on", on);
     document.getElementById("cut").disabled = section.line.length < 2;
   };
   document.getElementById("cut").onclick = () => {
     setMode("pick");
-    document.getElementById("section").classList.remove("on");
     cutProfile(section.line.map((p) => [p[0], p[1]]), sectionWidth()).catch((e) => error(String(e.message || e)));
   };
   document.querySelector("#profile canvas").addEventListener("click", (e) => profileClick(e).catch((x) => error(String(x.message || x))));

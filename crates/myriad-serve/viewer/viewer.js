@@ -5,7 +5,8 @@
 // Orbit (left drag), pan (right drag or shift), zoom (wheel), double-click to centre; click a
 // point for its attributes, measure distances, clip to a box and download its points as LAZ,
 // share the camera as a link; annotations and measurements saved with the dataset (work.js);
-// cross-sections (profile.js).
+// cross-sections (profile.js), volumes (volume.js); colour by any attribute through a gradient
+// and show only the points that meet conditions (`where`, as `--where` reads them).
 // `window.myriad` exposes the state to scripts (tests).
 "use strict";
 
@@ -81,6 +82,12 @@ const settings = {
   budget: Number(params.get("budget")) || 2000000,
   minPixels: Number(params.get("threshold")) || 1,
   scheme: Math.max(0, SCHEMES.indexOf(params.get("color") || "rgb")),
+  // Colour by an attribute through a gradient ({name, gradient, range}; null: the scheme).
+  ramp: (!SCHEMES.includes(params.get("color") || "rgb") || params.get("gradient")) ? {
+    name: params.get("color"), gradient: params.get("gradient"),
+    range: params.get("range") ? params.get("range").split(",").map(Number) : null } : null,
+  // Conditions the points shown meet (`--where`'s syntax); "" for all.
+  where: params.get("where") || "",
   edl: params.get("edl") !== "0",
   pointSize: Number(params.get("size")) || 0, // 0: adaptive
   // webgl2 or webgpu; default: WebGPU on a hardware adapter, else WebGL2.
@@ -109,7 +116,12 @@ function cameraLink() {
   if (c.fov !== 60) p.set("fov", c.fov);
   if (settings.parallel) p.set("parallel", settings.parallel);
   if (settings.budget !== 2000000) p.set("budget", settings.budget);
-  if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
+  if (settings.ramp) {
+    p.set("color", settings.ramp.name);
+    if (settings.ramp.gradient) p.set("gradient", settings.ramp.gradient);
+    if (settings.ramp.range) p.set("range", settings.ramp.range.join(","));
+  } else if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
+  if (settings.where) p.set("where", settings.where);
   if (settings.hidden.size) p.set("hide", [...settings.hidden].join(","));
   if (settings.clip) p.set("clip", settings.clip.box.join(",") + (settings.clip.inside ? "" : ",outside"));
   return `${location.origin}${location.pathname}#${p.toString().replace(/%2C/g, ",")}`;
@@ -187,6 +199,7 @@ async function open() {
   }
   for (const r of await Promise.all(ready)) if (r.info && r.info.error) throw new Error(r.info.error);
   ui();
+  if (settings.ramp || settings.where) await applyStyle();
   requestSelection();
   loadWork().catch((e) => error(`saved work: ${e.message || e}`));
 }
@@ -487,10 +500,7 @@ function measurePoint(p) {
 function ui() {
   const i = state.info;
   document.getElementById("name").textContent = `${state.dataset}: ${i.points.toLocaleString()} points`;
-  const scheme = document.getElementById("scheme");
-  for (const s of SCHEMES) scheme.add(new Option(s, s));
-  scheme.value = SCHEMES[settings.scheme];
-  scheme.onchange = () => { settings.scheme = SCHEMES.indexOf(scheme.value); reload(); };
+  styleUi();
   const edlBox = document.getElementById("edl");
   edlBox.checked = settings.edl;
   edlBox.onchange = () => { settings.edl = edlBox.checked; dirty = true; };
@@ -520,7 +530,7 @@ function ui() {
     else {
       const box = inputs.map((e) => Number(e.value));
       settings.clip = { box, inside: inside.checked };
-      download.href = `/x/${encodeURIComponent(state.dataset)}?box=${box.join(",")}`;
+      download.href = `/x/${encodeURIComponent(state.dataset)}?box=${box.join(",")}${filterQuery()}`;
     }
     document.getElementById("clipbox").classList.toggle("on", clipOn.checked);
     cameraMoved();
@@ -545,7 +555,91 @@ function ui() {
   parallel.checked = !!settings.parallel;
   parallel.onchange = () => setParallel(parallel.checked);
   profileUi();
+  volumeUi();
   navigation();
+}
+
+// ---- colours and conditions ----
+// The colour select: the schemes, then every attribute through a gradient ("ramp:NAME"); the
+// ramp's gradient and range; the conditions the points shown meet.
+function styleUi() {
+  const i = state.info;
+  const scheme = document.getElementById("scheme");
+  for (const s of SCHEMES) scheme.add(new Option(s, s));
+  const group = document.createElement("optgroup");
+  group.label = "attribute through a gradient";
+  for (const c of ["z", ...i.columns]) group.append(new Option(c, `ramp:${c}`));
+  scheme.append(group);
+  scheme.value = settings.ramp ? `ramp:${settings.ramp.name}` : SCHEMES[settings.scheme];
+  scheme.onchange = () => {
+    if (scheme.value.startsWith("ramp:")) {
+      settings.ramp = { name: scheme.value.slice(5), gradient: null, range: null };
+      applyStyle();
+    } else {
+      settings.scheme = SCHEMES.indexOf(scheme.value);
+      const was = settings.ramp;
+      settings.ramp = null;
+      if (was) applyStyle(); else reload();
+    }
+  };
+  const gradient = document.getElementById("gradient");
+  for (const g of i.gradients) gradient.add(new Option(g, g));
+  gradient.onchange = () => { if (settings.ramp) { settings.ramp.gradient = gradient.value; applyStyle(); } };
+  const lo = document.getElementById("range-lo"), hi = document.getElementById("range-hi");
+  lo.onchange = hi.onchange = () => {
+    if (settings.ramp) { settings.ramp.range = [Number(lo.value), Number(hi.value)]; applyStyle(); }
+  };
+  const where = document.getElementById("where");
+  where.value = settings.where;
+  where.onchange = () => { settings.where = where.value.trim(); applyStyle(); };
+  rampUi();
+}
+
+function rampUi() {
+  const r = settings.ramp;
+  document.getElementById("ramp").style.display = r ? "" : "none";
+  if (!r) return;
+  if (r.gradient) document.getElementById("gradient").value = r.gradient;
+  if (r.range) {
+    document.getElementById("range-lo").value = +r.range[0].toPrecision(8);
+    document.getElementById("range-hi").value = +r.range[1].toPrecision(8);
+  }
+}
+
+// The colour and conditions asked for, checked by the selection worker (which fits a ramp's
+// range to the overview where none is given), then set in every decode worker; the loaded
+// nodes are decoded again. A colour or condition the dataset cannot take is said in the panel
+// and the view stays as it was.
+let styleAsked = 0;
+async function applyStyle() {
+  const asked = ++styleAsked;
+  const r = settings.ramp;
+  const ask = { color: r ? r.name : "rgb", where: settings.where,
+    gradient: r ? (r.gradient || (r.name === "z" ? "spectral" : "viridis")) : null, range: r ? r.range : null };
+  const problem = document.getElementById("style-problem");
+  const answer = (await call(selector, { type: "style", style: ask })).style;
+  if (asked !== styleAsked) return false;
+  if (answer.error) { problem.textContent = answer.error; state.styleProblem = answer.error; return false; }
+  problem.textContent = "";
+  state.styleProblem = null;
+  if (r && answer.ramp) { r.gradient = answer.ramp.gradient; r.range = answer.ramp.range; }
+  const fixed = { ...ask, gradient: r ? r.gradient : null, range: r ? r.range : null };
+  await Promise.all(decoders.map((w) => call(w, { type: "style", style: fixed })));
+  if (asked !== styleAsked) return false;
+  state.style = fixed;
+  rampUi();
+  reload();
+  history.replaceState(null, "", cameraLink());
+  return true;
+}
+
+// The hidden classes and conditions as a download's query.
+function filterQuery() {
+  const q = new URLSearchParams();
+  if (settings.hidden.size) q.set("hide", [...settings.hidden].join(","));
+  if (settings.where) q.set("where", settings.where);
+  const s = q.toString().replace(/%2C/g, ",");
+  return s ? `&${s}` : "";
 }
 
 // What a click does: pick (a point's attributes), measure (a distance), annotate.
@@ -558,9 +652,11 @@ function setMode(m) {
   }
   if (m === "measure" || mode === "measure") { state.measure = []; measureText(); }
   mode = m;
-  document.getElementById("measure").classList.toggle("on", mode === "measure");
-  const a = document.getElementById("annotate");
-  if (a) a.classList.toggle("on", mode === "annotate");
+  for (const id of ["measure", "annotate", "section", "volume"]) {
+    const b = document.getElementById(id);
+    if (b) b.classList.toggle("on", mode === id);
+  }
+  if (state.volume) state.volume.drawing = mode === "volume";
 }
 
 function navigation() {
@@ -588,6 +684,7 @@ function navigation() {
       if (p && mode === "measure") measurePoint([p.x, p.y, p.z]);
       if (p && mode === "annotate") { setMode("pick"); addAnnotation(p); }
       if (p && mode === "section") sectionPoint([p.x, p.y, p.z]);
+      if (p && mode === "volume") volumePoint([p.x, p.y, p.z]);
     } catch (err) {
       error(String(err.message || err));
     }
@@ -682,6 +779,19 @@ window.myriad = {
   axisView,
   setParallel,
   cut: (line, width) => cutProfile(line, width),
+  // The bounds of the points loaded (as decoded: what is shown of them).
+  loadedBounds() {
+    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+    for (const n of nodes.values()) {
+      if (!n.count) continue;
+      for (let i = 0; i < n.positions.length; i++) {
+        const v = n.positions[i] + n.origin[i % 3];
+        lo[i % 3] = Math.min(lo[i % 3], v); hi[i % 3] = Math.max(hi[i % 3], v);
+      }
+    }
+    return [lo, hi];
+  },
+  volume: (polygon, base, cell) => measureVolume(polygon, base === undefined ? null : base, cell),
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

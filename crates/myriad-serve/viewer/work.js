@@ -185,5 +185,6 @@ function placeLabels() {
   if (cut.length >= 2 && cut.every((q) => q)) {
     lines += `<polyline class="section" points="${cut.map((q) => q.join(",")).join(" ")}" />`;
   }
+  if (typeof volumeShapes === "function") lines += volumeShapes();
   svg.innerHTML = lines;
 }

@@ -164,6 +164,15 @@ onmessage = async (e) => {
       const rgba = out.slice(4 + len, 4 + len + summary.rgba);
       const csv = new TextDecoder().decode(out.subarray(4 + len + summary.rgba));
       postMessage({ id: m.id, summary, rgba, csv, stats }, [rgba.buffer]);
+    } else if (m.type === "style") {
+      postMessage({ id: m.id, style: withName(JSON.stringify(m.style), (p, n) => json(wasm.exports.myr_style(p, n))), stats });
+    } else if (m.type === "volume") {
+      const words = [0, 0, 0, 0, 0, 0, 0, 0];
+      for (const c of m.hidden || []) words[c >> 5] += 2 ** (c & 31);
+      const v = withArgs([...m.polygon, ...words], (a) =>
+        json(wasm.exports.myr_volume(a, m.polygon.length, m.base, m.z, m.cell)));
+      if (v.error) throw new Error(v.error);
+      postMessage({ id: m.id, volume: v, stats });
     } else if (m.type === "between") {
       postMessage({ id: m.id, text: json(wasm.exports.myr_between(...m.a, ...m.b)), stats });
     } else if (m.type === "point") {

@@ -108,6 +108,9 @@ struct App {
     /// The command line's filter, and the overview's classes: points there, shown.
     filter: myriad_measure::Filter,
     classes: std::collections::BTreeMap<u8, (u64, bool)>,
+    /// The panel's colour ramp and "where" box: what is typed, the conditions it gave (on top
+    /// of the command line's), and why the last one was not taken.
+    typed: shown::Typed,
     /// Annotations and the measurements as saved beside the first dataset.
     saved: saved::Saved,
     /// The axis view and the parallel view asked for on the command line, taken on the
@@ -230,6 +233,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         shares: (ram, gpu_bytes),
         filter: o.filter,
         classes,
+        typed: shown::Typed::default(),
         stereo: surface::StereoView {
             on: o.stereo.is_some(),
             ipd: o.stereo.unwrap_or(0.064),

@@ -111,17 +111,7 @@ impl Volumes {
     }
 
     fn describe(&self, v: &Volume) -> String {
-        let u = self.units;
-        format!(
-            "fill {:.3} {u}³, cut {:.3} {u}³, net {:.3} {u}³ over {:.3} {u}², {} cells of {} {u} ({} without points)",
-            v.fill,
-            v.cut,
-            v.net(),
-            v.area,
-            v.cells,
-            v.cell,
-            v.empty_cells
-        )
+        v.summary(self.units)
     }
 
     /// The panel's part; whether to measure now.
@@ -222,48 +212,36 @@ impl Volumes {
             return;
         };
         // The base under each corner.
-        let first = polygon.vertices()[0];
-        let base_z = |x: f64, y: f64| match (self.base, v.plane) {
-            (Down::Elevation(z), _) => z,
-            (Down::Rim, Some(p)) => p[0] + p[1] * (x - first[0]) + p[2] * (y - first[1]),
-            (Down::Rim, None) => 0.0,
+        let elevation = match self.base {
+            Down::Elevation(z) => Some(z),
+            Down::Rim => None,
         };
         let base: Vec<Option<egui::Pos2>> = (polygon.vertices().iter())
-            .map(|q| screen([q[0], q[1], base_z(q[0], q[1])]))
+            .map(|q| screen([q[0], q[1], v.base_at(polygon, elevation, q[0], q[1])?]))
             .collect();
         let Some(c) = cells else {
             ring(&base, BASE, true);
             return;
         };
-        // Blocks of `step` x `step` cells, each drawn at the surface's height of its first cell.
-        let inside = c.heights.iter().filter(|h| h.is_some()).count().max(1);
-        let step = ((inside as f64 / DRAWN as f64).sqrt().ceil() as usize).max(1);
-        let half = 0.5 * c.cell * step as f64;
-        for j in (0..c.ny).step_by(step) {
-            for i in (0..c.nx).step_by(step) {
-                let k = j * c.nx + i;
-                let Some((top, under)) = c.heights[k] else {
-                    continue;
-                };
-                let (x, y) = c.centre(k);
-                let (x, y) = (x - 0.5 * c.cell + half, y - 0.5 * c.cell + half);
-                let corners: Option<Vec<egui::Pos2>> =
-                    [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-                        .iter()
-                        .map(|(dx, dy)| screen([x + dx * half, y + dy * half, top]))
-                        .collect();
-                let Some(corners) = corners else { continue };
-                let fill = if top >= under {
-                    egui::Color32::from_rgba_unmultiplied(60, 210, 60, 70)
-                } else {
-                    egui::Color32::from_rgba_unmultiplied(230, 50, 50, 70)
-                };
-                painter.add(egui::Shape::convex_polygon(
-                    corners,
-                    fill,
-                    egui::Stroke::new(0.5, egui::Color32::from_white_alpha(60)),
-                ));
-            }
+        // Squares of cells, each drawn at the surface's height of its first cell.
+        for b in c.blocks(DRAWN) {
+            let [x, y] = b.centre;
+            let corners: Option<Vec<egui::Pos2>> =
+                [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|(dx, dy)| screen([x + dx * b.half, y + dy * b.half, b.top]))
+                    .collect();
+            let Some(corners) = corners else { continue };
+            let fill = if b.fill {
+                egui::Color32::from_rgba_unmultiplied(60, 210, 60, 70)
+            } else {
+                egui::Color32::from_rgba_unmultiplied(230, 50, 50, 70)
+            };
+            painter.add(egui::Shape::convex_polygon(
+                corners,
+                fill,
+                egui::Stroke::new(0.5, egui::Color32::from_white_alpha(60)),
+            ));
         }
         ring(&base, BASE, true);
     }

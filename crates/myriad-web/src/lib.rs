@@ -8,10 +8,11 @@
 //!
 //! Everything here also builds natively, where the tests run it.
 
-use myriad_core::colour::{ColorBy, colours};
-use myriad_core::{Aabb, NodeKey, PointBatch};
+use myriad_core::colour::{ColorBy, Gradient, colours};
+use myriad_core::{Aabb, Attribute, Column, NodeKey, PointBatch};
 use myriad_format::{ByteSource, Dataset, NodeEntry, PageRef};
 use myriad_lod::{Camera, Clip, DrawnTree, Hierarchy, SelectOptions, robust_bounds, select_where};
+use myriad_measure::{Bound, Filter};
 use serde_json::{Value, json};
 use std::collections::HashSet;
 use std::path::Path;
@@ -88,6 +89,9 @@ impl Viewer {
             "root": aabb_json(&m.root),
             "view_bounds": aabb_json(&self.view_bounds),
             "attributes": m.schema.names(),
+            // What a colour ramp or a `where` condition may name (`myriad_core::Column`).
+            "columns": Column::columns(&m.schema).into_iter().map(|(n, _)| n).collect::<Vec<_>>(),
+            "gradients": Gradient::ALL.iter().map(|g| gradient_name(*g)).collect::<Vec<_>>(),
             "crs": m.crs,
             // The ASPRS classes' names and colours (as `render` colours them), for the class list.
             "classes": (0..=255u8).map(|c| json!({
@@ -184,47 +188,97 @@ pub struct Decoded {
 /// Classes hidden: a flag per ASPRS class number.
 pub type Hidden = [bool; 256];
 
-/// Drops the points of hidden classes (a batch without classes keeps all), and counts each
-/// class's points before.
-pub fn keep_shown(b: &mut PointBatch, hidden: &Hidden) -> Vec<(u8, u32)> {
-    let Some(c) = &b.classification else {
-        return Vec::new();
+/// What the viewer shows of `ds`: the points of the classes not hidden that meet the
+/// conditions `wheres` (`--where`'s syntax: `intensity>100 and return_number=1`), against the
+/// dataset's attributes (an unknown name is an error naming it).
+pub fn shown(ds: &Dataset, hidden: &Hidden, wheres: &str) -> Result<Bound, String> {
+    let schema = &ds.meta.schema;
+    let classes = (hidden.iter().any(|&h| h) && schema.has(&Attribute::Classification))
+        .then(|| (0..=255u8).filter(|&c| !hidden[c as usize]).collect());
+    let conditions = match wheres.trim() {
+        "" => Vec::new(),
+        w => Filter::parse_where(w).map_err(|e| e.replace("--where: ", ""))?,
     };
+    Filter {
+        classes,
+        conditions,
+    }
+    .bind(schema)
+    .map_err(|e| e.replace("--where: ", "where: "))
+}
+
+pub fn gradient_name(g: Gradient) -> String {
+    format!("{g:?}").to_ascii_lowercase()
+}
+
+/// The viewer's colours as `--color NAME [--gradient G] [--range LOW,HIGH]` choose them
+/// (`myriad_core::colour::choose`): a scheme by its name, else a ramp over the attribute `NAME`
+/// with its range fitted to the overview where none is given. With it, what the panel shows:
+/// the colour's name and a ramp's gradient and range.
+pub fn style(
+    ds: &Dataset,
+    name: &str,
+    gradient: Option<&str>,
+    range: Option<[f64; 2]>,
+) -> Result<(ColorBy, Value), String> {
+    let gradient =
+        match gradient {
+            Some(g) => Some(Gradient::parse(g).ok_or_else(|| {
+                format!("gradient \"{g}\": none such (one of {})", Gradient::NAMES)
+            })?),
+            None => None,
+        };
+    if let Some([lo, hi]) = range
+        && !(lo.is_finite() && hi.is_finite() && lo < hi)
+    {
+        return Err(format!("range {lo},{hi}: two numbers, low then high"));
+    }
+    let colour = myriad_core::colour::choose(name, gradient, range, &ds.meta.schema, || {
+        ds.overview().unwrap_or_default()
+    })
+    .map_err(|e| e.replace("--color ", "colour "))?;
+    let ramp = match colour {
+        ColorBy::Ramp(r) => json!({ "gradient": gradient_name(r.gradient), "range": r.range }),
+        _ => Value::Null,
+    };
+    Ok((colour, json!({ "color": name, "ramp": ramp })))
+}
+
+/// Drops the points `shown` leaves out, and counts each class's points before (a batch without
+/// classes counts none).
+pub fn keep_shown(b: &mut PointBatch, shown: &Bound) -> Vec<(u8, u32)> {
     let mut counts = [0u32; 256];
-    for &k in c {
+    for &k in b.classification.iter().flatten() {
         counts[k as usize] += 1;
     }
-    if hidden.iter().any(|&h| h) {
-        let keep: Vec<bool> = c.iter().map(|&k| !hidden[k as usize]).collect();
-        b.retain_mask(&keep);
-    }
+    shown.retain(b);
     (0..=255u8)
         .filter(|&k| counts[k as usize] > 0)
         .map(|k| (k, counts[k as usize]))
         .collect()
 }
 
-/// Checks and decodes the page of node `e` (bytes as fetched), coloured as `myriad render`
-/// colours it.
+/// Checks and decodes the page of node `e` (bytes as fetched) but for the points `shown`
+/// leaves out, coloured by `colour` as `myriad render` colours it.
 pub fn decode(
     ds: &Dataset,
     e: &NodeEntry,
     bytes: &[u8],
     origin: [f64; 3],
-    scheme: ColorBy,
+    colour: ColorBy,
     z_range: (f64, f64),
-    hidden: &Hidden,
+    shown: &Bound,
 ) -> Result<Decoded, String> {
     let mut b = ds
         .decode_node(e, bytes, &ds.meta.schema)
         .map_err(|d| ds.damage_error(&d).to_string())?;
-    let classes = keep_shown(&mut b, hidden);
+    let classes = keep_shown(&mut b, shown);
     let positions = b
         .positions
         .iter()
         .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
         .collect();
-    let colours = colours(&b, b.len(), scheme, z_range, e.key.level);
+    let colours = colours(&b, b.len(), colour, z_range, e.key.level);
     Ok(Decoded {
         positions,
         colours,
@@ -275,27 +329,19 @@ pub fn measure_json(kind: u32, points: &[f64], units: u32, crs: Option<&str>) ->
 }
 
 /// A cross-section for the web viewer (`myriad_measure::profile`, as `myriad profile` and `view`
-/// cut it): the original points within `width / 2` of `line` but for the hidden classes,
-/// coloured by `scheme`, drawn `picture` pixels wide. A JSON summary (points, length, width,
-/// elevations, the picture's frame, units) with the RGBA picture and the points as CSV.
+/// cut it): the original points within `width / 2` of `line` that `shown` keeps, coloured by
+/// `colour`, drawn `picture` pixels wide. A JSON summary (points, length, width, elevations,
+/// the picture's frame, units) with the RGBA picture and the points as CSV.
 pub fn cut_profile(
     ds: &Dataset,
     line: &[[f64; 2]],
     width: f64,
     picture: u32,
-    scheme: ColorBy,
-    hidden: &Hidden,
+    colour: ColorBy,
+    shown: &Bound,
 ) -> Result<(Value, Vec<u8>, Vec<u8>), String> {
     let corridor = myriad_measure::Corridor::new(line, width)?;
-    let filter = myriad_measure::Filter {
-        classes: hidden
-            .iter()
-            .any(|&h| h)
-            .then(|| (0..=255u8).filter(|&c| !hidden[c as usize]).collect()),
-        ..Default::default()
-    };
-    let bound = filter.bind(&ds.meta.schema)?;
-    let p = myriad_measure::profile::profile(ds, &corridor, &bound, scheme)?;
+    let p = myriad_measure::profile::profile(ds, &corridor, shown, colour)?;
     let units = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
     let (z0, z1) = p.z_range();
     let mut summary = json!({
@@ -314,4 +360,46 @@ pub fn cut_profile(
     let mut csv = Vec::new();
     p.write_csv(&mut csv).map_err(|e| e.to_string())?;
     Ok((summary, rgba, csv))
+}
+
+/// Squares of cells a volume's grid is drawn in at most (as `view` draws it).
+pub const VOLUME_BLOCKS: usize = 3000;
+
+/// A volume for the web viewer (`myriad_measure::volume`, as `myriad volume` and `view` measure
+/// it) of the points `shown` keeps over `polygon` (plan points), above the rim's plane or
+/// `elevation`, on cells of `cell` (or chosen from the spacing): the figures, the label, the
+/// base under each vertex and the grid in squares of cells ([`VOLUME_BLOCKS`] at most: centre
+/// x, y, half the side, the surface's height, 1 for fill or 0 for cut).
+pub fn volume_json(
+    ds: &Dataset,
+    polygon: &[[f64; 2]],
+    elevation: Option<f64>,
+    cell: Option<f64>,
+    shown: &Bound,
+) -> Result<Value, String> {
+    use myriad_measure::volume::{Base, volume_and_cells};
+    let polygon = myriad_measure::Polygon::new(polygon)?;
+    let base = match elevation {
+        Some(z) => Base::Elevation(z),
+        None => Base::Rim,
+    };
+    let (v, cells) = volume_and_cells(ds, &polygon, base, cell, shown)?;
+    let units = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
+    let under: Vec<Value> = (polygon.vertices().iter())
+        .map(|q| {
+            json!(
+                v.base_at(&polygon, elevation, q[0], q[1])
+                    .map(|z| [q[0], q[1], z])
+            )
+        })
+        .collect();
+    let blocks: Vec<[f64; 5]> = (cells.iter().flat_map(|c| c.blocks(VOLUME_BLOCKS)))
+        .map(|b| [b.centre[0], b.centre[1], b.half, b.top, b.fill as u8 as f64])
+        .collect();
+    Ok(json!({
+        "fill": v.fill, "cut": v.cut, "net": v.net(), "area": v.area, "cells": v.cells,
+        "cell": v.cell, "empty_cells": v.empty_cells, "points": v.points,
+        "nodes_read": v.nodes_read, "plane": v.plane, "units": units,
+        "label": v.summary(units), "base": under, "blocks": blocks,
+    }))
 }

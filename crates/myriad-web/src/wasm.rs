@@ -3,7 +3,7 @@
 //! the next call; the JavaScript copies them out. Range reads go out through one import,
 //! `env.myr_read`, which the selection worker answers with a synchronous request.
 
-use crate::{Ask, Hidden, Viewer, decode, entry, keep_shown, point_json};
+use crate::{Ask, Hidden, Viewer, decode, entry, keep_shown, point_json, shown};
 use myriad_core::NodeKey;
 use myriad_core::colour::ColorBy;
 use myriad_format::{ByteSource, Dataset, PageRef};
@@ -44,6 +44,69 @@ thread_local! {
     static VIEWER: RefCell<Option<Viewer>> = const { RefCell::new(None) };
     static DATASET: RefCell<Option<Dataset>> = const { RefCell::new(None) };
     static OUT: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
+    static STYLE: RefCell<Style> = const { RefCell::new(Style { ramp: None, wheres: String::new() }) };
+}
+
+/// What [`myr_style`] set: a ramp (else the scheme each call names) and the `where` conditions.
+struct Style {
+    ramp: Option<ColorBy>,
+    wheres: String,
+}
+
+/// The colour a call draws in: the style's ramp, else scheme `scheme` (an index of [`SCHEMES`]).
+fn colour(scheme: u32) -> ColorBy {
+    STYLE.with(|s| s.borrow().ramp).unwrap_or_else(|| {
+        SCHEMES
+            .get(scheme as usize)
+            .and_then(|s| ColorBy::parse(s))
+            .unwrap_or(ColorBy::Rgb)
+    })
+}
+
+/// The points a call keeps: the classes not `hidden` that meet the style's conditions.
+fn shown_by(ds: &Dataset, hidden: &Hidden) -> Result<myriad_measure::Bound, String> {
+    STYLE.with(|s| shown(ds, hidden, &s.borrow().wheres))
+}
+
+/// Sets what the calls after it show (JSON at `p`: `{"color": NAME, "gradient": G or null,
+/// "range": [LOW, HIGH] or null, "where": CONDITIONS}`, as [`crate::style`] and
+/// [`crate::shown`] read them). The answer: the colour chosen (a ramp's gradient and range,
+/// fitted where none was given) or an error, the style before it kept.
+///
+/// # Safety
+/// `p..p + n` is memory the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_style(p: *const u8, n: u32) -> u32 {
+    let asked: Value = match serde_json::from_str(&name(p, n)) {
+        Ok(v) => v,
+        Err(e) => return error(format!("style: {e}")),
+    };
+    let text = |k: &str| asked[k].as_str().map(str::to_string);
+    let colour_name = text("color").unwrap_or_else(|| "rgb".into());
+    let gradient = text("gradient");
+    let range = asked["range"]
+        .as_array()
+        .and_then(|r| Some([r.first()?.as_f64()?, r.get(1)?.as_f64()?]));
+    let wheres = text("where").unwrap_or_default();
+    let r = with_dataset(|ds| -> Result<(Option<ColorBy>, Value), String> {
+        shown(ds, &[false; 256], &wheres)?;
+        let (c, v) = crate::style(ds, &colour_name, gradient.as_deref(), range)?;
+        Ok((matches!(c, ColorBy::Ramp(_)).then_some(c), v))
+    });
+    match r {
+        Some(Ok((ramp, mut v))) => {
+            STYLE.with(|s| {
+                *s.borrow_mut() = Style {
+                    ramp,
+                    wheres: wheres.clone(),
+                }
+            });
+            v["where"] = wheres.into();
+            answer_json(v)
+        }
+        Some(Err(e)) => error(e),
+        None => error("no dataset open"),
+    }
 }
 
 fn answer(bytes: Vec<u8>) -> u32 {
@@ -245,10 +308,7 @@ pub unsafe extern "C" fn myr_decode(
         )
     };
     let e = node_entry(a);
-    let scheme = SCHEMES
-        .get(scheme as usize)
-        .and_then(|s| ColorBy::parse(s))
-        .unwrap_or(ColorBy::Rgb);
+    let colour = colour(scheme);
     let hidden = hidden_classes(a);
     let r = with_dataset(|ds| {
         decode(
@@ -256,9 +316,9 @@ pub unsafe extern "C" fn myr_decode(
             &e,
             b,
             [a[8], a[9], a[10]],
-            scheme,
+            colour,
             (z_lo, z_hi),
-            &hidden,
+            &shown_by(ds, &hidden)?,
         )
     });
     match r {
@@ -296,7 +356,12 @@ const ARGS: usize = 19;
 
 /// The hidden classes of a node's arguments: 8 words of 32 flags after the origin.
 fn hidden_classes(a: &[f64]) -> Hidden {
-    std::array::from_fn(|c| (a[11 + c / 32] as u32) >> (c % 32) & 1 == 1)
+    hidden_words(&a[11..])
+}
+
+/// Hidden classes from 8 words of 32 flags.
+fn hidden_words(w: &[f64]) -> Hidden {
+    std::array::from_fn(|c| (w[c / 32] as u32) >> (c % 32) & 1 == 1)
 }
 
 fn node_entry(a: &[f64]) -> myriad_format::NodeEntry {
@@ -335,7 +400,7 @@ pub unsafe extern "C" fn myr_point(
     let r = with_dataset(|ds| -> Result<_, String> {
         let mut batch = (ds.decode_node(&e, b, &ds.meta.schema))
             .map_err(|d| ds.damage_error(&d).to_string())?;
-        keep_shown(&mut batch, &hidden_classes(a));
+        keep_shown(&mut batch, &shown_by(ds, &hidden_classes(a))?);
         Ok(batch)
     });
     match r {
@@ -388,15 +453,11 @@ pub unsafe extern "C" fn myr_profile(
         .chunks_exact(2)
         .map(|c| [c[0], c[1]])
         .collect();
-    let mut hidden = [false; 256];
-    for (c, h) in hidden.iter_mut().enumerate() {
-        *h = (a[n as usize + c / 32] as u32) >> (c % 32) & 1 == 1;
-    }
-    let scheme = SCHEMES
-        .get(scheme as usize)
-        .and_then(|s| ColorBy::parse(s))
-        .unwrap_or(ColorBy::Rgb);
-    let r = with_dataset(|ds| crate::cut_profile(ds, &line, width, picture, scheme, &hidden));
+    let hidden = hidden_words(&a[n as usize..]);
+    let colour = colour(scheme);
+    let r = with_dataset(|ds| {
+        crate::cut_profile(ds, &line, width, picture, colour, &shown_by(ds, &hidden)?)
+    });
     let (mut summary, rgba, csv) = match r {
         Some(Ok(x)) => x,
         Some(Err(e)) => (json!({ "error": e }), Vec::new(), Vec::new()),
@@ -427,4 +488,30 @@ pub extern "C" fn myr_between(a_along: f64, a_z: f64, b_along: f64, b_z: f64) ->
         [b_along, b_z],
         units
     )))
+}
+
+/// A volume ([`crate::volume_json`]) over the polygon at `args` (`n` numbers, x, y each; then
+/// the hidden classes as 8 words of 32 bits) above the rim's plane (`base` 0) or the elevation
+/// `z` (`base` 1), on cells of `cell` (0: from the spacing): a JSON text.
+///
+/// # Safety
+/// `args` holds `n + 8` f64s the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_volume(args: *const f64, n: u32, base: u32, z: f64, cell: f64) -> u32 {
+    // SAFETY: the caller's promise.
+    let a = unsafe { std::slice::from_raw_parts(args, n as usize + 8) };
+    let polygon: Vec<[f64; 2]> = a[..n as usize]
+        .chunks_exact(2)
+        .map(|c| [c[0], c[1]])
+        .collect();
+    let hidden = hidden_words(&a[n as usize..]);
+    let elevation = (base == 1).then_some(z);
+    let cell = (cell > 0.0).then_some(cell);
+    match with_dataset(|ds| {
+        crate::volume_json(ds, &polygon, elevation, cell, &shown_by(ds, &hidden)?)
+    }) {
+        Some(Ok(v)) => answer_json(v),
+        Some(Err(e)) => error(e),
+        None => error("no dataset open"),
+    }
 }

@@ -120,7 +120,7 @@ fn selection_decoding_and_damage() {
         origin,
         ColorBy::Elevation,
         z,
-        &[false; 256],
+        &myriad_measure::Bound::all(),
     )
     .unwrap();
     let stored = ds.read_node(e).unwrap();
@@ -138,9 +138,17 @@ fn selection_decoding_and_damage() {
     // A damaged page: the error names the file and the byte.
     let mut bad = page.to_vec();
     bad[40] ^= 0x55;
-    let err = decode(&v.dataset, e, &bad, origin, ColorBy::Rgb, z, &[false; 256])
-        .err()
-        .unwrap();
+    let err = decode(
+        &v.dataset,
+        e,
+        &bad,
+        origin,
+        ColorBy::Rgb,
+        z,
+        &myriad_measure::Bound::all(),
+    )
+    .err()
+    .unwrap();
     assert!(
         err.contains("city.myr") && err.contains(&format!("byte {}", e.page.offset)),
         "{err}"

@@ -29,6 +29,11 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// A header every request for an http(s):// dataset carries, NAME: VALUE (a private
+    /// server's token: "Authorization: Bearer TOKEN", or MYRIAD_TOKEN in the environment); may
+    /// be given again
+    #[arg(long = "header", global = true, value_name = "NAME: VALUE")]
+    headers: Vec<String>,
 }
 
 #[derive(Subcommand)]
@@ -104,6 +109,18 @@ fn main() -> ExitCode {
     }
     quiet_mesa();
     let cli = Cli::parse();
+    if !cli.headers.is_empty() {
+        match (cli.headers.iter())
+            .map(|h| myriad_format::remote::parse_header(h))
+            .collect::<Result<Vec<_>, _>>()
+        {
+            Ok(h) => myriad_format::remote::set_headers(h),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(1);
+            }
+        }
+    }
     let result = match cli.command {
         Command::Convert(a) => dataset::convert(a),
         Command::Plan(a) => partition::plan(a),

@@ -39,9 +39,72 @@ pub struct ServeArgs {
     /// dataset's NAME.work.json); without it the work is shown, not changed
     #[arg(long)]
     edit: bool,
+    /// Serve privately: only requests with one of this file's tokens (one a line, 16
+    /// characters or more) as "Authorization: Bearer TOKEN", the cookie of the one-time link
+    /// printed at start, or a signed link (--sign)
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
+    /// Print a link to URL (http://HOST:PORT/view/NAME or /d/NAME) signed with --token-file's
+    /// key, good until --expires, and exit
+    #[arg(long, value_name = "URL", requires = "token_file")]
+    sign: Option<String>,
+    /// How long a signed link holds: 90s, 30m, 24h, 7d
+    #[arg(long, default_value = "24h", requires = "sign")]
+    expires: String,
+    /// Serve HTTPS with this certificate chain (PEM; with --tls-key)
+    #[arg(long, value_name = "CERT.pem", requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// The private key of --tls-cert (PEM)
+    #[arg(long, value_name = "KEY.pem", requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+}
+
+/// The token file's access rules; `None` without one.
+fn access(a: &ServeArgs) -> Result<Option<myriad_serve::access::Access>> {
+    let Some(f) = &a.token_file else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(f)
+        .with_context(|| format!("{}: cannot read the token file", f.display()))?;
+    let access = myriad_serve::access::Access::from_tokens(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+    Ok(Some(access))
+}
+
+/// `--sign URL`: the URL with its signature for the dataset it names.
+fn signed(access: &myriad_serve::access::Access, url: &str, expires: &str) -> Result<String> {
+    let seconds = myriad_serve::access::parse_duration(expires).map_err(anyhow::Error::msg)?;
+    let (base, query) = url.split_once('?').unwrap_or((url, ""));
+    let path = base
+        .split_once("://")
+        .and_then(|(_, rest)| rest.find('/').map(|i| &rest[i..]))
+        .unwrap_or("");
+    let name = myriad_serve::access::dataset_of(path).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--sign {url}: a dataset's address is expected (http://HOST:PORT/view/NAME or /d/NAME)"
+        )
+    })?;
+    let until = myriad_serve::access::now() + seconds;
+    let sig = access.sign(&name, until);
+    Ok(if query.is_empty() {
+        format!("{base}?{sig}")
+    } else {
+        format!("{base}?{query}&{sig}")
+    })
 }
 
 pub fn run(a: ServeArgs) -> Result<()> {
+    let access = access(&a)?;
+    if let (Some(url), Some(access)) = (&a.sign, &access) {
+        println!("{}", signed(access, url, &a.expires)?);
+        return Ok(());
+    }
+    let private = access.is_some();
+    let tls = match (&a.tls_cert, &a.tls_key) {
+        (Some(c), Some(k)) => Some(myriad_serve::tls::acceptor(c, k).map_err(anyhow::Error::msg)?),
+        _ => None,
+    };
+    let scheme = if tls.is_some() { "https" } else { "http" };
     // Datasets, COPC files and folders as they are; any other scan as a dataset made from it
     // (kept for next time), named after it.
     let mut catalog = Catalog::default();
@@ -70,7 +133,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
         }
         Ok(std::time::Duration::from_secs_f64(s))
     };
-    let server = Server::start(
+    let server = Server::start_with(
         catalog,
         a.bind,
         Options {
@@ -83,9 +146,11 @@ pub fn run(a: ServeArgs) -> Result<()> {
             edit: a.edit,
             ..Options::default()
         },
+        access,
+        tls,
     )
     .with_context(|| format!("cannot listen on {}", a.bind))?;
-    let base = format!("http://{}", server.addr);
+    let base = format!("{scheme}://{}", server.addr);
     let mut out = std::io::stdout().lock();
     writeln!(out, "serving {} files on {base}/", names.len())?;
     for (n, kind, len) in &names {
@@ -98,6 +163,12 @@ pub fn run(a: ServeArgs) -> Result<()> {
         if *kind == Kind::Dataset {
             writeln!(out, "    in the browser: {base}/view/{}", href(n))?;
         }
+    }
+    if private && let Some(login) = server.one_time_link() {
+        writeln!(
+            out,
+            "private: requests need a token from the token file; a browser signs in once with {base}{login}"
+        )?;
     }
     writeln!(out, "stop with Ctrl-C")?;
     out.flush()?;

@@ -41,6 +41,27 @@ fn converge(b: &mut Browser) -> Value {
     st
 }
 
+/// Where the page's camera draws `p` (CSS pixels from the canvas's top left).
+fn on_screen(b: &mut Browser, p: [f64; 3]) -> (f64, f64) {
+    let cam = b.eval("myriad.camera()").unwrap();
+    let v3 = |k: &str| -> [f64; 3] { std::array::from_fn(|a| cam[k][a].as_f64().unwrap()) };
+    let camera = myriad_lod::Camera {
+        position: v3("position"),
+        target: v3("target"),
+        up: v3("up"),
+        fov_y: cam["fov"].as_f64().unwrap(),
+        width: W,
+        height: H,
+        near: 1.0,
+        far: 2.0,
+    };
+    let e = camera.to_eye(p);
+    (
+        W as f64 / 2.0 + e[0] / e[2] * camera.focal(),
+        H as f64 / 2.0 - e[1] / e[2] * camera.focal(),
+    )
+}
+
 #[test]
 fn the_web_viewer_draws_picks_measures_clips_and_links() {
     let Some(exe) = browser::find() else {
@@ -507,23 +528,7 @@ fn the_web_viewer_shows_and_saves_annotations() {
         .eval("document.querySelector('#labels .label.measurement').textContent")
         .unwrap();
     assert_eq!(measured, "40.000 m", "the server's label");
-    let cam = b.eval("myriad.camera()").unwrap();
-    let v3 = |k: &str| -> [f64; 3] { std::array::from_fn(|a| cam[k][a].as_f64().unwrap()) };
-    let camera = myriad_lod::Camera {
-        position: v3("position"),
-        target: v3("target"),
-        up: v3("up"),
-        fov_y: 60.0,
-        width: W,
-        height: H,
-        near: 1.0,
-        far: 2.0,
-    };
-    let e = camera.to_eye([c[0], c[1], top]);
-    let (sx, sy) = (
-        W as f64 / 2.0 + e[0] / e[2] * camera.focal(),
-        H as f64 / 2.0 - e[1] / e[2] * camera.focal(),
-    );
+    let (sx, sy) = on_screen(&mut b, [c[0], c[1], top]);
     assert_eq!(label["text"], "gate");
     let (lx, ly) = (
         label["left"].as_f64().unwrap(),
@@ -767,4 +772,311 @@ fn the_web_viewer_shows_and_saves_annotations() {
         "{}",
         r.stdout
     );
+}
+
+/// Colours, conditions and volumes in the browser: any attribute through a gradient (the grey
+/// ramp draws grey, the link keeps it), a `where` condition drops the points that fail it (from
+/// the view and from downloads, as `extract --where` does; an unknown attribute is said and
+/// changes nothing), and a polygon clicked on stockpiles measures the volume `myriad volume`
+/// gives for it, drawn with its base and grid.
+#[test]
+fn the_web_viewer_colours_filters_and_measures_volumes() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-volume");
+    let las = d.join("p.las");
+    let r = myriad(&[
+        "synth",
+        "--scene",
+        "stockpiles",
+        "-o",
+        s(&las),
+        "--points",
+        "100k",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let piles: Vec<Vec<f64>> = (r.stdout.lines().chain(r.stderr.lines()))
+        .filter(|l| l.starts_with("pile "))
+        .filter_map(|l| l.split("--polygon ").nth(1))
+        .map(|p| p.trim().split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert!(!piles.is_empty(), "{}", r.stdout);
+    let myr = d.join("p.myr");
+    let r = myriad(&["convert", s(&las), "-o", s(&myr)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let bounds = Dataset::open(&myr).unwrap().meta.bounds;
+    let server = serve(&[s(&myr)], std::process::Stdio::null());
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!("{}/view/p.myr#renderer=webgl2&edl=0", server.base),
+        W,
+        H,
+    )
+    .unwrap();
+    converge(&mut b);
+    b.eval("document.getElementById('view-top').click()")
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    converge(&mut b);
+    let grey_share = |b: &mut Browser| {
+        let (_, _, px) = png(&b.screenshot().unwrap());
+        let lit: Vec<_> = px.into_iter().filter(|p| lit(*p)).collect();
+        let grey = lit
+            .iter()
+            .filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() <= 3)
+            .count();
+        (grey as f64 / lit.len().max(1) as f64, lit.len())
+    };
+    let (before, _) = grey_share(&mut b);
+    assert!(before < 0.5, "{before} of the scan grey before the ramp");
+
+    // z through the grey gradient: grey, the range fitted within the data's heights.
+    b.eval(
+        "(() => { const s = document.getElementById('scheme'); s.value = 'ramp:z'; \
+         s.dispatchEvent(new Event('change')); })()",
+    )
+    .unwrap();
+    b.wait_for(
+        "myriad.state.style && myriad.state.style.color === 'z'",
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    b.eval(
+        "(() => { const g = document.getElementById('gradient'); g.value = 'grey'; \
+         g.dispatchEvent(new Event('change')); })()",
+    )
+    .unwrap();
+    let style = b
+        .wait_for(
+            "myriad.state.style && myriad.state.style.gradient === 'grey' && myriad.state.style",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    let range: Vec<f64> = (0..2)
+        .map(|k| style["range"][k].as_f64().unwrap())
+        .collect();
+    assert!(
+        bounds.min[2] <= range[0] && range[0] < range[1] && range[1] <= bounds.max[2],
+        "{style}"
+    );
+    converge(&mut b);
+    let (grey, lit_px) = grey_share(&mut b);
+    assert!(
+        grey > 0.95 && lit_px > 10_000,
+        "{grey} of {lit_px} pixels grey"
+    );
+    let link = b.eval("myriad.link()").unwrap();
+    assert!(
+        link.as_str()
+            .unwrap()
+            .contains("color=z&gradient=grey&range="),
+        "{link}"
+    );
+
+    // Only the points under the middle height: none drawn above it; downloads the same.
+    let cut = (0.5 * (bounds.min[2] + bounds.max[2]) * 1000.0).round() / 1000.0;
+    let set_where = |b: &mut Browser, w: &str| {
+        b.eval(&format!(
+            "(() => {{ const e = document.getElementById('where'); e.value = '{w}'; \
+             e.dispatchEvent(new Event('change')); }})()"
+        ))
+        .unwrap();
+    };
+    set_where(&mut b, &format!("z<{cut}"));
+    b.wait_for(
+        &format!("myriad.state.style && myriad.state.style.where === 'z<{cut}'"),
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    let st = converge(&mut b);
+    assert!(st["points"].as_u64().unwrap() > 1000, "{st}");
+    let loaded = b.eval("myriad.loadedBounds()").unwrap();
+    let top = loaded[1][2].as_f64().unwrap();
+    assert!(top < cut + 0.01, "a point at {top} drawn, above {cut}");
+    set_where(&mut b, "nosuch>1");
+    let problem = b
+        .wait_for("myriad.state.styleProblem", Duration::from_secs(30))
+        .unwrap();
+    assert!(
+        problem
+            .as_str()
+            .unwrap()
+            .contains("no attribute \"nosuch\""),
+        "{problem}"
+    );
+    assert_eq!(
+        b.eval("myriad.state.style.where").unwrap(),
+        format!("z<{cut}").as_str()
+    );
+    let c = bounds.center();
+    let bbox = format!(
+        "{},{},{},{},{},{}",
+        c[0] - 30.0,
+        c[1] - 30.0,
+        bounds.min[2] - 1.0,
+        c[0] + 30.0,
+        c[1] + 30.0,
+        bounds.max[2] + 1.0
+    );
+    let want = d.join("below.laz");
+    let r = myriad(&[
+        "extract",
+        s(&myr),
+        "-o",
+        s(&want),
+        "--box",
+        &bbox,
+        "--where",
+        &format!("z<{cut}"),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let get = |q: &str| {
+        let mut r = agent
+            .get(&format!("{}/x/p.myr?box={bbox}&{q}", server.base))
+            .call()
+            .unwrap();
+        let body = r
+            .body_mut()
+            .with_config()
+            .limit(1 << 30)
+            .read_to_vec()
+            .unwrap();
+        (r.status().as_u16(), body)
+    };
+    let (status, laz) = get(&format!("where=z%3C{cut}"));
+    assert_eq!(status, 200);
+    let want = std::fs::read(&want).unwrap();
+    let count = |b: &[u8]| match u32::from_le_bytes(b[107..111].try_into().unwrap()) {
+        0 => u64::from_le_bytes(b[247..255].try_into().unwrap()),
+        n => n as u64,
+    };
+    assert_eq!(
+        count(&laz),
+        count(&want),
+        "the points extract --where keeps"
+    );
+    assert!(count(&laz) > 0);
+    let (status, body) = get("where=nosuch%3E1");
+    assert_eq!(status, 400, "{}", String::from_utf8_lossy(&body));
+    assert!(String::from_utf8_lossy(&body).contains("nosuch"));
+    set_where(&mut b, "");
+    b.wait_for("myriad.state.style.where === ''", Duration::from_secs(30))
+        .unwrap();
+    converge(&mut b);
+
+    // The first pile's polygon clicked, corner after corner, then measured: the figures
+    // `myriad volume` gives for the polygon picked; its base and grid drawn.
+    // The first pile seen from above, right of the panel (on the left).
+    let pile = piles[0].clone();
+    let n = (pile.len() / 2) as f64;
+    let (cx, cy) = (
+        pile.iter().step_by(2).sum::<f64>() / n,
+        pile.iter().skip(1).step_by(2).sum::<f64>() / n,
+    );
+    let z = 0.5 * (bounds.min[2] + bounds.max[2]);
+    b.eval(&format!(
+        "myriad.setCamera({{ position: [{}, {cy}, {}], target: [{}, {cy}, {z}], up: [0, 1, 0] }})",
+        cx - 20.0,
+        z + 80.0,
+        cx - 20.0
+    ))
+    .unwrap();
+    converge(&mut b);
+    let at: Vec<(f64, f64)> = (pile.chunks_exact(2))
+        .map(|c| on_screen(&mut b, [c[0], c[1], z]))
+        .collect();
+    assert!(
+        at.iter()
+            .all(|&(x, y)| x > 400.0 && x < W as f64 - 20.0 && y > 20.0 && y < H as f64 - 20.0),
+        "{at:?}"
+    );
+    b.eval("document.getElementById('volume').click()").unwrap();
+    for &(x, y) in &at {
+        b.click(x, y).unwrap();
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    let corners = pile.len() / 2;
+    if let Err(e) = b.wait_for(
+        &format!("myriad.state.volume.polygon.length === {corners}"),
+        Duration::from_secs(30),
+    ) {
+        let st = b
+            .eval("({ v: myriad.state.volume, e: myriad.state.errors, p: myriad.state.picked, c: myriad.camera() })")
+            .unwrap();
+        panic!("{e}: {st} after clicks for {pile:?}");
+    }
+    b.eval("document.getElementById('volume-go').click()")
+        .unwrap();
+    let st = b
+        .wait_for(
+            "myriad.state.volume.measured === 1 && myriad.state.volume",
+            Duration::from_secs(60),
+        )
+        .unwrap();
+    let polygon: Vec<String> = (st["polygon"].as_array().unwrap().iter())
+        .flat_map(|p| [p[0].to_string(), p[1].to_string()])
+        .collect();
+    let r = myriad(&["volume", s(&myr), "--polygon", &polygon.join(","), "--json"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let cli: Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    let web = &st["result"];
+    for k in ["fill", "cut", "area", "cells"] {
+        let (a, w) = (web[k].as_f64().unwrap(), cli[k].as_f64().unwrap());
+        assert!(
+            (a - w).abs() <= 1e-9 * w.abs().max(1.0),
+            "{k}: {a} in the browser, {w} by myriad volume"
+        );
+    }
+    assert!(web["fill"].as_f64().unwrap() > 100.0, "{web}");
+    let shown = b
+        .eval("document.getElementById('volume-result').textContent")
+        .unwrap();
+    let want = format!("fill {:.3} m³", cli["fill"].as_f64().unwrap());
+    assert!(
+        shown.as_str().unwrap().starts_with(&want),
+        "{shown} against {want}"
+    );
+    b.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        .unwrap();
+    let cells = b
+        .eval("document.querySelectorAll('#labels polygon.fill').length")
+        .unwrap();
+    assert!(
+        cells.as_u64().unwrap() > 10,
+        "{cells} squares of fill drawn"
+    );
+    // The base's outline where its corners project; the polygon's drawn in its yellow.
+    let drawn = b
+        .eval("document.querySelector('#labels polyline.base').getAttribute('points')")
+        .unwrap();
+    let drawn: Vec<f64> = (drawn.as_str().unwrap().split([' ', ',']))
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let under = web["base"].as_array().unwrap();
+    assert_eq!(drawn.len(), 2 * (under.len() + 1), "{drawn:?}");
+    for (k, q) in under.iter().enumerate() {
+        let p: [f64; 3] = std::array::from_fn(|a| q[a].as_f64().unwrap());
+        let (x, y) = on_screen(&mut b, p);
+        assert!(
+            (drawn[2 * k] - x).abs() < 1.0 && (drawn[2 * k + 1] - y).abs() < 1.0,
+            "base corner {k} drawn at {:?}, projects to ({x}, {y})",
+            &drawn[2 * k..2 * k + 2]
+        );
+    }
+    let (_, _, px) = png(&b.screenshot().unwrap());
+    let outline = px
+        .iter()
+        .filter(|p| {
+            (p[0] as i32 - 255).abs() <= 10 && (p[1] as i32 - 210).abs() <= 10 && p[2] <= 30
+        })
+        .count();
+    assert!(outline >= 100, "{outline} pixels of the polygon's outline");
+    drop(b);
+    let _ = std::fs::remove_dir_all(&d);
 }

@@ -98,6 +98,8 @@ pub fn synth(dir: &Path, name: &str, points: u64) -> PathBuf {
 pub struct Serving {
     child: Child,
     pub base: String,
+    /// What it printed on starting, up to "stop with Ctrl-C".
+    pub lines: Vec<String>,
 }
 
 impl Drop for Serving {
@@ -125,9 +127,22 @@ pub fn serve(args: &[&str], stderr: Stdio) -> Serving {
         .expect("serving N files on URL")
         .trim_end_matches('/')
         .to_string();
+    let mut printed = vec![first];
+    for l in lines.by_ref() {
+        let l = l.unwrap();
+        let last = l.starts_with("stop with");
+        printed.push(l);
+        if last {
+            break;
+        }
+    }
     // Keep reading its output so that it never blocks on a full pipe.
     std::thread::spawn(move || for _ in lines {});
-    Serving { child, base }
+    Serving {
+        child,
+        base,
+        lines: printed,
+    }
 }
 
 /// Two neighbouring scans (west and east halves of a synthetic one) in `d`, and their records.
