@@ -1,5 +1,5 @@
 //! Numbers as people write them on a command line and read them in a report: counts such as
-//! `5M` or `2.5e6`, lists of coordinates, and counts with thousands separators.
+//! `5M` or `2.5e6`, lists of coordinates, and counts with thousands separators; bytes as hex.
 
 /// Parses counts such as 1000, 1e6, 2.5M, 100k, 2G.
 pub fn parse_count(s: &str) -> Result<u64, String> {
@@ -47,9 +47,33 @@ pub fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
         .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
 }
 
+/// Bytes as lower-case hex.
+pub fn hex(b: &[u8]) -> String {
+    b.iter().map(|v| format!("{v:02x}")).collect()
+}
+
+/// Hex back to bytes; `None` where it is not hex of whole bytes.
+pub fn unhex(s: &str) -> Option<Vec<u8>> {
+    if !s.len().is_multiple_of(2) {
+        return None;
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hex_both_ways() {
+        assert_eq!(hex(&[0, 0xab, 0x10]), "00ab10");
+        assert_eq!(unhex("00ab10"), Some(vec![0, 0xab, 0x10]));
+        assert_eq!(unhex("0ab"), None);
+        assert_eq!(unhex("zz"), None);
+    }
 
     #[test]
     fn counts() {

@@ -68,20 +68,6 @@ impl Level {
     }
 }
 
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|v| format!("{v:02x}")).collect()
-}
-
-fn unhex(s: &str) -> Option<Vec<u8>> {
-    if !s.len().is_multiple_of(2) {
-        return None;
-    }
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
-        .collect()
-}
-
 fn aabb_json(b: &Aabb) -> Value {
     json!({"min": b.min, "max": b.max})
 }
@@ -120,7 +106,7 @@ impl Metadata {
             "crs": self.crs,
             "schema": schema_json(&self.schema),
             "sources": self.sources,
-            "las_header": self.las_header.as_deref().map(hex),
+            "las_header": self.las_header.as_deref().map(myriad_core::units::hex),
             "software": self.software,
             "levels": self.levels.iter().map(|l| json!({
                 "level": l.level, "nodes": l.nodes, "points": l.points,
@@ -258,7 +244,7 @@ impl Metadata {
                 .cloned()
                 .unwrap_or_default(),
             las_header: match v.get("las_header").and_then(|h| h.as_str()) {
-                Some(h) => Some(unhex(h).ok_or("las_header is not hex")?),
+                Some(h) => Some(myriad_core::units::unhex(h).ok_or("las_header is not hex")?),
                 None => None,
             },
             software: v

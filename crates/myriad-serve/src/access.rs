@@ -11,6 +11,7 @@
 //! A missing or wrong token or signature is answered 401, an expired link 403, before anything
 //! of the dataset is read.
 
+use myriad_core::units::{hex, unhex};
 use ring::hmac;
 use std::collections::HashSet;
 use std::sync::Mutex;
@@ -45,20 +46,6 @@ pub enum Verdict {
     Wrong,
     /// A signed link past its time: 403.
     Expired(u64),
-}
-
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
-}
-
-fn unhex(s: &str) -> Option<Vec<u8>> {
-    if !s.len().is_multiple_of(2) {
-        return None;
-    }
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
-        .collect()
 }
 
 /// The dataset a path is about (`/view/NAME`, `/d/NAME`, `/x/NAME`, `/work/NAME`, decoded).

@@ -105,6 +105,12 @@ pub fn run(a: ServeArgs) -> Result<()> {
         _ => None,
     };
     let scheme = if tls.is_some() { "https" } else { "http" };
+    if private && tls.is_none() && !a.bind.ip().is_loopback() {
+        eprintln!(
+            "warning: --token-file without --tls-cert on {}: tokens and cookies cross the network in clear",
+            a.bind
+        );
+    }
     // Datasets, COPC files and folders as they are; any other scan as a dataset made from it
     // (kept for next time), named after it.
     let mut catalog = Catalog::default();

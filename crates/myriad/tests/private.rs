@@ -57,15 +57,19 @@ fn with_env(args: &[&str], token: Option<&str>) -> common::Run {
     }
 }
 
-#[test]
-fn a_private_server_answers_only_its_token_its_links_and_their_cookies() {
-    let d = tempdir("private");
-    let laz = d.join("site.laz");
-    let r = myriad(&["synth", "-o", s(&laz), "--points", "60k", "--scene", "city"]);
-    assert_eq!(r.code, 0, "{}", r.stderr);
+/// `d/site.myr`, converted from a synthetic scan of `points`.
+fn site(d: &std::path::Path, points: u64) -> std::path::PathBuf {
+    let laz = common::synth(d, "site.laz", points);
     let myr = d.join("site.myr");
     let r = myriad(&["convert", s(&laz), "-o", s(&myr)]);
     assert_eq!(r.code, 0, "{}", r.stderr);
+    myr
+}
+
+#[test]
+fn a_private_server_answers_only_its_token_its_links_and_their_cookies() {
+    let d = tempdir("private");
+    let myr = site(&d, 60_000);
     let file = std::fs::read(&myr).unwrap();
     let tokens = d.join("tokens");
     std::fs::write(&tokens, format!("# who may read\n{TOKEN}\n")).unwrap();
@@ -318,12 +322,7 @@ fn a_private_server_over_tls() {
         eprintln!("SKIPPED: no openssl to make a certificate (apt-get install openssl)");
         return;
     }
-    let laz = d.join("site.laz");
-    let r = myriad(&["synth", "-o", s(&laz), "--points", "20k"]);
-    assert_eq!(r.code, 0, "{}", r.stderr);
-    let myr = d.join("site.myr");
-    let r = myriad(&["convert", s(&laz), "-o", s(&myr)]);
-    assert_eq!(r.code, 0, "{}", r.stderr);
+    let myr = site(&d, 20_000);
     let tokens = d.join("tokens");
     std::fs::write(&tokens, format!("{TOKEN}\n")).unwrap();
     // A key that is not one: one line naming the file.
