@@ -1,30 +1,15 @@
 //! GeoJSON (RFC 7946) of the tools' results, for GIS programs (QGIS, ArcGIS, shapely): the
 //! coordinates are the dataset's own, and the CRS is named in the legacy `crs` member
-//! (`urn:ogc:def:crs:EPSG::N`, from the WKT's last EPSG authority) that GDAL and QGIS read, since
+//! (`urn:ogc:def:crs:EPSG::N`, from the WKT's own EPSG authority) that GDAL and QGIS read, since
 //! RFC 7946 itself allows only WGS 84.
 
 use serde_json::{Value, json};
 
-/// The EPSG code of a CRS: its last `AUTHORITY["EPSG","N"]` (the outermost object's, in WKT 1)
-/// or `ID["EPSG",N]` (WKT 2), or an `EPSG:N` text.
+/// The EPSG code of a CRS: the outermost object's own `AUTHORITY["EPSG","N"]` (WKT 1) or
+/// `ID["EPSG",N]` (WKT 2), never a unit's or a datum's; or an `EPSG:N` text
+/// ([`crate::crs::own_epsg`]).
 pub fn epsg_code(crs: &str) -> Option<u32> {
-    if let Some(n) = crs.trim().strip_prefix("EPSG:") {
-        return n.trim().parse().ok();
-    }
-    let mut last = None;
-    for key in ["AUTHORITY[\"EPSG\",", "ID[\"EPSG\","] {
-        for part in crs.split(key).skip(1) {
-            let n: String = part
-                .trim_start_matches('"')
-                .chars()
-                .take_while(|c| c.is_ascii_digit())
-                .collect();
-            if let Ok(v) = n.parse() {
-                last = Some(v);
-            }
-        }
-    }
-    last
+    crate::crs::own_epsg(crs)
 }
 
 /// A feature collection of `features`, with the CRS named where it has an EPSG code.
@@ -73,6 +58,9 @@ mod tests {
         assert_eq!(epsg_code("EPSG:2992"), Some(2992));
         assert_eq!(epsg_code(r#"PROJCRS["x",ID["EPSG",6557]]"#), Some(6557));
         assert_eq!(epsg_code(r#"LOCAL_CS["site"]"#), None);
+        // A unit's code is not the CRS's.
+        let no_code = r#"PROJCS["Lambert (ft)",UNIT["foot",0.3048,AUTHORITY["EPSG","9002"]]]"#;
+        assert_eq!(epsg_code(no_code), None);
         let c = collection(vec![], Some(utm));
         assert_eq!(
             c["crs"]["properties"]["name"],

@@ -15,6 +15,7 @@
 //! its region ([`read_region`]), whatever a view draws.
 
 pub mod corridor;
+pub mod crs;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod files;
 pub mod filter;

@@ -102,6 +102,7 @@ fn to_json(r: &Report) -> serde_json::Value {
         "header_bounds": i.bounds.map(|b| json!({"min": b.min, "max": b.max})),
         "attributes": i.schema.names(),
         "crs": i.crs,
+        "crs_info": crs_json(i.crs.as_deref()),
         "scale": i.scale,
         "offset": i.offset,
         "file_size": i.file_size,
@@ -148,8 +149,24 @@ pub fn print_bounds(b: &myriad_core::Aabb) {
     println!("         size {:.3} x {:.3} x {:.3}", s[0], s[1], s[2]);
 }
 
-/// The CRS line of the human summary, long WKT cut at 100 characters.
+/// What the CRS says of itself (`myriad_measure::crs::describe`): name, EPSG code, kind,
+/// units, vertical part.
+fn crs_json(crs: Option<&str>) -> serde_json::Value {
+    let Some(d) = crs.map(myriad_measure::crs::describe) else {
+        return serde_json::Value::Null;
+    };
+    json!({
+        "name": d.name, "epsg": d.epsg, "kind": d.kind, "units": d.units,
+        "vertical": d.vertical.map(|(n, c, u)| json!({ "name": n, "epsg": c, "units": u })),
+    })
+}
+
+/// The CRS lines of the human summary: what it names (name, EPSG code, kind, units, vertical
+/// part), then the text, long WKT cut at 100 characters.
 pub fn print_crs(crs: Option<&str>) {
+    if let Some(c) = crs {
+        println!("  crs name    {}", myriad_measure::crs::describe(c).line());
+    }
     match crs {
         Some(c) if c.len() > 100 => println!(
             "  crs         {}...",
@@ -194,6 +211,7 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
                 "scale": m.quantization.scale,
                 "offset": m.quantization.offset,
                 "crs": m.crs,
+                "crs_info": crs_json(m.crs.as_deref()),
                 "attributes": m.schema.names(),
                 "file_size": ds.file_length,
                 "bytes_per_point": bpp,

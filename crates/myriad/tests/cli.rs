@@ -272,6 +272,23 @@ fn synth_then_info_json() {
             "{name}: crs {}",
             v["crs"]
         );
+        // What the CRS names: its name, code, kind and units.
+        let c = &v["crs_info"];
+        assert_eq!(
+            (
+                c["name"].as_str(),
+                c["epsg"].as_u64(),
+                c["kind"].as_str(),
+                c["units"].as_str()
+            ),
+            (
+                Some("WGS 84 / UTM zone 33N"),
+                Some(32633),
+                Some("projected"),
+                Some("m")
+            ),
+            "{name}: {c}"
+        );
         let attrs: Vec<&str> = v["attributes"]
             .as_array()
             .unwrap()
