@@ -215,6 +215,8 @@ pub struct Summary {
     pub phases: Vec<(&'static str, f64)>,
     pub skipped_non_finite: u64,
     pub trimmed: u64,
+    /// Points that did not move into the target CRS (`--to-crs`), dropped.
+    pub not_transformed: u64,
     pub clamped: u64,
     /// Bounds of the points taken, and each input's points taken and read (more where a part
     /// keeps some cells only).
@@ -561,6 +563,7 @@ pub fn convert(
         phases,
         skipped_non_finite: dist.skipped_non_finite,
         trimmed: dist.trimmed,
+        not_transformed: dist.not_transformed,
         clamped: dist.clamped,
         bounds: dist.bounds,
         sources: dist

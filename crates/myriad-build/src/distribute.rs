@@ -103,6 +103,8 @@ pub struct Distribution {
     /// Points skipped for NaN or infinite coordinates, and dropped by placement boxes.
     pub skipped_non_finite: u64,
     pub trimmed: u64,
+    /// Points that did not move into the target CRS (`--to-crs`), dropped.
+    pub not_transformed: u64,
     /// The first LAS/LAZ input's header with its VLRs ([`myriad_io::las::header_to_bytes`]).
     pub las_header: Option<Vec<u8>>,
     /// The chunks' points, by cell, when they all fit in the write buffers and were never
@@ -564,6 +566,7 @@ pub fn distribute_with(
     on_read(Progress::Declared(declared));
     let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
     let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
+    let mut not_transformed = 0u64;
     let origins = scan_origins(&infos.iter().collect::<Vec<_>>());
     for (k, (path, kept)) in inputs.iter().zip(sources).enumerate() {
         let scan_offset = origins.as_ref().map_or(0, |o| o.1[k]);
@@ -614,6 +617,7 @@ pub fn distribute_with(
         }
         skipped += src.skipped_non_finite();
         trimmed += src.trimmed();
+        not_transformed += src.not_transformed();
         taken.push(points - before);
         read.push(all);
     }
@@ -698,6 +702,7 @@ pub fn distribute_with(
         read,
         skipped_non_finite: skipped,
         trimmed,
+        not_transformed,
         las_header,
         resident: std::sync::Mutex::new(resident.unwrap_or_default()),
         _spill: folder,

@@ -73,6 +73,9 @@ pub struct ExportOptions {
     pub threads: usize,
     /// Levels per COPC hierarchy page (tests use few, to make many pages).
     pub copc_page_levels: u32,
+    /// Move the points into another CRS (`--to-crs`): they are re-placed into an octree of
+    /// the target's coordinates, as kd and mwkd datasets are.
+    pub reproject: Option<myriad_io::proj::Reproject>,
 }
 
 impl ExportOptions {
@@ -86,6 +89,7 @@ impl ExportOptions {
             memory: convert::default_memory(),
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             copc_page_levels: myriad_io::copc::PAGE_LEVELS,
+            reproject: None,
         }
     }
 }
@@ -101,8 +105,10 @@ pub struct ExportSummary {
     pub damage: Vec<Damage>,
     /// What the target could not hold, one line each.
     pub not_kept: Vec<String>,
-    /// Whether the points were re-placed into an octree (kd, mwkd).
+    /// Whether the points were re-placed into an octree (kd, mwkd, another CRS).
     pub replaced: bool,
+    /// Points that did not move into the target CRS (`--to-crs`), left out.
+    pub not_transformed: u64,
 }
 
 /// Whether the dataset's nodes are the cells of an octree holding original points.
@@ -120,7 +126,16 @@ pub fn export(
 ) -> Result<ExportSummary> {
     // An attribute the dataset lacks is said before anything is written.
     (o.filter.bind(&ds.meta.schema)).map_err(Error::Invalid)?;
-    if matches!(o.target, Target::Las | Target::Laz) {
+    if let Some(r) = &o.reproject
+        && ds.meta.crs.is_none()
+        && r.from.is_none()
+    {
+        return Err(Error::Invalid(format!(
+            "{}: names no coordinate system to move its points from: give --from-crs",
+            ds.path().display()
+        )));
+    }
+    if matches!(o.target, Target::Las | Target::Laz) && o.reproject.is_none() {
         let want = if o.target == Target::Las {
             "las"
         } else {
@@ -172,7 +187,7 @@ pub fn export(
             ..Default::default()
         },
     );
-    if is_octree(&nodes) {
+    if is_octree(&nodes) && o.reproject.is_none() {
         let mut s = export_octree(ds, nodes, out, o, report)?;
         s.damage.splice(0..0, damage);
         Ok(s)
@@ -192,8 +207,8 @@ impl Drop for Temps {
     }
 }
 
-/// kd and mwkd: the selected original points to a temporary LAS file, built into an octree,
-/// exported.
+/// kd and mwkd, or another CRS: the selected original points to a temporary LAS file, built
+/// into an octree (their coordinates moved into the target CRS), exported.
 fn replace(
     ds: &Dataset,
     mut damage: Vec<Damage>,
@@ -231,7 +246,11 @@ fn replace(
     co.force = true;
     co.memory = o.memory;
     co.threads = o.threads;
-    convert::convert(std::slice::from_ref(&las), &co, report)?;
+    co.open.reproject = o.reproject.as_ref().map(|r| myriad_io::proj::Reproject {
+        to: r.to.clone(),
+        from: r.from.clone().or_else(|| ds.meta.crs.clone()),
+    });
+    let built = convert::convert(std::slice::from_ref(&las), &co, report)?;
     let _ = std::fs::remove_file(&las);
     let octree = Dataset::open(&myr)?;
     let (nodes, more) = octree.nodes();
@@ -239,9 +258,30 @@ fn replace(
     let inner = ExportOptions {
         bbox: None,
         spacing: None,
+        filter: Filter::all(),
+        reproject: None,
         ..o.clone()
     };
-    let mut summary = export_octree(&octree, nodes, out, &inner, report)?;
+    let mut summary = if matches!(o.target, Target::Las | Target::Laz) {
+        let s = extract::extract(
+            &octree,
+            out,
+            &ExtractOptions {
+                force: o.force,
+                ..Default::default()
+            },
+        )?;
+        ExportSummary {
+            points: s.points,
+            nodes: s.nodes_read,
+            bytes: std::fs::metadata(out).map_or(0, |m| m.len()),
+            damage: s.damage,
+            ..Default::default()
+        }
+    } else {
+        export_octree(&octree, nodes, out, &inner, report)?
+    };
+    summary.not_transformed = built.not_transformed;
     drop(temps);
     summary.damage.splice(0..0, damage);
     summary.replaced = true;

@@ -52,8 +52,17 @@ pub(crate) fn las_options(ds: &Dataset) -> Result<LasWriteOptions> {
             .iter()
             .all(|a| matches!(a, Attribute::Extra(_)) || holds.has(a))
             && fmt.extra_bytes as usize == m.schema.extra_bytes;
-        if covered {
-            return LasWriteOptions::like(&header).with_transforms(q.scale, q.offset);
+        // A header without its CRS records (the points were moved into another CRS) takes the
+        // dataset's as WKT, which LAS 1.4 holds; an older version gets the format below.
+        let crs_kept = header.has_crs_vlrs() || m.crs.is_none() || header.version().minor >= 4;
+        if covered && crs_kept {
+            let o = LasWriteOptions::like(&header).with_transforms(q.scale, q.offset)?;
+            return match &m.crs {
+                Some(wkt) if !header.has_crs_vlrs() && !wkt.starts_with("EPSG:") => {
+                    o.with_wkt_crs(wkt)
+                }
+                _ => Ok(o),
+            };
         }
     }
     let o = LasWriteOptions::for_schema(&m.schema, q.scale, q.offset)?;

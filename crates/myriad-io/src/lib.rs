@@ -26,6 +26,7 @@ pub mod placement;
 pub mod ply;
 pub mod potree;
 pub mod process;
+pub mod proj;
 mod read_util;
 pub mod text;
 
@@ -153,6 +154,10 @@ pub trait PointSource {
     fn trimmed(&self) -> u64 {
         0
     }
+    /// Points dropped so far because they did not move into the target CRS (`--to-crs`).
+    fn not_transformed(&self) -> u64 {
+        0
+    }
     /// The placement file applied to this source, if any.
     fn placement_path(&self) -> Option<&Path> {
         None
@@ -173,6 +178,8 @@ pub struct OpenOptions {
     pub placement: Option<PathBuf>,
     /// Apply `SCAN.placement` next to a scan when it exists and `placement` is `None`.
     pub sidecar_placements: bool,
+    /// Move every point into another CRS as it is read (after its placement).
+    pub reproject: Option<proj::Reproject>,
 }
 
 /// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
@@ -196,12 +203,16 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> 
         None if options.sidecar_placements => placement::Placement::sidecar(path),
         None => None,
     };
-    match placement {
-        Some(p) => Ok(Box::new(placement::Placed::new(
+    let placed: Box<dyn PointSource> = match placement {
+        Some(p) => Box::new(placement::Placed::new(
             source,
             placement::Placement::read(&p)?,
-        ))),
-        None => Ok(source),
+        )),
+        None => source,
+    };
+    match &options.reproject {
+        Some(r) => Ok(Box::new(proj::Reprojected::new(placed, r)?)),
+        None => Ok(placed),
     }
 }
 

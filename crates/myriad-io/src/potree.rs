@@ -336,6 +336,8 @@ pub struct PotreeSink {
     scale: [f64; 3],
     spacing: f64,
     name: String,
+    /// The CRS as a proj4 string, or empty.
+    projection: String,
     nodes: BTreeMap<NodeKey, Node>,
     pos: u64,
     /// Per attribute, per element: min and max.
@@ -372,12 +374,20 @@ impl PotreeSink {
             }
         }
         let (attrs, mut lost) = attributes(schema);
-        if let Some(c) = &crs {
-            let c: String = c.chars().take(40).collect();
-            lost.push(format!(
-                "the CRS \"{c}...\" (Potree's metadata takes a proj4 string, which Myriad cannot make from it)"
-            ));
-        }
+        // Potree's map reads a proj4 string (a WKT stops its viewer): PROJ makes it from the CRS.
+        let projection = match &crs {
+            None => String::new(),
+            Some(c) => match crate::proj::Crs::new(c).and_then(|c| c.proj4()) {
+                Ok(p) => p,
+                Err(e) => {
+                    let c: String = c.chars().take(40).collect();
+                    lost.push(format!(
+                        "the CRS \"{c}...\" (Potree's metadata takes a proj4 string: {e})"
+                    ));
+                    String::new()
+                }
+            },
+        };
         let ad = AtomicDir::create(dir, force)?;
         let path = ad.temp.join("octree.bin");
         let octree = BufWriter::with_capacity(
@@ -403,6 +413,7 @@ impl PotreeSink {
                 scale,
                 spacing,
                 name,
+                projection,
                 nodes: BTreeMap::new(),
                 pos: 0,
                 ranges,
@@ -582,8 +593,7 @@ impl PotreeSink {
             "name": self.name,
             "description": "",
             "points": points,
-            // Potree reads a proj4 string here (a WKT string stops its viewer); none is known.
-            "projection": "",
+            "projection": self.projection,
             "hierarchy": {"firstChunkSize": first, "stepSize": STEP, "depth": depth},
             "offset": self.offset,
             "scale": self.scale,

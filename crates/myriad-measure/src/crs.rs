@@ -111,6 +111,18 @@ pub fn describe(crs: &str) -> Described {
     let t = crs.trim();
     if let Some(n) = t.strip_prefix("EPSG:") {
         let mut codes = n.split('+').map(|c| c.trim().parse::<u32>().ok());
+        // A bare code (GeoTIFF keys) says what it is through PROJ's database, where PROJ is here.
+        #[cfg(not(target_arch = "wasm32"))]
+        if let Ok(wkt) = myriad_io::proj::Crs::new(t).and_then(|c| c.wkt())
+            && !wkt.trim_start().starts_with("EPSG:")
+        {
+            let mut d = describe(&wkt);
+            d.epsg = d.epsg.or(codes.next().flatten());
+            if let Some(v) = &mut d.vertical {
+                v.1 = v.1.or(codes.next().flatten());
+            }
+            return d;
+        }
         return Described {
             name: None,
             epsg: codes.next().flatten(),
@@ -227,16 +239,39 @@ mod tests {
             (Some(4326), "geographic", "degrees")
         );
         let bare = describe("EPSG:2056");
-        assert_eq!((bare.epsg, bare.name), (Some(2056), None));
         let both = describe("EPSG:2903+5103");
-        assert_eq!(
-            (both.epsg, both.vertical.clone()),
-            (Some(2903), Some((None, Some(5103), "units")))
-        );
-        assert_eq!(
-            both.line(),
-            "unnamed (EPSG:2903), unknown, units units; vertical unnamed (EPSG:5103), units"
-        );
+        if myriad_io::proj::available() {
+            // Named from PROJ's database.
+            assert_eq!(
+                (bare.epsg, bare.kind, bare.units),
+                (Some(2056), "projected", "m")
+            );
+            assert_eq!(bare.name.as_deref(), Some("CH1903+ / LV95"));
+            // (EPSG:5103 is NAVD88's datum, no CRS: PROJ refuses it, and the codes stay.)
+            assert_eq!((both.epsg, both.kind), (Some(2903), "unknown"));
+            let both = describe("EPSG:2903+6360");
+            assert_eq!(
+                (both.kind, both.units),
+                ("projected", "US ft"),
+                "{}",
+                both.line()
+            );
+            let v = both.vertical.clone().unwrap();
+            assert_eq!(
+                (v.0.as_deref(), v.1),
+                (Some("NAVD88 height (ftUS)"), Some(6360))
+            );
+        } else {
+            assert_eq!((bare.epsg, bare.name), (Some(2056), None));
+            assert_eq!(
+                (both.epsg, both.vertical.clone()),
+                (Some(2903), Some((None, Some(5103), "units")))
+            );
+            assert_eq!(
+                both.line(),
+                "unnamed (EPSG:2903), unknown, units units; vertical unnamed (EPSG:5103), units"
+            );
+        }
         assert_eq!(describe("not a crs").kind, "unknown");
     }
 }

@@ -18,7 +18,7 @@ pub struct BuildArgs {
     /// Worker threads [default: all cores]
     #[arg(long)]
     pub(crate) threads: Option<usize>,
-    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units; LAS/LAZ keep their scale
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units (the target's with --to-crs); LAS/LAZ keep their scale
     #[arg(long, default_value_t = 0.0001)]
     pub(crate) precision: f64,
     /// Most points per node
@@ -30,6 +30,13 @@ pub struct BuildArgs {
     /// Ignore SCAN.placement files next to inputs (see README)
     #[arg(long)]
     pub(crate) no_placement: bool,
+    /// Move every point into this coordinate system: EPSG:NNNN, EPSG:H+V, WKT or a PROJ string
+    /// (through PROJ; a target without heights keeps the inputs' vertical part)
+    #[arg(long, value_name = "CRS")]
+    pub(crate) to_crs: Option<String>,
+    /// The coordinate system of inputs whose files name none (with --to-crs)
+    #[arg(long, value_name = "CRS", requires = "to_crs")]
+    pub(crate) from_crs: Option<String>,
 }
 
 impl BuildArgs {
@@ -49,6 +56,10 @@ impl BuildArgs {
         myriad_io::OpenOptions {
             columns: self.columns.clone(),
             sidecar_placements: !self.no_placement,
+            reproject: self.to_crs.as_ref().map(|to| myriad_io::proj::Reproject {
+                to: to.clone(),
+                from: self.from_crs.clone(),
+            }),
             ..Default::default()
         }
     }

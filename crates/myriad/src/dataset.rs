@@ -84,8 +84,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     }
     o.precision = a.build.precision;
     o.params.capacity = a.build.capacity;
-    o.open.columns = a.build.columns.clone();
-    o.open.sidecar_placements = !a.build.no_placement;
+    o.open = a.build.open_options();
     let bar = Bar::new();
     let s = convert::convert(&a.inputs, &o, &bar)?;
     bar.clear();
@@ -99,7 +98,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
                 "points": s.points, "nodes": s.nodes, "depth": s.depth, "chunks": s.chunks,
                 "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
                 "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
-                "trimmed": s.trimmed,
+                "trimmed": s.trimmed, "not_transformed": s.not_transformed,
                 "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
                 "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
             })
@@ -131,12 +130,35 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             thousands(s.trimmed)
         );
     }
+    if s.not_transformed > 0 {
+        println!(
+            "  dropped     {} that do not transform into {} (outside its domain, or a grid \
+             PROJ lacks there)",
+            thousands(s.not_transformed),
+            a.build.to_crs.as_deref().unwrap_or("the target CRS")
+        );
+    }
     Ok(())
 }
 
 /// `convert NEW... --append DATASET`: the scans added in place, then the dataset verified.
 fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
     let open = a.build.open_options();
+    // Scans added to a dataset move into its CRS: --to-crs may only name that one.
+    if let Some(to) = &a.build.to_crs {
+        let want = myriad_io::proj::Crs::new(to)
+            .and_then(|c| c.wkt())
+            .map_err(|e| anyhow::anyhow!("--to-crs {e}"))?;
+        let has = Dataset::open(dataset)?.meta.crs.clone();
+        if has.as_deref() != Some(want.as_str()) {
+            bail!(
+                "--to-crs {to}: {} is in another coordinate system ({}); scans added to it are \
+                 moved into its own: give that one",
+                dataset.display(),
+                has.map_or("none".into(), |c| myriad_measure::crs::describe(&c).line())
+            );
+        }
+    }
     if let Some(t) = a.build.threads {
         global_threads(t);
     }

@@ -36,6 +36,13 @@ pub struct ExportArgs {
     /// Replace an existing output (a folder only when it holds a Potree dataset)
     #[arg(long)]
     force: bool,
+    /// Move the points into this coordinate system (EPSG:NNNN, EPSG:H+V, WKT or a PROJ string):
+    /// they are re-placed into an octree of the new coordinates first
+    #[arg(long, value_name = "CRS")]
+    to_crs: Option<String>,
+    /// The dataset's coordinate system where it names none (with --to-crs)
+    #[arg(long, value_name = "CRS", requires = "to_crs")]
+    from_crs: Option<String>,
 }
 
 pub fn run(a: ExportArgs) -> Result<()> {
@@ -55,6 +62,10 @@ pub fn run(a: ExportArgs) -> Result<()> {
     o.spacing = a.spacing;
     o.filter = a.filter.filter()?;
     o.force = a.force;
+    o.reproject = a.to_crs.as_ref().map(|to| myriad_io::proj::Reproject {
+        to: to.clone(),
+        from: a.from_crs.clone(),
+    });
     if let Some(m) = a.memory {
         o.memory = m;
     }
@@ -74,7 +85,9 @@ pub fn run(a: ExportArgs) -> Result<()> {
         a.output.display(),
         thousands(s.points),
         thousands(s.nodes),
-        if s.replaced {
+        if let Some(to) = &a.to_crs {
+            format!(" (moved into {to})")
+        } else if s.replaced {
             format!(
                 " (re-placed from the {} structure into an octree)",
                 ds.meta.structure
@@ -86,6 +99,14 @@ pub fn run(a: ExportArgs) -> Result<()> {
         secs,
         s.points as f64 / secs.max(1e-9) / 1e6
     );
+    if s.not_transformed > 0 {
+        eprintln!(
+            "warning: {} points do not transform into {} (outside its domain, or a grid PROJ \
+             lacks there): left out",
+            thousands(s.not_transformed),
+            a.to_crs.as_deref().unwrap_or("the target CRS")
+        );
+    }
     if let Some(p) = myriad_io::process::peak_rss_bytes() {
         println!("peak resident memory: {:.0} MB", p as f64 / 1e6);
     }

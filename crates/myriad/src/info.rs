@@ -46,6 +46,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
         columns: args.columns.clone(),
         placement: args.placement.clone(),
         sidecar_placements: !args.no_placement,
+        reproject: None,
     };
     for path in &args.files {
         if myriad_format::is_dataset(path)

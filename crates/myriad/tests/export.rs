@@ -318,6 +318,63 @@ fn potree_opens_in_the_potree_viewer() {
     let cloud = d.join("cloud");
     let r = ok(&["export", s(&myr), "-o", s(&cloud)]);
     assert!(r.stdout.contains("300,000 points"), "{}", r.stdout);
+    let v = in_potree_viewer(&chromium, &viewer, &d, &cloud);
+    assert_eq!(v["errors"].as_array().map(|e| e.len()), Some(0), "{v}");
+    // The root (at most 500 points here) and nodes below it loaded and drawn (here: 17 nodes,
+    // 4,996 points, 13,364 lit pixels, busy machine or not: the page steps the viewer itself).
+    assert!(v["points"].as_u64().unwrap() >= 1000, "points visible: {v}");
+    assert!(v["loaded"].as_u64().unwrap() >= 2, "{v}");
+    assert!(v["lit"].as_u64().unwrap() >= 1000, "lit pixels: {v}");
+
+    // Autzen (Oregon Lambert, feet): the metadata's proj4 string puts it on the viewer's map
+    // where PROJ puts the same point (within 3e-5 degrees, 3 m: proj4 leaves out the 1 m shift
+    // from NAD83(HARN) to WGS 84 PROJ applies).
+    let autzen = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/PDAL__laz_autzen_trim.laz");
+    if !autzen.is_file() {
+        return skipped("../shared/data/PDAL__laz_autzen_trim.laz not found");
+    }
+    if !myriad_io::proj::available() {
+        return skipped(myriad_io::proj::MISSING);
+    }
+    let amyr = d.join("autzen.myr");
+    ok(&["convert", s(&autzen), "-o", s(&amyr)]);
+    let acloud = d.join("autzen");
+    ok(&["export", s(&amyr), "-o", s(&acloud)]);
+    let v = in_potree_viewer(&chromium, &viewer, &d, &acloud);
+    assert_eq!(v["errors"].as_array().map(|e| e.len()), Some(0), "{v}");
+    assert!(
+        v["projection"].as_str().unwrap().contains("+proj=lcc"),
+        "{v}"
+    );
+    let ll: Vec<f64> = v["lonlat"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let wkt = myriad_format::Dataset::open(&amyr)
+        .unwrap()
+        .meta
+        .crs
+        .clone()
+        .unwrap();
+    let mut geo = myriad_io::proj::Geographic::new(&wkt).unwrap();
+    let want = geo.of([ll[2], ll[3], 0.0]).unwrap();
+    eprintln!("Potree's map: {:?}, PROJ: {want:?}", &ll[..2]);
+    assert!(
+        (ll[0] - want[0]).abs() < 3e-5 && (ll[1] - want[1]).abs() < 3e-5,
+        "{ll:?} {want:?}"
+    );
+    // Autzen stadium, Eugene, Oregon.
+    assert!(
+        (ll[0] + 123.07).abs() < 0.01 && (ll[1] - 44.06).abs() < 0.01,
+        "{ll:?}"
+    );
+}
+
+/// What the Potree viewer showed of the Potree dataset in `cloud` (potree_check.html's report).
+fn in_potree_viewer(chromium: &Path, viewer: &Path, d: &Path, cloud: &Path) -> serde_json::Value {
     let page = d.join("page");
     std::fs::create_dir_all(&page).unwrap();
     std::fs::copy(
@@ -327,7 +384,7 @@ fn potree_opens_in_the_potree_viewer() {
     .unwrap();
     let port = serve(vec![
         ("/libs/".into(), viewer.join("libs")),
-        ("/cloud/".into(), cloud.clone()),
+        ("/cloud/".into(), cloud.to_path_buf()),
         ("/".into(), page),
     ]);
     let mut child = Command::new(chromium)
@@ -371,10 +428,5 @@ fn potree_opens_in_the_potree_viewer() {
     let v: serde_json::Value = serde_json::from_str(&result)
         .unwrap_or_else(|_| panic!("the page did not report: {result:?}"));
     eprintln!("the Potree viewer: {v}");
-    assert_eq!(v["errors"].as_array().map(|e| e.len()), Some(0), "{v}");
-    // The root (at most 500 points here) and nodes below it loaded and drawn (here: 17 nodes,
-    // 4,996 points, 13,364 lit pixels, busy machine or not: the page steps the viewer itself).
-    assert!(v["points"].as_u64().unwrap() >= 1000, "points visible: {v}");
-    assert!(v["loaded"].as_u64().unwrap() >= 2, "{v}");
-    assert!(v["lit"].as_u64().unwrap() >= 1000, "lit pixels: {v}");
+    v
 }

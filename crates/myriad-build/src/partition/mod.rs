@@ -78,6 +78,8 @@ pub struct BuildPlan {
     pub columns: Option<String>,
     pub placements: bool,
     pub precision: f64,
+    /// `--to-crs` and `--from-crs`: every part moves its points the same way.
+    pub reproject: Option<myriad_io::proj::Reproject>,
 }
 
 fn morton(c: [u32; 3]) -> u64 {
@@ -284,6 +286,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         columns: o.open.columns.clone(),
         placements: o.open.sidecar_placements,
         precision: o.precision,
+        reproject: o.open.reproject.clone(),
     };
     plan.id = fingerprint(&plan.body().to_string());
     Ok(plan)
@@ -307,6 +310,8 @@ impl BuildPlan {
             "columns": self.columns,
             "placements": self.placements,
             "precision": self.precision,
+            "to_crs": self.reproject.as_ref().map(|r| &r.to),
+            "from_crs": self.reproject.as_ref().and_then(|r| r.from.as_ref()),
             "inputs": self.inputs.iter().map(|i| json!({
                 "path": i.path.display().to_string(), "points": i.points, "bounds": aabb(&i.bounds),
             })).collect::<Vec<_>>(),
@@ -409,6 +414,10 @@ impl BuildPlan {
             columns: v["columns"].as_str().map(String::from),
             placements: v["placements"].as_bool().unwrap_or(true),
             precision: v["precision"].as_f64().unwrap_or(1e-4),
+            reproject: v["to_crs"].as_str().map(|to| myriad_io::proj::Reproject {
+                to: to.to_string(),
+                from: v["from_crs"].as_str().map(String::from),
+            }),
         };
         if plan.id != fingerprint(&plan.body().to_string()) {
             return Err(Error::Invalid(format!(
@@ -425,6 +434,7 @@ impl BuildPlan {
         OpenOptions {
             columns: self.columns.clone(),
             sidecar_placements: self.placements,
+            reproject: self.reproject.clone(),
             ..Default::default()
         }
     }

@@ -1,0 +1,936 @@
+//! Coordinate reference systems through PROJ (<https://proj.org>): the library pyproj, GDAL, PDAL
+//! and QGIS use, so a point moves here exactly as it moves there.
+//!
+//! PROJ is loaded when a command first needs it (`libproj.so.25`, Debian's `libproj25`; or the
+//! file `MYRIAD_LIBPROJ` names), not linked: Myriad builds and runs on a machine without it, and
+//! only the commands that change or name coordinate systems ask for it, with a one-line error
+//! saying what to install. The `proj` crate links PROJ at build time (its release for Debian's
+//! PROJ 9.1 also transforms only x and y); the two dozen functions used here are declared below.
+//!
+//! PROJ's objects belong to one context, which one thread uses at a time: a [`Transform`] or
+//! [`Crs`] is `Send`, not `Sync`; each thread makes its own.
+
+use std::ffi::{CStr, CString, c_char, c_int, c_void};
+use std::sync::OnceLock;
+
+type Ctx = c_void;
+type Pj = c_void;
+type Str = *const c_char;
+
+/// The functions of PROJ's C API used here (proj.h, PROJ 8 and later).
+struct Api {
+    _lib: libloading::Library,
+    context_create: unsafe extern "C" fn() -> *mut Ctx,
+    context_destroy: unsafe extern "C" fn(*mut Ctx) -> *mut Ctx,
+    context_set_enable_network: unsafe extern "C" fn(*mut Ctx, c_int) -> c_int,
+    context_errno: unsafe extern "C" fn(*mut Ctx) -> c_int,
+    context_errno_string: unsafe extern "C" fn(*mut Ctx, c_int) -> Str,
+    log_level: unsafe extern "C" fn(*mut Ctx, c_int) -> c_int,
+    create: unsafe extern "C" fn(*mut Ctx, Str) -> *mut Pj,
+    create_crs_to_crs_from_pj:
+        unsafe extern "C" fn(*mut Ctx, *const Pj, *const Pj, *mut c_void, *const Str) -> *mut Pj,
+    normalize_for_visualization: unsafe extern "C" fn(*mut Ctx, *const Pj) -> *mut Pj,
+    destroy: unsafe extern "C" fn(*mut Pj) -> *mut Pj,
+    #[allow(clippy::type_complexity)]
+    trans_generic: unsafe extern "C" fn(
+        *mut Pj,
+        c_int,
+        *mut f64,
+        usize,
+        usize,
+        *mut f64,
+        usize,
+        usize,
+        *mut f64,
+        usize,
+        usize,
+        *mut f64,
+        usize,
+        usize,
+    ) -> usize,
+    errno_reset: unsafe extern "C" fn(*const Pj) -> c_int,
+    get_type: unsafe extern "C" fn(*const Pj) -> c_int,
+    get_name: unsafe extern "C" fn(*const Pj) -> Str,
+    get_id_auth_name: unsafe extern "C" fn(*const Pj, c_int) -> Str,
+    get_id_code: unsafe extern "C" fn(*const Pj, c_int) -> Str,
+    get_source_crs: unsafe extern "C" fn(*mut Ctx, *const Pj) -> *mut Pj,
+    as_wkt: unsafe extern "C" fn(*mut Ctx, *const Pj, c_int, *const Str) -> Str,
+    as_proj_string: unsafe extern "C" fn(*mut Ctx, *const Pj, c_int, *const Str) -> Str,
+    crs_get_sub_crs: unsafe extern "C" fn(*mut Ctx, *const Pj, c_int) -> *mut Pj,
+    crs_get_coordinate_system: unsafe extern "C" fn(*mut Ctx, *const Pj) -> *mut Pj,
+    cs_get_axis_count: unsafe extern "C" fn(*mut Ctx, *const Pj) -> c_int,
+    #[allow(clippy::type_complexity)]
+    cs_get_axis_info: unsafe extern "C" fn(
+        *mut Ctx,
+        *const Pj,
+        c_int,
+        *mut Str,
+        *mut Str,
+        *mut Str,
+        *mut f64,
+        *mut Str,
+        *mut Str,
+        *mut Str,
+    ) -> c_int,
+    create_compound_crs: unsafe extern "C" fn(*mut Ctx, Str, *mut Pj, *mut Pj) -> *mut Pj,
+    get_ellipsoid: unsafe extern "C" fn(*mut Ctx, *const Pj) -> *mut Pj,
+    ellipsoid_get_parameters: unsafe extern "C" fn(
+        *mut Ctx,
+        *const Pj,
+        *mut f64,
+        *mut f64,
+        *mut c_int,
+        *mut f64,
+    ) -> c_int,
+}
+
+/// What to install when PROJ is missing.
+pub const MISSING: &str = "PROJ's library was not found (install Debian's libproj25 and proj-data, \
+or name libproj.so in MYRIAD_LIBPROJ)";
+
+fn api() -> Result<&'static Api, String> {
+    static API: OnceLock<Result<Api, String>> = OnceLock::new();
+    API.get_or_init(load).as_ref().map_err(Clone::clone)
+}
+
+/// Whether PROJ can be loaded here (tests that need it skip without).
+pub fn available() -> bool {
+    api().is_ok()
+}
+
+fn load() -> Result<Api, String> {
+    let names: Vec<String> = match std::env::var("MYRIAD_LIBPROJ") {
+        Ok(p) if !p.is_empty() => vec![p],
+        _ => [
+            "libproj.so.25",
+            "libproj.so",
+            "libproj.dylib",
+            "libproj.so.22",
+        ]
+        .map(String::from)
+        .to_vec(),
+    };
+    // SAFETY: loading PROJ runs its initialisers, which only set up its own state.
+    let mut why = String::new();
+    let lib = names
+        .iter()
+        .find_map(|n| match unsafe { libloading::Library::new(n) } {
+            Ok(l) => Some(l),
+            Err(e) => {
+                why = e.to_string();
+                None
+            }
+        })
+        .ok_or_else(|| match std::env::var("MYRIAD_LIBPROJ") {
+            Ok(p) if !p.is_empty() => format!("MYRIAD_LIBPROJ={p}: {why}"),
+            _ => MISSING.to_string(),
+        })?;
+    macro_rules! f {
+        ($name:literal) => {{
+            // SAFETY: the symbol is PROJ's function of that name, with the signature proj.h
+            // gives it; the library stays loaded as long as `Api` (for the whole process).
+            let s = unsafe { lib.get(concat!($name, "\0").as_bytes()) }
+                .map_err(|_| format!("{MISSING}: this PROJ lacks {}", $name))?;
+            *s
+        }};
+    }
+    Ok(Api {
+        context_create: f!("proj_context_create"),
+        context_destroy: f!("proj_context_destroy"),
+        context_set_enable_network: f!("proj_context_set_enable_network"),
+        context_errno: f!("proj_context_errno"),
+        context_errno_string: f!("proj_context_errno_string"),
+        log_level: f!("proj_log_level"),
+        create: f!("proj_create"),
+        create_crs_to_crs_from_pj: f!("proj_create_crs_to_crs_from_pj"),
+        normalize_for_visualization: f!("proj_normalize_for_visualization"),
+        destroy: f!("proj_destroy"),
+        trans_generic: f!("proj_trans_generic"),
+        errno_reset: f!("proj_errno_reset"),
+        get_type: f!("proj_get_type"),
+        get_name: f!("proj_get_name"),
+        get_id_auth_name: f!("proj_get_id_auth_name"),
+        get_id_code: f!("proj_get_id_code"),
+        get_source_crs: f!("proj_get_source_crs"),
+        as_wkt: f!("proj_as_wkt"),
+        as_proj_string: f!("proj_as_proj_string"),
+        crs_get_sub_crs: f!("proj_crs_get_sub_crs"),
+        crs_get_coordinate_system: f!("proj_crs_get_coordinate_system"),
+        cs_get_axis_count: f!("proj_cs_get_axis_count"),
+        cs_get_axis_info: f!("proj_cs_get_axis_info"),
+        create_compound_crs: f!("proj_create_compound_crs"),
+        get_ellipsoid: f!("proj_get_ellipsoid"),
+        ellipsoid_get_parameters: f!("proj_ellipsoid_get_parameters"),
+        _lib: lib,
+    })
+}
+
+/// A PROJ context: its own database connection and error state.
+struct Context {
+    api: &'static Api,
+    ptr: *mut Ctx,
+}
+
+impl Context {
+    fn new() -> Result<Context, String> {
+        let api = api()?;
+        // SAFETY: plain constructor; the pointer is destroyed once, in Drop.
+        let ptr = unsafe { (api.context_create)() };
+        if ptr.is_null() {
+            return Err("PROJ could not make a context".into());
+        }
+        // Quiet (PROJ logs errors to stderr itself) and offline: a transform uses the grids
+        // installed, never a download in the middle of a build.
+        unsafe {
+            (api.log_level)(ptr, 0);
+            (api.context_set_enable_network)(ptr, 0);
+        }
+        Ok(Context { api, ptr })
+    }
+
+    fn error(&self) -> String {
+        // SAFETY: the context is alive; PROJ returns a static or context-owned string.
+        unsafe {
+            let e = (self.api.context_errno)(self.ptr);
+            text((self.api.context_errno_string)(self.ptr, e))
+                .unwrap_or_else(|| format!("error {e}"))
+        }
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        // SAFETY: every object of this context was destroyed first (they hold an Rc to it).
+        unsafe { (self.api.context_destroy)(self.ptr) };
+    }
+}
+
+/// A string PROJ returned (owned by PROJ), copied.
+unsafe fn text(s: Str) -> Option<String> {
+    (!s.is_null()).then(|| unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned())
+}
+
+/// An object of PROJ (a CRS, a coordinate system, an operation), destroyed with it.
+struct Object {
+    ctx: std::rc::Rc<Context>,
+    ptr: *mut Pj,
+}
+
+impl Object {
+    fn wrap(ctx: &std::rc::Rc<Context>, ptr: *mut Pj, what: &str) -> Result<Object, String> {
+        if ptr.is_null() {
+            return Err(format!("{what}: {}", ctx.error()));
+        }
+        Ok(Object {
+            ctx: ctx.clone(),
+            ptr,
+        })
+    }
+    fn api(&self) -> &'static Api {
+        self.ctx.api
+    }
+    fn kind(&self) -> c_int {
+        unsafe { (self.api().get_type)(self.ptr) }
+    }
+    fn name(&self) -> Option<String> {
+        unsafe { text((self.api().get_name)(self.ptr)) }
+    }
+    fn derived(&self, ptr: *mut Pj, what: &str) -> Result<Object, String> {
+        Object::wrap(&self.ctx, ptr, what)
+    }
+}
+
+impl Drop for Object {
+    fn drop(&mut self) {
+        // SAFETY: made by PROJ in this context, destroyed once.
+        unsafe { (self.api().destroy)(self.ptr) };
+    }
+}
+
+// PJ_TYPE values (proj.h).
+const GEOCENTRIC: c_int = 10;
+const GEOGRAPHIC_2D: c_int = 12;
+const GEOGRAPHIC_3D: c_int = 13;
+const VERTICAL: c_int = 14;
+const PROJECTED: c_int = 15;
+const COMPOUND: c_int = 16;
+const BOUND: c_int = 19;
+// PJ_WKT_TYPE and PJ_PROJ_STRING_TYPE values.
+const WKT2_2019: c_int = 2;
+const WKT1_GDAL: c_int = 4;
+const PROJ_4: c_int = 1;
+const FORWARD: c_int = 1;
+
+/// What kind of coordinates a CRS gives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// Easting and northing on a map projection.
+    Projected,
+    /// Longitude and latitude (in Myriad's x, y order), with or without an ellipsoidal height.
+    Geographic,
+    /// Earth-centred, earth-fixed X, Y, Z.
+    Geocentric,
+    /// Anything else PROJ knows (engineering, ...).
+    Other,
+}
+
+/// A coordinate reference system PROJ understands: `EPSG:n`, `EPSG:h+v`, WKT (1 or 2), a PROJ
+/// string or PROJJSON.
+pub struct Crs {
+    obj: Object,
+}
+
+// SAFETY: the context and its objects move between threads only together (the Rc is never
+// cloned out of the value that owns it) and are used by one thread at a time (not Sync).
+unsafe impl Send for Crs {}
+
+impl Crs {
+    /// The CRS `definition` names. Errors are one line: PROJ's reason.
+    pub fn new(definition: &str) -> Result<Crs, String> {
+        let ctx = std::rc::Rc::new(Context::new()?);
+        Crs::in_context(&ctx, definition)
+    }
+
+    fn in_context(ctx: &std::rc::Rc<Context>, definition: &str) -> Result<Crs, String> {
+        let def = definition.trim();
+        let c =
+            CString::new(def).map_err(|_| "a coordinate system has no NUL bytes".to_string())?;
+        let obj = Object::wrap(
+            ctx,
+            unsafe { (ctx.api.create)(ctx.ptr, c.as_ptr()) },
+            &short(def),
+        )?;
+        let crs = Crs { obj };
+        if crs.horizontal_kind() == Kind::Other && crs.obj.kind() != VERTICAL && !crs.is_crs() {
+            return Err(format!("{}: not a coordinate reference system", short(def)));
+        }
+        Ok(crs)
+    }
+
+    fn is_crs(&self) -> bool {
+        (9..=20).contains(&self.obj.kind())
+    }
+
+    /// The CRS without a bound CRS's wrapper (its TOWGS84 hint), as PROJ's inspection needs.
+    fn unbound(&self) -> Result<Option<Object>, String> {
+        if self.obj.kind() != BOUND {
+            return Ok(None);
+        }
+        let p = unsafe { (self.obj.api().get_source_crs)(self.obj.ctx.ptr, self.obj.ptr) };
+        self.obj.derived(p, "the bound CRS's source").map(Some)
+    }
+
+    /// The horizontal (or geocentric) part's kind.
+    pub fn horizontal_kind(&self) -> Kind {
+        let Ok(un) = self.unbound() else {
+            return Kind::Other;
+        };
+        let o = un.as_ref().unwrap_or(&self.obj);
+        let k = if o.kind() == COMPOUND {
+            let p = unsafe { (o.api().crs_get_sub_crs)(o.ctx.ptr, o.ptr, 0) };
+            match o.derived(p, "horizontal part") {
+                Ok(h) => h.kind(),
+                Err(_) => return Kind::Other,
+            }
+        } else {
+            o.kind()
+        };
+        match k {
+            PROJECTED => Kind::Projected,
+            GEOGRAPHIC_2D | GEOGRAPHIC_3D => Kind::Geographic,
+            GEOCENTRIC => Kind::Geocentric,
+            _ => Kind::Other,
+        }
+    }
+
+    /// Whether the CRS has a vertical part of its own (a compound CRS).
+    pub fn is_compound(&self) -> bool {
+        match self.unbound() {
+            Ok(Some(o)) => o.kind() == COMPOUND,
+            Ok(None) => self.obj.kind() == COMPOUND,
+            Err(_) => false,
+        }
+    }
+
+    /// Whether heights are part of the CRS's own axes (3D geographic, geocentric, compound).
+    fn has_height(&self) -> bool {
+        self.is_compound()
+            || matches!(self.obj.kind(), GEOGRAPHIC_3D | GEOCENTRIC)
+            || self
+                .unbound()
+                .ok()
+                .flatten()
+                .is_some_and(|o| matches!(o.kind(), GEOGRAPHIC_3D | GEOCENTRIC))
+    }
+
+    pub fn name(&self) -> String {
+        self.obj.name().unwrap_or_else(|| "unnamed".into())
+    }
+
+    /// "EPSG:n" where the definition carries that identifier.
+    pub fn code(&self) -> Option<String> {
+        let o = &self.obj;
+        let auth = unsafe { text((o.api().get_id_auth_name)(o.ptr, 0)) }?;
+        let code = unsafe { text((o.api().get_id_code)(o.ptr, 0)) }?;
+        Some(format!("{auth}:{code}"))
+    }
+
+    /// OGC WKT 1 as GDAL writes it (what LAS 1.4 and COPC readers expect), else WKT2:2019.
+    pub fn wkt(&self) -> Result<String, String> {
+        let o = &self.obj;
+        let one_line = c"MULTILINE=NO";
+        let options = [one_line.as_ptr(), std::ptr::null()];
+        for kind in [WKT1_GDAL, WKT2_2019] {
+            let s = unsafe { (o.api().as_wkt)(o.ctx.ptr, o.ptr, kind, options.as_ptr()) };
+            if let Some(t) = unsafe { text(s) } {
+                return Ok(t);
+            }
+        }
+        Err(format!("{}: PROJ cannot write it as WKT", self.name()))
+    }
+
+    /// The PROJ.4 string of the horizontal part (what proj4js, and Potree's map, read).
+    pub fn proj4(&self) -> Result<String, String> {
+        let o = &self.obj;
+        let s = unsafe { (o.api().as_proj_string)(o.ctx.ptr, o.ptr, PROJ_4, std::ptr::null()) };
+        let s = unsafe { text(s) }
+            .ok_or_else(|| format!("{}: PROJ cannot write it as a PROJ string", self.name()))?;
+        Ok(s.replace(" +type=crs", "").trim().to_string())
+    }
+
+    /// Each axis's unit in metres (linear) or radians (angular), and whether it is angular.
+    pub fn axis_units(&self) -> Result<Vec<(f64, bool)>, String> {
+        let mut units = Vec::new();
+        let un = self.unbound()?;
+        let o = un.as_ref().unwrap_or(&self.obj);
+        let parts: Vec<Object> = if o.kind() == COMPOUND {
+            (0..2)
+                .map(|i| {
+                    let p = unsafe { (o.api().crs_get_sub_crs)(o.ctx.ptr, o.ptr, i) };
+                    o.derived(p, "part of a compound CRS")
+                })
+                .collect::<Result<_, _>>()?
+        } else {
+            Vec::new()
+        };
+        let list: Vec<&Object> = if parts.is_empty() {
+            vec![o]
+        } else {
+            parts.iter().collect()
+        };
+        for part in list {
+            let cs = unsafe { (part.api().crs_get_coordinate_system)(part.ctx.ptr, part.ptr) };
+            let cs = part.derived(cs, "coordinate system")?;
+            let n = unsafe { (cs.api().cs_get_axis_count)(cs.ctx.ptr, cs.ptr) };
+            for i in 0..n.max(0) {
+                let mut factor = 0.0;
+                let mut unit: Str = std::ptr::null();
+                let null = std::ptr::null_mut();
+                let ok = unsafe {
+                    (cs.api().cs_get_axis_info)(
+                        cs.ctx.ptr,
+                        cs.ptr,
+                        i,
+                        null,
+                        null,
+                        null,
+                        &mut factor,
+                        &mut unit,
+                        null,
+                        null,
+                    )
+                };
+                if ok == 0 {
+                    return Err(format!("{}: axis {i}: {}", self.name(), cs.ctx.error()));
+                }
+                let name = unsafe { text(unit) }
+                    .unwrap_or_default()
+                    .to_ascii_lowercase();
+                let angular =
+                    name.contains("degree") || name.contains("radian") || name.contains("grad");
+                units.push((factor, angular));
+            }
+        }
+        Ok(units)
+    }
+
+    /// The ellipsoid's semi-major axis and inverse flattening (0 for a sphere).
+    pub fn ellipsoid(&self) -> Result<(f64, f64), String> {
+        let o = &self.obj;
+        let e = unsafe { (o.api().get_ellipsoid)(o.ctx.ptr, o.ptr) };
+        let e = o.derived(e, "ellipsoid")?;
+        let (mut a, mut b, mut computed, mut inv_f) = (0.0, 0.0, 0, 0.0);
+        let ok = unsafe {
+            (e.api().ellipsoid_get_parameters)(
+                e.ctx.ptr,
+                e.ptr,
+                &mut a,
+                &mut b,
+                &mut computed,
+                &mut inv_f,
+            )
+        };
+        if ok == 0 {
+            return Err(format!("{}: ellipsoid: {}", self.name(), e.ctx.error()));
+        }
+        Ok((a, inv_f))
+    }
+}
+
+impl std::fmt::Debug for Crs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Crs({})", self.name())
+    }
+}
+
+/// A definition cut to what an error line shows.
+fn short(def: &str) -> String {
+    let one: String = def.split_whitespace().collect::<Vec<_>>().join(" ");
+    if one.chars().count() > 60 {
+        format!("{}...", one.chars().take(57).collect::<String>())
+    } else {
+        one
+    }
+}
+
+/// Points moved from one CRS to another by the operation PROJ chooses for them (pyproj's
+/// `Transformer.from_crs(..., always_xy=True)`): longitude before latitude, easting before
+/// northing, whatever order the CRS's definition gives its axes.
+pub struct Transform {
+    op: Object,
+    /// The target CRS (with the source's vertical part where it had none of its own).
+    target: Crs,
+}
+
+// SAFETY: as for Crs: moved with its context, used by one thread at a time.
+unsafe impl Send for Transform {}
+
+impl Transform {
+    /// From `from` to `to`. When the source has a vertical part and the target is a horizontal
+    /// CRS only (projected or 2D geographic), the target keeps the source's vertical part:
+    /// heights stay the heights they were.
+    pub fn new(from: &str, to: &str) -> Result<Transform, String> {
+        let ctx = std::rc::Rc::new(Context::new()?);
+        let source = Crs::in_context(&ctx, from)?;
+        let mut target = Crs::in_context(&ctx, to)?;
+        if source.is_compound()
+            && !target.has_height()
+            && matches!(target.obj.kind(), PROJECTED | GEOGRAPHIC_2D)
+        {
+            let un = source.unbound()?;
+            let s = un.as_ref().unwrap_or(&source.obj);
+            let v = unsafe { (ctx.api.crs_get_sub_crs)(ctx.ptr, s.ptr, 1) };
+            let v = s.derived(v, "the vertical part")?;
+            let name = CString::new(format!(
+                "{} + {}",
+                target.name(),
+                v.name().unwrap_or_default()
+            ))
+            .unwrap_or_default();
+            let c = unsafe {
+                (ctx.api.create_compound_crs)(ctx.ptr, name.as_ptr(), target.obj.ptr, v.ptr)
+            };
+            target = Crs {
+                obj: Object::wrap(&ctx, c, "the compound target")?,
+            };
+        }
+        let op = unsafe {
+            (ctx.api.create_crs_to_crs_from_pj)(
+                ctx.ptr,
+                source.obj.ptr,
+                target.obj.ptr,
+                std::ptr::null_mut(),
+                std::ptr::null(),
+            )
+        };
+        let op = Object::wrap(
+            &ctx,
+            op,
+            &format!("from {} to {}", source.name(), target.name()),
+        )?;
+        let norm = unsafe { (ctx.api.normalize_for_visualization)(ctx.ptr, op.ptr) };
+        let op = Object::wrap(&ctx, norm, "the transformation's axis order")?;
+        Ok(Transform { op, target })
+    }
+
+    pub fn target(&self) -> &Crs {
+        &self.target
+    }
+
+    /// Moves `points` in place; returns how many did not transform, which are set to NaN.
+    pub fn apply(&mut self, points: &mut [[f64; 3]]) -> usize {
+        if points.is_empty() {
+            return 0;
+        }
+        let n = points.len();
+        let stride = std::mem::size_of::<[f64; 3]>();
+        let base = points.as_mut_ptr() as *mut f64;
+        // SAFETY: three strided views of the same array of [x, y, z], n each, inside it.
+        unsafe {
+            (self.op.api().errno_reset)(self.op.ptr);
+            (self.op.api().trans_generic)(
+                self.op.ptr,
+                FORWARD,
+                base,
+                stride,
+                n,
+                base.add(1),
+                stride,
+                n,
+                base.add(2),
+                stride,
+                n,
+                std::ptr::null_mut(),
+                0,
+                0,
+            );
+        }
+        let mut failed = 0;
+        for p in points.iter_mut() {
+            if !p.iter().all(|c| c.is_finite()) {
+                *p = [f64::NAN; 3];
+                failed += 1;
+            }
+        }
+        failed
+    }
+
+    /// One point moved (None where it does not transform).
+    pub fn point(&mut self, p: [f64; 3]) -> Option<[f64; 3]> {
+        let mut a = [p];
+        (self.apply(&mut a) == 0).then_some(a[0])
+    }
+}
+
+/// Longitude, latitude (degrees) and ellipsoidal height (metres, on WGS 84) of points in `crs`,
+/// as both viewers show a picked point.
+pub struct Geographic {
+    t: Transform,
+}
+
+impl Geographic {
+    pub fn new(crs: &str) -> Result<Geographic, String> {
+        Ok(Geographic {
+            t: Transform::new(crs, "EPSG:4979")?,
+        })
+    }
+
+    pub fn of(&mut self, p: [f64; 3]) -> Option<[f64; 3]> {
+        self.t.point(p)
+    }
+}
+
+/// `--to-crs` (and `--from-crs`): what [`crate::open`] moves every point into.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reproject {
+    /// The target CRS, as the user gave it.
+    pub to: String,
+    /// The CRS of inputs whose file names none.
+    pub from: Option<String>,
+}
+
+/// A grid step in the target's units as fine as `step` source units, a tenth finer (rounded
+/// down to a power of ten): a moved point stays within a twentieth of the input's own step.
+fn target_step(step: f64, from: (f64, bool), to: (f64, bool)) -> f64 {
+    // Angles through the length of a radian on the equator: a degree is 111 km.
+    const RADIUS: f64 = 6_378_137.0;
+    let metres = step * from.0 * if from.1 { RADIUS } else { 1.0 };
+    let t = metres / (to.0 * if to.1 { RADIUS } else { 1.0 });
+    10f64.powf(t.log10().floor()) / 10.0
+}
+
+/// A source whose points are moved into another CRS as they are read. Points that do not
+/// transform (outside the projection's domain, a grid missing there) are dropped and counted
+/// ([`PointSource::not_transformed`]), never moved to 0,0.
+pub struct Reprojected {
+    inner: Box<dyn crate::PointSource>,
+    /// One transform per worker thread: PROJ moves 0.3-0.5 M points/s on one core.
+    workers: Vec<std::sync::Mutex<Transform>>,
+    info: crate::SourceInfo,
+    header: Option<::las::Header>,
+    failed: u64,
+}
+
+impl Reprojected {
+    pub fn new(
+        inner: Box<dyn crate::PointSource>,
+        r: &Reproject,
+    ) -> myriad_core::Result<Reprojected> {
+        use myriad_core::Error;
+        let path = inner.info().path.clone();
+        let from = match (&inner.info().crs, &r.from) {
+            (Some(c), _) => c.clone(),
+            (None, Some(f)) => f.clone(),
+            (None, None) => {
+                return Err(Error::unsupported(
+                    &path,
+                    "names no coordinate system to move its points from: give --from-crs",
+                ));
+            }
+        };
+        let fail = |m: String| Error::unsupported(&path, m);
+        let mut transform = Transform::new(&from, &r.to).map_err(fail)?;
+        let source = Crs::new(&from).map_err(fail)?;
+        let mut info = inner.info().clone();
+        info.crs = Some(transform.target().wkt().map_err(fail)?);
+        // The grid anew, per axis, for the target's units (a foot is not a metre, a metre
+        // not a degree); inputs of float coordinates keep --precision, in the target's units.
+        let (su, tu) = (
+            source.axis_units().map_err(fail)?,
+            transform.target().axis_units().map_err(fail)?,
+        );
+        // Heights: PROJ moves them only between CRSs with a vertical axis (a 2D CRS's z is
+        // taken as metres above the ellipsoid where the other has heights, else left as it is).
+        let metres = (1.0, false);
+        let unit = |u: &[(f64, bool)], a: usize| u.get(a).copied().unwrap_or(metres);
+        info.scale = inner.info().scale.map(|s| {
+            std::array::from_fn(|a| {
+                if a == 2 && su.len() < 3 && tu.len() < 3 {
+                    s[2].abs()
+                } else {
+                    target_step(s[a].abs(), unit(&su, a), unit(&tu, a))
+                }
+            })
+        });
+        info.offset = None;
+        // Earth-centred axes each mix heights and ground: the finest step for all three.
+        if transform.target().horizontal_kind() == Kind::Geocentric
+            && let Some(st) = &mut info.scale
+        {
+            *st = [st.iter().copied().fold(f64::INFINITY, f64::min); 3];
+        }
+        let fine = info.scale;
+        // The header's bounds moved: the box of its faces' points, moved, with a margin (a
+        // point outside it still finds its place: the build scatters again when one does).
+        info.bounds = inner.info().bounds.and_then(|b| {
+            let mut faces = Vec::new();
+            let n = 8;
+            for axis in 0..3 {
+                for side in [b.min[axis], b.max[axis]] {
+                    for i in 0..=n {
+                        for j in 0..=n {
+                            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                            let mut p = [0.0; 3];
+                            p[axis] = side;
+                            p[u] = b.min[u] + (b.max[u] - b.min[u]) * i as f64 / n as f64;
+                            p[v] = b.min[v] + (b.max[v] - b.min[v]) * j as f64 / n as f64;
+                            faces.push(p);
+                        }
+                    }
+                }
+            }
+            if transform.apply(&mut faces) > 0 {
+                return None;
+            }
+            let mut moved = myriad_core::Aabb::EMPTY;
+            for p in &faces {
+                moved = moved.union(&myriad_core::Aabb { min: *p, max: *p });
+            }
+            let pad = moved.size().map(|s| s * 1e-3);
+            Some(myriad_core::Aabb {
+                min: std::array::from_fn(|a| moved.min[a] - pad[a]),
+                max: std::array::from_fn(|a| moved.max[a] + pad[a]),
+            })
+        });
+        // A grid that fine must still number the data's extent in LAS's 32-bit integers from
+        // an offset on a whole unit (what `extract` writes): coarser by tens where it does not.
+        if let (Some(mut step), Some(b)) = (fine, info.bounds) {
+            for a in 0..3 {
+                let reach = b.max[a] - b.min[a].floor();
+                while reach / step[a] >= i32::MAX as f64 / 2.0 {
+                    step[a] *= 10.0;
+                }
+            }
+            info.scale = Some(step);
+        }
+        // Scanner positions move with the points.
+        info.origins.retain_mut(|o| match transform.point(*o) {
+            Some(q) => {
+                *o = q;
+                true
+            }
+            None => false,
+        });
+        // The LAS header's own CRS records describe the coordinates before: dropped.
+        let header = inner.las_header().map(|h| {
+            let mut h = h.clone();
+            h.remove_crs_vlrs();
+            h
+        });
+        let workers = (0..rayon::current_num_threads().min(16))
+            .map(|_| Transform::new(&from, &r.to).map(std::sync::Mutex::new))
+            .collect::<Result<_, _>>()
+            .map_err(fail)?;
+        Ok(Reprojected {
+            inner,
+            workers,
+            info,
+            header,
+            failed: 0,
+        })
+    }
+}
+
+impl Reprojected {
+    /// `points` moved on all workers; how many did not transform.
+    fn apply(&self, points: &mut [[f64; 3]]) -> usize {
+        apply_on(&self.workers, points)
+    }
+}
+
+fn apply_on(workers: &[std::sync::Mutex<Transform>], points: &mut [[f64; 3]]) -> usize {
+    {
+        use rayon::prelude::*;
+        let per = points.len().div_ceil(workers.len()).max(4096);
+        points
+            .par_chunks_mut(per)
+            .enumerate()
+            .map(|(i, c)| {
+                let mut t = workers[i % workers.len()]
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner());
+                t.apply(c)
+            })
+            .sum()
+    }
+}
+
+impl crate::PointSource for Reprojected {
+    fn info(&self) -> &crate::SourceInfo {
+        &self.info
+    }
+
+    fn read_batch(&mut self, max: usize) -> myriad_core::Result<Option<myriad_core::PointBatch>> {
+        while let Some(mut b) = self.inner.read_batch(max)? {
+            let before = b.positions.clone();
+            let failed = self.apply(&mut b.positions);
+            if let Some(normals) = &mut b.normal {
+                // A normal turns as the map's local frame does: moved as a short step from
+                // its point, the step's direction after.
+                let mut tips: Vec<[f64; 3]> = before
+                    .iter()
+                    .zip(normals.iter())
+                    .map(|(p, n)| std::array::from_fn(|a| p[a] + 0.01 * n[a] as f64))
+                    .collect();
+                self.apply(&mut tips);
+                for ((n, q), t) in normals.iter_mut().zip(&b.positions).zip(&tips) {
+                    let d: [f64; 3] = std::array::from_fn(|a| t[a] - q[a]);
+                    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    if l > 0.0 && l.is_finite() {
+                        *n = d.map(|c| (c / l) as f32);
+                    }
+                }
+            }
+            if failed > 0 {
+                let keep: Vec<bool> = b.positions.iter().map(|p| p[0].is_finite()).collect();
+                b.retain_mask(&keep);
+                self.failed += failed as u64;
+            }
+            if !b.is_empty() {
+                return Ok(Some(b));
+            }
+        }
+        Ok(None)
+    }
+
+    fn skipped_non_finite(&self) -> u64 {
+        self.inner.skipped_non_finite()
+    }
+
+    fn not_transformed(&self) -> u64 {
+        self.failed
+    }
+
+    fn trimmed(&self) -> u64 {
+        self.inner.trimmed()
+    }
+
+    fn placement_path(&self) -> Option<&std::path::Path> {
+        self.inner.placement_path()
+    }
+
+    fn las_header(&self) -> Option<&::las::Header> {
+        self.header.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn skip() -> bool {
+        if !available() {
+            eprintln!("SKIPPED: {MISSING}");
+            return true;
+        }
+        false
+    }
+
+    #[test]
+    fn utm_and_back_and_what_a_crs_is() {
+        if skip() {
+            return;
+        }
+        let mut t = Transform::new("EPSG:4326", "EPSG:32610").unwrap();
+        // Longitude first whatever EPSG:4326's axis order: the central meridian of zone 10.
+        let p = t.point([-123.0, 44.0, 10.0]).unwrap();
+        assert!((p[0] - 500_000.0).abs() < 1e-6, "{p:?}");
+        assert!((p[1] - 4_871_873.4).abs() < 1.0, "{p:?}");
+        assert_eq!(p[2], 10.0);
+        let mut back = Transform::new("EPSG:32610", "EPSG:4326").unwrap();
+        let q = back.point(p).unwrap();
+        assert!(
+            (q[0] + 123.0).abs() < 1e-12 && (q[1] - 44.0).abs() < 1e-12,
+            "{q:?}"
+        );
+
+        let utm = Crs::new("EPSG:32610").unwrap();
+        assert_eq!(utm.horizontal_kind(), Kind::Projected);
+        assert_eq!(utm.code().as_deref(), Some("EPSG:32610"));
+        assert!(
+            utm.wkt()
+                .unwrap()
+                .starts_with("PROJCS[\"WGS 84 / UTM zone 10N\"")
+        );
+        assert!(
+            utm.proj4().unwrap().contains("+proj=utm +zone=10"),
+            "{}",
+            utm.proj4().unwrap()
+        );
+        assert_eq!(utm.axis_units().unwrap(), vec![(1.0, false), (1.0, false)]);
+        let ft = Crs::new("EPSG:2992").unwrap();
+        assert!((ft.axis_units().unwrap()[0].0 - 0.3048).abs() < 1e-9);
+        assert_eq!(
+            Crs::new("EPSG:4978").unwrap().horizontal_kind(),
+            Kind::Geocentric
+        );
+        let geo = Crs::new("EPSG:4326").unwrap();
+        assert_eq!(geo.horizontal_kind(), Kind::Geographic);
+        assert!(geo.axis_units().unwrap()[0].1);
+        let c = Crs::new("EPSG:25832+5941").unwrap();
+        assert!(c.is_compound());
+        assert_eq!(c.axis_units().unwrap().len(), 3);
+        assert!(
+            Crs::new("EPSG:99999999")
+                .unwrap_err()
+                .contains("EPSG:99999999")
+        );
+        assert!(Crs::new("not a crs at all").is_err());
+    }
+
+    #[test]
+    fn a_horizontal_target_keeps_the_vertical_part_and_failures_are_counted() {
+        if skip() {
+            return;
+        }
+        let mut t = Transform::new("EPSG:25832+5941", "EPSG:25833").unwrap();
+        assert!(t.target().is_compound(), "{}", t.target().name());
+        let p = t.point([500_000.0, 6_600_000.0, 123.25]).unwrap();
+        assert_eq!(p[2], 123.25);
+        // A latitude beyond the pole does not transform: counted, set to NaN, never 0,0.
+        let mut g = Transform::new("EPSG:4326", "EPSG:32610").unwrap();
+        let mut pts = [[-123.0, 44.0, 0.0], [-123.0, 95.0, 0.0]];
+        assert_eq!(g.apply(&mut pts), 1);
+        assert!(pts[1][0].is_nan() && pts[0][0].is_finite());
+    }
+}
