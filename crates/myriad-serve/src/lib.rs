@@ -25,6 +25,7 @@ mod catalog;
 mod conn;
 pub mod download;
 mod files;
+mod geo;
 pub mod range;
 pub mod tls;
 mod viewer;
@@ -160,6 +161,8 @@ struct Shared {
     access: Option<access::Access>,
     /// TLS on every connection (none: plain HTTP).
     tls: Option<tls::TlsAcceptor>,
+    /// Picked points to longitude and latitude (`/geo/`).
+    geo: geo::Geo,
 }
 
 /// A running server; dropping it stops it.
@@ -222,6 +225,7 @@ impl Server {
             saving: Arc::default(),
             access,
             tls,
+            geo: geo::Geo::default(),
         });
         let s = shared.clone();
         let thread = std::thread::Builder::new()
@@ -631,6 +635,35 @@ async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -
             Some(Kind::Dataset) => {
                 let a = viewer::page();
                 asset(a.bytes, Some(a), a.content_type, req)
+            }
+            _ => status(StatusCode::NOT_FOUND, "no such dataset"),
+        };
+    }
+    if let Some(name) = path.strip_prefix("/geo/") {
+        let Some(name) = percent_decode(name) else {
+            return status(StatusCode::BAD_REQUEST, "malformed path");
+        };
+        let at = match geo::parse(req.uri().query().unwrap_or("")) {
+            Ok(at) => at,
+            Err(m) => return status(StatusCode::BAD_REQUEST, &m),
+        };
+        return match catalog.file(&name) {
+            Some(f) if f.kind == Kind::Dataset => {
+                let (s, path) = (shared.clone(), f.path.clone());
+                let (code, body) = tokio::task::spawn_blocking(move || s.geo.answer(&path, at))
+                    .await
+                    .unwrap_or((500, "the question failed".into()));
+                if code != 200 {
+                    let code =
+                        StatusCode::from_u16(code).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+                    return status(code, &body);
+                }
+                let mut r = Response::new(full(body));
+                r.headers_mut().insert(
+                    header::CONTENT_TYPE,
+                    HeaderValue::from_static("application/json"),
+                );
+                r
             }
             _ => status(StatusCode::NOT_FOUND, "no such dataset"),
         };

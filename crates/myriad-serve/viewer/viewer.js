@@ -414,9 +414,20 @@ async function pick(x, y, radius = 6) {
   const m = await call(w, { type: "point", key: hit.sel.key, page: hit.sel.page, total: hit.sel.total,
     origin: hit.node.origin, index: hit.index, hidden: [...settings.hidden] });
   const p = { node: hit.sel.key.join("-"), index: hit.index, ...m.point };
+  // Longitude, latitude and ellipsoidal height from the server's PROJ (/geo/), where the
+  // dataset names its CRS and the server has PROJ; asked no more once it says it cannot.
+  if (state.geo !== false) {
+    try {
+      const r = await fetch(`/geo/${encodeURIComponent(state.dataset)}?at=${p.x},${p.y},${p.z}`);
+      if (r.ok) Object.assign(p, await r.json());
+      else if (r.status === 503 || r.status === 422) state.geo = false;
+    } catch (_) { /* no answer: the dataset's coordinates only */ }
+  }
   state.picked = p;
+  const shown = { lon: (v) => `${v.toFixed(8)}°`, lat: (v) => `${v.toFixed(8)}°`,
+    h: (v) => `${v.toFixed(3)} m above the WGS 84 ellipsoid` };
   document.getElementById("picked").textContent = Object.entries(p)
-    .map(([k, v]) => `${k}: ${Array.isArray(v) ? v.join(", ") : v}`).join("\n");
+    .map(([k, v]) => `${k}: ${shown[k] ? shown[k](v) : Array.isArray(v) ? v.join(", ") : v}`).join("\n");
   return p;
 }
 

@@ -73,6 +73,9 @@ struct App {
     timing: Timing,
     help: bool,
     picked: Option<String>,
+    /// Picked points to longitude, latitude and ellipsoidal height (the dataset's CRS through
+    /// PROJ; none without either).
+    geographic: Option<myriad_io::proj::Geographic>,
     screenshot: Option<PathBuf>,
     exit_after: bool,
     /// Frames drawn since everything selected was in (the screenshot waits for two).
@@ -206,6 +209,9 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         timing: Timing::default(),
         help: false,
         picked: None,
+        geographic: crs
+            .as_deref()
+            .and_then(|c| myriad_io::proj::Geographic::new(c).ok()),
         screenshot: o.screenshot,
         exit_after: o.exit_after_converged,
         settled: 0,
@@ -787,7 +793,10 @@ impl App {
         if response.double_clicked()
             && let Some((x, y)) = cursor
         {
-            self.picked = self.pick(&cam, x, y).map(|p| describe(&p));
+            self.picked = self.pick(&cam, x, y).map(|p| {
+                let geo = self.geographic.as_mut().and_then(|g| g.of(p.position));
+                describe(&p) + &report::geographic(geo)
+            });
         }
         if self.volumes.drawing {
             if response.clicked()

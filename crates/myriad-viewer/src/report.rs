@@ -97,6 +97,17 @@ pub(crate) fn describe(p: &myriad_render::Picked) -> String {
     s
 }
 
+/// A picked point's longitude, latitude and ellipsoidal height as lines to add (none where
+/// they are not known).
+pub(crate) fn geographic(lon_lat_h: Option<[f64; 3]>) -> String {
+    match lon_lat_h {
+        Some([lon, lat, h]) => {
+            format!("\nlon {lon:.8}°\nlat {lat:.8}°\nh {h:.3} m (WGS 84 ellipsoid)")
+        }
+        None => String::new(),
+    }
+}
+
 /// The shortcuts the help window lists.
 pub(crate) const HELP: &[(&str, &str)] = &[
     ("left drag", "orbit around the point under the cursor"),
@@ -137,3 +148,20 @@ pub(crate) const HELP: &[(&str, &str)] = &[
     ("P", "screenshot (myriad-screenshot-N.png)"),
     ("H", "this help"),
 ];
+
+#[cfg(test)]
+mod geographic_tests {
+    #[test]
+    fn longitude_latitude_and_height_lines() {
+        assert_eq!(super::geographic(None), "");
+        assert_eq!(
+            super::geographic(Some([-123.071212345, 44.05156, 120.5])),
+            "\nlon -123.07121235°\nlat 44.05156000°\nh 120.500 m (WGS 84 ellipsoid)"
+        );
+        if myriad_io::proj::available() {
+            let mut g = myriad_io::proj::Geographic::new("EPSG:32610").unwrap();
+            let p = g.of([500_000.0, 4_877_429.0, 100.0]).unwrap();
+            assert!((p[0] + 123.0).abs() < 1e-9 && (p[1] - 44.05).abs() < 0.01 && p[2] == 100.0);
+        }
+    }
+}

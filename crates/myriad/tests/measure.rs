@@ -4,9 +4,9 @@
 //! ezdxf), the filters of `extract`, and the one-line errors of bad input.
 
 mod common;
-use common::{myriad, ok, s, tempdir};
+use common::{myriad, ok, python_with, s, tempdir};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 fn fails(args: &[&str], says: &str) {
     let r = myriad(args);
@@ -187,19 +187,6 @@ fn station(line: &[[f64; 2]], p: [f64; 2]) -> (f64, f64, f64) {
         start += len;
     }
     best
-}
-
-fn python_with(modules: &str) -> Option<String> {
-    let candidates = std::env::var("MYRIAD_PYTHON")
-        .into_iter()
-        .chain(["python3".to_string()]);
-    candidates.into_iter().find(|py| {
-        Command::new(py)
-            .args(["-c", &format!("import {modules}")])
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    })
 }
 
 #[test]

@@ -5,10 +5,10 @@
 //! points that do not transform counted, never moved to 0,0.
 
 mod common;
-use common::{myriad, ok, s, tempdir};
+use common::{myriad, ok, python_with, s, tempdir};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 fn data(name: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -31,19 +31,6 @@ fn proj() -> bool {
         return false;
     }
     true
-}
-
-fn python_with(modules: &str) -> Option<String> {
-    std::env::var("MYRIAD_PYTHON")
-        .into_iter()
-        .chain(["python3".to_string()])
-        .find(|py| {
-            Command::new(py)
-                .args(["-c", &format!("import {modules}")])
-                .stderr(Stdio::null())
-                .status()
-                .is_ok_and(|s| s.success())
-        })
 }
 
 /// A point's attributes (what reprojection leaves alone) and its position.

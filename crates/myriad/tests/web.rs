@@ -236,6 +236,34 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
         p["gps_time"].as_f64(),
         Some(batch.gps_time.as_ref().unwrap()[i])
     );
+    // ... with its longitude, latitude and ellipsoidal height (the server's PROJ, /geo/) as
+    // PROJ gives them for the dataset's CRS (the synthetic city's UTM zone 33N) ...
+    if myriad_io::proj::available() {
+        let crs = ds.meta.crs.clone().unwrap();
+        let want = myriad_io::proj::Geographic::new(&crs)
+            .unwrap()
+            .of(batch.positions[i])
+            .unwrap();
+        for (k, w) in ["lon", "lat", "h"].iter().zip(want) {
+            let got = p[k].as_f64().unwrap_or_else(|| panic!("no {k}: {p}"));
+            assert!((got - w).abs() < 1e-9, "{k}: {got} against {w}");
+        }
+        let text = b
+            .eval("document.getElementById('picked').textContent")
+            .unwrap();
+        let text = text.as_str().unwrap();
+        assert!(text.contains(&format!("lat: {:.8}°", want[1])), "{text}");
+        assert!(text.contains("m above the WGS 84 ellipsoid"), "{text}");
+        let bad = b
+            .eval("fetch('/geo/' + encodeURIComponent(myriad.state.dataset) + '?at=1,2').then((r) => r.status)")
+            .unwrap();
+        assert_eq!(bad.as_u64(), Some(400));
+    } else {
+        eprintln!(
+            "SKIPPED (longitude and latitude): {}",
+            myriad_io::proj::MISSING
+        );
+    }
     // ... and lies where the click was, as the camera projects it.
     let cam = b.eval("myriad.camera()").unwrap();
     let v3 = |k: &str| -> [f64; 3] { std::array::from_fn(|a| cam[k][a].as_f64().unwrap()) };

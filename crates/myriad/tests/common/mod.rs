@@ -210,3 +210,17 @@ pub fn holds(dataset: &Path, want: &[Vec<i64>]) {
         dataset.display()
     );
 }
+
+/// A Python that imports `modules` (MYRIAD_PYTHON first, then python3).
+pub fn python_with(modules: &str) -> Option<String> {
+    std::env::var("MYRIAD_PYTHON")
+        .into_iter()
+        .chain(["python3".to_string()])
+        .find(|py| {
+            Command::new(py)
+                .args(["-c", &format!("import {modules}")])
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        })
+}
