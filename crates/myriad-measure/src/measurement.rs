@@ -126,6 +126,28 @@ pub fn crs_units(crs: Option<&str>) -> &'static str {
     unit_name(crs.and_then(metres_per_unit))
 }
 
+/// The ellipsoid a geographic CRS measures on (longitude, latitude in degrees as x, y): its
+/// semi-major axis and flattening from the WKT's SPHEROID or ELLIPSOID, WGS 84's where it names
+/// none. `None` for any other CRS, whose lengths are straight lines in its own units.
+pub fn earth(crs: Option<&str>) -> Option<(f64, f64)> {
+    let crs = crs?;
+    if crate::crs::describe(crs).kind != "geographic" {
+        return None;
+    }
+    let wgs84 = (6_378_137.0, 1.0 / 298.257_223_563);
+    let found = ["SPHEROID[", "ELLIPSOID["].iter().find_map(|k| {
+        let rest = &crs[crs.find(k)? + k.len()..];
+        let mut parts = rest
+            .split(',')
+            .skip(1)
+            .map(|v| v.trim().trim_end_matches(']'));
+        let a: f64 = parts.next()?.parse().ok()?;
+        let inv_f: f64 = parts.next()?.parse().ok()?;
+        (a > 6e6 && a < 7e6).then_some((a, if inv_f > 0.0 { 1.0 / inv_f } else { 0.0 }))
+    });
+    Some(found.unwrap_or(wgs84))
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Measurement {
     pub kind: Kind,
@@ -241,6 +263,121 @@ impl Measurement {
         })
     }
 
+    /// Segment lengths in metres along the ellipsoid `earth` (x, y longitude and latitude in
+    /// degrees, z heights in metres): the geodesic's length with the height difference.
+    pub fn segments_on(&self, earth: (f64, f64)) -> Vec<f64> {
+        use geographiclib_rs::{Geodesic, InverseGeodesic};
+        let g = Geodesic::new(earth.0, earth.1);
+        let len = |a: [f64; 3], b: [f64; 3]| {
+            let s: f64 = g.inverse(a[1], a[0], b[1], b[0]);
+            (s * s + (b[2] - a[2]).powi(2)).sqrt()
+        };
+        let p = &self.points;
+        let mut s: Vec<f64> = p.windows(2).map(|w| len(w[0], w[1])).collect();
+        if self.kind == Kind::Area && p.len() >= 3 {
+            s.push(len(p[p.len() - 1], p[0]));
+        }
+        s
+    }
+
+    /// The figure on the ellipsoid `earth` (a geographic CRS): lengths in metres along
+    /// geodesics, areas in square metres on the ellipsoid, azimuths the geodesic's at the first
+    /// point; angles and circles in the plane tangent at the first point.
+    pub fn value_on(&self, earth: (f64, f64)) -> Option<f64> {
+        use geographiclib_rs::{Geodesic, InverseGeodesic, PolygonArea, Winding};
+        if !self.complete() {
+            return None;
+        }
+        let g = Geodesic::new(earth.0, earth.1);
+        let p = &self.points;
+        Some(match self.kind {
+            Kind::Distance => self.segments_on(earth).iter().sum(),
+            Kind::Area => {
+                let mut a = PolygonArea::new(&g, Winding::CounterClockwise);
+                for q in p {
+                    a.add_point(q[1], q[0]);
+                }
+                a.compute(false).1.abs()
+            }
+            Kind::Azimuth => {
+                let (azi1, _, _): (f64, f64, f64) = g.inverse(p[0][1], p[0][0], p[1][1], p[1][0]);
+                (azi1 + 360.0) % 360.0
+            }
+            Kind::Angle | Kind::Circle => self.tangent(earth).value()?,
+            Kind::Point | Kind::Height => self.value()?,
+        })
+    }
+
+    /// The points in metres in the plane tangent to the ellipsoid at the first point (east,
+    /// north, up): for angles and circles, which are local.
+    fn tangent(&self, earth: (f64, f64)) -> Measurement {
+        let o = self.points.first().copied().unwrap_or_default();
+        let (a, f) = earth;
+        let e2 = f * (2.0 - f);
+        let lat = o[1].to_radians();
+        let w = (1.0 - e2 * lat.sin().powi(2)).sqrt();
+        let (north, east) = (a * (1.0 - e2) / w.powi(3), a / w * lat.cos());
+        Measurement {
+            kind: self.kind,
+            points: self
+                .points
+                .iter()
+                .map(|q| {
+                    [
+                        (q[0] - o[0]).to_radians() * east,
+                        (q[1] - o[1]).to_radians() * north,
+                        q[2] - o[2],
+                    ]
+                })
+                .collect(),
+        }
+    }
+
+    /// The label of a measurement in a geographic CRS (`earth`, see [`earth`]): lengths in
+    /// metres, or in `units` where it names a unit; a point as its longitude and latitude.
+    pub fn label_on(&self, units: Units, earth: (f64, f64)) -> Option<String> {
+        let v = self.value_on(earth)?;
+        let (to, suffix) = match units.metres() {
+            Some(m) => (m, units.suffix()),
+            None => (1.0, " m"),
+        };
+        Some(match self.kind {
+            Kind::Distance => format!("{:.3}{suffix}", v / to),
+            Kind::Area => format!("{:.2}{suffix}² area", v / to / to),
+            Kind::Azimuth => format!("{v:.2}° from north"),
+            Kind::Angle => format!("{v:.2}°"),
+            Kind::Circle => {
+                let p = &self.points;
+                let (c, _, _) = circle(p[0], p[1], p[2])?;
+                format!(
+                    "radius {:.3}{suffix}, centre {:.8}°, {:.8}°",
+                    v / to,
+                    c[0],
+                    c[1]
+                )
+            }
+            Kind::Point => {
+                let p = self.points[0];
+                format!("{:.8}°, {:.8}°, {:.3}{suffix}", p[0], p[1], p[2] / to)
+            }
+            Kind::Height => format!("{:+.3}{suffix} height", v / to),
+        })
+    }
+
+    /// The label in whichever way the CRS measures: on the ellipsoid `earth` where it is
+    /// geographic, else straight, `data_metres` per unit.
+    pub fn label_for(
+        &self,
+        units: Units,
+        data_metres: Option<f64>,
+        earth: Option<(f64, f64)>,
+    ) -> Option<String> {
+        match earth {
+            Some(e) => self.label_on(units, e),
+            None => self.label(units, data_metres),
+        }
+    }
+
     /// The figure as a label, lengths in `units` (`data_metres`: metres per unit of the
     /// dataset's coordinates, when its CRS says; lengths stay as they are without).
     pub fn label(&self, units: Units, data_metres: Option<f64>) -> Option<String> {
@@ -282,6 +419,42 @@ impl Measurement {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn geodesic_figures_in_a_geographic_crs() {
+        let wgs84 = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]]"#;
+        let e = earth(Some(wgs84)).unwrap();
+        assert_eq!(e, (6_378_137.0, 1.0 / 298.257223563));
+        assert_eq!(earth(Some("EPSG:32633")), None);
+        assert_eq!(earth(None), None);
+        // A degree of latitude at the equator: 110,574.389 m on WGS 84 (GeographicLib).
+        let mut d = Measurement::new(Kind::Distance);
+        d.add([15.0, 0.0, 0.0]);
+        d.add([15.0, 1.0, 0.0]);
+        assert!(
+            (d.value_on(e).unwrap() - 110_574.389).abs() < 1e-3,
+            "{:?}",
+            d.value_on(e)
+        );
+        assert_eq!(d.label_on(Units::Data, e).unwrap(), "110574.389 m");
+        // Due east along the equator: azimuth 90; a 0.01-degree square near 45 N: its area.
+        let mut z = Measurement::new(Kind::Azimuth);
+        z.add([0.0, 0.0, 0.0]);
+        z.add([1.0, 0.0, 0.0]);
+        assert!((z.value_on(e).unwrap() - 90.0).abs() < 1e-9);
+        let mut a = Measurement::new(Kind::Area);
+        for p in [[10.0, 45.0], [10.01, 45.0], [10.01, 45.01], [10.0, 45.01]] {
+            a.add([p[0], p[1], 0.0]);
+        }
+        let area = a.value_on(e).unwrap();
+        // 787.8 m east by 1111.4 m north, about.
+        assert!((area - 787.8 * 1111.4).abs() < 0.002 * area, "{area}");
+        let mut r = Measurement::new(Kind::Angle);
+        for p in [[10.01, 45.0], [10.0, 45.0], [10.0, 45.01]] {
+            r.add([p[0], p[1], 0.0]);
+        }
+        assert!((r.value_on(e).unwrap() - 90.0).abs() < 0.01);
+    }
 
     #[test]
     fn distance_height_and_area() {

@@ -76,6 +76,8 @@ struct App {
     /// Picked points to longitude, latitude and ellipsoidal height (the dataset's CRS through
     /// PROJ; none without either).
     geographic: Option<myriad_io::proj::Geographic>,
+    /// The ellipsoid measurements are made on, where the CRS is geographic.
+    earth: Option<(f64, f64)>,
     screenshot: Option<PathBuf>,
     exit_after: bool,
     /// Frames drawn since everything selected was in (the screenshot waits for two).
@@ -212,6 +214,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         geographic: crs
             .as_deref()
             .and_then(|c| myriad_io::proj::Geographic::new(c).ok()),
+        earth: myriad_measure::measurement::earth(crs.as_deref()),
         screenshot: o.screenshot,
         exit_after: o.exit_after_converged,
         settled: 0,
@@ -457,7 +460,7 @@ impl App {
             }
         });
         for m in &self.measurements {
-            if let Some(l) = m.label(self.units, self.data_metres) {
+            if let Some(l) = m.label_for(self.units, self.data_metres, self.earth) {
                 ui.monospace(l);
             }
         }
@@ -642,9 +645,10 @@ impl App {
             for p in pts.iter().flatten() {
                 painter.circle_filled(*p, 4.0, colour);
             }
-            if let (Some(label), Some(Some(at))) =
-                (m.label(self.units, self.data_metres), pts.last())
-            {
+            if let (Some(label), Some(Some(at))) = (
+                m.label_for(self.units, self.data_metres, self.earth),
+                pts.last(),
+            ) {
                 painter.text(
                     *at + egui::vec2(8.0, -8.0),
                     egui::Align2::LEFT_BOTTOM,

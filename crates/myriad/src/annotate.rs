@@ -132,7 +132,12 @@ fn list(w: &Work, sidecar: &Path) {
             "measurement {} {}: {} ({} points)",
             i + 1,
             m.kind.name(),
-            m.label(units, metres).unwrap_or_default(),
+            m.label_for(
+                units,
+                metres,
+                myriad_measure::measurement::earth(w.crs.as_deref())
+            )
+            .unwrap_or_default(),
             m.points.len()
         );
     }

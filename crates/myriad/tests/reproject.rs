@@ -232,6 +232,33 @@ fn lidr_plots_to_longitude_latitude_and_back() {
             ds.meta.quantization
         );
         assert!(ds.meta.bounds.min[0] > -180.0 && ds.meta.bounds.max[1] < 90.0);
+        // Measurements in longitude and latitude are geodesic, in metres: the plot's diagonal
+        // as long as in the projected CRS (within 0.1 %: the projection's scale factor).
+        let info_in = myriad_io::open(&input, &myriad_io::OpenOptions::default()).unwrap();
+        let ib = info_in.info().bounds.unwrap();
+        let projected = ((ib.max[0] - ib.min[0]).powi(2) + (ib.max[1] - ib.min[1]).powi(2)).sqrt();
+        let mut t = myriad_io::proj::Transform::new(code, "EPSG:4326").unwrap();
+        let (a, b) = (
+            t.point([ib.min[0], ib.min[1], 0.0]).unwrap(),
+            t.point([ib.max[0], ib.max[1], 0.0]).unwrap(),
+        );
+        let m = format!("distance:{},{},0,{},{},0", a[0], a[1], b[0], b[1]);
+        let listed = ok(&["annotate", s(&geo), "--measure", &m]);
+        let line = listed.lines().find(|l| l.contains("distance")).unwrap();
+        let metres: f64 = line
+            .split(": ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(line.contains(" m ("), "{line}");
+        assert!(
+            (metres - projected).abs() < 1e-3 * projected,
+            "{metres} against {projected}"
+        );
         let geo_las = d.join("geo.las");
         ok(&["extract", s(&geo), "-o", s(&geo_las)]);
         ok(&["convert", s(&geo_las), "-o", s(&back), "--to-crs", code]);
