@@ -75,7 +75,7 @@ pub struct ExportOptions {
     pub copc_page_levels: u32,
     /// Move the points into another CRS (`--to-crs`): they are re-placed into an octree of
     /// the target's coordinates, as kd and mwkd datasets are.
-    pub reproject: Option<myriad_io::proj::Reproject>,
+    pub reproject: Option<myriad_io::reproject::Reproject>,
 }
 
 impl ExportOptions {
@@ -246,10 +246,13 @@ fn replace(
     co.force = true;
     co.memory = o.memory;
     co.threads = o.threads;
-    co.open.reproject = o.reproject.as_ref().map(|r| myriad_io::proj::Reproject {
-        to: r.to.clone(),
-        from: r.from.clone().or_else(|| ds.meta.crs.clone()),
-    });
+    co.open.reproject = o
+        .reproject
+        .as_ref()
+        .map(|r| myriad_io::reproject::Reproject {
+            to: r.to.clone(),
+            from: r.from.clone().or_else(|| ds.meta.crs.clone()),
+        });
     let built = convert::convert(std::slice::from_ref(&las), &co, report)?;
     let _ = std::fs::remove_file(&las);
     let octree = Dataset::open(&myr)?;

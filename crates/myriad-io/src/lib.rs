@@ -28,6 +28,7 @@ pub mod potree;
 pub mod process;
 pub mod proj;
 mod read_util;
+pub mod reproject;
 pub mod text;
 
 use myriad_core::{Aabb, Error, PointBatch, Result, Schema};
@@ -179,7 +180,7 @@ pub struct OpenOptions {
     /// Apply `SCAN.placement` next to a scan when it exists and `placement` is `None`.
     pub sidecar_placements: bool,
     /// Move every point into another CRS as it is read (after its placement).
-    pub reproject: Option<proj::Reproject>,
+    pub reproject: Option<reproject::Reproject>,
 }
 
 /// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
@@ -211,7 +212,7 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> 
         None => source,
     };
     match &options.reproject {
-        Some(r) => Ok(Box::new(proj::Reprojected::new(placed, r)?)),
+        Some(r) => Ok(Box::new(reproject::Reprojected::new(placed, r)?)),
         None => Ok(placed),
     }
 }

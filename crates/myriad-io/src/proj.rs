@@ -251,10 +251,11 @@ impl Drop for Object {
 const GEOCENTRIC: c_int = 10;
 const GEOGRAPHIC_2D: c_int = 12;
 const GEOGRAPHIC_3D: c_int = 13;
-const VERTICAL: c_int = 14;
 const PROJECTED: c_int = 15;
 const COMPOUND: c_int = 16;
 const BOUND: c_int = 19;
+/// GEODETIC_CRS to OTHER_CRS: the types of CRSs.
+const CRS_TYPES: std::ops::RangeInclusive<c_int> = 9..=20;
 // PJ_WKT_TYPE and PJ_PROJ_STRING_TYPE values.
 const WKT2_2019: c_int = 2;
 const WKT1_GDAL: c_int = 4;
@@ -278,6 +279,8 @@ pub enum Kind {
 /// string or PROJJSON.
 pub struct Crs {
     obj: Object,
+    /// A bound CRS's source (the CRS without its TOWGS84 hint), as PROJ's inspection needs.
+    source: Option<Object>,
 }
 
 // SAFETY: the context and its objects move between threads only together (the Rc is never
@@ -300,32 +303,31 @@ impl Crs {
             unsafe { (ctx.api.create)(ctx.ptr, c.as_ptr()) },
             &short(def),
         )?;
-        let crs = Crs { obj };
-        if crs.horizontal_kind() == Kind::Other && crs.obj.kind() != VERTICAL && !crs.is_crs() {
-            return Err(format!("{}: not a coordinate reference system", short(def)));
-        }
-        Ok(crs)
+        Crs::of(obj).ok_or_else(|| format!("{}: not a coordinate reference system", short(def)))
     }
 
-    fn is_crs(&self) -> bool {
-        (9..=20).contains(&self.obj.kind())
+    /// `obj` as a CRS (None where it is another kind of object: an operation, a datum).
+    fn of(obj: Object) -> Option<Crs> {
+        if !(CRS_TYPES).contains(&obj.kind()) {
+            return None;
+        }
+        let source = (obj.kind() == BOUND)
+            .then(|| {
+                let p = unsafe { (obj.api().get_source_crs)(obj.ctx.ptr, obj.ptr) };
+                obj.derived(p, "the bound CRS's source").ok()
+            })
+            .flatten();
+        Some(Crs { obj, source })
     }
 
-    /// The CRS without a bound CRS's wrapper (its TOWGS84 hint), as PROJ's inspection needs.
-    fn unbound(&self) -> Result<Option<Object>, String> {
-        if self.obj.kind() != BOUND {
-            return Ok(None);
-        }
-        let p = unsafe { (self.obj.api().get_source_crs)(self.obj.ctx.ptr, self.obj.ptr) };
-        self.obj.derived(p, "the bound CRS's source").map(Some)
+    /// The CRS itself (a bound CRS's source).
+    fn core(&self) -> &Object {
+        self.source.as_ref().unwrap_or(&self.obj)
     }
 
     /// The horizontal (or geocentric) part's kind.
     pub fn horizontal_kind(&self) -> Kind {
-        let Ok(un) = self.unbound() else {
-            return Kind::Other;
-        };
-        let o = un.as_ref().unwrap_or(&self.obj);
+        let o = self.core();
         let k = if o.kind() == COMPOUND {
             let p = unsafe { (o.api().crs_get_sub_crs)(o.ctx.ptr, o.ptr, 0) };
             match o.derived(p, "horizontal part") {
@@ -345,22 +347,7 @@ impl Crs {
 
     /// Whether the CRS has a vertical part of its own (a compound CRS).
     pub fn is_compound(&self) -> bool {
-        match self.unbound() {
-            Ok(Some(o)) => o.kind() == COMPOUND,
-            Ok(None) => self.obj.kind() == COMPOUND,
-            Err(_) => false,
-        }
-    }
-
-    /// Whether heights are part of the CRS's own axes (3D geographic, geocentric, compound).
-    fn has_height(&self) -> bool {
-        self.is_compound()
-            || matches!(self.obj.kind(), GEOGRAPHIC_3D | GEOCENTRIC)
-            || self
-                .unbound()
-                .ok()
-                .flatten()
-                .is_some_and(|o| matches!(o.kind(), GEOGRAPHIC_3D | GEOCENTRIC))
+        self.core().kind() == COMPOUND
     }
 
     pub fn name(&self) -> String {
@@ -401,8 +388,7 @@ impl Crs {
     /// Each axis's unit in metres (linear) or radians (angular), and whether it is angular.
     pub fn axis_units(&self) -> Result<Vec<(f64, bool)>, String> {
         let mut units = Vec::new();
-        let un = self.unbound()?;
-        let o = un.as_ref().unwrap_or(&self.obj);
+        let o = self.core();
         let parts: Vec<Object> = if o.kind() == COMPOUND {
             (0..2)
                 .map(|i| {
@@ -498,6 +484,7 @@ fn short(def: &str) -> String {
 /// northing, whatever order the CRS's definition gives its axes.
 pub struct Transform {
     op: Object,
+    source: Crs,
     /// The target CRS (with the source's vertical part where it had none of its own).
     target: Crs,
 }
@@ -513,12 +500,8 @@ impl Transform {
         let ctx = std::rc::Rc::new(Context::new()?);
         let source = Crs::in_context(&ctx, from)?;
         let mut target = Crs::in_context(&ctx, to)?;
-        if source.is_compound()
-            && !target.has_height()
-            && matches!(target.obj.kind(), PROJECTED | GEOGRAPHIC_2D)
-        {
-            let un = source.unbound()?;
-            let s = un.as_ref().unwrap_or(&source.obj);
+        if source.is_compound() && matches!(target.core().kind(), PROJECTED | GEOGRAPHIC_2D) {
+            let s = source.core();
             let v = unsafe { (ctx.api.crs_get_sub_crs)(ctx.ptr, s.ptr, 1) };
             let v = s.derived(v, "the vertical part")?;
             let name = CString::new(format!(
@@ -532,6 +515,7 @@ impl Transform {
             };
             target = Crs {
                 obj: Object::wrap(&ctx, c, "the compound target")?,
+                source: None,
             };
         }
         let op = unsafe {
@@ -550,7 +534,11 @@ impl Transform {
         )?;
         let norm = unsafe { (ctx.api.normalize_for_visualization)(ctx.ptr, op.ptr) };
         let op = Object::wrap(&ctx, norm, "the transformation's axis order")?;
-        Ok(Transform { op, target })
+        Ok(Transform { op, source, target })
+    }
+
+    pub fn source(&self) -> &Crs {
+        &self.source
     }
 
     pub fn target(&self) -> &Crs {
@@ -617,240 +605,6 @@ impl Geographic {
 
     pub fn of(&mut self, p: [f64; 3]) -> Option<[f64; 3]> {
         self.t.point(p)
-    }
-}
-
-/// `--to-crs` (and `--from-crs`): what [`crate::open`] moves every point into.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Reproject {
-    /// The target CRS, as the user gave it.
-    pub to: String,
-    /// The CRS of inputs whose file names none.
-    pub from: Option<String>,
-}
-
-/// A grid step in the target's units as fine as `step` source units, a tenth finer (rounded
-/// down to a power of ten): a moved point stays within a twentieth of the input's own step.
-fn target_step(step: f64, from: (f64, bool), to: (f64, bool)) -> f64 {
-    // Angles through the length of a radian on the equator: a degree is 111 km.
-    const RADIUS: f64 = 6_378_137.0;
-    let metres = step * from.0 * if from.1 { RADIUS } else { 1.0 };
-    let t = metres / (to.0 * if to.1 { RADIUS } else { 1.0 });
-    10f64.powf(t.log10().floor()) / 10.0
-}
-
-/// A source whose points are moved into another CRS as they are read. Points that do not
-/// transform (outside the projection's domain, a grid missing there) are dropped and counted
-/// ([`PointSource::not_transformed`]), never moved to 0,0.
-pub struct Reprojected {
-    inner: Box<dyn crate::PointSource>,
-    /// One transform per worker thread: PROJ moves 0.3-0.5 M points/s on one core.
-    workers: Vec<std::sync::Mutex<Transform>>,
-    info: crate::SourceInfo,
-    header: Option<::las::Header>,
-    failed: u64,
-}
-
-impl Reprojected {
-    pub fn new(
-        inner: Box<dyn crate::PointSource>,
-        r: &Reproject,
-    ) -> myriad_core::Result<Reprojected> {
-        use myriad_core::Error;
-        let path = inner.info().path.clone();
-        let from = match (&inner.info().crs, &r.from) {
-            (Some(c), _) => c.clone(),
-            (None, Some(f)) => f.clone(),
-            (None, None) => {
-                return Err(Error::unsupported(
-                    &path,
-                    "names no coordinate system to move its points from: give --from-crs",
-                ));
-            }
-        };
-        let fail = |m: String| Error::unsupported(&path, m);
-        let mut transform = Transform::new(&from, &r.to).map_err(fail)?;
-        let source = Crs::new(&from).map_err(fail)?;
-        let mut info = inner.info().clone();
-        info.crs = Some(transform.target().wkt().map_err(fail)?);
-        // The grid anew, per axis, for the target's units (a foot is not a metre, a metre
-        // not a degree); inputs of float coordinates keep --precision, in the target's units.
-        let (su, tu) = (
-            source.axis_units().map_err(fail)?,
-            transform.target().axis_units().map_err(fail)?,
-        );
-        // Heights: PROJ moves them only between CRSs with a vertical axis (a 2D CRS's z is
-        // taken as metres above the ellipsoid where the other has heights, else left as it is).
-        let metres = (1.0, false);
-        let unit = |u: &[(f64, bool)], a: usize| u.get(a).copied().unwrap_or(metres);
-        info.scale = inner.info().scale.map(|s| {
-            std::array::from_fn(|a| {
-                if a == 2 && su.len() < 3 && tu.len() < 3 {
-                    s[2].abs()
-                } else {
-                    target_step(s[a].abs(), unit(&su, a), unit(&tu, a))
-                }
-            })
-        });
-        info.offset = None;
-        // Earth-centred axes each mix heights and ground: the finest step for all three.
-        if transform.target().horizontal_kind() == Kind::Geocentric
-            && let Some(st) = &mut info.scale
-        {
-            *st = [st.iter().copied().fold(f64::INFINITY, f64::min); 3];
-        }
-        let fine = info.scale;
-        // The header's bounds moved: the box of its faces' points, moved, with a margin (a
-        // point outside it still finds its place: the build scatters again when one does).
-        info.bounds = inner.info().bounds.and_then(|b| {
-            let mut faces = Vec::new();
-            let n = 8;
-            for axis in 0..3 {
-                for side in [b.min[axis], b.max[axis]] {
-                    for i in 0..=n {
-                        for j in 0..=n {
-                            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                            let mut p = [0.0; 3];
-                            p[axis] = side;
-                            p[u] = b.min[u] + (b.max[u] - b.min[u]) * i as f64 / n as f64;
-                            p[v] = b.min[v] + (b.max[v] - b.min[v]) * j as f64 / n as f64;
-                            faces.push(p);
-                        }
-                    }
-                }
-            }
-            if transform.apply(&mut faces) > 0 {
-                return None;
-            }
-            let mut moved = myriad_core::Aabb::EMPTY;
-            for p in &faces {
-                moved = moved.union(&myriad_core::Aabb { min: *p, max: *p });
-            }
-            let pad = moved.size().map(|s| s * 1e-3);
-            Some(myriad_core::Aabb {
-                min: std::array::from_fn(|a| moved.min[a] - pad[a]),
-                max: std::array::from_fn(|a| moved.max[a] + pad[a]),
-            })
-        });
-        // A grid that fine must still number the data's extent in LAS's 32-bit integers from
-        // an offset on a whole unit (what `extract` writes): coarser by tens where it does not.
-        if let (Some(mut step), Some(b)) = (fine, info.bounds) {
-            for a in 0..3 {
-                let reach = b.max[a] - b.min[a].floor();
-                while reach / step[a] >= i32::MAX as f64 / 2.0 {
-                    step[a] *= 10.0;
-                }
-            }
-            info.scale = Some(step);
-        }
-        // Scanner positions move with the points.
-        info.origins.retain_mut(|o| match transform.point(*o) {
-            Some(q) => {
-                *o = q;
-                true
-            }
-            None => false,
-        });
-        // The LAS header's own CRS records describe the coordinates before: dropped.
-        let header = inner.las_header().map(|h| {
-            let mut h = h.clone();
-            h.remove_crs_vlrs();
-            h
-        });
-        let workers = (0..rayon::current_num_threads().min(16))
-            .map(|_| Transform::new(&from, &r.to).map(std::sync::Mutex::new))
-            .collect::<Result<_, _>>()
-            .map_err(fail)?;
-        Ok(Reprojected {
-            inner,
-            workers,
-            info,
-            header,
-            failed: 0,
-        })
-    }
-}
-
-impl Reprojected {
-    /// `points` moved on all workers; how many did not transform.
-    fn apply(&self, points: &mut [[f64; 3]]) -> usize {
-        apply_on(&self.workers, points)
-    }
-}
-
-fn apply_on(workers: &[std::sync::Mutex<Transform>], points: &mut [[f64; 3]]) -> usize {
-    {
-        use rayon::prelude::*;
-        let per = points.len().div_ceil(workers.len()).max(4096);
-        points
-            .par_chunks_mut(per)
-            .enumerate()
-            .map(|(i, c)| {
-                let mut t = workers[i % workers.len()]
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner());
-                t.apply(c)
-            })
-            .sum()
-    }
-}
-
-impl crate::PointSource for Reprojected {
-    fn info(&self) -> &crate::SourceInfo {
-        &self.info
-    }
-
-    fn read_batch(&mut self, max: usize) -> myriad_core::Result<Option<myriad_core::PointBatch>> {
-        while let Some(mut b) = self.inner.read_batch(max)? {
-            let before = b.positions.clone();
-            let failed = self.apply(&mut b.positions);
-            if let Some(normals) = &mut b.normal {
-                // A normal turns as the map's local frame does: moved as a short step from
-                // its point, the step's direction after.
-                let mut tips: Vec<[f64; 3]> = before
-                    .iter()
-                    .zip(normals.iter())
-                    .map(|(p, n)| std::array::from_fn(|a| p[a] + 0.01 * n[a] as f64))
-                    .collect();
-                self.apply(&mut tips);
-                for ((n, q), t) in normals.iter_mut().zip(&b.positions).zip(&tips) {
-                    let d: [f64; 3] = std::array::from_fn(|a| t[a] - q[a]);
-                    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                    if l > 0.0 && l.is_finite() {
-                        *n = d.map(|c| (c / l) as f32);
-                    }
-                }
-            }
-            if failed > 0 {
-                let keep: Vec<bool> = b.positions.iter().map(|p| p[0].is_finite()).collect();
-                b.retain_mask(&keep);
-                self.failed += failed as u64;
-            }
-            if !b.is_empty() {
-                return Ok(Some(b));
-            }
-        }
-        Ok(None)
-    }
-
-    fn skipped_non_finite(&self) -> u64 {
-        self.inner.skipped_non_finite()
-    }
-
-    fn not_transformed(&self) -> u64 {
-        self.failed
-    }
-
-    fn trimmed(&self) -> u64 {
-        self.inner.trimmed()
-    }
-
-    fn placement_path(&self) -> Option<&std::path::Path> {
-        self.inner.placement_path()
-    }
-
-    fn las_header(&self) -> Option<&::las::Header> {
-        self.header.as_ref()
     }
 }
 

@@ -320,23 +320,19 @@ pub fn measure_json(kind: u32, points: &[f64], units: u32, crs: Option<&str>) ->
         points: points.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     };
     // A geographic CRS measures on its ellipsoid (geodesics, metres), others straight.
-    match myriad_measure::measurement::earth(crs) {
-        Some(e) => json!({
-            "kind": kind.name(),
-            "complete": m.complete(),
-            "value": m.value_on(e),
-            "label": m.label_on(units, e),
-            "segments": m.segments_on(e),
-            "geodesic": true,
-        }),
-        None => json!({
-            "kind": kind.name(),
-            "complete": m.complete(),
-            "value": m.value(),
-            "label": m.label(units, crs.and_then(metres_per_unit)),
-            "segments": m.segments(),
-        }),
-    }
+    let earth = myriad_measure::measurement::earth(crs);
+    let (value, segments) = match earth {
+        Some(e) => (m.value_on(e), m.segments_on(e)),
+        None => (m.value(), m.segments()),
+    };
+    json!({
+        "kind": kind.name(),
+        "complete": m.complete(),
+        "value": value,
+        "label": m.label_for(units, crs.and_then(metres_per_unit), earth),
+        "segments": segments,
+        "geodesic": earth.is_some(),
+    })
 }
 
 /// A cross-section for the web viewer (`myriad_measure::profile`, as `myriad profile` and `view`

@@ -100,6 +100,7 @@ fn parse_measure(s: &str) -> Result<myriad_measure::measurement::Measurement> {
 
 fn list(w: &Work, sidecar: &Path) {
     let (units, metres) = work::units_of(w.crs.as_deref());
+    let earth = myriad_measure::measurement::earth(w.crs.as_deref());
     let crs = w
         .crs
         .as_deref()
@@ -132,12 +133,7 @@ fn list(w: &Work, sidecar: &Path) {
             "measurement {} {}: {} ({} points)",
             i + 1,
             m.kind.name(),
-            m.label_for(
-                units,
-                metres,
-                myriad_measure::measurement::earth(w.crs.as_deref())
-            )
-            .unwrap_or_default(),
+            m.label_for(units, metres, earth).unwrap_or_default(),
             m.points.len()
         );
     }

@@ -56,10 +56,13 @@ impl BuildArgs {
         myriad_io::OpenOptions {
             columns: self.columns.clone(),
             sidecar_placements: !self.no_placement,
-            reproject: self.to_crs.as_ref().map(|to| myriad_io::proj::Reproject {
-                to: to.clone(),
-                from: self.from_crs.clone(),
-            }),
+            reproject: self
+                .to_crs
+                .as_ref()
+                .map(|to| myriad_io::reproject::Reproject {
+                    to: to.clone(),
+                    from: self.from_crs.clone(),
+                }),
             ..Default::default()
         }
     }

@@ -62,7 +62,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     o.spacing = a.spacing;
     o.filter = a.filter.filter()?;
     o.force = a.force;
-    o.reproject = a.to_crs.as_ref().map(|to| myriad_io::proj::Reproject {
+    o.reproject = a.to_crs.as_ref().map(|to| myriad_io::reproject::Reproject {
         to: to.clone(),
         from: a.from_crs.clone(),
     });

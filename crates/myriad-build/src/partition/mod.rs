@@ -79,7 +79,7 @@ pub struct BuildPlan {
     pub placements: bool,
     pub precision: f64,
     /// `--to-crs` and `--from-crs`: every part moves its points the same way.
-    pub reproject: Option<myriad_io::proj::Reproject>,
+    pub reproject: Option<myriad_io::reproject::Reproject>,
 }
 
 fn morton(c: [u32; 3]) -> u64 {
@@ -414,10 +414,12 @@ impl BuildPlan {
             columns: v["columns"].as_str().map(String::from),
             placements: v["placements"].as_bool().unwrap_or(true),
             precision: v["precision"].as_f64().unwrap_or(1e-4),
-            reproject: v["to_crs"].as_str().map(|to| myriad_io::proj::Reproject {
-                to: to.to_string(),
-                from: v["from_crs"].as_str().map(String::from),
-            }),
+            reproject: v["to_crs"]
+                .as_str()
+                .map(|to| myriad_io::reproject::Reproject {
+                    to: to.to_string(),
+                    from: v["from_crs"].as_str().map(String::from),
+                }),
         };
         if plan.id != fingerprint(&plan.body().to_string()) {
             return Err(Error::Invalid(format!(
