@@ -1,5 +1,5 @@
-//! `myriad bench export DATASET --input FILE`: export speed and peak memory (COPC and Potree,
-//! each run a separate `myriad export` process, its peak read by `wait4`), next to a baseline
+//! `myriad bench export DATASET --input FILE`: export speed and peak memory (COPC, Potree and
+//! 3D Tiles, each run a separate `myriad export` process, its peak read by `wait4`), next to a baseline
 //! (`extract` of every point to one LAZ file: the same decoding and LAZ compression without a
 //! tree) and to PotreeConverter 2 converting the dataset's input, in the same run, alternating,
 //! so that the machine's drift between minutes falls on all of them.
@@ -21,6 +21,10 @@ pub struct ExportBenchArgs {
     /// PotreeConverter 2 [default: ../shared/peers/potreeconverter/PotreeConverter when present]
     #[arg(long)]
     peer: Option<PathBuf>,
+    /// The dataset's CRS where it names none, for the 3D Tiles row (which places points on
+    /// the globe); without either that row is left out
+    #[arg(long, value_name = "CRS")]
+    from_crs: Option<String>,
     #[arg(long, default_value_t = 3)]
     runs: usize,
     /// Folder for the outputs (removed at the end)
@@ -65,20 +69,51 @@ pub(crate) fn default_peer() -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// Bytes of the files below `p` (or of the file `p`).
+fn size(p: &Path) -> u64 {
+    match std::fs::metadata(p) {
+        Ok(m) if m.is_dir() => std::fs::read_dir(p)
+            .map(|d| d.flatten().map(|e| size(&e.path())).sum())
+            .unwrap_or(0),
+        Ok(m) => m.len(),
+        Err(_) => 0,
+    }
+}
+
 pub fn run(a: ExportBenchArgs) -> Result<()> {
     let exe = std::env::current_exe()?;
-    let points = Dataset::open(&a.dataset)?.meta.points;
+    let ds = Dataset::open(&a.dataset)?;
+    let points = ds.meta.points;
     std::fs::create_dir_all(&a.scratch)?;
     let peer = a.peer.clone().or_else(default_peer);
-    let copc = a.scratch.join("export.copc.laz");
-    let potree = a.scratch.join("potree");
     let peer_out = a.scratch.join("potreeconverter");
-    let laz = a.scratch.join("extract.laz");
-    let mut rows: Vec<(&str, Vec<f64>, Vec<f64>)> = vec![
-        ("export copc", vec![], vec![]),
-        ("export potree", vec![], vec![]),
-        ("extract to LAZ (baseline)", vec![], vec![]),
+    // (row, command, output, extra arguments)
+    let mut targets: Vec<(&str, &str, PathBuf, Vec<String>)> = vec![
+        (
+            "export copc",
+            "export",
+            a.scratch.join("export.copc.laz"),
+            vec![],
+        ),
+        ("export potree", "export", a.scratch.join("potree"), vec![]),
     ];
+    if ds.meta.crs.is_some() || a.from_crs.is_some() {
+        let mut args = vec!["--to".to_string(), "3dtiles".to_string()];
+        if let (None, Some(c)) = (&ds.meta.crs, &a.from_crs) {
+            args.extend(["--from-crs".to_string(), c.clone()]);
+        }
+        targets.push(("export 3dtiles", "export", a.scratch.join("3dtiles"), args));
+    } else {
+        println!("no 3D Tiles run: the dataset names no CRS (give --from-crs)");
+    }
+    targets.push((
+        "extract to LAZ (baseline)",
+        "extract",
+        a.scratch.join("extract.laz"),
+        vec![],
+    ));
+    let mut rows: Vec<(&str, Vec<f64>, Vec<f64>)> =
+        targets.iter().map(|t| (t.0, vec![], vec![])).collect();
     let with_peer = match (&peer, &a.input) {
         (Some(_), Some(_)) => {
             rows.push(("PotreeConverter (from the input)", vec![], vec![]));
@@ -90,15 +125,14 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
         }
     };
     for _ in 0..a.runs.max(1) {
-        let targets: [(&str, &Path); 3] =
-            [("export", &copc), ("export", &potree), ("extract", &laz)];
-        for (i, (command, out)) in targets.iter().enumerate() {
+        for (i, (_, command, out, args)) in targets.iter().enumerate() {
             let (t, m) = measured(
                 Command::new(&exe)
                     .arg(command)
                     .arg(&a.dataset)
                     .arg("-o")
                     .arg(out)
+                    .args(args)
                     .arg("--force"),
             )?;
             rows[i].1.push(t);
@@ -112,25 +146,13 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
                     .arg("-o")
                     .arg(&peer_out),
             )?;
-            rows[3].1.push(t);
-            rows[3].2.push(m as f64);
+            let last = rows.len() - 1;
+            rows[last].1.push(t);
+            rows[last].2.push(m as f64);
         }
     }
-    let size = |p: &Path| -> u64 {
-        if p.is_dir() {
-            std::fs::read_dir(p)
-                .map(|d| {
-                    d.flatten()
-                        .filter_map(|e| e.metadata().ok())
-                        .map(|m| m.len())
-                        .sum()
-                })
-                .unwrap_or(0)
-        } else {
-            std::fs::metadata(p).map_or(0, |m| m.len())
-        }
-    };
-    let sizes = [size(&copc), size(&potree), size(&laz), size(&peer_out)];
+    let mut sizes: Vec<u64> = targets.iter().map(|t| size(&t.2)).collect();
+    sizes.push(size(&peer_out));
     println!(
         "{}: {} points, medians of {} runs",
         a.dataset.display(),
@@ -141,7 +163,7 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
         "{:<34} {:>9} {:>10} {:>9} {:>10} {:>8}",
         "", "seconds", "M pts/s", "peak MB", "MB out", "B/pt"
     );
-    let mut base = None;
+    let mut medians = Vec::new();
     for (i, (name, secs, peaks)) in rows.iter_mut().enumerate() {
         let t = median(secs);
         let peak = peaks.iter().cloned().fold(0.0, f64::max);
@@ -154,23 +176,21 @@ pub fn run(a: ExportBenchArgs) -> Result<()> {
             sizes[i] as f64 / 1e6,
             sizes[i] as f64 / points.max(1) as f64
         );
-        if i == 3 {
-            base = Some(t);
-        }
+        medians.push((*name, t));
     }
-    let c = median(&mut rows[0].1);
-    let p = median(&mut rows[1].1);
-    let e = median(&mut rows[2].1);
-    println!(
-        "COPC export at {:.0} % of the speed of extract to LAZ",
-        100.0 * e / c
-    );
-    if let Some(b) = base {
-        println!(
-            "speed against PotreeConverter: COPC export {:.1}x, Potree export {:.1}x",
-            b / c,
-            b / p
-        );
+    let of = |name: &str| medians.iter().find(|m| m.0 == name).map(|m| m.1);
+    let e = of("extract to LAZ (baseline)").unwrap_or(1.0);
+    for row in ["export copc", "export potree", "export 3dtiles"] {
+        if let Some(t) = of(row) {
+            print!(
+                "{row} at {:.0} % of the speed of extract to LAZ",
+                100.0 * e / t
+            );
+            match of("PotreeConverter (from the input)") {
+                Some(b) => println!(", {:.1}x PotreeConverter's", b / t),
+                None => println!(),
+            }
+        }
     }
     let _ = std::fs::remove_dir_all(&a.scratch);
     Ok(())

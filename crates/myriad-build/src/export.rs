@@ -1,8 +1,8 @@
-//! `export`: a dataset in the formats other tools read, COPC 1.0 and Potree 2.0 (or LAS/LAZ, as
-//! `extract`), with the same box and spacing as `extract`.
+//! `export`: a dataset in the formats other tools read, COPC 1.0, Potree 2.0 and 3D Tiles (1.1
+//! or 1.0), or LAS/LAZ as `extract`, with the same box and spacing as `extract`.
 //!
 //! A dataset whose nodes are the cells of an octree (octree, layered) is exported node for node:
-//! each node's page is decoded and written as a COPC chunk or Potree node of the same key, the
+//! each node's page is decoded and written as a COPC chunk, Potree node or tile of the same key, the
 //! tree is never rebuilt. The other structures (kd, mwkd) are first re-placed: their original
 //! points (never mwkd's aggregates) are extracted to a temporary LAS file, built into an octree
 //! with `convert`'s out-of-core pipeline, and that is exported. Memory is bounded by the group of
@@ -14,6 +14,7 @@ use myriad_core::{Aabb, Attribute, Error, NodeKey, PointBatch, Result};
 use myriad_format::{Damage, Dataset, NodeEntry};
 use myriad_io::copc::CopcSink;
 use myriad_io::potree::{Frame, PotreeSink};
+use myriad_io::tiles3d::{self, TilesSink};
 use myriad_measure::Filter;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -25,6 +26,8 @@ pub const GROUP_POINTS: u64 = 4_000_000;
 pub enum Target {
     Copc,
     Potree,
+    /// 3D Tiles (a folder of tileset.json and tiles).
+    Tiles,
     Las,
     Laz,
 }
@@ -34,9 +37,12 @@ impl Target {
         match s.to_ascii_lowercase().as_str() {
             "copc" => Ok(Target::Copc),
             "potree" => Ok(Target::Potree),
+            "3dtiles" => Ok(Target::Tiles),
             "las" => Ok(Target::Las),
             "laz" => Ok(Target::Laz),
-            _ => Err(format!("\"{s}\": expected copc, potree, las or laz")),
+            _ => Err(format!(
+                "\"{s}\": expected copc, potree, 3dtiles, las or laz"
+            )),
         }
     }
 
@@ -76,6 +82,10 @@ pub struct ExportOptions {
     /// Move the points into another CRS (`--to-crs`): they are re-placed into an octree of
     /// the target's coordinates, as kd and mwkd datasets are.
     pub reproject: Option<myriad_io::reproject::Reproject>,
+    /// 3D Tiles: the dataset's CRS where it names none (`--from-crs`).
+    pub from_crs: Option<String>,
+    /// 3D Tiles: 1.1 (glTF) or 1.0 (.pnts).
+    pub tiles_version: tiles3d::Version,
 }
 
 impl ExportOptions {
@@ -90,6 +100,8 @@ impl ExportOptions {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             copc_page_levels: myriad_io::copc::PAGE_LEVELS,
             reproject: None,
+            from_crs: None,
+            tiles_version: tiles3d::Version::V1_1,
         }
     }
 }
@@ -107,8 +119,11 @@ pub struct ExportSummary {
     pub not_kept: Vec<String>,
     /// Whether the points were re-placed into an octree (kd, mwkd, another CRS).
     pub replaced: bool,
-    /// Points that did not move into the target CRS (`--to-crs`), left out.
+    /// Points that did not move into the target CRS (`--to-crs`, 3D Tiles' Earth-centred
+    /// coordinates), left out.
     pub not_transformed: u64,
+    /// 3D Tiles: the tileset files written (tileset.json and the external ones).
+    pub tilesets: u64,
 }
 
 /// Whether the dataset's nodes are the cells of an octree holding original points.
@@ -134,6 +149,22 @@ pub fn export(
             "{}: names no coordinate system to move its points from: give --from-crs",
             ds.path().display()
         )));
+    }
+    if o.target == Target::Tiles {
+        if o.reproject.is_some() {
+            return Err(Error::Invalid(
+                "--to-crs does not apply to 3D Tiles: their coordinates are always Earth-centred \
+                 (EPSG:4978); give the dataset's own CRS with --from-crs where it names none"
+                    .into(),
+            ));
+        }
+        if ds.meta.crs.is_none() && o.from_crs.is_none() {
+            return Err(Error::Invalid(format!(
+                "{}: names no coordinate system, and 3D Tiles place points on the globe: give \
+                 --from-crs",
+                ds.path().display()
+            )));
+        }
     }
     if matches!(o.target, Target::Las | Target::Laz) && o.reproject.is_none() {
         let want = if o.target == Target::Las {
@@ -284,7 +315,7 @@ fn replace(
     } else {
         export_octree(&octree, nodes, out, &inner, report)?
     };
-    summary.not_transformed = built.not_transformed;
+    summary.not_transformed += built.not_transformed;
     drop(temps);
     summary.damage.splice(0..0, damage);
     summary.replaced = true;
@@ -301,6 +332,7 @@ fn replace(
 enum Sink {
     Copc(Box<CopcSink>),
     Potree(Box<PotreeSink>),
+    Tiles(Box<TilesSink>),
 }
 
 /// Normals as three f32 extra dimensions after the others (COPC: extra bytes).
@@ -356,6 +388,27 @@ fn export_octree(
                 CopcSink::create(out, options, cube, spacing, o.force)?
                     .with_page_levels(o.copc_page_levels),
             ))
+        }
+        Target::Tiles => {
+            let b = if m.bounds.is_empty() { cube } else { m.bounds };
+            let frame = tiles3d::Frame {
+                cube,
+                centre: std::array::from_fn(|a| (b.min[a] + b.max[a]) / 2.0),
+                spacing,
+                crs: m
+                    .crs
+                    .clone()
+                    .or_else(|| o.from_crs.clone())
+                    .ok_or_else(|| {
+                        Error::Invalid(format!(
+                            "{}: names no coordinate system",
+                            ds.path().display()
+                        ))
+                    })?,
+            };
+            let (s, lost) = TilesSink::create(out, &m.schema, frame, o.tiles_version, o.force)?;
+            summary.not_kept.extend(lost);
+            Sink::Tiles(Box::new(s))
         }
         _ => {
             let frame = Frame {
@@ -417,6 +470,7 @@ fn export_octree(
         match &mut sink {
             Sink::Copc(s) => s.write_nodes(&batches),
             Sink::Potree(s) => s.write_nodes(&batches),
+            Sink::Tiles(s) => s.write_nodes(&batches),
         }
     };
     for n in wanted {
@@ -433,6 +487,14 @@ fn export_octree(
     summary.bytes = match sink {
         Sink::Copc(s) => s.finish()?.bytes,
         Sink::Potree(s) => s.finish()?.bytes,
+        Sink::Tiles(s) => {
+            let t = s.finish()?;
+            summary.points = t.points;
+            summary.nodes = t.tiles;
+            summary.not_transformed = t.not_transformed;
+            summary.tilesets = t.tilesets;
+            t.bytes
+        }
     };
     Ok(summary)
 }

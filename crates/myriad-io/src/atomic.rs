@@ -74,6 +74,82 @@ impl Drop for AtomicFile {
     }
 }
 
+/// A folder that appears under its name only when complete (a hidden temporary folder beside
+/// it, renamed at the end; the one it replaces is removed only then).
+pub struct AtomicDir {
+    target: PathBuf,
+    temp: PathBuf,
+    committed: bool,
+}
+
+impl AtomicDir {
+    /// Reserves `target`; fails if it exists and `force` is false, or if it exists and is not
+    /// `what` (`ours` says which folders are: anything else is never replaced, `force` or not).
+    pub fn create(
+        target: &Path,
+        force: bool,
+        ours: fn(&Path) -> bool,
+        what: &str,
+    ) -> Result<AtomicDir> {
+        if target.exists() {
+            if !force {
+                return Err(Error::Invalid(format!(
+                    "{}: output exists (use --force to replace it)",
+                    target.display()
+                )));
+            }
+            if !target.is_dir() || !ours(target) {
+                return Err(Error::unsupported(
+                    target,
+                    format!("exists and is not {what}: not replaced"),
+                ));
+            }
+        }
+        let name = target
+            .file_name()
+            .ok_or_else(|| Error::unsupported(target, "output has no folder name"))?;
+        let mut t = std::ffi::OsString::from(".");
+        t.push(name);
+        t.push(format!(".{}.partial", std::process::id()));
+        let temp = target.with_file_name(t);
+        let _ = std::fs::remove_dir_all(&temp);
+        std::fs::create_dir_all(&temp).map_err(|e| Error::io(&temp, e))?;
+        Ok(AtomicDir {
+            target: target.to_path_buf(),
+            temp,
+            committed: false,
+        })
+    }
+
+    /// The folder being written.
+    pub fn temp(&self) -> &Path {
+        &self.temp
+    }
+
+    /// Moves the folder to its name (the one it replaces removed only then).
+    pub fn commit(mut self) -> Result<()> {
+        let old = self.temp.with_extension("old");
+        let replaced = self.target.exists();
+        if replaced {
+            std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
+        }
+        std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
+        self.committed = true;
+        if replaced {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        Ok(())
+    }
+}
+
+impl Drop for AtomicDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.temp);
+        }
+    }
+}
+
 /// The same file by device and inode (however it is spelled: `a.las`, `dir/../a.las`, a link).
 fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
     use std::os::unix::fs::MetadataExt;

@@ -30,6 +30,7 @@ pub mod proj;
 mod read_util;
 pub mod reproject;
 pub mod text;
+pub mod tiles3d;
 
 use myriad_core::{Aabb, Error, PointBatch, Result, Schema};
 use std::path::{Path, PathBuf};

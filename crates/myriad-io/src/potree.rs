@@ -13,6 +13,7 @@
 //!   last level that has children is a proxy, whose offset and size are those of its own chunk in
 //!   hierarchy.bin (which starts with the node again, as a real record). The root's chunk is at 0.
 
+use crate::atomic::AtomicDir;
 use myriad_core::{Aabb, Attribute, Error, ExtraType, NodeKey, PointBatch, Result, Schema};
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -221,77 +222,17 @@ fn attributes(schema: &Schema) -> (Vec<Attr>, Vec<String>) {
     (v, lost)
 }
 
-/// A folder that appears under its name only when complete (a hidden temporary folder beside
-/// it, renamed at the end; the one it replaces is removed only then).
-struct AtomicDir {
-    target: PathBuf,
-    temp: PathBuf,
-    committed: bool,
-}
-
 /// The files a Potree folder holds (PotreeConverter adds log.txt): a folder with anything else
 /// in it is not replaced, even with `force`.
 const POTREE_FILES: [&str; 4] = ["metadata.json", "hierarchy.bin", "octree.bin", "log.txt"];
 
-impl AtomicDir {
-    fn create(target: &Path, force: bool) -> Result<AtomicDir> {
-        if target.exists() {
-            if !force {
-                return Err(Error::Invalid(format!(
-                    "{}: output exists (use --force to replace it)",
-                    target.display()
-                )));
-            }
-            let foreign = match std::fs::read_dir(target) {
-                Err(_) => true,
-                Ok(entries) => entries
-                    .flatten()
-                    .any(|e| !POTREE_FILES.contains(&e.file_name().to_string_lossy().as_ref())),
-            };
-            if foreign {
-                return Err(Error::unsupported(
-                    target,
-                    "exists and is not a Potree folder: not replaced",
-                ));
-            }
-        }
-        let name = target
-            .file_name()
-            .ok_or_else(|| Error::unsupported(target, "output has no folder name"))?;
-        let mut t = std::ffi::OsString::from(".");
-        t.push(name);
-        t.push(format!(".{}.partial", std::process::id()));
-        let temp = target.with_file_name(t);
-        let _ = std::fs::remove_dir_all(&temp);
-        std::fs::create_dir_all(&temp).map_err(|e| Error::io(&temp, e))?;
-        Ok(AtomicDir {
-            target: target.to_path_buf(),
-            temp,
-            committed: false,
-        })
-    }
-
-    fn commit(mut self) -> Result<()> {
-        let old = self.temp.with_extension("old");
-        let replaced = self.target.exists();
-        if replaced {
-            std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
-        }
-        std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
-        self.committed = true;
-        if replaced {
-            let _ = std::fs::remove_dir_all(&old);
-        }
-        Ok(())
-    }
-}
-
-impl Drop for AtomicDir {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.temp);
-        }
-    }
+/// Whether `dir` holds a Potree dataset only.
+fn is_potree(dir: &Path) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries
+            .flatten()
+            .all(|e| POTREE_FILES.contains(&e.file_name().to_string_lossy().as_ref()))
+    })
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -388,8 +329,8 @@ impl PotreeSink {
                 }
             },
         };
-        let ad = AtomicDir::create(dir, force)?;
-        let path = ad.temp.join("octree.bin");
+        let ad = AtomicDir::create(dir, force, is_potree, "a Potree folder")?;
+        let path = ad.temp().join("octree.bin");
         let octree = BufWriter::with_capacity(
             1 << 20,
             File::create(&path).map_err(|e| Error::io(&path, e))?,
@@ -568,7 +509,7 @@ impl PotreeSink {
         self.octree.flush().map_err(|e| io(&self.path, e))?;
         let octree_bytes = self.pos;
         let (hierarchy, first, depth, entries, chunks) = self.hierarchy();
-        let hpath = self.dir.temp.join("hierarchy.bin");
+        let hpath = self.dir.temp().join("hierarchy.bin");
         std::fs::write(&hpath, &hierarchy).map_err(|e| io(&hpath, e))?;
         let points: u64 = self.nodes.values().map(|n| n.points as u64).sum();
         let attributes: Vec<Value> = self
@@ -602,7 +543,7 @@ impl PotreeSink {
             "encoding": "DEFAULT",
             "attributes": attributes,
         });
-        let mpath = self.dir.temp.join("metadata.json");
+        let mpath = self.dir.temp().join("metadata.json");
         let text = serde_json::to_string_pretty(&meta).expect("JSON of numbers and strings");
         std::fs::write(&mpath, text).map_err(|e| io(&mpath, e))?;
         let file = self

@@ -3,11 +3,9 @@
 //! target's units. [`crate::open`] applies it after the placement, so every build (convert,
 //! append, plan, parts) moves its points the same way.
 
-use crate::proj::{Kind, Transform};
+use crate::proj::{Kind, Pool};
 use crate::{PointSource, SourceInfo};
 use myriad_core::{Aabb, Error, PointBatch, Result};
-use rayon::prelude::*;
-use std::sync::Mutex;
 
 /// `--to-crs` (and `--from-crs`): what [`crate::open`] moves every point into.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,8 +31,7 @@ fn target_step(step: f64, from: (f64, bool), to: (f64, bool)) -> f64 {
 /// ([`PointSource::not_transformed`]), never moved to 0,0.
 pub struct Reprojected {
     inner: Box<dyn PointSource>,
-    /// One transform per worker thread: PROJ moves 0.3-0.5 M points/s on one core.
-    workers: Vec<std::sync::Mutex<Transform>>,
+    workers: Pool,
     info: SourceInfo,
     header: Option<::las::Header>,
     failed: u64,
@@ -54,11 +51,8 @@ impl Reprojected {
             }
         };
         let fail = |m: String| Error::unsupported(&path, m);
-        let workers: Vec<Mutex<Transform>> = (0..rayon::current_num_threads().clamp(1, 16))
-            .map(|_| Transform::new(&from, &r.to).map(Mutex::new))
-            .collect::<Result<_, _>>()
-            .map_err(fail)?;
-        let mut transform = workers[0].lock().unwrap_or_else(|e| e.into_inner());
+        let workers = Pool::new(&from, &r.to).map_err(fail)?;
+        let mut transform = workers.get();
         let mut info = inner.info().clone();
         info.crs = Some(transform.target().wkt().map_err(fail)?);
         // The grid anew, per axis, for the target's units (a foot is not a metre, a metre
@@ -156,21 +150,6 @@ impl Reprojected {
     }
 }
 
-/// `points` moved on all `workers`; how many did not transform.
-fn apply(workers: &[Mutex<Transform>], points: &mut [[f64; 3]]) -> usize {
-    let per = points.len().div_ceil(workers.len()).max(4096);
-    points
-        .par_chunks_mut(per)
-        .enumerate()
-        .map(|(i, c)| {
-            let mut t = workers[i % workers.len()]
-                .lock()
-                .unwrap_or_else(|e| e.into_inner());
-            t.apply(c)
-        })
-        .sum()
-}
-
 impl PointSource for Reprojected {
     fn info(&self) -> &SourceInfo {
         &self.info
@@ -187,9 +166,9 @@ impl PointSource for Reprojected {
                     .map(|(p, n)| std::array::from_fn(|a| p[a] + 0.01 * n[a] as f64))
                     .collect()
             });
-            let failed = apply(&self.workers, &mut b.positions);
+            let failed = self.workers.apply(&mut b.positions);
             if let (Some(normals), Some(tips)) = (&mut b.normal, &mut tips) {
-                apply(&self.workers, tips);
+                self.workers.apply(tips);
                 for ((n, q), t) in normals.iter_mut().zip(&b.positions).zip(tips.iter()) {
                     let d: [f64; 3] = std::array::from_fn(|a| t[a] - q[a]);
                     let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();

@@ -40,7 +40,10 @@ fn content_type(path: &Path) -> &'static str {
     match path.extension().and_then(|e| e.to_str()) {
         Some("json") => "application/json",
         Some("html") => "text/html; charset=utf-8",
-        Some("js") => "text/javascript",
+        Some("js" | "mjs") => "text/javascript",
+        Some("glb") => "model/gltf-binary",
+        Some("wasm") => "application/wasm",
+        Some("svg") => "image/svg+xml",
         Some("css") => "text/css",
         Some("png") => "image/png",
         _ => "application/octet-stream",

@@ -1,4 +1,4 @@
-//! `myriad export`: a dataset as COPC, Potree 2.0, LAS or LAZ.
+//! `myriad export`: a dataset as COPC, Potree 2.0, 3D Tiles, LAS or LAZ.
 
 use anyhow::{Result, bail};
 use clap::Args;
@@ -16,10 +16,11 @@ use myriad_core::units::thousands;
 pub struct ExportArgs {
     /// The dataset (.myr)
     dataset: PathBuf,
-    /// Output: a .copc.laz file (COPC), a folder (Potree 2.0), or a .las/.laz file
+    /// Output: a .copc.laz file (COPC), a folder (Potree 2.0, or 3D Tiles with --to 3dtiles),
+    /// or a .las/.laz file
     #[arg(short, long)]
     output: PathBuf,
-    /// Format: copc, potree, las or laz [default: from the output's name]
+    /// Format: copc, potree, 3dtiles, las or laz [default: from the output's name]
     #[arg(long = "to", value_parser = Target::parse)]
     target: Option<Target>,
     /// Only points in this box: minx,miny,minz,maxx,maxy,maxz
@@ -33,16 +34,19 @@ pub struct ExportArgs {
     memory: Option<u64>,
     #[command(flatten)]
     filter: crate::measure::FilterArgs,
-    /// Replace an existing output (a folder only when it holds a Potree dataset)
+    /// Replace an existing output (a folder only when it holds a Potree or 3D Tiles export)
     #[arg(long)]
     force: bool,
     /// Move the points into this coordinate system (EPSG:NNNN, EPSG:H+V, WKT or a PROJ string):
     /// they are re-placed into an octree of the new coordinates first
     #[arg(long, value_name = "CRS")]
     to_crs: Option<String>,
-    /// The dataset's coordinate system where it names none (with --to-crs)
-    #[arg(long, value_name = "CRS", requires = "to_crs")]
+    /// The dataset's coordinate system where it names none (with --to-crs or --to 3dtiles)
+    #[arg(long, value_name = "CRS")]
     from_crs: Option<String>,
+    /// 3D Tiles version: 1.1 (glTF tiles) or 1.0 (.pnts tiles, for older clients)
+    #[arg(long, value_name = "VERSION", default_value = "1.1", value_parser = myriad_io::tiles3d::Version::parse)]
+    tiles_version: myriad_io::tiles3d::Version,
 }
 
 pub fn run(a: ExportArgs) -> Result<()> {
@@ -51,10 +55,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
     }
     let Some(target) = a.target.or_else(|| Target::from_output(&a.output)) else {
         bail!(
-            "{}: cannot tell the format from the name; give --to copc|potree|las|laz",
+            "{}: cannot tell the format from the name; give --to copc|potree|3dtiles|las|laz",
             a.output.display()
         );
     };
+    if a.from_crs.is_some() && a.to_crs.is_none() && target != Target::Tiles {
+        bail!("--from-crs goes with --to-crs or --to 3dtiles");
+    }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
     let mut o = ExportOptions::new(target);
@@ -66,6 +73,8 @@ pub fn run(a: ExportArgs) -> Result<()> {
         to: to.clone(),
         from: a.from_crs.clone(),
     });
+    o.from_crs = a.from_crs.clone();
+    o.tiles_version = a.tiles_version;
     if let Some(m) = a.memory {
         o.memory = m;
     }
@@ -87,6 +96,17 @@ pub fn run(a: ExportArgs) -> Result<()> {
         thousands(s.nodes),
         if let Some(to) = &a.to_crs {
             format!(" (moved into {to})")
+        } else if target == Target::Tiles {
+            format!(
+                " ({} tileset file{}{})",
+                s.tilesets,
+                if s.tilesets == 1 { "" } else { "s" },
+                if s.replaced {
+                    format!(", re-placed from the {} structure", ds.meta.structure)
+                } else {
+                    String::new()
+                }
+            )
         } else if s.replaced {
             format!(
                 " (re-placed from the {} structure into an octree)",
@@ -104,7 +124,9 @@ pub fn run(a: ExportArgs) -> Result<()> {
             "warning: {} points do not transform into {} (outside its domain, or a grid PROJ \
              lacks there): left out",
             thousands(s.not_transformed),
-            a.to_crs.as_deref().unwrap_or("the target CRS")
+            a.to_crs
+                .as_deref()
+                .unwrap_or("Earth-centred coordinates (EPSG:4978)")
         );
     }
     if let Some(p) = myriad_io::process::peak_rss_bytes() {

@@ -5,7 +5,7 @@
 //! points that do not transform counted, never moved to 0,0.
 
 mod common;
-use common::{myriad, ok, python_with, s, tempdir};
+use common::{myriad, ok, ok_env, pyprojs_proj, python_with, s, tempdir};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -108,42 +108,6 @@ np.stack([x, y, z], axis=1).astype("<f8").tofile(sys.argv[3])
         m.1 = p;
     }
     mine
-}
-
-/// The environment that has `myriad` load the PROJ in pyproj's wheel (its library and its
-/// database) instead of Debian's: the same PROJ on both sides. Releases of PROJ choose different
-/// operations where several fit (Debian's 9.1 takes NAD83(HARN) to WGS 84 (1), a null
-/// transformation good to 2 m, into earth-centred coordinates; pyproj's 9.5 the 1 m Helmert (3)).
-fn pyprojs_proj(py: &str) -> Vec<(String, String)> {
-    let script = r#"
-import glob, os, pyproj, pyproj.datadir
-site = os.path.dirname(os.path.dirname(pyproj.__file__))
-libs = os.path.join(site, "pyproj.libs")
-print(libs); print(glob.glob(os.path.join(libs, "libproj*"))[0]); print(pyproj.datadir.get_data_dir())
-"#;
-    let r = Command::new(py).args(["-c", script]).output().unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let out = String::from_utf8_lossy(&r.stdout).into_owned();
-    let l: Vec<&str> = out.lines().collect();
-    vec![
-        ("LD_LIBRARY_PATH".into(), l[0].into()),
-        ("MYRIAD_LIBPROJ".into(), l[1].into()),
-        ("PROJ_DATA".into(), l[2].into()),
-    ]
-}
-
-fn ok_env(args: &[&str], env: &[(String, String)]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
-        .args(args)
-        .envs(env.iter().map(|(k, v)| (k, v)))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 #[test]
