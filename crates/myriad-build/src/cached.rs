@@ -137,18 +137,10 @@ fn places(path: &Path) -> Result<Places> {
 }
 
 /// What the tiles of one scan disagree on (coordinate systems, scales, point formats), each in
-/// a sentence saying what the dataset of them does about it; their headers only are read.
-fn disagreements(tiles: &[PathBuf]) -> Result<Vec<String>> {
-    let mut infos = Vec::with_capacity(tiles.len());
-    for t in tiles {
-        infos.push(
-            myriad_io::open(t, &myriad_io::OpenOptions::default())?
-                .info()
-                .clone(),
-        );
-    }
-    let d = myriad_io::Differences::of(&infos);
-    let n = tiles.len();
+/// a sentence saying what the dataset of them does about it, from their headers.
+fn disagreements(infos: &[myriad_io::SourceInfo]) -> Vec<String> {
+    let d = myriad_io::Differences::of(infos);
+    let n = infos.len();
     let mut out = Vec::new();
     if d.crs > 1 {
         out.push(format!(
@@ -168,7 +160,34 @@ fn disagreements(tiles: &[PathBuf]) -> Result<Vec<String>> {
             d.formats
         ));
     }
-    Ok(out)
+    out
+}
+
+/// Disk a build takes at its peak, per point: the dataset (12.4 bytes for KY, 13.4 for the
+/// 1-billion-point synthetic city in docs/guide/benchmarks.md) and, where the points cannot
+/// all stay in memory until their chunks are built, the spill files beside it (9-10 bytes
+/// more); each with a fifth added.
+const DATASET_BYTES_PER_POINT: u64 = 16;
+const SPILL_BYTES_PER_POINT: u64 = 12;
+/// What a point takes in the build's write buffers (the 50 M point city: 2.8 GB).
+const RESIDENT_BYTES_PER_POINT: u64 = 56;
+
+/// Bytes of disk the build of `points` points with options `o` takes at its peak (an estimate).
+pub fn disk_needed(points: u64, o: &ConvertOptions) -> u64 {
+    let plan = convert::plan(o.memory, o.threads, &o.params);
+    let spills = points.saturating_mul(RESIDENT_BYTES_PER_POINT) > plan.resident_bytes as u64;
+    let per_point = DATASET_BYTES_PER_POINT + if spills { SPILL_BYTES_PER_POINT } else { 0 };
+    points.saturating_mul(per_point) + (16 << 20)
+}
+
+/// Bytes as a person reads them: "740 MB", "13.4 GB".
+fn size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 10 << 30 => format!("{:.0} GB", b as f64 / 1e9),
+        b if b >= 1 << 30 => format!("{:.1} GB", b as f64 / 1e9),
+        b if b >= 10 << 20 => format!("{:.0} MB", b as f64 / 1e6),
+        b => format!("{:.1} MB", b as f64 / 1e6),
+    }
 }
 
 /// A small dataset of the preview of the scan at `path` (a file or a folder of LAS/LAZ tiles;
@@ -232,51 +251,123 @@ pub fn existing(path: &Path) -> Option<PathBuf> {
     places(path).ok()?.made()
 }
 
+/// Conversions of a scan that changes while it is converted before giving up.
+const TRIES: u32 = 3;
+
 /// `path` itself when it is a dataset (or a URL), else the dataset made from it, the
-/// conversion's progress told to `report`.
+/// conversion's progress told to `report`. A scan that changes while it is converted (its
+/// size or modification time) is converted again; a build killed part way leaves no dataset
+/// (the next one starts over).
 pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
     if is_dataset(path) {
         return Ok(path.to_path_buf());
     }
-    let places = places(path)?;
-    if let Some(c) = places.made() {
+    for _ in 0..TRIES {
+        if let Some(d) = build(path, report)? {
+            return Ok(d);
+        }
+        eprintln!(
+            "warning: {}: changed while it was converted (its size or modification time): starting over",
+            path.display()
+        );
+    }
+    Err(Error::Invalid(format!(
+        "{}: changed during each of {TRIES} conversions: open it when it is complete",
+        path.display()
+    )))
+}
+
+/// The dataset of the scan at `path`, made now or before; None when the scan changed while it
+/// was converted (what was made is removed).
+fn build(path: &Path, report: &dyn Report) -> Result<Option<PathBuf>> {
+    let here = places(path)?;
+    if let Some(c) = here.made() {
         eprintln!(
             "{}: using {} (converted before; the scan is unchanged)",
             path.display(),
             c.display()
         );
-        return Ok(c);
+        return Ok(Some(c));
     }
     let Places {
         folder,
         beside,
         cached,
         prefix,
-    } = places;
-    let target = if takes_files(&folder) {
-        beside
-    } else {
-        let c = cached.ok_or_else(|| {
-            Error::Invalid("no folder for the converted scan (set XDG_CACHE_HOME)".into())
-        })?;
-        let dir = c.parent().expect("a cache file has a folder");
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        c
+    } = here;
+    let inputs = inputs_of(path)?;
+    let mut infos = Vec::with_capacity(inputs.len());
+    for i in &inputs {
+        infos.push(
+            myriad_io::open(i, &myriad_io::OpenOptions::default())?
+                .info()
+                .clone(),
+        );
+    }
+    // The disk the build will take, checked before it starts (where the headers count the
+    // points): beside the scan, else in the cache folder, else one line saying so.
+    let need = infos
+        .iter()
+        .map(|i| i.points)
+        .sum::<Option<u64>>()
+        .map(|n| disk_needed(n, &ConvertOptions::new(&beside)));
+    let room = |dir: &Path| -> Option<u64> {
+        let free = myriad_io::process::free_bytes(dir)?;
+        need.filter(|n| *n > free).map(|_| free)
+    };
+    let short_beside = takes_files(&folder).then(|| room(&folder));
+    let target = match short_beside {
+        Some(None) => beside,
+        _ => {
+            let c = cached.ok_or_else(|| {
+                Error::Invalid("no folder for the converted scan (set XDG_CACHE_HOME)".into())
+            })?;
+            let dir = c.parent().expect("a cache file has a folder");
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            if let Some(free) = room(dir) {
+                let there = match short_beside {
+                    Some(Some(f)) => format!("{} has {} free, ", folder.display(), size(f)),
+                    _ => String::new(),
+                };
+                return Err(Error::Invalid(format!(
+                    "{}: its dataset needs about {} of disk and {there}the cache folder {} has {} free: \
+                     free some space, or set XDG_CACHE_HOME to a folder on a larger disk",
+                    path.display(),
+                    size(need.unwrap_or(0)),
+                    dir.display(),
+                    size(free)
+                )));
+            }
+            if let Some(Some(free)) = short_beside {
+                eprintln!(
+                    "{}: {} has {} free, the dataset needs about {}: kept in the cache folder",
+                    path.display(),
+                    folder.display(),
+                    size(free),
+                    size(need.unwrap_or(0))
+                );
+            }
+            c
+        }
     };
     eprintln!(
         "{}: converting into {} (kept for next time)",
         path.display(),
         target.display()
     );
-    let inputs = inputs_of(path)?;
     if inputs.len() > 1 {
-        for why in disagreements(&inputs)? {
+        for why in disagreements(&infos) {
             eprintln!("warning: {}: {why}", path.display());
         }
     }
     let mut o = ConvertOptions::new(&target);
     o.force = true;
     convert::convert(&inputs, &o, report)?;
+    let now = places(path)?;
+    if now.beside != target && now.cached.as_ref() != Some(&target) {
+        let _ = std::fs::remove_file(&target);
+        return Ok(None);
+    }
     // Conversions of earlier versions of the scan go.
     let dir = target.parent().expect("a dataset has a folder");
     if let Ok(entries) = std::fs::read_dir(dir) {
@@ -287,5 +378,5 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
             }
         }
     }
-    Ok(target)
+    Ok(Some(target))
 }

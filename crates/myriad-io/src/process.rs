@@ -6,3 +6,29 @@ pub fn peak_rss_bytes() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
 }
+
+/// Bytes that an unprivileged process may still write on the file system holding `dir`
+/// (`statvfs`); None where it cannot be read.
+pub fn free_bytes(dir: &std::path::Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    // SAFETY: `c` is a NUL-terminated path; statvfs only fills `s`, which is plain data.
+    let s = unsafe {
+        let mut s: libc::statvfs = std::mem::zeroed();
+        (libc::statvfs(c.as_ptr(), &mut s) == 0).then_some(s)
+    }?;
+    Some(s.f_bavail as u64 * s.f_frsize as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn free_bytes_of_a_folder_and_none_of_nothing() {
+        let free = super::free_bytes(&std::env::temp_dir()).unwrap();
+        assert!(free > 0);
+        assert_eq!(
+            super::free_bytes(std::path::Path::new("/no/such/folder")),
+            None
+        );
+    }
+}
