@@ -41,7 +41,7 @@ impl App {
             };
             match built {
                 Ok(ds) => swap(layer, ds, &self.filter, self.shares, self.colour),
-                Err(why) => eprintln!("error: {why} (the preview stays)"),
+                Err(why) => eprintln!("error: {why} (what is shown stays)"),
             }
         }
     }

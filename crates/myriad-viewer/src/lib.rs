@@ -22,7 +22,7 @@ pub mod vr;
 pub mod vr_nav;
 mod vr_vulkan;
 
-pub use builds::Builds;
+pub use builds::{Builds, Built};
 use eframe::egui;
 use eframe::egui_wgpu;
 use eframe::wgpu;
@@ -930,6 +930,10 @@ impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         self.take_builds();
+        if self.builds.is_some() {
+            // Scans still building or watched: look for what arrived at least once a second.
+            ctx.request_repaint_after(std::time::Duration::from_secs(1));
+        }
         egui::Panel::left("settings")
             .default_size(230.0)
             .show(ui, |ui| {

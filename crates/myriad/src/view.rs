@@ -153,12 +153,18 @@ pub fn run(a: ViewArgs) -> Result<()> {
     // The previews' datasets, one subfolder each, in a folder of this process's (those of
     // viewers that were killed go first).
     let (mut to_build, mut scratch) = (Vec::new(), None);
+    // The layers that show a scan (not a dataset): watched for changes while the window is open.
+    let mut watched = Vec::new();
     myriad_io::claim::remove_stale_folders(&std::env::temp_dir(), "myriad-preview-");
     for (i, p) in a.datasets.iter().enumerate() {
         let name = p.file_name().map_or_else(
             || p.display().to_string(),
             |n| n.to_string_lossy().to_string(),
         );
+        let scan = !myriad_format::is_dataset(p) && p.extension().is_none_or(|e| e != "myr");
+        if scan && !a.vr {
+            watched.push((i, p.clone()));
+        }
         if !a.vr && myriad_build::cached::existing(p).is_none() && previewable(p)? {
             if scratch.is_none() {
                 scratch = Some(myriad_io::claim::Folder::create(
@@ -348,27 +354,87 @@ pub fn run(a: ViewArgs) -> Result<()> {
             .transpose()
             .map_err(anyhow::Error::msg)?,
         stereo: a.stereo.then_some(a.ipd),
-        builds: (!to_build.is_empty()).then(|| {
+        builds: (!watched.is_empty()).then(|| {
             // One build at a time, on a thread of its own: builds in one process share its
-            // scratch names, and the cores are the viewer's too.
+            // scratch names, and the cores are the viewer's too. Then every scan shown is
+            // watched: one that changes on disk (size, modification time) is built again and
+            // replaces what is shown.
             let (tx, rx) = std::sync::mpsc::channel();
             let n = to_build.len();
-            std::thread::spawn(move || {
-                for (i, p) in to_build {
-                    let built = crate::cached::dataset_for(&p)
-                        .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
-                        .map_err(|e| format!("{e:#}"));
-                    if tx.send((i, built)).is_err() {
-                        return;
-                    }
-                }
-            });
+            std::thread::spawn(move || watch(to_build, watched, tx));
             myriad_viewer::Builds::new(rx, n)
         }),
     };
     let shown = myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg);
     drop(scratch);
     shown
+}
+
+/// How often a scan shown is looked at for changes.
+const WATCH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// The size and modification time of each file of the scan at `path` (None where one cannot
+/// be read).
+fn stamp(path: &std::path::Path) -> Option<Vec<(u64, std::time::SystemTime)>> {
+    myriad_build::cached::inputs_of(path)
+        .ok()?
+        .iter()
+        .map(|f| {
+            let m = std::fs::metadata(f).ok()?;
+            Some((m.len(), m.modified().ok()?))
+        })
+        .collect()
+}
+
+/// Builds the scans of `to_build`, then watches every scan of `watched` while the viewer runs:
+/// one whose dataset is no longer the scan's (it changed on disk) is built again. Each dataset
+/// (or why there is none) goes to `tx` with its layer; a build that failed is not tried again
+/// until the scan changes once more.
+fn watch(
+    to_build: Vec<(usize, std::path::PathBuf)>,
+    watched: Vec<(usize, std::path::PathBuf)>,
+    tx: std::sync::mpsc::Sender<myriad_viewer::Built>,
+) {
+    let build = |p: &std::path::Path| {
+        crate::cached::dataset_for(p)
+            .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
+            .map_err(|e| format!("{e:#}"))
+    };
+    let mut failed = std::collections::HashMap::new();
+    for (i, p) in to_build {
+        let built = build(&p);
+        if built.is_err() {
+            failed.insert(i, stamp(&p));
+        }
+        if tx.send((i, built)).is_err() {
+            return;
+        }
+    }
+    loop {
+        std::thread::sleep(WATCH_EVERY);
+        for (i, p) in &watched {
+            if myriad_build::cached::existing(p).is_some() {
+                continue;
+            }
+            let now = stamp(p);
+            if failed.get(i) == Some(&now) {
+                continue;
+            }
+            eprintln!(
+                "{}: changed on disk: building its dataset again (what is shown stays until then)",
+                p.display()
+            );
+            let built = build(p);
+            if built.is_err() {
+                failed.insert(*i, now);
+            } else {
+                failed.remove(i);
+            }
+            if tx.send((*i, built)).is_err() {
+                return;
+            }
+        }
+    }
 }
 
 /// Whether `path` is a LAS/LAZ scan or a folder of them (what has a preview).

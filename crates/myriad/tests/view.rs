@@ -406,3 +406,101 @@ fn the_viewer_measures_a_volume_and_draws_its_base() {
     assert!(base >= 100, "{base} pixels of the base's outline");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Issue 41's faults: a scan shown in the window that changes on disk is noticed (its size and
+/// modification time) and built again, and its new dataset replaces what is shown.
+#[test]
+fn the_viewer_builds_a_scan_again_when_it_changes_on_disk() {
+    use std::io::BufRead;
+    use std::os::unix::process::CommandExt;
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("xvfb-changed");
+    let (laz, other) = (d.join("s.laz"), d.join("t.laz"));
+    for (p, points, seed) in [(&laz, "200k", "1"), (&other, "150k", "2")] {
+        let st = myriad()
+            .args(["synth", "-o", p.to_str().unwrap(), "--points", points])
+            .args(["--seed", seed])
+            .output()
+            .unwrap();
+        assert!(st.status.success());
+    }
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_myriad"))
+        .args([
+            "view",
+            laz.to_str().unwrap(),
+            "--width",
+            "640",
+            "--height",
+            "480",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .unwrap();
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    let out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let t2 = tx.clone();
+    std::thread::spawn(move || {
+        out.lines()
+            .map_while(Result::ok)
+            .for_each(|l| drop(tx.send(l)))
+    });
+    std::thread::spawn(move || {
+        err.lines()
+            .map_while(Result::ok)
+            .for_each(|l| drop(t2.send(l)))
+    });
+    let mut seen = Vec::new();
+    let wait_for = |what: &str, seen: &mut Vec<String>| -> bool {
+        let t = Instant::now();
+        while t.elapsed() < Duration::from_secs(120) {
+            if let Ok(l) = rx.recv_timeout(Duration::from_millis(200)) {
+                let hit = l.contains(what);
+                seen.push(l);
+                if hit {
+                    return true;
+                }
+            }
+        }
+        false
+    };
+    let built = wait_for("s.laz: its dataset is built", &mut seen);
+    let skipped = seen
+        .iter()
+        .any(|l| l.contains("No suitable graphics adapter"));
+    if built {
+        std::fs::rename(&other, &laz).unwrap();
+    }
+    let noticed = built && wait_for("changed on disk: building its dataset again", &mut seen);
+    let again = noticed && wait_for("s.laz: its dataset is built", &mut seen);
+    let _ = Command::new("kill")
+        .args(["-TERM", "--", &format!("-{}", child.id())])
+        .status();
+    let _ = child.wait();
+    if skipped {
+        eprintln!("SKIPPED: no Vulkan driver for the window (CI installs lavapipe)");
+        return;
+    }
+    assert!(built && noticed && again, "{seen:#?}");
+    // The dataset kept beside the scan is the new scan's (the old one's went).
+    let kept: Vec<PathBuf> = std::fs::read_dir(&d)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
+        .collect();
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    let info = myriad()
+        .args(["info", kept[0].to_str().unwrap()])
+        .output()
+        .unwrap();
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert!(info.contains("150,000"), "{info}");
+}
