@@ -123,9 +123,18 @@ pub fn glb_bytes(mesh: &Mesh) -> Vec<u8> {
         ],
         "buffers": [{"byteLength": bin.len()}],
     });
-    let mut json = serde_json::to_vec(&json).expect("a JSON value serializes");
+    glb(&json, bin)
+}
+
+/// A binary glTF (GLB) of `json` and its buffer `bin`: the JSON chunk padded with spaces, the
+/// binary one with zeros, each to 4 bytes.
+pub(crate) fn glb(json: &serde_json::Value, mut bin: Vec<u8>) -> Vec<u8> {
+    let mut json = serde_json::to_vec(json).expect("a JSON value serializes");
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
     }
     let length = 12 + 8 + json.len() + 8 + bin.len();
     let mut out = Vec::with_capacity(length);

@@ -414,25 +414,7 @@ impl TilesSink {
             }});
         }
         gltf["meshes"] = json!([{"primitives": [primitive]}]);
-        let mut text = serde_json::to_vec(&gltf).expect("JSON of numbers and strings");
-        while !text.len().is_multiple_of(4) {
-            text.push(b' ');
-        }
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
-        let total = 12 + 8 + text.len() + 8 + bin.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&text);
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-        out
+        crate::mesh::glb(&gltf, bin)
     }
 
     /// A .pnts tile of the points (3D Tiles 1.0).

@@ -5,33 +5,11 @@
 //! points that do not transform counted, never moved to 0,0.
 
 mod common;
-use common::{myriad, ok, ok_env, pyprojs_proj, python_with, s, tempdir};
+use common::shared_data as data;
+use common::{myriad, ok, ok_env, proj, pyprojs_proj, python_with, s, tempdir};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn data(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(name);
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("SKIPPED: ../shared/data/{name} not found");
-        None
-    }
-}
-
-fn proj() -> bool {
-    if !myriad_io::proj::available() {
-        eprintln!(
-            "SKIPPED: {} (.ci/run installs it)",
-            myriad_io::proj::MISSING
-        );
-        return false;
-    }
-    true
-}
 
 /// A point's attributes (what reprojection leaves alone) and its position.
 type Points = Vec<([u64; 6], [f64; 3])>;

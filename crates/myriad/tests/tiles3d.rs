@@ -7,7 +7,7 @@
 //! prints SKIPPED when its reader is missing.
 
 mod common;
-use common::{myriad, ok, ok_env, pyprojs_proj, python_with, s, serve, tempdir};
+use common::{myriad, ok, ok_env, proj, pyprojs_proj, python_with, s, serve, shared_data, tempdir};
 use myriad_serve::browser::{self, Browser};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -15,25 +15,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 fn autzen() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/PDAL__laz_autzen_trim.laz");
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("SKIPPED: ../shared/data/PDAL__laz_autzen_trim.laz not found");
-        None
-    }
-}
-
-fn proj() -> bool {
-    if !myriad_io::proj::available() {
-        eprintln!(
-            "SKIPPED: {} (.ci/run installs it)",
-            myriad_io::proj::MISSING
-        );
-        return false;
-    }
-    true
+    shared_data("PDAL__laz_autzen_trim.laz")
 }
 
 fn readers() -> PathBuf {

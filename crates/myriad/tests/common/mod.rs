@@ -260,3 +260,28 @@ pub fn ok_env(args: &[&str], env: &[(String, String)]) -> String {
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
+
+/// `../shared/data/NAME` when it is there; None, saying SKIPPED, when not.
+pub fn shared_data(name: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(name);
+    if p.is_file() {
+        Some(p)
+    } else {
+        eprintln!("SKIPPED: ../shared/data/{name} not found");
+        None
+    }
+}
+
+/// Whether PROJ loads; false, saying SKIPPED, when not.
+pub fn proj() -> bool {
+    if !myriad_io::proj::available() {
+        eprintln!(
+            "SKIPPED: {} (.ci/run installs it)",
+            myriad_io::proj::MISSING
+        );
+        return false;
+    }
+    true
+}
