@@ -8,7 +8,7 @@ mod common;
 use common::shared_data as data;
 use common::{myriad, ok, ok_env, proj, pyprojs_proj, python_with, s, tempdir};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 /// A point's attributes (what reprojection leaves alone) and its position.
