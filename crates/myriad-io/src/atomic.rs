@@ -74,12 +74,13 @@ impl Drop for AtomicFile {
     }
 }
 
-/// A folder that appears under its name only when complete (a hidden temporary folder beside
-/// it, renamed at the end; the one it replaces is removed only then).
+/// A folder that appears under its name only when complete: written as a hidden folder beside
+/// it (`.NAME.partial-` and the process's [`crate::claim::tag`], held by a lock while its
+/// process runs), renamed at the end; the one it replaces is removed only then. Such folders
+/// that killed processes left are removed when the next one for the same name starts.
 pub struct AtomicDir {
     target: PathBuf,
-    temp: PathBuf,
-    committed: bool,
+    temp: crate::claim::Folder,
 }
 
 impl AtomicDir {
@@ -108,45 +109,46 @@ impl AtomicDir {
         let name = target
             .file_name()
             .ok_or_else(|| Error::unsupported(target, "output has no folder name"))?;
-        let mut t = std::ffi::OsString::from(".");
-        t.push(name);
-        t.push(format!(".{}.partial", std::process::id()));
-        let temp = target.with_file_name(t);
-        let _ = std::fs::remove_dir_all(&temp);
-        std::fs::create_dir_all(&temp).map_err(|e| Error::io(&temp, e))?;
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let prefix = format!(".{}.partial-", name.to_string_lossy());
+        crate::claim::remove_stale_folders(parent, &prefix);
+        let temp = crate::claim::Folder::create(parent, &prefix)?;
         Ok(AtomicDir {
             target: target.to_path_buf(),
             temp,
-            committed: false,
         })
     }
 
     /// The folder being written.
     pub fn temp(&self) -> &Path {
-        &self.temp
+        self.temp.path()
     }
 
     /// Moves the folder to its name (the one it replaces removed only then).
-    pub fn commit(mut self) -> Result<()> {
-        let old = self.temp.with_extension("old");
+    pub fn commit(self) -> Result<()> {
+        let temp = self.temp.path();
+        // The lock file stays out of the output (the lock itself is held until `self` goes).
+        let _ = std::fs::remove_file(temp.join(crate::claim::LOCK_FILE));
+        let old = temp.with_file_name(format!(
+            ".{}.old-{}",
+            self.target
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            crate::claim::tag()
+        ));
         let replaced = self.target.exists();
         if replaced {
             std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
         }
-        std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
-        self.committed = true;
+        std::fs::rename(temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
         if replaced {
             let _ = std::fs::remove_dir_all(&old);
         }
+        // Dropping the claim now removes nothing: its folder has its final name.
         Ok(())
-    }
-}
-
-impl Drop for AtomicDir {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.temp);
-        }
     }
 }
 
@@ -282,6 +284,64 @@ mod tests {
         assert!(e.contains("does not exist"), "{e}");
         assert!(require_folder(&sub.join("x.myr")).is_ok());
         assert!(require_folder(Path::new("x.myr")).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_killed_writers_folder_goes_when_the_next_starts_and_a_live_ones_stays() {
+        use std::time::{Duration, SystemTime};
+        let dir = std::env::temp_dir().join(format!("myriad-atomicdir-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let target = dir.join("cloud");
+        let any = |_: &Path| true;
+        // Left by a process that is gone (its lock free, made before this one started) and by
+        // one still running (its lock held: another open description stands for it).
+        let gone = dir.join(".cloud.partial-otherhost-1-0");
+        let live = dir.join(".cloud.partial-otherhost-2-0");
+        for f in [&gone, &live] {
+            std::fs::create_dir_all(f).unwrap();
+            std::fs::write(f.join("octree.bin"), b"half").unwrap();
+        }
+        let held = crate::claim::create_locked(&live.join(crate::claim::LOCK_FILE)).unwrap();
+        let old = SystemTime::now() - Duration::from_secs(3600);
+        for f in [&gone, &live] {
+            let lock = f.join(crate::claim::LOCK_FILE);
+            if !lock.exists() {
+                std::fs::write(&lock, b"").unwrap();
+            }
+            std::fs::File::open(&lock)
+                .unwrap()
+                .set_modified(old)
+                .unwrap();
+        }
+        let a = AtomicDir::create(&target, false, any, "a folder").unwrap();
+        assert!(!gone.exists(), "a dead writer's folder stayed");
+        assert!(live.exists(), "a live writer's folder was removed");
+        std::fs::write(a.temp().join("metadata.json"), b"{}").unwrap();
+        a.commit().unwrap();
+        let names: Vec<String> = std::fs::read_dir(&target)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            vec!["metadata.json".to_string()],
+            "no lock file in the output"
+        );
+        // Replaced with --force; nothing of ours left beside it.
+        let b = AtomicDir::create(&target, true, any, "a folder").unwrap();
+        b.commit().unwrap();
+        assert!(std::fs::read_dir(&target).unwrap().next().is_none());
+        drop(held);
+        let left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".cloud") && !n.ends_with("otherhost-2-0"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
