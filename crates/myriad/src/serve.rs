@@ -93,6 +93,24 @@ fn signed(access: &myriad_serve::access::Access, url: &str, expires: &str) -> Re
     })
 }
 
+/// Whether a folder is one scan cut into LAS/LAZ tiles (served as one dataset made of them)
+/// rather than a folder to serve as it is: an export (Potree's metadata.json, a 3D Tiles
+/// tileset.json) or COPC files, which clients read directly.
+fn is_tile_folder(dir: &std::path::Path) -> bool {
+    if ["metadata.json", "tileset.json", "hierarchy.bin"]
+        .iter()
+        .any(|f| dir.join(f).exists())
+    {
+        return false;
+    }
+    myriad_build::cached::inputs_of(dir).is_ok_and(|tiles| {
+        !tiles.iter().any(|t| {
+            t.file_name()
+                .is_some_and(|n| n.to_string_lossy().to_lowercase().ends_with(".copc.laz"))
+        })
+    })
+}
+
 pub fn run(a: ServeArgs) -> Result<()> {
     let access = access(&a)?;
     if let (Some(url), Some(access)) = (&a.sign, &access) {
@@ -118,14 +136,21 @@ pub fn run(a: ServeArgs) -> Result<()> {
         let name = input
             .file_name()
             .map(|n| n.to_string_lossy().to_lowercase());
-        let raw = input.is_dir()
+        let tiles = input.is_dir() && is_tile_folder(input);
+        let raw = (input.is_dir() && !tiles)
             || myriad_format::is_dataset(input)
             || name.is_some_and(|n| n.ends_with(".copc.laz"));
         if raw {
             catalog.add_input(input)?;
         } else {
             let ds = crate::cached::dataset_for(input)?;
-            let stem = input.file_stem().unwrap_or_default().to_string_lossy();
+            // A folder of tiles is named after the folder (`tiles/` -> tiles.myr).
+            let stem = if tiles {
+                input.file_name()
+            } else {
+                input.file_stem()
+            };
+            let stem = stem.unwrap_or_default().to_string_lossy();
             catalog.add_file_as(&format!("{stem}.myr"), &ds, input)?;
         }
     }

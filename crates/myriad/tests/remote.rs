@@ -228,3 +228,50 @@ fn a_dataset_replaced_while_read_fails_instead_of_mixing_versions() {
     let r = myriad(&["verify", &url]);
     assert_eq!(r.code, 0, "{}", r.stdout);
 }
+
+/// Issue 41 item 3: `serve tiles/` serves a folder of LAS/LAZ tiles as one dataset made of them
+/// (`tiles.myr`, kept in the folder), while a folder of an export is still served as it is.
+#[test]
+fn a_folder_of_tiles_is_served_as_one_dataset() {
+    let d = tempdir("serve-tiles");
+    let (west, east, want) = common::two_scans(&d);
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    for t in [&west, &east] {
+        std::fs::rename(t, tiles.join(t.file_name().unwrap())).unwrap();
+    }
+    let site = d.join("site.myr");
+    let (w, e) = (tiles.join("west.laz"), tiles.join("east.laz"));
+    let r = myriad(&["convert", s(&w), s(&e), "-o", s(&site)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let cloud = d.join("cloud");
+    let r = myriad(&["export", s(&site), "-o", s(&cloud)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let server = serve(&[s(&tiles), s(&cloud)], Stdio::inherit());
+    assert!(
+        server.lines.iter().any(|l| l.ends_with("/view/tiles.myr")),
+        "{:?}",
+        server.lines
+    );
+    assert!(
+        server
+            .lines
+            .iter()
+            .any(|l| l.contains("/d/cloud/metadata.json")),
+        "{:?}",
+        server.lines
+    );
+    let r = myriad(&["info", "--json", &format!("{}/d/tiles.myr", server.base)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    assert_eq!(v["points"].as_u64(), Some(want.len() as u64), "{v}");
+    // Its dataset is the tiles' records, kept in the folder for next time.
+    let kept: Vec<_> = std::fs::read_dir(&tiles)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
+        .collect();
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    common::holds(&kept[0], &want);
+}
