@@ -362,12 +362,19 @@ fn build(path: &Path, report: &dyn Report) -> Result<Option<PathBuf>> {
     }
     let mut o = ConvertOptions::new(&target);
     o.force = true;
-    convert::convert(&inputs, &o, report)?;
-    let now = places(path)?;
-    if now.beside != target && now.cached.as_ref() != Some(&target) {
+    let built = convert::convert(&inputs, &o, report);
+    // A scan that changed under the build (the files' sizes or times are not those its name
+    // was made from): whatever came of it, success or a read that met the new file, is not the
+    // scan's; started over. A scan that stopped opening keeps the build's own error.
+    let changed = match places(path) {
+        Ok(now) => now.beside != target && now.cached.as_ref() != Some(&target),
+        Err(_) => false,
+    };
+    if changed {
         let _ = std::fs::remove_file(&target);
         return Ok(None);
     }
+    built?;
     // Conversions of earlier versions of the scan go.
     let dir = target.parent().expect("a dataset has a folder");
     if let Ok(entries) = std::fs::read_dir(dir) {
