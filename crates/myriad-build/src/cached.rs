@@ -173,7 +173,7 @@ const SPILL_BYTES_PER_POINT: u64 = 12;
 const RESIDENT_BYTES_PER_POINT: u64 = 56;
 
 /// Bytes of disk the build of `points` points with options `o` takes at its peak (an estimate).
-pub fn disk_needed(points: u64, o: &ConvertOptions) -> u64 {
+fn disk_needed(points: u64, o: &ConvertOptions) -> u64 {
     let plan = convert::plan(o.memory, o.threads, &o.params);
     let spills = points.saturating_mul(RESIDENT_BYTES_PER_POINT) > plan.resident_bytes as u64;
     let per_point = DATASET_BYTES_PER_POINT + if spills { SPILL_BYTES_PER_POINT } else { 0 };
@@ -238,7 +238,7 @@ pub fn preview_dataset(path: &Path, dir: &Path) -> Result<PathBuf> {
 
 /// Whether `path` is read as a dataset: a dataset's magic, a URL, or a `.myr` name (a damaged
 /// one is named as such when opened).
-fn is_dataset(path: &Path) -> bool {
+pub fn is_dataset(path: &Path) -> bool {
     myriad_format::is_dataset(path) || path.extension().is_some_and(|e| e == "myr")
 }
 

@@ -271,17 +271,21 @@ impl TilesSink {
             .map(|(key, b)| {
                 let mut local = b.positions.clone();
                 let failed = self.pool.get().apply(&mut local);
+                // The points that did not transform (NaN) left out, the batch copied only then.
+                let b = if failed > 0 {
+                    let keep: Vec<bool> = local.iter().map(|p| p[0].is_finite()).collect();
+                    local.retain(|p| p[0].is_finite());
+                    let mut kept = b.clone();
+                    kept.retain_mask(&keep);
+                    std::borrow::Cow::Owned(kept)
+                } else {
+                    std::borrow::Cow::Borrowed(b)
+                };
                 let mut bounds = Aabb::EMPTY;
-                let keep: Vec<bool> = local.iter().map(|p| p[0].is_finite()).collect();
-                for p in local.iter_mut().filter(|p| p[0].is_finite()) {
+                for p in local.iter_mut() {
                     let d: [f64; 3] = std::array::from_fn(|a| p[a] - self.origin[a]);
                     *p = self.axes.map(|axis| dot(axis, d));
                     bounds.extend(*p);
-                }
-                let mut b = b.clone();
-                if failed > 0 {
-                    b.retain_mask(&keep);
-                    local.retain(|p| p[0].is_finite());
                 }
                 let tile = Tile {
                     points: local.len() as u32,

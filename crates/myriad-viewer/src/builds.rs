@@ -29,11 +29,14 @@ impl Builds {
 }
 
 impl App {
-    /// Puts the datasets that arrived in their layers, in place of their previews.
-    pub(crate) fn take_builds(&mut self) {
+    /// Puts the datasets that arrived in their layers, in place of their previews (or of the
+    /// datasets of scans that changed), and looks again within a second: builds still running
+    /// and watched scans send theirs while the window may be idle.
+    pub(crate) fn take_builds(&mut self, ctx: &eframe::egui::Context) {
         let Some(b) = &mut self.builds else {
             return;
         };
+        ctx.request_repaint_after(std::time::Duration::from_secs(1));
         while let Ok((i, built)) = b.rx.try_recv() {
             b.left = b.left.saturating_sub(1);
             let Some(layer) = self.layers.get_mut(i) else {

@@ -929,11 +929,7 @@ impl App {
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
-        self.take_builds();
-        if self.builds.is_some() {
-            // Scans still building or watched: look for what arrived at least once a second.
-            ctx.request_repaint_after(std::time::Duration::from_secs(1));
-        }
+        self.take_builds(&ctx);
         egui::Panel::left("settings")
             .default_size(230.0)
             .show(ui, |ui| {

@@ -161,8 +161,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             || p.display().to_string(),
             |n| n.to_string_lossy().to_string(),
         );
-        let scan = !myriad_format::is_dataset(p) && p.extension().is_none_or(|e| e != "myr");
-        if scan && !a.vr {
+        if !a.vr && !myriad_build::cached::is_dataset(p) {
             watched.push((i, p.clone()));
         }
         if !a.vr && myriad_build::cached::existing(p).is_none() && previewable(p)? {
@@ -387,9 +386,9 @@ fn stamp(path: &std::path::Path) -> Option<Vec<(u64, std::time::SystemTime)>> {
 }
 
 /// Builds the scans of `to_build`, then watches every scan of `watched` while the viewer runs:
-/// one whose dataset is no longer the scan's (it changed on disk) is built again. Each dataset
-/// (or why there is none) goes to `tx` with its layer; a build that failed is not tried again
-/// until the scan changes once more.
+/// one whose files' sizes or modification times are no longer those its last build started
+/// from is built again. Each dataset (or why there is none) goes to `tx` with its layer; a
+/// build that failed is not tried again until the scan changes once more.
 fn watch(
     to_build: Vec<(usize, std::path::PathBuf)>,
     watched: Vec<(usize, std::path::PathBuf)>,
@@ -400,37 +399,27 @@ fn watch(
             .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
             .map_err(|e| format!("{e:#}"))
     };
-    let mut failed = std::collections::HashMap::new();
+    // What each scan was when its dataset was last built (or opened).
+    let mut built_from: std::collections::HashMap<usize, _> =
+        watched.iter().map(|(i, p)| (*i, stamp(p))).collect();
     for (i, p) in to_build {
-        let built = build(&p);
-        if built.is_err() {
-            failed.insert(i, stamp(&p));
-        }
-        if tx.send((i, built)).is_err() {
+        if tx.send((i, build(&p))).is_err() {
             return;
         }
     }
     loop {
         std::thread::sleep(WATCH_EVERY);
         for (i, p) in &watched {
-            if myriad_build::cached::existing(p).is_some() {
-                continue;
-            }
             let now = stamp(p);
-            if failed.get(i) == Some(&now) {
+            if built_from.get(i) == Some(&now) {
                 continue;
             }
             eprintln!(
                 "{}: changed on disk: building its dataset again (what is shown stays until then)",
                 p.display()
             );
-            let built = build(p);
-            if built.is_err() {
-                failed.insert(*i, now);
-            } else {
-                failed.remove(i);
-            }
-            if tx.send((*i, built)).is_err() {
+            built_from.insert(*i, now);
+            if tx.send((*i, build(p))).is_err() {
                 return;
             }
         }

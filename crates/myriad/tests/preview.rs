@@ -11,14 +11,6 @@ fn lit(path: &std::path::Path) -> Vec<bool> {
         .collect()
 }
 
-fn datasets_in(d: &std::path::Path) -> usize {
-    std::fs::read_dir(d)
-        .unwrap()
-        .flatten()
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".myr"))
-        .count()
-}
-
 #[test]
 fn render_no_wait_draws_a_scans_preview_and_converts_nothing() {
     let d = tempdir("nowait");
@@ -34,7 +26,7 @@ fn render_no_wait_draws_a_scans_preview_and_converts_nothing() {
         out.contains("a preview of 12 of the scan's 600,000 points"),
         "{out}"
     );
-    assert_eq!(datasets_in(&d), 0, "nothing converted");
+    assert_eq!(datasets_in(&d).len(), 0, "nothing converted");
     assert_eq!(std::fs::read(&laz).unwrap(), before, "the scan as it was");
     let preview = lit(&first);
     assert!(
@@ -53,11 +45,15 @@ fn render_no_wait_draws_a_scans_preview_and_converts_nothing() {
         out.contains("a preview of 200,000 of the scan's 200,000 points"),
         "{out}"
     );
-    assert_eq!(datasets_in(&d), 0, "nothing converted");
+    assert_eq!(datasets_in(&d).len(), 0, "nothing converted");
     let mut args = vec!["render", s(&las), "-o", s(&full_las)];
     args.extend(size);
     ok(&args);
-    assert_eq!(datasets_in(&d), 1, "the render without --no-wait converts");
+    assert_eq!(
+        datasets_in(&d).len(),
+        1,
+        "the render without --no-wait converts"
+    );
     let (a, b) = (lit(&first_las), lit(&full_las));
     let both = a.iter().zip(&b).filter(|(x, y)| **x && **y).count();
     let full = b.iter().filter(|&&l| l).count();
@@ -317,16 +313,6 @@ fn converting(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<Stri
     }
 }
 
-/// The non-hidden datasets in `d`.
-fn datasets(d: &std::path::Path) -> Vec<std::path::PathBuf> {
-    std::fs::read_dir(d)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
-        .collect()
-}
-
 /// Issue 41's faults: a build killed at several moments leaves the scan as it was and no
 /// dataset that passes for complete (hidden `.partial` names only); the next open starts over
 /// and ends with the scan's records.
@@ -345,7 +331,7 @@ fn a_killed_build_leaves_the_scan_and_no_dataset_and_the_next_starts_over() {
         let _ = child.kill();
         let _ = child.wait();
         assert_eq!(std::fs::read(&laz).unwrap(), before, "the scan as it was");
-        let made = datasets(&d);
+        let made = datasets_in(&d);
         if made.is_empty() {
             killed_while_building += 1;
         } else {
@@ -361,7 +347,7 @@ fn a_killed_build_leaves_the_scan_and_no_dataset_and_the_next_starts_over() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(err.contains("converting into"), "started over: {err}");
-    let made = datasets(&d);
+    let made = datasets_in(&d);
     assert_eq!(made.len(), 1, "{made:?}");
     holds(&made[0], &records(&laz));
     // What the killed builds left is gone with the next build of the same scan.
@@ -395,7 +381,7 @@ fn a_scan_changed_while_it_is_converted_is_converted_again() {
             .any(|l| l.contains("changed while it was converted")),
         "{err:?}"
     );
-    let made = datasets(&d);
+    let made = datasets_in(&d);
     assert_eq!(made.len(), 1, "{made:?}");
     holds(&made[0], &want);
 }

@@ -266,12 +266,7 @@ fn a_folder_of_tiles_is_served_as_one_dataset() {
     let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
     assert_eq!(v["points"].as_u64(), Some(want.len() as u64), "{v}");
     // Its dataset is the tiles' records, kept in the folder for next time.
-    let kept: Vec<_> = std::fs::read_dir(&tiles)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
-        .collect();
+    let kept = common::datasets_in(&tiles);
     assert_eq!(kept.len(), 1, "{kept:?}");
     common::holds(&kept[0], &want);
 }

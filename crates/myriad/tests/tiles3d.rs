@@ -301,6 +301,29 @@ fn deep_trees_split_into_tilesets_and_errors_are_one_line() {
     ]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stdout.contains("3 points"), "{}", r.stdout);
+    // A point that does not move into Earth-centred coordinates (latitude 95) is left out and
+    // counted, the others written.
+    let geo = d.join("geo.xyz");
+    std::fs::write(&geo, "10 45 0\n10.001 45.001 1\n10 95 2\n").unwrap();
+    let geo_myr = d.join("geo.myr");
+    ok(&["convert", s(&geo), "-o", s(&geo_myr)]);
+    let r = myriad(&[
+        "export",
+        s(&geo_myr),
+        "-o",
+        s(&d.join("g")),
+        "--to",
+        "3dtiles",
+        "--from-crs",
+        "EPSG:4326",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stdout.contains("2 points"), "{}", r.stdout);
+    assert!(
+        r.stderr.contains("warning: 1 points do not transform"),
+        "{}",
+        r.stderr
+    );
     // Nothing left behind: no hidden temporary folders.
     let hidden: Vec<_> = std::fs::read_dir(&d)
         .unwrap()

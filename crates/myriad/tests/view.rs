@@ -490,12 +490,7 @@ fn the_viewer_builds_a_scan_again_when_it_changes_on_disk() {
     }
     assert!(built && noticed && again, "{seen:#?}");
     // The dataset kept beside the scan is the new scan's (the old one's went).
-    let kept: Vec<PathBuf> = std::fs::read_dir(&d)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
-        .collect();
+    let kept = common::datasets_in(&d);
     assert_eq!(kept.len(), 1, "{kept:?}");
     let info = myriad()
         .args(["info", kept[0].to_str().unwrap()])

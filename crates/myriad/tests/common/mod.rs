@@ -285,3 +285,13 @@ pub fn proj() -> bool {
     }
     true
 }
+
+/// The datasets (`.myr`, hidden ones too: scans' datasets are) in the folder `d`.
+pub fn datasets_in(d: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(d)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "myr"))
+        .collect()
+}
