@@ -375,7 +375,7 @@ async fn accept(
             let (s, a) = (shared.clone(), activity.clone());
             let service = hyper::service::service_fn(move |req| {
                 let busy = a.request();
-                handle(s.clone(), budget.clone(), req, busy)
+                handle(s.clone(), budget.clone(), req, busy, fd)
             });
             let mut b = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new());
             b.http1()
@@ -461,6 +461,7 @@ async fn handle(
     budget: Budget,
     req: Request<Incoming>,
     _busy: conn::Busy,
+    fd: std::os::fd::RawFd,
 ) -> Result<Response<Body>, Infallible> {
     let range = req.headers().get(header::RANGE).cloned();
     let (method, uri) = (req.method().clone(), req.uri().clone());
@@ -484,7 +485,7 @@ async fn handle(
             None => status(StatusCode::BAD_REQUEST, "malformed path"),
         }
     } else {
-        route(&shared, &budget, &req).await
+        route(&shared, &budget, &req, fd).await
     };
     if let Some(c) = cookie.and_then(|c| HeaderValue::from_str(&c).ok()) {
         r.headers_mut().append(header::SET_COOKIE, c);
@@ -573,7 +574,13 @@ fn unauthorized(text: &str) -> Response<Body> {
     r
 }
 
-async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -> Response<Body> {
+/// `fd`: the connection's socket (whether its client is still there before long work starts).
+async fn route(
+    shared: &Arc<Shared>,
+    budget: &Budget,
+    req: &Request<Incoming>,
+    fd: std::os::fd::RawFd,
+) -> Response<Body> {
     let catalog = &shared.catalog;
     let method = req.method();
     if ![Method::GET, Method::HEAD, Method::OPTIONS].contains(method) {
@@ -674,7 +681,8 @@ async fn route(shared: &Arc<Shared>, budget: &Budget, req: &Request<Incoming>) -
         };
         return match catalog.file(&name) {
             Some(f) if f.kind == Kind::Dataset => {
-                box_download(shared, budget, f, &name, req.uri().query().unwrap_or("")).await
+                let query = req.uri().query().unwrap_or("");
+                box_download(shared, budget, f, &name, query, fd).await
             }
             _ => status(StatusCode::NOT_FOUND, "no such dataset"),
         };
@@ -744,6 +752,7 @@ async fn box_download(
     f: &catalog::File,
     name: &str,
     query: &str,
+    fd: std::os::fd::RawFd,
 ) -> Response<Body> {
     let q = match download::parse_query(query) {
         Ok(q) => q,
@@ -757,6 +766,11 @@ async fn box_download(
         .await
         .expect("never closed");
     let _turn = shared.extracting.acquire().await.expect("never closed");
+    // A client that left while it waited (its connection's watchdog may not have seen it yet)
+    // does not start an extraction.
+    if conn::peer_closed(fd) {
+        return status(StatusCode::SERVICE_UNAVAILABLE, "cancelled");
+    }
     let cancelled = Arc::new(AtomicBool::new(false));
     let _cancel = CancelOnDrop(cancelled.clone());
     shared.counters.add(0);
