@@ -190,11 +190,10 @@ fn size(bytes: u64) -> String {
     }
 }
 
-/// A small dataset of the preview of the scan at `path` (a file or a folder of LAS/LAZ tiles;
-/// `myriad_io::las_preview`), made in `dir` in a moment: what a viewer shows while the scan's
-/// own dataset is built. Positions (to the millimetre), intensity, class and colour, where the
-/// samples have them.
-pub fn preview_dataset(path: &Path, dir: &Path) -> Result<PathBuf> {
+/// The sample of the scan (or folder of tiles) at `path` read without decoding it (the first
+/// point of each LAZ chunk, LAS records at a stride; [`myriad_io::las_preview`]): positions,
+/// intensity, classification and, where the scan has it, colour.
+pub fn preview_batch(path: &Path) -> Result<myriad_core::PointBatch> {
     use myriad_core::{Attribute, PointBatch, Schema};
     let files = inputs_of(path)?;
     let tiles = myriad_io::las_preview::preview_files(&files, 1 << 18)?;
@@ -223,9 +222,18 @@ pub fn preview_dataset(path: &Path, dir: &Path) -> Result<PathBuf> {
             path.display()
         )));
     }
+    Ok(b)
+}
+
+/// A small dataset of the preview of the scan at `path` (a file or a folder of LAS/LAZ tiles;
+/// `myriad_io::las_preview`), made in `dir` in a moment: what a viewer shows while the scan's
+/// own dataset is built. Positions (to the millimetre), intensity, class and colour, where the
+/// samples have them.
+pub fn preview_dataset(path: &Path, dir: &Path) -> Result<PathBuf> {
+    let b = preview_batch(path)?;
     let origin = b.positions[0].map(f64::floor);
     let las = dir.join("preview.las");
-    let options = myriad_io::las::LasWriteOptions::for_schema(&schema, [0.001; 3], origin)?;
+    let options = myriad_io::las::LasWriteOptions::for_schema(&b.schema(), [0.001; 3], origin)?;
     let mut sink = myriad_io::las::LasSink::create(&las, options, true)?;
     sink.write(&b)?;
     sink.finish()?;
@@ -259,11 +267,26 @@ const TRIES: u32 = 3;
 /// size or modification time) is converted again; a build killed part way leaves no dataset
 /// (the next one starts over).
 pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
+    dataset_growing(path, report, None)
+}
+
+/// [`dataset_for`], the build's snapshots made into `growing` while it runs (the scan's
+/// preview filling what is not built yet): what `view` and `serve` show until it ends.
+pub fn dataset_growing(
+    path: &Path,
+    report: &dyn Report,
+    growing: Option<std::sync::Arc<crate::growing::Growing>>,
+) -> Result<PathBuf> {
     if is_dataset(path) {
         return Ok(path.to_path_buf());
     }
+    if let Some(g) = &growing
+        && let Ok(b) = preview_batch(path)
+    {
+        g.set_fill(b);
+    }
     for _ in 0..TRIES {
-        if let Some(d) = build(path, report)? {
+        if let Some(d) = build(path, report, growing.clone())? {
             return Ok(d);
         }
         eprintln!(
@@ -279,7 +302,11 @@ pub fn dataset_for(path: &Path, report: &dyn Report) -> Result<PathBuf> {
 
 /// The dataset of the scan at `path`, made now or before; None when the scan changed while it
 /// was converted (what was made is removed).
-fn build(path: &Path, report: &dyn Report) -> Result<Option<PathBuf>> {
+fn build(
+    path: &Path,
+    report: &dyn Report,
+    growing: Option<std::sync::Arc<crate::growing::Growing>>,
+) -> Result<Option<PathBuf>> {
     let here = places(path)?;
     if let Some(c) = here.made() {
         eprintln!(
@@ -362,6 +389,7 @@ fn build(path: &Path, report: &dyn Report) -> Result<Option<PathBuf>> {
     }
     let mut o = ConvertOptions::new(&target);
     o.force = true;
+    o.growing = growing;
     let built = convert::convert(&inputs, &o, report);
     // A scan that changed under the build (the files' sizes or times are not those its name
     // was made from): whatever came of it, success or a read that met the new file, is not the

@@ -56,6 +56,9 @@ pub struct ConvertOptions {
     /// A build fixed by a plan (a part, or the whole plan on one machine): see
     /// [`crate::partition`].
     pub planned: Option<Planned>,
+    /// Snapshots of the dataset as it is built, for a viewer or server to show meanwhile
+    /// (octree and layered builds; [`crate::growing`]).
+    pub growing: Option<std::sync::Arc<crate::growing::Growing>>,
 }
 
 /// What a plan fixes for a build: the grid (root cube, chunk level, schema, the cells a part
@@ -94,6 +97,7 @@ impl ConvertOptions {
             },
             chunk_points: None,
             planned: None,
+            growing: None,
         }
     }
 }
@@ -424,6 +428,48 @@ pub fn convert(
         capacity: params.capacity,
         orientation,
     };
+    // The dataset's metadata (its counts are set when it is written).
+    let meta = Metadata {
+        structure: structure.stored_name().into(),
+        parameters: parameters(
+            structure,
+            &params,
+            (structure == Structure::Mwkd).then_some(&mw),
+            options.planned.as_ref(),
+        ),
+        points: dist.points,
+        nodes: 0,
+        depth: 0,
+        bounds: dist.bounds,
+        root,
+        quantization: quant,
+        crs: match &options.planned {
+            Some(p) => p.crs.clone(),
+            None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
+        },
+        schema: schema.clone(),
+        sources: dist.sources.iter().map(|(i, n)| source(i, *n)).collect(),
+        las_header: match &options.planned {
+            Some(p) => p.las_header.clone(),
+            None => dist.las_header.clone(),
+        },
+        levels: Vec::new(),
+        software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
+    };
+    let chunk_keys: Vec<NodeKey> = (dist.chunks.iter())
+        .map(|c| NodeKey {
+            level: c.level,
+            cell: c.cell,
+        })
+        .collect();
+    let built = std::sync::Mutex::new(std::collections::HashSet::new());
+    let offer = |force: bool| {
+        if let Some(g) = (options.growing.as_ref())
+            .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd))
+        {
+            g.offer(&writer, &meta, &chunk_keys, &built, force);
+        }
+    };
     let pending: Vec<Pending> = if matches!(structure, Structure::Kd | Structure::Mwkd) {
         let boxes: Vec<_> = dist
             .chunks
@@ -485,9 +531,12 @@ pub fn convert(
                 }
                 Ok::<(), Error>(())
             })?;
+            built.lock().expect("built lock").insert(key);
+            offer(false);
             Ok(top.expect("a chunk has points, so its subtree has a root"))
         })?
     };
+    offer(true);
     phases.push(("building", t.elapsed().as_secs_f64()));
     t = Instant::now();
 
@@ -509,33 +558,6 @@ pub fn convert(
 
     // 4. Hierarchy, metadata, header.
     report.phase("writing", 1);
-    let meta = Metadata {
-        structure: structure.stored_name().into(),
-        parameters: parameters(
-            structure,
-            &params,
-            (structure == Structure::Mwkd).then_some(&mw),
-            options.planned.as_ref(),
-        ),
-        points: dist.points,
-        nodes: 0,
-        depth: 0,
-        bounds: dist.bounds,
-        root,
-        quantization: quant,
-        crs: match &options.planned {
-            Some(p) => p.crs.clone(),
-            None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
-        },
-        schema: schema.clone(),
-        sources: dist.sources.iter().map(|(i, n)| source(i, *n)).collect(),
-        las_header: match &options.planned {
-            Some(p) => p.las_header.clone(),
-            None => dist.las_header.clone(),
-        },
-        levels: Vec::new(),
-        software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
-    };
     let (written, nodes, depth) = writer.totals();
     if written != dist.points {
         // Only a builder bug could lose points; the partial file is removed, nothing appears.

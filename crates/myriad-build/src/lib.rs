@@ -12,6 +12,7 @@ pub mod convert;
 pub mod distribute;
 pub mod export;
 pub mod extract;
+pub mod growing;
 pub mod kd;
 pub mod mospt;
 pub mod mwkd;

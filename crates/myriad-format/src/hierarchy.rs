@@ -10,7 +10,7 @@ pub const HIERARCHY_MAGIC: &[u8; 4] = b"MYRH";
 pub const PAGE_LEVELS: u32 = 5;
 
 /// Where a page lies and its CRC-32 (of all its bytes).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PageRef {
     pub offset: u64,
     pub length: u32,

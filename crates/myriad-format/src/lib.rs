@@ -25,7 +25,7 @@ pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};
 pub use metadata::{Level, Metadata};
 pub use page::Quantization;
 #[cfg(not(target_arch = "wasm32"))]
-pub use writer::{DatasetWriter, NodeShape};
+pub use writer::{DatasetWriter, NodeShape, Snapshot};
 
 use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result, Schema};
 use serde_json::Value;

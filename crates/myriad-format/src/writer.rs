@@ -178,102 +178,66 @@ impl DatasetWriter {
         self.out.lock().expect("writer lock").pos
     }
 
+    /// What a reader of the dataset as written so far sees: the pages appended until now (made
+    /// readable), the nodes `extra` adds to those written (given their entries, it returns new
+    /// entries with their pages, placed after them: what stands in for the nodes not built
+    /// yet), and a hierarchy, metadata (`meta`, counted anew) and header made for them, in
+    /// memory. The file itself is not changed: the build goes on.
+    pub fn snapshot(&self, meta: &Metadata, extra: &StandIns<'_>) -> Result<Snapshot> {
+        let prefix = {
+            let mut out = self.out.lock().expect("writer lock");
+            out.w.flush().map_err(|e| Error::io(&self.path, e))?;
+            out.pos
+        };
+        let mut entries: Vec<NodeEntry> = (self.entries.lock().expect("entries lock").iter())
+            .filter(|e| e.page.offset + e.page.length as u64 <= prefix)
+            .cloned()
+            .collect();
+        let splats = self.splats.lock().expect("splats lock").clone();
+        let mut tail = Vec::new();
+        for (mut e, page) in extra(&entries) {
+            e.page = PageRef {
+                offset: if page.is_empty() {
+                    0
+                } else {
+                    prefix + tail.len() as u64
+                },
+                length: page.len() as u32,
+                crc: crc32fast::hash(&page),
+            };
+            tail.extend_from_slice(&page);
+            entries.push(e);
+        }
+        let mut meta = meta.clone();
+        let (rest, header) = encode_tail(entries, splats, &mut meta, prefix + tail.len() as u64)
+            .map_err(|m| Error::Invalid(format!("{}: metadata: {m}", self.path.display())))?;
+        tail.extend_from_slice(&rest);
+        let file = File::open(self.file.temp_path()).map_err(|e| Error::io(&self.path, e))?;
+        Ok(Snapshot {
+            file,
+            prefix,
+            header: header.encode(),
+            tail,
+        })
+    }
+
     /// Writes the hierarchy pages (children before parents), the metadata and the header, syncs,
     /// and renames the file to its name. `meta.nodes` and `meta.depth` are set here. Returns the
     /// file's size.
     pub fn finish(self, mut meta: Metadata) -> Result<u64> {
         let path = self.path.clone();
         let io = |e| Error::io(&path, e);
-        let mut entries = self.entries.into_inner().expect("entries lock");
-        let mut splats = self.splats.into_inner().expect("splats lock");
-        // Each node's normal cone widened to hold its children's (deepest first): culling a
-        // node that faces away then never hides a child that does not.
-        let mut keys: Vec<NodeKey> = splats.keys().copied().collect();
-        keys.sort_by_key(|k| std::cmp::Reverse(k.level));
-        for k in keys {
-            if k.level == 0 {
-                continue;
-            }
-            let child = splats[&k].cone;
-            if let Some(parent) = splats.get_mut(&k.parent()) {
-                parent.cone = splat::cone_union(parent.cone, child);
-            }
-        }
-        for e in &mut entries {
-            e.splats = splats.remove(&e.key);
-        }
+        let entries = self.entries.into_inner().expect("entries lock");
+        let splats = self.splats.into_inner().expect("splats lock");
         let mut out = self.out.into_inner().expect("writer lock");
-        meta.nodes = entries.len() as u64;
-        meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
-        meta.points = entries
-            .iter()
-            .filter(|e| !e.aggregate())
-            .map(|e| e.points as u64)
-            .sum();
-        meta.levels = Level::table(&entries);
-        // Group entries by page; pages by their parent page.
-        let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
-        for e in entries {
-            pages
-                .entry(hierarchy::page_root(e.key))
-                .or_default()
-                .push(e);
-        }
-        let mut below: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
-        for &k in pages.keys() {
-            if k.level > 0 {
-                below
-                    .entry(hierarchy::page_root(k.parent()))
-                    .or_default()
-                    .push(k);
-            }
-        }
-        fn write_page(
-            key: NodeKey,
-            pages: &mut BTreeMap<NodeKey, Vec<NodeEntry>>,
-            below: &HashMap<NodeKey, Vec<NodeKey>>,
-            out: &mut Out,
-        ) -> std::io::Result<PageRef> {
-            let mut children = Vec::new();
-            for &c in below.get(&key).map(|v| v.as_slice()).unwrap_or(&[]) {
-                children.push(ChildPage {
-                    key: c,
-                    page: write_page(c, pages, below, out)?,
-                });
-            }
-            let mut nodes = pages.remove(&key).unwrap_or_default();
-            nodes.sort_by_key(|n| n.key);
-            let bytes = HierarchyPage { nodes, children }.encode();
-            let r = PageRef {
-                offset: out.pos,
-                length: bytes.len() as u32,
-                crc: crc32fast::hash(&bytes),
-            };
-            out.w.write_all(&bytes)?;
-            out.pos += bytes.len() as u64;
-            Ok(r)
-        }
-        let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, &mut out).map_err(io)?;
-        meta.check_finite().map_err(|m| {
+        let (tail, header) = encode_tail(entries, splats, &mut meta, out.pos).map_err(|m| {
             Error::Invalid(format!(
                 "{}: metadata: {m}; no dataset written",
                 path.display()
             ))
         })?;
-        let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
-        let metadata = PageRef {
-            offset: out.pos,
-            length: json.len() as u32,
-            crc: crc32fast::hash(&json),
-        };
-        out.w.write_all(&json).map_err(io)?;
-        out.pos += json.len() as u64;
-        let header = Header {
-            metadata,
-            hierarchy,
-            file_length: out.pos,
-            points: meta.points,
-        };
+        out.w.write_all(&tail).map_err(io)?;
+        out.pos += tail.len() as u64;
         // Everything else is on disk before the header that makes the file a dataset.
         out.w.flush().map_err(io)?;
         let mut f = out.w.into_inner().map_err(|e| io(e.into_error()))?;
@@ -305,5 +269,156 @@ impl DatasetWriter {
         }
         self.file.commit()?;
         Ok(header.file_length)
+    }
+}
+
+/// The hierarchy pages (children before parents) and the metadata of `entries`, as they follow
+/// byte `start` of a file, and the header that points at them; sets `meta`'s counts (nodes,
+/// depth, points, levels). The error: what is wrong with the metadata.
+fn encode_tail(
+    mut entries: Vec<NodeEntry>,
+    mut splats: HashMap<NodeKey, splat::SplatInfo>,
+    meta: &mut Metadata,
+    start: u64,
+) -> std::result::Result<(Vec<u8>, Header), String> {
+    // Each node's normal cone widened to hold its children's (deepest first): culling a
+    // node that faces away then never hides a child that does not.
+    let mut keys: Vec<NodeKey> = splats.keys().copied().collect();
+    keys.sort_by_key(|k| std::cmp::Reverse(k.level));
+    for k in keys {
+        if k.level == 0 {
+            continue;
+        }
+        let child = splats[&k].cone;
+        if let Some(parent) = splats.get_mut(&k.parent()) {
+            parent.cone = splat::cone_union(parent.cone, child);
+        }
+    }
+    for e in &mut entries {
+        e.splats = splats.remove(&e.key);
+    }
+    meta.nodes = entries.len() as u64;
+    meta.depth = entries.iter().map(|e| e.key.level).max().unwrap_or(0);
+    meta.points = entries
+        .iter()
+        .filter(|e| !e.aggregate())
+        .map(|e| e.points as u64)
+        .sum();
+    meta.levels = Level::table(&entries);
+    // Group entries by page; pages by their parent page.
+    let mut pages: BTreeMap<NodeKey, Vec<NodeEntry>> = BTreeMap::new();
+    for e in entries {
+        pages
+            .entry(hierarchy::page_root(e.key))
+            .or_default()
+            .push(e);
+    }
+    let mut below: HashMap<NodeKey, Vec<NodeKey>> = HashMap::new();
+    for &k in pages.keys() {
+        if k.level > 0 {
+            below
+                .entry(hierarchy::page_root(k.parent()))
+                .or_default()
+                .push(k);
+        }
+    }
+    fn write_page(
+        key: NodeKey,
+        pages: &mut BTreeMap<NodeKey, Vec<NodeEntry>>,
+        below: &HashMap<NodeKey, Vec<NodeKey>>,
+        start: u64,
+        out: &mut Vec<u8>,
+    ) -> PageRef {
+        let mut children = Vec::new();
+        for &c in below.get(&key).map(|v| v.as_slice()).unwrap_or(&[]) {
+            children.push(ChildPage {
+                key: c,
+                page: write_page(c, pages, below, start, out),
+            });
+        }
+        let mut nodes = pages.remove(&key).unwrap_or_default();
+        nodes.sort_by_key(|n| n.key);
+        let bytes = HierarchyPage { nodes, children }.encode();
+        let r = PageRef {
+            offset: start + out.len() as u64,
+            length: bytes.len() as u32,
+            crc: crc32fast::hash(&bytes),
+        };
+        out.extend_from_slice(&bytes);
+        r
+    }
+    let mut out = Vec::new();
+    let hierarchy = write_page(NodeKey::ROOT, &mut pages, &below, start, &mut out);
+    meta.check_finite()?;
+    let json = serde_json::to_vec_pretty(&meta.to_json()).expect("JSON of plain values");
+    let metadata = PageRef {
+        offset: start + out.len() as u64,
+        length: json.len() as u32,
+        crc: crc32fast::hash(&json),
+    };
+    out.extend_from_slice(&json);
+    let header = Header {
+        metadata,
+        hierarchy,
+        file_length: start + out.len() as u64,
+        points: meta.points,
+    };
+    Ok((out, header))
+}
+
+/// What a snapshot adds to the nodes written: given their entries, more entries with their pages.
+pub type StandIns<'a> = dyn Fn(&[NodeEntry]) -> Vec<(NodeEntry, Vec<u8>)> + 'a;
+
+/// A dataset still being written, as [`DatasetWriter::snapshot`] made it readable: the file's
+/// pages up to `prefix` (its zeroed header replaced), then hierarchy and metadata in memory.
+pub struct Snapshot {
+    file: File,
+    prefix: u64,
+    header: [u8; HEADER_LEN],
+    tail: Vec<u8>,
+}
+
+impl Snapshot {
+    /// Bytes of the file it reads (the rest is in memory).
+    pub fn prefix(&self) -> u64 {
+        self.prefix
+    }
+}
+
+impl crate::ByteSource for Snapshot {
+    fn len(&self) -> u64 {
+        self.prefix + self.tail.len() as u64
+    }
+
+    fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let end = offset.saturating_add(len as u64);
+        if end > self.len() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "read past the end of the dataset",
+            ));
+        }
+        let mut out = vec![0u8; len];
+        // From the file (the header's bytes from memory), then from the tail.
+        if offset < self.prefix {
+            let upto = end.min(self.prefix);
+            let part = &mut out[..(upto - offset) as usize];
+            self.file.read_exact_at(part, offset)?;
+            for (i, b) in part.iter_mut().enumerate() {
+                if let Some(h) = self.header.get(offset as usize + i) {
+                    *b = *h;
+                } else {
+                    break;
+                }
+            }
+        }
+        if end > self.prefix {
+            let from = offset.max(self.prefix);
+            let at = (from - offset) as usize;
+            let t = (from - self.prefix) as usize;
+            out[at..].copy_from_slice(&self.tail[t..t + (end - from) as usize]);
+        }
+        Ok(out)
     }
 }

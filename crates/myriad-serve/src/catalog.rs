@@ -17,13 +17,27 @@ pub enum Kind {
     Export,
 }
 
+#[derive(Clone)]
 pub(crate) struct File {
     pub(crate) path: PathBuf,
     pub(crate) content_type: &'static str,
     pub(crate) kind: Kind,
     /// A dataset's saved work (`myriad_measure::work`): the sidecar beside what was given.
     pub(crate) work: Option<PathBuf>,
+    /// A dataset being built: what the name serves now (`path` is its preview).
+    pub(crate) live: Option<std::sync::Arc<crate::live::Live>>,
     len: u64,
+}
+
+impl File {
+    /// The same file served from `path` (a version of a dataset being built).
+    pub(crate) fn at(&self, path: PathBuf) -> File {
+        File {
+            path,
+            live: None,
+            ..self.clone()
+        }
+    }
 }
 
 /// The files a server answers for, by the name in their URL (`/d/NAME`).
@@ -92,6 +106,22 @@ impl Catalog {
         Ok(())
     }
 
+    /// Adds a dataset being built under `name` (`live` says what it serves as the build goes),
+    /// its saved work beside `source` (the scan).
+    pub fn add_live(
+        &mut self,
+        name: &str,
+        live: std::sync::Arc<crate::live::Live>,
+        preview: &Path,
+        source: &Path,
+    ) -> Result<()> {
+        self.add_file_as(name, preview, source)?;
+        if let Some(f) = self.files.get_mut(name) {
+            f.live = Some(live);
+        }
+        Ok(())
+    }
+
     fn add(&mut self, name: String, path: PathBuf, kind: Option<Kind>) -> Result<()> {
         let len = std::fs::metadata(&path)
             .map_err(|e| Error::io(&path, e))?
@@ -120,6 +150,7 @@ impl Catalog {
                 path,
                 kind,
                 work,
+                live: None,
                 len,
             },
         );

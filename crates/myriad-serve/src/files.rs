@@ -255,6 +255,75 @@ pub(crate) async fn file(
     Ok(r)
 }
 
+/// A snapshot of a dataset being built ([`crate::live`]): `HEAD`, and single ranges of at most
+/// [`READ_AT_ONCE`] bytes; anything else waits for the finished dataset (503).
+pub(crate) async fn snapshot(
+    s: &myriad_build::growing::Shown,
+    content_type: &'static str,
+    budget: &Budget,
+    req: &Request<Incoming>,
+) -> Response<Body> {
+    use myriad_format::ByteSource;
+    let len = s.bytes.len();
+    let etag = format!("\"build-{}-{len:x}\"", s.version);
+    let range = (req.headers().get(header::RANGE)).and_then(|v| v.to_str().ok());
+    let mut r = if req.method() == Method::HEAD {
+        let mut r = Response::new(full(Bytes::new()));
+        r.headers_mut()
+            .insert(header::CONTENT_LENGTH, HeaderValue::from(len));
+        r
+    } else {
+        match range.map(|h| range::parse(h, len)) {
+            Some(Ranges::Some(v)) if v.len() == 1 && v[0].1 - v[0].0 < READ_AT_ONCE => {
+                let (a, b) = v[0];
+                let n = b - a + 1;
+                let held = budget.take(n as usize).await;
+                let bytes = s.bytes.clone();
+                let read = tokio::task::spawn_blocking(move || bytes.read_at(a, n as usize)).await;
+                match read {
+                    Ok(Ok(data)) => {
+                        let mut r =
+                            Response::new(full(Bytes::from_owner(Owned { data, _held: held })));
+                        *r.status_mut() = StatusCode::PARTIAL_CONTENT;
+                        let h = r.headers_mut();
+                        h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
+                        h.insert(
+                            header::CONTENT_RANGE,
+                            HeaderValue::from_str(&format!("bytes {a}-{b}/{len}")).expect("ascii"),
+                        );
+                        r
+                    }
+                    Ok(Err(e)) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+                    Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+                }
+            }
+            Some(Ranges::Unsatisfiable) => {
+                let mut r = status(StatusCode::RANGE_NOT_SATISFIABLE, "range not satisfiable");
+                r.headers_mut().insert(
+                    header::CONTENT_RANGE,
+                    HeaderValue::from_str(&format!("bytes */{len}")).expect("ascii"),
+                );
+                r
+            }
+            _ => {
+                let mut r = status(
+                    StatusCode::SERVICE_UNAVAILABLE,
+                    "this dataset is being built: single ranges of at most 4 MiB are served until it is done",
+                );
+                r.headers_mut()
+                    .insert(header::RETRY_AFTER, HeaderValue::from_static("5"));
+                r
+            }
+        }
+    };
+    let h = r.headers_mut();
+    h.insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
+    h.insert(header::ETAG, HeaderValue::from_str(&etag).expect("ascii"));
+    h.entry(header::CONTENT_TYPE)
+        .or_insert(HeaderValue::from_static(content_type));
+    r
+}
+
 /// A piece of an answer's body: text of its own, or bytes of the file (offset, length).
 pub(crate) enum Piece {
     Text(Bytes),

@@ -26,6 +26,7 @@ mod conn;
 pub mod download;
 mod files;
 mod geo;
+pub mod live;
 pub mod range;
 pub mod tls;
 mod viewer;
@@ -434,7 +435,9 @@ fn cors(r: &mut Response<Body>) {
     );
     h.insert(
         header::ACCESS_CONTROL_EXPOSE_HEADERS,
-        HeaderValue::from_static("Content-Range, Content-Length, Accept-Ranges, ETag"),
+        HeaderValue::from_static(
+            "Content-Range, Content-Length, Accept-Ranges, ETag, X-Myriad-Version, X-Myriad-Building",
+        ),
     );
 }
 
@@ -656,6 +659,9 @@ async fn route(
         };
         return match catalog.file(&name) {
             Some(f) if f.kind == Kind::Dataset => {
+                let Some(f) = settled(f) else {
+                    return being_built();
+                };
                 let (s, path) = (shared.clone(), f.path.clone());
                 let (code, body) = tokio::task::spawn_blocking(move || s.geo.answer(&path, at))
                     .await
@@ -681,8 +687,11 @@ async fn route(
         };
         return match catalog.file(&name) {
             Some(f) if f.kind == Kind::Dataset => {
+                let Some(f) = settled(f) else {
+                    return being_built();
+                };
                 let query = req.uri().query().unwrap_or("");
-                box_download(shared, budget, f, &name, query, fd).await
+                box_download(shared, budget, &f, &name, query, fd).await
             }
             _ => status(StatusCode::NOT_FOUND, "no such dataset"),
         };
@@ -693,13 +702,69 @@ async fn route(
     let Some(name) = percent_decode(name) else {
         return status(StatusCode::BAD_REQUEST, "malformed path");
     };
-    match catalog.file(&name) {
-        Some(f) => match files::file(f, budget, req).await {
+    let Some(f) = catalog.file(&name) else {
+        return status(StatusCode::NOT_FOUND, "not found");
+    };
+    let Some(live) = &f.live else {
+        return match files::file(f, budget, req).await {
             Ok(r) => r,
             Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
-        },
-        None => status(StatusCode::NOT_FOUND, "not found"),
+        };
+    };
+    // A dataset being built: the version asked for (`?v=`), else the newest.
+    let asked = (req.uri().query().unwrap_or("").split('&'))
+        .find_map(|p| p.strip_prefix("v="))
+        .map(str::to_string);
+    let version = match &asked {
+        Some(v) => live.version(v),
+        None => Some(live.current()),
+    };
+    let Some(version) = version else {
+        return status(
+            StatusCode::GONE,
+            "that version of the dataset is gone (it is being built): open it again",
+        );
+    };
+    let mut r = match &version {
+        live::Version::Preview(p) | live::Version::Final(p) => {
+            match files::file(&f.at(p.clone()), budget, req).await {
+                Ok(r) => r,
+                Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+            }
+        }
+        live::Version::Snapshot(s) => files::snapshot(s, f.content_type, budget, req).await,
+    };
+    let h = r.headers_mut();
+    if let Ok(v) = HeaderValue::from_str(&version.name()) {
+        h.insert("x-myriad-version", v);
     }
+    h.insert(
+        "x-myriad-building",
+        HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
+    );
+    r
+}
+
+/// A served dataset as it is for good: itself, or a built one's finished dataset; `None` while
+/// it is being built.
+fn settled(f: &catalog::File) -> Option<catalog::File> {
+    match &f.live {
+        None => Some(f.clone()),
+        Some(l) => match l.current() {
+            live::Version::Final(p) => Some(f.at(p)),
+            _ => None,
+        },
+    }
+}
+
+fn being_built() -> Response<Body> {
+    let mut r = status(
+        StatusCode::SERVICE_UNAVAILABLE,
+        "this dataset is being built: ask again when it is done",
+    );
+    r.headers_mut()
+        .insert(header::RETRY_AFTER, HeaderValue::from_static("5"));
+    r
 }
 
 /// A page or file of the server's own: gzip-compressed where the client takes it (`cached`

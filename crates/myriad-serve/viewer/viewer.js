@@ -21,6 +21,9 @@ const state = {
   // Times in ms from the navigation's start (performance.now()'s origin).
   requests: 0, bytes: 0, firstImageMs: null, convergedMs: null, selections: 0, frames: 0,
   pagesMissing: 0, picked: null, measure: [],
+  // A dataset being built (served before its build ends): the version drawn, and how often a newer
+  // one replaced it.
+  building: false, version: null, refreshes: 0,
 };
 
 // ---- small vector helpers (f64: JavaScript numbers) ----
@@ -159,27 +162,47 @@ function error(msg) {
   document.getElementById("errors").textContent = state.errors.join("\n");
 }
 
-async function open() {
-  const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ""));
-  const url = `/d/${encodeURIComponent(name)}`;
-  state.dataset = name;
-  document.title = `${name}: Myriad`;
-  const head = await fetch(url, { method: "HEAD" });
-  if (!head.ok) throw new Error(`${url}: HTTP ${head.status}`);
-  const length = Number(head.headers.get("content-length"));
-  const module = await WebAssembly.compileStreaming(fetch("/viewer/myriad_web.wasm"));
-  selector = new Worker("/viewer/worker.js");
-  selector.onmessage = onWorker;
-  const opened = call(selector, { type: "init", role: "select", module, url, name, length });
+// Workers for the dataset at `url` (`length` bytes): one selects, the others decode.
+async function startWorkers(url, name, length) {
+  const sel = new Worker("/viewer/worker.js");
+  sel.onmessage = onWorker;
+  const opened = call(sel, { type: "init", role: "select", module: wasmModule, url, name, length });
   const count = Math.min(4, Math.max(2, navigator.hardwareConcurrency || 2));
   const ready = [];
+  const decs = [];
   for (let i = 0; i < count; i++) {
     const w = new Worker("/viewer/worker.js");
     w.onmessage = onWorker;
     w.busy = 0;
-    decoders.push(w);
-    ready.push(call(w, { type: "init", role: "decode", module, url, name, length }));
+    decs.push(w);
+    ready.push(call(w, { type: "init", role: "decode", module: wasmModule, url, name, length }));
   }
+  return { sel, decs, opened, ready };
+}
+
+// The address of the version a dataset being built answered with (`X-Myriad-Version`; every
+// read names it, so a newer one never mixes in), or the plain address.
+function versioned(url, head) {
+  const v = head.headers.get("x-myriad-version");
+  state.building = head.headers.get("x-myriad-building") === "yes";
+  state.version = v;
+  return v ? `${url}?v=${encodeURIComponent(v)}` : url;
+}
+
+let wasmModule = null;
+async function open() {
+  const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ""));
+  const base = `/d/${encodeURIComponent(name)}`;
+  state.dataset = name;
+  document.title = `${name}: Myriad`;
+  const head = await fetch(base, { method: "HEAD" });
+  if (!head.ok) throw new Error(`${base}: HTTP ${head.status}`);
+  const url = versioned(base, head);
+  const length = Number(head.headers.get("content-length"));
+  wasmModule = await WebAssembly.compileStreaming(fetch("/viewer/myriad_web.wasm"));
+  const { sel, decs, opened, ready } = await startWorkers(url, name, length);
+  selector = sel;
+  decoders.push(...decs);
   const info = (await opened).info;
   if (info.error) throw new Error(info.error);
   state.info = info;
@@ -202,6 +225,41 @@ async function open() {
   if (settings.ramp || settings.where) await applyStyle();
   requestSelection();
   loadWork().catch((e) => error(`saved work: ${e.message || e}`));
+  if (state.building) setTimeout(follow, 1000);
+}
+
+// A dataset being built (`myriad serve SCAN`): asked every second what its newest version is;
+// a newer one (the build's next snapshot, then the finished dataset) replaces what is drawn,
+// the camera and settings kept, until the build ends.
+async function follow() {
+  const base = `/d/${encodeURIComponent(state.dataset)}`;
+  try {
+    const head = await fetch(base, { method: "HEAD", cache: "no-store" });
+    const was = state.version;
+    const url = versioned(base, head);
+    if (head.ok && state.version !== was) {
+      const length = Number(head.headers.get("content-length"));
+      const { sel, decs, opened, ready } = await startWorkers(url, state.dataset, length);
+      const info = (await opened).info;
+      await Promise.all(ready);
+      if (info.error) throw new Error(info.error);
+      const old = [selector, ...decoders];
+      for (const [id, p] of pending) if (old.includes(p.worker)) pending.delete(id);
+      for (const w of old) w.terminate();
+      selector = sel;
+      decoders.length = 0;
+      decoders.push(...decs);
+      selecting = false;
+      selection = null;
+      state.info = info;
+      state.refreshes = (state.refreshes || 0) + 1;
+      if (settings.ramp || settings.where) await applyStyle();
+      reload();
+    }
+  } catch (e) {
+    error(`following the build: ${e.message || e}`);
+  }
+  if (state.building) setTimeout(follow, 1000);
 }
 
 let selecting = false;

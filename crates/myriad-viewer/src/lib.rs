@@ -7,7 +7,7 @@
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
-mod builds;
+pub mod builds;
 pub mod measure;
 pub mod nav;
 mod options;

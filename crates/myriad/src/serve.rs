@@ -130,8 +130,11 @@ pub fn run(a: ServeArgs) -> Result<()> {
         );
     }
     // Datasets, COPC files and folders as they are; any other scan as a dataset made from it
-    // (kept for next time), named after it.
+    // (kept for next time), named after it. A LAS/LAZ scan (or folder of tiles) without its
+    // dataset is served at once: its preview, then its build as it goes, then its dataset.
     let mut catalog = Catalog::default();
+    let (mut to_build, mut scratch) = (Vec::new(), None);
+    myriad_io::claim::remove_stale_folders(&std::env::temp_dir(), "myriad-preview-");
     for input in &a.inputs {
         let name = input
             .file_name()
@@ -142,17 +145,37 @@ pub fn run(a: ServeArgs) -> Result<()> {
             || name.is_some_and(|n| n.ends_with(".copc.laz"));
         if raw {
             catalog.add_input(input)?;
-        } else {
-            let ds = crate::cached::dataset_for(input)?;
-            // A folder of tiles is named after the folder (`tiles/` -> tiles.myr).
-            let stem = if tiles {
-                input.file_name()
-            } else {
-                input.file_stem()
-            };
-            let stem = stem.unwrap_or_default().to_string_lossy();
-            catalog.add_file_as(&format!("{stem}.myr"), &ds, input)?;
+            continue;
         }
+        // A folder of tiles is named after the folder (`tiles/` -> tiles.myr).
+        let stem = if tiles {
+            input.file_name()
+        } else {
+            input.file_stem()
+        };
+        let name = format!("{}.myr", stem.unwrap_or_default().to_string_lossy());
+        if myriad_build::cached::existing(input).is_none() && crate::cached::previewable(input)? {
+            if scratch.is_none() {
+                scratch = Some(myriad_io::claim::Folder::create(
+                    &std::env::temp_dir(),
+                    "myriad-preview-",
+                )?);
+            }
+            let dir =
+                (scratch.as_ref().expect("made above").path()).join(to_build.len().to_string());
+            std::fs::create_dir_all(&dir).with_context(|| format!("{}", dir.display()))?;
+            let preview = myriad_build::cached::preview_dataset(input, &dir)?;
+            let live = myriad_serve::live::Live::new(&preview);
+            catalog.add_live(&name, live.clone(), &preview, input)?;
+            eprintln!(
+                "{}: serving its preview while its dataset is built",
+                input.display()
+            );
+            to_build.push((input.clone(), live));
+            continue;
+        }
+        let ds = crate::cached::dataset_for(input)?;
+        catalog.add_file_as(&name, &ds, input)?;
     }
     let names: Vec<(String, Kind, u64)> = catalog
         .names()
@@ -204,6 +227,26 @@ pub fn run(a: ServeArgs) -> Result<()> {
     writeln!(out, "stop with Ctrl-C")?;
     out.flush()?;
     drop(out);
+    // The scans served before their datasets: built one after another, each served as it goes.
+    std::thread::spawn(move || {
+        for (scan, live) in to_build {
+            let g = myriad_build::growing::Growing::new(myriad_build::growing::DEFAULT_EVERY);
+            live.building(g.clone());
+            match crate::cached::dataset_growing(&scan, g) {
+                Ok(d) => {
+                    live.ended(Some(d));
+                    eprintln!(
+                        "{}: its dataset is built, served from now on",
+                        scan.display()
+                    );
+                }
+                Err(e) => {
+                    live.ended(None);
+                    eprintln!("error: {e:#} (what is served stays)");
+                }
+            }
+        }
+    });
     if a.open {
         // The desktop's browser, where there is one, on the first dataset (else the index);
         // the server runs on either way.
@@ -217,5 +260,6 @@ pub fn run(a: ServeArgs) -> Result<()> {
     }
     // Until Ctrl-C or SIGTERM; the server's temporary files go with it.
     server.wait();
+    drop(scratch);
     Ok(())
 }

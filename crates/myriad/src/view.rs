@@ -164,7 +164,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         if !a.vr && !myriad_build::cached::is_dataset(p) {
             watched.push((i, p.clone()));
         }
-        if !a.vr && myriad_build::cached::existing(p).is_none() && previewable(p)? {
+        if !a.vr && myriad_build::cached::existing(p).is_none() && crate::cached::previewable(p)? {
             if scratch.is_none() {
                 scratch = Some(myriad_io::claim::Folder::create(
                     &std::env::temp_dir(),
@@ -360,8 +360,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
             // replaces what is shown.
             let (tx, rx) = std::sync::mpsc::channel();
             let n = to_build.len();
-            std::thread::spawn(move || watch(to_build, watched, tx));
-            myriad_viewer::Builds::new(rx, n)
+            let running = myriad_viewer::builds::Running::default();
+            let r = running.clone();
+            std::thread::spawn(move || watch(to_build, watched, tx, r));
+            myriad_viewer::Builds::new(rx, n, running)
         }),
     };
     let shown = myriad_viewer::run(datasets, options).map_err(anyhow::Error::msg);
@@ -388,22 +390,33 @@ fn stamp(path: &std::path::Path) -> Option<Vec<(u64, std::time::SystemTime)>> {
 /// Builds the scans of `to_build`, then watches every scan of `watched` while the viewer runs:
 /// one whose files' sizes or modification times are no longer those its last build started
 /// from is built again. Each dataset (or why there is none) goes to `tx` with its layer; a
-/// build that failed is not tried again until the scan changes once more.
+/// build that failed is not tried again until the scan changes once more. The first builds
+/// are drawn as they go (their snapshots in `running`).
 fn watch(
     to_build: Vec<(usize, std::path::PathBuf)>,
     watched: Vec<(usize, std::path::PathBuf)>,
     tx: std::sync::mpsc::Sender<myriad_viewer::Built>,
+    running: myriad_viewer::builds::Running,
 ) {
     let build = |p: &std::path::Path| {
         crate::cached::dataset_for(p)
             .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
             .map_err(|e| format!("{e:#}"))
     };
+    let build_drawn = |i: usize, p: &std::path::Path| {
+        let g = myriad_build::growing::Growing::new(myriad_build::growing::DEFAULT_EVERY);
+        running.lock().expect("builds lock").insert(i, g.clone());
+        let built = crate::cached::dataset_growing(p, g)
+            .and_then(|d| Ok(Arc::new(Dataset::open(&d)?)))
+            .map_err(|e| format!("{e:#}"));
+        running.lock().expect("builds lock").remove(&i);
+        built
+    };
     // What each scan was when its dataset was last built (or opened).
     let mut built_from: std::collections::HashMap<usize, _> =
         watched.iter().map(|(i, p)| (*i, stamp(p))).collect();
     for (i, p) in to_build {
-        if tx.send((i, build(&p))).is_err() {
+        if tx.send((i, build_drawn(i, &p))).is_err() {
             return;
         }
     }
@@ -424,20 +437,4 @@ fn watch(
             }
         }
     }
-}
-
-/// Whether `path` is a LAS/LAZ scan or a folder of them (what has a preview).
-fn previewable(path: &std::path::Path) -> Result<bool> {
-    if myriad_format::is_dataset(path) {
-        return Ok(false);
-    }
-    for f in myriad_build::cached::inputs_of(path)? {
-        if !matches!(
-            myriad_io::detect(&f)?,
-            myriad_io::Format::Las | myriad_io::Format::Laz
-        ) {
-            return Ok(false);
-        }
-    }
-    Ok(true)
 }

@@ -1,0 +1,223 @@
+//! A build drawn while it runs (issue 41): what `convert` has written so far, made readable as a
+//! dataset every so often ([`Growing::latest`]), for `view` and `serve` to show until the
+//! dataset is complete.
+//!
+//! The octree's chunks are built one by one (largest first) and each one's nodes below its root
+//! are written as they are made; the chunks' roots and the levels above them come at the end.
+//! A snapshot ([`DatasetWriter::snapshot`]) holds every node written so far, stand-ins for the
+//! nodes above them (empty: the selection passes through them to what lies below), and, in the
+//! chunk cells with nothing built yet, the scan's preview (the sample read without decoding,
+//! [`crate::cached::preview_batch`]): the preview fills what is not built, the build replaces it
+//! chunk by chunk. The file is not changed by a snapshot: the finished dataset is the one
+//! `convert` writes without it.
+
+use myriad_core::{Aabb, NodeKey, PointBatch, Schema};
+use myriad_format::{Dataset, DatasetWriter, Metadata, NodeEntry, PageRef, Snapshot};
+use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// How often a snapshot is made while the chunks are built, unless asked otherwise.
+pub const DEFAULT_EVERY: Duration = Duration::from_secs(1);
+
+/// One snapshot of a build: its number (counting from 1), the dataset it reads as, its bytes,
+/// and how far the build had come.
+#[derive(Clone)]
+pub struct Shown {
+    pub version: u64,
+    pub dataset: Arc<Dataset>,
+    pub bytes: Arc<Snapshot>,
+    /// Chunks built, of all chunks.
+    pub built: usize,
+    pub chunks: usize,
+}
+
+/// The shared state of a build drawn while it runs: given to `convert`
+/// ([`crate::convert::ConvertOptions::growing`]), read by whoever draws it.
+pub struct Growing {
+    every: Duration,
+    fill: Mutex<Option<PointBatch>>,
+    latest: Mutex<Option<Shown>>,
+    last: Mutex<Option<Instant>>,
+    /// Held while a snapshot is made (one at a time; others skip theirs).
+    making: Mutex<()>,
+}
+
+impl std::fmt::Debug for Growing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Growing")
+            .field("every", &self.every)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Growing {
+    /// A snapshot at most every `every` while chunks are built, and one when they all are.
+    pub fn new(every: Duration) -> Arc<Growing> {
+        Arc::new(Growing {
+            every,
+            fill: Mutex::new(None),
+            latest: Mutex::new(None),
+            last: Mutex::new(None),
+            making: Mutex::new(()),
+        })
+    }
+
+    /// The points that stand in for chunks not built yet (the scan's preview: positions and any
+    /// of intensity, classification and colour).
+    pub fn set_fill(&self, points: PointBatch) {
+        *self.fill.lock().expect("fill lock") = Some(points);
+    }
+
+    /// The newest snapshot, if one was made.
+    pub fn latest(&self) -> Option<Shown> {
+        self.latest.lock().expect("latest lock").clone()
+    }
+
+    /// Called by the build after each chunk (`built` of `chunks` done): makes a snapshot when
+    /// the last is older than `every` (always when `force`), unless another is being made.
+    /// A snapshot that fails is skipped: the build goes on.
+    pub(crate) fn offer(
+        &self,
+        writer: &DatasetWriter,
+        meta: &Metadata,
+        chunks: &[NodeKey],
+        built: &Mutex<HashSet<NodeKey>>,
+        force: bool,
+    ) {
+        if !force
+            && self
+                .last
+                .lock()
+                .expect("last lock")
+                .is_some_and(|t| t.elapsed() < self.every)
+        {
+            return;
+        }
+        let Ok(_making) = self.making.try_lock() else {
+            return;
+        };
+        let fill = self.fill.lock().expect("fill lock").clone();
+        // The chunks built before the snapshot's pages are taken: all their nodes are in it.
+        let built = built.lock().expect("built lock").clone();
+        let snap = writer.snapshot(meta, &|written| {
+            stand_ins(written, meta, chunks, &built, fill.as_ref())
+        });
+        let Ok(snap) = snap else { return };
+        let bytes = Arc::new(snap);
+        let name = std::path::PathBuf::from("(being built)");
+        let Ok(ds) = Dataset::from_source(bytes.clone(), &name) else {
+            return;
+        };
+        *self.last.lock().expect("last lock") = Some(Instant::now());
+        let mut latest = self.latest.lock().expect("latest lock");
+        let version = latest.as_ref().map_or(1, |s| s.version + 1);
+        *latest = Some(Shown {
+            version,
+            dataset: Arc::new(ds),
+            bytes,
+            built: built.len(),
+            chunks: chunks.len(),
+        });
+    }
+}
+
+/// The cell of level `level` holding `p` (clamped into the root cube).
+fn cell_of(p: [f64; 3], root: &Aabb, level: u32) -> NodeKey {
+    let n = 1u64 << level;
+    let side = root.size()[0] / n as f64;
+    let cell = std::array::from_fn(|a| {
+        let c = ((p[a] - root.min[a]) / side).floor();
+        c.clamp(0.0, (n - 1) as f64) as u32
+    });
+    NodeKey { level, cell }
+}
+
+/// `points` with every column of `schema`: those it has copied, the others zero.
+fn conform(points: &PointBatch, schema: &Schema) -> PointBatch {
+    let n = points.len();
+    let mut b = PointBatch::with_schema(schema, n);
+    let zeros = vec![0u8; b.row_size()];
+    for _ in 0..n {
+        b.push_row(&zeros);
+    }
+    b.positions.clone_from(&points.positions);
+    if let (Some(to), Some(from)) = (&mut b.intensity, &points.intensity) {
+        to.clone_from(from);
+    }
+    if let (Some(to), Some(from)) = (&mut b.classification, &points.classification) {
+        to.clone_from(from);
+    }
+    if let (Some(to), Some(from)) = (&mut b.rgb, &points.rgb) {
+        to.clone_from(from);
+    }
+    b
+}
+
+/// What a snapshot adds to the nodes `written`: in each of the `chunks` (cells that split the
+/// root cube between them) not `built`, the fill's points in it, as its node; and an empty node
+/// for every ancestor not written.
+fn stand_ins(
+    written: &[NodeEntry],
+    meta: &Metadata,
+    chunks: &[NodeKey],
+    built: &HashSet<NodeKey>,
+    fill: Option<&PointBatch>,
+) -> Vec<(NodeEntry, Vec<u8>)> {
+    let root = meta.root;
+    let spacing = |k: &NodeKey| root.size()[0] / (1u64 << k.level) as f64 / 128.0;
+    let have: HashSet<NodeKey> = written.iter().map(|e| e.key).collect();
+    let waiting: HashSet<NodeKey> = (chunks.iter())
+        .filter(|k| !built.contains(k) && !have.contains(k))
+        .copied()
+        .collect();
+    let mut levels: Vec<u32> = chunks.iter().map(|k| k.level).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    let mut out = Vec::new();
+    let mut filled: HashSet<NodeKey> = HashSet::new();
+    if let Some(fill) = fill.filter(|f| !f.is_empty()) {
+        let mut cells: HashMap<NodeKey, Vec<u32>> = HashMap::new();
+        for (i, p) in fill.positions.iter().enumerate() {
+            let waits = (levels.iter())
+                .map(|&l| cell_of(*p, &root, l))
+                .find(|k| waiting.contains(k));
+            if let Some(k) = waits {
+                cells.entry(k).or_default().push(i as u32);
+            }
+        }
+        let all = conform(fill, &meta.schema);
+        for (k, idx) in cells {
+            let b = all.gather(&idx);
+            let page = myriad_format::page::encode(&b, &meta.quantization);
+            let e = NodeEntry::new(
+                k,
+                PageRef::default(),
+                b.len() as u32,
+                vec![b.len() as u32],
+                vec![spacing(&k)],
+            );
+            filled.insert(k);
+            out.push((e, page));
+        }
+    }
+    // Every ancestor of what is there, that is not there.
+    let mut above: HashSet<NodeKey> = HashSet::new();
+    for k in have.iter().chain(&filled) {
+        let mut k = *k;
+        while k.level > 0 {
+            k = k.parent();
+            if have.contains(&k) || filled.contains(&k) || !above.insert(k) {
+                break;
+            }
+        }
+    }
+    if have.is_empty() && filled.is_empty() {
+        above.insert(NodeKey::ROOT);
+    }
+    for k in above {
+        let e = NodeEntry::new(k, PageRef::default(), 0, vec![0], vec![spacing(&k)]);
+        out.push((e, Vec::new()));
+    }
+    out
+}

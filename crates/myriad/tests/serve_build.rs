@@ -1,0 +1,103 @@
+//! `myriad serve SCAN` before the scan has a dataset (issue 41 item 4): the server answers at
+//! once with the scan's preview, then the build's snapshots, then the finished dataset, each a
+//! version the answers name; the web viewer (Chromium, headless) shows the preview while the
+//! build still runs (the server's log says so) and converges on the finished dataset after.
+
+mod common;
+use common::{myriad, s, serve, tempdir};
+use myriad_serve::browser::{self, Browser};
+use std::time::Duration;
+
+const W: u32 = 640;
+const H: u32 = 480;
+
+#[test]
+fn a_raw_scan_is_served_at_once_and_refined_as_it_is_built() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("serve-build");
+    let laz = d.join("big.laz");
+    let r = myriad(&["synth", "-o", s(&laz), "--points", "8M", "--scene", "city"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    // The browser first, so that the page opens as soon as the server answers.
+    let mut b = Browser::launch(&exe).unwrap();
+    let log = d.join("serve.log");
+    let server = serve(&[s(&laz)], std::fs::File::create(&log).unwrap().into());
+    b.open(
+        &format!("{}/view/big.myr#renderer=webgl2", server.base),
+        W,
+        H,
+    )
+    .unwrap();
+    // The first image: drawn from a version before the final one, the build still running.
+    let first = b
+        .wait_for(
+            "window.myriad && (myriad.state.nodes > 0 || myriad.state.errors.length > 0) && myriad.state",
+            Duration::from_secs(120),
+        )
+        .unwrap();
+    let said = std::fs::read_to_string(&log).unwrap();
+    let brief = |st: &serde_json::Value| {
+        [
+            "version",
+            "building",
+            "points",
+            "nodes",
+            "refreshes",
+            "firstImageMs",
+            "errors",
+        ]
+        .map(|k| format!("{k} {}", st[k]))
+        .join(", ")
+    };
+    eprintln!("first image: {}\nserver log then: {said}", brief(&first));
+    assert_eq!(first["errors"], serde_json::json!([]), "{first}");
+    assert!(
+        said.contains("big.laz: serving its preview while its dataset is built"),
+        "{said}"
+    );
+    assert!(
+        !said.contains("its dataset is built, served from now on"),
+        "the build ended before the first image: {said}"
+    );
+    assert_ne!(first["version"], "final", "{first}");
+    assert_eq!(first["building"], true, "{first}");
+
+    // Then the viewer follows the build to its end and converges on the finished dataset.
+    let last = b
+        .wait_for(
+            "window.myriad && ((myriad.state.version === 'final' && !myriad.state.building && myriad.state.converged) \
+             || myriad.state.errors.length > 0) && myriad.state",
+            Duration::from_secs(300),
+        )
+        .unwrap();
+    eprintln!("converged: {}", brief(&last));
+    assert_eq!(last["errors"], serde_json::json!([]), "{last}");
+    assert!(last["refreshes"].as_u64().unwrap() >= 1, "{last}");
+    assert!(
+        last["points"].as_u64().unwrap() > 10 * first["points"].as_u64().unwrap().max(1)
+            && last["nodes"].as_u64() > first["nodes"].as_u64(),
+        "detail grew: {} -> {}",
+        brief(&first),
+        brief(&last)
+    );
+    let said = std::fs::read_to_string(&log).unwrap();
+    assert!(
+        said.contains("big.laz: its dataset is built, served from now on"),
+        "{said}"
+    );
+    // The dataset is kept next to the scan, and a server started again serves it at once.
+    let kept: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".myr"))
+        .collect();
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    drop(server);
+    let again = serve(&[s(&laz)], std::process::Stdio::piped());
+    let head = myriad_format::remote::HttpBytes::open(&format!("{}/d/big.myr", again.base));
+    assert!(head.is_ok());
+    let _ = std::fs::remove_dir_all(&d);
+}
