@@ -26,8 +26,10 @@ fn datasets_over_http_and_scans_opened_directly() {
     let r = myriad(&["convert", s(&scan), "-o", s(&site), "--capacity", "3000"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
 
-    // The scan given to serve is converted once and served as scan.myr.
+    // The scan given to serve is converted once (its preview served meanwhile) and served as
+    // scan.myr.
     let server = serve(&[s(&site), s(&scan)], Stdio::inherit());
+    common::wait_built(&server.base, "scan.myr");
     let url = format!("{}/d/site.myr", server.base);
     let r = myriad(&["info", "--json", &url]);
     assert_eq!(r.code, 0, "{}", r.stderr);
@@ -261,6 +263,7 @@ fn a_folder_of_tiles_is_served_as_one_dataset() {
         "{:?}",
         server.lines
     );
+    common::wait_built(&server.base, "tiles.myr");
     let r = myriad(&["info", "--json", &format!("{}/d/tiles.myr", server.base)]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();

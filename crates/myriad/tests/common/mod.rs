@@ -145,6 +145,32 @@ pub fn serve(args: &[&str], stderr: Stdio) -> Serving {
     }
 }
 
+/// Waits until the dataset `name` that a server builds (a scan given to `serve`) is built:
+/// its answers no longer say `X-Myriad-Building: yes`.
+pub fn wait_built(base: &str, name: &str) {
+    use std::io::{Read, Write};
+    let addr = base.trim_start_matches("http://");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(300);
+    loop {
+        let mut c = std::net::TcpStream::connect(addr).unwrap();
+        write!(
+            c,
+            "HEAD /d/{name} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut answer = String::new();
+        c.read_to_string(&mut answer).unwrap();
+        if !answer.to_lowercase().contains("x-myriad-building: yes") {
+            return;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "{name} still being built: {answer}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
 /// Two neighbouring scans (west and east halves of a synthetic one) in `d`, and their records.
 pub fn two_scans(d: &Path) -> (PathBuf, PathBuf, Vec<Vec<i64>>) {
     let scan = d.join("scan.laz");
