@@ -189,13 +189,34 @@ fn largest_first<T: Sync, R: Send>(
     items: &[T],
     build: impl Fn(&T) -> Result<R> + Sync,
 ) -> Result<Vec<R>> {
-    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-    let next = AtomicUsize::new(0);
+    in_order(pool, items, &|_| None, build)
+}
+
+/// [`largest_first`], but for the items `nearer` puts first when a worker takes its next one:
+/// given the items not taken yet (by index), the one to take, or `None` for the first of them
+/// (what a viewer looks at, built before the rest: [`crate::growing::Growing::focus`]).
+fn in_order<T: Sync, R: Send>(
+    pool: &rayon::ThreadPool,
+    items: &[T],
+    nearer: &(dyn Fn(&[usize]) -> Option<usize> + Sync),
+    build: impl Fn(&T) -> Result<R> + Sync,
+) -> Result<Vec<R>> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let left = std::sync::Mutex::new((0..items.len()).collect::<Vec<usize>>());
     let failed = AtomicBool::new(false);
     let done = std::sync::Mutex::new(Vec::with_capacity(items.len()));
     pool.broadcast(|_| {
         while !failed.load(Ordering::Relaxed) {
-            let i = next.fetch_add(1, Ordering::Relaxed);
+            let i = {
+                let mut left = left.lock().expect("queue lock");
+                if left.is_empty() {
+                    break;
+                }
+                let at = nearer(&left)
+                    .and_then(|i| left.iter().position(|&j| j == i))
+                    .unwrap_or(0);
+                left.remove(at)
+            };
             let Some(item) = items.get(i) else { break };
             let r = build(item);
             failed.fetch_or(r.is_err(), Ordering::Relaxed);
@@ -515,7 +536,30 @@ pub fn convert(
     } else {
         let mut chunks = dist.chunks.clone();
         chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
-        largest_first(&pool, &chunks, |chunk| -> Result<Pending> {
+        // Where a viewer looks, the chunks nearest that point first.
+        let nearer = |left: &[usize]| -> Option<usize> {
+            let at = options.growing.as_ref()?.focus()?;
+            let far = |i: &usize| {
+                let c = &chunks[*i];
+                let cube = NodeKey {
+                    level: c.level,
+                    cell: c.cell,
+                }
+                .bounds(&root);
+                (0..3)
+                    .map(|a| {
+                        (cube.min[a] - at[a])
+                            .max(at[a] - cube.max[a])
+                            .max(0.0)
+                            .powi(2)
+                    })
+                    .sum::<f64>()
+            };
+            left.iter()
+                .copied()
+                .min_by(|a, b| far(a).total_cmp(&far(b)))
+        };
+        in_order(&pool, &chunks, &nearer, |chunk| -> Result<Pending> {
             let batch = dist.load(chunk)?;
             let key = NodeKey {
                 level: chunk.level,
@@ -532,6 +576,9 @@ pub fn convert(
                 Ok::<(), Error>(())
             })?;
             built.lock().expect("built lock").insert(key);
+            if let Some(g) = &options.growing {
+                g.built(key);
+            }
             offer(false);
             Ok(top.expect("a chunk has points, so its subtree has a root"))
         })?

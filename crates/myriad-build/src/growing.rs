@@ -5,8 +5,9 @@
 //! The octree's chunks are built one by one (largest first) and each one's nodes below its root
 //! are written as they are made; the chunks' roots and the levels above them come at the end.
 //! A snapshot ([`DatasetWriter::snapshot`]) holds every node written so far, stand-ins for the
-//! nodes above them (empty: the selection passes through them to what lies below), and, in the
-//! chunk cells with nothing built yet, the scan's preview (the sample read without decoding,
+//! nodes above them (empty: the selection passes through them to what lies below, and draws the
+//! coarsest level of a node none of whose ancestors has points, however fine), and, in the
+//! chunk cells with nothing built below their roots yet, the scan's preview (the sample read without decoding,
 //! [`crate::cached::preview_batch`]): the preview fills what is not built, the build replaces it
 //! chunk by chunk. The file is not changed by a snapshot: the finished dataset is the one
 //! `convert` writes without it.
@@ -41,6 +42,10 @@ pub struct Growing {
     last: Mutex<Option<Instant>>,
     /// Held while a snapshot is made (one at a time; others skip theirs).
     making: Mutex<()>,
+    /// Where the viewer looks: the chunks nearest it are built first.
+    focus: Mutex<Option<[f64; 3]>>,
+    /// The chunks built, in the order they were.
+    order: Mutex<Vec<NodeKey>>,
 }
 
 impl std::fmt::Debug for Growing {
@@ -60,7 +65,28 @@ impl Growing {
             latest: Mutex::new(None),
             last: Mutex::new(None),
             making: Mutex::new(()),
+            focus: Mutex::new(None),
+            order: Mutex::new(Vec::new()),
         })
+    }
+
+    /// Where the viewer looks (the camera's target), or `None`: the chunks still to build that
+    /// are nearest this point are built next (else the largest first).
+    pub fn set_focus(&self, at: Option<[f64; 3]>) {
+        *self.focus.lock().expect("focus lock") = at.filter(|p| p.iter().all(|v| v.is_finite()));
+    }
+
+    pub fn focus(&self) -> Option<[f64; 3]> {
+        *self.focus.lock().expect("focus lock")
+    }
+
+    /// The chunks built so far (their cells), in the order they were built.
+    pub fn built_order(&self) -> Vec<NodeKey> {
+        self.order.lock().expect("order lock").clone()
+    }
+
+    pub(crate) fn built(&self, chunk: NodeKey) {
+        self.order.lock().expect("order lock").push(chunk);
     }
 
     /// The points that stand in for chunks not built yet (the scan's preview: positions and any
@@ -155,8 +181,8 @@ fn conform(points: &PointBatch, schema: &Schema) -> PointBatch {
 }
 
 /// What a snapshot adds to the nodes `written`: in each of the `chunks` (cells that split the
-/// root cube between them) not `built`, the fill's points in it, as its node; and an empty node
-/// for every ancestor not written.
+/// root cube between them) not `built` (or built with nothing written below its root yet), the
+/// fill's points in it, as its node; and an empty node for every ancestor not written.
 fn stand_ins(
     written: &[NodeEntry],
     meta: &Metadata,
@@ -167,8 +193,21 @@ fn stand_ins(
     let root = meta.root;
     let spacing = |k: &NodeKey| root.size()[0] / (1u64 << k.level) as f64 / 128.0;
     let have: HashSet<NodeKey> = written.iter().map(|e| e.key).collect();
+    // Cells with written nodes below them.
+    let mut under: HashSet<NodeKey> = HashSet::new();
+    for k in &have {
+        let mut k = *k;
+        while k.level > 0 {
+            k = k.parent();
+            if !under.insert(k) {
+                break;
+            }
+        }
+    }
+    // Chunks not built, or built but with all their points still in their root (the build
+    // writes a chunk's root with the levels above, at the end): the fill shows there.
     let waiting: HashSet<NodeKey> = (chunks.iter())
-        .filter(|k| !built.contains(k) && !have.contains(k))
+        .filter(|k| !have.contains(k) && (!built.contains(k) || !under.contains(k)))
         .copied()
         .collect();
     let mut levels: Vec<u32> = chunks.iter().map(|k| k.level).collect();
@@ -190,12 +229,14 @@ fn stand_ins(
         for (k, idx) in cells {
             let b = all.gather(&idx);
             let page = myriad_format::page::encode(&b, &meta.quantization);
+            // Samples spread over a surface in the cell: about side / sqrt(n) apart.
+            let side = root.size()[0] / (1u64 << k.level) as f64;
             let e = NodeEntry::new(
                 k,
                 PageRef::default(),
                 b.len() as u32,
                 vec![b.len() as u32],
-                vec![spacing(&k)],
+                vec![side / (b.len() as f64).sqrt()],
             );
             filled.insert(k);
             out.push((e, page));

@@ -211,9 +211,27 @@ pub fn select_eyes(
             .iter()
             .take_while(|&&s| s * ppu >= o.min_pixels)
             .count();
-        if levels == 0 && e.points > 0 {
-            continue;
-        }
+        // A node whose spacing no longer shows adds nothing to what its ancestors drew; where
+        // none of them has points (a dataset still being built: `myriad_build::growing`'s
+        // stand-ins), its coarsest level is drawn instead.
+        let covered = || {
+            let mut k = key;
+            while k.level > 0 {
+                k = k.parent();
+                if h.get(&k).is_none_or(|a| a.points > 0) {
+                    return true;
+                }
+            }
+            key.level == 0
+        };
+        let levels = if levels == 0 && e.points > 0 {
+            if covered() {
+                continue;
+            }
+            1
+        } else {
+            levels
+        };
         let whole = levels == e.prefix.len();
         let mut count = if e.points == 0 {
             0

@@ -2,7 +2,7 @@
 //! read without decoding the scan), then the build as it goes (its snapshots,
 //! `myriad_build::growing`: the chunks built so far, the preview where they are not), until the
 //! scan's own dataset arrives, and then draws that, with the layer's settings and the view as
-//! they are.
+//! they are. The build takes the chunks nearest the camera's target first.
 
 use crate::{App, Layer};
 use myriad_build::growing::Growing;
@@ -59,6 +59,8 @@ impl App {
             .map(|(i, g)| (*i, g.clone()))
             .collect();
         for (i, g) in running {
+            // The chunks around what the camera looks at are built next.
+            g.set_focus(Some(self.nav.camera.target));
             let Some(s) = g.latest() else { continue };
             if b.shown.get(&i).is_some_and(|v| *v >= s.version) {
                 continue;

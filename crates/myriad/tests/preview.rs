@@ -445,3 +445,83 @@ fn a_disk_too_small_is_said_before_the_build_and_the_preview_still_draws() {
     );
     assert!(!d.join("full.png").exists());
 }
+
+/// Frames drawn while the build runs: each snapshot of the build (what `view` and `serve` show
+/// as it goes), drawn on the CPU path from one camera, lights more of the final image and comes
+/// closer to it (PSNR) as chunks land, and the last equals what the finished dataset's levels
+/// below the chunks give.
+#[test]
+fn snapshots_drawn_while_the_build_runs_come_closer_to_the_final_image() {
+    use myriad_build::convert::{ConvertOptions, Silent, convert};
+    use myriad_build::growing::Growing;
+    use myriad_render::{Gpu, Rasterizer, Scene, Style};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let d = tempdir("preview-growing");
+    let laz = d.join("s.laz");
+    ok(&["synth", "-o", s(&laz), "--points", "600k", "--seed", "9"]);
+    let g = Growing::new(std::time::Duration::ZERO);
+    g.set_fill(myriad_build::cached::preview_batch(&laz).unwrap());
+    let out = d.join("s.myr");
+    let mut o = ConvertOptions::new(&out);
+    // Chunks of many nodes (a real build's are millions of points; here small ones, small nodes).
+    o.chunk_points = Some(40_000);
+    o.params.capacity = 4096;
+    o.threads = 2;
+    o.growing = Some(g.clone());
+    let done = Arc::new(AtomicBool::new(false));
+    let watcher = {
+        let (g, done) = (g.clone(), done.clone());
+        std::thread::spawn(move || {
+            let mut seen: Vec<(usize, Arc<myriad_format::Dataset>)> = Vec::new();
+            while !done.load(Ordering::Relaxed) {
+                if let Some(s) = g.latest()
+                    && seen.last().is_none_or(|(b, _)| *b < s.built)
+                {
+                    seen.push((s.built, s.dataset));
+                }
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+            seen
+        })
+    };
+    convert(std::slice::from_ref(&laz), &o, &Silent).unwrap();
+    done.store(true, Ordering::Relaxed);
+    let seen = watcher.join().unwrap();
+    assert!(seen.len() >= 3, "{} snapshots", seen.len());
+    let finished = Arc::new(myriad_format::Dataset::open(&out).unwrap());
+    let gpu = Gpu::cpu();
+    let raster = Rasterizer::new(&gpu);
+    let style = Style::default();
+    let cam = myriad_lod::Camera::framing(&finished.meta.bounds, 320, 240, 60.0);
+    let options = myriad_lod::SelectOptions {
+        budget: 5_000_000,
+        min_pixels: 1.0,
+    };
+    let draw = |ds: Arc<myriad_format::Dataset>| {
+        let mut scene = Scene::open(ds, 1 << 30, 1 << 30);
+        scene.last = scene.converge(&cam, &options, None);
+        scene.frame(&gpu, &raster, &cam, &options, &style).0
+    };
+    let last = draw(finished);
+    let lit = |img: &[u8]| img.chunks_exact(4).filter(|p| p[..3] != [0, 0, 0]).count();
+    let psnr = |img: &[u8]| {
+        let mse = (img.chunks_exact(4).zip(last.chunks_exact(4)))
+            .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as f64 - q[c] as f64).powi(2)))
+            .sum::<f64>()
+            / (last.len() / 4 * 3) as f64;
+        10.0 * (255.0f64 * 255.0 / mse.max(1e-9)).log10()
+    };
+    let drawn: Vec<(usize, usize, f64)> = seen
+        .iter()
+        .map(|(built, ds)| {
+            let img = draw(ds.clone());
+            (*built, lit(&img), psnr(&img))
+        })
+        .collect();
+    eprintln!("snapshots (chunks built, pixels lit, PSNR against the final image): {drawn:?}");
+    let (first, end) = (drawn[0], *drawn.last().unwrap());
+    assert!(end.1 > first.1, "{drawn:?}");
+    assert!(end.2 > first.2 + 3.0, "{drawn:?}");
+    assert!(lit(&last) >= end.1 * 9 / 10, "{drawn:?}");
+}
