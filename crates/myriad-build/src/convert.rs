@@ -393,6 +393,8 @@ pub fn convert(
     let mut t = Instant::now();
 
     // 1. Distribution.
+    let growing = (options.growing.as_ref())
+        .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd));
     let dist = distribute::distribute_with(
         inputs,
         &options.open,
@@ -406,8 +408,20 @@ pub fn convert(
             grid: options.planned.as_ref().map(|p| p.grid.clone()),
         },
         &mut |p| match p {
-            distribute::Progress::Declared(n) => report.phase("reading", n),
+            distribute::Progress::Declared(n) => {
+                report.phase("reading", n);
+                if let Some(g) = &growing {
+                    g.expect(n);
+                }
+            }
             distribute::Progress::Read(n) => report.advance(n),
+            // Drawn while the build reads: a sample of what is decoded.
+            distribute::Progress::Points(b) => {
+                if let Some(g) = &growing {
+                    g.sample(b);
+                    g.offer_decoded();
+                }
+            }
         },
     )?;
     if dist.points == 0 && options.planned.is_none() {

@@ -66,11 +66,14 @@ pub struct Grid {
 
 /// What [`distribute_with`] reports as it goes.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Progress {
+pub enum Progress<'a> {
     /// The inputs' headers declare this many points in all.
     Declared(u64),
     /// This many more points were read.
     Read(u64),
+    /// The points just read (in the dataset's schema): what a build drawn while it runs
+    /// samples ([`crate::growing`]).
+    Points(&'a PointBatch),
 }
 
 /// One chunk: an octree cell and the points that fell into it, spilled to disk.
@@ -613,6 +616,7 @@ pub fn distribute_with(
             }
             scatter.add(&b, &picked, &cells)?;
             points += picked.len() as u64;
+            on_read(Progress::Points(&b));
             on_read(Progress::Read(b.len() as u64));
         }
         skipped += src.skipped_non_finite();

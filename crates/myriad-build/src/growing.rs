@@ -46,7 +46,19 @@ pub struct Growing {
     focus: Mutex<Option<[f64; 3]>>,
     /// The chunks built, in the order they were.
     order: Mutex<Vec<NodeKey>>,
+    /// Points sampled from what the build decodes (every `stride`th), added to the fill.
+    decoded: Mutex<Decoded>,
 }
+
+#[derive(Default)]
+struct Decoded {
+    stride: u64,
+    seen: u64,
+    points: Option<PointBatch>,
+}
+
+/// Most points sampled from what a build decodes (about 10 MB).
+pub const DECODED_SAMPLE: u64 = 1 << 18;
 
 impl std::fmt::Debug for Growing {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -67,7 +79,101 @@ impl Growing {
             making: Mutex::new(()),
             focus: Mutex::new(None),
             order: Mutex::new(Vec::new()),
+            decoded: Mutex::new(Decoded::default()),
         })
+    }
+
+    /// The build will read about `points`: one point in `points / DECODED_SAMPLE` is sampled.
+    pub(crate) fn expect(&self, points: u64) {
+        let mut d = self.decoded.lock().expect("decoded lock");
+        d.stride = (points / DECODED_SAMPLE).max(1);
+    }
+
+    /// Samples the points just decoded (positions, intensity, class, colour) into the fill.
+    pub(crate) fn sample(&self, b: &PointBatch) {
+        let mut d = self.decoded.lock().expect("decoded lock");
+        let stride = d.stride.max(1);
+        let first = (stride - d.seen % stride) % stride;
+        d.seen += b.len() as u64;
+        let idx: Vec<u32> = (first..b.len() as u64)
+            .step_by(stride as usize)
+            .map(|i| i as u32)
+            .collect();
+        if idx.is_empty() {
+            return;
+        }
+        let mut taken = PointBatch {
+            positions: idx.iter().map(|&i| b.positions[i as usize]).collect(),
+            ..Default::default()
+        };
+        taken.intensity =
+            (b.intensity.as_ref()).map(|v| idx.iter().map(|&i| v[i as usize]).collect());
+        taken.classification =
+            (b.classification.as_ref()).map(|v| idx.iter().map(|&i| v[i as usize]).collect());
+        taken.rgb = (b.rgb.as_ref()).map(|v| idx.iter().map(|&i| v[i as usize]).collect());
+        match &mut d.points {
+            Some(all) => {
+                if all.intensity.is_some() != taken.intensity.is_some()
+                    || all.classification.is_some() != taken.classification.is_some()
+                    || all.rgb.is_some() != taken.rgb.is_some()
+                {
+                    return;
+                }
+                all.append(&taken);
+            }
+            None => d.points = Some(taken),
+        }
+    }
+
+    /// The fill: the preview and the points sampled from what is decoded so far.
+    fn fill(&self) -> Option<PointBatch> {
+        let preview = self.fill.lock().expect("fill lock").clone();
+        let decoded = self.decoded.lock().expect("decoded lock").points.clone();
+        match (preview, decoded) {
+            (Some(p), Some(d)) => Some(merge_fill(&p, &d)),
+            (p, d) => p.or(d),
+        }
+    }
+
+    /// While the build reads (nothing written yet): at most every `every`, a snapshot of the
+    /// fill alone, a small dataset in memory.
+    pub(crate) fn offer_decoded(&self) {
+        if self
+            .last
+            .lock()
+            .expect("last lock")
+            .is_some_and(|t| t.elapsed() < self.every)
+        {
+            return;
+        }
+        let Ok(_making) = self.making.try_lock() else {
+            return;
+        };
+        let Some(fill) = self.fill().filter(|f| !f.is_empty()) else {
+            return;
+        };
+        let Some(snap) = fill_snapshot(&fill) else {
+            return;
+        };
+        self.publish(snap, 0, 0);
+    }
+
+    fn publish(&self, snap: Snapshot, built: usize, chunks: usize) {
+        let bytes = Arc::new(snap);
+        let name = std::path::PathBuf::from("(being built)");
+        let Ok(ds) = Dataset::from_source(bytes.clone(), &name) else {
+            return;
+        };
+        *self.last.lock().expect("last lock") = Some(Instant::now());
+        let mut latest = self.latest.lock().expect("latest lock");
+        let version = latest.as_ref().map_or(1, |s| s.version + 1);
+        *latest = Some(Shown {
+            version,
+            dataset: Arc::new(ds),
+            bytes,
+            built,
+            chunks,
+        });
     }
 
     /// Where the viewer looks (the camera's target), or `None`: the chunks still to build that
@@ -123,29 +229,77 @@ impl Growing {
         let Ok(_making) = self.making.try_lock() else {
             return;
         };
-        let fill = self.fill.lock().expect("fill lock").clone();
+        let fill = self.fill();
         // The chunks built before the snapshot's pages are taken: all their nodes are in it.
         let built = built.lock().expect("built lock").clone();
         let snap = writer.snapshot(meta, &|written| {
             stand_ins(written, meta, chunks, &built, fill.as_ref())
         });
-        let Ok(snap) = snap else { return };
-        let bytes = Arc::new(snap);
-        let name = std::path::PathBuf::from("(being built)");
-        let Ok(ds) = Dataset::from_source(bytes.clone(), &name) else {
-            return;
-        };
-        *self.last.lock().expect("last lock") = Some(Instant::now());
-        let mut latest = self.latest.lock().expect("latest lock");
-        let version = latest.as_ref().map_or(1, |s| s.version + 1);
-        *latest = Some(Shown {
-            version,
-            dataset: Arc::new(ds),
-            bytes,
-            built: built.len(),
-            chunks: chunks.len(),
-        });
+        if let Ok(snap) = snap {
+            self.publish(snap, built.len(), chunks.len());
+        }
     }
+}
+
+/// Two fills as one (the columns both have).
+fn merge_fill(a: &PointBatch, b: &PointBatch) -> PointBatch {
+    let mut out = PointBatch {
+        positions: [a.positions.as_slice(), b.positions.as_slice()].concat(),
+        ..Default::default()
+    };
+    if let (Some(x), Some(y)) = (&a.intensity, &b.intensity) {
+        out.intensity = Some([x.as_slice(), y.as_slice()].concat());
+    }
+    if let (Some(x), Some(y)) = (&a.classification, &b.classification) {
+        out.classification = Some([x.as_slice(), y.as_slice()].concat());
+    }
+    if let (Some(x), Some(y)) = (&a.rgb, &b.rgb) {
+        out.rgb = Some([x.as_slice(), y.as_slice()].concat());
+    }
+    out
+}
+
+/// A dataset of the fill alone, in memory: its points in the cells of level 2 of a cube around
+/// them (level 0 when few), empty nodes above.
+fn fill_snapshot(fill: &PointBatch) -> Option<Snapshot> {
+    use myriad_format::Quantization;
+    let mut bounds = Aabb::EMPTY;
+    for p in &fill.positions {
+        bounds.extend(*p);
+    }
+    let side = (0..3)
+        .map(|a| bounds.max[a] - bounds.min[a])
+        .fold(0.0f64, f64::max)
+        .max(1e-3)
+        * 1.001;
+    let root = Aabb::new(bounds.min, std::array::from_fn(|a| bounds.min[a] + side));
+    let schema = fill.schema();
+    let meta = Metadata {
+        structure: "nested-octree".into(),
+        parameters: serde_json::json!({}),
+        points: 0,
+        nodes: 0,
+        depth: 0,
+        bounds,
+        root,
+        quantization: Quantization {
+            scale: [side / f64::from(1u32 << 30); 3],
+            offset: root.min,
+        },
+        crs: None,
+        schema,
+        sources: Vec::new(),
+        las_header: None,
+        levels: Vec::new(),
+        software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
+    };
+    let level = if fill.len() < 20_000 { 0 } else { 2 };
+    let cells: HashSet<NodeKey> = (fill.positions.iter())
+        .map(|p| cell_of(*p, &root, level))
+        .collect();
+    let cells: Vec<NodeKey> = cells.into_iter().collect();
+    let nodes = stand_ins(&[], &meta, &cells, &HashSet::new(), Some(fill));
+    Snapshot::in_memory(&meta, nodes).ok()
 }
 
 /// The cell of level `level` holding `p` (clamped into the root cube).

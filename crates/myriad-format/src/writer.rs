@@ -214,7 +214,7 @@ impl DatasetWriter {
         tail.extend_from_slice(&rest);
         let file = File::open(self.file.temp_path()).map_err(|e| Error::io(&self.path, e))?;
         Ok(Snapshot {
-            file,
+            file: Some(file),
             prefix,
             header: header.encode(),
             tail,
@@ -372,7 +372,8 @@ pub type StandIns<'a> = dyn Fn(&[NodeEntry]) -> Vec<(NodeEntry, Vec<u8>)> + 'a;
 /// A dataset still being written, as [`DatasetWriter::snapshot`] made it readable: the file's
 /// pages up to `prefix` (its zeroed header replaced), then hierarchy and metadata in memory.
 pub struct Snapshot {
-    file: File,
+    /// `None`: a dataset held in memory alone ([`Snapshot::in_memory`]).
+    file: Option<File>,
     prefix: u64,
     header: [u8; HEADER_LEN],
     tail: Vec<u8>,
@@ -382,6 +383,42 @@ impl Snapshot {
     /// Bytes of the file it reads (the rest is in memory).
     pub fn prefix(&self) -> u64 {
         self.prefix
+    }
+
+    /// A dataset of `nodes` (their entries and pages) in memory, with `meta` (counted anew):
+    /// what a build shows before it has written anything.
+    pub fn in_memory(meta: &Metadata, nodes: Vec<(NodeEntry, Vec<u8>)>) -> Result<Snapshot> {
+        let prefix = HEADER_LEN as u64;
+        let mut tail = Vec::new();
+        let mut entries = Vec::with_capacity(nodes.len());
+        for (mut e, page) in nodes {
+            e.page = PageRef {
+                offset: if page.is_empty() {
+                    0
+                } else {
+                    prefix + tail.len() as u64
+                },
+                length: page.len() as u32,
+                crc: crc32fast::hash(&page),
+            };
+            tail.extend_from_slice(&page);
+            entries.push(e);
+        }
+        let mut meta = meta.clone();
+        let (rest, header) = encode_tail(
+            entries,
+            HashMap::new(),
+            &mut meta,
+            prefix + tail.len() as u64,
+        )
+        .map_err(|m| Error::Invalid(format!("metadata: {m}")))?;
+        tail.extend_from_slice(&rest);
+        Ok(Snapshot {
+            file: None,
+            prefix,
+            header: header.encode(),
+            tail,
+        })
     }
 }
 
@@ -404,7 +441,9 @@ impl crate::ByteSource for Snapshot {
         if offset < self.prefix {
             let upto = end.min(self.prefix);
             let part = &mut out[..(upto - offset) as usize];
-            self.file.read_exact_at(part, offset)?;
+            if let Some(f) = &self.file {
+                f.read_exact_at(part, offset)?;
+            }
             for (i, b) in part.iter_mut().enumerate() {
                 if let Some(h) = self.header.get(offset as usize + i) {
                     *b = *h;
