@@ -357,6 +357,9 @@ function reload() {
     if (n.handle) renderer.release(n.handle);
   }
   nodes.clear();
+  // Nothing is drawn until the nodes come back: not converged (a script waiting for the view
+  // must not take the state of before).
+  state.converged = false;
   requestSelection();
 }
 
