@@ -392,7 +392,7 @@ pub fn convert(
     let mut phases = Vec::new();
     let mut t = Instant::now();
 
-    // 1. Distribution.
+    // 1. Distribution. A build drawn while it runs: octree and layered only.
     let growing = (options.growing.as_ref())
         .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd));
     let dist = distribute::distribute_with(
@@ -410,14 +410,14 @@ pub fn convert(
         &mut |p| match p {
             distribute::Progress::Declared(n) => {
                 report.phase("reading", n);
-                if let Some(g) = &growing {
+                if let Some(g) = growing {
                     g.expect(n);
                 }
             }
             distribute::Progress::Read(n) => report.advance(n),
             // Drawn while the build reads: a sample of what is decoded.
             distribute::Progress::Points(b) => {
-                if let Some(g) = &growing {
+                if let Some(g) = growing {
                     g.sample(b);
                     g.offer_decoded();
                 }
@@ -499,9 +499,7 @@ pub fn convert(
         .collect();
     let built = std::sync::Mutex::new(std::collections::HashSet::new());
     let offer = |force: bool| {
-        if let Some(g) = (options.growing.as_ref())
-            .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd))
-        {
+        if let Some(g) = growing {
             g.offer(&writer, &meta, &chunk_keys, &built, force);
         }
     };
@@ -552,7 +550,7 @@ pub fn convert(
         chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
         // Where a viewer looks, the chunks nearest that point first.
         let nearer = |left: &[usize]| -> Option<usize> {
-            let at = options.growing.as_ref()?.focus()?;
+            let at = growing?.focus()?;
             let far = |i: &usize| {
                 let c = &chunks[*i];
                 let cube = NodeKey {
@@ -590,7 +588,7 @@ pub fn convert(
                 Ok::<(), Error>(())
             })?;
             built.lock().expect("built lock").insert(key);
-            if let Some(g) = &options.growing {
+            if let Some(g) = growing {
                 g.built(key);
             }
             offer(false);

@@ -138,12 +138,7 @@ impl Growing {
     /// While the build reads (nothing written yet): at most every `every`, a snapshot of the
     /// fill alone, a small dataset in memory.
     pub(crate) fn offer_decoded(&self) {
-        if self
-            .last
-            .lock()
-            .expect("last lock")
-            .is_some_and(|t| t.elapsed() < self.every)
-        {
+        if !self.due(false) {
             return;
         }
         let Ok(_making) = self.making.try_lock() else {
@@ -156,6 +151,11 @@ impl Growing {
             return;
         };
         self.publish(snap, 0, 0);
+    }
+
+    /// Whether a snapshot is due: the last is older than `every` (always when `force`).
+    fn due(&self, force: bool) -> bool {
+        force || !(self.last.lock().expect("last lock")).is_some_and(|t| t.elapsed() < self.every)
     }
 
     fn publish(&self, snap: Snapshot, built: usize, chunks: usize) {
@@ -217,13 +217,7 @@ impl Growing {
         built: &Mutex<HashSet<NodeKey>>,
         force: bool,
     ) {
-        if !force
-            && self
-                .last
-                .lock()
-                .expect("last lock")
-                .is_some_and(|t| t.elapsed() < self.every)
-        {
+        if !self.due(force) {
             return;
         }
         let Ok(_making) = self.making.try_lock() else {

@@ -189,29 +189,14 @@ impl DatasetWriter {
             out.w.flush().map_err(|e| Error::io(&self.path, e))?;
             out.pos
         };
-        let mut entries: Vec<NodeEntry> = (self.entries.lock().expect("entries lock").iter())
+        let entries: Vec<NodeEntry> = (self.entries.lock().expect("entries lock").iter())
             .filter(|e| e.page.offset + e.page.length as u64 <= prefix)
             .cloned()
             .collect();
         let splats = self.splats.lock().expect("splats lock").clone();
-        let mut tail = Vec::new();
-        for (mut e, page) in extra(&entries) {
-            e.page = PageRef {
-                offset: if page.is_empty() {
-                    0
-                } else {
-                    prefix + tail.len() as u64
-                },
-                length: page.len() as u32,
-                crc: crc32fast::hash(&page),
-            };
-            tail.extend_from_slice(&page);
-            entries.push(e);
-        }
-        let mut meta = meta.clone();
-        let (rest, header) = encode_tail(entries, splats, &mut meta, prefix + tail.len() as u64)
+        let extra = extra(&entries);
+        let (tail, header) = with_pages(entries, extra, splats, meta, prefix)
             .map_err(|m| Error::Invalid(format!("{}: metadata: {m}", self.path.display())))?;
-        tail.extend_from_slice(&rest);
         let file = File::open(self.file.temp_path()).map_err(|e| Error::io(&self.path, e))?;
         Ok(Snapshot {
             file: Some(file),
@@ -270,6 +255,36 @@ impl DatasetWriter {
         self.file.commit()?;
         Ok(header.file_length)
     }
+}
+
+/// What follows byte `prefix` of a snapshot: the pages of `extra` (their entries placed there,
+/// added to `entries`), then the hierarchy and metadata ([`encode_tail`], `meta` counted anew);
+/// and the header that points at them.
+fn with_pages(
+    mut entries: Vec<NodeEntry>,
+    extra: Vec<(NodeEntry, Vec<u8>)>,
+    splats: HashMap<NodeKey, splat::SplatInfo>,
+    meta: &Metadata,
+    prefix: u64,
+) -> std::result::Result<(Vec<u8>, Header), String> {
+    let mut tail = Vec::new();
+    for (mut e, page) in extra {
+        e.page = PageRef {
+            offset: if page.is_empty() {
+                0
+            } else {
+                prefix + tail.len() as u64
+            },
+            length: page.len() as u32,
+            crc: crc32fast::hash(&page),
+        };
+        tail.extend_from_slice(&page);
+        entries.push(e);
+    }
+    let mut meta = meta.clone();
+    let (rest, header) = encode_tail(entries, splats, &mut meta, prefix + tail.len() as u64)?;
+    tail.extend_from_slice(&rest);
+    Ok((tail, header))
 }
 
 /// The hierarchy pages (children before parents) and the metadata of `entries`, as they follow
@@ -389,30 +404,8 @@ impl Snapshot {
     /// what a build shows before it has written anything.
     pub fn in_memory(meta: &Metadata, nodes: Vec<(NodeEntry, Vec<u8>)>) -> Result<Snapshot> {
         let prefix = HEADER_LEN as u64;
-        let mut tail = Vec::new();
-        let mut entries = Vec::with_capacity(nodes.len());
-        for (mut e, page) in nodes {
-            e.page = PageRef {
-                offset: if page.is_empty() {
-                    0
-                } else {
-                    prefix + tail.len() as u64
-                },
-                length: page.len() as u32,
-                crc: crc32fast::hash(&page),
-            };
-            tail.extend_from_slice(&page);
-            entries.push(e);
-        }
-        let mut meta = meta.clone();
-        let (rest, header) = encode_tail(
-            entries,
-            HashMap::new(),
-            &mut meta,
-            prefix + tail.len() as u64,
-        )
-        .map_err(|m| Error::Invalid(format!("metadata: {m}")))?;
-        tail.extend_from_slice(&rest);
+        let (tail, header) = with_pages(Vec::new(), nodes, HashMap::new(), meta, prefix)
+            .map_err(|m| Error::Invalid(format!("metadata: {m}")))?;
         Ok(Snapshot {
             file: None,
             prefix,
