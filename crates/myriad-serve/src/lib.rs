@@ -150,7 +150,7 @@ struct Shared {
     registry: conn::Registry,
     counters: Counters,
     /// Box downloads extracting at once, and spooled at once.
-    extracting: Semaphore,
+    extracting: Arc<Semaphore>,
     spooled: Arc<Semaphore>,
     /// The server's temporary files (box downloads), removed when it stops; one a killed
     /// server left is removed by the next server to start.
@@ -219,7 +219,7 @@ impl Server {
             )),
             registry: conn::Registry::default(),
             counters: Counters::default(),
-            extracting: Semaphore::new(download::MAX_AT_ONCE),
+            extracting: Arc::new(Semaphore::new(download::MAX_AT_ONCE)),
             spooled: Arc::new(Semaphore::new(SPOOLED_AT_ONCE)),
             scratch,
             puts: Semaphore::new(work::PUTS_AT_ONCE),
@@ -696,6 +696,18 @@ async fn route(
             _ => status(StatusCode::NOT_FOUND, "no such dataset"),
         };
     }
+    if let Some(name) = path.strip_prefix("/build/") {
+        let Some(name) = percent_decode(name) else {
+            return status(StatusCode::BAD_REQUEST, "malformed path");
+        };
+        return match catalog.file(&name).and_then(|f| f.live.clone()) {
+            Some(live) => build_changes(live, req.uri().query().unwrap_or("")).await,
+            None => status(
+                StatusCode::NOT_FOUND,
+                "no dataset of that name is being built",
+            ),
+        };
+    }
     let Some(name) = path.strip_prefix("/d/") else {
         return status(StatusCode::NOT_FOUND, "not found");
     };
@@ -742,6 +754,54 @@ async fn route(
         "x-myriad-building",
         HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
     );
+    r
+}
+
+/// `/build/NAME?since=V&focus=X,Y,Z` ([`live::Live::changes`]): the newest version of a dataset
+/// being built, its length, whether the build still runs, and its nodes that are new against
+/// version `V` (`null`: all); `focus` is where the asker looks, built next.
+async fn build_changes(live: Arc<live::Live>, query: &str) -> Response<Body> {
+    let mut since = String::new();
+    for p in query.split('&') {
+        if let Some(v) = p.strip_prefix("since=") {
+            since = percent_decode(v).unwrap_or_default();
+        } else if let Some(v) = p.strip_prefix("focus=") {
+            let xyz: Vec<f64> = match v.split(',').map(str::parse).collect() {
+                Ok(xyz) => xyz,
+                Err(_) => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
+            };
+            match <[f64; 3]>::try_from(xyz) {
+                Ok(p) if p.iter().all(|v| v.is_finite()) => live.focus(p),
+                _ => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
+            }
+        }
+    }
+    let l = live.clone();
+    let answered = tokio::task::spawn_blocking(move || {
+        let (now, new) = l.changes(&since);
+        (now.name(), now.len(), new)
+    });
+    let Ok((version, len, new)) = answered.await else {
+        return status(StatusCode::INTERNAL_SERVER_ERROR, "the question failed");
+    };
+    let new = new.map(|keys| {
+        (keys.iter())
+            .map(|k| [k.level, k.cell[0], k.cell[1], k.cell[2]])
+            .collect::<Vec<_>>()
+    });
+    let body = serde_json::json!({
+        "version": version,
+        "building": live.is_building(),
+        "length": len,
+        "new": new,
+    });
+    let mut r = Response::new(full(body.to_string()));
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     r
 }
 
@@ -830,7 +890,14 @@ async fn box_download(
         .acquire_owned()
         .await
         .expect("never closed");
-    let _turn = shared.extracting.acquire().await.expect("never closed");
+    // The turn goes with the extraction's thread: one whose client left holds it until it stops
+    // at its next node, so abandoned extractions never run beside the next ones.
+    let turn = shared
+        .extracting
+        .clone()
+        .acquire_owned()
+        .await
+        .expect("never closed");
     // A client that left while it waited (its connection's watchdog may not have seen it yet)
     // does not start an extraction.
     if conn::peer_closed(fd) {
@@ -846,6 +913,7 @@ async fn box_download(
     let path = f.path.clone();
     let s = shared.clone();
     let made = tokio::task::spawn_blocking(move || {
+        let _turn = turn;
         let r = download::run(&path, &q, &limits, &|| cancelled.load(Ordering::Relaxed));
         if matches!(r, Err(download::Failed::Cancelled)) {
             s.counters.add(2);
@@ -853,7 +921,6 @@ async fn box_download(
         r
     })
     .await;
-    drop(_turn);
     let (file, points) = match made {
         Ok(Ok(r)) => r,
         Ok(Err(download::Failed::TooLarge(m))) => {

@@ -9,14 +9,28 @@
 //! viewer's reads never mix two versions: the last [`KEPT`] snapshots stay answerable, older
 //! ones are 410 Gone (the viewer opens the current one again). A snapshot is served by single
 //! ranges of at most 4 MiB (what readers of a dataset ask for); the whole file waits for the end.
+//!
+//! A viewer asks `/build/NAME?since=V&focus=X,Y,Z` once a second ([`Live::changes`]): the newest
+//! version, and which of its nodes are new against the version `V` it draws, so that it keeps
+//! every node it has whose page is still the same (the build only appends to its file: a page
+//! written before a snapshot is the same bytes in every later version); `focus`, where its camera
+//! looks, is where the build goes next ([`Growing::set_focus`]).
 
 use myriad_build::growing::{Growing, Shown};
-use std::collections::VecDeque;
+use myriad_core::NodeKey;
+use myriad_format::{ByteSource, Dataset, NodeEntry};
+use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 /// Snapshots kept answerable after a newer one is served.
 pub const KEPT: usize = 4;
+
+/// Answers of [`Live::changes`] kept (viewers ask every second, most of them the same).
+const ANSWERS: usize = 8;
+
+/// The nodes of a version that are new against an older one (`None`: all of them).
+pub(crate) type NewNodes = Option<Arc<Vec<NodeKey>>>;
 
 /// What a name being built serves.
 pub struct Live {
@@ -25,6 +39,8 @@ pub struct Live {
     /// The build's end: the dataset, or `None` when it failed (what was served stays).
     ended: Mutex<Option<Option<PathBuf>>>,
     kept: Mutex<VecDeque<Shown>>,
+    /// Answers of [`Live::changes`]: (since, version, new nodes).
+    answers: Mutex<VecDeque<(String, String, NewNodes)>>,
 }
 
 /// One version of a name being built.
@@ -43,6 +59,51 @@ impl Version {
             Version::Final(_) => "final".into(),
         }
     }
+
+    /// Its length in bytes.
+    pub(crate) fn len(&self) -> u64 {
+        match self {
+            Version::Preview(p) | Version::Final(p) => std::fs::metadata(p).map_or(0, |m| m.len()),
+            Version::Snapshot(s) => s.bytes.len(),
+        }
+    }
+}
+
+/// The nodes of `now` whose pages are not those of `old` (`None`: all of them: `old` is the
+/// preview, a snapshot held in memory alone, or over another cube). A node of `old` is kept
+/// when its page lies in the part of the build's file written before `old` was taken and `now`
+/// has the same page for it.
+fn new_nodes(old: &Version, now: &Version) -> Option<Vec<NodeKey>> {
+    let Version::Snapshot(o) = old else {
+        return None;
+    };
+    let written = o.bytes.prefix();
+    let then = o.dataset.clone();
+    let later = match now {
+        Version::Snapshot(s) => s.dataset.clone(),
+        Version::Final(p) => Arc::new(Dataset::open(p).ok()?),
+        Version::Preview(_) => return None,
+    };
+    if then.meta.root != later.meta.root {
+        return None;
+    }
+    let (before, d) = then.nodes();
+    if !d.is_empty() {
+        return None;
+    }
+    let (after, d) = later.nodes();
+    if !d.is_empty() {
+        return None;
+    }
+    let same: HashMap<NodeKey, &NodeEntry> = (before.iter())
+        .filter(|e| e.page.offset + e.page.length as u64 <= written)
+        .map(|e| (e.key, e))
+        .collect();
+    let new = after.iter().filter(|e| {
+        same.get(&e.key)
+            .is_none_or(|o| o.page != e.page || o.points != e.points)
+    });
+    Some(new.map(|e| e.key).collect())
 }
 
 impl Live {
@@ -53,6 +114,7 @@ impl Live {
             growing: Mutex::new(None),
             ended: Mutex::new(None),
             kept: Mutex::new(VecDeque::new()),
+            answers: Mutex::new(VecDeque::new()),
         })
     }
 
@@ -90,6 +152,39 @@ impl Live {
         match kept.back() {
             Some(s) => Version::Snapshot(s.clone()),
             None => Version::Preview(self.preview.clone()),
+        }
+    }
+
+    /// The newest version, and its nodes that are new against version `since` (what a viewer
+    /// drawing `since` must load again; `None`: all). Reads hierarchies: run it off the async
+    /// threads.
+    pub(crate) fn changes(&self, since: &str) -> (Version, NewNodes) {
+        let now = self.current();
+        let to = now.name();
+        if since == to {
+            return (now, Some(Arc::new(Vec::new())));
+        }
+        let cached = (self.answers.lock().expect("live lock").iter())
+            .find(|(s, t, _)| s == since && *t == to)
+            .map(|(_, _, n)| n.clone());
+        if let Some(new) = cached {
+            return (now, new);
+        }
+        let new = (self.version(since))
+            .and_then(|old| new_nodes(&old, &now))
+            .map(Arc::new);
+        let mut answers = self.answers.lock().expect("live lock");
+        answers.push_back((since.to_string(), to, new.clone()));
+        while answers.len() > ANSWERS {
+            answers.pop_front();
+        }
+        (now, new)
+    }
+
+    /// Builds the chunks nearest `p` next (where a viewer looks).
+    pub(crate) fn focus(&self, p: [f64; 3]) {
+        if let Some(g) = &*self.growing.lock().expect("live lock") {
+            g.set_focus(Some(p));
         }
     }
 

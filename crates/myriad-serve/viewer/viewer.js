@@ -24,6 +24,8 @@ const state = {
   // A dataset being built (served before its build ends): the version drawn, and how often a newer
   // one replaced it.
   building: false, version: null, refreshes: 0,
+  // Nodes kept across versions (their pages unchanged) and loaded again, in all.
+  nodesKept: 0, nodesDropped: 0,
 };
 
 // ---- small vector helpers (f64: JavaScript numbers) ----
@@ -228,18 +230,22 @@ async function open() {
   if (state.building) setTimeout(follow, 1000);
 }
 
-// A dataset being built (`myriad serve SCAN`): asked every second what its newest version is;
-// a newer one (the build's next snapshot, then the finished dataset) replaces what is drawn,
-// the camera and settings kept, until the build ends.
+// A dataset being built (`myriad serve SCAN`): asked every second what its newest version is
+// (`/build/NAME`, telling it where the camera looks: the build goes there next); a newer one (the
+// build's next snapshot, then the finished dataset) replaces what is drawn, the camera and
+// settings kept, and only the nodes the server says are new are loaded again.
 async function follow() {
-  const base = `/d/${encodeURIComponent(state.dataset)}`;
+  const name = encodeURIComponent(state.dataset);
   try {
-    const head = await fetch(base, { method: "HEAD", cache: "no-store" });
-    const was = state.version;
-    const url = versioned(base, head);
-    if (head.ok && state.version !== was) {
-      const length = Number(head.headers.get("content-length"));
-      const { sel, decs, opened, ready } = await startWorkers(url, state.dataset, length);
+    const focus = camera.target.map((v) => +v.toFixed(3)).join(",");
+    const r = await fetch(`/build/${name}?since=${encodeURIComponent(state.version || "")}&focus=${focus}`,
+      { cache: "no-store" });
+    if (!r.ok) throw new Error(`HTTP ${r.status}: ${(await r.text()).trim()}`);
+    const b = await r.json();
+    state.building = b.building;
+    if (b.version !== state.version) {
+      const url = `/d/${name}?v=${encodeURIComponent(b.version)}`;
+      const { sel, decs, opened, ready } = await startWorkers(url, state.dataset, b.length);
       const info = (await opened).info;
       await Promise.all(ready);
       if (info.error) throw new Error(info.error);
@@ -251,15 +257,36 @@ async function follow() {
       decoders.push(...decs);
       selecting = false;
       selection = null;
+      // Nodes decoded for the elevation scheme took their colours from the old version's heights.
+      const [was, vb] = [state.info.view_bounds, info.view_bounds];
+      const sameColours = SCHEMES[settings.scheme] !== "elevation" || (was[2] === vb[2] && was[5] === vb[5]);
       state.info = info;
+      state.version = b.version;
       state.refreshes = (state.refreshes || 0) + 1;
       if (settings.ramp || settings.where) await applyStyle();
-      reload();
+      else if (b.new && sameColours) refresh(new Set(b.new.map(keyString)));
+      else reload();
     }
   } catch (e) {
     error(`following the build: ${e.message || e}`);
   }
   if (state.building) setTimeout(follow, 1000);
+}
+
+// A newer version of the dataset: the nodes in `fresh` (new or changed in it) and those whose
+// loading the old workers took with them are loaded again; the others stay drawn.
+function refresh(fresh) {
+  let kept = 0, dropped = 0;
+  for (const [k, n] of nodes) {
+    if (n.state === "loaded" && !fresh.has(k)) { kept += 1; continue; }
+    if (n.handle) renderer.release(n.handle);
+    nodes.delete(k);
+    dropped += 1;
+  }
+  state.nodesKept = (state.nodesKept || 0) + kept;
+  state.nodesDropped = (state.nodesDropped || 0) + dropped;
+  state.converged = false;
+  requestSelection();
 }
 
 let selecting = false;

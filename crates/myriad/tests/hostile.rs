@@ -421,7 +421,11 @@ fn abandoned_box_downloads_stop_instead_of_running_on() {
         })
         .collect();
     std::thread::sleep(Duration::from_millis(300));
-    drop(burst);
+    // Last sent first: the waiting clients are gone before those extracting leave their turns
+    // (closing in order, a waiter not yet closed could take a turn between two closes).
+    for c in burst.into_iter().rev() {
+        drop(c);
+    }
     std::thread::sleep(SECOND);
     let stats = server.stats();
     assert!(

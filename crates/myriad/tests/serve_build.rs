@@ -47,6 +47,8 @@ fn a_raw_scan_is_served_at_once_and_refined_as_it_is_built() {
             "points",
             "nodes",
             "refreshes",
+            "nodesKept",
+            "nodesDropped",
             "firstImageMs",
             "errors",
         ]
