@@ -4,7 +4,8 @@
 //! looking level along its longer horizontal axis: in a building, a room with walls between it
 //! and the rest) and outside (the standard overview from above at 45 degrees). For each view,
 //! each method (`off`, `software`, `queries`: occlusion queries after each frame, hardware ones
-//! on a GPU, acting from the next frame: drawn until the selection settles) and each `--budgets`
+//! on a GPU, acting from the next frame; `checked`: the software test with its culls queried;
+//! the last two drawn until the selection settles) and each `--budgets`
 //! (then the 1-pixel threshold alone, no budget), once converged: nodes and points selected,
 //! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
 //! against the image of every point with culling off.
@@ -134,6 +135,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                     ("off", Occlusion::Off),
                     ("software", Occlusion::Software),
                     ("queries", Occlusion::Queries),
+                    ("checked", Occlusion::Checked),
                 ] {
                     scene.occlusion = occlusion;
                     let o = SelectOptions {
@@ -144,11 +146,7 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                     // Queries act from the frame after theirs: draw until the selection
                     // settles.
                     let mut settled = None;
-                    for _ in 0..(if occlusion == Occlusion::Queries {
-                        12
-                    } else {
-                        0
-                    }) {
+                    for _ in 0..(if occlusion.queries() { 12 } else { 0 }) {
                         let (_, s) = scene.frame(&gpu, &raster, &cam, &o, &style);
                         scene.converge(&cam, &o, None);
                         let now = Some((s.nodes, s.culled, s.points));

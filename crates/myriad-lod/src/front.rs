@@ -92,6 +92,7 @@ pub fn select_front(
     };
     let mut queue = BinaryHeap::new();
     queue.push(Candidate {
+        deferred: false,
         benefit: metric(root),
         key: root.key,
     });
@@ -121,6 +122,7 @@ pub fn select_front(
         count = after;
         for c in kids {
             queue.push(Candidate {
+                deferred: false,
                 benefit: metric(c),
                 key: c.key,
             });

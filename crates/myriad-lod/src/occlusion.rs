@@ -39,6 +39,13 @@ pub enum Occlusion {
     /// against the frame's depth (on the GPU, or the CPU path's mirror); the next selection
     /// culls those of which no pixel showed.
     Queries,
+    /// The software test, its culls checked: after each frame the boxes of the nodes it culled
+    /// are queried against the frame's depth, and one of which a pixel shows is not culled from
+    /// the next selection on (while it keeps showing) but selected after the nodes in the open,
+    /// as far as the budget goes. The software test alone culls what shows through gaps narrower
+    /// than its splats; checked, a view that settles loses nothing the budget could draw, and
+    /// under a budget the points still go to what is in the open first.
+    Checked,
 }
 
 impl Occlusion {
@@ -47,8 +54,14 @@ impl Occlusion {
             "off" => Ok(Occlusion::Off),
             "software" => Ok(Occlusion::Software),
             "queries" => Ok(Occlusion::Queries),
-            _ => Err(format!("\"{s}\": software, queries or off")),
+            "checked" => Ok(Occlusion::Checked),
+            _ => Err(format!("\"{s}\": checked, software, queries or off")),
         }
+    }
+
+    /// Whether frames run occlusion queries after them.
+    pub fn queries(self) -> bool {
+        matches!(self, Occlusion::Queries | Occlusion::Checked)
     }
 }
 
@@ -261,6 +274,18 @@ impl DepthMap {
     }
 }
 
+/// What an [`Occluder`] knows of a node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Verdict {
+    /// Not hidden.
+    Open,
+    /// Culled.
+    Hidden,
+    /// Hidden to the software test, but the last queries saw it (`Occlusion::Checked`): it is
+    /// selected after the nodes in the open, as far as the budget goes.
+    Seen,
+}
+
 /// What a selection with occlusion culling needs: the software test's buffer and the points of
 /// resident nodes (a node not loaded yet covers nothing), or the nodes the last frame's
 /// occlusion queries found hidden.
@@ -268,6 +293,8 @@ pub struct Occluder<'a> {
     pub map: Option<DepthMap>,
     pub points: &'a dyn Fn(&NodeKey) -> Option<Arc<crate::stream::Loaded>>,
     pub hidden: Option<&'a HashSet<NodeKey>>,
+    /// Nodes the map may not cull (`Occlusion::Checked`: the last queries saw them).
+    pub shown: Option<&'a HashSet<NodeKey>>,
 }
 
 impl<'a> Occluder<'a> {
@@ -281,6 +308,20 @@ impl<'a> Occluder<'a> {
             map: Some(DepthMap::new(cam, size)),
             points,
             hidden: None,
+            shown: None,
+        }
+    }
+
+    /// The software test, except for the nodes in `shown` (`Occlusion::Checked`).
+    pub fn checked(
+        cam: &Camera,
+        size: u32,
+        points: &'a dyn Fn(&NodeKey) -> Option<Arc<crate::stream::Loaded>>,
+        shown: &'a HashSet<NodeKey>,
+    ) -> Occluder<'a> {
+        Occluder {
+            shown: Some(shown),
+            ..Occluder::new(cam, size, points)
         }
     }
 
@@ -290,13 +331,23 @@ impl<'a> Occluder<'a> {
             map: None,
             points: &|_| None,
             hidden: Some(hidden),
+            shown: None,
         }
     }
 
-    /// Whether node `key` (its box's corners) is hidden.
-    pub(crate) fn hides(&mut self, key: &NodeKey, corners: &[[f64; 3]; 8]) -> bool {
-        self.hidden.is_some_and(|h| h.contains(key))
-            || self.map.as_mut().is_some_and(|m| m.hides(corners))
+    /// What is known of node `key` (its box's corners).
+    pub(crate) fn test(&mut self, key: &NodeKey, corners: &[[f64; 3]; 8]) -> Verdict {
+        if self.hidden.is_some_and(|h| h.contains(key)) {
+            return Verdict::Hidden;
+        }
+        if !self.map.as_mut().is_some_and(|m| m.hides(corners)) {
+            return Verdict::Open;
+        }
+        if self.shown.is_some_and(|s| s.contains(key)) {
+            Verdict::Seen
+        } else {
+            Verdict::Hidden
+        }
     }
 
     /// A selected node's first `count` points cover what lies behind them (software test).

@@ -15,7 +15,7 @@
 //! nodes replace their parents, are selected as a front ([`crate::front`]).
 
 use crate::hierarchy::Hierarchy;
-use crate::occlusion::Occluder;
+use crate::occlusion::{Occluder, Verdict};
 pub(crate) use crate::selection::{Candidate, nearest_depth, nearest_depth_of};
 pub use crate::selection::{SelectOptions, Selected, Selection};
 use crate::view::{Camera, Frustum};
@@ -179,12 +179,21 @@ pub fn select_eyes(
             Some(c) => best(&|cam| benefit_of_box(cam, c)),
             None => best(&|cam| benefit_of_box(cam, &Obb::from_aabb(&cube))),
         };
-        queue.push(Candidate { benefit, key });
+        queue.push(Candidate {
+            benefit,
+            key,
+            deferred: false,
+        });
     };
     if h.get(&NodeKey::ROOT).is_some() {
         consider(NodeKey::ROOT, &mut queue);
     }
-    while let Some(Candidate { benefit, key }) = queue.pop() {
+    while let Some(Candidate {
+        benefit,
+        key,
+        deferred,
+    }) = queue.pop()
+    {
         let Some(e) = h.get(&key) else { continue };
         if key.level % PAGE_LEVELS == 0 {
             out.used_pages.push(key);
@@ -193,12 +202,23 @@ pub fn select_eyes(
             Some(c) => c.corners(),
             None => h.bounds(&key).corners(),
         };
-        if let Some(occ) = occluder.as_deref_mut()
-            && occ.hides(&key, &corners)
-        {
-            out.culled += 1;
-            out.hidden.push(key);
-            continue;
+        match occluder.as_deref_mut().map(|occ| occ.test(&key, &corners)) {
+            Some(Verdict::Hidden) => {
+                out.culled += 1;
+                out.hidden.push(key);
+                continue;
+            }
+            // Hidden as far as the software test knows, seen by the last queries: after
+            // every node in the open.
+            Some(Verdict::Seen) if !deferred => {
+                queue.push(Candidate {
+                    benefit,
+                    key,
+                    deferred: true,
+                });
+                continue;
+            }
+            _ => {}
         }
         let depth = eyes
             .iter()

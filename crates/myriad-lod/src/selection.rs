@@ -59,10 +59,13 @@ pub struct Selection {
 pub(crate) struct Candidate {
     pub(crate) benefit: f64,
     pub(crate) key: NodeKey,
+    /// Comes after every candidate that is not (`Occlusion::Checked`: a node the software test
+    /// would cull, which the last queries saw through a gap: drawn where the budget allows).
+    pub(crate) deferred: bool,
 }
 impl PartialEq for Candidate {
     fn eq(&self, o: &Self) -> bool {
-        self.benefit == o.benefit && self.key == o.key
+        self.benefit == o.benefit && self.key == o.key && self.deferred == o.deferred
     }
 }
 impl Eq for Candidate {}
@@ -73,8 +76,8 @@ impl PartialOrd for Candidate {
 }
 impl Ord for Candidate {
     fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.benefit
-            .total_cmp(&o.benefit)
+        (o.deferred.cmp(&self.deferred))
+            .then_with(|| self.benefit.total_cmp(&o.benefit))
             .then_with(|| o.key.cmp(&self.key))
     }
 }

@@ -125,6 +125,14 @@ fn reversed(w: f64, camera: &Camera) -> f64 {
     (camera.near / w.max(camera.near)).clamp(0.0, 1.0)
 }
 
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 /// Whether a box reaches the near plane (then it is visible without a test).
 fn at_the_eye(camera: &Camera, corners: &[[f64; 3]; 8]) -> bool {
     corners.iter().any(|&c| camera.to_eye(c)[2] <= camera.near)
@@ -147,7 +155,32 @@ fn cpu_visible(camera: &Camera, depth: &[f32], corners: &[[f64; 3]; 8]) -> bool 
             ]
         })
         .collect();
+    // A box is convex: where a face turned away from the eye covers a pixel, one turned
+    // towards it covers it too, nearer. The faces turned away are not scanned.
+    let centre = corners
+        .iter()
+        .fold([0.0; 3], |s, c| [s[0] + c[0], s[1] + c[1], s[2] + c[2]])
+        .map(|v| v / 8.0);
+    let eye = camera.position;
+    let turned_away = |t: &[usize]| {
+        let [a, b, c] = [corners[t[0]], corners[t[1]], corners[t[2]]];
+        let (u, v) = (sub(b, a), sub(c, a));
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let outward = if dot(n, sub(a, centre)) >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        outward * dot(n, sub(eye, a)) < 0.0
+    };
     for t in FACES.chunks_exact(3) {
+        if turned_away(t) {
+            continue;
+        }
         let [a, b, c] = [screen[t[0]], screen[t[1]], screen[t[2]]];
         let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
         if area == 0.0 {
@@ -174,6 +207,74 @@ fn cpu_visible(camera: &Camera, depth: &[f32], corners: &[[f64; 3]; 8]) -> bool 
         }
     }
     false
+}
+
+/// Pixels per side of a [`Tiles`] tile.
+const TILE: usize = 16;
+
+/// The CPU queries' first test: per tile of the frame, its farthest depth (infinite where a
+/// pixel is empty). A box whose nearest corner lies beyond the farthest depth of every tile its
+/// screen rectangle meets is hidden at every pixel, without scanning its triangles: the boxes of
+/// hidden nodes, the costly ones to scan, mostly end here.
+struct Tiles {
+    across: usize,
+    down: usize,
+    far: Vec<f32>,
+}
+
+impl Tiles {
+    fn new(camera: &Camera, depth: &[f32]) -> Tiles {
+        let (w, h) = (camera.width.max(1) as usize, camera.height.max(1) as usize);
+        let (across, down) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let mut far = vec![0f32; across * down];
+        for y in 0..h.min(depth.len() / w) {
+            let row = &depth[y * w..(y + 1) * w];
+            let tiles = &mut far[(y / TILE) * across..(y / TILE + 1) * across];
+            for (x, &d) in row.iter().enumerate() {
+                let t = &mut tiles[x / TILE];
+                *t = t.max(if d > 0.0 { d } else { f32::INFINITY });
+            }
+        }
+        Tiles { across, down, far }
+    }
+
+    /// Whether every pixel the box can cover holds something nearer than the box's nearest
+    /// corner (`false`: not known; the box is scanned).
+    fn hide(&self, camera: &Camera, corners: &[[f64; 3]; 8]) -> bool {
+        let (w, h) = (camera.width.max(1) as f64, camera.height.max(1) as f64);
+        let focal = camera.focal();
+        let mut nearest = f64::INFINITY;
+        let (mut x0, mut y0, mut x1, mut y1) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &c in corners {
+            let e = camera.to_eye(c);
+            if e[2] <= camera.near {
+                return false;
+            }
+            nearest = nearest.min(e[2]);
+            let (x, y) = (w / 2.0 + e[0] * focal / e[2], h / 2.0 - e[1] * focal / e[2]);
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        let tile = |v: f64, n: usize| ((v.max(0.0) as usize) / TILE).min(n - 1);
+        let (tx0, tx1) = (
+            tile(x0.floor() - 1.0, self.across),
+            tile(x1.ceil() + 1.0, self.across),
+        );
+        let (ty0, ty1) = (
+            tile(y0.floor() - 1.0, self.down),
+            tile(y1.ceil() + 1.0, self.down),
+        );
+        let nearest = nearest as f32;
+        (ty0..=ty1).all(|ty| {
+            self.far[ty * self.across + tx0..=ty * self.across + tx1]
+                .iter()
+                .all(|&f| f < nearest)
+        })
+    }
 }
 
 /// Occlusion queries submitted and not read yet ([`crate::Rasterizer::query_submit`]).
@@ -260,8 +361,10 @@ impl Queries {
             // The CPU path before it was asked to keep its depth: nothing known.
             None if path == Path::Cpu => {}
             Some(depth) => {
+                let tiles = Tiles::new(cam, depth);
                 for &i in &tested {
-                    ticket.boxes[i] = Ok(cpu_visible(cam, depth, &boxes[i]));
+                    let hidden = tiles.hide(cam, &boxes[i]);
+                    ticket.boxes[i] = Ok(!hidden && cpu_visible(cam, depth, &boxes[i]));
                 }
             }
             None => {

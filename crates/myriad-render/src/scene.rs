@@ -61,6 +61,11 @@ pub struct Scene {
     pub occlusion_size: u32,
     /// The nodes the last frame's occlusion queries found hidden (`Occlusion::Queries`).
     hidden: Arc<HashSet<NodeKey>>,
+    /// The nodes the software test culled that the last queries found showing
+    /// (`Occlusion::Checked`): not culled by it until they are hidden again.
+    shown: Arc<HashSet<NodeKey>>,
+    /// The view and nodes drawn when the seen ones were last tested ([`view_hash`]).
+    queried_view: Option<u64>,
     /// Whether a frame waits for its occlusion queries' results (else they are read in a later
     /// frame, when the GPU has them: the viewer's way).
     pub query_wait: bool,
@@ -154,9 +159,11 @@ impl Scene {
             last: Selection::default(),
             drawn: HashSet::new(),
             colour: ColorBy::Rgb,
-            occlusion: Occlusion::Software,
+            occlusion: Occlusion::Checked,
             occlusion_size: myriad_lod::occlusion::DEFAULT_SIZE,
             hidden: Default::default(),
+            shown: Default::default(),
+            queried_view: None,
             query_wait: true,
             pending: None,
             upload_limit: usize::MAX,
@@ -344,7 +351,10 @@ impl Scene {
             options,
             self.culling(clip),
             &|k| self.loader.get(k),
-            &self.hidden,
+            crate::selector::Queried {
+                hidden: &self.hidden,
+                shown: &self.shown,
+            },
             &self.previous(),
         )
     }
@@ -552,11 +562,20 @@ impl Scene {
 
     /// Occlusion queries (`Occlusion::Queries`, 003): the boxes of the nodes `selection` chose
     /// and of those it culled as hidden, tested against the frame just drawn; the next
-    /// selection culls those of which no pixel showed.
-    fn query_hidden(&mut self, gpu: &Gpu, raster: &Rasterizer, selection: &Selection) {
-        if self.occlusion != Occlusion::Queries {
-            if !self.hidden.is_empty() {
+    /// selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
+    /// the nodes the software test culled (and of those drawn because the last queries saw
+    /// them): the next selection lets it cull only those of which no pixel showed.
+    fn query_hidden(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        camera: &Camera,
+        selection: &Selection,
+    ) {
+        if !self.occlusion.queries() {
+            if !self.hidden.is_empty() || !self.shown.is_empty() {
                 self.hidden = Default::default();
+                self.shown = Default::default();
             }
             self.pending = None;
             return;
@@ -565,12 +584,28 @@ impl Scene {
             let Some(visible) = ticket.poll(gpu) else {
                 return;
             };
-            self.hidden = Arc::new(hidden_of(keys, visible));
+            let keys = std::mem::take(keys);
+            self.queried(&keys, visible);
             self.pending = None;
         }
-        let keys: Vec<NodeKey> = (selection.nodes.iter().map(|n| n.key))
-            .chain(selection.hidden.iter().copied())
-            .collect();
+        let keys: Vec<NodeKey> = if self.occlusion == Occlusion::Checked {
+            // The nodes drawn because they were seen are tested again when the view or what
+            // is drawn changed (whether they are hidden now); in a still view, not.
+            let view = view_hash(camera, selection);
+            let again = self.queried_view != Some(view);
+            self.queried_view = Some(view);
+            (selection.hidden.iter().copied())
+                .chain(
+                    (selection.nodes.iter())
+                        .map(|n| n.key)
+                        .filter(|k| again && self.shown.contains(k)),
+                )
+                .collect()
+        } else {
+            (selection.nodes.iter().map(|n| n.key))
+                .chain(selection.hidden.iter().copied())
+                .collect()
+        };
         // Each box grown by its node's spacing on every side: points are drawn about that
         // large, and a flat node's box would otherwise tie with its own points' depth.
         let boxes: Vec<[[f64; 3]; 8]> = keys
@@ -591,9 +626,37 @@ impl Scene {
             })
             .collect();
         if self.query_wait {
-            self.hidden = Arc::new(hidden_of(&keys, raster.query(gpu, &boxes)));
+            let visible = raster.query(gpu, &boxes);
+            self.queried(&keys, visible);
         } else {
             self.pending = Some((raster.query_submit(gpu, &boxes), keys));
+        }
+    }
+
+    /// The answers of the queries of `keys`' boxes.
+    fn queried(&mut self, keys: &[NodeKey], visible: Vec<bool>) {
+        if self.occlusion == Occlusion::Checked {
+            // Those seen, and those seen before and not tested now (selected after the nodes
+            // in the open, the budget did not reach them: nothing new is known).
+            let tested: HashSet<NodeKey> = keys.iter().copied().collect();
+            let mut shown: HashSet<NodeKey> = (self.shown.iter())
+                .filter(|k| !tested.contains(k))
+                .copied()
+                .collect();
+            if shown.len() > MAX_SHOWN {
+                shown.clear();
+            }
+            shown.extend(
+                keys.iter()
+                    .zip(visible)
+                    .filter(|(_, v)| *v)
+                    .map(|(k, _)| *k),
+            );
+            self.hidden = Default::default();
+            self.shown = Arc::new(shown);
+        } else {
+            self.shown = Default::default();
+            self.hidden = Arc::new(hidden_of(keys, visible));
         }
     }
 
@@ -681,6 +744,7 @@ impl Scene {
             culling: self.culling(clip),
             resident,
             hidden: self.hidden.clone(),
+            shown: self.shown.clone(),
             previous: self.previous(),
         }
     }
@@ -711,7 +775,7 @@ impl Scene {
         let t = Instant::now();
         let selection = self.update_clipped(camera, options, style.clip);
         let select = t.elapsed();
-        let queries = self.occlusion == Occlusion::Queries;
+        let queries = self.occlusion.queries();
         let (image, mut stats, keys) =
             self.draw_selected(gpu, &selection, select, options, |draws, tree| {
                 if queries {
@@ -721,7 +785,7 @@ impl Scene {
                 (image, raster.bytes_read(gpu, camera, draws, style))
             });
         let t = Instant::now();
-        self.query_hidden(gpu, raster, &selection);
+        self.query_hidden(gpu, raster, camera, &selection);
         stats.query = t.elapsed();
         self.drawn = keys;
         self.last = selection;
@@ -760,6 +824,29 @@ impl Scene {
         (image, stats, keys)
     }
 }
+
+/// A hash of a camera and the nodes a selection draws.
+fn view_hash(camera: &Camera, selection: &Selection) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for v in camera
+        .position
+        .iter()
+        .chain(&camera.target)
+        .chain(&camera.up)
+    {
+        v.to_bits().hash(&mut h);
+    }
+    (camera.fov_y.to_bits(), camera.width, camera.height).hash(&mut h);
+    for n in &selection.nodes {
+        (n.key, n.points).hash(&mut h);
+    }
+    h.finish()
+}
+
+/// Nodes seen by the queries of `Occlusion::Checked` kept untested at most (those of views left
+/// behind are forgotten past it).
+const MAX_SHOWN: usize = 100_000;
 
 /// The nodes of `keys` whose box showed nowhere.
 fn hidden_of(keys: &[NodeKey], visible: Vec<bool>) -> HashSet<NodeKey> {
@@ -883,7 +970,7 @@ fn draw_many(
         tree.extend(entries);
         all_draws.extend(draws);
     }
-    if scenes.iter().any(|s| s.occlusion == Occlusion::Queries) {
+    if scenes.iter().any(|s| s.occlusion.queries()) {
         raster.keep_depth();
     }
     let image = raster.render(gpu, camera, &all_draws, &tree, style);
@@ -892,7 +979,7 @@ fn draw_many(
     for ((s, scene), selection) in stats.iter_mut().zip(scenes.iter_mut()).zip(&selections) {
         s.draw = draw;
         let t = Instant::now();
-        scene.query_hidden(gpu, raster, selection);
+        scene.query_hidden(gpu, raster, camera, selection);
         s.query = t.elapsed();
     }
     for ((scene, selection), keys) in scenes.iter_mut().zip(selections).zip(drawn) {

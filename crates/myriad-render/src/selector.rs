@@ -42,8 +42,10 @@ pub struct Request {
     pub culling: Culling,
     /// Resident points the occluder may splat (those of the nodes selected last).
     pub resident: HashMap<NodeKey, Arc<Loaded>>,
-    /// The nodes the last frame's occlusion queries found hidden.
+    /// The nodes the last frame's occlusion queries found hidden (`Occlusion::Queries`).
     pub hidden: Arc<HashSet<NodeKey>>,
+    /// The culled nodes they found showing (`Occlusion::Checked`).
+    pub shown: Arc<HashSet<NodeKey>>,
     /// The nodes the last frame drew (an `mwkd` front is updated from them).
     pub previous: Vec<NodeKey>,
 }
@@ -115,8 +117,15 @@ impl Selector {
     }
 }
 
+/// What the last frame's occlusion queries found: the nodes hidden (`Occlusion::Queries`), and
+/// the culled nodes seen (`Occlusion::Checked`).
+pub(crate) struct Queried<'a> {
+    pub hidden: &'a HashSet<NodeKey>,
+    pub shown: &'a HashSet<NodeKey>,
+}
+
 /// A scene's selection: `select_occluded` culling as the request says (the software occluder
-/// splats the resident points `points` gives; with queries, `hidden` are culled), and the
+/// splats the resident points `points` gives, except for those `queried` saw where its culls are checked; with queries, those it found hidden are culled), and the
 /// nodes to prefetch where it widens the view. The frame thread ([`crate::Scene::select`]) and
 /// the selection thread both make it here.
 pub(crate) fn select_for(
@@ -125,13 +134,19 @@ pub(crate) fn select_for(
     options: &SelectOptions,
     how: Culling,
     points: &dyn Fn(&NodeKey) -> Option<Arc<Loaded>>,
-    hidden: &HashSet<NodeKey>,
+    queried: Queried,
     previous: &[NodeKey],
 ) -> Selection {
     let keep = |cube: &Aabb| Clip::keeps(how.clip, cube);
     let mut occluder = match how.occlusion {
         Occlusion::Software => Some(Occluder::new(camera, how.occlusion_size, points)),
-        Occlusion::Queries => Some(Occluder::queried(hidden)),
+        Occlusion::Queries => Some(Occluder::queried(queried.hidden)),
+        Occlusion::Checked => Some(Occluder::checked(
+            camera,
+            how.occlusion_size,
+            points,
+            queried.shown,
+        )),
         Occlusion::Off => None,
     };
     let mut s = select_occluded_from(h, camera, options, &keep, occluder.as_mut(), previous);
@@ -165,7 +180,10 @@ fn run(shared: &Shared) {
             &r.options,
             r.culling,
             &|k| r.resident.get(k).cloned(),
-            &r.hidden,
+            Queried {
+                hidden: &r.hidden,
+                shown: &r.shown,
+            },
             &r.previous,
         );
         let answer = Answer {

@@ -25,6 +25,10 @@ pub enum BenchCommand {
     /// Occlusion culling from a view inside and one outside each dataset: nodes and points
     /// selected, nodes culled, selection and frame time, PSNR against every point unculled
     Culling(myriad_bench::culling::CullingBenchArgs),
+    /// 000's table 3: a scan converted at several node capacities, each walked through an
+    /// overview, a close and a detail view with occlusion culling and without: nodes, points,
+    /// frame time and the time to load each view
+    Capacity(myriad_bench::capacity::CapacityBenchArgs),
     /// Surfaces from a view's points: cells and the milliseconds of cluster, move,
     /// reduce, reconstruct and the frame for the full method, without move and for an octree
     /// level as the baseline; distance from the points to the surface; holes
@@ -69,6 +73,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Structures(a) => myriad_bench::structures::run(a),
         BenchCommand::Passes(a) => myriad_bench::passes::run(a),
         BenchCommand::Culling(a) => myriad_bench::culling::run(a),
+        BenchCommand::Capacity(a) => myriad_bench::capacity::run(a),
         BenchCommand::Surface(a) => myriad_bench::surface::run(a),
         BenchCommand::Stereo(a) => myriad_bench::stereo::run(a),
         BenchCommand::Export(a) => myriad_bench::export::run(a),

@@ -78,10 +78,12 @@ pub struct RenderArgs {
     /// hardware GPU, quads on one without 64-bit atomics; cpu without one]
     #[arg(long = "raster", value_parser = parse_path)]
     path: Option<Path>,
-    /// Cull nodes hidden behind nearer ones: software (a coarse depth buffer filled by the
-    /// nodes already selected), queries (the nodes' boxes tested against each frame's depth,
-    /// hardware occlusion queries on a GPU: they act from the next frame) or off
-    #[arg(long, value_parser = Occlusion::parse, default_value = "software")]
+    /// Cull nodes hidden behind nearer ones: checked (the software test, each node it culls
+    /// then queried against the frame: one that shows is drawn, frames repeated until the
+    /// selection settles), software (a coarse depth buffer filled by the nodes already
+    /// selected), queries (the nodes' boxes tested against each frame's depth, hardware
+    /// occlusion queries on a GPU: they act from the next frame) or off
+    #[arg(long, value_parser = Occlusion::parse, default_value = "checked")]
     occlusion: Occlusion,
     /// Cells per side of the occlusion depth buffer
     #[arg(long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
@@ -286,11 +288,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     scene.frame(&gpu, &raster, &cam, &options, &style);
     // Occlusion queries act from the frame after theirs: draw until the selection settles.
     let mut settled = None;
-    for _ in 0..(if scene.occlusion == Occlusion::Queries {
-        12
-    } else {
-        0
-    }) {
+    for _ in 0..(if scene.occlusion.queries() { 12 } else { 0 }) {
         selection = scene.converge(&cam, &options, style.clip);
         let (_, s) = scene.frame(&gpu, &raster, &cam, &options, &style);
         if settled == Some((s.nodes, s.culled, s.points)) {

@@ -96,9 +96,11 @@ pub struct ViewArgs {
     /// most it may grow to); 0: a fixed budget [default: 30; 90 with --stereo, a headset's rate]
     #[arg(long)]
     target_fps: Option<f64>,
-    /// Cull nodes hidden behind nearer ones: software, queries (occlusion queries after each
-    /// frame, acting from the next) or off
-    #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "software")]
+    /// Cull nodes hidden behind nearer ones: checked (the software test, each cull checked by
+    /// an occlusion query after the frame: a node that shows is drawn from the next frame),
+    /// software (the test alone), queries (occlusion queries after each frame, acting from the
+    /// next) or off
+    #[arg(long, value_parser = myriad_lod::Occlusion::parse, default_value = "checked")]
     occlusion: myriad_lod::Occlusion,
     /// Pixels a level's point spacing must cover to be drawn
     #[arg(long, value_parser = myriad_render::args::parse_lod_threshold, default_value = "1")]
