@@ -43,6 +43,14 @@ pub struct StructuresBenchArgs {
     /// Where the datasets are written; kept when given, else a temporary folder removed at the end
     #[arg(long)]
     keep: Option<PathBuf>,
+    /// Most points per node, for every structure (004's "VBO size") [default: convert's]
+    #[arg(long)]
+    capacity: Option<usize>,
+    /// mwkd's fan-out N and clustering grid K (004's tables II and IV) [default: convert's]
+    #[arg(long)]
+    fanout: Option<u32>,
+    #[arg(long)]
+    grid: Option<u32>,
 }
 
 struct Row {
@@ -88,13 +96,24 @@ pub fn run(a: StructuresBenchArgs) -> Result<()> {
     for s in &structures {
         let out = dir.join(format!("{}.myr", s.name()));
         eprintln!("converting with --structure {}", s.name());
-        let o = std::process::Command::new(&exe)
-            .arg("convert")
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("convert")
             .arg(&a.file)
             .arg("-o")
             .arg(&out)
-            .args(["--structure", s.name(), "--force", "--json"])
-            .output()?;
+            .args(["--structure", s.name(), "--force", "--json"]);
+        if let Some(c) = a.capacity {
+            cmd.args(["--capacity", &c.to_string()]);
+        }
+        if *s == Structure::Mwkd {
+            if let Some(n) = a.fanout {
+                cmd.args(["--fanout", &n.to_string()]);
+            }
+            if let Some(k) = a.grid {
+                cmd.args(["--grid", &k.to_string()]);
+            }
+        }
+        let o = cmd.output()?;
         if !o.status.success() {
             bail!(
                 "convert --structure {} failed: {}",

@@ -59,6 +59,10 @@ pub struct ConvertOptions {
     /// Snapshots of the dataset as it is built, for a viewer or server to show meanwhile
     /// (octree and layered builds; [`crate::growing`]).
     pub growing: Option<std::sync::Arc<crate::growing::Growing>>,
+    /// `mwkd`: the fan-out `N` (2..=8; `None`: the one that makes the tree's depth whole,
+    /// [`crate::mwkd::fanout_for`]) and the clustering grid's `K` ([`crate::mwkd::MwkdParams`]).
+    pub fanout: Option<usize>,
+    pub grid: Option<usize>,
 }
 
 /// What a plan fixes for a build: the grid (root cube, chunk level, schema, the cells a part
@@ -98,6 +102,8 @@ impl ConvertOptions {
             chunk_points: None,
             planned: None,
             growing: None,
+            fanout: None,
+            grid: None,
         }
     }
 }
@@ -459,8 +465,10 @@ pub fn convert(
         }
     };
     let mw = crate::mwkd::MwkdParams {
-        fanout: crate::mwkd::fanout_for(dist.points, params.capacity),
+        fanout: (options.fanout)
+            .unwrap_or_else(|| crate::mwkd::fanout_for(dist.points, params.capacity)),
         capacity: params.capacity,
+        grid: options.grid,
         orientation,
     };
     // The dataset's metadata (its counts are set when it is written).
@@ -690,6 +698,7 @@ pub(crate) fn parameters(
     use crate::mwkd::Orientation;
     let mut v = serde_json::json!({
         "fanout": mw.map(|m| m.fanout),
+        "grid": mw.and_then(|m| m.grid),
         // Normals from the input, and estimated ones turned towards their scanners, have a
         // sign (a node's normal cone may face away); other estimated ones were turned up.
         "normals": match (structure, mw.map(|m| &m.orientation)) {

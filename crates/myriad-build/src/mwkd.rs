@@ -39,6 +39,10 @@ pub struct MwkdParams {
     pub fanout: usize,
     /// Target points per node `s`.
     pub capacity: usize,
+    /// Cells per side `K` of the clustering grid to start from (004 used 35 throughout);
+    /// `None`: the square root of the representatives wanted. Made coarser where it is too fine
+    /// to reach their count.
+    pub grid: Option<usize>,
     /// How the normals get their sign.
     pub orientation: Orientation,
 }
@@ -341,13 +345,16 @@ pub fn representatives(
     bounds: &Aabb,
     target: usize,
     signed: bool,
+    grid: Option<usize>,
 ) -> (PointBatch, Splats) {
     let n = points.len();
     if n <= target.max(1) {
         return (points.clone(), splats.clone());
     }
     let side = bounds.size().into_iter().fold(0.0, f64::max).max(1e-9);
-    let mut k = ((target as f64).sqrt().ceil() as usize).clamp(2, 256);
+    let mut k = grid
+        .unwrap_or((target as f64).sqrt().ceil() as usize)
+        .clamp(2, 256);
     let clusters = loop {
         match cluster(points, splats, bounds.min, side, k, target, signed) {
             Some(c) => break c,
@@ -599,6 +606,7 @@ pub fn take_up(key: NodeKey, children: Vec<MwNode>, p: &MwkdParams) -> (MwNode, 
                 &c.bounds,
                 target,
                 p.orientation.signed(),
+                p.grid,
             )
         })
         .collect();
@@ -728,7 +736,7 @@ mod tests {
         };
         let bounds = bounds_of(&wall.positions);
         // Clusters holding both faces keep the wall's axis (facing the heavier side).
-        let (_, reps) = representatives(&wall, &splats, &bounds, 200, true);
+        let (_, reps) = representatives(&wall, &splats, &bounds, 200, true, None);
         assert!(reps.normals.iter().all(|n| n[2].abs() > 0.99));
     }
 
@@ -738,6 +746,7 @@ mod tests {
         let p = MwkdParams {
             fanout: 4,
             capacity: 2000,
+            grid: None,
             orientation: Orientation::Up,
         };
         let mut nodes = Vec::new();

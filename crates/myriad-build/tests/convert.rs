@@ -85,6 +85,46 @@ fn nothing_lost_many_chunks_and_nodes() {
     assert_eq!(std::fs::read(&out).unwrap(), before);
 }
 
+/// `mwkd` with the fan-out and clustering grid asked for (`convert --fanout N --grid K`, 004's
+/// tables II and IV): no node has more than N children and some have N, a smaller N makes a
+/// deeper tree, the dataset records both, and nothing is lost.
+#[test]
+fn mwkd_takes_the_fanout_and_grid_asked_for() {
+    let d = tempdir("convert-fanout");
+    let las = synth(&d, 200_000, 9);
+    let input = records(&read_all(&las));
+    let mut depths = Vec::new();
+    for fanout in [2usize, 3, 7] {
+        let out = d.join(format!("n{fanout}.myr"));
+        let mut o = options(&out);
+        o.structure = Structure::Mwkd;
+        o.memory = myriad_build::convert::MIN_MEMORY;
+        o.chunk_points = Some(30_000);
+        o.params.capacity = 4096;
+        o.threads = 2;
+        o.fanout = Some(fanout);
+        o.grid = Some(35);
+        convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
+        let ds = Dataset::open(&out).unwrap();
+        assert_eq!(ds.meta.parameters["fanout"], fanout, "{}", ds.meta.parameters);
+        assert_eq!(ds.meta.parameters["grid"], 35, "{}", ds.meta.parameters);
+        let (nodes, damage) = ds.nodes();
+        assert!(damage.is_empty());
+        let mut children = std::collections::HashMap::new();
+        for n in nodes.iter().filter(|n| n.key.level > 0) {
+            *children.entry(n.key.parent()).or_insert(0usize) += 1;
+        }
+        let most = children.values().copied().max().unwrap_or(0);
+        assert_eq!(most, fanout, "N = {fanout}: {children:?}");
+        assert!(nodes.iter().all(|n| n.points as usize <= 4096));
+        let back = d.join(format!("n{fanout}.las"));
+        extract(&ds, &back, &ExtractOptions::default()).unwrap();
+        assert!(records(&read_all(&back)) == input, "N = {fanout}: points differ");
+        depths.push(ds.meta.depth);
+    }
+    assert!(depths[0] > depths[1] && depths[1] > depths[2], "depths {depths:?}");
+}
+
 /// Every structure over many chunks (so kd groups them and every structure builds levels above
 /// them): nothing lost, invariants hold, the stored shapes are those of the structure.
 #[test]

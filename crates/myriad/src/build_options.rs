@@ -24,6 +24,14 @@ pub struct BuildArgs {
     /// Most points per node
     #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
     pub(crate) capacity: usize,
+    /// --structure mwkd: children per node, 2 to 8 [default: the one that makes the tree's
+    /// depth whole]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=8))]
+    pub(crate) fanout: Option<u32>,
+    /// --structure mwkd: cells per side of the grid an inner node's representatives are
+    /// clustered in, 2 to 256 (004 used 35) [default: the square root of their count]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=256))]
+    pub(crate) grid: Option<u32>,
     /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
     #[arg(long)]
     pub(crate) columns: Option<String>,
@@ -45,10 +53,14 @@ impl BuildArgs {
         if self.capacity < 64 {
             bail!("--capacity {} is too small (at least 64)", self.capacity);
         }
-        Ok(match self.structure.as_str() {
+        let s = match self.structure.as_str() {
             "nested-octree" => convert::Structure::Octree,
             s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
-        })
+        };
+        if s != convert::Structure::Mwkd && (self.fanout.is_some() || self.grid.is_some()) {
+            bail!("--fanout and --grid are for --structure mwkd");
+        }
+        Ok(s)
     }
 
     /// How the inputs are opened.

@@ -84,6 +84,8 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     }
     o.precision = a.build.precision;
     o.params.capacity = a.build.capacity;
+    o.fanout = a.build.fanout.map(|n| n as usize);
+    o.grid = a.build.grid.map(|k| k as usize);
     o.open = a.build.open_options();
     let bar = Bar::new();
     let s = convert::convert(&a.inputs, &o, &bar)?;

@@ -45,6 +45,9 @@ pub fn plan(a: PlanArgs) -> Result<()> {
         );
     }
     let structure = a.build.structure()?;
+    if a.build.fanout.is_some() || a.build.grid.is_some() {
+        bail!("--fanout and --grid are for convert (a plan builds an octree or layered)");
+    }
     let defaults = convert::ConvertOptions::new(&a.output);
     let o = PlanOptions {
         parts: a.parts,

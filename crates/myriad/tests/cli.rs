@@ -747,7 +747,7 @@ fn every_structure_converts_verifies_extracts_and_renders() {
     let las = synth(&d, "c.las", 150_000);
     for structure in ["octree", "layered", "kd", "mwkd"] {
         let out = d.join(format!("{structure}.myr"));
-        let r = myriad(&[
+        let mut args = vec![
             "convert",
             s(&las),
             "-o",
@@ -756,7 +756,21 @@ fn every_structure_converts_verifies_extracts_and_renders() {
             structure,
             "--capacity",
             "8192",
-        ]);
+        ];
+        // 004's parameters, for mwkd alone: one line and nothing written for the others.
+        let tuned = ["--fanout", "4", "--grid", "35"];
+        if structure != "mwkd" {
+            let r = myriad(&[&args[..], &tuned[..]].concat());
+            assert_eq!(r.code, 1, "{structure}: {}", r.stderr);
+            assert_eq!(
+                r.stderr.trim(),
+                "error: --fanout and --grid are for --structure mwkd"
+            );
+            assert!(!out.exists());
+        } else {
+            args.extend(tuned);
+        }
+        let r = myriad(&args);
         assert_eq!(r.code, 0, "{structure}: {}", r.stderr);
         let r = myriad(&["info", s(&out)]);
         let name = if structure == "octree" {
@@ -764,6 +778,13 @@ fn every_structure_converts_verifies_extracts_and_renders() {
         } else {
             structure
         };
+        if structure == "mwkd" {
+            assert!(
+                r.stdout.contains("\"fanout\":4,\"grid\":35"),
+                "{}",
+                r.stdout
+            );
+        }
         assert!(
             r.stdout.contains(&format!("structure   {name}")),
             "{structure}: {}",

@@ -709,6 +709,7 @@ pub fn merge(
     let mw = crate::mwkd::MwkdParams {
         fanout: 2,
         capacity: plan.params.capacity,
+        grid: None,
         orientation: crate::mwkd::Orientation::Up,
     };
     Above {
