@@ -97,11 +97,12 @@ pub fn run(a: StructuresBenchArgs) -> Result<()> {
         let out = dir.join(format!("{}.myr", s.name()));
         eprintln!("converting with --structure {}", s.name());
         let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("convert")
-            .arg(&a.file)
-            .arg("-o")
-            .arg(&out)
-            .args(["--structure", s.name(), "--force", "--json"]);
+        cmd.arg("convert").arg(&a.file).arg("-o").arg(&out).args([
+            "--structure",
+            s.name(),
+            "--force",
+            "--json",
+        ]);
         if let Some(c) = a.capacity {
             cmd.args(["--capacity", &c.to_string()]);
         }

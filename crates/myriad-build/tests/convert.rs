@@ -106,7 +106,11 @@ fn mwkd_takes_the_fanout_and_grid_asked_for() {
         o.grid = Some(35);
         convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
         let ds = Dataset::open(&out).unwrap();
-        assert_eq!(ds.meta.parameters["fanout"], fanout, "{}", ds.meta.parameters);
+        assert_eq!(
+            ds.meta.parameters["fanout"], fanout,
+            "{}",
+            ds.meta.parameters
+        );
         assert_eq!(ds.meta.parameters["grid"], 35, "{}", ds.meta.parameters);
         let (nodes, damage) = ds.nodes();
         assert!(damage.is_empty());
@@ -119,10 +123,16 @@ fn mwkd_takes_the_fanout_and_grid_asked_for() {
         assert!(nodes.iter().all(|n| n.points as usize <= 4096));
         let back = d.join(format!("n{fanout}.las"));
         extract(&ds, &back, &ExtractOptions::default()).unwrap();
-        assert!(records(&read_all(&back)) == input, "N = {fanout}: points differ");
+        assert!(
+            records(&read_all(&back)) == input,
+            "N = {fanout}: points differ"
+        );
         depths.push(ds.meta.depth);
     }
-    assert!(depths[0] > depths[1] && depths[1] > depths[2], "depths {depths:?}");
+    assert!(
+        depths[0] > depths[1] && depths[1] > depths[2],
+        "depths {depths:?}"
+    );
 }
 
 /// Every structure over many chunks (so kd groups them and every structure builds levels above

@@ -76,6 +76,33 @@ fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
     over_angle(cam, projected, sight(cam, cube.center()))
 }
 
+/// Points a node with a contour draws at most per pixel its contour covers ([`contour_pixels`]):
+/// a surface facing the eye at the spacing that shows holds about one a pixel; the margin keeps
+/// such a node's levels whole.
+pub const CONTOUR_POINTS: f64 = 1.5;
+
+/// A contour is flat (000: an oriented box of the node's own points, on one surface) where its
+/// thinnest side is at most this share of its longest; a box around several surfaces says
+/// nothing of how many of its points show, and keeps its levels.
+pub const FLAT_CONTOUR: f64 = 0.1;
+
+fn flat(c: &Obb) -> bool {
+    let h = c.half_extents;
+    let thinnest = h.iter().copied().fold(f64::INFINITY, f64::min);
+    thinnest <= FLAT_CONTOUR * h.iter().copied().fold(0.0, f64::max)
+}
+
+/// The pixels a contour covers seen from `cam` at `ppu` pixels a unit: its area across the line
+/// of sight (as [`benefit_of_box`] takes it), each side grown by half a pixel, so that a flat
+/// contour seen edge-on covers the line it is drawn as.
+fn contour_pixels(cam: &Camera, c: &Obb, ppu: f64) -> f64 {
+    let dir = sight(cam, c.center);
+    let grow = 0.5 / ppu.max(1e-300);
+    let h = c.half_extents.map(|v| v + grow);
+    let d = |i: usize| (0..3).map(|k| c.axes[i][k] * dir[k]).sum::<f64>().abs();
+    4.0 * (h[1] * h[2] * d(0) + h[0] * h[2] * d(1) + h[0] * h[1] * d(2)) * ppu * ppu
+}
+
 /// A box of any orientation (a contour, 000 section 3.1; a kd box): the square root of its area
 /// projected along the line of sight to its centre (a flat contour seen edge-on is small), in
 /// pixels at its nearest depth.
@@ -251,6 +278,22 @@ pub fn select_eyes(
             1
         } else {
             levels
+        };
+        // 000 section 3.2.2: the projected size of the node's contour is its level of detail.
+        // A flat node's levels stop at the first holding more points than its contour covers
+        // pixels (seen edge-on it covers a line: its coarse levels draw it); its coarsest
+        // level is always drawn.
+        let levels = match &e.contour {
+            Some(c) if levels > 1 && o.min_pixels > 0.0 && flat(c) => {
+                let most =
+                    CONTOUR_POINTS * contour_pixels(cam, c, ppu) / (o.min_pixels * o.min_pixels);
+                let mut l = levels;
+                while l > 1 && e.prefix[l - 1] as f64 > most {
+                    l -= 1;
+                }
+                l
+            }
+            _ => levels,
         };
         let whole = levels == e.prefix.len();
         let mut count = if e.points == 0 {

@@ -147,6 +147,56 @@ fn contours_cull_and_weigh_flat_nodes() {
     assert!(b(&face) > 10.0 * b(&edge), "{} {}", b(&face), b(&edge));
 }
 
+/// 000's contour-driven detail: a flat node (a plate of 65,536 points in four levels) draws as
+/// many levels face-on as its spacing allows, edge-on at the same distance only its coarsest
+/// (its contour covers a line of pixels); without a contour, the spacing alone decides.
+#[test]
+fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
+    let root = Aabb::new([0.0; 3], [1.0; 3]);
+    let mut plate = NodeEntry::new(
+        NodeKey::ROOT,
+        PageRef {
+            offset: 64,
+            length: 100,
+            crc: 0,
+        },
+        65_536,
+        vec![64, 1024, 16_384, 65_536],
+        vec![1.0 / 8.0, 1.0 / 32.0, 1.0 / 128.0, 1.0 / 256.0],
+    );
+    plate.contour = Some(Obb {
+        center: [0.5, 0.5, 0.5],
+        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        half_extents: [0.5, 0.5, 0.0005],
+    });
+    let cam = |position: [f64; 3], up: [f64; 3]| Camera {
+        position,
+        target: [0.5, 0.5, 0.5],
+        up,
+        fov_y: 60.0,
+        width: 400,
+        height: 400,
+        near: 0.01,
+        far: 100.0,
+    };
+    let face = cam([0.5, 0.5, 3.0], [0.0, 1.0, 0.0]);
+    let edge = cam([0.5, -2.0, 0.5], [0.0, 0.0, 1.0]);
+    let o = SelectOptions {
+        budget: u64::MAX,
+        min_pixels: 1.0,
+    };
+    let drawn = |h: &Hierarchy, c: &Camera| select(h, c, &o).points;
+    let with = Hierarchy::new(root, [plate.clone()]);
+    plate.contour = None;
+    let without = Hierarchy::new(root, [plate]);
+    // Face-on: the spacing's three levels (1/128 shows as 1.1 pixels, 1/256 does not).
+    assert_eq!(drawn(&without, &face), 16_384);
+    assert_eq!(drawn(&with, &face), 16_384);
+    // Edge-on: the spacing alone would draw as many; the contour, a line, its coarsest level.
+    assert_eq!(drawn(&without, &edge), 16_384);
+    assert_eq!(drawn(&with, &edge), 64);
+}
+
 /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
 /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
 /// 16 times the points at a quarter of the spacing).

@@ -5,6 +5,8 @@
 //! same way: the root page on opening, the pages below as the selection reaches them
 //! ([`myriad_lod::hierarchy`]), within a byte budget ([`Scene::pages`]).
 
+mod queried;
+
 use crate::selector::{Request, Selector};
 use crate::{ColorBy, Draw, Encoding, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
 use myriad_core::{Aabb, NodeKey};
@@ -560,106 +562,6 @@ impl Scene {
         (draws, entries, keys)
     }
 
-    /// Occlusion queries (`Occlusion::Queries`, 003): the boxes of the nodes `selection` chose
-    /// and of those it culled as hidden, tested against the frame just drawn; the next
-    /// selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
-    /// the nodes the software test culled (and of those drawn because the last queries saw
-    /// them): the next selection lets it cull only those of which no pixel showed.
-    fn query_hidden(
-        &mut self,
-        gpu: &Gpu,
-        raster: &Rasterizer,
-        camera: &Camera,
-        selection: &Selection,
-    ) {
-        if !self.occlusion.queries() {
-            if !self.hidden.is_empty() || !self.shown.is_empty() {
-                self.hidden = Default::default();
-                self.shown = Default::default();
-            }
-            self.pending = None;
-            return;
-        }
-        if let Some((ticket, keys)) = &mut self.pending {
-            let Some(visible) = ticket.poll(gpu) else {
-                return;
-            };
-            let keys = std::mem::take(keys);
-            self.queried(&keys, visible);
-            self.pending = None;
-        }
-        let keys: Vec<NodeKey> = if self.occlusion == Occlusion::Checked {
-            // The nodes drawn because they were seen are tested again when the view or what
-            // is drawn changed (whether they are hidden now); in a still view, not.
-            let view = view_hash(camera, selection);
-            let again = self.queried_view != Some(view);
-            self.queried_view = Some(view);
-            (selection.hidden.iter().copied())
-                .chain(
-                    (selection.nodes.iter())
-                        .map(|n| n.key)
-                        .filter(|k| again && self.shown.contains(k)),
-                )
-                .collect()
-        } else {
-            (selection.nodes.iter().map(|n| n.key))
-                .chain(selection.hidden.iter().copied())
-                .collect()
-        };
-        // Each box grown by its node's spacing on every side: points are drawn about that
-        // large, and a flat node's box would otherwise tie with its own points' depth.
-        let boxes: Vec<[[f64; 3]; 8]> = keys
-            .iter()
-            .map(|k| {
-                let e = self.hierarchy.get(k);
-                let d = e.and_then(|e| e.spacing.first().copied()).unwrap_or(0.0);
-                match e.and_then(|e| e.contour) {
-                    Some(mut c) => {
-                        c.half_extents = c.half_extents.map(|h| h + d);
-                        c.corners()
-                    }
-                    None => {
-                        let b = self.hierarchy.bounds(k);
-                        Aabb::new(b.min.map(|v| v - d), b.max.map(|v| v + d)).corners()
-                    }
-                }
-            })
-            .collect();
-        if self.query_wait {
-            let visible = raster.query(gpu, &boxes);
-            self.queried(&keys, visible);
-        } else {
-            self.pending = Some((raster.query_submit(gpu, &boxes), keys));
-        }
-    }
-
-    /// The answers of the queries of `keys`' boxes.
-    fn queried(&mut self, keys: &[NodeKey], visible: Vec<bool>) {
-        if self.occlusion == Occlusion::Checked {
-            // Those seen, and those seen before and not tested now (selected after the nodes
-            // in the open, the budget did not reach them: nothing new is known).
-            let tested: HashSet<NodeKey> = keys.iter().copied().collect();
-            let mut shown: HashSet<NodeKey> = (self.shown.iter())
-                .filter(|k| !tested.contains(k))
-                .copied()
-                .collect();
-            if shown.len() > MAX_SHOWN {
-                shown.clear();
-            }
-            shown.extend(
-                keys.iter()
-                    .zip(visible)
-                    .filter(|(_, v)| *v)
-                    .map(|(k, _)| *k),
-            );
-            self.hidden = Default::default();
-            self.shown = Arc::new(shown);
-        } else {
-            self.shown = Default::default();
-            self.hidden = Arc::new(hidden_of(keys, visible));
-        }
-    }
-
     /// What a frame of `selection` did, given what was drawn.
     pub(crate) fn stats(&self, selection: &Selection, draws: &[Draw]) -> FrameStats {
         let failed = self.loader.failed();
@@ -823,38 +725,6 @@ impl Scene {
         stats.draw = t.elapsed();
         (image, stats, keys)
     }
-}
-
-/// A hash of a camera and the nodes a selection draws.
-fn view_hash(camera: &Camera, selection: &Selection) -> u64 {
-    use std::hash::{Hash, Hasher};
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    for v in camera
-        .position
-        .iter()
-        .chain(&camera.target)
-        .chain(&camera.up)
-    {
-        v.to_bits().hash(&mut h);
-    }
-    (camera.fov_y.to_bits(), camera.width, camera.height).hash(&mut h);
-    for n in &selection.nodes {
-        (n.key, n.points).hash(&mut h);
-    }
-    h.finish()
-}
-
-/// Nodes seen by the queries of `Occlusion::Checked` kept untested at most (those of views left
-/// behind are forgotten past it).
-const MAX_SHOWN: usize = 100_000;
-
-/// The nodes of `keys` whose box showed nowhere.
-fn hidden_of(keys: &[NodeKey], visible: Vec<bool>) -> HashSet<NodeKey> {
-    keys.iter()
-        .zip(visible)
-        .filter(|(_, v)| !v)
-        .map(|(k, _)| *k)
-        .collect()
 }
 
 /// One frame of several scenes seen together: one point budget over all of them (`select_many`),
