@@ -102,18 +102,8 @@ pub fn run(a: CapacityBenchArgs) -> Result<()> {
             let mut cells = Vec::new();
             let mut since = t;
             for cam in cams {
-                scene.converge(&cam, &all, None);
                 // Queries act from the frame after theirs: drawn until the selection settles.
-                let mut settled = None;
-                for _ in 0..(if occlusion.queries() { 12 } else { 0 }) {
-                    let (_, s) = scene.frame(&gpu, &raster, &cam, &all, &style);
-                    scene.converge(&cam, &all, None);
-                    let now = Some((s.nodes, s.culled, s.points));
-                    if now == settled {
-                        break;
-                    }
-                    settled = now;
-                }
+                scene.settle(&gpu, &raster, &cam, &all, &style);
                 let load = since.elapsed().as_secs_f64();
                 let mut ms = Vec::new();
                 let mut stats = myriad_render::FrameStats::default();

@@ -142,19 +142,9 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                         budget,
                         min_pixels: 1.0,
                     };
-                    scene.converge(&cam, &o, None);
-                    // Queries act from the frame after theirs: draw until the selection
+                    // Queries act from the frame after theirs: drawn until the selection
                     // settles.
-                    let mut settled = None;
-                    for _ in 0..(if occlusion.queries() { 12 } else { 0 }) {
-                        let (_, s) = scene.frame(&gpu, &raster, &cam, &o, &style);
-                        scene.converge(&cam, &o, None);
-                        let now = Some((s.nodes, s.culled, s.points));
-                        if now == settled {
-                            break;
-                        }
-                        settled = now;
-                    }
+                    scene.settle(&gpu, &raster, &cam, &o, &style);
                     let mut frames = Vec::new();
                     let mut image = Vec::new();
                     let mut stats = myriad_render::FrameStats::default();

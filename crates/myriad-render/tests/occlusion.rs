@@ -102,8 +102,57 @@ fn queries_find_what_a_wall_hides_on_every_path() {
     }
 }
 
-/// A wall (the root), a box of points behind it (child 0) and one beside it (child 1).
-struct Walled;
+/// Nodes whose points and colour are functions of their key.
+struct Scripted {
+    points: fn(&NodeKey) -> Vec<[f64; 3]>,
+    colour: fn(&NodeKey) -> [u16; 3],
+}
+
+impl PageReader for Scripted {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        let schema = Schema::new(vec![Attribute::Rgb]);
+        let points = (self.points)(&node.key);
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        let colour = (self.colour)(&node.key);
+        for p in points {
+            b.positions.push(p);
+            b.rgb.as_mut().unwrap().push(colour);
+        }
+        Ok(b)
+    }
+}
+
+/// A node's entry: its points' count and bounds, one level of `spacing`.
+fn entry_of(key: NodeKey, p: &[[f64; 3]], spacing: f64) -> NodeEntry {
+    let mut bounds = Aabb::EMPTY;
+    for &q in p {
+        bounds.extend(q);
+    }
+    NodeEntry {
+        key,
+        page: PageRef {
+            offset: 64,
+            length: 100,
+            crc: 0,
+        },
+        points: p.len() as u32,
+        prefix: vec![p.len() as u32],
+        spacing: vec![spacing],
+        bounds: Some(bounds),
+        contour: None,
+        splats: None,
+    }
+}
+
+/// A wall (the root, white), a box of points behind it (child 0, red) and one beside it
+/// (child 1, green).
+const WALLED: Scripted = Scripted {
+    points: node_points,
+    colour: |k| {
+        [[255, 255, 255], [255, 0, 0], [0, 255, 0]]
+            [k.level as usize + (k.level > 0 && k.cell[0] == 1) as usize]
+    },
+};
 
 fn node_points(key: &NodeKey) -> Vec<[f64; 3]> {
     let cube = |lo: [f64; 3], step: f64| -> Vec<[f64; 3]> {
@@ -123,40 +172,7 @@ fn node_points(key: &NodeKey) -> Vec<[f64; 3]> {
 }
 
 fn entry(key: NodeKey) -> NodeEntry {
-    let p = node_points(&key);
-    let mut bounds = Aabb::EMPTY;
-    for &q in &p {
-        bounds.extend(q);
-    }
-    NodeEntry {
-        key,
-        page: PageRef {
-            offset: 64,
-            length: 100,
-            crc: 0,
-        },
-        points: p.len() as u32,
-        prefix: vec![p.len() as u32],
-        spacing: vec![0.1],
-        bounds: Some(bounds),
-        contour: None,
-        splats: None,
-    }
-}
-
-impl PageReader for Walled {
-    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
-        let schema = Schema::new(vec![Attribute::Rgb]);
-        let points = node_points(&node.key);
-        let mut b = PointBatch::with_schema(&schema, points.len());
-        let colour = [[255, 255, 255], [255, 0, 0], [0, 255, 0]]
-            [node.key.level as usize + (node.key.level > 0 && node.key.cell[0] == 1) as usize];
-        for p in points {
-            b.positions.push(p);
-            b.rgb.as_mut().unwrap().push(colour);
-        }
-        Ok(b)
-    }
+    entry_of(key, &node_points(&key), 0.1)
 }
 
 #[test]
@@ -169,7 +185,7 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
             NodeKey::ROOT.child(1),
         ];
         let h = Hierarchy::new(root, keys.map(entry));
-        let mut scene = Scene::new(Arc::new(Walled), h, root, 1, usize::MAX, usize::MAX);
+        let mut scene = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
         scene.set_colour(ColorBy::Rgb);
         scene.occlusion = Occlusion::Queries;
         let options = SelectOptions {
@@ -217,7 +233,7 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
         // first) takes it in the first frame; once the queries have found it hidden, its share
         // goes to the box beside it.
         let h = Hierarchy::new(root, keys.map(entry));
-        let mut scene = Scene::new(Arc::new(Walled), h, root, 1, usize::MAX, usize::MAX);
+        let mut scene = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
         scene.set_colour(ColorBy::Rgb);
         scene.occlusion = Occlusion::Queries;
         let tight = SelectOptions {
@@ -236,7 +252,7 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
         // Not waiting for the results (the viewer's way): the box is culled a frame or more
         // later, when the GPU has answered.
         let h = Hierarchy::new(root, keys.map(entry));
-        let mut scene = Scene::new(Arc::new(Walled), h, root, 1, usize::MAX, usize::MAX);
+        let mut scene = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
         scene.occlusion = Occlusion::Queries;
         scene.query_wait = false;
         scene.converge(&cam, &options, None);
@@ -256,10 +272,17 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
     }
 }
 
-/// A wall with a slit 0.6 wide (the root; its level's spacing, 0.8, wider than the slit: what the
-/// software test's splats close), a box seen through the slit (child 0, red) and one behind the
-/// solid part (child 1, blue).
-struct Slit;
+/// A wall with a slit 0.6 wide (the root, white; its level's spacing, 0.8, wider than the slit:
+/// what the software test's splats close), a box seen through the slit (child 0, red) and one
+/// behind the solid part (child 1, blue).
+const SLIT: Scripted = Scripted {
+    points: slit_points,
+    colour: |k| match (k.level, k.cell[0]) {
+        (0, _) => [255, 255, 255],
+        (_, 0) => [255, 0, 0],
+        _ => [0, 0, 255],
+    },
+};
 
 fn slit_points(key: &NodeKey) -> Vec<[f64; 3]> {
     let cube = |lo: [f64; 3], step: f64| -> Vec<[f64; 3]> {
@@ -281,43 +304,11 @@ fn slit_points(key: &NodeKey) -> Vec<[f64; 3]> {
 }
 
 fn slit_entry(key: NodeKey) -> NodeEntry {
-    let p = slit_points(&key);
-    let mut bounds = Aabb::EMPTY;
-    for &q in &p {
-        bounds.extend(q);
-    }
-    NodeEntry {
+    entry_of(
         key,
-        page: PageRef {
-            offset: 64,
-            length: 100,
-            crc: 0,
-        },
-        points: p.len() as u32,
-        prefix: vec![p.len() as u32],
-        spacing: vec![if key.level == 0 { 0.8 } else { 0.1 }],
-        bounds: Some(bounds),
-        contour: None,
-        splats: None,
-    }
-}
-
-impl PageReader for Slit {
-    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
-        let schema = Schema::new(vec![Attribute::Rgb]);
-        let points = slit_points(&node.key);
-        let mut b = PointBatch::with_schema(&schema, points.len());
-        let colour = match (node.key.level, node.key.cell[0]) {
-            (0, _) => [255, 255, 255],
-            (_, 0) => [255, 0, 0],
-            _ => [0, 0, 255],
-        };
-        for p in points {
-            b.positions.push(p);
-            b.rgb.as_mut().unwrap().push(colour);
-        }
-        Ok(b)
-    }
+        &slit_points(&key),
+        if key.level == 0 { 0.8 } else { 0.1 },
+    )
 }
 
 #[test]
@@ -342,7 +333,7 @@ fn checked_culling_changes_no_pixel_where_the_software_test_loses_a_slit() {
         // Settled: frames until the selection no longer changes.
         let settled = |occlusion: Occlusion| {
             let h = Hierarchy::new(root, keys.map(slit_entry));
-            let mut scene = Scene::new(Arc::new(Slit), h, root, 1, usize::MAX, usize::MAX);
+            let mut scene = Scene::new(Arc::new(SLIT), h, root, 1, usize::MAX, usize::MAX);
             scene.set_colour(ColorBy::Rgb);
             scene.occlusion = occlusion;
             let mut last = None;
@@ -378,7 +369,7 @@ fn checked_culling_changes_no_pixel_where_the_software_test_loses_a_slit() {
         // Checked (the default): the red box's query shows it, so it is drawn from the next
         // frame; the blue one stays culled. Not one pixel differs from culling off.
         let h = Hierarchy::new(root, keys.map(slit_entry));
-        let fresh = Scene::new(Arc::new(Slit), h, root, 1, usize::MAX, usize::MAX);
+        let fresh = Scene::new(Arc::new(SLIT), h, root, 1, usize::MAX, usize::MAX);
         assert_eq!(fresh.occlusion, Occlusion::Checked);
         let (checked, s, frames) = settled(Occlusion::Checked);
         assert_eq!((s.nodes, s.culled), (2, 1), "{:?}", raster.path);

@@ -9,7 +9,39 @@ use myriad_lod::{Camera, Occlusion, Selection};
 use std::collections::HashSet;
 use std::sync::Arc;
 
+/// Frames drawn at most for a selection under occlusion queries to settle ([`Scene::settle`]).
+pub const SETTLE_FRAMES: usize = 12;
+
 impl Scene {
+    /// Loads what `camera` needs ([`Scene::converge`]) and, where occlusion queries act (from
+    /// the frame after theirs), draws frames until the selection no longer changes (at most
+    /// [`SETTLE_FRAMES`]): a view as it stays. Returns the last selection.
+    pub fn settle(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        camera: &Camera,
+        options: &myriad_lod::SelectOptions,
+        style: &crate::Style,
+    ) -> Selection {
+        let mut selection = self.converge(camera, options, style.clip);
+        let mut settled = None;
+        for _ in 0..(if self.occlusion.queries() {
+            SETTLE_FRAMES
+        } else {
+            0
+        }) {
+            let (_, s) = self.frame(gpu, raster, camera, options, style);
+            selection = self.converge(camera, options, style.clip);
+            let now = Some((s.nodes, s.culled, s.points));
+            if now == settled {
+                break;
+            }
+            settled = now;
+        }
+        selection
+    }
+
     /// Occlusion queries (`Occlusion::Queries`, 003): the boxes of the nodes `selection` chose
     /// and of those it culled as hidden, tested against the frame just drawn; the next
     /// selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
