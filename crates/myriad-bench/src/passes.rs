@@ -1,7 +1,9 @@
 //! `myriad bench passes DATASET...`: what each post pass costs and what the chains buy.
 //!
 //! Cost: the median frame time of `--frames` converged frames of the overview at
-//! `--frame-budget` points with no pass, each pass alone and the default chain, at each
+//! `--frame-budget` points with no pass, each pass alone and the default chain (adaptive
+//! squares), then without passes fixed 1-pixel squares, 5-pixel squares and 5-pixel paraboloids
+//! (002's table 2: adaptive sizes, multisampling, paraboloids against 5-pixel squares), at each
 //! `--sizes` (1280x720 and 2160x2160, one eye of a current headset, by default); a pass's cost
 //! is its median minus the median without passes, measured in the same run.
 //! Quality: for each dataset and standard view, the PSNR of the image at each `--budgets` against
@@ -14,7 +16,7 @@ use clap::Args;
 use myriad_format::Dataset;
 use myriad_io::image::write_png;
 use myriad_lod::Camera;
-use myriad_render::{ColorBy, DEFAULT_PASSES, Passes, Rasterizer, Scene, Style};
+use myriad_render::{ColorBy, DEFAULT_PASSES, Passes, PointSize, Rasterizer, Scene, Shape, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -79,16 +81,26 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir)?;
     }
+    // Each pass alone over adaptive squares; then 002's table 2 rows that are no pass: fixed
+    // 1-pixel points against adaptive ones, and 5-pixel squares against 5-pixel paraboloids.
+    let adaptive = (PointSize::adaptive(), Shape::Square);
     let timed = [
-        ("none", "none"),
-        ("fill", "fill"),
-        ("shade", "shade"),
-        ("ssao", "ssao"),
-        ("edl", "edl"),
-        ("blur", "blur"),
-        ("aa", "aa"),
-        ("default", DEFAULT_PASSES),
-        ("all", "fill,shade,ssao,edl,blur,aa"),
+        ("none", "none", adaptive),
+        ("fill", "fill", adaptive),
+        ("shade", "shade", adaptive),
+        ("ssao", "ssao", adaptive),
+        ("edl", "edl", adaptive),
+        ("blur", "blur", adaptive),
+        ("aa", "aa", adaptive),
+        ("default", DEFAULT_PASSES, adaptive),
+        ("all", "fill,shade,ssao,edl,blur,aa", adaptive),
+        ("1px", "none", (PointSize::Fixed(1.0), Shape::Square)),
+        ("5px-sq", "none", (PointSize::Fixed(5.0), Shape::Square)),
+        (
+            "5px-par",
+            "none",
+            (PointSize::Fixed(5.0), Shape::Paraboloid),
+        ),
     ];
     let chains = [
         ("none", "none"),
@@ -117,9 +129,11 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
                 let mut cam = Camera::standard_views(&scene.view_bounds, w, h)[0].1;
                 cam.fit_depth(&ds.meta.bounds);
                 let mut base = 0.0;
-                for (label, chain) in &timed {
+                for (label, chain, (size, shape)) in &timed {
                     let style = Style {
                         passes: Passes::parse(chain).map_err(anyhow::Error::msg)?,
+                        size: *size,
+                        shape: *shape,
                         ..Style::default()
                     };
                     let (times, points) = frame_times(
