@@ -159,13 +159,43 @@ pub fn write(
     options: &SynthOptions,
     path: &Path,
     force: bool,
+    progress: impl FnMut(u64) + Send,
+) -> Result<u64> {
+    write_as(options, path, force, DEFAULT_POINT_FORMAT, progress)
+}
+
+/// The LAS point format of a synthetic scan unless asked otherwise.
+pub const DEFAULT_POINT_FORMAT: u8 = 3;
+
+/// The LAS point formats [`write_as`] writes: 0-3 and 6-8 (those without waveforms).
+pub const POINT_FORMATS: [u8; 7] = [0, 1, 2, 3, 6, 7, 8];
+
+/// [`write`] in LAS point format `format` ([`POINT_FORMATS`]; LAS and LAZ only): the scan's
+/// attributes that the format holds, and zero for those it holds that a scan does not make (the
+/// scanner channel), the near infrared taken from the red channel (format 8).
+pub fn write_as(
+    options: &SynthOptions,
+    path: &Path,
+    force: bool,
+    format: u8,
     mut progress: impl FnMut(u64) + Send,
 ) -> Result<u64> {
+    if !POINT_FORMATS.contains(&format) {
+        return Err(Error::Invalid(format!(
+            "point format {format}: synth writes formats 0-3 and 6-8"
+        )));
+    }
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     if ext.as_deref() == Some("e57") {
+        if format != DEFAULT_POINT_FORMAT {
+            return Err(Error::Invalid(format!(
+                "{}: a point format is for LAS and LAZ files",
+                path.display()
+            )));
+        }
         return e57::write(options, path, force, progress);
     }
     if !matches!(ext.as_deref(), Some("las" | "laz")) {
@@ -174,16 +204,48 @@ pub fn write(
             path.display()
         )));
     }
-    let opts = LasWriteOptions::for_schema(&schema(), [0.001; 3], ORIGIN)?.with_wkt_crs(CRS_WKT)?;
+    let target = Schema::for_las_format(format);
+    let opts = LasWriteOptions::for_schema(&target, [0.001; 3], ORIGIN)?.with_wkt_crs(CRS_WKT)?;
     let mut sink = LasSink::create(path, opts, force)?;
     let mut written = 0u64;
     generate(options, |b| {
-        sink.write(b)?;
+        if format == DEFAULT_POINT_FORMAT {
+            sink.write(b)?;
+        } else {
+            sink.write(&conform(b, &target))?;
+        }
         written += b.len() as u64;
         progress(written);
         Ok(())
     })?;
     sink.finish()
+}
+
+/// `b` with the columns of `schema`: those it has, zeros for the others (the near infrared:
+/// the red channel).
+fn conform(b: &PointBatch, schema: &Schema) -> PointBatch {
+    let mut out = PointBatch {
+        positions: b.positions.clone(),
+        ..Default::default()
+    };
+    for k in 0..PointBatch::COLUMNS {
+        let Some(a) = PointBatch::column_attribute(k) else {
+            continue;
+        };
+        if !schema.has(&a) {
+            continue;
+        }
+        match b.column_le(k) {
+            Some((_, bytes)) => out.set_column_le(k, &bytes),
+            None => out.set_column_le(k, &vec![0; b.len() * PointBatch::column_size(k)]),
+        }
+    }
+    if let (Some(nir), Some(rgb)) = (&mut out.nir, &b.rgb) {
+        for (n, c) in nir.iter_mut().zip(rgb) {
+            *n = c[0];
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -205,6 +267,35 @@ mod tests {
         )
         .unwrap();
         all
+    }
+
+    #[test]
+    fn every_point_format_keeps_what_it_holds() {
+        let all = collect(SceneKind::City, 5_000, 3);
+        for format in POINT_FORMATS {
+            let schema = Schema::for_las_format(format);
+            let b = conform(&all, &schema);
+            let got = b.schema();
+            assert_eq!(
+                got.attributes.len(),
+                schema.attributes.len(),
+                "format {format}"
+            );
+            assert!(
+                schema.attributes.iter().all(|a| got.has(a)),
+                "format {format}"
+            );
+            assert_eq!(b.positions, all.positions);
+            assert!(b.is_consistent());
+            assert_eq!(b.intensity, all.intensity);
+            if schema.has(&myriad_core::Attribute::GpsTime) {
+                assert_eq!(b.gps_time, all.gps_time, "format {format}");
+            }
+            if format == 8 {
+                let red: Vec<u16> = all.rgb.as_ref().unwrap().iter().map(|c| c[0]).collect();
+                assert_eq!(b.nir.as_ref(), Some(&red));
+            }
+        }
     }
 
     #[test]

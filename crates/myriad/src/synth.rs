@@ -35,6 +35,10 @@ pub struct SynthArgs {
     /// Replace the output if it exists
     #[arg(long)]
     force: bool,
+    /// LAS point format: 0, 1, 2, 3, 6, 7 or 8 (the scan's attributes the format holds; zero
+    /// for the scanner channel, the red channel as near infrared)
+    #[arg(long, default_value_t = myriad_synth::DEFAULT_POINT_FORMAT)]
+    point_format: u8,
 }
 
 pub fn run(a: SynthArgs) -> Result<()> {
@@ -64,7 +68,9 @@ pub fn run(a: SynthArgs) -> Result<()> {
         ProgressBar::hidden()
     };
     let start = Instant::now();
-    let n = myriad_synth::write(&options, &a.output, a.force, |done| bar.set_position(done))?;
+    let n = myriad_synth::write_as(&options, &a.output, a.force, a.point_format, |done| {
+        bar.set_position(done)
+    })?;
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     let bytes = std::fs::metadata(&a.output).map(|m| m.len()).unwrap_or(0);

@@ -238,6 +238,66 @@ fn usage_errors_exit_2() {
     assert!(help.stdout.contains("--points"));
 }
 
+/// `synth --point-format N` writes LAS/LAZ in each point format without waveforms (issue 43's
+/// corpus), every point read back; others, and a format for E57, are one-line errors.
+#[test]
+fn synth_writes_each_point_format() {
+    let d = tempdir("synth-formats");
+    for format in ["0", "1", "2", "3", "6", "7", "8"] {
+        let p = d.join(format!("pf{format}.laz"));
+        let r = myriad(&[
+            "synth",
+            "-o",
+            s(&p),
+            "--points",
+            "5000",
+            "--point-format",
+            format,
+        ]);
+        assert_eq!(r.code, 0, "{format}: {}", r.stderr);
+        let r = myriad(&["info", "--json", s(&p)]);
+        let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+        assert_eq!(v["points"], 5000, "{format}");
+        assert!(
+            v["version"]
+                .as_str()
+                .unwrap()
+                .ends_with(&format!("point format {format}")),
+            "{v}"
+        );
+    }
+    let p = d.join("pf4.laz");
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&p),
+        "--points",
+        "5000",
+        "--point-format",
+        "4",
+    ]);
+    assert_eq!(r.code, 1);
+    assert_eq!(
+        r.stderr.trim(),
+        "error: point format 4: synth writes formats 0-3 and 6-8"
+    );
+    assert!(!p.exists());
+    let e = d.join("x.e57");
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&e),
+        "--points",
+        "5000",
+        "--scene",
+        "indoor",
+        "--point-format",
+        "6",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+}
+
 #[test]
 fn synth_then_info_json() {
     let d = tempdir("synth");
