@@ -5,12 +5,37 @@ use myriad_core::PointBatch;
 use myriad_io::OpenOptions;
 use std::path::{Path, PathBuf};
 
-/// An empty folder of this test process.
-pub fn tempdir(name: &str) -> PathBuf {
+/// An empty folder of this test process, removed when the test passes (a failed one keeps it,
+/// to look at).
+pub fn tempdir(name: &str) -> TempDir {
     let d = std::env::temp_dir().join(format!("myriad-build-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TempDir(d)
+}
+
+/// A test's folder ([`tempdir`]).
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// Every point of a file, read as a user's file is.
