@@ -229,25 +229,9 @@ impl DepthMap {
 
     /// Whether a box given by its 8 corners is hidden behind what the buffer holds.
     pub fn hides(&mut self, corners: &[[f64; 3]; 8]) -> bool {
-        let mut nearest = f64::INFINITY;
-        let (mut x0, mut y0, mut x1, mut y1) = (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for &c in corners {
-            let e = self.eye(c);
-            if e[2] <= self.cam.near {
-                return false;
-            }
-            nearest = nearest.min(e[2]);
-            let [px, py] = self.pixel(e);
-            x0 = x0.min(px);
-            x1 = x1.max(px);
-            y0 = y0.min(py);
-            y1 = y1.max(py);
-        }
+        let Some((nearest, [x0, y0, x1, y1])) = self.cam.box_on_screen(corners) else {
+            return false;
+        };
         let (w, h) = (self.cam.width as f64, self.cam.height as f64);
         let (x0, x1, y0, y1) = (x0.max(0.0), x1.min(w), y0.max(0.0), y1.min(h));
         if !(x0 < x1 && y0 < y1) {

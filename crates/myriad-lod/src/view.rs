@@ -126,6 +126,38 @@ impl Camera {
         [dot(d, r), dot(d, u), dot(d, f)]
     }
 
+    /// Where a box (its 8 corners) lies in the image: its nearest eye depth and the pixel
+    /// rectangle `[x0, y0, x1, y1]` its corners span (x right, y down; not clipped to the
+    /// image); `None` when a corner is at or before the near plane.
+    pub fn box_on_screen(&self, corners: &[[f64; 3]; 8]) -> Option<(f64, [f64; 4])> {
+        let (r, u, f) = self.basis();
+        let focal = self.focal();
+        let (w, h) = (self.width as f64, self.height as f64);
+        let mut nearest = f64::INFINITY;
+        let mut rect = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for &c in corners {
+            let d = sub(c, self.position);
+            let (x, y, z) = (dot(d, r), dot(d, u), dot(d, f));
+            if z <= self.near {
+                return None;
+            }
+            nearest = nearest.min(z);
+            let (px, py) = (w / 2.0 + x * focal / z, h / 2.0 - y * focal / z);
+            rect = [
+                rect[0].min(px),
+                rect[1].min(py),
+                rect[2].max(px),
+                rect[3].max(py),
+            ];
+        }
+        Some((nearest, rect))
+    }
+
     /// Pixels that one unit of length covers at eye depth `depth` (on the view axis).
     pub fn pixels_per_unit(&self, depth: f64) -> f64 {
         self.focal() / depth.max(self.near)

@@ -241,24 +241,9 @@ impl Tiles {
     /// Whether every pixel the box can cover holds something nearer than the box's nearest
     /// corner (`false`: not known; the box is scanned).
     fn hide(&self, camera: &Camera, corners: &[[f64; 3]; 8]) -> bool {
-        let (w, h) = (camera.width.max(1) as f64, camera.height.max(1) as f64);
-        let focal = camera.focal();
-        let mut nearest = f64::INFINITY;
-        let (mut x0, mut y0, mut x1, mut y1) = (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for &c in corners {
-            let e = camera.to_eye(c);
-            if e[2] <= camera.near {
-                return false;
-            }
-            nearest = nearest.min(e[2]);
-            let (x, y) = (w / 2.0 + e[0] * focal / e[2], h / 2.0 - e[1] * focal / e[2]);
-            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-        }
+        let Some((nearest, [x0, y0, x1, y1])) = camera.box_on_screen(corners) else {
+            return false;
+        };
         let tile = |v: f64, n: usize| ((v.max(0.0) as usize) / TILE).min(n - 1);
         let (tx0, tx1) = (
             tile(x0.floor() - 1.0, self.across),

@@ -154,15 +154,17 @@ const WALLED: Scripted = Scripted {
     },
 };
 
+/// A box of 10 x 10 x 10 points `step` apart from `lo`.
+fn cube(lo: [f64; 3], step: f64) -> Vec<[f64; 3]> {
+    (0..1000)
+        .map(|i| {
+            let f = |k: usize| (k % 10) as f64 * step;
+            [lo[0] + f(i), lo[1] + f(i / 10), lo[2] + f(i / 100)]
+        })
+        .collect()
+}
+
 fn node_points(key: &NodeKey) -> Vec<[f64; 3]> {
-    let cube = |lo: [f64; 3], step: f64| -> Vec<[f64; 3]> {
-        (0..1000)
-            .map(|i| {
-                let f = |k: usize| (k % 10) as f64 * step;
-                [lo[0] + f(i), lo[1] + f(i / 10), lo[2] + f(i / 100)]
-            })
-            .collect()
-    };
     // The one behind is the larger: the selection reaches it first.
     match key.level {
         0 => wall(None),
@@ -285,14 +287,6 @@ const SLIT: Scripted = Scripted {
 };
 
 fn slit_points(key: &NodeKey) -> Vec<[f64; 3]> {
-    let cube = |lo: [f64; 3], step: f64| -> Vec<[f64; 3]> {
-        (0..1000)
-            .map(|i| {
-                let f = |k: usize| (k % 10) as f64 * step;
-                [lo[0] + f(i), lo[1] + f(i / 10), lo[2] + f(i / 100)]
-            })
-            .collect()
-    };
     match key.level {
         0 => (0..=100)
             .flat_map(|i| (0..=100).map(move |j| [2.0, i as f64 * 0.1, j as f64 * 0.1]))

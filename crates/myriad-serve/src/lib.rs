@@ -701,7 +701,7 @@ async fn route(
             return status(StatusCode::BAD_REQUEST, "malformed path");
         };
         return match catalog.file(&name).and_then(|f| f.live.clone()) {
-            Some(live) => build_changes(live, req.uri().query().unwrap_or("")).await,
+            Some(live) => live::answer_changes(live, req.uri().query().unwrap_or("")).await,
             None => status(
                 StatusCode::NOT_FOUND,
                 "no dataset of that name is being built",
@@ -723,86 +723,7 @@ async fn route(
             Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
         };
     };
-    // A dataset being built: the version asked for (`?v=`), else the newest.
-    let asked = (req.uri().query().unwrap_or("").split('&'))
-        .find_map(|p| p.strip_prefix("v="))
-        .map(str::to_string);
-    let version = match &asked {
-        Some(v) => live.version(v),
-        None => Some(live.current()),
-    };
-    let Some(version) = version else {
-        return status(
-            StatusCode::GONE,
-            "that version of the dataset is gone (it is being built): open it again",
-        );
-    };
-    let mut r = match &version {
-        live::Version::Preview(p) | live::Version::Final(p) => {
-            match files::file(&f.at(p.clone()), budget, req).await {
-                Ok(r) => r,
-                Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
-            }
-        }
-        live::Version::Snapshot(s) => files::snapshot(s, f.content_type, budget, req).await,
-    };
-    let h = r.headers_mut();
-    if let Ok(v) = HeaderValue::from_str(&version.name()) {
-        h.insert("x-myriad-version", v);
-    }
-    h.insert(
-        "x-myriad-building",
-        HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
-    );
-    r
-}
-
-/// `/build/NAME?since=V&focus=X,Y,Z` ([`live::Live::changes`]): the newest version of a dataset
-/// being built, its length, whether the build still runs, and its nodes that are new against
-/// version `V` (`null`: all); `focus` is where the asker looks, built next.
-async fn build_changes(live: Arc<live::Live>, query: &str) -> Response<Body> {
-    let mut since = String::new();
-    for p in query.split('&') {
-        if let Some(v) = p.strip_prefix("since=") {
-            since = percent_decode(v).unwrap_or_default();
-        } else if let Some(v) = p.strip_prefix("focus=") {
-            let xyz: Vec<f64> = match v.split(',').map(str::parse).collect() {
-                Ok(xyz) => xyz,
-                Err(_) => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
-            };
-            match <[f64; 3]>::try_from(xyz) {
-                Ok(p) if p.iter().all(|v| v.is_finite()) => live.focus(p),
-                _ => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
-            }
-        }
-    }
-    let l = live.clone();
-    let answered = tokio::task::spawn_blocking(move || {
-        let (now, new) = l.changes(&since);
-        (now.name(), now.len(), new)
-    });
-    let Ok((version, len, new)) = answered.await else {
-        return status(StatusCode::INTERNAL_SERVER_ERROR, "the question failed");
-    };
-    let new = new.map(|keys| {
-        (keys.iter())
-            .map(|k| [k.level, k.cell[0], k.cell[1], k.cell[2]])
-            .collect::<Vec<_>>()
-    });
-    let body = serde_json::json!({
-        "version": version,
-        "building": live.is_building(),
-        "length": len,
-        "new": new,
-    });
-    let mut r = Response::new(full(body.to_string()));
-    let h = r.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    r
+    live::answer_dataset(f, live, budget, req).await
 }
 
 /// A served dataset as it is for good: itself, or a built one's finished dataset; `None` while

@@ -14,8 +14,14 @@
 //! version, and which of its nodes are new against the version `V` it draws, so that it keeps
 //! every node it has whose page is still the same (the build only appends to its file: a page
 //! written before a snapshot is the same bytes in every later version); `focus`, where its camera
-//! looks, is where the build goes next ([`Growing::set_focus`]).
+//! looks, is where the build goes next ([`Growing::set_focus`]). Both answers are made here
+//! ([`answer_dataset`], [`answer_changes`]); the router only finds the name.
 
+use crate::conn::Budget;
+use crate::{Body, catalog, files, full, percent_decode, status};
+use hyper::body::Incoming;
+use hyper::header::{self, HeaderValue};
+use hyper::{Request, Response, StatusCode};
 use myriad_build::growing::{Growing, Shown};
 use myriad_core::NodeKey;
 use myriad_format::{ByteSource, Dataset, NodeEntry};
@@ -206,4 +212,94 @@ impl Live {
             }
         }
     }
+}
+
+/// `/d/NAME` of a name being built: the version asked for (`?v=`), else the newest, its name
+/// in `X-Myriad-Version` and whether the build runs in `X-Myriad-Building`; 410 Gone for a
+/// version no longer kept.
+pub(crate) async fn answer_dataset(
+    f: &catalog::File,
+    live: &Live,
+    budget: &Budget,
+    req: &Request<Incoming>,
+) -> Response<Body> {
+    let asked = (req.uri().query().unwrap_or("").split('&'))
+        .find_map(|p| p.strip_prefix("v="))
+        .map(str::to_string);
+    let version = match &asked {
+        Some(v) => live.version(v),
+        None => Some(live.current()),
+    };
+    let Some(version) = version else {
+        return status(
+            StatusCode::GONE,
+            "that version of the dataset is gone (it is being built): open it again",
+        );
+    };
+    let mut r = match &version {
+        Version::Preview(p) | Version::Final(p) => {
+            match files::file(&f.at(p.clone()), budget, req).await {
+                Ok(r) => r,
+                Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+            }
+        }
+        Version::Snapshot(s) => files::snapshot(s, f.content_type, budget, req).await,
+    };
+    let h = r.headers_mut();
+    if let Ok(v) = HeaderValue::from_str(&version.name()) {
+        h.insert("x-myriad-version", v);
+    }
+    h.insert(
+        "x-myriad-building",
+        HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
+    );
+    r
+}
+
+/// `/build/NAME?since=V&focus=X,Y,Z` ([`Live::changes`]): the newest version of a dataset
+/// being built, its length, whether the build still runs, and its nodes that are new against
+/// version `V` (`null`: all); `focus` is where the asker looks, built next.
+pub(crate) async fn answer_changes(live: Arc<Live>, query: &str) -> Response<Body> {
+    let mut since = String::new();
+    for p in query.split('&') {
+        if let Some(v) = p.strip_prefix("since=") {
+            since = percent_decode(v).unwrap_or_default();
+        } else if let Some(v) = p.strip_prefix("focus=") {
+            let xyz: Vec<f64> = match v.split(',').map(str::parse).collect() {
+                Ok(xyz) => xyz,
+                Err(_) => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
+            };
+            match <[f64; 3]>::try_from(xyz) {
+                Ok(p) if p.iter().all(|v| v.is_finite()) => live.focus(p),
+                _ => return status(StatusCode::BAD_REQUEST, "focus: three numbers, X,Y,Z"),
+            }
+        }
+    }
+    let l = live.clone();
+    let answered = tokio::task::spawn_blocking(move || {
+        let (now, new) = l.changes(&since);
+        (now.name(), now.len(), new)
+    });
+    let Ok((version, len, new)) = answered.await else {
+        return status(StatusCode::INTERNAL_SERVER_ERROR, "the question failed");
+    };
+    let new = new.map(|keys| {
+        (keys.iter())
+            .map(|k| [k.level, k.cell[0], k.cell[1], k.cell[2]])
+            .collect::<Vec<_>>()
+    });
+    let body = serde_json::json!({
+        "version": version,
+        "building": live.is_building(),
+        "length": len,
+        "new": new,
+    });
+    let mut r = Response::new(full(body.to_string()));
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    r
 }

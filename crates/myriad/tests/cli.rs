@@ -243,17 +243,20 @@ fn usage_errors_exit_2() {
 #[test]
 fn synth_writes_each_point_format() {
     let d = tempdir("synth-formats");
-    for format in ["0", "1", "2", "3", "6", "7", "8"] {
-        let p = d.join(format!("pf{format}.laz"));
-        let r = myriad(&[
+    let synth = |p: &std::path::Path, format: &str| {
+        myriad(&[
             "synth",
             "-o",
-            s(&p),
+            s(p),
             "--points",
             "5000",
             "--point-format",
             format,
-        ]);
+        ])
+    };
+    for format in ["0", "1", "2", "3", "6", "7", "8"] {
+        let p = d.join(format!("pf{format}.laz"));
+        let r = synth(&p, format);
         assert_eq!(r.code, 0, "{format}: {}", r.stderr);
         let r = myriad(&["info", "--json", s(&p)]);
         let v: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
@@ -267,15 +270,7 @@ fn synth_writes_each_point_format() {
         );
     }
     let p = d.join("pf4.laz");
-    let r = myriad(&[
-        "synth",
-        "-o",
-        s(&p),
-        "--points",
-        "5000",
-        "--point-format",
-        "4",
-    ]);
+    let r = synth(&p, "4");
     assert_eq!(r.code, 1);
     assert_eq!(
         r.stderr.trim(),
