@@ -89,6 +89,7 @@ impl QuadPass {
                         entry(1, draws[i].points.buffer().as_entire_binding()),
                         entry(3, tree.as_entire_binding()),
                         entry(6, splats.as_entire_binding()),
+                        entry(7, t.post.reject_binding()),
                     ],
                 })
             })

@@ -13,6 +13,14 @@ struct Corner {
     @location(4) @interpolate(flat) splat: vec4<f32>,
 }
 
+// A headset's hidden area (002 section 4.1), one bit a g-buffer pixel (a few words of zeros:
+// none): set where every pixel within REJECT_REACH of it is hidden. A point whose centre falls
+// there covers hidden pixels alone and is dropped before it is rasterized; the g-buffer pass
+// empties the hidden pixels the others reach.
+@group(0) @binding(7) var<storage, read> reject_bits: array<u32>;
+// chain.rs's REJECT_REACH.
+const REJECT_REACH: f32 = 8.0;
+
 const CORNERS = array<vec2<f32>, 6>(
     vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
     vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
@@ -64,6 +72,12 @@ fn vertex(
     if (u.radius.z > 0.0 && u.point_size == 0.0) {
         out.splat = splat_shape(splat_codes[instance], u.radius.xy, clip.w);
         s = f32(splat_pixels(out.splat.x));
+    }
+    if (s * 0.5 + 1.0 <= REJECT_REACH) {
+        let i = u32(fy) * u.width + u32(fx) + eye * width;
+        if ((i >> 5u) < arrayLength(&reject_bits) && (reject_bits[i >> 5u] & (1u << (i & 31u))) != 0u) {
+            return out;
+        }
     }
     let x0 = floor(fx) - floor((s - 1.0) * 0.5);
     let y0 = floor(fy) - floor((s - 1.0) * 0.5);

@@ -86,14 +86,6 @@ pub fn triangles_mask(width: u32, height: u32, triangles: &[[[f64; 2]; 3]]) -> V
     mask
 }
 
-/// `mask` (`w` pixels a row) at `f` times its size, each pixel's `f` x `f` alike.
-fn upsampled(mask: &[bool], w: usize, f: usize) -> Vec<bool> {
-    let h = mask.len() / w.max(1);
-    (0..h * f)
-        .flat_map(|y| (0..w * f).map(move |x| mask[(y / f) * w + x / f]))
-        .collect()
-}
-
 impl Rasterizer {
     /// The two eyes' images of `draws` side by side: RGBA8, `2 * width` x `height`, the left
     /// eye on the left. `masks`: each eye's hidden pixels (a runtime's, e.g. from
@@ -124,7 +116,8 @@ impl Rasterizer {
             }
             None => None,
         };
-        let mut out = if self.path == Path::Cpu {
+        // Hidden pixels come out black from each path's finish pass.
+        if self.path == Path::Cpu {
             let passes = style.passes;
             let f = self.factor(gpu, &eyes[0], &passes);
             let eyes = eyes.map(|e| crate::style::supersampled(&e, style, f));
@@ -132,7 +125,7 @@ impl Rasterizer {
             // The masks at the supersampled size (the image's where there is no supersampling).
             let big = mask
                 .filter(|_| f > 1)
-                .map(|m| m.map(|m| upsampled(m, w as usize, f as usize)));
+                .map(|m| m.map(|m| crate::post::upsampled(m, w as usize, f as usize)));
             let eye_mask = |k: usize| match &big {
                 Some(b) => Some(&b[k][..]),
                 None => mask.map(|m| m[k]),
@@ -187,21 +180,7 @@ impl Rasterizer {
                     .collect();
                 side_by_side(&images, w, h)
             }
-        };
-        if let Some(m) = &mask {
-            use rayon::prelude::*;
-            let w = w as usize;
-            out.par_chunks_exact_mut(8 * w)
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (x, px) in row.chunks_exact_mut(4).enumerate() {
-                        if m[x / w][y * w + x % w] {
-                            px.copy_from_slice(&[0, 0, 0, 255]);
-                        }
-                    }
-                });
         }
-        out
     }
 }
 

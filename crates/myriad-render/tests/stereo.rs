@@ -191,3 +191,70 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
         }
     }
 }
+
+#[test]
+fn points_dropped_in_the_hidden_area_change_no_pixel_outside_it() {
+    // Squares of 7 pixels every 8, each its own colour, on a wall; the left 30 columns of each
+    // eye hidden. The quad path drops the points whose squares lie in the hidden area whole:
+    // the frame equals the one drawn without the mask, its hidden pixels then made black, on
+    // every path (a square centred 2 pixels inside the hidden area still shows its edge).
+    let size = 64u32;
+    let cam = myriad_lod::Camera {
+        position: [0.0, 0.0, 0.0],
+        target: [0.0, 1.0, 0.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 60.0,
+        width: size,
+        height: size,
+        near: 0.1,
+        far: 100.0,
+    };
+    let eyes = cam.eyes(0.0);
+    let pixel = 2.0 * 10.0 * (30f64.to_radians().tan()) / size as f64;
+    let (mut positions, mut colours) = (Vec::new(), Vec::new());
+    for y in (4..size).step_by(8) {
+        for x in (4..size).step_by(8) {
+            let at = |v: u32| (v as f64 + 0.5 - size as f64 / 2.0) * pixel;
+            positions.push([at(x), 10.0, -at(y)]);
+            colours.push([(x * 4) as u8, (y * 4) as u8, 200, 255]);
+        }
+    }
+    let hidden: Vec<bool> = (0..size * size).map(|i| i % size < 30).collect();
+    let masks = [hidden.clone(), hidden.clone()];
+    let style = Style {
+        size: PointSize::Fixed(7.0),
+        passes: Passes::default(),
+        ..Style::default()
+    };
+    let mut paths = vec![(Gpu::cpu(), Path::Cpu)];
+    if let Some(gpu) = common::gpu_or_skip() {
+        if gpu.atomics {
+            paths.push((common::gpu_or_skip().unwrap(), Path::Compute));
+        }
+        paths.push((gpu, Path::Quads));
+    }
+    for (gpu, path) in &paths {
+        let points = Points::upload(gpu, [0.0; 3], &positions, &colours);
+        let mut raster = Rasterizer::with_path(gpu, *path);
+        raster.precision = 0.0;
+        for single_pass in [true, false] {
+            let s = Stereo {
+                ipd: 0.0,
+                single_pass,
+                hidden_area: false,
+            };
+            let draws = [points.all(1.0)];
+            let open = raster.render_stereo(gpu, &eyes, &draws, &[], &style, &s, None);
+            let masked = raster.render_stereo(gpu, &eyes, &draws, &[], &style, &s, Some(&masks));
+            let mut lit_at_edge = 0;
+            for (i, (p, q)) in open.chunks(4).zip(masked.chunks(4)).enumerate() {
+                let x = (i as u32 % (2 * size)) % size;
+                let want: &[u8] = if x < 30 { &[0, 0, 0, 255] } else { p };
+                assert_eq!(q, want, "{path:?}, single pass {single_pass}: pixel {i}");
+                lit_at_edge += usize::from(x == 30 && q[..3] != [0, 0, 0]);
+            }
+            // The squares centred at column 28 reach columns 30 and 31.
+            assert!(lit_at_edge >= 2 * 7 * 8, "{path:?}: {lit_at_edge}");
+        }
+    }
+}

@@ -66,6 +66,9 @@ pub(crate) struct Hidden<'a> {
     pub width: usize,
 }
 
+/// The supersampling factor, the eye's width and the masks [`Buffers::hide`] last made bits of.
+type Made = (usize, usize, Vec<Vec<bool>>);
+
 /// The g-buffer's two sets of (depth, colour, normal) arrays and the image.
 pub(crate) struct Buffers {
     sets: [[wgpu::Buffer; 3]; 2],
@@ -73,8 +76,13 @@ pub(crate) struct Buffers {
     /// The hidden area, one bit a pixel of the g-buffer ([`Buffers::hide`]); `none`: a few
     /// words of zeros, bound when nothing is hidden.
     hidden: wgpu::Buffer,
+    /// Where the quad path rejects a point before drawing it ([`rejected`]), one bit a pixel.
+    reject: wgpu::Buffer,
     none: wgpu::Buffer,
     masked: std::sync::atomic::AtomicBool,
+    /// The masks and supersampling `hidden` and `reject` were made from: made again only when
+    /// they change (a runtime's masks stay for a session, the ellipse for a size).
+    made: std::sync::Mutex<Option<Made>>,
 }
 
 impl Buffers {
@@ -105,40 +113,57 @@ impl Buffers {
                 pixels.div_ceil(32) * 4,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             ),
+            reject: buffer(
+                "rejected area",
+                pixels.div_ceil(32) * 4,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
             // Zeroed at creation.
             none: buffer("nothing hidden", 16, wgpu::BufferUsages::STORAGE),
             masked: Default::default(),
+            made: Default::default(),
         }
     }
 
     /// The pixels the point pass (compute path) and every post pass skip from now on (a
-    /// headset's hidden area), for a g-buffer supersampled `factor` times; None: none.
+    /// headset's hidden area), for a g-buffer supersampled `factor` times; None: none. The bits
+    /// are made and uploaded again only when the masks or the size change.
     pub fn hide(&self, gpu: &Gpu, hidden: Option<Hidden>, factor: u32) {
-        use rayon::prelude::*;
         use std::sync::atomic::Ordering::Relaxed;
         self.masked.store(hidden.is_some(), Relaxed);
         let Some(h) = hidden else {
             return;
         };
-        // One bit a g-buffer pixel, each looked up in its eye's mask.
         let f = factor.max(1) as usize;
+        let mut made = self.made.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((mf, mw, masks)) = made.as_ref()
+            && *mf == f
+            && *mw == h.width
+            && masks.len() == h.eyes.len()
+            && masks.iter().zip(h.eyes).all(|(a, b)| a[..] == **b)
+        {
+            return;
+        }
+        // Each eye's mask at the g-buffer's size.
+        let big: Vec<Vec<bool>> = h.eyes.iter().map(|m| upsampled(m, h.width, f)).collect();
         let eye = h.width * f;
-        let frame = eye * h.eyes.len();
-        let pixels = frame * (h.eyes[0].len() / h.width.max(1)) * f;
-        let words: Vec<u32> = (0..pixels.div_ceil(32))
-            .into_par_iter()
-            .map(|k| {
-                (0..32)
-                    .filter(|b| k * 32 + b < pixels)
-                    .fold(0u32, |word, b| {
-                        let (x, y) = ((k * 32 + b) % frame, (k * 32 + b) / frame);
-                        let hidden = h.eyes[x / eye][(y / f) * h.width + (x % eye) / f];
-                        word | ((hidden as u32) << b)
-                    })
-            })
-            .collect();
-        gpu.queue()
-            .write_buffer(&self.hidden, 0, bytemuck::cast_slice(&words));
+        let reject: Vec<Vec<bool>> = big.iter().map(|m| rejected(m, eye)).collect();
+        for (buffer, masks) in [(&self.hidden, &big), (&self.reject, &reject)] {
+            let words = frame_bits(masks, eye);
+            gpu.queue()
+                .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
+        }
+        *made = Some((f, h.width, h.eyes.iter().map(|m| m.to_vec()).collect()));
+    }
+
+    /// The binding of the pixels where the quad path rejects points, as [`Buffers::hide`]
+    /// last set them (none where nothing is hidden).
+    pub fn reject_binding(&self) -> wgpu::BindingResource<'_> {
+        if self.masked.load(std::sync::atomic::Ordering::Relaxed) {
+            self.reject.as_entire_binding()
+        } else {
+            self.none.as_entire_binding()
+        }
     }
 
     /// The binding of the hidden area as [`Buffers::hide`] last set it.
@@ -285,11 +310,124 @@ impl Chain {
         };
         let mut entries = vec![entry(0, uniforms.as_entire_binding()), out];
         entries.extend(set_entries(&buffers.sets[current], 10, 2));
+        entries.push(entry(16, buffers.hidden_binding()));
         dispatch(
             enc,
             self.pass(finish),
             entries,
             (view.width / f) * (view.height / f),
         );
+    }
+}
+
+/// How far inside the hidden area, in g-buffer pixels every way, a point's centre must lie for
+/// the quad path to reject it before it is drawn (quads.wgsl): its square, at most
+/// `2 * (REJECT_REACH - 1)` pixels across, then covers hidden pixels alone.
+pub(crate) const REJECT_REACH: usize = 8;
+
+/// `mask` (`w` pixels a row) at `f` times its size, each pixel's `f` x `f` alike.
+pub(crate) fn upsampled(mask: &[bool], w: usize, f: usize) -> Vec<bool> {
+    if f == 1 {
+        return mask.to_vec();
+    }
+    let h = mask.len() / w.max(1);
+    (0..h * f)
+        .flat_map(|y| (0..w * f).map(move |x| mask[(y / f) * w + x / f]))
+        .collect()
+}
+
+/// Per pixel of an eye's `mask` (`w` a row), whether every pixel within [`REJECT_REACH`] of it
+/// across and down is hidden, those beyond the eye's edges counted hidden (nothing is drawn
+/// there: the quad path cuts a square at its eye's edges).
+pub(crate) fn rejected(mask: &[bool], w: usize) -> Vec<bool> {
+    use rayon::prelude::*;
+    let r = REJECT_REACH;
+    let h = mask.len() / w.max(1);
+    // Across: the open pixels in each row's window, from the row's running count.
+    let across: Vec<bool> = mask
+        .par_chunks(w.max(1))
+        .flat_map_iter(|row| {
+            let mut open = vec![0u32; w + 1];
+            for x in 0..w {
+                open[x + 1] = open[x] + u32::from(!row[x]);
+            }
+            (0..w).map(move |x| open[(x + r + 1).min(w)] == open[x.saturating_sub(r)])
+        })
+        .collect();
+    // Down: a window of rows slid over the image, counting each column's open pixels in it.
+    let mut open = vec![0u32; w];
+    let mut out = vec![false; w * h];
+    for y in 0..h + r {
+        if y < h {
+            for x in 0..w {
+                open[x] += u32::from(!across[y * w + x]);
+            }
+        }
+        if y > 2 * r {
+            let gone = y - 2 * r - 1;
+            for x in 0..w {
+                open[x] -= u32::from(!across[gone * w + x]);
+            }
+        }
+        if y >= r {
+            let row = y - r;
+            for x in 0..w {
+                out[row * w + x] = open[x] == 0;
+            }
+        }
+    }
+    out
+}
+
+/// One bit a pixel of a frame of the eyes' masks side by side (each `eye` pixels a row).
+fn frame_bits(masks: &[Vec<bool>], eye: usize) -> Vec<u32> {
+    use rayon::prelude::*;
+    let frame = eye * masks.len();
+    let pixels = frame * (masks[0].len() / eye.max(1));
+    (0..pixels.div_ceil(32))
+        .into_par_iter()
+        .map(|k| {
+            (0..32)
+                .filter(|b| k * 32 + b < pixels)
+                .fold(0u32, |word, b| {
+                    let (x, y) = ((k * 32 + b) % frame, (k * 32 + b) / frame);
+                    word | (u32::from(masks[x / eye][y * eye + x % eye]) << b)
+                })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_are_rejected_only_where_everything_within_reach_is_hidden() {
+        // A 40 x 30 eye hidden left of column 20: rejected left of column 20 - REACH, where
+        // the reach stays in the hidden columns (the eye's edges count hidden).
+        let (w, h) = (40, 30);
+        let mask: Vec<bool> = (0..w * h).map(|i| i % w < 20).collect();
+        let r = rejected(&mask, w);
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(r[y * w + x], x + REJECT_REACH < 20, "({x}, {y})");
+            }
+        }
+        // One open pixel keeps every pixel within reach of it drawn, and none farther.
+        let mut holed = vec![true; w * h];
+        holed[15 * w + 20] = false;
+        let r = rejected(&holed, w);
+        for y in 0..h {
+            for x in 0..w {
+                let near = x.abs_diff(20) <= REJECT_REACH && y.abs_diff(15) <= REJECT_REACH;
+                assert_eq!(r[y * w + x], !near, "({x}, {y})");
+            }
+        }
+    }
+
+    #[test]
+    fn the_quad_shader_reaches_as_far_as_the_rejected_mask() {
+        let line = format!("const REJECT_REACH: f32 = {REJECT_REACH}.0;");
+        assert!(crate::QUADS_WGSL.contains(&line), "{line}");
     }
 }

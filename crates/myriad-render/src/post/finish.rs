@@ -9,8 +9,8 @@ use rayon::prelude::*;
 pub(crate) const SOURCE: &str = concat!(include_str!("common.wgsl"), include_str!("finish.wgsl"));
 
 /// As finish.wgsl: each image pixel the mean of its `factor` x `factor` block, the background
-/// where nothing was drawn.
-pub(crate) fn image(g: &GBuffer, v: &View) -> Vec<u8> {
+/// where nothing was drawn, opaque black where `mask` (the g-buffer's pixels) hides the block.
+pub(crate) fn image(g: &GBuffer, v: &View, mask: Option<&[bool]>) -> Vec<u8> {
     let f = v.factor.max(1) as usize;
     let (w, h) = (g.width as usize / f, g.height as usize / f);
     let background = u32::from_le_bytes(v.background);
@@ -19,6 +19,10 @@ pub(crate) fn image(g: &GBuffer, v: &View) -> Vec<u8> {
         .enumerate()
         .for_each(|(y, row)| {
             for x in 0..w {
+                if mask.is_some_and(|m| m[y * f * g.width as usize + x * f]) {
+                    row[x * 4..x * 4 + 4].copy_from_slice(&[0, 0, 0, 255]);
+                    continue;
+                }
                 let mut sum = [0.0f32; 4];
                 for sy in 0..f {
                     for sx in 0..f {

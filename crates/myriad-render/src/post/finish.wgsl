@@ -1,12 +1,15 @@
 // The image: each pixel the mean of its factor x factor block of the g-buffer, the background
-// where nothing was drawn. Mirror: finish.rs.
+// where nothing was drawn, black where hidden (a headset lens's area). Mirror: finish.rs.
 
 @group(0) @binding(3) var<storage, read_write> image: array<u32>;
 // Or a texture (a window's, on the same device): no readback.
 @group(0) @binding(5) var out_texture: texture_storage_2d<rgba8unorm, write>;
 
-// The mean colour of image pixel (x, y)'s block.
+// The mean colour of image pixel (x, y)'s block; opaque black where the block is hidden.
 fn block(x: u32, y: u32) -> vec4<f32> {
+    if (hidden(y * r.factor * r.width + x * r.factor)) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
     var sum = vec4<f32>(0.0);
     for (var sy = 0u; sy < r.factor; sy++) {
         for (var sx = 0u; sx < r.factor; sx++) {

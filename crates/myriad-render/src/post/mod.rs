@@ -40,7 +40,7 @@ mod ssao;
 
 pub use blur::Blur;
 pub use chain::PASS_SOURCES;
-pub(crate) use chain::{Buffers, Chain, Hidden};
+pub(crate) use chain::{Buffers, Chain, Hidden, upsampled};
 pub use edl::Edl;
 pub use fill::Fill;
 pub use gbuffer::{FB_ATOMIC_WGSL, FB_QUADS_WGSL, gbuffer_source, pack_normal, unpack_normal};
@@ -59,7 +59,7 @@ pub(crate) fn run(g: GBuffer, passes: &Passes, v: &View) -> Vec<u8> {
 }
 
 /// [`run`], every pass skipping the pixels `mask` hides (a headset's hidden area: they stay as
-/// the point pass left them, empty).
+/// the point pass left them, empty, and the image is black there).
 pub(crate) fn run_masked(
     mut g: GBuffer,
     passes: &Passes,
@@ -96,7 +96,7 @@ pub(crate) fn run_masked(
         each_pixel(&g, &mut scratch, &pass, mask);
         std::mem::swap(&mut g, &mut scratch);
     }
-    finish::image(&g, v)
+    finish::image(&g, v, mask)
 }
 
 /// `dst` pixel by pixel from `src`: (depth, colour, normal).
