@@ -72,6 +72,12 @@ struct Run {
     bytes: usize,
     frames: usize,
     failed: usize,
+    /// Time the frames spent uploading (in all, and the most in one frame), and the nodes
+    /// uploaded with the words the loader threads made, and encoded at their upload.
+    upload: Duration,
+    upload_max: Duration,
+    prepared: usize,
+    encoded: usize,
 }
 
 fn open_and_draw(path: &Path, a: &OpenBenchArgs, gpu: &myriad_render::Gpu) -> Result<Run> {
@@ -93,9 +99,12 @@ fn open_and_draw(path: &Path, a: &OpenBenchArgs, gpu: &myriad_render::Gpu) -> Re
     )?;
     let mut first = None;
     let mut frames = 0;
+    let (mut upload, mut upload_max) = (Duration::ZERO, Duration::ZERO);
     loop {
         let (_, stats) = scene.frame(gpu, &raster, &cam, &options, &style);
         frames += 1;
+        upload += stats.upload;
+        upload_max = upload_max.max(stats.upload);
         if std::env::var_os("MYRIAD_BENCH_TRACE").is_some() {
             eprintln!(
                 "{:.3} s: {} points, select {:?} upload {:?} draw {:?}",
@@ -117,6 +126,10 @@ fn open_and_draw(path: &Path, a: &OpenBenchArgs, gpu: &myriad_render::Gpu) -> Re
                 bytes: stats.hierarchy_bytes,
                 frames,
                 failed: scene.loader.failed().len(),
+                upload,
+                upload_max,
+                prepared: scene.uploads_prepared,
+                encoded: scene.uploads_encoded,
             });
         }
         if t0.elapsed() > Duration::from_secs(600) {
@@ -208,6 +221,14 @@ pub fn run(a: OpenBenchArgs) -> Result<()> {
                     0.0 => String::new(),
                     n => format!(", {n:.0} nodes without pages"),
                 }
+            );
+            println!(
+                "    uploads on the frame thread: {:.1} ms in all, at most {:.1} ms in a frame; \
+                 {:.0} nodes uploaded as the loader threads made them, {:.0} encoded at upload",
+                m(runs, &|r| secs(r.upload)) * 1e3,
+                m(runs, &|r| secs(r.upload_max)) * 1e3,
+                m(runs, &|r| r.prepared as f64),
+                m(runs, &|r| r.encoded as f64),
             );
         }
     }

@@ -454,6 +454,7 @@ mod tests {
         beside.bounds = Some(Aabb::new([6.0, 11.0, 4.0], [8.0, 13.0, 6.0]));
         let h = Hierarchy::new(root, [r, behind, under, beside.clone()]);
         let batch = Arc::new(Loaded {
+            prepared: None,
             points: myriad_core::PointBatch {
                 positions: points,
                 ..Default::default()

@@ -7,15 +7,18 @@
 //! loop draws what is resident and refines as pages land. A damaged page is reported once and
 //! not requested again. Hierarchy pages the selection wants ([`Loader::request_with_pages`])
 //! go through the same queue ahead of the nodes (they are small, and the view refines only
-//! once they are in); [`Loader::take_pages`] hands over those that landed.
+//! once they are in); [`Loader::take_pages`] hands over those that landed. What shows a node
+//! may give the loader threads its own work on each node read ([`Loader::set_prepare`]: the
+//! renderer's colours and GPU words), so that no frame does it (000 section 3.4).
 
 use crate::cache::Lru;
 use myriad_core::{NodeKey, PointBatch};
 use myriad_format::splat::Splats;
 use myriad_format::{ChildPage, Dataset, HierarchyPage, NodeEntry};
+use std::any::Any;
 use std::collections::{HashMap, HashSet};
 use std::sync::mpsc::{Receiver, Sender, channel};
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::thread::JoinHandle;
 
 /// Reads and decodes one node's page (a [`Dataset`], or anything that serves pages).
@@ -89,7 +92,26 @@ impl PageReader for Filtered {
 pub struct Loaded {
     pub points: PointBatch,
     pub splats: Option<Splats>,
+    /// What the loader's [`Prepare`] made of it on the loader thread, if anything.
+    pub prepared: Option<Prepared>,
 }
+
+/// What a [`Prepare`] made of a node, and the bytes it holds (counted in the cache's budget).
+#[derive(Clone)]
+pub struct Prepared {
+    pub made: Arc<dyn Any + Send + Sync>,
+    pub bytes: usize,
+}
+
+impl std::fmt::Debug for Prepared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Prepared({} bytes)", self.bytes)
+    }
+}
+
+/// Work a loader thread does on each node it has read (after decoding, before the node is
+/// resident), for whoever shows it.
+pub type Prepare = Arc<dyn Fn(&NodeKey, &Loaded) -> Option<Prepared> + Send + Sync>;
 
 impl std::ops::Deref for Loaded {
     type Target = PointBatch;
@@ -119,6 +141,7 @@ struct Queue {
 struct Shared {
     queue: Mutex<Queue>,
     ready: Condvar,
+    prepare: RwLock<Option<Prepare>>,
 }
 
 /// Loader threads and the RAM cache.
@@ -154,6 +177,7 @@ impl Loader {
                 stop: false,
             }),
             ready: Condvar::new(),
+            prepare: RwLock::new(None),
         });
         let (tx, results) = channel();
         let threads = (0..threads.max(1))
@@ -180,10 +204,17 @@ impl Loader {
                                 Job::Node(node) => Done::Node(
                                     node.key,
                                     reader.read(&node).and_then(|points| {
-                                        Ok(Loaded {
+                                        let mut l = Loaded {
                                             splats: reader.read_splats(&node)?,
                                             points,
-                                        })
+                                            prepared: None,
+                                        };
+                                        let prepare =
+                                            shared.prepare.read().ok().and_then(|p| p.clone());
+                                        if let Some(p) = prepare {
+                                            l.prepared = p(&node.key, &l);
+                                        }
+                                        Ok(l)
                                     }),
                                 ),
                                 Job::Page(p) => Done::Page(p.key, reader.read_hierarchy(&p)),
@@ -346,9 +377,20 @@ impl Loader {
         self.pending_pages.len()
     }
 
+    /// The work each loader thread does on a node it has read from now on (None: none).
+    pub fn set_prepare(&self, prepare: Option<Prepare>) {
+        *self
+            .shared
+            .prepare
+            .write()
+            .unwrap_or_else(|e| e.into_inner()) = prepare;
+    }
+
     /// Puts a node read elsewhere into the cache (the root a scene read on opening).
     pub fn insert(&mut self, key: NodeKey, node: Loaded) {
-        let bytes = batch_bytes(&node) + node.splats.as_ref().map_or(0, |s| s.radii.len() * 16);
+        let bytes = batch_bytes(&node)
+            + node.splats.as_ref().map_or(0, |s| s.radii.len() * 16)
+            + node.prepared.as_ref().map_or(0, |p| p.bytes);
         self.cache.insert(key, Arc::new(node), bytes);
     }
 

@@ -45,7 +45,7 @@ pub use device::Gpu;
 pub use frame::Rasterizer;
 pub use myriad_core::colour::{ColorBy, class_colour, colours};
 pub use myriad_lod::Clip;
-pub use points::{Draw, Encoding, Points, WORD_BITS, splat_code};
+pub use points::{Draw, Encoded, Encoding, Points, WORD_BITS, splat_code};
 pub use post::{
     Blur, DEFAULT_PASSES, Edl, FB_ATOMIC_WGSL, FB_QUADS_WGSL, Fill, PASS_NAMES, PASS_SOURCES,
     Passes, Shade, Ssao, gbuffer_source, pack_normal, unpack_normal,

@@ -87,6 +87,14 @@ impl Storage {
     fn new(gpu: &Gpu, label: &str, words: Vec<u32>) -> Storage {
         match gpu.wgpu() {
             None => Storage::Cpu(words),
+            Some(_) => Storage::copied(gpu, label, &words),
+        }
+    }
+
+    /// [`Storage::new`] of words kept elsewhere (copied into the CPU path's storage).
+    fn copied(gpu: &Gpu, label: &str, words: &[u32]) -> Storage {
+        match gpu.wgpu() {
+            None => Storage::Cpu(words.to_vec()),
             Some((device, _)) => Storage::Gpu(device.create_buffer_init(
                 &wgpu::util::BufferInitDescriptor {
                     label: Some(label),
@@ -94,7 +102,7 @@ impl Storage {
                     contents: if words.is_empty() {
                         &[0u8; 16]
                     } else {
-                        bytemuck::cast_slice(&words)
+                        bytemuck::cast_slice(words)
                     },
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 },
@@ -166,20 +174,38 @@ pub(crate) fn decode(
     }
 }
 
-impl Points {
-    /// Points quantized on a grid anchored at `origin` that fits their extent into 20 bits an
-    /// axis ([`Encoding::fitted`]).
-    pub fn upload(gpu: &Gpu, origin: [f64; 3], positions: &[[f64; 3]], rgba: &[[u8; 4]]) -> Points {
-        Points::encode(gpu, Encoding::fitted(origin, positions), positions, rgba)
-    }
+/// Splats' codes ([`splat_code`]) and the radius range they span.
+fn splat_codes(normals: &[[f32; 3]], radii: &[f32]) -> (Vec<u32>, [f32; 2]) {
+    let lo = radii.iter().copied().fold(f32::INFINITY, f32::min);
+    let range = if lo.is_finite() {
+        [lo, radii.iter().copied().fold(lo, f32::max)]
+    } else {
+        [0.0, 0.0]
+    };
+    let codes = normals
+        .iter()
+        .zip(radii)
+        .map(|(&n, &r)| splat_code(n, r, range))
+        .collect();
+    (codes, range)
+}
 
-    /// Points held as `encoding` says.
-    pub fn encode(
-        gpu: &Gpu,
-        encoding: Encoding,
-        positions: &[[f64; 3]],
-        rgba: &[[u8; 4]],
-    ) -> Points {
+/// Points' words as [`Points`] holds them, made on any thread (the loader's: no frame does the
+/// per-point work) and handed to the GPU by [`Encoded::upload`].
+#[derive(Debug, Clone)]
+pub struct Encoded {
+    origin: [f64; 3],
+    step: [f64; 3],
+    words: u32,
+    extent: [f64; 3],
+    data: Vec<u32>,
+    len: u32,
+    splats: Option<(Vec<u32>, [f32; 2])>,
+}
+
+impl Encoded {
+    /// Positions held as `encoding` says, and their colours.
+    pub fn new(encoding: Encoding, positions: &[[f64; 3]], rgba: &[[u8; 4]]) -> Encoded {
         assert_eq!(positions.len(), rgba.len());
         let n = positions.len();
         let (origin, step, words, extent, mut data) = match encoding {
@@ -198,15 +224,74 @@ impl Points {
         for (i, c) in rgba.iter().enumerate() {
             data[arrays * n + i] = u32::from_le_bytes(*c);
         }
-        Points {
+        Encoded {
             origin,
             step,
             words,
             extent,
-            storage: Storage::new(gpu, "points", data),
+            data,
             len: n as u32,
             splats: None,
         }
+    }
+
+    /// These points as splats: each also has a normal and a radius (world units).
+    pub fn with_splats(mut self, normals: &[[f32; 3]], radii: &[f32]) -> Encoded {
+        assert!(normals.len() == self.len as usize && radii.len() == self.len as usize);
+        self.splats = Some(splat_codes(normals, radii));
+        self
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        4 * (self.data.len() + self.splats.as_ref().map_or(0, |s| s.0.len()))
+    }
+
+    /// The points on `gpu` (a buffer made of these words; the CPU path keeps a copy).
+    pub fn upload(&self, gpu: &Gpu) -> Points {
+        Points {
+            origin: self.origin,
+            step: self.step,
+            words: self.words,
+            extent: self.extent,
+            storage: Storage::copied(gpu, "points", &self.data),
+            len: self.len,
+            splats: (self.splats.as_ref())
+                .map(|(c, range)| (Storage::copied(gpu, "splats", c), *range)),
+        }
+    }
+
+    /// [`Encoded::upload`], these words moved into the CPU path's storage.
+    pub fn into_points(self, gpu: &Gpu) -> Points {
+        Points {
+            origin: self.origin,
+            step: self.step,
+            words: self.words,
+            extent: self.extent,
+            storage: Storage::new(gpu, "points", self.data),
+            len: self.len,
+            splats: self
+                .splats
+                .map(|(c, range)| (Storage::new(gpu, "splats", c), range)),
+        }
+    }
+}
+
+impl Points {
+    /// Points quantized on a grid anchored at `origin` that fits their extent into 20 bits an
+    /// axis ([`Encoding::fitted`]).
+    pub fn upload(gpu: &Gpu, origin: [f64; 3], positions: &[[f64; 3]], rgba: &[[u8; 4]]) -> Points {
+        Points::encode(gpu, Encoding::fitted(origin, positions), positions, rgba)
+    }
+
+    /// Points held as `encoding` says.
+    pub fn encode(
+        gpu: &Gpu,
+        encoding: Encoding,
+        positions: &[[f64; 3]],
+        rgba: &[[u8; 4]],
+    ) -> Points {
+        Encoded::new(encoding, positions, rgba).into_points(gpu)
     }
 
     /// [`Points::upload`] of splats: each point also has a normal and a radius (world units).
@@ -224,17 +309,7 @@ impl Points {
     /// These points as splats: each also has a normal and a radius (world units).
     pub fn with_splats(mut self, gpu: &Gpu, normals: &[[f32; 3]], radii: &[f32]) -> Points {
         assert!(normals.len() == self.len as usize && radii.len() == self.len as usize);
-        let lo = radii.iter().copied().fold(f32::INFINITY, f32::min);
-        let range = if lo.is_finite() {
-            [lo, radii.iter().copied().fold(lo, f32::max)]
-        } else {
-            [0.0, 0.0]
-        };
-        let codes: Vec<u32> = normals
-            .iter()
-            .zip(radii)
-            .map(|(&n, &r)| splat_code(n, r, range))
-            .collect();
+        let (codes, range) = splat_codes(normals, radii);
         self.splats = Some((Storage::new(gpu, "splats", codes), range));
         self
     }

@@ -6,9 +6,10 @@
 //! ([`myriad_lod::hierarchy`]), within a byte budget ([`Scene::pages`]).
 
 mod queried;
+mod words;
 
 use crate::selector::{Request, Selector};
-use crate::{ColorBy, Draw, Encoding, Gpu, NodeBuffers, Points, Rasterizer, Style, colours};
+use crate::{ColorBy, Draw, Gpu, NodeBuffers, Rasterizer, Style};
 use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use myriad_lod::{
@@ -82,6 +83,11 @@ pub struct Scene {
     selector: Option<Selector>,
     /// The newest answer of the selection thread for this scene alone (before a shared budget).
     alone: Option<crate::selector::Answer>,
+    /// The settings the loader threads make nodes' GPU words for ([`words`]).
+    prepared_for: Option<words::Words>,
+    /// Nodes uploaded with the words the loader made, and encoded at their upload.
+    pub uploads_prepared: usize,
+    pub uploads_encoded: usize,
 }
 
 /// How much wider than the view prefetching looks by default.
@@ -148,7 +154,7 @@ impl Scene {
         ram_bytes: usize,
         gpu_bytes: usize,
     ) -> Scene {
-        Scene {
+        let mut scene = Scene {
             origin: hierarchy.root.center(),
             grid: None,
             f32_positions: false,
@@ -172,7 +178,12 @@ impl Scene {
             prefetch: DEFAULT_PREFETCH,
             selector: None,
             alone: None,
-        }
+            prepared_for: None,
+            uploads_prepared: 0,
+            uploads_encoded: 0,
+        };
+        scene.prepare_words(scene.words());
+        scene
     }
 
     /// A scene over a dataset, of whose hierarchy only the root page is read (an empty scene
@@ -211,6 +222,7 @@ impl Scene {
                 root_node = Some(myriad_lod::stream::Loaded {
                     points: b,
                     splats: None,
+                    prepared: None,
                 });
             }
         }
@@ -236,10 +248,13 @@ impl Scene {
             })
         };
         let mut scene = Scene::new(reader, h, view_bounds, threads, ram_bytes, gpu_bytes);
-        if let Some(n) = root_node {
+        scene.grid = Some(grid);
+        let words = scene.words();
+        scene.prepare_words(words);
+        if let Some(mut n) = root_node {
+            n.prepared = Some(words.prepare(&NodeKey::ROOT, &n));
             scene.loader.insert(NodeKey::ROOT, n);
         }
-        scene.grid = Some(grid);
         scene
     }
 
@@ -277,6 +292,7 @@ impl Scene {
         if c != self.colour {
             self.colour = c;
             self.buffers.clear();
+            self.prepare_words(self.words());
         }
     }
 
@@ -594,6 +610,8 @@ impl Scene {
         for k in self.stand_ins(selection) {
             self.buffers.touch(&k);
         }
+        let words = self.words();
+        self.prepare_words(words);
         let mut uploads = 0;
         let mut bytes_up = 0;
         for n in &selection.nodes {
@@ -603,18 +621,17 @@ impl Scene {
             let Some(batch) = self.loader.get(&n.key) else {
                 continue;
             };
-            let c = colours(&batch, batch.len(), self.colour, self.z_range, n.key.level);
-            let encoding = match self.grid {
-                _ if self.f32_positions => Encoding::F32 {
-                    origin: self.origin,
-                },
-                Some(g) => Encoding::Grid(g),
-                None => Encoding::fitted(self.origin, &batch.positions),
+            // Made on a loader thread; else (read before these settings) encoded here.
+            let p = match words::prepared(&batch, &words) {
+                Some(e) => {
+                    self.uploads_prepared += 1;
+                    e.upload(gpu)
+                }
+                None => {
+                    self.uploads_encoded += 1;
+                    words.encode(&n.key, &batch).into_points(gpu)
+                }
             };
-            let mut p = Points::encode(gpu, encoding, &batch.positions, &c);
-            if let Some(s) = &batch.splats {
-                p = p.with_splats(gpu, &s.normals, &s.radii);
-            }
             let bytes = p.bytes();
             bytes_up += bytes;
             self.buffers.insert(n.key, p, bytes);

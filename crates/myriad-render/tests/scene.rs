@@ -2,6 +2,8 @@
 //! keep coming while pages are out (the frame loop never waits for I/O), nothing is drawn where
 //! nothing has landed, and the image refines as pages land: first the root, then its children.
 
+mod common;
+
 use myriad_core::{Aabb, Attribute, NodeKey, PointBatch, Schema};
 use myriad_format::{NodeEntry, PageRef};
 use myriad_lod::{Camera, Hierarchy, PageReader, SelectOptions};
@@ -542,4 +544,58 @@ fn the_quad_paths_node_order_changes_no_pixel() {
         .count();
     // Points at the same depth in one pixel (a tie) may go either way.
     assert!(differ * 500 <= 160 * 160, "{differ} pixels differ");
+}
+
+#[test]
+fn the_loader_threads_make_the_gpu_words_and_frames_only_hand_them_over() {
+    // Nodes read after the scene's settings are known come with their words: a frame uploads
+    // them as they are, with the image of words made at the upload. A scheme changed later is
+    // encoded at the upload for the nodes already in, and made by the loader threads for those
+    // read after it.
+    let root = Aabb::new([0.0; 3], [64.0; 3]);
+    let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+    let h = Hierarchy::new(root, keys.map(entry));
+    let cam = above();
+    let options = SelectOptions {
+        budget: 1_000_000,
+        min_pixels: 0.5,
+    };
+    let style = Style {
+        size: PointSize::Fixed(1.0),
+        ..Style::default()
+    };
+    for (gpu, raster) in common::paths() {
+        let scene = || {
+            let reader = Arc::new(Flat {
+                z: 3.0,
+                rgb: [65535, 0, 0],
+            });
+            Scene::new(reader, h.clone(), root, 2, usize::MAX, usize::MAX)
+        };
+        let mut made = scene();
+        made.converge(&cam, &options, None);
+        let (image, stats) = made.frame(&gpu, &raster, &cam, &options, &style);
+        assert_eq!(stats.points, 64 + 4 * 1024);
+        assert_eq!((made.uploads_prepared, made.uploads_encoded), (5, 0));
+        let mut at_upload = scene();
+        at_upload.loader.set_prepare(None);
+        at_upload.converge(&cam, &options, None);
+        let (same, _) = at_upload.frame(&gpu, &raster, &cam, &options, &style);
+        assert_eq!(
+            (at_upload.uploads_prepared, at_upload.uploads_encoded),
+            (0, 5)
+        );
+        assert!(image == same, "the same image either way");
+        // Elevation: the resident nodes' words were made for their colours.
+        made.set_colour(ColorBy::Elevation);
+        let (ramp, _) = made.frame(&gpu, &raster, &cam, &options, &style);
+        assert_eq!((made.uploads_prepared, made.uploads_encoded), (5, 5));
+        assert!(ramp != image);
+        let mut later = scene();
+        later.set_colour(ColorBy::Elevation);
+        later.converge(&cam, &options, None);
+        let (read_after, _) = later.frame(&gpu, &raster, &cam, &options, &style);
+        assert_eq!((later.uploads_prepared, later.uploads_encoded), (5, 0));
+        assert!(read_after == ramp);
+    }
 }

@@ -1,0 +1,105 @@
+//! A node's GPU words (its positions encoded, its colours by the scheme shown, its splat codes)
+//! made on the loader threads as each node is read (000 section 3.4: no per-point work on the
+//! frame thread), so that an upload only hands them to the GPU. Made for the settings current
+//! when the node was read ([`Words`]); a node read under other settings (the scheme changed
+//! since) is encoded at its upload, as before.
+
+use super::Scene;
+use crate::{ColorBy, Encoded, Encoding, colours};
+use myriad_core::NodeKey;
+use myriad_format::page::Quantization;
+use myriad_lod::stream::{Loaded, Prepared};
+use std::sync::Arc;
+
+/// What a node's words depend on beyond its points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Words {
+    colour: ColorBy,
+    z_range: (f64, f64),
+    positions: Positions,
+}
+
+/// How positions are encoded ([`Encoding`], the fitted grid made per node).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Positions {
+    F32([f64; 3]),
+    Grid(Quantization),
+    Fitted([f64; 3]),
+}
+
+/// Words made on a loader thread, and the settings they were made for.
+struct Made {
+    words: Words,
+    encoded: Encoded,
+}
+
+impl Words {
+    /// Node `key`'s words.
+    pub(crate) fn encode(&self, key: &NodeKey, node: &Loaded) -> Encoded {
+        let c = colours(
+            &node.points,
+            node.len(),
+            self.colour,
+            self.z_range,
+            key.level,
+        );
+        let encoding = match self.positions {
+            Positions::F32(origin) => Encoding::F32 { origin },
+            Positions::Grid(g) => Encoding::Grid(g),
+            Positions::Fitted(origin) => Encoding::fitted(origin, &node.positions),
+        };
+        let e = Encoded::new(encoding, &node.positions, &c);
+        match &node.splats {
+            Some(s) => e.with_splats(&s.normals, &s.radii),
+            None => e,
+        }
+    }
+}
+
+impl Words {
+    /// Node `key`'s words, as a loader thread keeps them with the node.
+    pub(crate) fn prepare(&self, key: &NodeKey, node: &Loaded) -> Prepared {
+        let encoded = self.encode(key, node);
+        Prepared {
+            bytes: encoded.bytes(),
+            made: Arc::new(Made {
+                words: *self,
+                encoded,
+            }),
+        }
+    }
+}
+
+impl Scene {
+    /// The settings a node's words are made for now.
+    pub(crate) fn words(&self) -> Words {
+        Words {
+            colour: self.colour,
+            z_range: self.z_range,
+            positions: match self.grid {
+                _ if self.f32_positions => Positions::F32(self.origin),
+                Some(g) => Positions::Grid(g),
+                None => Positions::Fitted(self.origin),
+            },
+        }
+    }
+
+    /// Has the loader threads make each node's words for `words` from now on (where they were
+    /// asked for other settings).
+    pub(crate) fn prepare_words(&mut self, words: Words) {
+        if self.prepared_for == Some(words) {
+            return;
+        }
+        self.prepared_for = Some(words);
+        self.loader.set_prepare(Some(Arc::new(move |key, node| {
+            Some(words.prepare(key, node))
+        })));
+    }
+}
+
+/// `node`'s words for `words`, as the loader made them (None: they were made for other
+/// settings, or not at all).
+pub(crate) fn prepared<'a>(node: &'a Loaded, words: &Words) -> Option<&'a Encoded> {
+    let made = node.prepared.as_ref()?.made.downcast_ref::<Made>()?;
+    (made.words == *words).then_some(&made.encoded)
+}
