@@ -481,4 +481,93 @@ mod tests {
         let mut occ = Occluder::new(&cam, DEFAULT_SIZE, &none);
         assert_eq!(select_occluded(&h, &cam, &o, &keep, Some(&mut occ)), all);
     }
+
+    /// An `mwkd` front (004): the wall and the node behind it are both in the front (a cut,
+    /// not a subtree); the wall, nearer, covers first and the node behind it leaves the front,
+    /// with its points; the node beside it stays.
+    #[test]
+    fn an_mwkd_front_loses_the_node_behind_a_wall() {
+        let root = Aabb::new([0.0; 3], [20.0; 3]);
+        let points = wall(None);
+        let splat = |aggregate| myriad_format::splat::SplatInfo {
+            page: myriad_format::PageRef {
+                offset: 64,
+                length: 10,
+                crc: 0,
+            },
+            radius: [0.1, 0.2],
+            cone: [0.0, 0.0, 1.0, -1.0],
+            aggregate,
+        };
+        let node = |key: NodeKey, n: u32, spacing: f64, b: Aabb, aggregate| {
+            let mut e = entry(key, n, spacing);
+            e.bounds = Some(b);
+            e.splats = Some(splat(aggregate));
+            e
+        };
+        let top = node(NodeKey::ROOT, 10, 1.0, root, true);
+        let wall_node = node(
+            NodeKey::ROOT.child(0),
+            points.len() as u32,
+            0.2,
+            Aabb::new([2.0, 0.0, 0.0], [2.0, 10.0, 10.0]),
+            false,
+        );
+        let behind = node(
+            NodeKey::ROOT.child(1),
+            1000,
+            0.05,
+            Aabb::new([6.0, 4.0, 4.0], [8.0, 6.0, 6.0]),
+            false,
+        );
+        let beside = node(
+            NodeKey::ROOT.child(2),
+            1000,
+            0.05,
+            Aabb::new([6.0, 11.0, 4.0], [8.0, 13.0, 6.0]),
+            false,
+        );
+        let h = Hierarchy::new(
+            root,
+            [top, wall_node.clone(), behind.clone(), beside.clone()],
+        );
+        assert!(h.splats());
+        let batch = Arc::new(Loaded {
+            prepared: None,
+            points: myriad_core::PointBatch {
+                positions: points.clone(),
+                ..Default::default()
+            },
+            splats: None,
+        });
+        let resident = |k: &NodeKey| (*k == wall_node.key).then(|| batch.clone());
+        let cam = camera();
+        let o = SelectOptions {
+            budget: u64::MAX,
+            min_pixels: 0.0,
+        };
+        let keep = |_: &Aabb| true;
+        let sorted = |s: &crate::Selection| {
+            let mut k: Vec<NodeKey> = s.nodes.iter().map(|n| n.key).collect();
+            k.sort();
+            k
+        };
+        let all = crate::select::select_occluded_from(&h, &cam, &o, &keep, None, &[]);
+        let mut three = vec![wall_node.key, behind.key, beside.key];
+        three.sort();
+        assert_eq!(sorted(&all), three);
+        let mut occ = Occluder::new(&cam, DEFAULT_SIZE, &resident);
+        let s = crate::select::select_occluded_from(&h, &cam, &o, &keep, Some(&mut occ), &[]);
+        let mut two = vec![wall_node.key, beside.key];
+        two.sort();
+        assert_eq!(sorted(&s), two);
+        assert_eq!((s.culled, s.hidden.clone()), (1, vec![behind.key]));
+        assert_eq!(s.points, all.points - 1000);
+        // From the front the last frame drew too.
+        let previous: Vec<NodeKey> = all.nodes.iter().map(|n| n.key).collect();
+        let mut occ = Occluder::new(&cam, DEFAULT_SIZE, &resident);
+        let again =
+            crate::select::select_occluded_from(&h, &cam, &o, &keep, Some(&mut occ), &previous);
+        assert_eq!(sorted(&again), sorted(&s));
+    }
 }

@@ -162,14 +162,49 @@ pub fn select_occluded_from(
     previous: &[NodeKey],
 ) -> Selection {
     if h.splats() {
-        if !previous.is_empty()
-            && let Some((s, _)) = crate::front::update_front(h, cam, o, keep, previous)
+        let mut s = match (!previous.is_empty())
+            .then(|| crate::front::update_front(h, cam, o, keep, previous))
+            .flatten()
         {
-            return s;
+            Some((s, _)) => s,
+            None => crate::front::select_front(h, cam, o, keep),
+        };
+        if let Some(occ) = occluder {
+            cull_front(h, &mut s, occ);
         }
-        return crate::front::select_front(h, cam, o, keep);
+        return s;
     }
     select_eyes(h, std::slice::from_ref(cam), o, keep, occluder)
+}
+
+/// Occlusion culling of an `mwkd` front (a cut through the tree: a node hides no subtree of
+/// its own): its nodes from the nearest, each tested against what the nodes before it cover;
+/// a hidden one leaves the front, the others cover what lies behind them. The points of the
+/// nodes culled leave the selection (the front is not refined again with them).
+fn cull_front(h: &Hierarchy, s: &mut Selection, occ: &mut Occluder) {
+    let mut order: Vec<usize> = (0..s.nodes.len()).collect();
+    order.sort_by(|&a, &b| s.nodes[a].depth.total_cmp(&s.nodes[b].depth));
+    let mut culled = vec![false; s.nodes.len()];
+    for i in order {
+        let n = &s.nodes[i];
+        let Some(e) = h.get(&n.key) else { continue };
+        if matches!(
+            occ.test(&n.key, &h.bounds(&n.key).corners()),
+            Verdict::Hidden
+        ) {
+            culled[i] = true;
+            s.culled += 1;
+            s.hidden.push(n.key);
+            s.points -= n.points as u64;
+            continue;
+        }
+        occ.cover(e, &e.spacing, n.points as usize);
+    }
+    let mut i = 0;
+    s.nodes.retain(|_| {
+        i += 1;
+        !culled[i - 1]
+    });
 }
 
 /// One selection for several eyes seen together (002's stereo: one selection for both eyes):
