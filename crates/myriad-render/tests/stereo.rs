@@ -104,17 +104,7 @@ fn every_path_skips_the_hidden_pixels_in_the_point_and_post_passes() {
     // leaves no trace, not even in the blur of the pixels around it (one surface: the blur
     // would mix them).
     let size = 64u32;
-    let cam = myriad_lod::Camera {
-        position: [0.0, 0.0, 0.0],
-        target: [0.0, 1.0, 0.0],
-        up: [0.0, 0.0, 1.0],
-        fov_y: 60.0,
-        width: size,
-        height: size,
-        near: 0.1,
-        far: 100.0,
-    };
-    let eyes = cam.eyes(0.0);
+    let eyes = facing_a_wall(size).eyes(0.0);
     // One point a pixel at depth 10, a quarter pixel up and left of its centre (so that
     // supersampled twice it covers its own pixel's samples); the patch over pixels 24..40.
     let pixel = 2.0 * 10.0 * (30f64.to_radians().tan()) / size as f64;
@@ -199,17 +189,7 @@ fn points_dropped_in_the_hidden_area_change_no_pixel_outside_it() {
     // the frame equals the one drawn without the mask, its hidden pixels then made black, on
     // every path (a square centred 2 pixels inside the hidden area still shows its edge).
     let size = 64u32;
-    let cam = myriad_lod::Camera {
-        position: [0.0, 0.0, 0.0],
-        target: [0.0, 1.0, 0.0],
-        up: [0.0, 0.0, 1.0],
-        fov_y: 60.0,
-        width: size,
-        height: size,
-        near: 0.1,
-        far: 100.0,
-    };
-    let eyes = cam.eyes(0.0);
+    let eyes = facing_a_wall(size).eyes(0.0);
     let pixel = 2.0 * 10.0 * (30f64.to_radians().tan()) / size as f64;
     let (mut positions, mut colours) = (Vec::new(), Vec::new());
     for y in (4..size).step_by(8) {
@@ -226,16 +206,10 @@ fn points_dropped_in_the_hidden_area_change_no_pixel_outside_it() {
         passes: Passes::default(),
         ..Style::default()
     };
-    let mut paths = vec![(Gpu::cpu(), Path::Cpu)];
-    if let Some(gpu) = common::gpu_or_skip() {
-        if gpu.atomics {
-            paths.push((common::gpu_or_skip().unwrap(), Path::Compute));
-        }
-        paths.push((gpu, Path::Quads));
-    }
-    for (gpu, path) in &paths {
+    for (gpu, mut raster) in common::paths() {
+        let gpu = &gpu;
+        let path = raster.path;
         let points = Points::upload(gpu, [0.0; 3], &positions, &colours);
-        let mut raster = Rasterizer::with_path(gpu, *path);
         raster.precision = 0.0;
         for single_pass in [true, false] {
             let s = Stereo {
@@ -256,5 +230,19 @@ fn points_dropped_in_the_hidden_area_change_no_pixel_outside_it() {
             // The squares centred at column 28 reach columns 30 and 31.
             assert!(lit_at_edge >= 2 * 7 * 8, "{path:?}: {lit_at_edge}");
         }
+    }
+}
+
+/// Looking along +y from the origin, `size` pixels square: a wall at y = 10 fills the view.
+fn facing_a_wall(size: u32) -> myriad_lod::Camera {
+    myriad_lod::Camera {
+        position: [0.0, 0.0, 0.0],
+        target: [0.0, 1.0, 0.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 60.0,
+        width: size,
+        height: size,
+        near: 0.1,
+        far: 100.0,
     }
 }
