@@ -8,7 +8,9 @@
 //! the last two drawn until the selection settles) and each `--budgets`
 //! (then the 1-pixel threshold alone, no budget), once converged: nodes and points selected,
 //! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
-//! against the image of every point with culling off.
+//! against the image of every point with culling off. `--walk N`: a walk from the inside view,
+//! each frame of each method (queries acting in the same frame and from the next one) against
+//! culling off's.
 
 use crate::render::psnr;
 use anyhow::Result;
@@ -43,6 +45,11 @@ pub struct CullingBenchArgs {
     /// Write the images into this folder (NAME-VIEW-METHOD-BUDGET.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
+    /// Also walk N steps from the inside view (forward along its axis, turning a quarter
+    /// turn), without a budget: per method, the frames that differ from culling off's (holes:
+    /// a node showing that was culled), queries in the same frame and from the next one
+    #[arg(long, default_value_t = 0)]
+    walk: usize,
 }
 
 /// The eye in the middle of `b`, a third of the way up, looking level along the longer
@@ -181,6 +188,98 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                 }
             }
         }
+        if a.walk > 0 {
+            walk(&a, &ds, &gpu, &raster, &style, &inside)?;
+        }
+    }
+    Ok(())
+}
+
+/// `--walk`: `a.walk` steps from `start`, each frame of each method against culling off's.
+fn walk(
+    a: &CullingBenchArgs,
+    ds: &Arc<Dataset>,
+    gpu: &myriad_render::Gpu,
+    raster: &Rasterizer,
+    style: &Style,
+    start: &Camera,
+) -> Result<()> {
+    let methods = [
+        ("off", Occlusion::Off, true),
+        ("queries, next frame", Occlusion::Queries, false),
+        ("queries, same frame", Occlusion::Queries, true),
+        ("checked, next frame", Occlusion::Checked, false),
+        ("checked, same frame", Occlusion::Checked, true),
+    ];
+    let mut scenes: Vec<Scene> = methods
+        .iter()
+        .map(|&(_, occlusion, same_frame)| {
+            let mut s = Scene::open(ds.clone(), 1 << 30, 1 << 30);
+            s.set_colour(a.color);
+            s.occlusion = occlusion;
+            s.same_frame = same_frame;
+            s
+        })
+        .collect();
+    let o = SelectOptions {
+        budget: u64::MAX,
+        min_pixels: 1.0,
+    };
+    // Forward along the view's axis over a third of the data's extent there, turning a
+    // quarter turn to the left.
+    let forward: [f64; 3] = std::array::from_fn(|i| start.target[i] - start.position[i]);
+    let reach = (forward[0].powi(2) + forward[1].powi(2)).sqrt() / 3.0;
+    let yaw0 = forward[1].atan2(forward[0]);
+    let n = a.walk;
+    let mut holes = vec![0usize; methods.len()];
+    let mut points = vec![0u64; methods.len()];
+    let mut revealed = vec![0usize; methods.len()];
+    let mut loading = vec![0usize; methods.len()];
+    let mut query_ms = vec![Vec::new(); methods.len()];
+    for step in 0..n {
+        let t = step as f64 / (n - 1).max(1) as f64;
+        let mut cam = *start;
+        let ahead = [yaw0.cos(), yaw0.sin()];
+        cam.position[0] = start.position[0] + ahead[0] * reach * t;
+        cam.position[1] = start.position[1] + ahead[1] * reach * t;
+        let yaw = yaw0 + std::f64::consts::FRAC_PI_2 * t;
+        cam.target = [
+            cam.position[0] + yaw.cos(),
+            cam.position[1] + yaw.sin(),
+            cam.position[2],
+        ];
+        cam.fit_depth(&ds.meta.bounds);
+        cam.near = cam.near.min(0.05);
+        let mut want = Vec::new();
+        for (k, scene) in scenes.iter_mut().enumerate() {
+            scene.converge(&cam, &o, None);
+            let (img, stats) = scene.frame(gpu, raster, &cam, &o, style);
+            if k == 0 {
+                want = img;
+                continue;
+            }
+            holes[k] += usize::from(img != want);
+            // A hole where what the frame selected was not all loaded yet (nodes revealed in
+            // the frame come with their subtrees, which a frame does not wait for).
+            loading[k] += usize::from(img != want && !stats.complete);
+            points[k] += stats.points;
+            revealed[k] += stats.revealed;
+            query_ms[k].push(stats.query.as_secs_f64() * 1e3);
+        }
+    }
+    println!("walk of {n} frames, no budget: frames with a hole (differing from off's)");
+    for (k, (label, _, _)) in methods.iter().enumerate().skip(1) {
+        let q = &mut query_ms[k];
+        q.sort_by(f64::total_cmp);
+        println!(
+            "  {label:<20} {:>3} of {n} ({} with nodes still loading), {} nodes drawn in the \
+             frame that found them, {} points a frame, query ms median {:.2}",
+            holes[k],
+            loading[k],
+            revealed[k],
+            myriad_core::units::thousands(points[k] / n as u64),
+            q[q.len() / 2]
+        );
     }
     Ok(())
 }

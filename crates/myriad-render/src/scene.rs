@@ -72,6 +72,10 @@ pub struct Scene {
     /// Whether a frame waits for its occlusion queries' results (else they are read in a later
     /// frame, when the GPU has them: the viewer's way).
     pub query_wait: bool,
+    /// With `query_wait`: the nodes a selection culled as hidden are queried against the frame
+    /// just drawn, and those that show are drawn in the same frame (003 as Gobbetti and Marton
+    /// schedule the queries), not from the next one.
+    pub same_frame: bool,
     /// Queries submitted and not read yet, and their nodes.
     pending: Option<(crate::QueryTicket, Vec<NodeKey>)>,
     /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
@@ -93,6 +97,10 @@ pub struct Scene {
 /// How much wider than the view prefetching looks by default.
 pub const DEFAULT_PREFETCH: f64 = 1.3;
 pub use crate::selector::PREFETCH_NODES;
+
+/// Most times a frame that waits for its queries selects and draws again for the culled nodes
+/// they found showing ([`Scene::same_frame`]).
+pub const REVEAL_ROUNDS: usize = 4;
 
 /// Memory for hierarchy pages a scene keeps by default (about 1.5 million nodes' entries).
 pub const DEFAULT_HIERARCHY_BYTES: usize = 256 << 20;
@@ -141,6 +149,9 @@ pub struct FrameStats {
     pub draw: Duration,
     /// Occlusion queries after the frame (`Occlusion::Queries`).
     pub query: Duration,
+    /// Nodes the selection culled as hidden that this frame's queries found showing, and drew
+    /// in this frame ([`Scene::same_frame`]).
+    pub revealed: usize,
 }
 
 impl Scene {
@@ -173,6 +184,7 @@ impl Scene {
             shown: Default::default(),
             queried_view: None,
             query_wait: true,
+            same_frame: true,
             pending: None,
             upload_limit: usize::MAX,
             prefetch: DEFAULT_PREFETCH,
@@ -692,20 +704,43 @@ impl Scene {
         style: &Style,
     ) -> (Vec<u8>, FrameStats) {
         let t = Instant::now();
-        let selection = self.update_clipped(camera, options, style.clip);
+        let mut selection = self.update_clipped(camera, options, style.clip);
         let select = t.elapsed();
         let queries = self.occlusion.queries();
-        let (image, mut stats, keys) =
-            self.draw_selected(gpu, &selection, select, options, |draws, tree| {
-                if queries {
-                    raster.keep_depth();
-                }
-                let image = raster.render(gpu, camera, draws, tree, style);
-                (image, raster.bytes_read(gpu, camera, draws, style))
-            });
+        let render = |draws: &[Draw], tree: &[[u32; 4]]| {
+            if queries {
+                raster.keep_depth();
+            }
+            let image = raster.render(gpu, camera, draws, tree, style);
+            (image, raster.bytes_read(gpu, camera, draws, style))
+        };
+        let (mut image, mut stats, mut keys) =
+            self.draw_selected(gpu, &selection, select, options, render);
+        // Nodes culled that show are drawn in this frame: selected and drawn again, as long as
+        // that reveals more (a node revealed brings its subtree back, and the software test
+        // may cull others behind what is drawn now).
+        let (mut select, mut query, mut revealed) = (select, Duration::ZERO, 0);
+        for _ in 0..REVEAL_ROUNDS {
+            if !(queries && self.query_wait && self.same_frame) {
+                break;
+            }
+            let t = Instant::now();
+            let more = self.reveal(gpu, raster, &selection);
+            query += t.elapsed();
+            if more == 0 {
+                break;
+            }
+            revealed += more;
+            let t = Instant::now();
+            selection = self.update_clipped(camera, options, style.clip);
+            select += t.elapsed();
+            (image, stats, keys) = self.draw_selected(gpu, &selection, select, options, render);
+        }
+        stats.revealed = revealed;
+        stats.query = query;
         let t = Instant::now();
         self.query_hidden(gpu, raster, camera, &selection);
-        stats.query = t.elapsed();
+        stats.query += t.elapsed();
         self.drawn = keys;
         self.last = selection;
         (image, stats)

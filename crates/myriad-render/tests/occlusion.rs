@@ -1,7 +1,8 @@
 //! Occlusion queries (003) on every path this machine runs (hardware queries on the GPU paths,
 //! their mirror on the CPU): a wall hides the box behind it and nothing else, a box seen through
 //! a hole is kept; in a scene, the node behind the wall is culled from the next frame on and
-//! comes back when the eye moves round the wall. Checked culling (the default) leaves no pixel
+//! comes back when the eye moves round the wall: in the frame that sees it (queries in the same
+//! frame), and along a walk round the wall no frame differs from culling off. Checked culling (the default) leaves no pixel
 //! of a room seen through a slit in its wall different from culling off, where the software
 //! test alone loses what shows through the slit.
 
@@ -190,6 +191,8 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
         let mut scene = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
         scene.set_colour(ColorBy::Rgb);
         scene.occlusion = Occlusion::Queries;
+        // The queries' results used from the next frame (the viewer's schedule).
+        scene.same_frame = false;
         let options = SelectOptions {
             budget: 1_000_000,
             min_pixels: 0.0,
@@ -229,6 +232,22 @@ fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
         );
         let (img, s) = scene.frame(gpu, raster, &back, &options, &style());
         assert_eq!((s.nodes, s.culled), (3, 0), "{:?}", raster.path);
+        assert!(red(&img) > 20, "{:?}", raster.path);
+        // Queried in the same frame (the default where a frame waits for its queries): the
+        // box found showing is drawn in the frame that found it.
+        scene.same_frame = true;
+        for _ in 0..2 {
+            scene.frame(gpu, raster, &cam, &options, &style());
+        }
+        let (_, s) = scene.frame(gpu, raster, &cam, &options, &style());
+        assert_eq!((s.nodes, s.culled), (2, 1), "{:?}", raster.path);
+        let (img, s) = scene.frame(gpu, raster, &back, &options, &style());
+        assert_eq!(
+            (s.nodes, s.culled, s.revealed),
+            (3, 0, 1),
+            "{:?}",
+            raster.path
+        );
         assert!(red(&img) > 20, "{:?}", raster.path);
 
         // A budget for the wall and one box: the one behind the wall (the larger, reached
@@ -374,5 +393,65 @@ fn checked_culling_changes_no_pixel_where_the_software_test_loses_a_slit() {
             "{:?}: bytes that differ from culling off",
             raster.path
         );
+    }
+}
+
+#[test]
+fn a_walk_round_a_wall_has_no_frame_with_a_hole_with_queries_in_the_same_frame() {
+    // 24 steps on a circle round the wall (radius 25 about its middle): each frame against the
+    // same view with culling off. Queries used from the next frame leave the box behind the
+    // wall out of the frames where it comes into sight; queried in the same frame, none.
+    for (gpu, raster) in &paths() {
+        let root = Aabb::new([0.0; 3], [20.0; 3]);
+        let keys = [
+            NodeKey::ROOT,
+            NodeKey::ROOT.child(0),
+            NodeKey::ROOT.child(1),
+        ];
+        let options = SelectOptions {
+            budget: 1_000_000,
+            min_pixels: 0.0,
+        };
+        let scene = |occlusion, same_frame| {
+            let h = Hierarchy::new(root, keys.map(entry));
+            let mut s = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
+            s.set_colour(ColorBy::Rgb);
+            s.occlusion = occlusion;
+            s.same_frame = same_frame;
+            s
+        };
+        let mut off = scene(Occlusion::Off, true);
+        let mut late = scene(Occlusion::Queries, false);
+        let mut same = scene(Occlusion::Queries, true);
+        let mut checked = scene(Occlusion::Checked, true);
+        let mut holes = [0; 3];
+        let mut culled = 0;
+        for step in 0..24 {
+            let a = step as f64 / 24.0 * std::f64::consts::TAU;
+            let cam = Camera {
+                position: [4.0 - 25.0 * a.cos(), 5.0 + 25.0 * a.sin(), 5.0],
+                target: [4.0, 5.0, 5.0],
+                ..camera()
+            };
+            let frame = |s: &mut Scene| {
+                s.converge(&cam, &options, None);
+                s.frame(gpu, raster, &cam, &options, &style())
+            };
+            let (want, _) = frame(&mut off);
+            for (k, s) in [&mut late, &mut same, &mut checked].into_iter().enumerate() {
+                let (img, stats) = frame(s);
+                holes[k] += usize::from(img != want);
+                if k == 1 {
+                    culled += stats.culled;
+                }
+            }
+        }
+        assert!(
+            holes[0] > 0,
+            "{:?}: the late queries left no hole",
+            raster.path
+        );
+        assert_eq!(holes[1..], [0, 0], "{:?}", raster.path);
+        assert!(culled > 0, "{:?}: the queries culled nothing", raster.path);
     }
 }

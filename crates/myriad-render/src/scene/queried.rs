@@ -88,10 +88,20 @@ impl Scene {
                 .chain(selection.hidden.iter().copied())
                 .collect()
         };
-        // Each box grown by its node's spacing on every side: points are drawn about that
-        // large, and a flat node's box would otherwise tie with its own points' depth.
-        let boxes: Vec<[[f64; 3]; 8]> = keys
-            .iter()
+        let boxes = self.query_boxes(&keys);
+        if self.query_wait {
+            let visible = raster.query(gpu, &boxes);
+            self.queried(&keys, visible);
+        } else {
+            self.pending = Some((raster.query_submit(gpu, &boxes), keys));
+        }
+    }
+
+    /// The boxes the queries test for `keys`: each grown by its node's spacing on every side
+    /// (points are drawn about that large, and a flat node's box would otherwise tie with its
+    /// own points' depth).
+    fn query_boxes(&self, keys: &[NodeKey]) -> Vec<[[f64; 3]; 8]> {
+        keys.iter()
             .map(|k| {
                 let e = self.hierarchy.get(k);
                 let d = e.and_then(|e| e.spacing.first().copied()).unwrap_or(0.0);
@@ -106,13 +116,43 @@ impl Scene {
                     }
                 }
             })
-            .collect();
-        if self.query_wait {
-            let visible = raster.query(gpu, &boxes);
-            self.queried(&keys, visible);
-        } else {
-            self.pending = Some((raster.query_submit(gpu, &boxes), keys));
+            .collect()
+    }
+
+    /// 003's queries as Gobbetti and Marton schedule them ([`Scene::same_frame`]): the nodes
+    /// `selection` culled as hidden, queried against the frame just drawn of it; those that
+    /// show are no longer culled (`Queries`: out of the hidden set; `Checked`: seen), so that
+    /// selecting again draws them in this frame. Returns how many showed.
+    pub(super) fn reveal(
+        &mut self,
+        gpu: &Gpu,
+        raster: &Rasterizer,
+        selection: &Selection,
+    ) -> usize {
+        if selection.hidden.is_empty() {
+            return 0;
         }
+        let visible = raster.query(gpu, &self.query_boxes(&selection.hidden));
+        let showing: Vec<NodeKey> = (selection.hidden.iter())
+            .zip(&visible)
+            .filter(|(_, v)| **v)
+            .map(|(k, _)| *k)
+            .collect();
+        if showing.is_empty() {
+            return 0;
+        }
+        if self.occlusion == Occlusion::Checked {
+            let mut shown = (*self.shown).clone();
+            shown.extend(showing.iter().copied());
+            self.shown = Arc::new(shown);
+        } else {
+            let mut hidden = (*self.hidden).clone();
+            for k in &showing {
+                hidden.remove(k);
+            }
+            self.hidden = Arc::new(hidden);
+        }
+        showing.len()
     }
 
     /// The answers of the queries of `keys`' boxes.
