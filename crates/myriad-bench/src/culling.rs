@@ -3,9 +3,9 @@
 //! Two views per dataset: inside (the eye at the middle of the data, a third of the way up,
 //! looking level along its longer horizontal axis: in a building, a room with walls between it
 //! and the rest) and outside (the standard overview from above at 45 degrees). For each view,
-//! each method (`off`, `software`, `queries`: occlusion queries after each frame, hardware ones
-//! on a GPU, acting from the next frame; `checked`: the software test with its culls queried;
-//! the last two drawn until the selection settles) and each `--budgets`
+//! each method (`off`, `software`, `queries`: occlusion queries of each frame, hardware ones
+//! on a GPU, the culled nodes that show drawn in the same frame; `checked`: the software test
+//! with its culls queried; the last two drawn until the selection settles) and each `--budgets`
 //! (then the 1-pixel threshold alone, no budget), once converged: nodes and points selected,
 //! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
 //! against the image of every point with culling off. `--walk N`: a walk from the inside view,
