@@ -155,6 +155,16 @@ const WALLED: Scripted = Scripted {
     },
 };
 
+/// The scenes' cube and nodes: a root and two children.
+fn three_nodes() -> (Aabb, [NodeKey; 3]) {
+    let keys = [
+        NodeKey::ROOT,
+        NodeKey::ROOT.child(0),
+        NodeKey::ROOT.child(1),
+    ];
+    (Aabb::new([0.0; 3], [20.0; 3]), keys)
+}
+
 /// A box of 10 x 10 x 10 points `step` apart from `lo`.
 fn cube(lo: [f64; 3], step: f64) -> Vec<[f64; 3]> {
     (0..1000)
@@ -181,12 +191,7 @@ fn entry(key: NodeKey) -> NodeEntry {
 #[test]
 fn a_node_behind_a_wall_is_culled_from_the_next_frame_until_it_shows() {
     for (gpu, raster) in &paths() {
-        let root = Aabb::new([0.0; 3], [20.0; 3]);
-        let keys = [
-            NodeKey::ROOT,
-            NodeKey::ROOT.child(0),
-            NodeKey::ROOT.child(1),
-        ];
+        let (root, keys) = three_nodes();
         let h = Hierarchy::new(root, keys.map(entry));
         let mut scene = Scene::new(Arc::new(WALLED), h, root, 1, usize::MAX, usize::MAX);
         scene.set_colour(ColorBy::Rgb);
@@ -327,12 +332,7 @@ fn slit_entry(key: NodeKey) -> NodeEntry {
 #[test]
 fn checked_culling_changes_no_pixel_where_the_software_test_loses_a_slit() {
     for (gpu, raster) in &paths() {
-        let root = Aabb::new([0.0; 3], [20.0; 3]);
-        let keys = [
-            NodeKey::ROOT,
-            NodeKey::ROOT.child(0),
-            NodeKey::ROOT.child(1),
-        ];
+        let (root, keys) = three_nodes();
         let options = SelectOptions {
             budget: 1_000_000,
             min_pixels: 0.0,
@@ -402,12 +402,7 @@ fn a_walk_round_a_wall_has_no_frame_with_a_hole_with_queries_in_the_same_frame()
     // same view with culling off. Queries used from the next frame leave the box behind the
     // wall out of the frames where it comes into sight; queried in the same frame, none.
     for (gpu, raster) in &paths() {
-        let root = Aabb::new([0.0; 3], [20.0; 3]);
-        let keys = [
-            NodeKey::ROOT,
-            NodeKey::ROOT.child(0),
-            NodeKey::ROOT.child(1),
-        ];
+        let (root, keys) = three_nodes();
         let options = SelectOptions {
             budget: 1_000_000,
             min_pixels: 0.0,

@@ -5,9 +5,10 @@
 //! since) is encoded at its upload, as before.
 
 use super::Scene;
-use crate::{ColorBy, Encoded, Encoding, colours};
+use crate::{ColorBy, Encoded, Encoding, Gpu, colours};
 use myriad_core::NodeKey;
 use myriad_format::page::Quantization;
+use myriad_lod::Selection;
 use myriad_lod::stream::{Loaded, Prepared};
 use std::sync::Arc;
 
@@ -71,6 +72,44 @@ impl Words {
 }
 
 impl Scene {
+    /// Uploads the selected nodes that are resident but not on the GPU; returns how many, and
+    /// their bytes.
+    pub fn upload(&mut self, gpu: &Gpu, selection: &Selection) -> (usize, usize) {
+        self.buffers.next_frame();
+        // Stand-ins stay on the GPU while they are needed.
+        for k in self.stand_ins(selection) {
+            self.buffers.touch(&k);
+        }
+        let words = self.words();
+        self.prepare_words(words);
+        let mut uploads = 0;
+        let mut bytes_up = 0;
+        for n in &selection.nodes {
+            if self.buffers.touch(&n.key) || bytes_up >= self.upload_limit {
+                continue;
+            }
+            let Some(batch) = self.loader.get(&n.key) else {
+                continue;
+            };
+            // Made on a loader thread; else (read before these settings) encoded here.
+            let p = match prepared(&batch, &words) {
+                Some(e) => {
+                    self.uploads_prepared += 1;
+                    e.upload(gpu)
+                }
+                None => {
+                    self.uploads_encoded += 1;
+                    words.encode(&n.key, &batch).into_points(gpu)
+                }
+            };
+            let bytes = p.bytes();
+            bytes_up += bytes;
+            self.buffers.insert(n.key, p, bytes);
+            uploads += 1;
+        }
+        (uploads, bytes_up)
+    }
+
     /// The settings a node's words are made for now.
     pub(crate) fn words(&self) -> Words {
         Words {
