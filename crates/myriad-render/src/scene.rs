@@ -682,6 +682,8 @@ impl Scene {
         // that reveals more (a node revealed brings its subtree back, and the software test
         // may cull others behind what is drawn now).
         let (mut select, mut query, mut revealed) = (select, Duration::ZERO, 0);
+        // Whether the culled nodes of the selection drawn were all queried and none showed.
+        let mut still_hidden = false;
         for _ in 0..REVEAL_ROUNDS {
             if !(queries && self.query_wait && self.same_frame) {
                 break;
@@ -690,6 +692,7 @@ impl Scene {
             let more = self.reveal(gpu, raster, &selection);
             query += t.elapsed();
             if more == 0 {
+                still_hidden = true;
                 break;
             }
             revealed += more;
@@ -701,7 +704,7 @@ impl Scene {
         stats.revealed = revealed;
         stats.query = query;
         let t = Instant::now();
-        self.query_hidden(gpu, raster, camera, &selection);
+        self.query_hidden(gpu, raster, camera, &selection, still_hidden);
         stats.query += t.elapsed();
         self.drawn = keys;
         self.last = selection;
@@ -863,7 +866,7 @@ fn draw_many(
     for ((s, scene), selection) in stats.iter_mut().zip(scenes.iter_mut()).zip(&selections) {
         s.draw = draw;
         let t = Instant::now();
-        scene.query_hidden(gpu, raster, camera, selection);
+        scene.query_hidden(gpu, raster, camera, selection, false);
         s.query = t.elapsed();
     }
     for ((scene, selection), keys) in scenes.iter_mut().zip(selections).zip(drawn) {

@@ -47,12 +47,15 @@ impl Scene {
     /// selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
     /// the nodes the software test culled (and of those drawn because the last queries saw
     /// them): the next selection lets it cull only those of which no pixel showed.
+    /// `still_hidden`: the culled nodes were just queried against this frame and none showed
+    /// ([`Scene::reveal`]): their answers are not asked for again.
     pub(super) fn query_hidden(
         &mut self,
         gpu: &Gpu,
         raster: &Rasterizer,
         camera: &Camera,
         selection: &Selection,
+        still_hidden: bool,
     ) {
         if !self.occlusion.queries() {
             if !self.hidden.is_empty() || !self.shown.is_empty() {
@@ -88,11 +91,24 @@ impl Scene {
                 .chain(selection.hidden.iter().copied())
                 .collect()
         };
-        let boxes = self.query_boxes(&keys);
         if self.query_wait {
-            let visible = raster.query(gpu, &boxes);
+            let known: HashSet<NodeKey> = if still_hidden {
+                selection.hidden.iter().copied().collect()
+            } else {
+                HashSet::new()
+            };
+            let asked: Vec<NodeKey> = keys
+                .iter()
+                .filter(|k| !known.contains(k))
+                .copied()
+                .collect();
+            let mut answers = raster.query(gpu, &self.query_boxes(&asked)).into_iter();
+            let visible = (keys.iter())
+                .map(|k| !known.contains(k) && answers.next().unwrap_or(true))
+                .collect();
             self.queried(&keys, visible);
         } else {
+            let boxes = self.query_boxes(&keys);
             self.pending = Some((raster.query_submit(gpu, &boxes), keys));
         }
     }
