@@ -7,8 +7,10 @@
 //!
 //! Navigation lives in [`nav`] (no window needed, tested alone).
 
+mod blit;
 pub mod builds;
 pub mod measure;
+pub mod motion;
 pub mod nav;
 mod options;
 mod present;
@@ -60,8 +62,23 @@ struct App {
     layers: Vec<Layer>,
     nav: Nav,
     options: SelectOptions,
-    /// The budget following the frame rate, if held (its maximum is the budget slider's).
+    /// The budget following the frame rate while the camera moves, if held (its maximum is
+    /// the budget slider's, the budget at rest).
     pace: Option<myriad_lod::Pace>,
+    /// The resolution and budget by whether the camera moves; the fraction asked for while
+    /// moving (None: half on the CPU path, full on a GPU).
+    motion: motion::Motion,
+    moving_scale: Option<f32>,
+    /// The last image drawn and its size (shown again while a converged view rests), and
+    /// whether the last frame had converged.
+    last: Option<(Arc<Vec<u8>>, u32, u32)>,
+    converged: bool,
+    /// The last frame drawn's time (ms), and whether the view at rest after an orbit was
+    /// reported.
+    drawn_ms: f64,
+    rest_reported: bool,
+    /// The CPU path's image goes to the window through `blit` (installed).
+    blit: bool,
     style: Style,
     colour: ColorBy,
     /// The data's extent, for framing.
@@ -199,6 +216,13 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
             budget: o.budget,
             min_pixels: o.lod_threshold,
         },
+        motion: motion::Motion::new(o.moving_scale.unwrap_or(0.5)),
+        moving_scale: o.moving_scale,
+        last: None,
+        converged: false,
+        drawn_ms: 0.0,
+        rest_reported: false,
+        blit: false,
         pace: o
             .target_fps
             .map(|fps| myriad_lod::Pace::new(fps, o.budget, 100_000, o.budget)),
@@ -292,6 +316,12 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
                         app.present = Some((rs.clone(), None));
                     }
                 }
+                blit::install(rs);
+                app.blit = !readback;
+            }
+            // While moving: half the resolution on the CPU path, whose cost is per pixel.
+            if app.moving_scale.is_none() && app.raster.path != myriad_render::Path::Cpu {
+                app.motion.scale = 1.0;
             }
             Ok(Box::new(app))
         }),
@@ -863,7 +893,7 @@ impl App {
     /// selection runs on its own thread per dataset and the frame draws the newest selection in
     /// (never waits for it); drawing on the CPU, the cores that would select are the cores that
     /// draw, and the frame selects itself (the frame-rate budget then sees its own selection).
-    fn draw(&mut self, width: u32, height: u32) -> Vec<u8> {
+    fn draw(&mut self, width: u32, height: u32, scale: f32) -> Vec<u8> {
         self.nav.camera.width = width.max(1);
         self.nav.camera.height = height.max(1);
         if !self.framed {
@@ -895,10 +925,11 @@ impl App {
             self.volumes.print = true;
             self.measure_volume();
         }
-        let cam = self.nav.camera;
+        let full = self.nav.camera;
         if self.stereo.on {
-            return self.draw_stereo(&cam);
+            return self.draw_stereo(&full);
         }
+        let cam = motion::scaled(&full, scale);
         let mut scenes: Vec<&mut Scene> = self
             .layers
             .iter_mut()
@@ -920,10 +951,16 @@ impl App {
         );
         self.stats = stats;
         if self.surfaces.on {
-            return self.surface_image(&cam, image);
+            return self.surface_image(&full, image);
         }
         image
     }
+}
+
+/// A texture (the frame drawn on a GPU, or read back) over the view.
+fn show_texture(painter: &egui::Painter, rect: egui::Rect, id: egui::TextureId) {
+    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+    painter.image(id, rect, uv, egui::Color32::WHITE);
 }
 
 impl eframe::App for App {
@@ -950,17 +987,45 @@ impl eframe::App for App {
                     self.nav.orbit(8.0, 0.0);
                 }
                 let t = Instant::now();
+                // Moving: the budget the frame rate allows, at the lower resolution; at rest:
+                // the whole budget at the full one (a surface or stereo pair: always full).
+                let mut full = self.nav.camera;
+                (full.width, full.height) = (w, h);
+                let drawn = self.motion.frame(&full, t, self.orbit_left > 0);
+                let scale = if self.surfaces.on || self.stereo.on {
+                    1.0
+                } else {
+                    drawn.scale
+                };
+                if let Some(p) = &self.pace {
+                    self.options.budget = if drawn.moving { p.budget() } else { p.max };
+                }
+                let small = motion::scaled(&full, scale);
+                let (dw, dh) = (small.width, small.height);
+                // A converged view at rest that nothing touched: the last image again.
+                let touched = ui.input(|i| !i.events.is_empty());
+                let again = self.converged
+                    && !drawn.moving
+                    && !touched
+                    && self.last.as_ref().is_some_and(|l| (l.1, l.2) == (dw, dh));
                 // A surface's image is read back and uploaded: the window's texture is let go.
                 let shown = if self.surfaces.on || self.stereo.on {
                     self.stop_presenting();
                     None
                 } else {
-                    self.present_texture(w, h)
+                    self.present_texture(dw, dh)
                 };
-                let image = self.draw(w, h);
+                let image = if again {
+                    None
+                } else {
+                    let image = Arc::new(self.draw(w, h, scale));
+                    self.last = Some((image.clone(), dw, dh));
+                    self.drawn_ms = t.elapsed().as_secs_f64() * 1e3;
+                    Some(image)
+                };
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 let now = Instant::now();
-                if let Some(last) = self.timing.last {
+                if let Some(last) = self.timing.last.filter(|_| image.is_some()) {
                     let interval = now.duration_since(last).as_secs_f64().max(1e-6);
                     self.timing.fps = 0.8 * self.timing.fps + 0.2 / interval;
                     // The budget follows the frames drawn with it: a threaded frame may still
@@ -970,7 +1035,7 @@ impl eframe::App for App {
                         .stats
                         .iter()
                         .all(|s| s.select_budget == self.options.budget);
-                    if let Some(p) = self.pace.as_mut().filter(|_| current) {
+                    if let Some(p) = self.pace.as_mut().filter(|_| current && drawn.moving) {
                         let drawn: u64 = self.stats.iter().map(|s| s.points).sum();
                         let selected: u64 = self.stats.iter().map(|s| s.selected_points).sum();
                         let limited = selected as f64 >= 0.98 * self.options.budget as f64;
@@ -990,32 +1055,28 @@ impl eframe::App for App {
                 }
                 self.timing.last = Some(now);
                 self.timing.frame_ms = 0.8 * self.timing.frame_ms + 0.2 * ms;
-                let id = match shown {
-                    Some(id) => id,
+                match shown {
+                    Some(id) => show_texture(ui.painter(), rect, id),
+                    None if self.blit => blit::paint(ui.painter(), rect, image, dw, dh),
                     None => {
-                        let colour = egui::ColorImage::from_rgba_unmultiplied(
-                            [w as usize, h as usize],
-                            &image,
-                        );
-                        match &mut self.texture {
-                            Some(t) => t.set(colour, egui::TextureOptions::NEAREST),
-                            None => {
-                                self.texture = Some(ctx.load_texture(
-                                    "view",
-                                    colour,
-                                    egui::TextureOptions::NEAREST,
-                                ))
+                        if let Some(image) = image {
+                            let colour = egui::ColorImage::from_rgba_unmultiplied(
+                                [dw as usize, dh as usize],
+                                &image,
+                            );
+                            let options = egui::TextureOptions::NEAREST;
+                            match &mut self.texture {
+                                Some(t) => t.set(colour, options),
+                                None => {
+                                    self.texture = Some(ctx.load_texture("view", colour, options))
+                                }
                             }
                         }
-                        self.texture.as_ref().expect("set above").id()
+                        if let Some(t) = &self.texture {
+                            show_texture(ui.painter(), rect, t.id());
+                        }
                     }
-                };
-                ui.painter().image(
-                    id,
-                    rect,
-                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                    egui::Color32::WHITE,
-                );
+                }
                 self.draw_measurements(ui.painter(), rect, ppp);
                 if self.stats.iter().any(|s| s.in_flight > 0) {
                     ui.painter().text(
@@ -1051,6 +1112,7 @@ impl eframe::App for App {
         // Converged: the selection of this view in, every node of it drawn, nothing loading,
         // no dataset still being built.
         let converged = self.orbit_left == 0
+            && self.motion.resting(Instant::now())
             && self.builds.as_ref().is_none_or(Builds::done)
             && !self.stats.is_empty()
             && self
@@ -1061,6 +1123,16 @@ impl eframe::App for App {
             && self.section.settled()
             && self.volumes.settled();
         self.settled = if converged { self.settled + 1 } else { 0 };
+        self.converged = converged;
+        if converged && !self.orbit_times.is_empty() && !self.rest_reported {
+            self.rest_reported = true;
+            let points: u64 = self.stats.iter().map(|s| s.points).sum();
+            let c = &self.nav.camera;
+            println!(
+                "at rest: {points} points drawn at {}x{} (budget {}), the last frame {:.1} ms",
+                c.width, c.height, self.options.budget, self.drawn_ms
+            );
+        }
         if self.settled >= 2
             && !self.shot_requested
             && let Some(path) = self.screenshot.clone()
@@ -1081,7 +1153,12 @@ impl eframe::App for App {
             });
         }
         self.saved.sync(&self.measurements, Instant::now());
-        ctx.request_repaint();
+        if converged {
+            // Nothing to draw until something is touched (input repaints at once).
+            ctx.request_repaint_after(std::time::Duration::from_millis(250));
+        } else {
+            ctx.request_repaint();
+        }
     }
 
     fn on_exit(&mut self) {

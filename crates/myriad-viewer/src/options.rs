@@ -31,6 +31,9 @@ pub struct ViewOptions {
     pub readback: bool,
     /// Hold this frame rate by adjusting the budget (`budget` is then its most).
     pub target_fps: Option<f64>,
+    /// Fraction of the view's width and height drawn while the camera moves (None: half on
+    /// the CPU path, full on a GPU).
+    pub moving_scale: Option<f32>,
     pub occlusion: myriad_lod::Occlusion,
     /// Pixels a level's spacing must cover to be drawn.
     pub lod_threshold: f64,

@@ -96,6 +96,11 @@ pub struct ViewArgs {
     /// most it may grow to); 0: a fixed budget [default: 30; 90 with --stereo, a headset's rate]
     #[arg(long)]
     target_fps: Option<f64>,
+    /// Fraction of the view's width and height drawn while the camera moves (from 0.1 to 1;
+    /// at rest always the full resolution and the whole --budget) [default: 0.5 on the CPU
+    /// path, 1 on a GPU]
+    #[arg(long)]
+    moving_scale: Option<f32>,
     /// Cull nodes hidden behind nearer ones: checked (the software test, each cull checked by
     /// an occlusion query after the frame: a node that shows is drawn from the next frame),
     /// software (the test alone), queries (occlusion queries after each frame, acting from the
@@ -146,6 +151,9 @@ pub fn run(a: ViewArgs) -> Result<()> {
         bail!("--width and --height must be 64 to 16384");
     }
     let target_fps = a.target_fps.unwrap_or(if a.stereo { 90.0 } else { 30.0 });
+    if a.moving_scale.is_some_and(|s| !(0.1..=1.0).contains(&s)) {
+        bail!("--moving-scale must be from 0.1 to 1");
+    }
     if !(target_fps == 0.0 || (1.0..=240.0).contains(&target_fps)) {
         bail!("--target-fps must be 0 (off) or from 1 to 240");
     }
@@ -347,6 +355,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         gpu: a.gpu,
         readback: a.readback,
         target_fps: (target_fps > 0.0).then_some(target_fps),
+        moving_scale: a.moving_scale,
         occlusion: a.occlusion,
         lod_threshold: a.lod_threshold,
         surface: a
