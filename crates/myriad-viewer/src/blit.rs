@@ -245,7 +245,8 @@ impl CallbackTrait for Frame {
             return;
         };
         let view = info.viewport_in_pixels();
-        let exact = texture.width() as i32 == view.width_px && texture.height() as i32 == view.height_px;
+        let exact =
+            texture.width() as i32 == view.width_px && texture.height() as i32 == view.height_px;
         pass.set_pipeline(if exact { &r.exact } else { &r.scaled });
         pass.set_bind_group(0, group, &[]);
         pass.draw(0..3, 0..1);

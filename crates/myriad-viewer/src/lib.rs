@@ -73,6 +73,10 @@ struct App {
     /// whether the last frame had converged.
     last: Option<(Arc<Vec<u8>>, u32, u32)>,
     converged: bool,
+    /// The last frame was drawn as moving.
+    moving: bool,
+    /// The view's rectangle in the window, pixels: left, top, width, height.
+    view_px: [u32; 4],
     /// The last frame drawn's time (ms), and whether the view at rest after an orbit was
     /// reported.
     drawn_ms: f64,
@@ -220,6 +224,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         moving_scale: o.moving_scale,
         last: None,
         converged: false,
+        moving: false,
+        view_px: [0; 4],
         drawn_ms: 0.0,
         rest_reported: false,
         blit: false,
@@ -986,12 +992,19 @@ impl eframe::App for App {
                 if self.orbit_left > 0 {
                     self.nav.orbit(8.0, 0.0);
                 }
+                self.view_px = [
+                    (rect.left() * ppp).round() as u32,
+                    (rect.top() * ppp).round() as u32,
+                    w,
+                    h,
+                ];
                 let t = Instant::now();
                 // Moving: the budget the frame rate allows, at the lower resolution; at rest:
                 // the whole budget at the full one (a surface or stereo pair: always full).
                 let mut full = self.nav.camera;
                 (full.width, full.height) = (w, h);
                 let drawn = self.motion.frame(&full, t, self.orbit_left > 0);
+                self.moving = drawn.moving;
                 let scale = if self.surfaces.on || self.stereo.on {
                     1.0
                 } else {
@@ -1112,7 +1125,7 @@ impl eframe::App for App {
         // Converged: the selection of this view in, every node of it drawn, nothing loading,
         // no dataset still being built.
         let converged = self.orbit_left == 0
-            && self.motion.resting(Instant::now())
+            && !self.moving
             && self.builds.as_ref().is_none_or(Builds::done)
             && !self.stats.is_empty()
             && self
@@ -1140,11 +1153,14 @@ impl eframe::App for App {
             self.shot_requested = true;
             let exit = self.exit_after;
             let c = ctx.clone();
+            let [x, y, w, h] = self.view_px;
             ctx.request_screenshot(move |image| {
                 if let Err(e) = write_png(&path, &image) {
                     eprintln!("error: {}: {e}", path.display());
                 } else {
-                    println!("{}: screenshot written", path.display());
+                    // Where the view is in it (tests compare it with `render`'s image).
+                    let path = path.display();
+                    println!("{path}: screenshot written (the view {w}x{h} at {x},{y})");
                 }
                 if exit {
                     c.send_viewport_cmd(egui::ViewportCommand::Close);

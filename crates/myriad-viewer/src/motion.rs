@@ -57,11 +57,6 @@ impl Motion {
             moving,
         }
     }
-
-    /// The camera has not moved for [`SETTLE`].
-    pub fn resting(&self, now: Instant) -> bool {
-        self.moved.is_none_or(|t| now.duration_since(t) >= SETTLE)
-    }
 }
 
 fn same(a: &Camera, b: &Camera) -> bool {
@@ -105,16 +100,34 @@ mod tests {
         let t0 = Instant::now();
         let mut c = camera();
         // Opening: at rest.
-        assert_eq!(m.frame(&c, t0, false), Drawn { scale: 1.0, moving: false });
+        assert_eq!(
+            m.frame(&c, t0, false),
+            Drawn {
+                scale: 1.0,
+                moving: false
+            }
+        );
         c.position[0] += 1.0;
         let t1 = t0 + Duration::from_millis(16);
-        assert_eq!(m.frame(&c, t1, false), Drawn { scale: 0.5, moving: true });
+        assert_eq!(
+            m.frame(&c, t1, false),
+            Drawn {
+                scale: 0.5,
+                moving: true
+            }
+        );
         // A drag that skips a frame still moves.
         let t2 = t1 + Duration::from_millis(100);
         assert!(m.frame(&c, t2, false).moving);
         // Still for longer than SETTLE: at rest again.
         let t3 = t1 + SETTLE + Duration::from_millis(1);
-        assert_eq!(m.frame(&c, t3, false), Drawn { scale: 1.0, moving: false });
+        assert_eq!(
+            m.frame(&c, t3, false),
+            Drawn {
+                scale: 1.0,
+                moving: false
+            }
+        );
         // A scripted orbit moves whatever the camera does; a resize is a change.
         assert!(m.frame(&c, t3, true).moving);
         c.width = 800;
@@ -123,7 +136,13 @@ mod tests {
         let mut full = Motion::new(1.0);
         full.frame(&c, t0, false);
         c.position[1] += 1.0;
-        assert_eq!(full.frame(&c, t1, false), Drawn { scale: 1.0, moving: true });
+        assert_eq!(
+            full.frame(&c, t1, false),
+            Drawn {
+                scale: 1.0,
+                moving: true
+            }
+        );
     }
 
     #[test]
@@ -142,7 +161,10 @@ mod tests {
             )
         };
         let (a, b) = (at(&c), at(&h));
-        assert!((a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9, "{a:?} {b:?}");
+        assert!(
+            (a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9,
+            "{a:?} {b:?}"
+        );
         assert_eq!(scaled(&c, 1.0).width, 1050);
     }
 }

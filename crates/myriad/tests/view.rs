@@ -112,6 +112,8 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         };
         assert!(ok, "{extra:?}: {stdout}\n{stderr}");
         assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
+        // Once the orbit ends the view rests: drawn again at the full resolution.
+        assert!(stdout.contains("at rest: "), "{stdout}");
         assert!(stdout.contains("screenshot written"), "{stdout}");
         // The window as shown: panels on the left, the scan in the view. The view (right of the
         // panel) is mostly the scan: not black.
@@ -170,6 +172,101 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         }
         assert!(g > 10_000 && b == 0, "{g} ground and {b} building pixels");
     }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// The window shows the CPU path's frame pixel for pixel (the blit pass that hands it to the
+/// window changes nothing): the screenshot's view equals `render`'s image from the same camera
+/// at the view's size. And `--moving-scale` outside 0.1..1 is refused.
+#[test]
+fn the_window_shows_the_cpu_frame_pixel_for_pixel() {
+    let d = tempdir("blit");
+    let las = d.join("s.laz");
+    let ds = d.join("s.myr");
+    for args in [
+        vec![
+            "synth",
+            "-o",
+            las.to_str().unwrap(),
+            "--points",
+            "200k",
+            "--seed",
+            "5",
+        ],
+        vec!["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()],
+    ] {
+        let st = myriad().args(&args).output().unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+    }
+    let st = myriad()
+        .args(["view", ds.to_str().unwrap(), "--moving-scale", "3"])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--moving-scale must be from 0.1 to 1"));
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let camera = "--camera=499950,4399950,60,500050,4400050,5";
+    let same = ["--passes", "none", "--occlusion", "off", camera];
+    let shot = d.join("view.png");
+    let mut args = vec![ds.to_str().unwrap(), "--width", "900", "--height", "600"];
+    args.extend(same);
+    args.extend([
+        "--screenshot",
+        shot.to_str().unwrap(),
+        "--exit-after-converged",
+    ]);
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&args) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    // "...: screenshot written (the view WxH at X,Y)"
+    let at = stdout.split("(the view ").nth(1).expect(&stdout);
+    let nums: Vec<u32> = at
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|s| !s.is_empty())
+        .take(4)
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let [vw, vh, vx, vy] = nums[..] else {
+        panic!("{stdout}")
+    };
+    let rendered = d.join("render.png");
+    let (w, h) = (vw.to_string(), vh.to_string());
+    let mut args = vec![
+        "render",
+        ds.to_str().unwrap(),
+        "-o",
+        rendered.to_str().unwrap(),
+    ];
+    args.extend(["--width", &w, "--height", &h]);
+    args.extend(same);
+    let st = myriad().args(&args).output().unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let (sw, _, window) = decode_png(&shot);
+    let (rw, rh, image) = decode_png(&rendered);
+    assert_eq!((rw, rh), (vw, vh));
+    let (mut differ, mut lit) = (0, 0);
+    for y in 0..vh as usize {
+        for x in 0..vw as usize {
+            let a = &window[((y + vy as usize) * sw as usize + x + vx as usize) * 4..][..3];
+            let b = &image[(y * vw as usize + x) * 4..][..3];
+            differ += (a != b) as usize;
+            lit += (b != [0, 0, 0]) as usize;
+        }
+    }
+    assert!(lit * 4 > (vw * vh) as usize, "{lit} pixels of the scan");
+    assert_eq!(differ, 0, "{differ} of {} pixels differ", vw * vh);
     let _ = std::fs::remove_dir_all(&d);
 }
 

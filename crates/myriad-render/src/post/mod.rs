@@ -81,19 +81,22 @@ pub(crate) fn run_masked(
         ..e
     });
     let blur = passes.blur.unwrap_or_default();
-    type Pass<'a> = Box<dyn Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync + 'a>;
+    // Each pass its own loop (generic, not a boxed closure a pixel): the pixel's function is
+    // inlined into it.
     for step in passes.steps() {
-        let pass: Pass = match step {
-            "fill_rows" => Box::new(|g, i| fill::pixel(g, i, 0, radius, &fill)),
-            "fill_columns" => Box::new(|g, i| fill::pixel(g, i, 1, radius, &fill)),
-            "normals" => Box::new(|g, i| normals::pixel(g, i, v)),
-            "shade" => Box::new(|g, i| shade::pixel(g, i, v, &shade)),
-            "ssao" => Box::new(|g, i| ssao::pixel(g, i, v, &ssao)),
-            "edl" => Box::new(|g, i| edl::pixel(g, i, &edl)),
-            "blur" => Box::new(|g, i| blur::pixel(g, i, &blur)),
+        let (src, dst) = (&g, &mut scratch);
+        match step {
+            "fill_rows" => each_pixel(src, dst, |g, i| fill::pixel(g, i, 0, radius, &fill), mask),
+            "fill_columns" => {
+                each_pixel(src, dst, |g, i| fill::pixel(g, i, 1, radius, &fill), mask)
+            }
+            "normals" => each_pixel(src, dst, |g, i| normals::pixel(g, i, v), mask),
+            "shade" => each_pixel(src, dst, |g, i| shade::pixel(g, i, v, &shade), mask),
+            "ssao" => each_pixel(src, dst, |g, i| ssao::pixel(g, i, v, &ssao), mask),
+            "edl" => each_pixel(src, dst, |g, i| edl::pixel(g, i, &edl), mask),
+            "blur" => each_pixel(src, dst, |g, i| blur::pixel(g, i, &blur), mask),
             _ => unreachable!("a step of Passes::steps"),
-        };
-        each_pixel(&g, &mut scratch, &pass, mask);
+        }
         std::mem::swap(&mut g, &mut scratch);
     }
     finish::image(&g, v, mask)
@@ -103,7 +106,7 @@ pub(crate) fn run_masked(
 fn each_pixel(
     src: &GBuffer,
     dst: &mut GBuffer,
-    pass: &(dyn Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync),
+    pass: impl Fn(&GBuffer, usize) -> (f32, u32, u32) + Sync,
     mask: Option<&[bool]>,
 ) {
     let w = src.width as usize;
