@@ -67,6 +67,7 @@ impl App {
             }
             let first = !b.shown.contains_key(&i);
             b.shown.insert(i, s.version);
+            self.redraw = true;
             let Some(layer) = self.layers.get_mut(i) else {
                 continue;
             };
@@ -86,6 +87,7 @@ impl App {
         }
         while let Ok((i, built)) = b.rx.try_recv() {
             b.shown.remove(&i);
+            self.redraw = true;
             b.left = b.left.saturating_sub(1);
             let Some(layer) = self.layers.get_mut(i) else {
                 continue;

@@ -9,10 +9,12 @@
 
 mod blit;
 pub mod builds;
+mod input;
 pub mod measure;
 pub mod motion;
 pub mod nav;
 mod options;
+mod panel;
 mod present;
 mod report;
 mod saved;
@@ -32,11 +34,11 @@ use measure::{Kind, Measurement, Units};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
-use myriad_render::{ColorBy, FrameStats, Gpu, PointSize, Rasterizer, Scene, Shape, Style};
+use myriad_render::{ColorBy, FrameStats, Gpu, Rasterizer, Scene, Style};
 use nav::{Nav, View};
 pub use options::{ViewOptions, VolumeAsked};
-use present::{Presented, passes_panel};
-use report::{HELP, describe, report_orbit, write_png};
+use present::Presented;
+use report::{HELP, report_orbit, write_png};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,6 +75,9 @@ struct App {
     /// whether the last frame had converged.
     last: Option<(Arc<Vec<u8>>, u32, u32)>,
     converged: bool,
+    /// A layer's scene changed without an input (a build's snapshot or result swapped in):
+    /// the next frame is drawn.
+    redraw: bool,
     /// The last frame was drawn as moving.
     moving: bool,
     /// The view's rectangle in the window, pixels: left, top, width, height.
@@ -224,6 +229,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         moving_scale: o.moving_scale,
         last: None,
         converged: false,
+        redraw: false,
         moving: false,
         view_px: [0; 4],
         drawn_ms: 0.0,
@@ -336,250 +342,6 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
 }
 
 impl App {
-    fn settings(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Myriad");
-        let most = self.pace.as_ref().map_or(self.options.budget, |p| p.max);
-        let mut budget = most as f64 / 1e6;
-        ui.add(
-            egui::Slider::new(&mut budget, 0.1..=20.0)
-                .logarithmic(true)
-                .text(if self.pace.is_some() {
-                    "most points (M)"
-                } else {
-                    "budget (M points)"
-                }),
-        );
-        let budget = (budget * 1e6) as u64;
-        let mut hold = self.pace.is_some();
-        ui.checkbox(&mut hold, "hold the frame rate");
-        match (&mut self.pace, hold) {
-            (Some(p), true) => {
-                p.max = budget;
-                let mut fps = 1.0 / p.target;
-                ui.add(egui::Slider::new(&mut fps, 1.0..=120.0).text("target fps"));
-                p.target = 1.0 / fps;
-                ui.label(format!(
-                    "budget now {:.2} M points",
-                    self.options.budget as f64 / 1e6
-                ));
-            }
-            (None, true) => {
-                self.pace = Some(myriad_lod::Pace::new(30.0, budget, 100_000, budget));
-            }
-            (_, false) => {
-                self.pace = None;
-                self.options.budget = budget;
-            }
-        }
-        ui.add(
-            egui::Slider::new(&mut self.options.min_pixels, 0.25..=8.0)
-                .logarithmic(true)
-                .text("LOD threshold (px)"),
-        );
-        ui.separator();
-        let adaptive = matches!(self.style.size, PointSize::Adaptive { .. });
-        ui.horizontal(|ui| {
-            if ui.radio(adaptive, "adaptive").clicked() && !adaptive {
-                self.style.size = PointSize::adaptive();
-            }
-            if ui.radio(!adaptive, "fixed").clicked() && adaptive {
-                self.style.size = PointSize::Fixed(2.0);
-            }
-        });
-        match &mut self.style.size {
-            PointSize::Adaptive { scale, .. } => {
-                ui.add(egui::Slider::new(scale, 0.25..=4.0).text("size scale"));
-            }
-            PointSize::Fixed(px) => {
-                ui.add(egui::Slider::new(px, 1.0..=16.0).text("size (px)"));
-            }
-        }
-        egui::ComboBox::from_label("shape")
-            .selected_text(format!("{:?}", self.style.shape))
-            .show_ui(ui, |ui| {
-                for s in [Shape::Square, Shape::Round, Shape::Paraboloid] {
-                    ui.selectable_value(&mut self.style.shape, s, format!("{s:?}"));
-                }
-            });
-        self.colour_panel(ui);
-        self.classes_panel(ui);
-        passes_panel(ui, &mut self.style.passes);
-        ui.separator();
-        surface::surface_panel(ui, &mut self.surfaces);
-        surface::stereo_panel(ui, &mut self.stereo);
-        ui.separator();
-        ui.label("datasets");
-        for l in &mut self.layers {
-            ui.checkbox(&mut l.visible, &l.name);
-        }
-        ui.separator();
-        let points: u64 = self.stats.iter().map(|s| s.points).sum();
-        let nodes: usize = self.stats.iter().map(|s| s.nodes).sum();
-        let loading: usize = self.stats.iter().map(|s| s.in_flight).sum();
-        let ram: usize = self
-            .layers
-            .iter()
-            .map(|l| l.scene.loader.resident_bytes())
-            .sum();
-        let vram: usize = self.layers.iter().map(|l| l.scene.buffers.bytes()).sum();
-        let tree: usize = self.stats.iter().map(|s| s.hierarchy_bytes).sum();
-        ui.label(format!(
-            "{:.1} fps, frame {:.0} ms",
-            self.timing.fps, self.timing.frame_ms
-        ));
-        ui.label(format!("{points} points in {nodes} nodes"));
-        let select = self
-            .stats
-            .iter()
-            .map(|s| s.select_thread)
-            .max()
-            .unwrap_or_default();
-        ui.label(format!(
-            "selection {:.1} ms (own thread)",
-            select.as_secs_f64() * 1e3
-        ));
-        ui.label(format!(
-            "cache: {:.0} MB decoded, {:.0} MB of point buffers, {:.1} MB of hierarchy",
-            ram as f64 / 1e6,
-            vram as f64 / 1e6,
-            tree as f64 / 1e6
-        ));
-        let on_gpu: u64 = self.stats.iter().map(|s| s.gpu_points).sum();
-        let read: u64 = self.stats.iter().map(|s| s.read_bytes).sum();
-        ui.label(format!(
-            "point buffers: {:.1} bytes a point, {:.1} read per drawn point",
-            vram as f64 / on_gpu.max(1) as f64,
-            read as f64 / points.max(1) as f64
-        ));
-        ui.horizontal(|ui| {
-            if loading > 0 {
-                ui.spinner();
-                ui.label(format!("loading {loading} nodes and pages"));
-            } else {
-                ui.label("all loaded");
-            }
-        });
-        ui.label(format!(
-            "drawn by: {} ({:?})",
-            self.gpu.name, self.raster.path
-        ));
-        if let Some(p) = &self.picked {
-            ui.separator();
-            ui.label("picked point");
-            ui.monospace(p);
-        }
-        ui.separator();
-        ui.label("measure");
-        ui.horizontal_wrapped(|ui| {
-            for kind in Kind::ALL {
-                if ui
-                    .selectable_label(self.tool == Some(kind), kind.name())
-                    .clicked()
-                {
-                    self.start_measuring(kind);
-                }
-            }
-        });
-        egui::ComboBox::from_label("units")
-            .selected_text(format!("{:?}", self.units))
-            .show_ui(ui, |ui| {
-                for u in [Units::Data, Units::Metres, Units::Feet, Units::UsFeet] {
-                    ui.selectable_value(&mut self.units, u, format!("{u:?}"));
-                }
-            });
-        ui.horizontal(|ui| {
-            if ui.button("stop").clicked() {
-                self.tool = None;
-            }
-            if ui.button("clear").clicked() {
-                self.measurements.clear();
-            }
-        });
-        for m in &self.measurements {
-            if let Some(l) = m.label_for(self.units, self.data_metres, self.earth) {
-                ui.monospace(l);
-            }
-        }
-        ui.separator();
-        if self.saved.placing {
-            self.tool = None;
-        }
-        if let Some(v) = self.saved.panel(ui) {
-            self.nav.look(v.position, v.target);
-        }
-        ui.separator();
-        if self.section.panel(ui) {
-            self.cut_section();
-        }
-        ui.separator();
-        if self.volumes.panel(ui) {
-            self.measure_volume();
-        }
-        ui.separator();
-        ui.checkbox(&mut self.clip_on, "clipping box");
-        if self.clip_on {
-            ui.horizontal(|ui| {
-                ui.radio_value(&mut self.clip_inside, true, "show inside");
-                ui.radio_value(&mut self.clip_inside, false, "outside");
-            });
-            for (axis, name) in ["x", "y", "z"].iter().enumerate() {
-                let [lo, hi] = &mut self.clip[axis];
-                ui.add(egui::Slider::new(lo, 0.0..=1.0).text(format!("{name} from")));
-                ui.add(egui::Slider::new(hi, 0.0..=1.0).text(format!("{name} to")));
-                if *lo > *hi {
-                    std::mem::swap(lo, hi);
-                }
-            }
-        }
-        self.style.clip = self.clip_on.then(|| myriad_render::Clip {
-            bounds: self.clip_box(),
-            inside: self.clip_inside,
-        });
-        ui.separator();
-        ui.label("views");
-        ui.horizontal_wrapped(|ui| {
-            for v in View::ALL {
-                if ui.small_button(v.name()).clicked() {
-                    self.nav.standard(v, &self.bounds);
-                }
-            }
-        });
-        let mut parallel = self.nav.parallel();
-        if ui
-            .checkbox(&mut parallel, "parallel (orthographic, 0)")
-            .changed()
-        {
-            self.nav.set_parallel(parallel);
-        }
-        if ui.button("save this view").clicked() {
-            let n = self.bookmarks.len() + 1;
-            self.bookmarks
-                .push((format!("view {n}"), self.nav.camera, self.nav.pivot));
-        }
-        let mut go = None;
-        for (i, (name, _, _)) in self.bookmarks.iter().enumerate() {
-            if ui.button(name).clicked() {
-                go = Some(i);
-            }
-        }
-        if let Some(i) = go {
-            let (_, cam, pivot) = self.bookmarks[i];
-            self.nav.camera = Camera {
-                width: self.nav.camera.width,
-                height: self.nav.camera.height,
-                ..cam
-            };
-            self.nav.pivot = pivot;
-        }
-        if ui.button("screenshot (P)").clicked() {
-            self.screenshot_now(ui.ctx());
-        }
-        ui.separator();
-        if ui.button("help (H)").clicked() {
-            self.help = !self.help;
-        }
-    }
-
     /// The clipping box in world coordinates.
     fn clip_box(&self) -> Aabb {
         let b = &self.bounds;
@@ -697,194 +459,6 @@ impl App {
         self.saved.draw(painter, &screen);
         self.section.draw(painter, &screen);
         self.volumes.draw(painter, &screen);
-    }
-
-    /// Mouse and keyboard over the view.
-    fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
-        let scale = ui.ctx().pixels_per_point() as f64;
-        let (dt, keys) = ui.input(|i| {
-            let k = |key| i.key_down(key);
-            (
-                i.stable_dt.min(0.1) as f64,
-                [
-                    k(egui::Key::W),
-                    k(egui::Key::S),
-                    k(egui::Key::A),
-                    k(egui::Key::D),
-                    k(egui::Key::Q),
-                    k(egui::Key::E),
-                ],
-            )
-        });
-        // Keys typed into the panel (an annotation's title) are not shortcuts.
-        let typing = ui.ctx().egui_wants_keyboard_input();
-        let pressed = |key| !typing && ui.input(|i| i.key_pressed(key));
-        if pressed(egui::Key::H) {
-            self.help = !self.help;
-        }
-        if pressed(egui::Key::G) {
-            self.nav.fly = !self.nav.fly;
-        }
-        if pressed(egui::Key::P) {
-            self.screenshot_now(ui.ctx());
-        }
-        if pressed(egui::Key::Escape) {
-            self.stop_tools();
-        }
-        if pressed(egui::Key::V) && !self.nav.fly {
-            let on = !self.volumes.drawing;
-            self.stop_tools();
-            self.volumes.drawing = on;
-            if on {
-                self.volumes.polygon.clear();
-            }
-        }
-        if pressed(egui::Key::X) && !self.nav.fly {
-            let on = !self.section.drawing;
-            self.stop_tools();
-            self.section.drawing = on;
-            if on {
-                self.section.line.clear();
-            }
-        }
-        if pressed(egui::Key::T) && !self.nav.fly {
-            let on = !self.saved.placing;
-            self.stop_tools();
-            self.saved.placing = on;
-        }
-        for (key, kind) in [
-            (egui::Key::M, Kind::Distance),
-            (egui::Key::N, Kind::Height),
-            (egui::Key::A, Kind::Area),
-            (egui::Key::O, Kind::Angle),
-            (egui::Key::C, Kind::Circle),
-            (egui::Key::Z, Kind::Azimuth),
-            (egui::Key::I, Kind::Point),
-        ] {
-            if pressed(key) && !self.nav.fly {
-                self.start_measuring(kind);
-            }
-        }
-        if pressed(egui::Key::F) {
-            self.nav.frame(&self.bounds);
-        }
-        for (key, view) in [
-            egui::Key::Num1,
-            egui::Key::Num2,
-            egui::Key::Num3,
-            egui::Key::Num4,
-            egui::Key::Num5,
-            egui::Key::Num6,
-        ]
-        .into_iter()
-        .zip(View::ALL)
-        {
-            if pressed(key) {
-                self.nav.standard(view, &self.bounds);
-            }
-        }
-        if pressed(egui::Key::Num0) {
-            let on = !self.nav.parallel();
-            self.nav.set_parallel(on);
-        }
-        let cursor = response.hover_pos().map(|p| {
-            (
-                ((p.x - rect.min.x) as f64) * scale,
-                ((p.y - rect.min.y) as f64) * scale,
-            )
-        });
-        let cam = self.nav.camera;
-        if response.drag_started_by(egui::PointerButton::Primary)
-            && !self.nav.fly
-            && let Some((x, y)) = cursor
-            && let Some(p) = self.pick(&cam, x, y)
-        {
-            self.nav.pivot = p.position;
-        }
-        let d = response.drag_delta();
-        let (dx, dy) = (d.x as f64 * scale, d.y as f64 * scale);
-        if response.dragged_by(egui::PointerButton::Primary) {
-            if self.nav.fly {
-                self.nav.look_around(dx, dy);
-            } else {
-                self.nav.orbit(dx, dy);
-            }
-        }
-        if response.dragged_by(egui::PointerButton::Secondary)
-            || response.dragged_by(egui::PointerButton::Middle)
-        {
-            self.nav.pan(dx, dy);
-        }
-        let scroll = if response.hovered() {
-            ui.input(|i| i.smooth_scroll_delta.y) as f64
-        } else {
-            0.0
-        };
-        if scroll != 0.0 {
-            if self.nav.fly {
-                self.nav.speed *= (1.0 + scroll / 200.0).clamp(0.5, 2.0);
-            } else if let Some((x, y)) = cursor {
-                self.nav.zoom_towards(x, y, scroll);
-            }
-        }
-        if self.nav.fly {
-            self.nav.fly_step(keys, dt);
-        }
-        if response.double_clicked()
-            && let Some((x, y)) = cursor
-        {
-            self.picked = self.pick(&cam, x, y).map(|p| {
-                let geo = self.geographic.as_mut().and_then(|g| g.of(p.position));
-                describe(&p) + &report::geographic(geo)
-            });
-        }
-        if self.volumes.drawing {
-            if response.clicked()
-                && let Some((x, y)) = cursor
-                && let Some(p) = self.pick(&cam, x, y)
-            {
-                self.volumes.polygon.push(p.position);
-            }
-            if response.secondary_clicked() && self.volumes.polygon.len() >= 3 {
-                self.measure_volume();
-            }
-        }
-        if self.section.drawing {
-            if response.clicked()
-                && let Some((x, y)) = cursor
-                && let Some(p) = self.pick(&cam, x, y)
-            {
-                self.section.line.push(p.position);
-            }
-            if response.secondary_clicked() && self.section.line.len() >= 2 {
-                self.cut_section();
-            }
-        }
-        if self.saved.placing
-            && response.clicked()
-            && let Some((x, y)) = cursor
-            && let Some(p) = self.pick(&cam, x, y)
-        {
-            self.saved.annotate(p.position, cam.position, p.position);
-            self.saved.placing = false;
-        }
-        if let Some(kind) = self.tool {
-            if response.clicked()
-                && let Some((x, y)) = cursor
-                && let Some(p) = self.pick(&cam, x, y)
-            {
-                if self.measurements.last().is_none_or(|m| m.kind != kind) {
-                    self.measurements.push(Measurement::new(kind));
-                }
-                self.measurements
-                    .last_mut()
-                    .expect("pushed above")
-                    .add(p.position);
-            }
-            if response.secondary_clicked() {
-                self.measurements.push(Measurement::new(kind));
-            }
-        }
     }
 
     fn pick(&self, cam: &Camera, x: f64, y: f64) -> Option<myriad_render::Picked> {
@@ -1020,6 +594,7 @@ impl eframe::App for App {
                 let again = self.converged
                     && !drawn.moving
                     && !touched
+                    && !std::mem::take(&mut self.redraw)
                     && self.last.as_ref().is_some_and(|l| (l.1, l.2) == (dw, dh));
                 // A surface's image is read back and uploaded: the window's texture is let go.
                 let shown = if self.surfaces.on || self.stereo.on {
