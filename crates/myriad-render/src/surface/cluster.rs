@@ -105,9 +105,11 @@ pub(crate) fn to_eye(camera: &Camera, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
 }
 
 /// Equations 7 and 8: where, as a fraction of the half cell, the boundary between cell c and
-/// its neighbour n lies seen from c. Equal densities keep the boundary beyond the half cell
-/// (1 - lb): a point leaves only a sparser cell, for a denser neighbour, and never goes to an
-/// empty one.
+/// its neighbour n lies seen from c. Unclamped (gamma 1) the boundary seen from c and from n is
+/// one plane: f(c, n) + f(n, c) = 2 half cells, the distance between the centres; f = 1 (equal
+/// densities) is the cell's own face, and the clamp to 1 - lb lets the outer tenth of each half
+/// cell cross it. A denser neighbour pulls the boundary towards c's centre (down to lb); an
+/// empty one pushes it out to 1 - lb.
 pub fn weight(dens_c: f64, dens_n: f64, gamma: f64, lb: f64) -> f64 {
     let total = dens_c + dens_n;
     let f = if total > 0.0 {
@@ -119,8 +121,11 @@ pub fn weight(dens_c: f64, dens_n: f64, gamma: f64, lb: f64) -> f64 {
 }
 
 /// Equation 9: the cell a point at grid coordinates `g` (cell `c` = floor(g)) belongs to after
-/// the move. Its offset from the cell's centre, per axis in cells (-0.5 to 0.5), is compared
-/// with the boundary weight towards the neighbour on that side; `neighbours` 1 looks along the
+/// the move. Its offset from the cell's centre, per axis in half cells (-1 to 1: equation 6's
+/// delta in the unit of equation 8's weight, 1 at the cell's face), is compared with the
+/// boundary weight towards the neighbour on that side (in cells, as before December 4, a point
+/// moved only for a neighbour three times as dense, and the move opened holes where the paper's
+/// figure 9 shows it closing them: docs/guide/surfaces.md); `neighbours` 1 looks along the
 /// largest offset only (equations 1-5), 3 along each axis (so a point may move diagonally).
 pub fn moved_cell(
     g: [f64; 3],
@@ -131,7 +136,7 @@ pub fn moved_cell(
     density: &dyn Fn([u32; 3]) -> f64,
 ) -> [u32; 3] {
     let c = g.map(|v| v.floor().max(0.0) as u32);
-    let d: [f64; 3] = std::array::from_fn(|a| g[a] - (c[a] as f64 + 0.5));
+    let d: [f64; 3] = std::array::from_fn(|a| 2.0 * (g[a] - (c[a] as f64 + 0.5)));
     let largest = (0..3)
         .max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs()))
         .expect("three axes");

@@ -323,7 +323,8 @@ fn moved(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     let c = vec3<u32>(floor(g));
-    let d = g - (vec3<f32>(c) + vec3<f32>(0.5));
+    // In half cells, the unit of the weight (moved_cell's).
+    let d = 2.0 * (g - (vec3<f32>(c) + vec3<f32>(0.5)));
     var largest = 0u;
     if (abs(d.y) > abs(d[largest])) {
         largest = 1u;

@@ -9,7 +9,8 @@
 //!   wide on screen: fine near the eye, coarse far away, the paper's figure 2); per cell its
 //!   density: the point count, or the planarity of its point distribution tensor.
 //! - move: equations 6-9, the boundary towards each neighbour at
-//!   `w = clamp((2 dens(c) / (dens(c) + dens(n)))^gamma, lb, 1 - lb)` of the half cell; a point beyond it, on the axis of its
+//!   `w = clamp((2 dens(c) / (dens(c) + dens(n)))^gamma, lb, 1 - lb)` of the half cell (1: the
+//!   cell's face); a point whose offset from the centre, in half cells, is beyond it, on the axis of its
 //!   largest offset (`neighbours` 1) or on each axis (3), goes to the neighbour; 0 skips the
 //!   move. Then the points are clustered again by their new cells (as the paper does).
 //! - reduce: per occupied cell the mean, the bounding box of its points along the eye axes, the
