@@ -324,6 +324,9 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
                 if want_gpu || info.device_type != wgpu::DeviceType::Cpu {
                     app.gpu = Gpu::from_device(rs.device.clone(), rs.queue.clone(), &info);
                     app.raster = Rasterizer::new(&app.gpu);
+                    // The surface's steps on the same device (seed 001 runs them on the GPU).
+                    let worker = Gpu::from_device(rs.device.clone(), rs.queue.clone(), &info);
+                    app.surfaces.on_gpu(worker);
                     if !readback {
                         app.present = Some((rs.clone(), None));
                     }

@@ -17,6 +17,8 @@ pub(crate) struct Surfaces {
     asked: Option<(Camera, u64)>,
     /// Drawing on a GPU: its surface pipelines (made when first needed).
     drawer: Option<surface::Drawer>,
+    /// The first surface with cells was reported (where it was made, how long it took).
+    reported: bool,
 }
 
 impl Surfaces {
@@ -28,11 +30,17 @@ impl Surfaces {
             made: None,
             asked: None,
             drawer: None,
+            reported: false,
         }
     }
 }
 
 impl Surfaces {
+    /// Its steps on `gpu` from now on (the frames' device, where it is a GPU).
+    pub fn on_gpu(&mut self, gpu: myriad_render::Gpu) {
+        self.worker = Worker::on(Some(gpu));
+    }
+
     /// Off, or the surface of the last view asked for is shown (for screenshots of a converged
     /// view).
     pub fn settled(&self) -> bool {
@@ -48,6 +56,15 @@ impl App {
     pub(crate) fn surface_image(&mut self, cam: &Camera, points_image: Vec<u8>) -> Vec<u8> {
         let s = &mut self.surfaces;
         if let Some(m) = s.worker.take() {
+            if !s.reported && !m.built.clustering.cells.is_empty() {
+                s.reported = true;
+                println!(
+                    "surface: {} cells made on {} in {:.0} ms",
+                    m.built.clustering.cells.len(),
+                    m.device,
+                    m.ms
+                );
+            }
             s.made = Some(m);
         }
         let drawn: u64 = self.stats.iter().map(|x| x.points).sum();
@@ -128,9 +145,10 @@ pub(crate) fn surface_panel(ui: &mut egui::Ui, s: &mut Surfaces) {
     });
     if let Some(m) = &s.made {
         ui.label(format!(
-            "{} cells from {} points, made in {:.0} ms",
+            "{} cells from {} points, made on {} in {:.0} ms",
             m.built.clustering.cells.len(),
             m.built.clustering.inside,
+            m.device,
             m.ms
         ));
     }

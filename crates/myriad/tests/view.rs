@@ -114,6 +114,12 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         assert!(stdout.contains("orbiting 10 frames"), "{stdout}");
         // Once the orbit ends the view rests: drawn again at the full resolution.
         assert!(stdout.contains("at rest: "), "{stdout}");
+        // A surface on the window's GPU adapter (lavapipe here) is made there, as the frames.
+        if extra.contains(&"--surface") {
+            let on_gpu = extra.contains(&"--gpu");
+            assert!(stdout.contains("cells made on"), "{stdout}");
+            assert_eq!(!stdout.contains("made on the CPU"), on_gpu, "{stdout}");
+        }
         assert!(stdout.contains("screenshot written"), "{stdout}");
         // The window as shown: panels on the left, the scan in the view. The view (right of the
         // panel) is mostly the scan: not black.

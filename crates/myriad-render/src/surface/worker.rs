@@ -1,7 +1,9 @@
 //! Surfaces made off the frame's thread (seed 001 recomputes them whenever the view or the drawn
 //! points change): the frame hands the worker the points it drew and goes on showing the last
 //! surface until the new one is made; a request while one is being made waits for the next
-//! frame's (never a queue of stale views).
+//! frame's (never a queue of stale views). Given a GPU ([`Worker::on`]), the worker runs the
+//! cluster, move and reduce steps there (`gpu.rs`), as `render --surface` does; on the CPU where
+//! the GPU cannot (a grid beyond its largest binding).
 
 use super::{Built, Surface};
 use myriad_lod::Camera;
@@ -21,6 +23,8 @@ pub struct Made {
     pub built: Built,
     /// Milliseconds from the request to the surface (cluster, move, reduce, reconstruct).
     pub ms: f64,
+    /// Where its steps ran: the GPU's name, or "the CPU".
+    pub device: String,
 }
 
 pub struct Worker {
@@ -36,8 +40,15 @@ impl Default for Worker {
 }
 
 impl Worker {
-    /// Starts the worker's thread (it ends when the worker is dropped).
+    /// Starts the worker's thread (it ends when the worker is dropped), making surfaces on the
+    /// CPU.
     pub fn new() -> Worker {
+        Worker::on(None)
+    }
+
+    /// [`Worker::new`], the steps on `gpu` where it is one.
+    pub fn on(gpu: Option<crate::Gpu>) -> Worker {
+        let gpu = gpu.filter(|g| !g.is_cpu());
         let (jobs, inbox) = channel::<Job>();
         let (outbox, done) = channel();
         std::thread::Builder::new()
@@ -45,12 +56,23 @@ impl Worker {
             .spawn(move || {
                 while let Ok(job) = inbox.recv() {
                     let t = std::time::Instant::now();
-                    let built = Built::new(&job.camera, &job.points, &job.colours, &job.surface);
+                    let (cam, points, colours) = (&job.camera, &job.points, &job.colours);
+                    let on_gpu = gpu.as_ref().and_then(|g| {
+                        Some((Built::on(g, cam, points, colours, &job.surface).ok()?, g))
+                    });
+                    let (built, device) = match on_gpu {
+                        Some((b, g)) => (b, g.name.clone()),
+                        None => (
+                            Built::new(cam, points, colours, &job.surface),
+                            "the CPU".to_string(),
+                        ),
+                    };
                     let made = Made {
                         camera: job.camera,
                         surface: job.surface,
                         built,
                         ms: t.elapsed().as_secs_f64() * 1e3,
+                        device,
                     };
                     if outbox.send(made).is_err() {
                         break;
