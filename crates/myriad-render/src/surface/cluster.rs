@@ -168,7 +168,22 @@ struct Moments {
     colour: [u8; 4],
 }
 
-fn moments(eye: &[[f64; 3]], colours: &[[u8; 4]], points: &[u32]) -> Moments {
+/// The point distribution tensor's weight of a point `d` (eye units) from its cell's mean, in a
+/// cell of sides `e` (001 after Ritter and Benger: the tensor "includes distance weighting
+/// functions"): a Gaussian of the distance in the cell's mean side, sigma half of it, so that a
+/// cell's far points (another surface reaching into it, points moved in from a neighbour) turn
+/// its normal less. As `tensor_weight` in cluster.wgsl.
+pub fn tensor_weight(d: [f64; 3], e: [f64; 3]) -> f64 {
+    let side2 = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) / 3.0;
+    let r2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / side2.max(1e-300);
+    (-r2 / (2.0 * TENSOR_SIGMA * TENSOR_SIGMA)).exp()
+}
+
+/// The tensor weight's sigma, in the cell's mean side.
+pub const TENSOR_SIGMA: f64 = 0.5;
+
+/// `extent`: the cell's sides, for the tensor's weights.
+fn moments(eye: &[[f64; 3]], colours: &[[u8; 4]], points: &[u32], extent: [f64; 3]) -> Moments {
     let n = points.len().max(1) as f64;
     let mut mean = [0.0; 3];
     let mut min = [f64::INFINITY; 3];
@@ -192,9 +207,10 @@ fn moments(eye: &[[f64; 3]], colours: &[[u8; 4]], points: &[u32]) -> Moments {
     for &i in points {
         let p = eye[i as usize];
         let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+        let w = tensor_weight(d, extent);
         for r in 0..3 {
             for c in 0..3 {
-                covariance[r][c] += d[r] * d[c] / n;
+                covariance[r][c] += w * d[r] * d[c] / n;
             }
         }
     }
@@ -242,13 +258,26 @@ pub fn cluster(
         .collect();
     let inside = first.iter().filter(|&&k| k != OUTSIDE).count();
     let runs = Runs::of(&first);
+    let index_of = |k: u64| {
+        let x = (k % dims[0] as u64) as u32;
+        let rest = k / dims[0] as u64;
+        [
+            x,
+            (rest % dims[1] as u64) as u32,
+            (rest / dims[1] as u64) as u32,
+        ]
+    };
+    // A cell's sides at its centre's depth (the tensor's weights).
+    let sides = |k: u64| grid.extent(grid.centre(camera, index_of(k))[2]);
     let density: Vec<f64> = (0..runs.len())
         .into_par_iter()
         .map(|c| {
             let p = runs.points(c);
             match s.density {
                 Density::Count => p.len() as f64,
-                Density::Planarity => planarity(&moments(&eye, &[], p), p.len()),
+                Density::Planarity => {
+                    planarity(&moments(&eye, &[], p, sides(runs.keys[c])), p.len())
+                }
             }
         })
         .collect();
@@ -288,20 +317,11 @@ pub fn cluster(
     let moving = t.elapsed();
 
     let t = Instant::now();
-    let index_of = |k: u64| {
-        let x = (k % dims[0] as u64) as u32;
-        let rest = k / dims[0] as u64;
-        [
-            x,
-            (rest % dims[1] as u64) as u32,
-            (rest / dims[1] as u64) as u32,
-        ]
-    };
     let mut cells: Vec<Cell> = (0..runs.len())
         .into_par_iter()
         .map(|c| {
             let p = runs.points(c);
-            let m = moments(&eye, colours, p);
+            let m = moments(&eye, colours, p, sides(runs.keys[c]));
             let normal = match s.normals {
                 Normals::Tensor if p.len() >= 3 => {
                     let pca = Pca::of_covariance(m.mean, m.covariance);

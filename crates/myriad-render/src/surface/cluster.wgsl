@@ -35,6 +35,8 @@ const OUTSIDE: u32 = 0xffffffffu;
 // some 300 000 points before a sum overflows.
 const SCALE: f32 = 1024.0;
 const SCALE2: f32 = 65536.0;
+// cluster.rs's TENSOR_SIGMA.
+const TENSOR_SIGMA: f32 = 0.5;
 // Words per cell: count, sums (3), minima (3), maxima (3), colour (4), products (6).
 const STRIDE: u32 = 20u;
 // Words per reduced cell: key, count, mean (3), min (3), max (3), normal (3), has normal, colour.
@@ -123,7 +125,15 @@ fn mean_offset(k: u32) -> vec3<f32> {
     ) / (SCALE * n);
 }
 
-// The tensor: products of each point's offset from its cell's mean (after first or moved).
+// The tensor's weight of a point `d` (eye units) from its cell's mean in a cell of sides `e`
+// (tensor_weight in cluster.rs): a Gaussian of the distance in the cell's mean side, sigma 0.5.
+fn tensor_weight(d: vec3<f32>, e: vec3<f32>) -> f32 {
+    let r2 = dot(d, d) / max(dot(e, e) / 3.0, 1e-30);
+    return exp(-r2 / (2.0 * TENSOR_SIGMA * TENSOR_SIGMA));
+}
+
+// The tensor: products of each point's offset from its cell's mean (after first or moved),
+// weighted by its distance.
 @compute @workgroup_size(128)
 fn spread(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = thread(id, groups);
@@ -135,13 +145,15 @@ fn spread(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups)
         return;
     }
     let d = offset(k, points[i].xyz) - mean_offset(k);
+    let e = extent(centre(cell_index(k)).z);
+    let w = tensor_weight(d * e, e) * SCALE2;
     let base = k * STRIDE + 14u;
-    atomicAdd(&acc[base], i32(round(d.x * d.x * SCALE2)));
-    atomicAdd(&acc[base + 1u], i32(round(d.x * d.y * SCALE2)));
-    atomicAdd(&acc[base + 2u], i32(round(d.x * d.z * SCALE2)));
-    atomicAdd(&acc[base + 3u], i32(round(d.y * d.y * SCALE2)));
-    atomicAdd(&acc[base + 4u], i32(round(d.y * d.z * SCALE2)));
-    atomicAdd(&acc[base + 5u], i32(round(d.z * d.z * SCALE2)));
+    atomicAdd(&acc[base], i32(round(d.x * d.x * w)));
+    atomicAdd(&acc[base + 1u], i32(round(d.x * d.y * w)));
+    atomicAdd(&acc[base + 2u], i32(round(d.x * d.z * w)));
+    atomicAdd(&acc[base + 3u], i32(round(d.y * d.y * w)));
+    atomicAdd(&acc[base + 4u], i32(round(d.y * d.z * w)));
+    atomicAdd(&acc[base + 5u], i32(round(d.z * d.z * w)));
 }
 
 @compute @workgroup_size(128)

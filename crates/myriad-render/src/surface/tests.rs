@@ -31,6 +31,23 @@ fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 #[test]
+fn the_tensor_weights_points_by_distance_by_hand() {
+    use super::cluster::{TENSOR_SIGMA, tensor_weight};
+    let e = [2.0, 2.0, 2.0];
+    // At the mean: 1; half a side away: exp(-0.5^2 / (2 * 0.5^2)) = exp(-0.5); a side: exp(-2).
+    assert_eq!(tensor_weight([0.0; 3], e), 1.0);
+    assert!((tensor_weight([1.0, 0.0, 0.0], e) - (-0.5f64).exp()).abs() < 1e-12);
+    assert!((tensor_weight([0.0, 0.0, 2.0], e) - (-2.0f64).exp()).abs() < 1e-12);
+    // In the cell's mean side: a cell twice as deep as wide counts depth alike.
+    let tall = [1.0, 1.0, 2.0f64];
+    let side = ((1.0 + 1.0 + 4.0) / 3.0f64).sqrt();
+    assert!((tensor_weight([side, 0.0, 0.0], tall) - (-2.0f64).exp()).abs() < 1e-12);
+    // The shader's constant is this one.
+    let wgsl = include_str!("cluster.wgsl");
+    assert!(wgsl.contains(&format!("const TENSOR_SIGMA: f32 = {TENSOR_SIGMA:?};")));
+}
+
+#[test]
 fn equation_8_weights_by_hand() {
     // Equal densities: 2c/(c+n) = 1, clamped to 1 - lb.
     assert_eq!(weight(5.0, 5.0, 1.0, 0.1), 0.9);
