@@ -4,6 +4,7 @@
 //! command line and calls a module's `run`; nothing here is product logic the other commands
 //! need (that lives in the library crates the benchmarks measure).
 
+pub mod baselines;
 pub mod capacity;
 pub mod convert;
 pub mod culling;

@@ -22,6 +22,10 @@ pub enum BenchCommand {
     /// One file converted with every structure (octree, layered, kd): build speed, peak memory,
     /// bytes per point, nodes, depth, PSNR at a budget in three views, frame time
     Structures(myriad_bench::structures::StructuresBenchArgs),
+    /// 003's tables 6.1-6.4: every point, one sequential point tree (SPT), one MOSPT and the
+    /// nested octree (culling off and on) from a distance, the border and the centre: points in
+    /// memory, processed and drawn, selection and frame time
+    Baselines(myriad_bench::baselines::BaselinesBenchArgs),
     /// Occlusion culling from a view inside and one outside each dataset: nodes and points
     /// selected, nodes culled, selection and frame time, PSNR against every point unculled
     Culling(myriad_bench::culling::CullingBenchArgs),
@@ -71,6 +75,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Convert(a) => myriad_bench::convert::run(a),
         BenchCommand::Render(a) => myriad_bench::render::run(a),
         BenchCommand::Structures(a) => myriad_bench::structures::run(a),
+        BenchCommand::Baselines(a) => myriad_bench::baselines::run(a),
         BenchCommand::Passes(a) => myriad_bench::passes::run(a),
         BenchCommand::Culling(a) => myriad_bench::culling::run(a),
         BenchCommand::Capacity(a) => myriad_bench::capacity::run(a),
