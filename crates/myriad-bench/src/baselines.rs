@@ -25,7 +25,7 @@ use clap::Args;
 use myriad_core::{Aabb, PointBatch};
 use myriad_format::Dataset;
 use myriad_lod::{Camera, Occlusion, SelectOptions};
-use myriad_render::{Gpu, PointSize, Points, Rasterizer, Scene, Style};
+use myriad_render::{PointSize, Points, Rasterizer, Scene, Style};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -44,9 +44,8 @@ pub struct BaselinesBenchArgs {
     /// Timed frames per structure and view
     #[arg(long, default_value_t = 5)]
     frames: usize,
-    /// Draw on the CPU even where there is a hardware GPU
-    #[arg(long)]
-    cpu: bool,
+    #[command(flatten)]
+    device: crate::render::Device,
 }
 
 /// One SPT entry: a point (original or made) and its interval of node sizes.
@@ -203,14 +202,7 @@ struct Row {
 }
 
 pub fn run(a: BaselinesBenchArgs) -> Result<()> {
-    let (gpu, why) = if a.cpu {
-        (Gpu::cpu(), None)
-    } else {
-        Gpu::best()
-    };
-    if let Some(why) = why {
-        eprintln!("warning: {why}: drawing on the CPU");
-    }
+    let gpu = a.device.gpu()?;
     let raster = Rasterizer::new(&gpu);
     let style = Style {
         size: PointSize::Fixed(1.0),

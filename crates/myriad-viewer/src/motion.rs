@@ -3,10 +3,10 @@
 //! view has converged and nothing was touched, the last image is shown again rather than
 //! drawn again.
 //!
-//! On the CPU path a frame's cost is mostly per pixel (the point pass's clears, the post passes,
+//! On the CPU path a frame's cost is mostly per pixel (the point pass's squares, the post passes,
 //! the finish; issue 45 item 10): at half the width and height it costs about a quarter, and
 //! the frame-rate budget then controls the rate. Drawn at rest, the view refines to the whole
-//! budget, as Potree and PotreeConverter's viewers refine a still view.
+//! budget, as Potree's viewer refines a still view.
 
 use myriad_lod::Camera;
 use std::time::{Duration, Instant};
