@@ -13,7 +13,6 @@
 use eframe::egui;
 use eframe::egui_wgpu::{self, CallbackResources, CallbackTrait, ScreenDescriptor};
 use eframe::wgpu;
-use std::sync::Arc;
 
 const SHADER: &str = "
 @group(0) @binding(0) var image: texture_2d<f32>;
@@ -146,7 +145,7 @@ pub(crate) fn install(rs: &egui_wgpu::RenderState) {
 pub(crate) fn paint(
     painter: &egui::Painter,
     rect: egui::Rect,
-    image: Option<Arc<Vec<u8>>>,
+    image: Option<Vec<u8>>,
     w: u32,
     h: u32,
 ) {
@@ -157,7 +156,7 @@ pub(crate) fn paint(
 }
 
 struct Frame {
-    image: Option<Arc<Vec<u8>>>,
+    image: Option<Vec<u8>>,
     w: u32,
     h: u32,
 }

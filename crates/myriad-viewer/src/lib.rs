@@ -67,14 +67,10 @@ struct App {
     /// The budget following the frame rate while the camera moves, if held (its maximum is
     /// the budget slider's, the budget at rest).
     pace: Option<myriad_lod::Pace>,
-    /// The resolution and budget by whether the camera moves; the fraction asked for while
-    /// moving (None: half on the CPU path, full on a GPU).
+    /// The resolution and budget by whether the camera moves.
     motion: motion::Motion,
-    moving_scale: Option<f32>,
-    /// The last image drawn and its size (shown again while a converged view rests), and
-    /// whether the last frame had converged.
-    last: Option<(Arc<Vec<u8>>, u32, u32)>,
-    converged: bool,
+    /// The size of the last image drawn (shown again while a converged view rests).
+    last_size: Option<(u32, u32)>,
     /// A layer's scene changed without an input (a build's snapshot or result swapped in):
     /// the next frame is drawn.
     redraw: bool,
@@ -226,9 +222,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
             min_pixels: o.lod_threshold,
         },
         motion: motion::Motion::new(o.moving_scale.unwrap_or(0.5)),
-        moving_scale: o.moving_scale,
-        last: None,
-        converged: false,
+        last_size: None,
         redraw: false,
         moving: false,
         view_px: [0; 4],
@@ -312,7 +306,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         },
         ..Default::default()
     };
-    let (want_gpu, readback) = (o.gpu, o.readback);
+    let (want_gpu, readback, moving_scale) = (o.gpu, o.readback, o.moving_scale);
     eframe::run_native(
         "Myriad",
         native,
@@ -335,7 +329,7 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
                 app.blit = !readback;
             }
             // While moving: half the resolution on the CPU path, whose cost is per pixel.
-            if app.moving_scale.is_none() && app.raster.path != myriad_render::Path::Cpu {
+            if moving_scale.is_none() && app.raster.path != myriad_render::Path::Cpu {
                 app.motion.scale = 1.0;
             }
             Ok(Box::new(app))
@@ -594,11 +588,12 @@ impl eframe::App for App {
                 let (dw, dh) = (small.width, small.height);
                 // A converged view at rest that nothing touched: the last image again.
                 let touched = ui.input(|i| !i.events.is_empty());
-                let again = self.converged
+                // (`settled`: the frames since the view converged.)
+                let again = self.settled > 0
                     && !drawn.moving
                     && !touched
                     && !std::mem::take(&mut self.redraw)
-                    && self.last.as_ref().is_some_and(|l| (l.1, l.2) == (dw, dh));
+                    && self.last_size == Some((dw, dh));
                 // A surface's image is read back and uploaded: the window's texture is let go.
                 let shown = if self.surfaces.on || self.stereo.on {
                     self.stop_presenting();
@@ -606,14 +601,10 @@ impl eframe::App for App {
                 } else {
                     self.present_texture(dw, dh)
                 };
-                let image = if again {
-                    None
-                } else {
-                    let image = Arc::new(self.draw(w, h, scale));
-                    self.last = Some((image.clone(), dw, dh));
-                    self.drawn_ms = t.elapsed().as_secs_f64() * 1e3;
-                    Some(image)
-                };
+                let image = (!again).then(|| self.draw(w, h, scale));
+                if image.is_some() {
+                    self.last_size = Some((dw, dh));
+                }
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 let now = Instant::now();
                 if let Some(last) = self.timing.last.filter(|_| image.is_some()) {
@@ -645,7 +636,10 @@ impl eframe::App for App {
                     }
                 }
                 self.timing.last = Some(now);
-                self.timing.frame_ms = 0.8 * self.timing.frame_ms + 0.2 * ms;
+                if image.is_some() {
+                    self.timing.frame_ms = 0.8 * self.timing.frame_ms + 0.2 * ms;
+                    self.drawn_ms = ms;
+                }
                 match shown {
                     Some(id) => show_texture(ui.painter(), rect, id),
                     None if self.blit => blit::paint(ui.painter(), rect, image, dw, dh),
@@ -714,7 +708,6 @@ impl eframe::App for App {
             && self.section.settled()
             && self.volumes.settled();
         self.settled = if converged { self.settled + 1 } else { 0 };
-        self.converged = converged;
         if converged && !self.orbit_times.is_empty() && !self.rest_reported {
             self.rest_reported = true;
             let points: u64 = self.stats.iter().map(|s| s.points).sum();
