@@ -7,10 +7,12 @@
 //! `--sizes` (1280x720 and 2160x2160, one eye of a current headset, by default); a pass's cost
 //! is its median minus the median without passes, measured in the same run.
 //! Quality: for each dataset and standard view, the PSNR of the image at each `--budgets` against
-//! the image of every point drawn with the same passes, for no pass, fill, fill+blur and the
-//! default chain.
+//! the image of every point drawn with the same passes, for no pass, fill, fill+blur, the
+//! default chain, blending and the default chain blended; and the blended images against every
+//! point drawn without blending (the data as they are: what blending buys at a budget, and
+//! what it changes with every point).
 
-use crate::render::{frame_times, quality};
+use crate::render::{frame_times, psnr, quality};
 use anyhow::Result;
 use clap::Args;
 use myriad_format::Dataset;
@@ -84,7 +86,8 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
     // Each pass alone over adaptive squares; then 002's table 2 rows that are no pass: fixed
     // 1-pixel points against adaptive ones, and 5-pixel squares against 5-pixel paraboloids.
     let adaptive = (PointSize::adaptive(), Shape::Square);
-    let timed = [
+    let default_blend = format!("{DEFAULT_PASSES},blend");
+    let timed: [(&str, &str, _); 14] = [
         ("none", "none", adaptive),
         ("fill", "fill", adaptive),
         ("shade", "shade", adaptive),
@@ -93,6 +96,8 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
         ("blur", "blur", adaptive),
         ("aa", "aa", adaptive),
         ("default", DEFAULT_PASSES, adaptive),
+        ("blend", "blend", adaptive),
+        ("def+blend", &default_blend, adaptive),
         ("all", "fill,shade,ssao,edl,blur,aa", adaptive),
         ("1px", "none", (PointSize::Fixed(1.0), Shape::Square)),
         ("5px-sq", "none", (PointSize::Fixed(5.0), Shape::Square)),
@@ -102,12 +107,20 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
             (PointSize::Fixed(5.0), Shape::Paraboloid),
         ),
     ];
-    let chains = [
+    // Each blended chain after the chain it blends.
+    let chains: [(&str, &str); 6] = [
         ("none", "none"),
         ("fill", "fill"),
         ("fill+blur", "fill,blur"),
         ("default", DEFAULT_PASSES),
+        ("blend", "blend"),
+        ("def+blend", &default_blend),
     ];
+    let unblended = |label: &str| match label {
+        "blend" => Some(0),
+        "def+blend" => Some(3),
+        _ => None,
+    };
     for path in &a.datasets {
         let ds = Arc::new(Dataset::open(path)?);
         let name = path
@@ -170,13 +183,15 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
         for (label, _) in &chains {
             print!(" {label:>10}");
         }
-        println!("  fill gain");
+        println!("  fill gain  blend/none  def+blend/def  (blended against every point unblended)");
         let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
         for (view, mut cam) in views {
             cam.fit_depth(&ds.meta.bounds);
             for &budget in &budgets {
                 print!("{view:<10} {:>9}", myriad_core::units::thousands(budget));
                 let mut values = Vec::new();
+                let mut fulls: Vec<Vec<u8>> = Vec::new();
+                let mut against_plain = Vec::new();
                 for (label, chain) in &chains {
                     let style = Style {
                         passes: Passes::parse(chain).map_err(anyhow::Error::msg)?,
@@ -186,6 +201,9 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
                         .map_err(|e| anyhow::anyhow!("{name}: {view}: {e}"))?;
                     print!(" {:>10.2}", q.psnr);
                     values.push(q.psnr);
+                    if let Some(k) = unblended(label) {
+                        against_plain.push(psnr(&q.lod, &fulls[k]));
+                    }
                     if let Some(dir) = &a.images {
                         let chain = label.replace('+', "-");
                         let b = myriad_core::units::thousands(budget).replace(',', "");
@@ -194,8 +212,14 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
                         let file = dir.join(format!("{name}-{view}-full-{chain}.png"));
                         write_png(&file, a.width, a.height, &q.full)?;
                     }
+                    fulls.push(q.full);
                 }
-                println!("  {:>+8.2}", values[1] - values[0]);
+                println!(
+                    "  {:>+8.2}  {:>10.2}  {:>13.2}",
+                    values[1] - values[0],
+                    against_plain[0],
+                    against_plain[1]
+                );
             }
         }
     }

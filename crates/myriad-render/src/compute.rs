@@ -1,7 +1,8 @@
 //! The compute path (Schütz et al. 2021): one thread per point, the nearest point per pixel kept
 //! by a 64-bit `atomicMax` of depth and colour (compute.wgsl). The frame's draws are copied into
-//! one buffer in batches, each drawn by one dispatch; a second dispatch per batch writes the
-//! splats' normals where the passes need them. Its CPU mirror is `cpu.rs`.
+//! one buffer in batches, each drawn by one dispatch; a second dispatch per batch blends the
+//! fragments near each pixel's nearest (`Passes::blend`), another writes the splats' normals
+//! where the passes need them. Its CPU mirror is `cpu.rs`.
 
 use crate::Gpu;
 use crate::draw::{Frame, UniformArray, radius_of, tree_buffer};
@@ -11,7 +12,11 @@ use crate::targets::Targets;
 use wgpu::util::DeviceExt;
 
 /// The compute path's shader: draw.wgsl, then compute.wgsl.
-pub const RASTER_WGSL: &str = concat!(include_str!("draw.wgsl"), include_str!("compute.wgsl"));
+pub const RASTER_WGSL: &str = concat!(
+    include_str!("draw.wgsl"),
+    include_str!("blend.wgsl"),
+    include_str!("compute.wgsl")
+);
 
 const COMPUTE: &str = "compute targets";
 
@@ -131,8 +136,9 @@ impl ComputePass {
         }
     }
 
-    /// Records the point pass of `draws` into the targets' framebuffer (and, with `normals`
-    /// and splats among the draws, the splats' normals).
+    /// Records the point pass of `draws` into the targets' framebuffer (with `blend`, the
+    /// blend's sums; with `normals` and splats among the draws, the splats' normals).
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         gpu: &Gpu,
@@ -141,13 +147,23 @@ impl ComputePass {
         frame: &Frame,
         draws: &[&Draw],
         normals: bool,
+        blend: bool,
     ) {
         let d = gpu.device();
         let batches = Batches::plan(gpu, t, draws);
+        if blend {
+            t.blend_buffer(gpu);
+        }
         let t = &*t;
-        // The second pass, for the splats' normals where the passes need them.
+        // After the nearest: the blend, and the splats' normals where the passes need them.
         let splats = draws.iter().any(|d| d.points.splat_buffer().is_some());
-        let modes: &[u32] = if normals && splats { &[0, 1] } else { &[0] };
+        let mut modes = vec![0];
+        if blend {
+            modes.push(2);
+        }
+        if normals && splats {
+            modes.push(1);
+        }
         let uniforms: Vec<_> = modes
             .iter()
             .flat_map(|&mode| {
@@ -171,6 +187,10 @@ impl ComputePass {
         let normal_fb = t.normal_fb.as_ref().expect(COMPUTE);
         enc.clear_buffer(fb, 0, None);
         enc.clear_buffer(normal_fb, 0, None);
+        let blend_fb = Self::blend_fb(t, blend);
+        if blend {
+            enc.clear_buffer(blend_fb, 0, None);
+        }
         let layout = self.raster.get_bind_group_layout(0);
         let mut fresh = batches.fresh.iter();
         let n_batches = batches.draws.len();
@@ -184,7 +204,7 @@ impl ComputePass {
             let mut group_range = Vec::with_capacity((total / WORKGROUP as u64) as usize);
             for (k, &(i, start, base)) in batch.iter().enumerate() {
                 let draw = draws[i];
-                // Mode 1 finds the points where mode 0 left them, unless later batches
+                // Modes 1 and 2 find the points where mode 0 left them, unless later batches
                 // overwrote them.
                 let copy = if mode == 0 {
                     *fresh.next().expect("one per draw")
@@ -263,6 +283,7 @@ impl ComputePass {
                     (6, part(merged_splats, total * 4)),
                     (7, normal_fb.as_entire_binding()),
                     (8, t.post.hidden_binding()),
+                    (9, blend_fb.as_entire_binding()),
                 ]
                 .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
             });
@@ -274,8 +295,16 @@ impl ComputePass {
         }
     }
 
+    /// The blend's sums where the frame blends (made by `encode`), else four words of zeros.
+    fn blend_fb(t: &Targets, blend: bool) -> &wgpu::Buffer {
+        match &t.blend_fb {
+            Some(b) if blend => b,
+            _ => &t.no_blend,
+        }
+    }
+
     /// The framebuffer as the g-buffer pass reads it (fb_atomic.wgsl's bindings).
-    pub fn framebuffer(t: &Targets) -> Vec<wgpu::BindGroupEntry<'_>> {
+    pub fn framebuffer(t: &Targets, blend: bool) -> Vec<wgpu::BindGroupEntry<'_>> {
         let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
         vec![
             entry(
@@ -283,6 +312,7 @@ impl ComputePass {
                 t.framebuffer.as_ref().expect(COMPUTE).as_entire_binding(),
             ),
             entry(4, t.normal_fb.as_ref().expect(COMPUTE).as_entire_binding()),
+            entry(5, Self::blend_fb(t, blend).as_entire_binding()),
         ]
     }
 }

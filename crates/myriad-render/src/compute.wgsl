@@ -35,6 +35,14 @@ struct Range {
 var<private> normal_code: u32;
 // The hidden area (a headset lens's), one bit a pixel of the frame; a word of zeros: none.
 @group(0) @binding(8) var<storage, read> hidden_bits: array<u32>;
+// Mode 2 (blending, blend.wgsl): per pixel the sums of red, green and blue times weight, and of
+// the weights, of the fragments near enough to the pixel's nearest depth.
+@group(0) @binding(9) var<storage, read_write> blend_fb: array<atomic<u32>>;
+// The point being blended: its centre (pixels, in its eye), footprint (`blend_weight`) and the
+// depth beyond the nearest within which its fragments count (its size at its depth).
+var<private> blend_centre: vec2<f32>;
+var<private> blend_shape: vec4<f32>;
+var<private> blend_tol: f32;
 // The eye being drawn: its width and its first column in the frame (single-pass stereo: the
 // right eye's image is right of the left's).
 var<private> eye_width: u32;
@@ -45,7 +53,13 @@ fn depth_key(w: f32) -> u32 {
     return u32(clamp(1.0 - w / u.far, 0.0, 1.0) * 4294967040.0) + 1u;
 }
 
-// Keeps the nearest at pixel (x, y) of the eye's image; nothing outside it (a point at an eye's
+// The eye depth of a depth key (as fb_atomic.wgsl's `depth_at`).
+fn key_depth(key: u32) -> f32 {
+    return (1.0 - f32(key - 1u) / 4294967040.0) * u.far;
+}
+
+// Keeps the nearest at pixel (x, y) of the eye's image (mode 2: adds the fragment to the
+// pixel's blend if it lies near enough behind the nearest); nothing outside it (a point at an eye's
 // border never reaches the other eye's image).
 fn plot(x: i32, y: i32, value: u64) {
     if (x < 0 || y < 0 || x >= i32(eye_width) || y >= i32(u.height)) {
@@ -53,6 +67,20 @@ fn plot(x: i32, y: i32, value: u64) {
     }
     let i = u32(y) * u.width + eye_offset + u32(x);
     if ((i >> 5u) < arrayLength(&hidden_bits) && (hidden_bits[i >> 5u] & (1u << (i & 31u))) != 0u) {
+        return;
+    }
+    if (u.mode == 2u) {
+        let near = u32(atomicLoad(&framebuffer[i]) >> 32u);
+        if (near == 0u || key_depth(u32(value >> 32u)) > key_depth(near) + blend_tol) {
+            return;
+        }
+        let w = blend_weight(vec2<f32>(f32(x) + 0.5, f32(y) + 0.5) - blend_centre, blend_shape);
+        let c = u32(value & 0xfffffffflu);
+        let k = i * 4u;
+        atomicAdd(&blend_fb[k], (c & 255u) * w);
+        atomicAdd(&blend_fb[k + 1u], ((c >> 8u) & 255u) * w);
+        atomicAdd(&blend_fb[k + 2u], ((c >> 16u) & 255u) * w);
+        atomicAdd(&blend_fb[k + 3u], w);
         return;
     }
     if (u.mode == 1u) {
@@ -130,6 +158,9 @@ fn draw_point(p: vec3<f32>, local: u32, r: Range, view_proj: mat4x4<f32>) {
         let sp = splat_shape(splat_codes[r.start + local], r.radius.xy, clip.w);
         normal_code = splat_normal_code(sp);
         let s = splat_pixels(sp.x);
+        blend_centre = vec2<f32>(fx, fy);
+        blend_shape = blend_splat(sp);
+        blend_tol = f32(s) * clip.w / u.focal;
         let x0 = i32(floor(fx)) - (s - 1) / 2;
         let y0 = i32(floor(fy)) - (s - 1) / 2;
         let c = f32(s - 1) * 0.5;
@@ -147,10 +178,18 @@ fn draw_point(p: vec3<f32>, local: u32, r: Range, view_proj: mat4x4<f32>) {
         return;
     }
     let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube));
+    blend_centre = vec2<f32>(fx, fy);
+    blend_shape = blend_point(f32(s));
+    blend_tol = f32(s) * clip.w / u.focal;
     if (s == 1) {
         let x = u32(fx);
         let y = u32(fy);
-        atomicMax(&framebuffer[y * u.width + eye_offset + x], (u64(depth_key(clip.w)) << 32u) | colour);
+        let value = (u64(depth_key(clip.w)) << 32u) | colour;
+        if (u.mode == 2u) {
+            plot(i32(x), i32(y), value);
+            return;
+        }
+        atomicMax(&framebuffer[y * u.width + eye_offset + x], value);
         return;
     }
     // A square of s x s pixels centred on the point.

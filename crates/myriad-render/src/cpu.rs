@@ -1,7 +1,8 @@
 //! The rasterizer on the CPU, for machines without any Vulkan, Metal or DX12 driver: the compute
 //! path's algorithm (each point projected, the nearest per pixel kept by a 64-bit atomic max of
-//! depth and colour; splats' normals by a second pass where a splat's value won; then the
-//! g-buffer for the post passes, `post`) over all cores with rayon, in f32 as the shaders
+//! depth and colour; with blending, a pass adding the fragments near the nearest, `blend.rs`;
+//! splats' normals by a pass where a splat's value won; then the g-buffer for the post passes,
+//! `post`) over all cores with rayon, in f32 as the shaders
 //! compute, so that it draws the same images. It is the reference the GPU paths are tested
 //! against, and what `myriad render` uses when there is no GPU adapter.
 
@@ -15,6 +16,11 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 /// As `depth_key` in compute.wgsl.
 fn depth_key(w: f32, far: f32) -> u32 {
     ((1.0 - w / far).clamp(0.0, 1.0) * 4294967040.0) as u32 + 1
+}
+
+/// As `key_depth` in compute.wgsl (and `depth_at` in fb_atomic.wgsl).
+fn key_depth(key: u32, far: f32) -> f32 {
+    (1.0 - (key - 1) as f32 / 4294967040.0) * far
 }
 
 /// As `point_pixels` in draw.wgsl for adaptive sizes (fixed sizes are decided once per frame).
@@ -123,25 +129,27 @@ pub(crate) fn gbuffers(
     normals: bool,
     precision: f32,
 ) -> Vec<GBuffer> {
-    let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>)> = eyes
+    let blend = style.passes.blend;
+    let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>, Vec<AtomicU32>)> = eyes
         .iter()
         .map(|(camera, _)| {
             let n = camera.width.max(1) as usize * camera.height.max(1) as usize;
+            let words = |k: usize| (0..k).map(|_| AtomicU32::new(0)).collect();
             (
                 (0..n).map(|_| AtomicU64::new(0)).collect(),
-                (0..if normals { n } else { 0 })
-                    .map(|_| AtomicU32::new(0))
-                    .collect(),
+                words(if normals { n } else { 0 }),
+                words(if blend { 4 * n } else { 0 }),
             )
         })
         .collect();
     let targets: Vec<Target> = eyes
         .iter()
         .zip(&fbs)
-        .map(|((camera, mask), (fb, normal_fb))| Target {
+        .map(|((camera, mask), (fb, normal_fb, blend_fb))| Target {
             camera,
             fb,
             normal_fb,
+            blend_fb,
             mask: *mask,
             // Once for every pass over the points.
             classes: mask.map(|m| {
@@ -150,13 +158,16 @@ pub(crate) fn gbuffers(
             }),
         })
         .collect();
+    // As the compute path: the nearest, the blend, the splats' normals.
     let splat_draws = draws.iter().any(|d| d.points.cpu_splats().is_some());
-    let modes: &[u32] = if normals && splat_draws {
-        &[0, 1]
-    } else {
-        &[0]
-    };
-    for &mode in modes {
+    let mut modes = vec![0];
+    if blend {
+        modes.push(2);
+    }
+    if normals && splat_draws {
+        modes.push(1);
+    }
+    for mode in modes {
         points_pass(&targets, draws, tree, style, mode, precision);
     }
     targets
@@ -175,8 +186,14 @@ pub(crate) fn gbuffers(
                     let key = (v >> 32) as u32;
                     if key != 0 {
                         // As `depth_at` in fb_atomic.wgsl.
-                        *depth = (1.0 - (key - 1) as f32 / 4294967040.0) * far;
-                        *colour = v as u32;
+                        *depth = key_depth(key, far);
+                        *colour = match t.blend_fb.get(4 * i..4 * i + 4) {
+                            Some(b) => {
+                                let sums = std::array::from_fn(|k| b[k].load(Ordering::Relaxed));
+                                crate::blend::resolve(sums).unwrap_or(v as u32)
+                            }
+                            None => v as u32,
+                        };
                         *normal = t.normal_fb.get(i).map_or(0, |n| n.load(Ordering::Relaxed));
                     }
                 });
@@ -190,6 +207,8 @@ struct Target<'a> {
     camera: &'a Camera,
     fb: &'a [AtomicU64],
     normal_fb: &'a [AtomicU32],
+    /// With blending: per pixel the sums of red, green, blue times weight, and the weights.
+    blend_fb: &'a [AtomicU32],
     mask: Option<&'a [bool]>,
     /// Its mask's [`mask_classes`] for the largest point, by tile.
     classes: Option<Vec<u8>>,
@@ -264,7 +283,8 @@ fn mask_classes(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<u8> {
 }
 
 /// One pass over the points: `mode` 0 keeps the nearest value per pixel in `fb`; 1 (splats
-/// only) writes a splat's normal into `normal_fb` where its value is the one kept. Positions are
+/// only) writes a splat's normal into `normal_fb` where its value is the one kept; 2 adds each
+/// fragment within its point's size behind the nearest to `blend_fb` (`blend.rs`). Positions are
 /// decoded relative to the frame's origin as the compute path does (`decode`).
 fn points_pass(
     targets: &[Target],
@@ -321,13 +341,37 @@ fn points_pass(
         // behind nearer ones: a plain load first spares their read-modify-write.
         // `edge`: the point lies across the border of its eye's hidden area (only there are
         // its pixels looked up in the mask).
-        let plot = |e: &Eye, edge: bool, x: i32, y: i32, value: u64, normal: u32| {
+        // `blend`: the point's centre, footprint and depth tolerance (mode 2).
+        let plot = |e: &Eye,
+                    edge: bool,
+                    x: i32,
+                    y: i32,
+                    value: u64,
+                    normal: u32,
+                    blend: &([f32; 2], [f32; 4], f32)| {
             let i = y as usize * e.w as usize + x as usize;
             if edge && e.t.mask.is_some_and(|m| m[i]) {
                 return;
             }
             let px = &e.t.fb[i];
-            if mode == 1 {
+            if mode == 2 {
+                // As compute.wgsl's `plot` in mode 2.
+                let near = (px.load(Ordering::Relaxed) >> 32) as u32;
+                let (centre, shape, tol) = blend;
+                if near == 0
+                    || key_depth((value >> 32) as u32, e.far) > key_depth(near, e.far) + tol
+                {
+                    return;
+                }
+                let d = [x as f32 + 0.5 - centre[0], y as f32 + 0.5 - centre[1]];
+                let w = crate::blend::weight(d, *shape);
+                let c = value as u32;
+                let sums = &e.t.blend_fb[4 * i..4 * i + 4];
+                for (k, sum) in sums.iter().enumerate() {
+                    let part = if k == 3 { 1 } else { (c >> (8 * k)) & 255 };
+                    sum.fetch_add(part * w, Ordering::Relaxed);
+                }
+            } else if mode == 1 {
                 if px.load(Ordering::Relaxed) == value {
                     e.t.normal_fb[i].store(normal, Ordering::Relaxed);
                 }
@@ -395,6 +439,11 @@ fn points_pass(
                             let sp = splat_shape(code, range, clip[3], &e.basis, e.focal, max_size);
                             let normal = splat_normal_code(sp);
                             let s = splat_pixels(sp[0], max_size);
+                            let blend = (
+                                [fx, fy],
+                                crate::blend::splat(sp),
+                                s as f32 * clip[3] / e.focal,
+                            );
                             let x0 = fx.floor() as i32 - (s - 1) / 2;
                             let y0 = fy.floor() as i32 - (s - 1) / 2;
                             let c = (s - 1) as f32 * 0.5;
@@ -422,6 +471,7 @@ fn points_pass(
                                         ((depth_key(clip[3] - k * ez, e.far) as u64) << 32)
                                             | colour,
                                         normal,
+                                        &blend,
                                     );
                                 }
                             }
@@ -433,6 +483,11 @@ fn points_pass(
                                 p, clip[3], spacing, node, cube, tree, max_size, e.focal,
                             ),
                         } as i32;
+                        let blend = (
+                            [fx, fy],
+                            crate::blend::point(s as f32),
+                            s as f32 * clip[3] / e.focal,
+                        );
                         let x0 = fx.floor() as i32 - (s - 1) / 2;
                         let y0 = fy.floor() as i32 - (s - 1) / 2;
                         let c = (s - 1) as f32 * 0.5;
@@ -461,7 +516,7 @@ fn points_pass(
                                         value = ((depth_key(wp, e.far) as u64) << 32) | colour;
                                     }
                                 }
-                                plot(e, edge, x, y, value, 0);
+                                plot(e, edge, x, y, value, 0, &blend);
                             }
                         }
                     }

@@ -187,8 +187,8 @@ impl Rasterizer {
         let (framebuffer, chain) = match &self.pipelines {
             Pipelines::Cpu => unreachable!("drawn above"),
             Pipelines::Compute { pass, chain } => {
-                pass.encode(gpu, &mut enc, t, &frame, &draws, normals);
-                (ComputePass::framebuffer(t), chain)
+                pass.encode(gpu, &mut enc, t, &frame, &draws, normals, passes.blend);
+                (ComputePass::framebuffer(t, passes.blend), chain)
             }
             Pipelines::Quads { pass, chain } => {
                 if self.front_to_back {
@@ -198,8 +198,8 @@ impl Rasterizer {
                     });
                     front_to_back(&mut draws, e);
                 }
-                pass.encode(gpu, &mut enc, t, &frame, &draws);
-                (QuadPass::framebuffer(t), chain)
+                pass.encode(gpu, &mut enc, t, &frame, &draws, passes.blend);
+                (QuadPass::framebuffer(t, passes.blend), chain)
             }
         };
         let present = lock(&self.present).clone();
@@ -277,8 +277,10 @@ impl Rasterizer {
         if let Some((d, _)) = gpu.wgpu() {
             let limits = d.limits();
             let (w, h) = (camera.width.max(1) as u64, camera.height.max(1) as u64);
+            // Bytes a pixel of the largest storage binding: the framebuffer, or the blend's.
+            let bytes = if passes.blend { 16 } else { 8 };
             let fits = |f: u64| {
-                w * h * f * f * 8 <= limits.max_storage_buffer_binding_size
+                w * h * f * f * bytes <= limits.max_storage_buffer_binding_size
                     && (w.max(h) * f) <= limits.max_texture_dimension_2d as u64
             };
             while f > 1 && !fits(f as u64) {

@@ -20,6 +20,7 @@
 //! (occlusion queries), `frame` (the [`Rasterizer`]: a frame from end to end), then `stereo`,
 //! `surface`, `preview`, `selector` and `scene` on top.
 
+mod blend;
 mod compute;
 mod cpu;
 mod device;

@@ -1,17 +1,23 @@
 //! The quad path, for adapters without 64-bit atomics: each point an instanced quad through the
 //! fixed-function pipeline (quads.wgsl), covering the pixels the compute path's point covers,
 //! into colour, normal and depth targets with a depth test. Nodes are drawn front to back when
-//! asked (the depth test then rejects what lies behind before it is shaded). Its CPU mirror is
-//! `cpu.rs`, as the compute path's.
+//! asked (the depth test then rejects what lies behind before it is shaded). Blending draws the
+//! points again, each fragment near enough behind the depth the first pass left added to the
+//! blend target. Its CPU mirror is `cpu.rs`, as the compute path's.
 
 use crate::Gpu;
 use crate::draw::{Frame, UniformArray, radius_of, tree_buffer};
 use crate::pipelines::{module, targets_pipeline};
 use crate::points::{Draw, Layout};
-use crate::targets::Targets;
+use crate::targets::{BLEND_FORMAT, Targets};
+use std::sync::OnceLock;
 
 /// The quad path's shader: draw.wgsl, then quads.wgsl.
-pub const QUADS_WGSL: &str = concat!(include_str!("draw.wgsl"), include_str!("quads.wgsl"));
+pub const QUADS_WGSL: &str = concat!(
+    include_str!("draw.wgsl"),
+    include_str!("blend.wgsl"),
+    include_str!("quads.wgsl")
+);
 
 const QUADS: &str = "quad targets";
 
@@ -30,28 +36,79 @@ pub(crate) fn front_to_back(draws: &mut [&Draw], eye: [f64; 3]) {
     draws.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
 }
 
-/// The quad path's pipeline, kept for the rasterizer's life.
+/// The quad path's pipelines, kept for the rasterizer's life (blending's made when first used).
 pub(crate) struct QuadPass {
+    module: wgpu::ShaderModule,
     quads: wgpu::RenderPipeline,
+    blend: OnceLock<wgpu::RenderPipeline>,
 }
 
 impl QuadPass {
     pub fn new(gpu: &Gpu) -> QuadPass {
         // The points are read from storage by instance index (`decode`): no vertex buffer.
+        let module = module(gpu, "quads", QUADS_WGSL);
         QuadPass {
-            quads: targets_pipeline(gpu, "quads", &module(gpu, "quads", QUADS_WGSL), &[]),
+            quads: targets_pipeline(gpu, "quads", &module, &[]),
+            module,
+            blend: OnceLock::new(),
         }
     }
 
-    /// Records the point pass of `draws` into the targets' colour, normal and depth.
+    /// Blending's pipeline: the same quads, no depth test, each fragment added to the target.
+    fn blend_pipeline(&self, gpu: &Gpu) -> &wgpu::RenderPipeline {
+        self.blend.get_or_init(|| {
+            let add = wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::One,
+                operation: wgpu::BlendOperation::Add,
+            };
+            gpu.device()
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("blend"),
+                    layout: None,
+                    vertex: wgpu::VertexState {
+                        module: &self.module,
+                        entry_point: Some("vertex"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState::default(),
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &self.module,
+                        entry_point: Some("blend"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: BLEND_FORMAT,
+                            blend: Some(wgpu::BlendState {
+                                color: add,
+                                alpha: add,
+                            }),
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+        })
+    }
+
+    /// Records the point pass of `draws` into the targets' colour, normal and depth; with
+    /// `blend`, the second pass into the blend target.
     pub fn encode(
         &self,
         gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
-        t: &Targets,
+        t: &mut Targets,
         frame: &Frame,
         draws: &[&Draw],
+        blend: bool,
     ) {
+        if blend {
+            t.blend_target(gpu);
+        }
+        let t = &*t;
         let d = gpu.device();
         let uniforms: Vec<_> = draws
             .iter()
@@ -77,23 +134,35 @@ impl QuadPass {
             mapped_at_creation: false,
         });
         let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
-        let layout = self.quads.get_bind_group_layout(0);
-        let binds: Vec<wgpu::BindGroup> = (0..draws.len())
-            .map(|i| {
-                let splats = draws[i].points.splat_buffer().unwrap_or(&no_splats);
-                d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("quads"),
-                    layout: &layout,
-                    entries: &[
+        let depth = t.depth.as_ref().expect(QUADS);
+        // Each draw's bindings in `pipeline`'s layout (blending's also reads the depth).
+        let binds = |pipeline: &wgpu::RenderPipeline, near: bool| -> Vec<wgpu::BindGroup> {
+            let layout = pipeline.get_bind_group_layout(0);
+            (0..draws.len())
+                .map(|i| {
+                    let splats = draws[i].points.splat_buffer().unwrap_or(&no_splats);
+                    let mut entries = vec![
                         entry(0, uniforms.at(i)),
                         entry(1, draws[i].points.buffer().as_entire_binding()),
                         entry(3, tree.as_entire_binding()),
                         entry(6, splats.as_entire_binding()),
                         entry(7, t.post.reject_binding()),
-                    ],
+                    ];
+                    if near {
+                        entries.push(entry(9, wgpu::BindingResource::TextureView(depth)));
+                    }
+                    d.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("quads"),
+                        layout: &layout,
+                        entries: &entries,
+                    })
                 })
-            })
-            .collect();
+                .collect()
+        };
+        // Single-pass stereo: each point once per eye (instances beyond `count` are the right
+        // eye's).
+        let eyes_drawn = if frame.eyes.is_some() { 2 } else { 1 };
+        let quads = binds(&self.quads, false);
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("quads"),
             color_attachments: &[t.colour.as_ref(), t.normal.as_ref()].map(|view| {
@@ -118,17 +187,39 @@ impl QuadPass {
             ..Default::default()
         });
         pass.set_pipeline(&self.quads);
-        // Single-pass stereo: each point once per eye (instances beyond `count` are the right
-        // eye's).
-        let eyes_drawn = if frame.eyes.is_some() { 2 } else { 1 };
-        for (draw, bind) in draws.iter().zip(&binds) {
+        for (draw, bind) in draws.iter().zip(&quads) {
+            pass.set_bind_group(0, bind, &[]);
+            pass.draw(0..6, 0..draw.count * eyes_drawn);
+        }
+        drop(pass);
+        if !blend {
+            return;
+        }
+        let pipeline = self.blend_pipeline(gpu);
+        let blends = binds(pipeline, true);
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("blend"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: t.blend.as_ref().expect("made above"),
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            ..Default::default()
+        });
+        pass.set_pipeline(pipeline);
+        for (draw, bind) in draws.iter().zip(&blends) {
             pass.set_bind_group(0, bind, &[]);
             pass.draw(0..6, 0..draw.count * eyes_drawn);
         }
     }
 
-    /// The targets as the g-buffer pass reads them (fb_quads.wgsl's bindings).
-    pub fn framebuffer(t: &Targets) -> Vec<wgpu::BindGroupEntry<'_>> {
+    /// The targets as the g-buffer pass reads them (fb_quads.wgsl's bindings): the blend
+    /// target where the frame blends.
+    pub fn framebuffer(t: &Targets, blend: bool) -> Vec<wgpu::BindGroupEntry<'_>> {
         fn view(v: &Option<wgpu::TextureView>) -> wgpu::BindingResource<'_> {
             wgpu::BindingResource::TextureView(v.as_ref().expect(QUADS))
         }
@@ -137,6 +228,13 @@ impl QuadPass {
             entry(1, view(&t.colour)),
             entry(2, view(&t.depth)),
             entry(4, view(&t.normal)),
+            entry(
+                5,
+                wgpu::BindingResource::TextureView(match &t.blend {
+                    Some(b) if blend => b,
+                    _ => &t.no_blend_target,
+                }),
+            ),
         ]
     }
 }

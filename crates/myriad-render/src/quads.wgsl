@@ -11,6 +11,10 @@ struct Corner {
     @location(3) @interpolate(flat) radius2: f32,
     // A splat's radius in pixels and its eye normal (splat_shape); x < 0: not a splat.
     @location(4) @interpolate(flat) splat: vec4<f32>,
+    // Blending: the point's centre (pixels of the frame) and the depth beyond the nearest within
+    // which its fragments count (z); its footprint (blend.wgsl).
+    @location(5) @interpolate(flat) blend: vec4<f32>,
+    @location(6) @interpolate(flat) footprint: vec4<f32>,
 }
 
 // A headset's hidden area (002 section 4.1), one bit a g-buffer pixel (a few words of zeros:
@@ -55,6 +59,8 @@ fn vertex(
     out.depth = vec2<f32>(0.0);
     out.radius2 = 0.0;
     out.splat = vec4<f32>(-1.0, 0.0, 0.0, 1.0);
+    out.blend = vec4<f32>(0.0);
+    out.footprint = vec4<f32>(0.0, 0.0, 0.0, 1.0);
     if (clipped(p)) {
         return out;
     }
@@ -69,9 +75,11 @@ fn vertex(
     let fx = (ndc.x * 0.5 + 0.5) * f32(width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
     var s = point_pixels(p, clip.w, u.spacing, u.node, u.cube);
+    out.footprint = blend_point(s);
     if (u.radius.z > 0.0 && u.point_size == 0.0) {
         out.splat = splat_shape(splat_codes[instance], u.radius.xy, clip.w);
         s = f32(splat_pixels(out.splat.x));
+        out.footprint = blend_splat(out.splat);
     }
     if (s * 0.5 + 1.0 <= REJECT_REACH) {
         let i = u32(fy) * u.width + u32(fx) + eye * width;
@@ -93,6 +101,7 @@ fn vertex(
     out.local = px - shift - vec2<f32>(x0, y0) - vec2<f32>(0.5) * s;
     out.depth = vec2<f32>(clip.w, 0.5 * s * clip.w / u.focal);
     out.radius2 = max(s * s * 0.25, 0.5);
+    out.blend = vec4<f32>(fx + shift, fy, s * clip.w / u.focal, 0.0);
     return out;
 }
 
@@ -103,31 +112,66 @@ struct Fragment {
     @builtin(frag_depth) depth: f32,
 }
 
-@fragment
-fn fragment(in: Corner) -> Fragment {
-    var out: Fragment;
-    out.colour = in.colour;
-    out.normal = vec4<f32>(0.0);
+// The eye depth of a fragment: the splat's plane or the paraboloid where they are; -1 outside
+// the point's shape.
+fn fragment_depth(in: Corner) -> f32 {
     var w = in.depth.x;
     if (in.splat.x >= 0.0) {
         let e = (in.local.x * in.splat.y - in.local.y * in.splat.z) / in.splat.w;
         if (dot(in.local, in.local) + e * e > in.splat.x * in.splat.x) {
-            discard;
+            return -1.0;
         }
         w = w - w / u.focal * e;
-        let n = in.splat.yzw / sqrt(dot(in.splat.yzw, in.splat.yzw));
-        out.normal = vec4<f32>(select(n, -n, n.z > 0.0) * 0.5 + 0.5, 1.0);
     } else if (u.shape != 0u) {
         let d2 = dot(in.local, in.local);
         if (d2 > in.radius2) {
-            discard;
+            return -1.0;
         }
         if (u.shape == 2u) {
             w = w - in.depth.y * (1.0 - d2 / in.radius2);
         }
     }
+    return w;
+}
+
+@fragment
+fn fragment(in: Corner) -> Fragment {
+    var out: Fragment;
+    out.colour = in.colour;
+    out.normal = vec4<f32>(0.0);
+    let w = fragment_depth(in);
+    if (w < 0.0) {
+        discard;
+    }
+    if (in.splat.x >= 0.0) {
+        let n = in.splat.yzw / sqrt(dot(in.splat.yzw, in.splat.yzw));
+        out.normal = vec4<f32>(select(n, -n, n.z > 0.0) * 0.5 + 0.5, 1.0);
+    }
     // The same depth the projection gives: a (1 - near / w).
     let a = u.far / (u.far - u.near);
     out.depth = clamp(a * (1.0 - u.near / max(w, u.near)), 0.0, 1.0);
     return out;
+}
+
+// Blending's second pass (as compute.wgsl's mode 2): the depth the first left, and each fragment
+// near enough behind it added to the blend target, colour times weight and the weight (in
+// 255ths, the compute path's integers).
+@group(0) @binding(9) var near_depth: texture_depth_2d;
+
+@fragment
+fn blend(in: Corner) -> @location(0) vec4<f32> {
+    let w = fragment_depth(in);
+    if (w < 0.0) {
+        discard;
+    }
+    let z = textureLoad(near_depth, vec2<i32>(in.position.xy), 0);
+    if (z >= 1.0) {
+        discard;
+    }
+    let a = u.far / (u.far - u.near);
+    if (w > u.near / (1.0 - z / a) + in.blend.z) {
+        discard;
+    }
+    let k = f32(blend_weight(in.position.xy - in.blend.xy, in.footprint)) / 255.0;
+    return vec4<f32>(round(in.colour.rgb * 255.0) / 255.0 * k, k);
 }

@@ -28,6 +28,13 @@ pub(crate) struct Targets {
     pub(crate) colour: Option<wgpu::TextureView>,
     pub(crate) normal: Option<wgpu::TextureView>,
     pub(crate) depth: Option<wgpu::TextureView>,
+    /// Blending, made when a frame first blends: the compute path's sums (four u32 a pixel),
+    /// the quad path's (an `Rgba16Float` target added to); bound instead when a frame does not
+    /// blend, four words of zeros and a texel of zeros.
+    pub(crate) blend_fb: Option<wgpu::Buffer>,
+    pub(crate) blend: Option<wgpu::TextureView>,
+    pub(crate) no_blend: wgpu::Buffer,
+    pub(crate) no_blend_target: wgpu::TextureView,
     /// The frame's depth as occlusion queries test against it (`queries.rs`).
     pub(crate) query_depth: Option<wgpu::TextureView>,
     /// The post passes' g-buffers and the image.
@@ -94,6 +101,47 @@ impl Targets {
             merged_splats: None,
             copied: Default::default(),
             query_depth: None,
+            blend_fb: None,
+            blend: None,
+            no_blend: buffer("no blend", 16, wgpu::BufferUsages::STORAGE),
+            no_blend_target: target(
+                gpu,
+                "no blend",
+                (1, 1),
+                BLEND_FORMAT,
+                wgpu::TextureUsages::TEXTURE_BINDING,
+            ),
         }
     }
+
+    /// The compute path's blend sums, made on first use.
+    pub fn blend_buffer(&mut self, gpu: &Gpu) {
+        let (w, h, _) = self.size;
+        self.blend_fb.get_or_insert_with(|| {
+            gpu.device().create_buffer(&wgpu::BufferDescriptor {
+                label: Some("blend"),
+                size: (w * h) as u64 * 16,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        });
+    }
+
+    /// The quad path's blend target, made on first use.
+    pub fn blend_target(&mut self, gpu: &Gpu) {
+        let (w, h, _) = self.size;
+        self.blend.get_or_insert_with(|| {
+            target(
+                gpu,
+                "blend",
+                (w, h),
+                BLEND_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            )
+        });
+    }
 }
+
+/// The quad path's blend target: red, green, blue times weight and the weights, added to by
+/// blending (16-bit floats blend on every adapter).
+pub(crate) const BLEND_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;

@@ -545,6 +545,8 @@ fn every_pass_agrees_between_the_cpu_and_the_gpu_paths() {
             "edl",
             "blur",
             "aa",
+            "blend",
+            "blend,fill,shade,edl,aa",
             "fill,shade,ssao,edl,blur,aa",
         ] {
             let style = Style {
@@ -623,5 +625,46 @@ fn splat_normals_reach_the_shading_pass() {
         let v = px(&img, 200, 100, 50)[0] as f32;
         // ambient 0.2 + headlight 0.8 x cos 60 = 0.6 of 200.
         assert!((v - 120.0).abs() <= 6.0, "{:?}: {v}", r.path);
+    }
+}
+
+#[test]
+fn blended_points_mix_where_they_overlap_and_not_through_a_surface() {
+    // A red and a blue 5-pixel square side by side at depth 10 (5 pixels a unit): red centred
+    // at column 100.0 covers 98-102, blue at 102.5 covers 100-104; and a green one 2 units
+    // behind them, beyond the blend's reach (one point's size, 1 unit there), hidden by them.
+    let cam = looking_along_y(0.0);
+    let positions = [[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.2, 2.0, 0.0]];
+    let colours = [[255, 0, 0, 255], [0, 0, 255, 255], [0, 255, 0, 255]];
+    let plain = fixed(5.0, Shape::Square);
+    let blended = Style {
+        passes: Passes::parse("blend").unwrap(),
+        ..plain
+    };
+    for (gpu, r) in &paths() {
+        let p = Points::upload(gpu, [0.0; 3], &positions, &colours);
+        let img = r.render(gpu, &cam, &[p.all(0.0)], &[], &plain);
+        // Without blending the nearest wins, one colour a pixel.
+        for x in 98..104 {
+            let c = px(&img, 200, x, 50);
+            assert!(c[0] == 0 || c[2] == 0, "{:?}: {x}: {c:?}", r.path);
+        }
+        let img = r.render(gpu, &cam, &[p.all(0.0)], &[], &blended);
+        // Outside the overlap each square keeps its own colour; inside, both, each the more
+        // where its centre is nearer (100: 0.5 px from red's centre, 2 from blue's; 101: 1.5
+        // and 1).
+        assert_eq!(px(&img, 200, 99, 50), [255, 0, 0, 255], "{:?}", r.path);
+        assert_eq!(px(&img, 200, 103, 50), [0, 0, 255, 255], "{:?}", r.path);
+        let (a, b) = (px(&img, 200, 100, 50), px(&img, 200, 101, 50));
+        assert!(a[0] > a[2] && a[2] > 30, "{:?}: {a:?}", r.path);
+        assert!(b[2] > b[0] && b[0] > 30, "{:?}: {b:?}", r.path);
+        // Red and blue add up to the whole: a mean of the two colours.
+        assert!((a[0] as i32 + a[2] as i32 - 255).abs() <= 1, "{a:?}");
+        // Nothing of the green point behind them.
+        assert!(
+            img.chunks_exact(4).all(|c| c[1] == 0),
+            "{:?}: green shows through",
+            r.path
+        );
     }
 }

@@ -89,6 +89,7 @@ pub(crate) fn passes_panel(ui: &mut egui::Ui, p: &mut myriad_render::Passes) {
         on
     }
     ui.label("passes");
+    ui.checkbox(&mut p.blend, "blend overlapping points");
     if toggle::<Fill>(ui, &mut p.fill, "fill holes")
         && let Some(f) = &mut p.fill
     {

@@ -4,6 +4,9 @@
 @group(0) @binding(1) var colour_target: texture_2d<f32>;
 @group(0) @binding(2) var depth_target: texture_depth_2d;
 @group(0) @binding(4) var normal_target: texture_2d<f32>;
+// Blending (quads.wgsl's `blend`): colour times weight and the weights added up; a texel of zeros
+// when the frame does not blend.
+@group(0) @binding(5) var blend_target: texture_2d<f32>;
 
 fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
     let z = textureLoad(depth_target, xy, 0);
@@ -16,6 +19,12 @@ fn depth_at(i: u32, xy: vec2<i32>) -> f32 {
 }
 
 fn colour_at(i: u32, xy: vec2<i32>) -> u32 {
+    if (all(vec2<u32>(xy) < textureDimensions(blend_target))) {
+        let b = textureLoad(blend_target, xy, 0);
+        if (b.a > 0.0) {
+            return pack4x8unorm(vec4<f32>(b.rgb / b.a, 1.0));
+        }
+    }
     return pack4x8unorm(textureLoad(colour_target, xy, 0));
 }
 

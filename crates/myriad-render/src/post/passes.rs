@@ -2,10 +2,15 @@
 
 use super::{blur::Blur, edl::Edl, fill::Fill, shade::Shade, ssao::Ssao};
 
-/// The passes of a frame, in the pipeline's order (fill, normals, shade, ssao, edl, blur, aa),
-/// each on when set.
+/// The passes of a frame, in the pipeline's order (blend, fill, normals, shade, ssao, edl, blur,
+/// aa), each on when set.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Passes {
+    /// Blending (004's deferred blending with 001's EWA kernels): the point pass keeps each
+    /// pixel's nearest depth, then every point's fragments within its own size of that depth
+    /// add their colour weighted by the point's Gaussian footprint; the pixel shows the weighted
+    /// mean (`blend.rs`).
+    pub blend: bool,
     pub fill: Option<Fill>,
     pub shade: Option<Shade>,
     pub ssao: Option<Ssao>,
@@ -19,7 +24,7 @@ pub struct Passes {
 pub const DEFAULT_PASSES: &str = "fill,blur";
 
 /// The names `Passes::parse` takes, in the pipeline's order.
-pub const PASS_NAMES: [&str; 6] = ["fill", "shade", "ssao", "edl", "blur", "aa"];
+pub const PASS_NAMES: [&str; 7] = ["blend", "fill", "shade", "ssao", "edl", "blur", "aa"];
 
 impl Passes {
     /// [`DEFAULT_PASSES`].
@@ -34,6 +39,7 @@ impl Passes {
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             match name {
                 "none" => {}
+                "blend" => p.blend = true,
                 "fill" => p.fill = Some(Fill::default()),
                 "shade" => p.shade = Some(Shade::default()),
                 "ssao" => p.ssao = Some(Ssao::default()),
