@@ -130,15 +130,18 @@ pub(crate) fn gbuffers(
     precision: f32,
 ) -> Vec<GBuffer> {
     let blend = style.passes.blend;
-    let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>, Vec<AtomicU32>)> = eyes
+    let fbs: Vec<(Vec<AtomicU64>, Vec<AtomicU32>, Vec<AtomicU64>)> = eyes
         .iter()
         .map(|(camera, _)| {
             let n = camera.width.max(1) as usize * camera.height.max(1) as usize;
-            let words = |k: usize| (0..k).map(|_| AtomicU32::new(0)).collect();
             (
                 (0..n).map(|_| AtomicU64::new(0)).collect(),
-                words(if normals { n } else { 0 }),
-                words(if blend { 4 * n } else { 0 }),
+                (0..if normals { n } else { 0 })
+                    .map(|_| AtomicU32::new(0))
+                    .collect(),
+                (0..if blend { 2 * n } else { 0 })
+                    .map(|_| AtomicU64::new(0))
+                    .collect(),
             )
         })
         .collect();
@@ -187,9 +190,12 @@ pub(crate) fn gbuffers(
                     if key != 0 {
                         // As `depth_at` in fb_atomic.wgsl.
                         *depth = key_depth(key, far);
-                        *colour = match t.blend_fb.get(4 * i..4 * i + 4) {
+                        *colour = match t.blend_fb.get(2 * i..2 * i + 2) {
                             Some(b) => {
-                                let sums = std::array::from_fn(|k| b[k].load(Ordering::Relaxed));
+                                let (rg, bw) =
+                                    (b[0].load(Ordering::Relaxed), b[1].load(Ordering::Relaxed));
+                                let sums =
+                                    [rg as u32, (rg >> 32) as u32, bw as u32, (bw >> 32) as u32];
                                 crate::blend::resolve(sums).unwrap_or(v as u32)
                             }
                             None => v as u32,
@@ -207,8 +213,9 @@ struct Target<'a> {
     camera: &'a Camera,
     fb: &'a [AtomicU64],
     normal_fb: &'a [AtomicU32],
-    /// With blending: per pixel the sums of red, green, blue times weight, and the weights.
-    blend_fb: &'a [AtomicU32],
+    /// With blending: per pixel the sums of red, green, blue times weight, and the weights, in
+    /// two words of two sums each (each sum stays below 2^32, as the compute path's words).
+    blend_fb: &'a [AtomicU64],
     mask: Option<&'a [bool]>,
     /// Its mask's [`mask_classes`] for the largest point, by tile.
     classes: Option<Vec<u8>>,
@@ -365,12 +372,12 @@ fn points_pass(
                 }
                 let d = [x as f32 + 0.5 - centre[0], y as f32 + 0.5 - centre[1]];
                 let w = crate::blend::weight(d, *shape);
-                let c = value as u32;
-                let sums = &e.t.blend_fb[4 * i..4 * i + 4];
-                for (k, sum) in sums.iter().enumerate() {
-                    let part = if k == 3 { 1 } else { (c >> (8 * k)) & 255 };
-                    sum.fetch_add(part * w, Ordering::Relaxed);
-                }
+                let c = value as u64;
+                let (r, g, b) = (c & 255, (c >> 8) & 255, (c >> 16) & 255);
+                let w = w as u64;
+                let sums = &e.t.blend_fb[2 * i..2 * i + 2];
+                sums[0].fetch_add((r | g << 32) * w, Ordering::Relaxed);
+                sums[1].fetch_add((b | 1 << 32) * w, Ordering::Relaxed);
             } else if mode == 1 {
                 if px.load(Ordering::Relaxed) == value {
                     e.t.normal_fb[i].store(normal, Ordering::Relaxed);
