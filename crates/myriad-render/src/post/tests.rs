@@ -45,8 +45,9 @@ fn only(p: &str) -> Passes {
 
 #[test]
 fn passes_parse_in_any_order_and_reject_unknown_names() {
-    let p = Passes::parse("aa,blur, edl,ssao,shade,fill").unwrap();
+    let p = Passes::parse("aa,blur, edl,ssao,shade,fill,blend").unwrap();
     assert_eq!(p, Passes::parse(&PASS_NAMES.join(",")).unwrap());
+    assert!(p.blend && !Passes::parse("fill").unwrap().blend);
     assert!(p.fill.is_some() && p.shade.is_some() && p.ssao.is_some());
     assert!(p.edl.is_some() && p.blur.is_some() && p.factor() == 2);
     // The pipeline's order, whatever the order given; normals for shade and ssao.
