@@ -191,6 +191,14 @@ impl Drawer {
         }
         let out_pixels = ((w / f) * (h / f)) as u64;
         let buffers = Buffers::new(gpu, (w * h) as u64, out_pixels);
+        // Surfaces are not blended: the g-buffer pass reads a texel of zeros.
+        let no_blend = crate::pipelines::target(
+            gpu,
+            "no blend",
+            (1, 1),
+            crate::targets::BLEND_FORMAT,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let framebuffer = vec![
             wgpu::BindGroupEntry {
                 binding: 1,
@@ -203,6 +211,10 @@ impl Drawer {
             wgpu::BindGroupEntry {
                 binding: 4,
                 resource: wgpu::BindingResource::TextureView(&normal),
+            },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: wgpu::BindingResource::TextureView(&no_blend),
             },
         ];
         self.chain.encode(

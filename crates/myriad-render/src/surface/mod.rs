@@ -23,8 +23,9 @@
 //! - draw (`cpu.rs`): the mesh's triangles into the g-buffer (depth, colour, normal), then the
 //!   post passes with a headlight (`shade`), as the paper lights its surfaces.
 //!
-//! Everything here runs on the CPU with rayon (the GPU passes are not written yet: see
-//! ARCHITECTURE.md), in f64.
+//! Everything here runs on the CPU with rayon, in f64; `gpu.rs` and `gpu_draw.rs` are the same
+//! steps as compute shaders and the draw through the quad path's g-buffer (not blended:
+//! `--passes blend` blends points only).
 
 pub mod cluster;
 mod cpu;
