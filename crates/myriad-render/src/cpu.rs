@@ -372,7 +372,7 @@ fn points_pass(
                 }
                 let d = [x as f32 + 0.5 - centre[0], y as f32 + 0.5 - centre[1]];
                 let w = crate::blend::weight(d, *shape);
-                let c = value as u64;
+                let c = value;
                 let (r, g, b) = (c & 255, (c >> 8) & 255, (c >> 16) & 255);
                 let w = w as u64;
                 let sums = &e.t.blend_fb[2 * i..2 * i + 2];
