@@ -604,9 +604,10 @@ mod order_tests {
     use myriad_core::PointBatch;
 
     fn batch(positions: Vec<[f64; 3]>) -> PointBatch {
-        let mut b = PointBatch::default();
-        b.positions = positions;
-        b
+        PointBatch {
+            positions,
+            ..Default::default()
+        }
     }
 
     #[test]
