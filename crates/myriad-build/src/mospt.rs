@@ -33,19 +33,6 @@ pub struct Mospt {
     pub spacing: Vec<f64>,
 }
 
-/// Interleaves the low 21 bits of x, y, z (x in bit 0).
-fn morton(x: u32, y: u32, z: u32) -> u64 {
-    fn spread(v: u32) -> u64 {
-        let mut x = v as u64 & 0x1f_ffff;
-        x = (x | x << 32) & 0x1f_0000_0000_ffff;
-        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-        (x | x << 2) & 0x1249_2492_4924_9249
-    }
-    spread(x) | spread(y) << 1 | spread(z) << 2
-}
-
 /// Perceptual-ish squared distance between 16-bit colours ("redmean" weighting).
 fn colour_distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     let r = (a[0] + b[0]) * 0.5 / 65535.0;
@@ -70,7 +57,7 @@ pub fn codes(batch: &PointBatch, cube: &Aabb) -> Vec<u64> {
     batch
         .positions
         .iter()
-        .map(|&p| morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
+        .map(|&p| myriad_core::geometry::morton(cell_of(p, 0), cell_of(p, 1), cell_of(p, 2)))
         .collect()
 }
 

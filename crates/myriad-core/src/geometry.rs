@@ -210,8 +210,34 @@ fn mul3(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
 }
 
+/// The Morton code of a cell: the low 21 bits of x, y and z interleaved, x in bit 0 (so that
+/// sorting by it walks the cells octant by octant, each octant's own octants in turn).
+pub fn morton(x: u32, y: u32, z: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut x = v as u64 & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        (x | x << 2) & 0x1249_2492_4924_9249
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn morton_interleaves_x_first() {
+        assert_eq!(super::morton(1, 0, 0), 1);
+        assert_eq!(super::morton(0, 1, 0), 2);
+        assert_eq!(super::morton(0, 0, 1), 4);
+        assert_eq!(super::morton(2, 0, 0), 8);
+        assert_eq!(
+            super::morton(0x1f_ffff, 0x1f_ffff, 0x1f_ffff),
+            (1 << 63) - 1
+        );
+    }
+
     use super::*;
 
     #[test]

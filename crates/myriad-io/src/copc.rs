@@ -441,17 +441,15 @@ pub fn chunk_order(batch: &PointBatch) -> Vec<u32> {
         .positions
         .iter()
         .map(|p| {
-            let q: [u64; 3] = std::array::from_fn(|a| {
+            let q: [u32; 3] = std::array::from_fn(|a| {
                 let f = if side > 0.0 {
                     (p[a] - b.min[a]) / side
                 } else {
                     0.0
                 };
-                (f * cells).clamp(0.0, cells) as u64
+                (f * cells).clamp(0.0, cells) as u32
             });
-            (0..21).rev().fold(0u64, |c, bit| {
-                (0..3).fold(c, |c, a| (c << 1) | ((q[a] >> bit) & 1))
-            })
+            myriad_core::geometry::morton(q[0], q[1], q[2])
         })
         .collect();
     ids.sort_by_key(|&i| codes[i as usize]);
@@ -616,7 +614,7 @@ mod order_tests {
         let mut b = batch(vec![[0.0; 3]; 4]);
         b.gps_time = Some(vec![3.0, 1.0, 2.0, 1.0]);
         assert_eq!(chunk_order(&b), [1, 3, 2, 0]);
-        // Else octant by octant of the points' box: (0, 0, 0) first, then +z, +y, +x, and
+        // Else octant by octant of the points' box: (0, 0, 0) first, then +x, +y, +z, and
         // within an octant its own octants.
         let b = batch(vec![
             [9.0, 9.0, 9.0],
@@ -626,6 +624,6 @@ mod order_tests {
             [1.0, 1.0, 1.0],
             [0.0, 0.0, 0.0],
         ]);
-        assert_eq!(chunk_order(&b), [5, 4, 1, 2, 3, 0]);
+        assert_eq!(chunk_order(&b), [5, 4, 3, 2, 1, 0]);
     }
 }

@@ -82,14 +82,10 @@ pub struct BuildPlan {
     pub reproject: Option<myriad_io::reproject::Reproject>,
 }
 
+/// A cell's Morton code with x most significant (the plans' order since they were first
+/// written).
 fn morton(c: [u32; 3]) -> u64 {
-    let mut m = 0u64;
-    for bit in 0..21 {
-        for (a, v) in c.iter().enumerate() {
-            m |= ((*v as u64 >> bit) & 1) << (3 * bit + 2 - a as u32);
-        }
-    }
-    m
+    myriad_core::geometry::morton(c[2], c[1], c[0])
 }
 
 /// FNV-1a of the text: a plan's identity (not a security measure; it catches mixed-up plans).

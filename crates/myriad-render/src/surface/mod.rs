@@ -219,9 +219,9 @@ impl Grid {
                 let c = |a: usize| {
                     (((p[a] - root.min[a]) / side * n)
                         .floor()
-                        .clamp(0.0, n - 1.0)) as u64
+                        .clamp(0.0, n - 1.0)) as u32
                 };
-                morton(c(0), c(1), c(2))
+                myriad_core::geometry::morton(c(0), c(1), c(2))
             })
             .collect();
         codes.sort_unstable();
@@ -375,18 +375,6 @@ impl Grid {
         let [w, h, _] = self.extent(z);
         0.5 * (w * w + h * h).sqrt()
     }
-}
-
-fn morton(x: u64, y: u64, z: u64) -> u64 {
-    let spread = |mut v: u64| {
-        v &= 0x1f_ffff;
-        v = (v | v << 32) & 0x1f00000000ffff;
-        v = (v | v << 16) & 0x1f0000ff0000ff;
-        v = (v | v << 8) & 0x100f00f00f00f00f;
-        v = (v | v << 4) & 0x10c30c30c30c30c3;
-        (v | v << 2) & 0x1249249249249249
-    };
-    spread(x) | spread(y) << 1 | spread(z) << 2
 }
 
 /// A surface made from some points, and what each step took.
