@@ -1,6 +1,7 @@
 //! `myriad bench convert FILE...`: conversion speed, peak memory and size, each run a separate
-//! `myriad convert` process, next to the raw LAS/LAZ decode of the same file (and PotreeConverter
-//! 2 with `--peer`).
+//! `myriad convert` process, next to the raw LAS/LAZ decode of the same file; with `--peer`,
+//! PotreeConverter 2 in the same runs, and with `--peer copc-converter`, copc_converter (a COPC
+//! builder on crates.io) against our `convert` followed by `export --to copc`.
 
 use crate::median;
 use anyhow::Result;
@@ -26,24 +27,59 @@ pub struct ConvertBenchArgs {
     /// Where the dataset is written (removed at the end)
     #[arg(short, long, default_value = "myriad-bench-convert.myr")]
     output: PathBuf,
-    /// Also run PotreeConverter 2 on each file in the same runs (alternating with convert)
-    #[arg(long)]
-    peer: bool,
+    /// Also run a peer on each file in the same runs (alternating with convert):
+    /// potreeconverter (the default of a bare --peer) or copc-converter (against convert and
+    /// export --to copc); repeat for both
+    #[arg(long, num_args = 0..=1, default_missing_value = "potreeconverter",
+          value_parser = ["potreeconverter", "copc-converter"])]
+    peer: Vec<String>,
     /// PotreeConverter 2 [default: ../shared/peers/potreeconverter/PotreeConverter when present]
     #[arg(long)]
     peer_path: Option<PathBuf>,
+    /// copc_converter [default: copc_converter on the PATH, or in ~/.cargo/bin]: install it
+    /// with `cargo install copc_converter`
+    #[arg(long)]
+    copc_converter: Option<PathBuf>,
+}
+
+/// copc_converter where `cargo install` puts it.
+fn default_copc_converter() -> Option<PathBuf> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    std::env::split_paths(&path)
+        .chain(std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo/bin")))
+        .map(|d| d.join("copc_converter"))
+        .find(|p| p.is_file())
+}
+
+/// One run of each side of the COPC comparison: seconds, peak bytes, bytes out.
+#[derive(Default)]
+struct CopcRuns {
+    ours: Vec<(f64, u64, u64)>,
+    export: Vec<f64>,
+    peer: Vec<(f64, u64, u64)>,
 }
 
 pub fn run(a: ConvertBenchArgs) -> Result<()> {
     let exe = std::env::current_exe()?;
+    let wants = |name: &str| a.peer.iter().any(|p| p == name);
     let peer = match (
-        a.peer,
+        wants("potreeconverter"),
         a.peer_path.clone().or_else(crate::export::default_peer),
     ) {
         (false, _) => None,
         (true, Some(p)) => Some(p),
         (true, None) => anyhow::bail!(
             "--peer: PotreeConverter not found (give --peer-path; ../shared/peers has a build)"
+        ),
+    };
+    let copc_peer = match (
+        wants("copc-converter"),
+        a.copc_converter.clone().or_else(default_copc_converter),
+    ) {
+        (false, _) => None,
+        (true, Some(p)) => Some(p),
+        (true, None) => anyhow::bail!(
+            "--peer copc-converter: copc_converter not found (cargo install copc_converter, or give --copc-converter PATH)"
         ),
     };
     let capacities: Vec<Option<usize>> = if a.capacity.is_empty() {
@@ -78,6 +114,7 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
             let (mut secs, mut rates, mut raws, mut peaks) = (vec![], vec![], vec![], vec![]);
             let (mut peer_secs, mut peer_peaks, mut walls) = (vec![], vec![], vec![]);
             let mut last = serde_json::Value::Null;
+            let mut copc = CopcRuns::default();
             for _ in 0..a.runs.max(1) {
                 // Baseline first, in the same minute: the las/laz crates decoding the file.
                 if is_las {
@@ -110,6 +147,35 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
                 secs.push(last["seconds"].as_f64().unwrap_or(f64::NAN));
                 rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
                 peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
+                if let Some(cc) = &copc_peer {
+                    // Our COPC: the dataset just built exported, then removed before the peer
+                    // writes its own.
+                    let ours = a.output.with_extension("copc.laz");
+                    let (t, m) = crate::export::measured(
+                        std::process::Command::new(&exe)
+                            .arg("export")
+                            .arg(&a.output)
+                            .args(["--to", "copc", "--force", "-o"])
+                            .arg(&ours),
+                    )?;
+                    let bytes = std::fs::metadata(&ours)?.len();
+                    std::fs::remove_file(&ours).ok();
+                    let built = last["peak_rss_bytes"].as_f64().unwrap_or(0.0) as u64;
+                    copc.ours
+                        .push((walls[walls.len() - 1] + t, m.max(built), bytes));
+                    copc.export.push(t);
+                    std::fs::remove_file(&a.output).ok();
+                    let theirs = a.output.with_extension("copc-converter.copc.laz");
+                    let (t, m) = crate::export::measured(
+                        std::process::Command::new(cc)
+                            .args(["--progress", "plain"])
+                            .arg(path)
+                            .arg(&theirs),
+                    )?;
+                    let bytes = std::fs::metadata(&theirs)?.len();
+                    std::fs::remove_file(&theirs).ok();
+                    copc.peer.push((t, m, bytes));
+                }
                 if let Some(peer) = &peer {
                     // Ours is measured (its size is in the summary): gone before the peer
                     // writes, so that both fit on the disk for a large input.
@@ -149,6 +215,31 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
                 last["bytes_per_point"].as_f64().unwrap_or(f64::NAN),
                 input_bytes as f64 / points.max(1) as f64,
             );
+            if !copc.peer.is_empty() {
+                let mb = |b: u64| b as f64 / 1e6;
+                let side = |runs: &[(f64, u64, u64)]| {
+                    (
+                        median(runs.iter().map(|r| r.0).collect()),
+                        runs.iter().map(|r| r.1).max().unwrap_or(0),
+                        runs[runs.len() - 1].2,
+                    )
+                };
+                let (ot, om, ob) = side(&copc.ours);
+                let (pt, pm, pb) = side(&copc.peer);
+                println!(
+                    "{:<40} copc_converter: {pt:.2} s, {:.0} MB peak, {:.1} MB ({:.2} B/pt); convert + export --to copc {ot:.2} s (export {:.2}), {:.0} MB peak, {:.1} MB ({:.2} B/pt): {:.2}x its speed, {:.3}x its size",
+                    "",
+                    mb(pm),
+                    mb(pb),
+                    pb as f64 / points.max(1) as f64,
+                    median(copc.export.clone()),
+                    mb(om),
+                    mb(ob),
+                    ob as f64 / points.max(1) as f64,
+                    pt / ot,
+                    ob as f64 / pb.max(1) as f64,
+                );
+            }
             if !peer_secs.is_empty() {
                 // Both as wall time of the whole process.
                 let t = median(peer_secs.clone());

@@ -35,7 +35,11 @@ pub struct ExportBenchArgs {
 /// Runs `cmd` to the end; returns its wall time and peak resident memory in bytes.
 pub(crate) fn measured(cmd: &mut Command) -> Result<(f64, u64)> {
     let start = Instant::now();
-    let child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).spawn()?;
+    let child = cmd
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", Path::new(cmd.get_program()).display()))?;
     let pid = child.id() as libc::pid_t;
     let mut status = 0;
     // SAFETY: rusage is plain data (all zeros is valid); wait4 fills it for our own child.

@@ -430,3 +430,93 @@ fn in_potree_viewer(chromium: &Path, viewer: &Path, d: &Path, cloud: &Path) -> s
     eprintln!("the Potree viewer: {v}");
     v
 }
+
+#[test]
+fn bench_convert_sets_our_copc_beside_copc_converter() {
+    // A stand-in for copc_converter that records its arguments and writes a file of a known
+    // size: the benchmark must run it on the input, measure our convert + export --to copc in
+    // the same run, compare the two sizes, and leave no output behind.
+    let d = tempdir("bench-copc-peer");
+    let las = d.join("scan.laz");
+    ok(&["synth", "-o", s(&las), "--points", "60k", "--force"]);
+    let args = d.join("args.txt");
+    let fake = d.join("copc_converter");
+    std::fs::write(
+        &fake,
+        format!(
+            "#!/bin/sh\necho \"$@\" > {}\nhead -c 1000000 /dev/zero > \"$4\"\n",
+            args.display()
+        ),
+    )
+    .unwrap();
+    Command::new("chmod").arg("+x").arg(&fake).status().unwrap();
+    let out = d.join("b.myr");
+    let r = ok(&[
+        "bench",
+        "convert",
+        s(&las),
+        "--runs",
+        "1",
+        "--peer",
+        "copc-converter",
+        "--copc-converter",
+        s(&fake),
+        "-o",
+        s(&out),
+    ]);
+    let line = r
+        .stdout
+        .lines()
+        .find(|l| l.contains("copc_converter:"))
+        .unwrap_or_else(|| panic!("{}", r.stdout));
+    let given = std::fs::read_to_string(&args).unwrap();
+    assert!(
+        given.starts_with("--progress plain ") && given.contains(s(&las)),
+        "{given}"
+    );
+    // Our COPC of the same input, made again: the ratio printed is its size over 1 MB.
+    let myr = d.join("again.myr");
+    let copc = d.join("again.copc.laz");
+    ok(&["convert", s(&las), "-o", s(&myr)]);
+    ok(&["export", s(&myr), "--to", "copc", "-o", s(&copc)]);
+    let ours = std::fs::metadata(&copc).unwrap().len() as f64;
+    let ratio: f64 = line
+        .split("x its size")
+        .next()
+        .and_then(|l| l.rsplit(", ").next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(
+        (ratio - ours / 1e6).abs() < 0.002,
+        "{ratio} vs {ours}: {line}"
+    );
+    assert!(
+        line.contains("copc_converter: ") && line.contains("1.0 MB"),
+        "{line}"
+    );
+    // Nothing left of either run.
+    let left: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("b."))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // A missing peer is named.
+    let r = myriad(&[
+        "bench",
+        "convert",
+        s(&las),
+        "--runs",
+        "1",
+        "--peer",
+        "copc-converter",
+        "--copc-converter",
+        s(&d.join("nowhere")),
+        "-o",
+        s(&out),
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("nowhere"), "{}", r.stderr);
+    std::fs::remove_dir_all(&d).ok();
+}
