@@ -67,12 +67,38 @@ pub fn decode_png(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, img)
 }
 
-/// An empty folder of this test process.
-pub fn tempdir(name: &str) -> PathBuf {
+/// An empty folder of this test process, removed when the test is done with it unless it
+/// failed (kept to look at): tests that return early no longer leave theirs in the temporary
+/// folder.
+pub fn tempdir(name: &str) -> TempDir {
     let d = std::env::temp_dir().join(format!("myriad-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TempDir(d)
+}
+
+/// A test's folder ([`tempdir`]).
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 pub fn s(p: &Path) -> &str {
