@@ -476,6 +476,9 @@ pub fn merge(alone: Vec<Selection>, budget: u64) -> Vec<Selection> {
     }
     for (s, a) in out.iter_mut().zip(alone) {
         s.culled = a.culled;
+        // What the occlusion queries test after the frame (`Occlusion::Checked`, the same
+        // frame's reveal): without them a node culled once would never be looked at again.
+        s.hidden = a.hidden;
         s.pages = a.pages;
         s.used_pages = a.used_pages;
         s.prefetch = a.prefetch;

@@ -745,7 +745,9 @@ impl Scene {
 }
 
 /// One frame of several scenes seen together: one point budget over all of them (`select_many`),
-/// drawn into one image with one depth buffer.
+/// drawn into one image with one depth buffer. Where every scene waits for its queries
+/// ([`Scene::query_wait`], [`Scene::same_frame`]), the nodes culled that show are drawn in
+/// the same frame, as [`Scene::frame`] does.
 pub fn frame_many(
     scenes: &mut [&mut Scene],
     gpu: &Gpu,
@@ -754,20 +756,76 @@ pub fn frame_many(
     options: &SelectOptions,
     style: &Style,
 ) -> (Vec<u8>, Vec<FrameStats>) {
-    let t = Instant::now();
-    let alone = scenes
+    let select_all = |scenes: &mut [&mut Scene]| {
+        let t = Instant::now();
+        let alone = scenes
+            .iter()
+            .map(|s| s.select(camera, options, style.clip))
+            .collect();
+        (merge(alone, options.budget), t.elapsed())
+    };
+    let (selections, mut select) = select_all(scenes);
+    let (mut image, mut stats) = draw_many(scenes, selections, gpu, raster, camera, style);
+    // As `Scene::frame`: where every scene waits for its queries, the nodes culled that show
+    // in the frame are drawn in it (the selections made and drawn again).
+    let same_frame = scenes
         .iter()
-        .map(|s| s.select(camera, options, style.clip))
-        .collect();
-    let selections = merge(alone, options.budget);
-    let select = t.elapsed();
-    let (image, mut stats) = draw_many(scenes, selections, gpu, raster, camera, style);
-    for s in &mut stats {
+        .all(|s| s.occlusion.queries() && s.query_wait && s.same_frame);
+    let mut revealed = vec![0; scenes.len()];
+    let mut query = Duration::ZERO;
+    let mut still_hidden = false;
+    for _ in 0..REVEAL_ROUNDS {
+        if !same_frame || scenes.is_empty() {
+            break;
+        }
+        let t = Instant::now();
+        let more: Vec<usize> = scenes
+            .iter_mut()
+            .map(|s| {
+                let last = std::mem::take(&mut s.last);
+                let n = s.reveal(gpu, raster, &last);
+                s.last = last;
+                n
+            })
+            .collect();
+        query += t.elapsed();
+        if more.iter().all(|&n| n == 0) {
+            still_hidden = true;
+            break;
+        }
+        revealed.iter_mut().zip(&more).for_each(|(r, n)| *r += n);
+        let (selections, took) = select_all(scenes);
+        select += took;
+        (image, stats) = draw_many(scenes, selections, gpu, raster, camera, style);
+    }
+    query_many(scenes, &mut stats, gpu, raster, camera, still_hidden);
+    for (s, r) in stats.iter_mut().zip(revealed) {
         s.select = select;
         s.select_current = true;
         s.select_budget = options.budget;
+        s.revealed = r;
+        s.query += query / scenes.len().max(1) as u32;
     }
     (image, stats)
+}
+
+/// Each scene's occlusion queries after a frame of [`draw_many`] (`Scene::query_hidden`), their
+/// time in its statistics.
+fn query_many(
+    scenes: &mut [&mut Scene],
+    stats: &mut [FrameStats],
+    gpu: &Gpu,
+    raster: &Rasterizer,
+    camera: &Camera,
+    still_hidden: bool,
+) {
+    for (s, scene) in stats.iter_mut().zip(scenes.iter_mut()) {
+        let t = Instant::now();
+        let last = std::mem::take(&mut scene.last);
+        scene.query_hidden(gpu, raster, camera, &last, still_hidden);
+        scene.last = last;
+        s.query = t.elapsed();
+    }
 }
 
 /// [`frame_many`] with each scene's selection on its own thread ([`crate::selector`]): asks for
@@ -805,6 +863,7 @@ pub fn frame_many_threaded(
     let selections = merge(alone, options.budget);
     let select = t.elapsed();
     let (image, mut stats) = draw_many(scenes, selections, gpu, raster, camera, style);
+    query_many(scenes, &mut stats, gpu, raster, camera, false);
     for ((s, scene), serial) in stats.iter_mut().zip(scenes.iter()).zip(serials) {
         s.select = select;
         match &scene.alone {
@@ -823,7 +882,8 @@ pub fn frame_many_threaded(
     (image, stats)
 }
 
-/// Loads, uploads and draws the given selections of `scenes` in one image.
+/// Loads, uploads and draws the given selections of `scenes` in one image (each scene's
+/// selection then its `last`); the callers query (`query_many`).
 fn draw_many(
     scenes: &mut [&mut Scene],
     selections: Vec<Selection>,
@@ -863,11 +923,8 @@ fn draw_many(
     let image = raster.render(gpu, camera, &all_draws, &tree, style);
     drop(all_draws);
     let draw = t.elapsed();
-    for ((s, scene), selection) in stats.iter_mut().zip(scenes.iter_mut()).zip(&selections) {
+    for s in stats.iter_mut() {
         s.draw = draw;
-        let t = Instant::now();
-        scene.query_hidden(gpu, raster, camera, selection, false);
-        s.query = t.elapsed();
     }
     for ((scene, selection), keys) in scenes.iter_mut().zip(selections).zip(drawn) {
         scene.last = selection;

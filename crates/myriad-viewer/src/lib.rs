@@ -175,7 +175,8 @@ pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), 
         scene.occlusion = o.occlusion;
         // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
         scene.upload_limit = (64 << 20) / shares;
-        // Occlusion queries read when the GPU has them: a frame never waits for the last one.
+        // Occlusion queries read when the GPU has them: a frame never waits for the last one
+        // (on the CPU path they are answered at once and waited for: `draw`).
         scene.query_wait = false;
         bounds.extend(scene.view_bounds.min);
         bounds.extend(scene.view_bounds.max);
@@ -513,7 +514,14 @@ impl App {
             .filter(|l| l.visible)
             .map(|l| &mut l.scene)
             .collect();
-        let frame = if self.raster.path == myriad_render::Path::Cpu {
+        // On the CPU the occlusion queries are answered at once: each frame waits for them, and
+        // the nodes culled that show are drawn in the frame they come into sight (003's queries
+        // as Gobbetti and Marton schedule them); on a GPU they are read when it has them.
+        let cpu = self.raster.path == myriad_render::Path::Cpu;
+        for s in scenes.iter_mut() {
+            s.query_wait = cpu;
+        }
+        let frame = if cpu {
             myriad_render::frame_many
         } else {
             myriad_render::frame_many_threaded

@@ -451,19 +451,23 @@ fn bench_convert_sets_our_copc_beside_copc_converter() {
     .unwrap();
     Command::new("chmod").arg("+x").arg(&fake).status().unwrap();
     let out = d.join("b.myr");
-    let r = ok(&[
-        "bench",
-        "convert",
-        s(&las),
-        "--runs",
-        "1",
-        "--peer",
-        "copc-converter",
-        "--copc-converter",
-        s(&fake),
-        "-o",
-        s(&out),
-    ]);
+    let bench = |peer: &Path| {
+        myriad(&[
+            "bench",
+            "convert",
+            s(&las),
+            "--runs",
+            "1",
+            "--peer",
+            "copc-converter",
+            "--copc-converter",
+            s(peer),
+            "-o",
+            s(&out),
+        ])
+    };
+    let r = bench(&fake);
+    assert_eq!(r.code, 0, "{}", r.stderr);
     let line = r
         .stdout
         .lines()
@@ -503,19 +507,7 @@ fn bench_convert_sets_our_copc_beside_copc_converter() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
     // A missing peer is named.
-    let r = myriad(&[
-        "bench",
-        "convert",
-        s(&las),
-        "--runs",
-        "1",
-        "--peer",
-        "copc-converter",
-        "--copc-converter",
-        s(&d.join("nowhere")),
-        "-o",
-        s(&out),
-    ]);
+    let r = bench(&d.join("nowhere"));
     assert_eq!(r.code, 1, "{}", r.stderr);
     assert!(r.stderr.contains("nowhere"), "{}", r.stderr);
     std::fs::remove_dir_all(&d).ok();
