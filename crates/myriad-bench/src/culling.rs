@@ -8,7 +8,8 @@
 //! with its culls queried; the last two drawn until the selection settles) and each `--budgets`
 //! (then the 1-pixel threshold alone, no budget), once converged: nodes and points selected,
 //! nodes culled, the median selection, query and frame time of `--frames` frames, and the PSNR
-//! against the image of every point with culling off. `--walk N`: a walk from the inside view,
+//! against the image of every point with culling off ("viewer": checked culling in the frame
+//! `view` draws on the CPU, `frame_many`). `--walk N`: a walk from the inside view,
 //! each frame of each method (queries acting in the same frame and from the next one) against
 //! culling off's.
 
@@ -141,6 +142,8 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                 for (method, occlusion) in [
                     ("off", Occlusion::Off),
                     ("software", Occlusion::Software),
+                    // After "software", which leaves no query's answer behind.
+                    ("viewer", Occlusion::Checked),
                     ("queries", Occlusion::Queries),
                     ("checked", Occlusion::Checked),
                 ] {
@@ -149,15 +152,40 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
                         budget,
                         min_pixels: 1.0,
                     };
+                    // "viewer": checked culling as `view` draws on the CPU (`frame_many`, the
+                    // frame the datasets shown together share).
+                    let viewer = method == "viewer";
+                    let frame = |scene: &mut Scene| {
+                        if viewer {
+                            let (image, mut stats) = myriad_render::frame_many(
+                                &mut [scene],
+                                &gpu,
+                                &raster,
+                                &cam,
+                                &o,
+                                &style,
+                            );
+                            (image, stats.remove(0))
+                        } else {
+                            scene.frame(&gpu, &raster, &cam, &o, &style)
+                        }
+                    };
                     // Queries act from the frame after theirs: drawn until the selection
-                    // settles.
-                    scene.settle(&gpu, &raster, &cam, &o, &style);
+                    // settles (the viewer's frames as the viewer draws them).
+                    if viewer {
+                        scene.converge(&cam, &o, None);
+                        for _ in 0..8 {
+                            frame(&mut scene);
+                        }
+                    } else {
+                        scene.settle(&gpu, &raster, &cam, &o, &style);
+                    }
                     let mut frames = Vec::new();
                     let mut image = Vec::new();
                     let mut stats = myriad_render::FrameStats::default();
                     for _ in 0..a.frames.max(1) {
                         let t = Instant::now();
-                        (image, stats) = scene.frame(&gpu, &raster, &cam, &o, &style);
+                        (image, stats) = frame(&mut scene);
                         frames.push((
                             t.elapsed().as_secs_f64(),
                             stats.select.as_secs_f64(),
