@@ -11,7 +11,7 @@ use crate::points::{Draw, Layout};
 use crate::targets::Targets;
 use wgpu::util::DeviceExt;
 
-/// The compute path's shader: draw.wgsl, then compute.wgsl.
+/// The compute path's shader: draw.wgsl, blend.wgsl, then compute.wgsl.
 pub const RASTER_WGSL: &str = concat!(
     include_str!("draw.wgsl"),
     include_str!("blend.wgsl"),

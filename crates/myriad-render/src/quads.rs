@@ -12,7 +12,7 @@ use crate::points::{Draw, Layout};
 use crate::targets::{BLEND_FORMAT, Targets};
 use std::sync::OnceLock;
 
-/// The quad path's shader: draw.wgsl, then quads.wgsl.
+/// The quad path's shader: draw.wgsl, blend.wgsl, then quads.wgsl.
 pub const QUADS_WGSL: &str = concat!(
     include_str!("draw.wgsl"),
     include_str!("blend.wgsl"),
