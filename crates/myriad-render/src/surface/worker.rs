@@ -31,6 +31,20 @@ pub struct Worker {
     jobs: Sender<Job>,
     done: Receiver<Made>,
     busy: bool,
+    /// Joined when the worker is dropped: its thread lets go of its GPU before the process
+    /// goes on to exit (a driver unloaded on this thread while the main thread runs the exit
+    /// handlers crashed the process, 1 exit in about 20 on lavapipe).
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        // Closing the channel ends the thread's loop.
+        drop(std::mem::replace(&mut self.jobs, channel().0));
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 impl Default for Worker {
@@ -40,7 +54,7 @@ impl Default for Worker {
 }
 
 impl Worker {
-    /// Starts the worker's thread (it ends when the worker is dropped), making surfaces on the
+    /// Starts the worker's thread (it ends when the worker is dropped, which waits for it), making surfaces on the
     /// CPU.
     pub fn new() -> Worker {
         Worker::on(None)
@@ -51,7 +65,7 @@ impl Worker {
         let gpu = gpu.filter(|g| !g.is_cpu());
         let (jobs, inbox) = channel::<Job>();
         let (outbox, done) = channel();
-        std::thread::Builder::new()
+        let thread = std::thread::Builder::new()
             .name("surface".into())
             .spawn(move || {
                 while let Ok(job) = inbox.recv() {
@@ -84,6 +98,7 @@ impl Worker {
             jobs,
             done,
             busy: false,
+            thread: Some(thread),
         }
     }
 
