@@ -32,6 +32,8 @@ struct Vertex {
 pub struct Drawer {
     pipeline: wgpu::RenderPipeline,
     chain: Chain,
+    /// Surfaces are not blended: the g-buffer pass reads a texel of zeros.
+    no_blend: wgpu::TextureView,
 }
 
 impl Drawer {
@@ -52,6 +54,13 @@ impl Drawer {
         Drawer {
             pipeline,
             chain: Chain::new(gpu, FB_QUADS_WGSL),
+            no_blend: crate::pipelines::target(
+                gpu,
+                "no blend",
+                (1, 1),
+                crate::targets::BLEND_FORMAT,
+                wgpu::TextureUsages::TEXTURE_BINDING,
+            ),
         }
     }
 
@@ -191,14 +200,6 @@ impl Drawer {
         }
         let out_pixels = ((w / f) * (h / f)) as u64;
         let buffers = Buffers::new(gpu, (w * h) as u64, out_pixels);
-        // Surfaces are not blended: the g-buffer pass reads a texel of zeros.
-        let no_blend = crate::pipelines::target(
-            gpu,
-            "no blend",
-            (1, 1),
-            crate::targets::BLEND_FORMAT,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-        );
         let framebuffer = vec![
             wgpu::BindGroupEntry {
                 binding: 1,
@@ -214,7 +215,7 @@ impl Drawer {
             },
             wgpu::BindGroupEntry {
                 binding: 5,
-                resource: wgpu::BindingResource::TextureView(&no_blend),
+                resource: wgpu::BindingResource::TextureView(&self.no_blend),
             },
         ];
         self.chain.encode(
