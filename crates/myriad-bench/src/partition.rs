@@ -25,6 +25,22 @@ pub struct PartitionBenchArgs {
     /// Slurm CPUs per part task; the parts run with as many threads
     #[arg(long, default_value_t = 1)]
     cpus_per_part: usize,
+    /// Plans with `plan --whole-inputs` (each part decompresses every LAZ input that reaches
+    /// its cells whole): the partitioned build as it was before chunks were chosen
+    #[arg(long)]
+    whole_inputs: bool,
+}
+
+/// CPU seconds (user and system) of this process's children that have ended.
+fn children_cpu() -> f64 {
+    // SAFETY: getrusage only fills `u`, which is plain data.
+    let u = unsafe {
+        let mut u: libc::rusage = std::mem::zeroed();
+        libc::getrusage(libc::RUSAGE_CHILDREN, &mut u);
+        u
+    };
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
 }
 
 /// Runs this program with `args`; its stdout, and the seconds it took.
@@ -45,17 +61,31 @@ fn run(args: &[&str]) -> Result<(String, f64)> {
     ))
 }
 
-/// The numbers a part's or the merge's Slurm log gives: "time  X s" and "memory  Y MB".
-fn log_figures(path: &Path) -> Result<(f64, f64)> {
+/// What a part's or the merge's Slurm log gives.
+struct Figures {
+    /// "time  X s", "cpu  X s", "memory  Y MB", "read  N points" (NaN where absent).
+    seconds: f64,
+    cpu: f64,
+    mb: f64,
+    read: f64,
+}
+
+/// The numbers a part's or the merge's Slurm log gives.
+fn log_figures(path: &Path) -> Result<Figures> {
     let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
     let field = |name: &str| {
         text.lines()
             .find_map(|l| l.trim().strip_prefix(name))
             .and_then(|r| r.split_whitespace().next())
-            .and_then(|v| v.parse::<f64>().ok())
+            .and_then(|v| v.replace(',', "").parse::<f64>().ok())
             .unwrap_or(f64::NAN)
     };
-    Ok((field("time"), field("memory")))
+    Ok(Figures {
+        seconds: field("time"),
+        cpu: field("cpu"),
+        mb: field("memory"),
+        read: field("read"),
+    })
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -81,24 +111,30 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
     args.extend(inputs.iter().map(String::as_str));
     let one_s = s(&one);
     args.extend(["-o", &one_s, "--force", "--json", "--memory", &a.memory]);
+    let before = children_cpu();
     let (out, one_secs) = run(&args)?;
+    let one_cpu = children_cpu() - before;
     let v: serde_json::Value = serde_json::from_str(&out)?;
     let points = v["points"].as_u64().unwrap_or(0);
     let one_peak = v["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6;
     std::fs::remove_file(&one)?;
     println!(
-        "one machine ({cores} cores): {points} points, {one_secs:.1} s, {:.2} M points/s, {one_peak:.0} MB peak",
+        "one machine ({cores} cores): {points} points, {one_secs:.1} s, {one_cpu:.1} CPU s, {:.2} M points/s, {one_peak:.0} MB peak",
         points as f64 / one_secs / 1e6
     );
     println!(
-        "{:>5} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10} {:>8} {:>9} {:>9}",
+        "{:>5} {:>3} {:>7} {:>8} {:>8} {:>6} {:>7} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>8}",
         "parts",
         "P",
         "plan s",
+        "plan cpu",
         "wall s",
         "x one",
         "part s",
-        "part max s",
+        "part max",
+        "cpu s",
+        "x one",
+        "read x",
         "part MB",
         "merge s",
         "merge MB"
@@ -121,7 +157,12 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
             "--threads",
             &threads,
         ]);
+        if a.whole_inputs {
+            args.push("--whole-inputs");
+        }
+        let before = children_cpu();
         let (_, plan_secs) = run(&args)?;
+        let plan_cpu = children_cpu() - before;
         let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&plan)?)?;
         let out = scratch.join(format!("parts-{n}.myr"));
         let dir = scratch.join(format!("parts-{n}"));
@@ -151,19 +192,27 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
             .context("the merge's job id")?
             .to_string();
         let mut times = Vec::new();
-        let mut peak = 0f64;
+        let (mut peak, mut cpu, mut read) = (0f64, 0f64, 0f64);
         for i in 0..n {
-            let (t, m) = log_figures(&dir.join(format!("slurm-{job}_{i}.out")))?;
-            times.push(t);
-            peak = peak.max(m);
+            let f = log_figures(&dir.join(format!("slurm-{job}_{i}.out")))?;
+            times.push(f.seconds);
+            peak = peak.max(f.mb);
+            cpu += f.cpu;
+            read += f.read;
         }
-        let (merge_t, merge_m) = log_figures(&dir.join(format!("slurm-merge-{merge_job}.out")))?;
+        let m = log_figures(&dir.join(format!("slurm-merge-{merge_job}.out")))?;
+        // The whole build's CPU: plan, parts and merge.
+        cpu += plan_cpu + m.cpu;
         let max = times.iter().copied().fold(0.0, f64::max);
         let med = median(&mut times);
         println!(
-            "{n:>5} {:>8} {plan_secs:>8.2} {wall:>8.1} {:>9.2} {med:>9.1} {max:>10.1} {peak:>8.0} {merge_t:>9.1} {merge_m:>9.0}",
+            "{n:>5} {:>3} {plan_secs:>7.2} {plan_cpu:>8.2} {wall:>8.1} {:>6.2} {med:>7.1} {max:>8.1} {cpu:>8.1} {:>7.3} {:>7.2} {peak:>7.0} {:>8.1} {:>8.0}",
             p["partition_level"].as_u64().unwrap_or(0),
-            wall / one_secs
+            wall / one_secs,
+            cpu / one_cpu,
+            read / points as f64,
+            m.seconds,
+            m.mb
         );
         let merged = myriad_format::Dataset::open(&out)?;
         if merged.meta.points != points {
@@ -178,7 +227,9 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         std::fs::remove_dir_all(&dir)?;
     }
     println!(
-        "(part s: median of the parts; wall: submission to merged, {cores} cores shared by the parts)"
+        "(part s: median of the parts; wall: submission to merged, {cores} cores shared by the parts; \
+         cpu s: plan, parts and merge together, x one against the one-machine build's; read x: \
+         points the parts read over the points)"
     );
     Ok(())
 }

@@ -25,6 +25,8 @@ fn options(parts: usize, structure: Structure) -> PlanOptions {
         precision: 1e-4,
         open: Default::default(),
         chunk_points: Some(15_000),
+        chunks: true,
+        chunk_cache: None,
     }
 }
 
@@ -46,7 +48,8 @@ fn pages(path: &Path) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-fn build_all(plan: &BuildPlan, parts: &Path) {
+fn build_all(plan: &BuildPlan, parts: &Path) -> Vec<partition::PartSummary> {
+    let mut out = Vec::new();
     for i in 0..plan.parts.len() {
         let s = partition::build_part(plan, i, parts, 2, &Silent).unwrap();
         if s.points > 0 {
@@ -55,12 +58,49 @@ fn build_all(plan: &BuildPlan, parts: &Path) {
             assert!(r.damage.is_empty(), "part {i}: {:?}", r.damage);
             assert_eq!(ds.meta.points, s.points);
         }
+        out.push(s);
     }
+    out
 }
 
-fn same_as_one_machine(structure: Structure, name: &str) {
+/// The points of `las` as LAZ (50,000-point chunks) in the order of their cells of level 3 (x
+/// most significant, as the plans order cells):
+/// a tile's points sorted as a spatial index would leave them, so that chunks are compact.
+fn sorted_laz(las: &Path) -> std::path::PathBuf {
+    let src = myriad_io::las::LasSource::open(las).unwrap();
+    let opts = myriad_io::las::LasWriteOptions::like(src.header());
+    let all = common::read_all(las);
+    let b = all
+        .positions
+        .iter()
+        .fold(myriad_core::Aabb::EMPTY, |mut b, &p| {
+            b.extend(p);
+            b
+        });
+    let cell = |p: [f64; 3]| -> [u32; 3] {
+        std::array::from_fn(|a| {
+            let f = (p[a] - b.min[a]) / (b.max[a] - b.min[a]).max(1e-9);
+            (f * 8.0).clamp(0.0, 7.0) as u32
+        })
+    };
+    let mut order: Vec<u32> = (0..all.len() as u32).collect();
+    order.sort_by_key(|&i| {
+        let c = cell(all.positions[i as usize]);
+        myriad_core::geometry::morton(c[2], c[1], c[0])
+    });
+    let laz = las.with_extension("laz");
+    let mut sink = myriad_io::las::LasSink::create(&laz, opts, true).unwrap();
+    sink.write(&all.gather(&order)).unwrap();
+    sink.finish().unwrap();
+    laz
+}
+
+fn same_as_one_machine(structure: Structure, name: &str, laz: bool) {
     let d = tempdir(name);
-    let las = synth(&d, 250_000, 5);
+    let mut las = synth(&d, 250_000, 5);
+    if laz {
+        las = sorted_laz(&las);
+    }
     let plan = partition::plan(std::slice::from_ref(&las), &options(4, structure)).unwrap();
     assert!(plan.partition_level >= 1 && plan.partition_level <= plan.chunk_level);
     assert_eq!(plan.parts.len(), 4);
@@ -75,7 +115,32 @@ fn same_as_one_machine(structure: Structure, name: &str) {
     let plan = BuildPlan::load(&plan_path).unwrap();
 
     let parts = d.join("parts");
-    build_all(&plan, &parts);
+    let summaries = build_all(&plan, &parts);
+    let read: u64 = summaries
+        .iter()
+        .flat_map(|s| &s.inputs)
+        .flatten()
+        .map(|i| i.1)
+        .sum();
+    if laz {
+        // Each part decompressed only its chunks: fewer points than a whole file each, and
+        // exactly its chunks' points.
+        assert_eq!(plan.chunked.len(), 1, "the LAZ input meets several parts");
+        let c = &plan.chunked[0];
+        assert_eq!(c.chunks, 5);
+        let chunks = myriad_io::las::chunk_bounds(&las).unwrap().unwrap();
+        for (i, s) in summaries.iter().enumerate() {
+            let want: u64 = c.of(i).iter().map(|&k| chunks[k as usize].0.points).sum();
+            assert_eq!(s.inputs[0].map_or(0, |x| x.1), want, "part {i}");
+            assert!(want < 250_000, "part {i} reads {:?} of 5 chunks", c.of(i));
+        }
+        assert!(
+            read < 3 * 250_000,
+            "the parts read {read} points of 250,000 (whole: 1,000,000)"
+        );
+    } else {
+        assert_eq!(read, 4 * 250_000, "a LAS input is read whole by every part");
+    }
     let merged = d.join("merged.myr");
     let m = partition::merge(&plan, &parts, &merged, false, 2, &Silent).unwrap();
     assert_eq!(m.points, 250_000);
@@ -104,12 +169,108 @@ fn same_as_one_machine(structure: Structure, name: &str) {
 
 #[test]
 fn octree_parts_merge_to_the_one_machine_build() {
-    same_as_one_machine(Structure::Octree, "partition-octree");
+    same_as_one_machine(Structure::Octree, "partition-octree", false);
 }
 
 #[test]
 fn layered_parts_merge_to_the_one_machine_build() {
-    same_as_one_machine(Structure::Layered, "partition-layered");
+    same_as_one_machine(Structure::Layered, "partition-layered", false);
+}
+
+/// A LAZ input that several parts meet: each part decompresses only the chunks whose points
+/// meet its cells, and the merge is still the one-machine build, page for page.
+#[test]
+fn parts_decompress_only_their_laz_chunks() {
+    same_as_one_machine(Structure::Octree, "partition-chunks", true);
+}
+
+/// The chunks' bounds are kept beside the plan and used by the next plan while the input is
+/// unchanged (same size and time); a changed input is passed over again.
+#[test]
+fn chunk_bounds_are_kept_for_the_next_plan() {
+    let d = tempdir("partition-chunk-cache");
+    let laz = sorted_laz(&synth(&d, 120_000, 7));
+    let cache = d.join("plan.chunks.json");
+    let mut o = options(3, Structure::Octree);
+    o.chunk_cache = Some(cache.clone());
+    let first = partition::plan(std::slice::from_ref(&laz), &o).unwrap();
+    assert_eq!(first.chunked.len(), 1);
+    let text = std::fs::read_to_string(&cache).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let key = laz.display().to_string();
+    assert_eq!(v["inputs"][&key]["chunks"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        partition::plan(std::slice::from_ref(&laz), &o)
+            .unwrap()
+            .chunked,
+        first.chunked
+    );
+    // Bounds far from the scan, in the cache: the next plan believes them (every chunk in the
+    // corner cell's part at most), which shows that it read the cache instead of the input.
+    let mut v = v;
+    for c in v["inputs"][&key]["chunks"].as_array_mut().unwrap() {
+        for k in 1..7 {
+            c[k] = serde_json::json!(-1e9);
+        }
+    }
+    std::fs::write(&cache, v.to_string()).unwrap();
+    let fooled = partition::plan(std::slice::from_ref(&laz), &o).unwrap();
+    assert_ne!(fooled.chunked, first.chunked);
+    assert!(
+        fooled.chunked[0]
+            .parts
+            .iter()
+            .filter(|p| !p.is_empty())
+            .count()
+            <= 1
+    );
+    // The input touched: passed over again.
+    let f = std::fs::File::options().append(true).open(&laz).unwrap();
+    f.set_modified(std::time::SystemTime::now() + std::time::Duration::from_secs(5))
+        .unwrap();
+    drop(f);
+    assert_eq!(
+        partition::plan(std::slice::from_ref(&laz), &o)
+            .unwrap()
+            .chunked,
+        first.chunked
+    );
+    // A cache that is not JSON is made anew.
+    std::fs::write(&cache, "not json").unwrap();
+    assert_eq!(
+        partition::plan(std::slice::from_ref(&laz), &o)
+            .unwrap()
+            .chunked,
+        first.chunked
+    );
+    assert!(std::fs::read_to_string(&cache).unwrap().starts_with('{'));
+}
+
+/// A tile with no points (as cutting a scan into a grid leaves at its corners) has no bounds:
+/// its plan still loads, and the parts and the merge skip it.
+#[test]
+fn an_empty_input_is_planned_and_merged() {
+    let d = tempdir("partition-empty-input");
+    let las = synth(&d, 30_000, 4);
+    let src = myriad_io::las::LasSource::open(&las).unwrap();
+    let empty = d.join("empty.las");
+    let sink = myriad_io::las::LasSink::create(
+        &empty,
+        myriad_io::las::LasWriteOptions::like(src.header()),
+        true,
+    )
+    .unwrap();
+    assert_eq!(sink.finish().unwrap(), 0);
+    let inputs = [las, empty];
+    let plan = partition::plan(&inputs, &options(2, Structure::Octree)).unwrap();
+    let p = d.join("plan.json");
+    std::fs::write(&p, plan.to_json().to_string()).unwrap();
+    let plan = BuildPlan::load(&p).unwrap();
+    assert_eq!(plan.inputs[1].points, 0);
+    let parts = d.join("parts");
+    build_all(&plan, &parts);
+    let m = partition::merge(&plan, &parts, &d.join("m.myr"), false, 1, &Silent).unwrap();
+    assert_eq!(m.points, 30_000);
 }
 
 #[test]

@@ -3,6 +3,8 @@
 //! (`las_records`), which is several times faster than materializing `las::Point`s.
 
 use crate::atomic::AtomicFile;
+use crate::las_chunks;
+pub use crate::las_chunks::{LazChunk, chunk_bounds};
 pub use crate::las_extra::{extra_bytes_vlr, extra_dims};
 use crate::las_guard::{
     HEADER_PREFIX, check_evlr, check_header, check_laz_chunk_table, check_laz_layers, check_vlrs,
@@ -55,6 +57,8 @@ pub struct LasSource {
     pub(crate) data_at: u64,
     remaining: u64,
     stream: Option<RecordStream>,
+    /// The LAZ chunks to read, where only some are ([`LasSource::keep_chunks`]).
+    kept: Option<Vec<LazChunk>>,
 }
 
 /// Raw record blocks from the producer threads, and the part of the last block not yet decoded.
@@ -73,7 +77,7 @@ struct RecordStream {
 
 /// Records per block a producer thread reads: several LAZ chunks, so that decompression runs
 /// on all cores, and a few tens of megabytes at most.
-const PRODUCER_BLOCK: u64 = 1 << 19;
+pub(crate) const PRODUCER_BLOCK: u64 = 1 << 19;
 
 fn header_error(path: &Path, e: las::Error) -> Error {
     Error::at_byte(
@@ -229,7 +233,54 @@ impl LasSource {
             data_at: raw.offset_to_point_data as u64,
             remaining: count,
             stream: None,
+            kept: None,
         })
+    }
+
+    /// The file's LAZ chunks (`None`: not LAZ, or written without a chunk table).
+    pub fn chunks(&self) -> Result<Option<Vec<LazChunk>>> {
+        las_chunks::table(
+            &self.info.path,
+            &self.header,
+            self.data_at,
+            self.info.file_size,
+        )
+    }
+
+    /// Reads only the LAZ chunks `indices` (of the chunk table, ascending), before any point is
+    /// read: the source then holds their points only (`info().points` says how many).
+    pub fn keep_chunks(&mut self, indices: &[u32]) -> Result<()> {
+        let path = &self.info.path;
+        if self.stream.is_some() {
+            return Err(Error::Invalid(format!(
+                "{}: chunks chosen after reading began",
+                path.display()
+            )));
+        }
+        let all = self.chunks()?.ok_or_else(|| {
+            Error::at_byte(
+                path,
+                self.data_at,
+                "chunks to read were given, but the file has no LAZ chunk table (it changed \
+                 since the plan was made?)",
+            )
+        })?;
+        let mut kept = Vec::with_capacity(indices.len());
+        for (k, &i) in indices.iter().enumerate() {
+            let c = all.get(i as usize).filter(|_| k == 0 || indices[k - 1] < i);
+            kept.push(*c.ok_or_else(|| {
+                Error::Invalid(format!(
+                    "{}: chunk {i} of {} asked for (out of order, or the file changed since the \
+                     plan was made: plan again)",
+                    path.display(),
+                    all.len()
+                ))
+            })?);
+        }
+        self.remaining = kept.iter().map(|c| c.points).sum();
+        self.info.points = Some(self.remaining);
+        self.kept = Some(kept);
+        Ok(())
     }
 
     /// The parsed LAS header, for writers that copy a file's point format, VLRs and scaling.
@@ -260,6 +311,63 @@ fn start_stream(path: &Path, header: &las::Header, data_at: u64, total: u64) -> 
                 .name("las-reader".into())
                 .spawn(move || produce_records(path, data_at, total, (first, stride), tx, spent_rx))
                 .expect("spawn LAS reader thread");
+            (rx, spent)
+        })
+        .collect();
+    RecordStream {
+        producers,
+        next: 0,
+        pending: None,
+        at: 0,
+    }
+}
+
+/// Starts the producer threads that read (and decompress) the LAZ chunks `chunks`, in blocks of
+/// whole chunks, two producers in turn where there is more than one block.
+fn start_chunk_stream(path: &Path, header: &las::Header, chunks: &[LazChunk]) -> RecordStream {
+    let blocks = Arc::new(las_chunks::blocks(chunks, producer_block(header)));
+    let stride = blocks.len().clamp(1, 2);
+    let builder = las::PointDataBuilder::new().for_header(header);
+    let vlr = header.laz_vlr().ok();
+    let producers = (0..stride)
+        .map(|first| {
+            let (tx, rx) = sync_channel(1);
+            let (spent, spent_rx) = sync_channel(2);
+            let (path, blocks) = (path.to_path_buf(), blocks.clone());
+            let (builder, vlr) = (builder.clone(), vlr.clone());
+            std::thread::Builder::new()
+                .name("laz-chunks".into())
+                .spawn(move || {
+                    let produce = |tx: &SyncSender<Result<las::PointData>>| -> Result<()> {
+                        let vlr =
+                            vlr.ok_or_else(|| Error::at_byte(&path, 0, "invalid laszip VLR"))?;
+                        let mut file = File::open(&path).map_err(|e| Error::io(&path, e))?;
+                        let mut compressed = Vec::new();
+                        for block in blocks.iter().skip(first).step_by(stride) {
+                            let n: u64 = block.iter().map(|c| c.points).sum();
+                            let mut data = spent_rx
+                                .try_recv()
+                                .unwrap_or_else(|_| builder.clone().build());
+                            las_chunks::decompress(
+                                &path,
+                                &mut file,
+                                &vlr,
+                                block,
+                                laz::DecompressionSelection::all(),
+                                &mut compressed,
+                                data.resize_for(n as usize),
+                            )?;
+                            if tx.send(Ok(data)).is_err() {
+                                break; // the source was dropped
+                            }
+                        }
+                        Ok(())
+                    };
+                    if let Err(e) = produce(&tx) {
+                        let _ = tx.send(Err(e));
+                    }
+                })
+                .expect("spawn LAZ chunk reader thread");
             (rx, spent)
         })
         .collect();
@@ -503,9 +611,11 @@ impl PointSource for LasSource {
         }
         let (path, header) = (&self.info.path, &self.header);
         let (data_at, total) = (self.data_at, self.remaining);
-        let stream = self
-            .stream
-            .get_or_insert_with(|| start_stream(path, header, data_at, total));
+        let kept = self.kept.as_deref();
+        let stream = self.stream.get_or_insert_with(|| match kept {
+            Some(k) => start_chunk_stream(path, header, k),
+            None => start_stream(path, header, data_at, total),
+        });
         if stream.at == stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) {
             stream.advance(path)?;
         }

@@ -16,6 +16,7 @@ pub mod copc;
 pub mod e57;
 pub mod image;
 pub mod las;
+mod las_chunks;
 mod las_extra;
 mod las_guard;
 pub mod las_preview;
@@ -182,6 +183,9 @@ pub struct OpenOptions {
     pub sidecar_placements: bool,
     /// Move every point into another CRS as it is read (after its placement).
     pub reproject: Option<reproject::Reproject>,
+    /// LAZ inputs of which only some chunks are read (their indices in the chunk table,
+    /// ascending): a part of a partitioned build reads the chunks that meet its cells.
+    pub laz_chunks: Option<std::sync::Arc<std::collections::HashMap<PathBuf, Vec<u32>>>>,
 }
 
 /// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
@@ -194,7 +198,13 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> 
         ));
     }
     let source: Box<dyn PointSource> = match detect(path)? {
-        Format::Las | Format::Laz => Box::new(las::LasSource::open(path)?),
+        Format::Las | Format::Laz => {
+            let mut s = las::LasSource::open(path)?;
+            if let Some(kept) = options.laz_chunks.as_ref().and_then(|m| m.get(path)) {
+                s.keep_chunks(kept)?;
+            }
+            Box::new(s)
+        }
         Format::E57 => Box::new(e57::E57Source::open(path)?),
         Format::Ply => Box::new(ply::PlySource::open(path)?),
         Format::Pcd => Box::new(pcd::PcdSource::open(path)?),

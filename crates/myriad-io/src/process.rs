@@ -7,6 +7,17 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
 }
 
+/// CPU seconds (user and system, all threads) this process has used so far (`getrusage`).
+pub fn cpu_seconds() -> Option<f64> {
+    // SAFETY: getrusage only fills `u`, which is plain data.
+    let u = unsafe {
+        let mut u: libc::rusage = std::mem::zeroed();
+        (libc::getrusage(libc::RUSAGE_SELF, &mut u) == 0).then_some(u)
+    }?;
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    Some(t(u.ru_utime) + t(u.ru_stime))
+}
+
 /// Bytes that an unprivileged process may still write on the file system holding `dir`
 /// (`statvfs`); None where it cannot be read.
 pub fn free_bytes(dir: &std::path::Path) -> Option<u64> {
@@ -22,6 +33,20 @@ pub fn free_bytes(dir: &std::path::Path) -> Option<u64> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn cpu_seconds_grow_with_work() {
+        let before = super::cpu_seconds().unwrap();
+        let mut x = 0u64;
+        let start = std::time::Instant::now();
+        while start.elapsed().as_millis() < 50 {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(std::hint::black_box(1));
+        }
+        std::hint::black_box(x);
+        assert!(super::cpu_seconds().unwrap() > before);
+    }
+
     #[test]
     fn free_bytes_of_a_folder_and_none_of_nothing() {
         let free = super::free_bytes(&std::env::temp_dir()).unwrap();

@@ -422,6 +422,102 @@ fn laz_of_many_blocks_reads_in_order() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A LAZ file's chunks: each one's bounds from a pass over its coordinates, and a source that
+/// reads only some of them gives exactly their points, in order; asking for a chunk the file
+/// does not have, or out of order, is a one-line error. Both a layered format (6: only X, Y
+/// and Z decompressed for the bounds) and a legacy one (1: decompressed whole).
+#[test]
+fn laz_chunks_bound_and_read_alone() {
+    let d = std::env::temp_dir().join(format!("myriad-lazchunks-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    for (name, schema) in [
+        (
+            "pf6.laz",
+            Schema::new(vec![
+                Attribute::Intensity,
+                Attribute::ScannerChannel,
+                Attribute::GpsTime,
+            ]),
+        ),
+        (
+            "pf1.laz",
+            Schema::new(vec![Attribute::Intensity, Attribute::GpsTime]),
+        ),
+    ] {
+        let p = d.join(name);
+        let opts = LasWriteOptions::for_schema(&schema, [0.01; 3], [0.0; 3]).unwrap();
+        let mut sink = LasSink::create(&p, opts, true).unwrap();
+        let n = 280_000usize; // 50,000-point chunks: 5 whole and one of 30,000
+        let at = |i: usize| {
+            let c = (i / 50_000) as f64;
+            [
+                c * 100.0 + (i % 97) as f64,
+                -c - (i % 13) as f64 * 0.25,
+                (i % 5) as f64,
+            ]
+        };
+        let mut b = PointBatch::with_schema(&schema, n);
+        b.positions.extend((0..n).map(at));
+        b.intensity = Some((0..n).map(|i| i as u16).collect());
+        b.gps_time = Some((0..n).map(|i| i as f64).collect());
+        if let Some(c) = &mut b.scanner_channel {
+            c.extend((0..n).map(|i| (i % 4) as u8));
+        }
+        sink.write(&b).unwrap();
+        sink.finish().unwrap();
+
+        let bounds = myriad_io::las::chunk_bounds(&p)
+            .unwrap()
+            .expect("a chunk table");
+        assert_eq!(bounds.len(), 6, "{name}");
+        for (k, (c, b)) in bounds.iter().enumerate() {
+            let first = k * 50_000;
+            let count = if k == 5 { 30_000 } else { 50_000 };
+            assert_eq!((c.index as usize, c.points), (k, count as u64), "{name}");
+            let want = (first..first + count).fold(myriad_core::Aabb::EMPTY, |a, i| {
+                let mut a = a;
+                a.extend(at(i));
+                a
+            });
+            assert_eq!(b.min, want.min, "{name} chunk {k}");
+            assert_eq!(b.max, want.max, "{name} chunk {k}");
+        }
+
+        let kept = |chunks: Vec<u32>| OpenOptions {
+            laz_chunks: Some(std::sync::Arc::new(
+                [(p.clone(), chunks)].into_iter().collect(),
+            )),
+            ..Default::default()
+        };
+        let mut src = open(&p, &kept(vec![1, 4, 5])).unwrap();
+        assert_eq!(src.info().points, Some(130_000));
+        let mut got = Vec::new();
+        while let Some(b) = src.read_batch(1 << 16).unwrap() {
+            for (k, &t) in b.gps_time.as_ref().unwrap().iter().enumerate() {
+                assert_eq!(b.positions[k], at(t as usize));
+                assert_eq!(b.intensity.as_ref().unwrap()[k], t as usize as u16);
+                got.push(t as usize);
+            }
+        }
+        let want: Vec<usize> = (50_000..100_000).chain(200_000..280_000).collect();
+        assert!(
+            got == want,
+            "{name}: the points of chunks 1, 4 and 5, in order"
+        );
+        for bad in [vec![6], vec![4, 1]] {
+            let err = open(&p, &kept(bad.clone()))
+                .err()
+                .expect("refused")
+                .to_string();
+            assert!(
+                err.contains(name) && err.contains("plan again") && !err.contains('\n'),
+                "{bad:?}: {err}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// Every scan of an E57 file is read, each with its own pose (rotation and translation) applied,
 /// and points without valid coordinates are skipped and counted.
 #[test]

@@ -102,6 +102,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
                 "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
                 "trimmed": s.trimmed, "not_transformed": s.not_transformed,
                 "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds(),
                 "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
             })
         );
@@ -188,6 +189,7 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
                 "seconds": s.seconds, "bytes": s.bytes,
                 "skipped_non_finite": s.skipped_non_finite,
                 "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds(),
             })
         );
         return Ok(());

@@ -47,6 +47,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
         placement: args.placement.clone(),
         sidecar_placements: !args.no_placement,
         reproject: None,
+        laz_chunks: None,
     };
     for path in &args.files {
         if myriad_format::is_dataset(path)

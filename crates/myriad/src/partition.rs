@@ -35,6 +35,16 @@ pub struct PlanArgs {
     /// Points per chunk instead of what --memory gives (for tests)
     #[arg(long, hide = true)]
     chunk_points: Option<u64>,
+    /// Let each part decompress whole every LAZ input that reaches its cells, instead of
+    /// finding, once here, which of each input's chunks meet which part
+    #[arg(long)]
+    whole_inputs: bool,
+}
+
+/// `PLAN.chunks.json` beside `PLAN.json`: the LAZ inputs' chunk bounds, for the next plan.
+fn chunk_cache_path(plan: &Path) -> PathBuf {
+    let stem = plan.file_stem().unwrap_or_default().to_string_lossy();
+    plan.with_file_name(format!("{stem}.chunks.json"))
 }
 
 pub fn plan(a: PlanArgs) -> Result<()> {
@@ -61,6 +71,8 @@ pub fn plan(a: PlanArgs) -> Result<()> {
         precision: a.build.precision,
         open: a.build.open_options(),
         chunk_points: a.chunk_points,
+        chunks: !a.whole_inputs,
+        chunk_cache: Some(chunk_cache_path(&a.output)),
     };
     // Parts on other machines read the inputs by these paths: absolute, as a shared
     // filesystem mounts them.
@@ -89,12 +101,26 @@ pub fn plan(a: PlanArgs) -> Result<()> {
         p.chunk_level,
         thousands(p.chunk_points)
     );
-    for (i, (cells, n)) in p.parts.iter().enumerate() {
+    if !p.chunked.is_empty() {
+        let chunks: u64 = p.chunked.iter().map(|c| c.chunks as u64).sum();
         println!(
-            "  part {i:<6} {} cells, about {} points, {} inputs",
+            "  chunked     {} LAZ inputs met by several parts ({} chunks): each part reads the chunks that meet its cells",
+            p.chunked.len(),
+            thousands(chunks)
+        );
+    }
+    for (i, (cells, n)) in p.parts.iter().enumerate() {
+        let chunks: usize = p.chunked.iter().map(|c| c.of(i).len()).sum();
+        println!(
+            "  part {i:<6} {} cells, about {} points, {} inputs{}",
             cells.len(),
             thousands(*n),
-            p.inputs_of(Some(i)).len()
+            p.inputs_of(Some(i)).len(),
+            if p.chunked.is_empty() {
+                String::new()
+            } else {
+                format!(" ({chunks} chunks of the chunked ones)")
+            }
         );
     }
     println!(
@@ -155,7 +181,8 @@ pub fn convert_planned(
                 "{}",
                 json!({"output": output.display().to_string(), "points": s.points,
                        "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,
-                       "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
+                       "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds()})
             );
         } else {
             println!("{}", output.display());
@@ -182,13 +209,15 @@ pub fn convert_planned(
     bar.clear();
     let (myr, tops) = partition::part_paths(output, index);
     let opened = s.inputs.iter().filter(|i| i.is_some()).count();
+    let read: u64 = s.inputs.iter().flatten().map(|i| i.1).sum();
     if as_json {
         println!(
             "{}",
             json!({"part": index, "dataset": (s.points > 0).then(|| myr.display().to_string()),
                    "tops": tops.display().to_string(), "points": s.points, "nodes": s.nodes,
-                   "inputs_read": opened, "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
+                   "inputs_read": opened, "points_read": read, "seconds": s.seconds, "bytes": s.bytes,
+                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds()})
         );
         return Ok(());
     }
@@ -209,6 +238,7 @@ pub fn convert_planned(
         opened,
         plan.inputs.len()
     );
+    println!("  read        {} points", thousands(read));
     println!("  nodes       {}", thousands(s.nodes));
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(s.skipped_non_finite);
@@ -249,7 +279,8 @@ pub fn merge(a: MergeArgs) -> Result<()> {
             json!({"output": a.output.display().to_string(), "points": s.points,
                    "nodes": s.nodes, "pages_copied": s.copied, "nodes_built": s.built,
                    "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes()})
+                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds()})
         );
         return Ok(());
     }

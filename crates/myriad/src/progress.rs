@@ -63,6 +63,9 @@ pub(crate) fn global_threads(t: usize) {
 /// A build summary's last lines: peak memory, and the points skipped for NaN or infinite
 /// coordinates (when there were any).
 pub(crate) fn print_memory_and_skipped(skipped: u64) {
+    if let Some(c) = myriad_io::process::cpu_seconds() {
+        println!("  cpu         {c:.2} s (all threads)");
+    }
     if let Some(p) = myriad_io::process::peak_rss_bytes() {
         println!("  memory      {:.0} MB peak resident", p as f64 / 1e6);
     }

@@ -48,6 +48,11 @@ pub struct PlanOptions {
     /// How the inputs are opened (text columns, placements), as the parts will.
     pub open: OpenOptions,
     pub chunk_points: Option<u64>,
+    /// Find which LAZ chunks meet which part (a pass over the coordinates of the inputs that
+    /// several parts read), so that each part decompresses only those.
+    pub chunks: bool,
+    /// Where the chunks' bounds are kept between plans (`PLAN.chunks.json`); `None`: not kept.
+    pub chunk_cache: Option<PathBuf>,
 }
 
 /// One input as the plan saw its header.
@@ -80,6 +85,40 @@ pub struct BuildPlan {
     pub precision: f64,
     /// `--to-crs` and `--from-crs`: every part moves its points the same way.
     pub reproject: Option<myriad_io::reproject::Reproject>,
+    /// The LAZ inputs that meet more than one part, each part's chunks of them.
+    pub chunked: Vec<ChunkedInput>,
+}
+
+/// A LAZ input that several parts read: the chunks (of its chunk table) whose points meet each
+/// part's cells, found by [`myriad_io::las::chunk_bounds`] when the plan was made. A part
+/// decompresses only its chunks; a chunk whose bounds meet several parts' cells is read by each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChunkedInput {
+    /// The input's index in the plan.
+    pub input: usize,
+    /// Its chunks, and its points.
+    pub chunks: u32,
+    /// Per part: half-open ranges of chunk indices, ascending.
+    pub parts: Vec<Vec<(u32, u32)>>,
+}
+
+impl ChunkedInput {
+    /// The chunk indices part `part` reads.
+    pub fn of(&self, part: usize) -> Vec<u32> {
+        self.parts[part].iter().flat_map(|&(a, b)| a..b).collect()
+    }
+}
+
+/// Ascending indices as half-open ranges.
+fn ranges(indices: &[u32]) -> Vec<(u32, u32)> {
+    let mut out: Vec<(u32, u32)> = Vec::new();
+    for &i in indices {
+        match out.last_mut() {
+            Some(r) if r.1 == i => r.1 += 1,
+            _ => out.push((i, i + 1)),
+        }
+    }
+    out
 }
 
 /// A cell's Morton code with x most significant (the plans' order since they were first
@@ -158,6 +197,79 @@ fn runs(cells: &[([u32; 3], f64)], parts: usize) -> Vec<(Vec<[u32; 3]>, u64)> {
         .collect()
 }
 
+/// Each input's estimated points in each cell of `level` that its bounds meet (its points
+/// spread evenly over its bounds).
+fn shares(
+    root: &Aabb,
+    level: u32,
+    inputs: &[PlannedInput],
+) -> std::collections::HashMap<[u32; 3], Vec<(usize, f64)>> {
+    let mut share: std::collections::HashMap<[u32; 3], Vec<(usize, f64)>> = Default::default();
+    for (k, i) in inputs.iter().enumerate() {
+        if i.points == 0 {
+            continue;
+        }
+        let meet = cells_meeting(root, level, &i.bounds);
+        let key = |c: [u32; 3]| NodeKey { level, cell: c }.bounds(root);
+        let w: Vec<f64> = meet.iter().map(|&c| overlap(&i.bounds, &key(c))).collect();
+        let sum: f64 = w.iter().sum();
+        for (c, w) in meet.into_iter().zip(w) {
+            if sum > 0.0 && w > 0.0 {
+                share
+                    .entry(c)
+                    .or_default()
+                    .push((k, i.points as f64 * w / sum));
+            }
+        }
+    }
+    share
+}
+
+/// The candidate runs of `cells` (Morton order, with estimated points) at `level` into
+/// `parts`: in Morton order; and, where it balances as well (its largest part at most 10 % over
+/// Morton's), with the cells grouped by the input that holds most of their points, the inputs
+/// in the Morton order of their centres, so that a part takes whole tiles where it can. Each
+/// part's cells in Morton order. [`choose_runs`] takes the one that decodes fewer points.
+fn candidate_runs(
+    root: &Aabb,
+    level: u32,
+    inputs: &[PlannedInput],
+    cells: &[([u32; 3], f64)],
+    parts: usize,
+) -> Vec<Vec<(Vec<[u32; 3]>, u64)>> {
+    let by_morton = runs(cells, parts);
+    if inputs.len() < 2 || parts < 2 {
+        return vec![by_morton];
+    }
+    let share = shares(root, level, inputs);
+    let largest = |r: &[(Vec<[u32; 3]>, u64)]| r.iter().map(|p| p.1).max().unwrap_or(0) as f64;
+    let centre = |b: &Aabb| {
+        let c = [0, 1, 2].map(|a| (b.min[a] + b.max[a]) / 2.0);
+        morton(cell_of(root, level, c).cell)
+    };
+    let owner = |c: &[u32; 3]| {
+        share.get(c).and_then(|v| {
+            v.iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+                .map(|s| s.0)
+        })
+    };
+    let mut grouped = cells.to_vec();
+    grouped.sort_by_key(|(c, _)| {
+        let o = owner(c);
+        (o.map(|k| centre(&inputs[k].bounds)), o, morton(*c))
+    });
+    let mut by_tile = runs(&grouped, parts);
+    for r in &mut by_tile {
+        r.0.sort_by_key(|c| morton(*c));
+    }
+    if largest(&by_tile) <= 1.1 * largest(&by_morton) {
+        vec![by_morton, by_tile]
+    } else {
+        vec![by_morton]
+    }
+}
+
 /// Reads the inputs' headers (an input without bounds in its header is read once for them) and
 /// makes the plan.
 pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
@@ -221,19 +333,11 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
 
     // The partition level: enough occupied cells that the runs come out even (8 per part).
     let estimate = |level: u32| {
-        let mut cells: std::collections::HashMap<[u32; 3], f64> = Default::default();
-        for i in &planned {
-            let meet = cells_meeting(&root, level, &i.bounds);
-            let key = |c: [u32; 3]| NodeKey { level, cell: c }.bounds(&root);
-            let w: Vec<f64> = meet.iter().map(|&c| overlap(&i.bounds, &key(c))).collect();
-            let sum: f64 = w.iter().sum();
-            for (c, w) in meet.into_iter().zip(w) {
-                if sum > 0.0 && w > 0.0 {
-                    *cells.entry(c).or_default() += i.points as f64 * w / sum;
-                }
-            }
-        }
-        let mut v: Vec<([u32; 3], f64)> = cells.into_iter().filter(|c| c.1 > 0.0).collect();
+        let mut v: Vec<([u32; 3], f64)> = shares(&root, level, &planned)
+            .into_iter()
+            .map(|(c, s)| (c, s.iter().map(|x| x.1).sum::<f64>()))
+            .filter(|c| c.1 > 0.0)
+            .collect();
         v.sort_by_key(|c| morton(c.0));
         v
     };
@@ -245,7 +349,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
     }
     let chunk_level =
         distribute::chunk_level(declared, chunk_points, 8 * sizing.threads as u64).max(p);
-    let parts = runs(&cells, o.parts);
+    let candidates = candidate_runs(&root, p, &planned, &cells, o.parts);
 
     let dataset = Metadata {
         structure: o.structure.stored_name().into(),
@@ -277,15 +381,247 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         chunk_points,
         chunk_level,
         partition_level: p,
-        parts,
+        parts: Vec::new(),
         dataset,
         columns: o.open.columns.clone(),
         placements: o.open.sidecar_placements,
         precision: o.precision,
         reproject: o.open.reproject.clone(),
+        chunked: Vec::new(),
     };
+    (plan.parts, plan.chunked) = choose_runs(&plan, candidates, &infos, o)?;
     plan.id = fingerprint(&plan.body().to_string());
     Ok(plan)
+}
+
+/// The parts whose cells (`owner`: cell to part, at `level`) the box `b` meets, with a margin
+/// for rounding (as [`BuildPlan::inputs_of`]).
+fn parts_meeting(
+    root: &Aabb,
+    level: u32,
+    owner: &std::collections::HashMap<[u32; 3], usize>,
+    b: &Aabb,
+) -> Vec<usize> {
+    if b.is_empty() {
+        return Vec::new();
+    }
+    let m = root.size()[0] * 1e-5;
+    let b = Aabb::new(b.min.map(|v| v - m), b.max.map(|v| v + m));
+    let (lo, hi) = (
+        cell_of(root, level, b.min).cell,
+        cell_of(root, level, b.max).cell,
+    );
+    let span: u64 = (0..3).map(|a| (hi[a] - lo[a]) as u64 + 1).product();
+    let mut out: Vec<usize> = if span <= owner.len() as u64 {
+        cells_meeting(root, level, &b)
+            .iter()
+            .filter_map(|c| owner.get(c).copied())
+            .collect()
+    } else {
+        owner
+            .iter()
+            .filter(|(c, _)| (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]))
+            .map(|(_, &k)| k)
+            .collect()
+    };
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Of the `candidates` runs, the one whose parts decode fewer points in all (Morton's on a
+/// tie), and the LAZ inputs that meet more than one of its parts with the chunks of each that
+/// meet each part (their bounds from a pass over the coordinates,
+/// [`myriad_io::las::chunk_bounds`], kept in the cache beside the plan). Points decoded: a
+/// chunk's for each part its bounds meet, an input read whole (not LAZ, no chunk table, or
+/// `o.chunks` off) for each part its bounds meet. Not chunked: inputs whose points move as
+/// they are read (a placement, `--to-crs`), since their chunks' bounds in the file are not
+/// where the points land.
+#[allow(clippy::type_complexity)]
+fn choose_runs(
+    plan: &BuildPlan,
+    candidates: Vec<Vec<(Vec<[u32; 3]>, u64)>>,
+    infos: &[myriad_io::SourceInfo],
+    o: &PlanOptions,
+) -> Result<(Vec<(Vec<[u32; 3]>, u64)>, Vec<ChunkedInput>)> {
+    let root = &plan.dataset.root;
+    let p = plan.partition_level;
+    let owners: Vec<std::collections::HashMap<[u32; 3], usize>> = candidates
+        .iter()
+        .map(|runs| {
+            runs.iter()
+                .enumerate()
+                .flat_map(|(k, (cells, _))| cells.iter().map(move |&c| (c, k)))
+                .collect()
+        })
+        .collect();
+    let chunking = o.chunks && o.parts > 1 && plan.reproject.is_none();
+    let mut cache = ChunkCache::load(o.chunk_cache.as_deref());
+    // Each input's chunks (their points and bounds), where some candidate has several parts
+    // read it.
+    let mut chunks = Vec::new();
+    for (input, info) in plan.inputs.iter().zip(infos) {
+        let moved = o.open.placement.is_some()
+            || (o.open.sidecar_placements
+                && myriad_io::placement::Placement::sidecar(&input.path).is_some());
+        let shared = owners
+            .iter()
+            .any(|owner| parts_meeting(root, p, owner, &input.bounds).len() > 1);
+        chunks.push(
+            if chunking && shared && !moved && info.format == myriad_io::Format::Laz {
+                cache.bounds(&input.path)?
+            } else {
+                None
+            },
+        );
+    }
+    cache.save()?;
+    let decoded = |owner: &std::collections::HashMap<[u32; 3], usize>| -> u64 {
+        plan.inputs
+            .iter()
+            .zip(&chunks)
+            .map(|(input, c)| match c {
+                Some(c) => c
+                    .iter()
+                    .filter(|(n, _)| *n > 0)
+                    .map(|(n, b)| n * parts_meeting(root, p, owner, b).len() as u64)
+                    .sum(),
+                None => input.points * parts_meeting(root, p, owner, &input.bounds).len() as u64,
+            })
+            .sum()
+    };
+    let best = (0..candidates.len())
+        .min_by_key(|&k| (decoded(&owners[k]), k))
+        .unwrap_or(0);
+    let owner = &owners[best];
+    let mut chunked = Vec::new();
+    for (k, (input, c)) in plan.inputs.iter().zip(&chunks).enumerate() {
+        let Some(c) = c else { continue };
+        if parts_meeting(root, p, owner, &input.bounds).len() < 2 {
+            continue; // one part reads it whole
+        }
+        let mut per_part: Vec<Vec<u32>> = vec![Vec::new(); o.parts];
+        for (i, (n, b)) in c.iter().enumerate() {
+            if *n > 0 {
+                for part in parts_meeting(root, p, owner, b) {
+                    per_part[part].push(i as u32);
+                }
+            }
+        }
+        chunked.push(ChunkedInput {
+            input: k,
+            chunks: c.len() as u32,
+            parts: per_part.iter().map(|v| ranges(v)).collect(),
+        });
+    }
+    let mut candidates = candidates;
+    Ok((candidates.swap_remove(best), chunked))
+}
+
+/// The chunks' bounds of LAZ inputs, kept in a file beside the plan (`PLAN.chunks.json`) so
+/// that a plan made again (other parts, other options) does not pass over the inputs again. An
+/// entry holds while its input's size and modification time are those it was made from; a
+/// cache that cannot be read is ignored (and written anew).
+struct ChunkCache {
+    path: Option<PathBuf>,
+    entries: serde_json::Map<String, Value>,
+    changed: bool,
+}
+
+/// The size and modification time (nanoseconds) an input's cached entry was made from.
+fn stamp(path: &Path) -> Result<(u64, u128)> {
+    let m = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    let t = m
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    Ok((m.len(), t))
+}
+
+impl ChunkCache {
+    fn load(path: Option<&Path>) -> ChunkCache {
+        let entries = path
+            .and_then(|p| std::fs::read_to_string(p).ok())
+            .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+            .filter(|v| v["myriad_chunk_bounds"] == json!(1))
+            .and_then(|v| v["inputs"].as_object().cloned())
+            .unwrap_or_default();
+        ChunkCache {
+            path: path.map(Path::to_path_buf),
+            entries,
+            changed: false,
+        }
+    }
+
+    /// The bounds and points of each chunk of `path` (`None`: no chunk table), from the cache
+    /// when it holds them for the file as it is, else from a pass over the file.
+    fn bounds(&mut self, path: &Path) -> Result<Option<Vec<(u64, Aabb)>>> {
+        let key = path.display().to_string();
+        let (size, modified) = stamp(path)?;
+        let e = &self.entries.get(&key);
+        if let Some(e) = e
+            && e["size"].as_u64() == Some(size)
+            && e["modified"].as_str() == Some(&modified.to_string())
+        {
+            let parse = |c: &Value| -> Option<(u64, Aabb)> {
+                let a = c.as_array().filter(|a| a.len() == 7)?;
+                let f = |i: usize| a[i].as_f64();
+                Some((
+                    a[0].as_u64()?,
+                    Aabb::new([f(1)?, f(2)?, f(3)?], [f(4)?, f(5)?, f(6)?]),
+                ))
+            };
+            if e["chunks"].is_null() {
+                return Ok(None);
+            }
+            if let Some(v) = e["chunks"]
+                .as_array()
+                .and_then(|c| c.iter().map(parse).collect())
+            {
+                return Ok(Some(v));
+            }
+        }
+        let found = myriad_io::las::chunk_bounds(path)?.map(|v| {
+            v.into_iter()
+                .map(|(c, b)| (c.points, b))
+                .collect::<Vec<_>>()
+        });
+        let chunks = found.as_ref().map(|v| {
+            v.iter()
+                .map(|(n, b)| {
+                    // An empty chunk's bounds are infinite: stored as zeros (never read: it has
+                    // no points to meet a part).
+                    let f = |x: f64| if x.is_finite() { x } else { 0.0 };
+                    json!([
+                        n,
+                        f(b.min[0]),
+                        f(b.min[1]),
+                        f(b.min[2]),
+                        f(b.max[0]),
+                        f(b.max[1]),
+                        f(b.max[2])
+                    ])
+                })
+                .collect::<Vec<_>>()
+        });
+        self.entries.insert(
+            key,
+            json!({"size": size, "modified": modified.to_string(), "chunks": chunks}),
+        );
+        self.changed = true;
+        Ok(found)
+    }
+
+    fn save(&self) -> Result<()> {
+        let Some(path) = self.path.as_ref().filter(|_| self.changed) else {
+            return Ok(());
+        };
+        let text = json!({"myriad_chunk_bounds": 1, "inputs": self.entries}).to_string();
+        let file = myriad_io::atomic::AtomicFile::create(path, true)?;
+        std::fs::write(file.temp_path(), text).map_err(|e| Error::io(path, e))?;
+        file.commit()
+    }
 }
 
 impl BuildPlan {
@@ -313,6 +649,11 @@ impl BuildPlan {
             })).collect::<Vec<_>>(),
             "parts": self.parts.iter().map(|(c, n)| json!({
                 "estimated_points": n, "cells": c,
+            })).collect::<Vec<_>>(),
+            "chunked": self.chunked.iter().map(|c| json!({
+                "input": c.input, "chunks": c.chunks,
+                "parts": c.parts.iter().map(|r| r.iter().map(|&(a, b)| [a, b]).collect::<Vec<_>>())
+                    .collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
             "dataset": self.dataset.to_json(),
         })
@@ -354,12 +695,16 @@ impl BuildPlan {
             .as_array()
             .ok_or_else(|| bad("no inputs".into()))?
         {
+            let points = i["points"]
+                .as_u64()
+                .ok_or_else(|| bad("input points".into()))?;
             inputs.push(PlannedInput {
                 path: PathBuf::from(i["path"].as_str().ok_or_else(|| bad("input path".into()))?),
-                points: i["points"]
-                    .as_u64()
-                    .ok_or_else(|| bad("input points".into()))?,
-                bounds: aabb(&i["bounds"]).ok_or_else(|| bad("input bounds".into()))?,
+                points,
+                // An empty input has no bounds (written as nulls).
+                bounds: aabb(&i["bounds"])
+                    .or((points == 0).then_some(Aabb::EMPTY))
+                    .ok_or_else(|| bad("input bounds".into()))?,
             });
         }
         let mut parts = Vec::new();
@@ -382,6 +727,36 @@ impl BuildPlan {
                 .collect::<Option<Vec<_>>>()
                 .ok_or_else(|| bad("a part's cell is not 3 integers".into()))?;
             parts.push((cells, p["estimated_points"].as_u64().unwrap_or(0)));
+        }
+        let mut chunked = Vec::new();
+        for c in v["chunked"].as_array().map_or(&[][..], |a| a.as_slice()) {
+            let bad_chunks = || bad("a chunked input is not {input, chunks, parts}".into());
+            let n = |x: &Value| x.as_u64().and_then(|n| u32::try_from(n).ok());
+            let input = c["input"].as_u64().ok_or_else(bad_chunks)? as usize;
+            let chunks = n(&c["chunks"]).ok_or_else(bad_chunks)?;
+            let mut per_part = Vec::new();
+            for r in c["parts"].as_array().ok_or_else(bad_chunks)? {
+                let mut v = Vec::new();
+                for pair in r.as_array().ok_or_else(bad_chunks)? {
+                    let (a, b) = (
+                        n(&pair[0]).ok_or_else(bad_chunks)?,
+                        n(&pair[1]).ok_or_else(bad_chunks)?,
+                    );
+                    if a >= b || b > chunks || v.last().is_some_and(|l: &(u32, u32)| l.1 > a) {
+                        return Err(bad_chunks());
+                    }
+                    v.push((a, b));
+                }
+                per_part.push(v);
+            }
+            if input >= inputs.len() || per_part.len() != parts.len() {
+                return Err(bad_chunks());
+            }
+            chunked.push(ChunkedInput {
+                input,
+                chunks,
+                parts: per_part,
+            });
         }
         let partition_level = u("partition_level")? as u32;
         let chunk_level = u("chunk_level")? as u32;
@@ -416,6 +791,7 @@ impl BuildPlan {
                     to: to.to_string(),
                     from: v["from_crs"].as_str().map(String::from),
                 }),
+            chunked,
         };
         if plan.id != fingerprint(&plan.body().to_string()) {
             return Err(Error::Invalid(format!(
@@ -444,8 +820,12 @@ impl BuildPlan {
             index.map(|i| self.parts[i].0.iter().copied().collect());
         self.inputs
             .iter()
-            .filter(|i| match &cells {
+            .enumerate()
+            .filter(|(k, i)| match &cells {
                 None => true,
+                Some(_) if self.chunked_input(*k).is_some() => self
+                    .chunked_input(*k)
+                    .is_some_and(|c| !c.parts[index.unwrap()].is_empty()),
                 Some(set) => {
                     // The header's bounds with a margin for rounding to the scale.
                     let m = root.size()[0] * 1e-5;
@@ -455,8 +835,13 @@ impl BuildPlan {
                         .any(|c| set.contains(c))
                 }
             })
-            .map(|i| i.path.clone())
+            .map(|(_, i)| i.path.clone())
             .collect()
+    }
+
+    /// The chunks of input `k` that each part reads, where the parts read some of them.
+    pub fn chunked_input(&self, k: usize) -> Option<&ChunkedInput> {
+        self.chunked.iter().find(|c| c.input == k)
     }
 
     /// `convert`'s options for part `index` (`None`: the whole plan on one machine), written to
@@ -474,6 +859,14 @@ impl BuildPlan {
         o.precision = self.precision;
         o.params = self.params;
         o.open = self.open_options();
+        if let Some(i) = index {
+            o.open.laz_chunks = Some(std::sync::Arc::new(
+                self.chunked
+                    .iter()
+                    .map(|c| (self.inputs[c.input].path.clone(), c.of(i)))
+                    .collect(),
+            ));
+        }
         o.chunk_points = Some(self.chunk_points);
         o.force = true;
         let p = self.partition_level;
@@ -644,7 +1037,8 @@ pub fn merge(
         heads.push(head);
     }
     // Every point of every input in exactly one part: a part that reads an input reads all its
-    // points, and the parts together must take them all.
+    // points (or, for a chunked one, all those of the chunks that meet its cells: together its
+    // header's count), and the parts together must take them all.
     let mut sources = Vec::new();
     for (k, input) in plan.inputs.iter().enumerate() {
         let (mut taken, mut read) = (0u64, None);
@@ -653,6 +1047,9 @@ pub fn merge(
                 taken += t["taken"].as_u64().unwrap_or(0);
                 read = read.max(t["read"].as_u64());
             }
+        }
+        if plan.chunked_input(k).is_some() {
+            read = Some(input.points);
         }
         let Some(read) = read.or((input.points == 0).then_some(0)) else {
             return Err(Error::Invalid(format!(
@@ -780,6 +1177,68 @@ mod tests {
         cells[0].1 = 1000.0;
         let r = runs(&cells, 2);
         assert_eq!(r[0].0.len(), 1);
+    }
+
+    /// Eight tiles of 0.6 x 0.5 in a row of four by two over a cube of side 3, split into 4
+    /// parts: the cells of level 3 (0.375 wide) cut the tiles; grouped by tile, fewer of each
+    /// tile's points lie outside the part that holds most of it than in Morton order.
+    #[test]
+    fn runs_follow_the_tiles_where_they_balance() {
+        let root = Aabb::new([0.0; 3], [3.0; 3]);
+        let inputs: Vec<PlannedInput> = (0..8)
+            .map(|k| {
+                let (x, y) = ((k % 4) as f64 * 0.6, (k / 4) as f64 * 0.5);
+                PlannedInput {
+                    path: format!("t{k}.laz").into(),
+                    points: 1000,
+                    bounds: Aabb::new([x, y, 0.0], [x + 0.6, y + 0.5, 0.1]),
+                }
+            })
+            .collect();
+        let level = 3;
+        let share = shares(&root, level, &inputs);
+        let mut cells: Vec<([u32; 3], f64)> = share
+            .iter()
+            .map(|(c, s)| (*c, s.iter().map(|x| x.1).sum()))
+            .collect();
+        cells.sort_by_key(|c| morton(c.0));
+        // Each tile's points outside the part that holds most of them: what other parts must
+        // decode of it.
+        let spread = |r: &[(Vec<[u32; 3]>, u64)]| -> f64 {
+            (0..inputs.len())
+                .map(|k| {
+                    let per_part: Vec<f64> = r
+                        .iter()
+                        .map(|(cs, _)| {
+                            cs.iter()
+                                .flat_map(|c| share[c].iter().filter(|s| s.0 == k))
+                                .map(|s| s.1)
+                                .sum()
+                        })
+                        .collect();
+                    per_part.iter().sum::<f64>() - per_part.iter().copied().fold(0.0, f64::max)
+                })
+                .sum()
+        };
+        let morton_runs = runs(&cells, 4);
+        let c = candidate_runs(&root, level, &inputs, &cells, 4);
+        assert_eq!(c.len(), 2);
+        assert_eq!(c[0], morton_runs);
+        let tiled = c[1].clone();
+        assert!(
+            spread(&tiled) < spread(&morton_runs),
+            "{} points outside their tile's part, Morton {}",
+            spread(&tiled),
+            spread(&morton_runs)
+        );
+        // Every cell in one part, the parts within 10 % of Morton's largest.
+        let mut all: Vec<[u32; 3]> = tiled.iter().flat_map(|p| p.0.clone()).collect();
+        all.sort_by_key(|c| morton(*c));
+        assert_eq!(all, cells.iter().map(|c| c.0).collect::<Vec<_>>());
+        let max = |r: &[(Vec<[u32; 3]>, u64)]| r.iter().map(|p| p.1).max().unwrap() as f64;
+        assert!(max(&tiled) <= 1.1 * max(&morton_runs));
+        // Each part's cells in Morton order.
+        assert!(tiled.iter().all(|p| p.0.is_sorted_by_key(|c| morton(*c))));
     }
 
     #[test]
