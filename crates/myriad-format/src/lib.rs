@@ -19,6 +19,8 @@ pub mod metadata;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod remote;
 #[cfg(not(target_arch = "wasm32"))]
+pub mod s3;
+#[cfg(not(target_arch = "wasm32"))]
 mod writer;
 
 pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};

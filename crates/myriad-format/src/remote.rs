@@ -104,15 +104,19 @@ fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
         .build())
 }
 
-/// Whether `path` names a dataset on a web server rather than a file.
+/// Whether `path` names a dataset on a web server or in S3-compatible storage (`s3://`, read
+/// through its HTTP interface, [`crate::s3`]) rather than a file.
 pub fn is_url(path: &Path) -> bool {
-    path.to_str()
-        .is_some_and(|s| s.starts_with("http://") || s.starts_with("https://"))
+    path.to_str().is_some_and(|s| {
+        s.starts_with("http://") || s.starts_with("https://") || s.starts_with("s3://")
+    })
 }
 
 /// A resource read by HTTP range requests.
 pub struct HttpBytes {
     url: String,
+    /// Requests to S3 are signed with these (and carry no `--header`s).
+    s3: Option<crate::s3::Config>,
     agent: ureq::Agent,
     len: u64,
     /// The first bytes, read when opening (the dataset header is read from them).
@@ -137,7 +141,18 @@ impl HttpBytes {
     /// Asks for the first [`crate::HEADER_LEN`] bytes of `url` (kept: the dataset header): the
     /// answer must be 206 with a `Content-Range` that gives the resource's length.
     pub fn open(url: &str) -> Result<HttpBytes> {
-        let tls = trusted().map_err(|e| Error::io(Path::new(url), io::Error::other(e)))?;
+        if crate::s3::is_s3(Path::new(url)) {
+            let at = crate::s3::parse(url)
+                .ok_or_else(|| Error::Invalid(format!("{url}: not s3://BUCKET/KEY")))?;
+            let config = crate::s3::Config::from_env();
+            return HttpBytes::open_as(&config.url(&at), url, Some(config));
+        }
+        HttpBytes::open_as(url, url, None)
+    }
+
+    /// Opens `url`, naming it `name` in errors, its requests signed for S3 with `s3`.
+    fn open_as(url: &str, name: &str, s3: Option<crate::s3::Config>) -> Result<HttpBytes> {
+        let tls = trusted().map_err(|e| Error::io(Path::new(name), io::Error::other(e)))?;
         let agent: ureq::Agent = ureq::Agent::config_builder()
             .tls_config(tls)
             .http_status_as_error(false)
@@ -148,6 +163,7 @@ impl HttpBytes {
             .into();
         let mut h = HttpBytes {
             url: url.to_string(),
+            s3,
             agent,
             len: u64::MAX,
             head: Vec::new(),
@@ -159,7 +175,7 @@ impl HttpBytes {
             changed: Mutex::new(None),
         };
         let (head, total, etag) =
-            (h.range(0, crate::HEADER_LEN)).map_err(|e| Error::io(Path::new(url), e))?;
+            (h.range(0, crate::HEADER_LEN)).map_err(|e| Error::io(Path::new(name), e))?;
         h.len = total;
         h.head = head;
         h.etag = etag;
@@ -236,8 +252,23 @@ impl HttpBytes {
         if let Some(e) = &self.etag {
             req = req.header("If-Range", e);
         }
-        for (k, v) in headers() {
-            req = req.header(k.as_str(), v.as_str());
+        match &self.s3 {
+            Some(s3) => {
+                for (k, v) in s3.sign(
+                    "GET",
+                    &self.url,
+                    "UNSIGNED-PAYLOAD",
+                    &[],
+                    std::time::SystemTime::now(),
+                ) {
+                    req = req.header(k.as_str(), v.as_str());
+                }
+            }
+            None => {
+                for (k, v) in headers() {
+                    req = req.header(k.as_str(), v.as_str());
+                }
+            }
         }
         let mut r = req.call().map_err(|e| {
             let m = e.to_string();
@@ -277,6 +308,21 @@ impl HttpBytes {
                 )));
             }
             429 | 500..=599 => return Err(Failure::Retry(format!("HTTP {status}"))),
+            401 | 403 if self.s3.is_some() => {
+                let why = r.body_mut().read_to_string().unwrap_or_default();
+                return Err(Failure::Fatal(format!(
+                    "HTTP {status}: {} (S3 credentials come from AWS_ACCESS_KEY_ID, \
+                     AWS_SECRET_ACCESS_KEY and AWS_SESSION_TOKEN; the server from \
+                     AWS_ENDPOINT_URL_S3 or AWS_ENDPOINT_URL, the region from AWS_REGION)",
+                    s3_message(&why)
+                )));
+            }
+            404 if self.s3.is_some() => {
+                return Err(Failure::Fatal(format!(
+                    "no such object at {} (HTTP 404)",
+                    self.url
+                )));
+            }
             401 | 403 => {
                 let why = r.body_mut().read_to_string().unwrap_or_default();
                 return Err(Failure::Fatal(format!(
@@ -327,6 +373,21 @@ impl HttpBytes {
         }
         Ok((body, total, etag))
     }
+}
+
+/// The `<Message>` of an S3 error document, else the text (at most a line of it).
+fn s3_message(body: &str) -> String {
+    let m = body
+        .split_once("<Message>")
+        .and_then(|(_, r)| r.split_once("</Message>"))
+        .map_or(body, |(m, _)| m);
+    m.lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .chars()
+        .take(200)
+        .collect()
 }
 
 /// `bytes START-END/TOTAL`: start and total.

