@@ -82,7 +82,7 @@ fn headers() -> &'static [(String, String)] {
 
 /// The certificates `https://` trusts: those of `MYRIAD_CA_CERT` where it names a PEM file,
 /// else Mozilla's.
-fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
+pub(crate) fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
     use ureq::tls::{PemItem, RootCerts, TlsConfig};
     let Ok(file) = std::env::var("MYRIAD_CA_CERT") else {
         return Ok(TlsConfig::default());
@@ -314,7 +314,7 @@ impl HttpBytes {
                     "HTTP {status}: {} (S3 credentials come from AWS_ACCESS_KEY_ID, \
                      AWS_SECRET_ACCESS_KEY and AWS_SESSION_TOKEN; the server from \
                      AWS_ENDPOINT_URL_S3 or AWS_ENDPOINT_URL, the region from AWS_REGION)",
-                    s3_message(&why)
+                    crate::s3::message(&why)
                 )));
             }
             404 if self.s3.is_some() => {
@@ -373,21 +373,6 @@ impl HttpBytes {
         }
         Ok((body, total, etag))
     }
-}
-
-/// The `<Message>` of an S3 error document, else the text (at most a line of it).
-fn s3_message(body: &str) -> String {
-    let m = body
-        .split_once("<Message>")
-        .and_then(|(_, r)| r.split_once("</Message>"))
-        .map_or(body, |(m, _)| m);
-    m.lines()
-        .next()
-        .unwrap_or("")
-        .trim()
-        .chars()
-        .take(200)
-        .collect()
 }
 
 /// `bytes START-END/TOTAL`: start and total.

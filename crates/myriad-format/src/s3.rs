@@ -14,9 +14,15 @@
 //! SDK's `aws-sigv4` brings its own runtime; the requests themselves stay `ureq`'s, with the
 //! retries, limits and version checks that HTTP datasets have.
 
+use myriad_core::{Error, Result};
 use ring::{digest, hmac};
+use std::io::{Read, Write};
 use std::path::Path;
-use std::time::SystemTime;
+use std::time::{Duration, SystemTime};
+
+/// Objects up to this size are written with one `PUT`; larger ones in parts of this size
+/// (S3's multipart upload: parts of 5 MiB and more, up to 10,000 of them).
+const PART: usize = 16 << 20;
 
 /// A bucket and a key, from `s3://BUCKET/KEY`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -152,6 +158,258 @@ impl Config {
         ));
         out
     }
+}
+
+/// Requests to one S3 server: whole objects copied to and from files (inputs a command reads
+/// as files, outputs it writes as files). Datasets are read by range requests instead
+/// ([`crate::remote::HttpBytes`]).
+pub struct Client {
+    config: Config,
+    agent: ureq::Agent,
+}
+
+/// An answer: its status, its `ETag`, and its body (or for a download, nothing).
+struct Answer {
+    status: u16,
+    etag: Option<String>,
+    body: String,
+}
+
+impl Client {
+    pub fn from_env() -> Result<Client> {
+        let tls = crate::remote::trusted().map_err(Error::Invalid)?;
+        let agent = ureq::Agent::config_builder()
+            .tls_config(tls)
+            .http_status_as_error(false)
+            .timeout_connect(Some(Duration::from_secs(10)))
+            .timeout_recv_response(Some(Duration::from_secs(120)))
+            .build()
+            .into();
+        Ok(Client {
+            config: Config::from_env(),
+            agent,
+        })
+    }
+
+    /// One signed request (`query` canonical: keys sorted, values encoded); for a `GET` with
+    /// `to`, the body goes there.
+    fn request(
+        &self,
+        method: &str,
+        at: &Location,
+        query: &str,
+        body: &[u8],
+        to: Option<&mut dyn Write>,
+    ) -> std::result::Result<Answer, String> {
+        let mut url = self.config.url(at);
+        if !query.is_empty() {
+            url = format!("{url}?{query}");
+        }
+        let payload = sha256_hex(body);
+        let headers = self
+            .config
+            .sign(method, &url, &payload, &[], SystemTime::now());
+        let result = match method {
+            "GET" | "HEAD" | "DELETE" => {
+                let mut r = match method {
+                    "GET" => self.agent.get(&url),
+                    "HEAD" => self.agent.head(&url),
+                    _ => self.agent.delete(&url),
+                };
+                for (k, v) in &headers {
+                    r = r.header(k.as_str(), v.as_str());
+                }
+                r.call()
+            }
+            _ => {
+                let mut r = match method {
+                    "PUT" => self.agent.put(&url),
+                    _ => self.agent.post(&url),
+                };
+                for (k, v) in &headers {
+                    r = r.header(k.as_str(), v.as_str());
+                }
+                r.send(body)
+            }
+        };
+        let mut r = result.map_err(|e| format!("{e}"))?;
+        let status = r.status().as_u16();
+        let etag = r
+            .headers()
+            .get("etag")
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_string);
+        let mut text = String::new();
+        match to {
+            Some(out) if status == 200 => {
+                std::io::copy(&mut r.body_mut().as_reader(), out).map_err(|e| e.to_string())?;
+            }
+            _ if method != "HEAD" => {
+                text = r
+                    .body_mut()
+                    .with_config()
+                    .limit(1 << 20)
+                    .read_to_string()
+                    .unwrap_or_default();
+            }
+            _ => {}
+        }
+        Ok(Answer {
+            status,
+            etag,
+            body: text,
+        })
+    }
+
+    /// The request, its failure (no answer, or an answer other than `want`) as an error naming
+    /// the object.
+    fn expect(
+        &self,
+        method: &str,
+        at: &Location,
+        query: &str,
+        body: &[u8],
+        to: Option<&mut dyn Write>,
+        want: u16,
+    ) -> Result<Answer> {
+        let name = format!("s3://{}/{}", at.bucket, at.key);
+        let a = self
+            .request(method, at, query, body, to)
+            .map_err(|e| Error::Invalid(format!("{name}: {e}")))?;
+        if a.status == want {
+            return Ok(a);
+        }
+        let hint = match a.status {
+            401 | 403 => {
+                " (credentials from AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY and AWS_SESSION_TOKEN; \
+                 the server from AWS_ENDPOINT_URL_S3 or AWS_ENDPOINT_URL)"
+            }
+            404 => " (no such object or bucket)",
+            _ => "",
+        };
+        Err(Error::Invalid(format!(
+            "{name}: {method} answered HTTP {}: {}{hint}",
+            a.status,
+            message(&a.body)
+        )))
+    }
+
+    /// Whether the object exists.
+    pub fn exists(&self, at: &Location) -> Result<bool> {
+        match self.expect("HEAD", at, "", b"", None, 200) {
+            Ok(_) => Ok(true),
+            Err(e) if e.to_string().contains("HTTP 404") => Ok(false),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Copies the object to the file `to` (written whole, then moved to its name). Its bytes.
+    pub fn download(&self, at: &Location, to: &Path) -> Result<u64> {
+        let file = myriad_io::atomic::AtomicFile::create(to, true)?;
+        let mut out = std::io::BufWriter::new(file.open_write()?);
+        self.expect("GET", at, "", b"", Some(&mut out), 200)?;
+        let f = out
+            .into_inner()
+            .map_err(|e| Error::io(to, e.into_error()))?;
+        f.sync_all().map_err(|e| Error::io(to, e))?;
+        let n = f.metadata().map_err(|e| Error::io(to, e))?.len();
+        file.commit()?;
+        Ok(n)
+    }
+
+    /// Writes the file `from` as the object: one `PUT` up to [`PART`] bytes, else a multipart
+    /// upload (aborted when a part fails). The object appears whole or not at all. Its bytes.
+    pub fn upload(&self, from: &Path, at: &Location) -> Result<u64> {
+        let mut f = std::fs::File::open(from).map_err(|e| Error::io(from, e))?;
+        let len = f.metadata().map_err(|e| Error::io(from, e))?.len();
+        let mut buf = vec![0u8; PART.min(len as usize)];
+        if len as usize <= PART {
+            f.read_exact(&mut buf).map_err(|e| Error::io(from, e))?;
+            self.expect("PUT", at, "", &buf, None, 200)?;
+            return Ok(len);
+        }
+        let created = self.expect("POST", at, "uploads=", b"", None, 200)?;
+        let id = tag(&created.body, "UploadId").ok_or_else(|| {
+            Error::Invalid(format!(
+                "s3://{}/{}: no UploadId in the server's answer",
+                at.bucket, at.key
+            ))
+        })?;
+        let id_q = encode(&id, true);
+        let parts = (|| -> Result<Vec<String>> {
+            let mut etags = Vec::new();
+            let mut left = len;
+            while left > 0 {
+                let n = (left as usize).min(PART);
+                f.read_exact(&mut buf[..n])
+                    .map_err(|e| Error::io(from, e))?;
+                let q = format!("partNumber={}&uploadId={id_q}", etags.len() + 1);
+                let a = self.expect("PUT", at, &q, &buf[..n], None, 200)?;
+                etags.push(a.etag.unwrap_or_default());
+                left -= n as u64;
+            }
+            Ok(etags)
+        })();
+        let etags = match parts {
+            Ok(e) => e,
+            Err(e) => {
+                let _ = self.request("DELETE", at, &format!("uploadId={id_q}"), b"", None);
+                return Err(e);
+            }
+        };
+        let mut xml = String::from("<CompleteMultipartUpload>");
+        for (i, e) in etags.iter().enumerate() {
+            xml.push_str(&format!(
+                "<Part><PartNumber>{}</PartNumber><ETag>{e}</ETag></Part>",
+                i + 1
+            ));
+        }
+        xml.push_str("</CompleteMultipartUpload>");
+        let done = self.expect(
+            "POST",
+            at,
+            &format!("uploadId={id_q}"),
+            xml.as_bytes(),
+            None,
+            200,
+        );
+        // S3 may answer 200 with an error document after a while.
+        match done {
+            Ok(a) if !a.body.contains("<Error>") => Ok(len),
+            Ok(a) => {
+                let _ = self.request("DELETE", at, &format!("uploadId={id_q}"), b"", None);
+                Err(Error::Invalid(format!(
+                    "s3://{}/{}: the upload did not complete: {}",
+                    at.bucket,
+                    at.key,
+                    message(&a.body)
+                )))
+            }
+            Err(e) => {
+                let _ = self.request("DELETE", at, &format!("uploadId={id_q}"), b"", None);
+                Err(e)
+            }
+        }
+    }
+}
+
+/// The text of the first `<NAME>` element of an XML answer.
+fn tag(xml: &str, name: &str) -> Option<String> {
+    let (_, rest) = xml.split_once(&format!("<{name}>"))?;
+    let (v, _) = rest.split_once(&format!("</{name}>"))?;
+    Some(v.to_string())
+}
+
+/// An S3 error document's message, else the text's first line (at most 200 characters).
+pub(crate) fn message(body: &str) -> String {
+    let m = tag(body, "Message").unwrap_or_else(|| body.to_string());
+    m.lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .chars()
+        .take(200)
+        .collect()
 }
 
 /// The SHA-256 of `bytes`, in hex (a request body's, for [`Config::sign`]).

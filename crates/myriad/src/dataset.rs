@@ -54,6 +54,13 @@ pub struct ConvertArgs {
 }
 
 pub fn convert(a: ConvertArgs) -> Result<()> {
+    if let Some(d) = a.append.as_ref().filter(|d| myriad_format::s3::is_s3(d)) {
+        bail!(
+            "--append {}: a dataset on S3 is not changed in place (copy it here, append, copy it \
+             back)",
+            d.display()
+        );
+    }
     if let Some(d) = &a.append {
         return append(&a, d);
     }
@@ -68,8 +75,9 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         );
     }
     let output = a.output.clone().expect("clap: --output or --append");
+    let staged = crate::s3::stage(&a.inputs, &output, a.force)?;
     let structure = a.build.structure()?;
-    let mut o = ConvertOptions::new(&output);
+    let mut o = ConvertOptions::new(&staged.output);
     o.force = a.force;
     o.structure = structure;
     if let Some(m) = a.build.memory {
@@ -88,8 +96,9 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     o.grid = a.build.grid.map(|k| k as usize);
     o.open = a.build.open_options();
     let bar = Bar::new();
-    let s = convert::convert(&a.inputs, &o, &bar)?;
+    let s = convert::convert(&staged.inputs, &o, &bar)?;
     bar.clear();
+    staged.finish()?;
     let rate = s.points as f64 / s.seconds;
     let bpp = s.bytes as f64 / s.points as f64;
     if a.json {
@@ -102,7 +111,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
                 "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
                 "trimmed": s.trimmed, "not_transformed": s.not_transformed,
                 "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds(),
+                "cpu_seconds": myriad_io::process::cpu_seconds(),
                 "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
             })
         );
@@ -189,7 +198,7 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
                 "seconds": s.seconds, "bytes": s.bytes,
                 "skipped_non_finite": s.skipped_non_finite,
                 "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds(),
+                "cpu_seconds": myriad_io::process::cpu_seconds(),
             })
         );
         return Ok(());

@@ -85,7 +85,7 @@ fn myriad_s3(args: &[&str], secret: &str) -> common::Run {
 }
 
 #[test]
-fn a_dataset_in_s3_renders_as_from_disk() {
+fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
     let (py, weed) = match tools() {
         Ok(t) => t,
         Err(why) => {
@@ -173,6 +173,60 @@ fn a_dataset_in_s3_renders_as_from_disk() {
     let r = myriad_s3(&["info", "s3://scans/sets/city.myr"], SECRET);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stdout.contains("60,000"), "{}", r.stdout);
+
+    // convert from S3 to S3: the same records as the local build; an existing output is kept
+    // without --force.
+    let (c, err) = boto(
+        &py,
+        &format!("s3.upload_file('{}', 'scans', 'in/city.las')", s(&scan)),
+    );
+    assert_eq!(c, 0, "{err}");
+    let r = myriad_s3(
+        &[
+            "convert",
+            "s3://scans/in/city.las",
+            "-o",
+            "s3://scans/out/city.myr",
+        ],
+        SECRET,
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stdout.contains("s3://scans/out/city.myr"), "{}", r.stdout);
+    let extract = |from: &str, to: &Path| {
+        let r = myriad_s3(&["extract", from, "-o", s(to)], SECRET);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        common::records(to)
+    };
+    let (x, y) = (
+        extract("s3://scans/out/city.myr", &d.join("from-s3.las")),
+        extract(s(&ds), &d.join("from-disk.las")),
+    );
+    assert_eq!(x.len(), 60_000);
+    assert!(
+        x == y,
+        "the records built from S3 differ from the local build's"
+    );
+    let r = myriad_s3(
+        &["convert", s(&scan), "-o", "s3://scans/out/city.myr"],
+        SECRET,
+    );
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("output exists"), "{}", r.stderr);
+    // Past one part of a multipart upload (16 MiB): a scan of 1.5 M points.
+    let big = synth(&d, "big.las", 1_500_000);
+    assert!(std::fs::metadata(&big).unwrap().len() > 40 << 20);
+    let r = myriad_s3(
+        &["convert", s(&big), "-o", "s3://scans/out/big.myr"],
+        SECRET,
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (c, err) = boto(
+        &py,
+        "assert s3.head_object(Bucket='scans', Key='out/big.myr')['ContentLength'] > 16 << 20",
+    );
+    assert_eq!(c, 0, "uploaded in parts: {err}");
+    let r = myriad_s3(&["verify", "s3://scans/out/big.myr"], SECRET);
+    assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
 
     // Wrong secret: the server refuses the signature; one line naming what to set.
     let r = render(
