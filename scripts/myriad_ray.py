@@ -15,8 +15,8 @@ the workers).
 
 A part's task copies the S3 inputs its cells need (`myriad convert --plan ... --list-inputs`) to
 the same --stage path on its node, builds the part there and uploads it; the merge's task
-downloads the parts, merges and uploads the dataset. With paths on a shared filesystem nothing is
-copied. A failed part fails the run (exit 1, naming it) and nothing is merged.
+downloads the parts, merges (their pages copied into the dataset) and uploads it. With paths on
+a shared filesystem nothing is copied: the dataset links the parts' files where they are. A failed part fails the run (exit 1, naming it) and nothing is merged.
 
 Needs `ray` (and `boto3` for S3) from PyPI, and `myriad` on every node (--myriad).
 """
@@ -124,7 +124,8 @@ def build_part(index, plan, parts_dir, myriad, endpoint, stage):
 
 
 def merge(plan, parts_dir, output, parts, myriad, endpoint, stage):
-    """The merge: parts downloaded where they are on S3, the dataset uploaded. A Ray task."""
+    """The merge: parts downloaded where they are on S3 (their pages then copied into the
+    dataset), the dataset uploaded. A Ray task."""
     work = os.path.join(stage, f"merge-{os.getpid()}")
     os.makedirs(work, exist_ok=True)
     try:
@@ -141,9 +142,13 @@ def merge(plan, parts_dir, output, parts, myriad, endpoint, stage):
                     except ClientError:
                         continue  # merge names a missing part; an empty part has no .myr
         out = os.path.join(work, os.path.basename(output)) if is_s3(output) else output
+        # On a shared filesystem the dataset links the parts where they are; staged ones are
+        # removed with this folder, so their pages are copied into the dataset.
+        whole = ["--single-file"] if is_s3(parts_dir) or is_s3(output) else []
         summary = json.loads(
             run_myriad(
-                myriad, ["merge", local_plan, local_parts, "-o", out, "--force", "--json"]
+                myriad,
+                ["merge", local_plan, local_parts, "-o", out, "--force", "--json", *whole],
             )
         )
         if is_s3(output):

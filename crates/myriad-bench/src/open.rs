@@ -331,6 +331,7 @@ fn write_fixture(path: &Path, points: u64) -> Result<()> {
         las_header: None,
         software: format!("myriad {} bench open --fixture", env!("CARGO_PKG_VERSION")),
         levels: vec![],
+        files: vec![],
     })?;
     Ok(())
 }

@@ -123,7 +123,7 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         points as f64 / one_secs / 1e6
     );
     println!(
-        "{:>5} {:>3} {:>7} {:>8} {:>8} {:>6} {:>7} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>8}",
+        "{:>5} {:>3} {:>7} {:>8} {:>8} {:>6} {:>7} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>8} {:>7}",
         "parts",
         "P",
         "plan s",
@@ -137,7 +137,8 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         "read x",
         "part MB",
         "merge s",
-        "merge MB"
+        "merge MB",
+        "copy s"
     );
     for &n in &a.parts {
         let plan = scratch.join(format!("plan-{n}.json"));
@@ -205,8 +206,20 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         cpu += plan_cpu + m.cpu;
         let max = times.iter().copied().fold(0.0, f64::max);
         let med = median(&mut times);
+        // The same parts merged into one file (every page copied), for the merge's time.
+        let single = scratch.join(format!("parts-{n}-single.myr"));
+        let (_, copy_secs) = run(&[
+            "merge",
+            &plan_s,
+            &s(&dir),
+            "-o",
+            &s(&single),
+            "--force",
+            "--single-file",
+        ])?;
+        std::fs::remove_file(&single)?;
         println!(
-            "{n:>5} {:>3} {plan_secs:>7.2} {plan_cpu:>8.2} {wall:>8.1} {:>6.2} {med:>7.1} {max:>8.1} {cpu:>8.1} {:>7.3} {:>7.2} {peak:>7.0} {:>8.1} {:>8.0}",
+            "{n:>5} {:>3} {plan_secs:>7.2} {plan_cpu:>8.2} {wall:>8.1} {:>6.2} {med:>7.1} {max:>8.1} {cpu:>8.1} {:>7.3} {:>7.2} {peak:>7.0} {:>8.1} {:>8.0} {copy_secs:>7.1}",
             p["partition_level"].as_u64().unwrap_or(0),
             wall / one_secs,
             cpu / one_cpu,
@@ -229,7 +242,8 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
     println!(
         "(part s: median of the parts; wall: submission to merged, {cores} cores shared by the parts; \
          cpu s: plan, parts and merge together, x one against the one-machine build's; read x: \
-         points the parts read over the points)"
+         points the parts read over the points; merge s: the merge that links the parts' files, \
+         copy s: the same parts merged with --single-file)"
     );
     Ok(())
 }

@@ -497,6 +497,7 @@ pub fn convert(
             None => dist.las_header.clone(),
         },
         levels: Vec::new(),
+        files: Vec::new(),
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
     };
     let chunk_keys: Vec<NodeKey> = (dist.chunks.iter())

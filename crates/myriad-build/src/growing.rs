@@ -285,6 +285,7 @@ fn fill_snapshot(fill: &PointBatch) -> Option<Snapshot> {
         sources: Vec::new(),
         las_header: None,
         levels: Vec::new(),
+        files: Vec::new(),
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
     };
     let level = if fill.len() < 20_000 { 0 } else { 2 };

@@ -142,9 +142,37 @@ fn same_as_one_machine(structure: Structure, name: &str, laz: bool) {
         assert_eq!(read, 4 * 250_000, "a LAS input is read whole by every part");
     }
     let merged = d.join("merged.myr");
-    let m = partition::merge(&plan, &parts, &merged, false, 2, &Silent).unwrap();
+    let m = partition::merge(&plan, &parts, &merged, false, true, 2, &Silent).unwrap();
     assert_eq!(m.points, 250_000);
-    assert!(m.copied > 0 && m.built > 0, "{m:?}");
+    assert!(m.copied > 0 && m.built > 0 && m.linked == 0, "{m:?}");
+    // By default the parts' pages stay where they are: the same nodes and pages, read through
+    // the links, in a file that holds only the levels above the parts.
+    let linked = d.join("linked.myr");
+    let l = partition::merge(&plan, &parts, &linked, false, false, 2, &Silent).unwrap();
+    let with_points = summaries.iter().filter(|s| s.points > 0).count() as u64;
+    assert_eq!(
+        (l.points, l.copied, l.linked),
+        (250_000, m.copied, with_points)
+    );
+    assert!(l.bytes < m.bytes, "{} of {} bytes", l.bytes, m.bytes);
+    assert_eq!(pages(&linked), pages(&merged));
+    // Every page below the partition level is in a part's file; the levels above in its own.
+    let ds = Dataset::open(&linked).unwrap();
+    let (nodes, _) = ds.nodes();
+    for n in nodes.iter().filter(|n| n.page.length > 0) {
+        let (file, _) = ds.locate(n.page);
+        assert_eq!(
+            file.is_some(),
+            n.key.level > plan.partition_level,
+            "{}",
+            n.key
+        );
+    }
+    let own: u64 = (nodes.iter())
+        .filter(|n| ds.locate(n.page).0.is_none())
+        .map(|n| n.page.length as u64)
+        .sum();
+    assert!(own < l.bytes);
 
     let one = d.join("one.myr");
     let s = convert::convert(
@@ -160,10 +188,79 @@ fn same_as_one_machine(structure: Structure, name: &str, laz: bool) {
         assert_eq!(x.0, y.0);
         assert!(x.1 == y.1, "{}: page bytes differ", x.0);
     }
-    let ds = Dataset::open(&merged).unwrap();
-    assert_eq!(ds.meta.sources[0]["points"], 250_000);
+    for path in [&merged, &linked] {
+        let ds = Dataset::open(path).unwrap();
+        assert_eq!(ds.meta.sources[0]["points"], 250_000);
+        let r = myriad_build::extract::verify(&ds, |_| {});
+        assert!(r.damage.is_empty());
+        assert_eq!(r.points, 250_000);
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// A merged dataset links its parts' files: they are found relative to it (the folders moved
+/// together), and a part missing, built again or damaged is named in one line.
+#[test]
+fn a_linked_part_missing_or_changed_is_named() {
+    let d = tempdir("partition-linked");
+    let las = synth(&d, 80_000, 6);
+    let plan = partition::plan(std::slice::from_ref(&las), &options(3, Structure::Octree)).unwrap();
+    let parts = d.join("job").join("parts");
+    build_all(&plan, &parts);
+    let out = d.join("job").join("city.myr");
+    let m = partition::merge(&plan, &parts, &out, false, false, 1, &Silent).unwrap();
+    assert!(m.linked >= 2, "{m:?}");
+    let ds = Dataset::open(&out).unwrap();
+    assert_eq!(ds.files()[0].path, "parts/part-0.myr");
+    ds.check_files().unwrap();
+    drop(ds);
+
+    // The dataset and its parts moved together: still whole.
+    let moved = d.join("moved");
+    std::fs::rename(d.join("job"), &moved).unwrap();
+    let ds = Dataset::open(&moved.join("city.myr")).unwrap();
+    assert!(myriad_build::extract::verify(&ds, |_| {}).damage.is_empty());
+    drop(ds);
+
+    // A byte of a part's page changed: the damage names the part's file and its byte.
+    let part = moved.join("parts").join("part-1.myr");
+    let original = std::fs::read(&part).unwrap();
+    let mut bytes = original.clone();
+    bytes[100] ^= 0xff;
+    std::fs::write(&part, &bytes).unwrap();
+    let ds = Dataset::open(&moved.join("city.myr")).unwrap();
     let r = myriad_build::extract::verify(&ds, |_| {});
-    assert!(r.damage.is_empty());
+    assert!(!r.damage.is_empty());
+    let e = ds.damage_error(&r.damage[0]).to_string();
+    assert!(e.contains("part-1.myr") && e.contains("checksum"), "{e}");
+
+    // Built again (another file under its name): its header differs, named before any page.
+    let mut other = original.clone();
+    other[56] ^= 1; // the point count, so the header's CRC changes
+    let crc = {
+        let mut h = other[..64].to_vec();
+        h[12..16].fill(0);
+        crc32fast::hash(&h)
+    };
+    other[12..16].copy_from_slice(&crc.to_le_bytes());
+    std::fs::write(&part, &other).unwrap();
+    let ds = Dataset::open(&moved.join("city.myr")).unwrap();
+    let e = ds.check_files().unwrap_err().to_string();
+    assert!(e.contains("part-1.myr") && e.contains("merge again"), "{e}");
+    assert_eq!(e.lines().count(), 1);
+
+    // Missing: named, in one line, by the check and by a page read.
+    std::fs::remove_file(&part).unwrap();
+    let ds = Dataset::open(&moved.join("city.myr")).unwrap();
+    let e = ds.check_files().unwrap_err().to_string();
+    assert!(e.contains("part-1.myr") && e.contains("city.myr"), "{e}");
+    let (nodes, _) = ds.nodes();
+    let n = nodes
+        .iter()
+        .find(|n| ds.locate(n.page).0 == Some(1))
+        .unwrap();
+    let e = ds.damage_error(&ds.read_node(n).unwrap_err()).to_string();
+    assert!(e.contains("part-1.myr"), "{e}");
     let _ = std::fs::remove_dir_all(&d);
 }
 
@@ -269,7 +366,7 @@ fn an_empty_input_is_planned_and_merged() {
     assert_eq!(plan.inputs[1].points, 0);
     let parts = d.join("parts");
     build_all(&plan, &parts);
-    let m = partition::merge(&plan, &parts, &d.join("m.myr"), false, 1, &Silent).unwrap();
+    let m = partition::merge(&plan, &parts, &d.join("m.myr"), false, false, 1, &Silent).unwrap();
     assert_eq!(m.points, 30_000);
 }
 
@@ -282,7 +379,7 @@ fn merge_refuses_missing_and_foreign_parts() {
     partition::build_part(&plan, 0, &parts, 1, &Silent).unwrap();
     partition::build_part(&plan, 2, &parts, 1, &Silent).unwrap();
     let out = d.join("out.myr");
-    let e = partition::merge(&plan, &parts, &out, false, 1, &Silent)
+    let e = partition::merge(&plan, &parts, &out, false, false, 1, &Silent)
         .unwrap_err()
         .to_string();
     assert!(e.contains("part-1.tops") && e.contains("--part 1"), "{e}");
@@ -294,7 +391,7 @@ fn merge_refuses_missing_and_foreign_parts() {
     let other = partition::plan(std::slice::from_ref(&las), &o).unwrap();
     assert_ne!(other.id, plan.id);
     partition::build_part(&other, 1, &parts, 1, &Silent).unwrap();
-    let e = partition::merge(&plan, &parts, &out, false, 1, &Silent)
+    let e = partition::merge(&plan, &parts, &out, false, false, 1, &Silent)
         .unwrap_err()
         .to_string();
     assert!(
@@ -305,7 +402,7 @@ fn merge_refuses_missing_and_foreign_parts() {
 
     // Rerun: it replaces the foreign part; then the merge works.
     partition::build_part(&plan, 1, &parts, 1, &Silent).unwrap();
-    let m = partition::merge(&plan, &parts, &out, false, 1, &Silent).unwrap();
+    let m = partition::merge(&plan, &parts, &out, false, false, 1, &Silent).unwrap();
     assert_eq!(m.points, 60_000);
 
     // An edited plan is refused.

@@ -11,6 +11,7 @@
 #![cfg_attr(target_arch = "wasm32", allow(dead_code))]
 
 pub mod hierarchy;
+pub mod linked;
 pub mod page;
 pub mod splat;
 
@@ -54,11 +55,15 @@ pub fn is_dataset(path: &std::path::Path) -> bool {
 /// 2: hierarchy entries carry optional node bounds, contours and splat pages (the kd, layered and
 /// mwkd structures).
 pub const FORMAT_VERSION: u32 = 2;
+/// The version of a dataset of several files ([`linked`]): a reader of 2 alone would find
+/// pages past the end of the file.
+pub const LINKED_VERSION: u32 = 3;
 pub const HEADER_LEN: usize = 64;
 
 /// The 64-byte file header.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Header {
+    version: u32,
     metadata: PageRef,
     hierarchy: PageRef,
     file_length: u64,
@@ -69,7 +74,7 @@ impl Header {
     fn encode(&self) -> [u8; HEADER_LEN] {
         let mut b = [0u8; HEADER_LEN];
         b[..8].copy_from_slice(MAGIC);
-        b[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        b[8..12].copy_from_slice(&self.version.to_le_bytes());
         let put = |b: &mut [u8; HEADER_LEN], at: usize, r: PageRef| {
             b[at..at + 8].copy_from_slice(&r.offset.to_le_bytes());
             b[at + 8..at + 12].copy_from_slice(&r.length.to_le_bytes());
@@ -96,11 +101,11 @@ impl Header {
         if crc32fast::hash(&zeroed) != u32_at(12) {
             return Err((12, "header checksum mismatch".into()));
         }
-        if version != FORMAT_VERSION {
+        if version != FORMAT_VERSION && version != LINKED_VERSION {
             return Err((
                 8,
                 format!(
-                    "format version {version}; this build reads {FORMAT_VERSION} (convert the input again)"
+                    "format version {version}; this build reads {FORMAT_VERSION} and {LINKED_VERSION} (convert the input again)"
                 ),
             ));
         }
@@ -110,6 +115,7 @@ impl Header {
             crc: u32_at(at + 12),
         };
         Ok(Header {
+            version,
             metadata: r(16),
             hierarchy: r(32),
             file_length: u64_at(48),
@@ -165,6 +171,25 @@ impl ByteSource for FileBytes {
     }
 }
 
+/// A file's bytes, or a URL's by range requests (the linked files of a dataset opened so).
+#[cfg(not(target_arch = "wasm32"))]
+fn open_bytes(at: &str) -> std::io::Result<Arc<dyn ByteSource>> {
+    let bytes: Arc<dyn ByteSource> = if remote::is_url(Path::new(at)) {
+        Arc::new(remote::HttpBytes::open(at).map_err(std::io::Error::other)?)
+    } else {
+        let file = std::fs::File::open(at)?;
+        let len = file.metadata()?.len();
+        Arc::new(FileBytes { file, len })
+    };
+    Ok(bytes)
+}
+
+/// In the web viewer, linked files are opened through its own opener.
+#[cfg(target_arch = "wasm32")]
+fn open_bytes(at: &str) -> std::io::Result<Arc<dyn ByteSource>> {
+    Err(std::io::Error::other(format!("{at}: not opened here")))
+}
+
 /// A damaged part of a dataset met while reading: the node (or the root of the subtree whose
 /// hierarchy page is damaged), the byte offset, and what is wrong.
 #[derive(Debug, Clone, PartialEq)]
@@ -197,10 +222,14 @@ impl std::fmt::Display for Damage {
 /// An open dataset. Cheap to share: readers on many threads call it at once.
 pub struct Dataset {
     bytes: Arc<dyn ByteSource>,
+    /// The other files holding its pages (none for a dataset of one file).
+    linked: linked::Linked,
     path: PathBuf,
     pub meta: Metadata,
     root: PageRef,
     pub file_length: u64,
+    /// Its header's CRC-32 (what a dataset linking this one records of it).
+    pub header_crc: u32,
 }
 
 impl Dataset {
@@ -215,22 +244,92 @@ impl Dataset {
         Dataset::from_source(Arc::new(FileBytes::open(path)?), path)
     }
 
-    /// Requests made and bytes fetched so far, for a dataset read over a network.
+    /// Requests made and bytes fetched so far, for a dataset read over a network (its linked
+    /// files' included).
     pub fn fetched(&self) -> Option<(u64, u64)> {
-        self.bytes.fetched()
+        let mut total = self.bytes.fetched()?;
+        for s in self.linked.opened() {
+            let (r, b) = s.fetched().unwrap_or_default();
+            total = (total.0 + r, total.1 + b);
+        }
+        Some(total)
     }
 
     /// An error naming the dataset when its source changed while it was read (a dataset on a
     /// web server replaced): a command's results from it cannot be trusted.
     pub fn check_unchanged(&self) -> Result<()> {
-        match self.bytes.changed() {
+        let linked = (self.linked.opened()).find_map(|s| s.changed());
+        match self.bytes.changed().or(linked) {
             Some(m) => Err(Error::Invalid(format!("{}: {m}", self.path.display()))),
             None => Ok(()),
         }
     }
 
-    /// Opens a dataset from any byte source; `name` labels errors.
+    /// The files besides its own that hold the dataset's pages (a merge's parts), as its
+    /// metadata names them; empty for a dataset of one file.
+    pub fn files(&self) -> &[linked::LinkedFile] {
+        &self.linked.files
+    }
+
+    /// Opens and checks every linked file (length and header), as reading a page of it would:
+    /// the first that is missing or not the one linked, named in one line.
+    pub fn check_files(&self) -> Result<()> {
+        for i in 0..self.linked.files.len() {
+            self.linked.source(i).map_err(|m| {
+                Error::Invalid(format!(
+                    "{}: {m} (a file of {})",
+                    self.linked.name(i),
+                    self.path.display()
+                ))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Where page `r` lies: `None` in the dataset's own file, else the index of the linked
+    /// file (in [`Dataset::files`]), and the reference with its offset in that file.
+    pub fn locate(&self, r: PageRef) -> (Option<usize>, PageRef) {
+        match (r.offset >> linked::SLOT_BITS) as usize {
+            0 => (None, r),
+            slot => (
+                Some(slot - 1),
+                PageRef {
+                    offset: r.offset - linked::base(slot - 1),
+                    ..r
+                },
+            ),
+        }
+    }
+
+    /// Opens a dataset from any byte source; `name` labels errors, and linked files are
+    /// opened beside it (a path, or a URL: `http(s)://`, `s3://`).
     pub fn from_source(bytes: Arc<dyn ByteSource>, name: &Path) -> Result<Dataset> {
+        let text = name.to_string_lossy().into_owned();
+        let at = text.clone();
+        let resolve: Arc<dyn Fn(&str) -> String + Send + Sync> =
+            Arc::new(move |rel: &str| match at.contains("://") {
+                true => linked::join_url(&at, rel),
+                false => Path::new(&at)
+                    .parent()
+                    .unwrap_or(Path::new(""))
+                    .join(rel)
+                    .display()
+                    .to_string(),
+            });
+        let r = resolve.clone();
+        let opener: linked::Opener =
+            Arc::new(move |_, f: &linked::LinkedFile| open_bytes(&r(&f.path)));
+        Dataset::from_source_linked(bytes, name, opener, resolve)
+    }
+
+    /// [`Dataset::from_source`] with linked files opened by `opener` and named in errors by
+    /// `name_of` (given the path recorded).
+    pub fn from_source_linked(
+        bytes: Arc<dyn ByteSource>,
+        name: &Path,
+        opener: linked::Opener,
+        name_of: Arc<dyn Fn(&str) -> String + Send + Sync>,
+    ) -> Result<Dataset> {
         let len = bytes.len();
         if len < HEADER_LEN as u64 {
             return Err(Error::at_byte(
@@ -272,12 +371,21 @@ impl Dataset {
             .map_err(|e| e.to_string())
             .and_then(|v| Metadata::from_json(&v))
             .map_err(|e| Error::at_byte(name, m.offset, format!("metadata: {e}")))?;
+        if header.version == LINKED_VERSION && meta.files.is_empty() {
+            return Err(Error::at_byte(
+                name,
+                m.offset,
+                "metadata: a dataset of several files that lists none",
+            ));
+        }
         Ok(Dataset {
             bytes,
+            linked: linked::Linked::new(meta.files.clone(), opener, name_of),
             path: name.to_path_buf(),
             meta,
             root: header.hierarchy,
             file_length: len,
+            header_crc: u32::from_le_bytes(head[12..16].try_into().unwrap()),
         })
     }
 
@@ -286,12 +394,27 @@ impl Dataset {
     }
 
     fn read_range(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
-        if r.offset.saturating_add(r.length as u64) > self.file_length {
+        let (file, local) = self.locate(r);
+        let Some(i) = file else {
+            if r.offset.saturating_add(r.length as u64) > self.file_length {
+                return Err("page lies past the end of the file".into());
+            }
+            return (self.bytes)
+                .read_at(r.offset, r.length as usize)
+                .map_err(|e| e.to_string());
+        };
+        if i >= self.linked.files.len() {
+            return Err(format!(
+                "page in file {} of {} linked",
+                i + 1,
+                self.linked.files.len()
+            ));
+        }
+        let source = self.linked.source(i)?;
+        if local.offset.saturating_add(local.length as u64) > source.len() {
             return Err("page lies past the end of the file".into());
         }
-        self.bytes
-            .read_at(r.offset, r.length as usize)
-            .map_err(|e| e.to_string())
+        (source.read_at(local.offset, local.length as usize)).map_err(|e| e.to_string())
     }
 
     fn read_checked(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
@@ -476,7 +599,18 @@ impl Dataset {
         } else {
             format!("node {}: {}", d.key, d.message)
         };
-        Error::at_byte(&self.path, d.offset, msg)
+        match self.locate(PageRef {
+            offset: d.offset,
+            length: 0,
+            crc: 0,
+        }) {
+            (Some(i), local) if i < self.linked.files.len() => Error::at_byte(
+                Path::new(&self.linked.name(i)),
+                local.offset,
+                format!("{msg} (a file of {})", self.path.display()),
+            ),
+            _ => Error::at_byte(&self.path, d.offset, msg),
+        }
     }
 }
 
@@ -511,6 +645,7 @@ mod tests {
             las_header: None,
             software: "test".into(),
             levels: vec![],
+            files: vec![],
         };
         let r = w.finish(meta);
         (path, r)

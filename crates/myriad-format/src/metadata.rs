@@ -35,6 +35,9 @@ pub struct Metadata {
     /// Nodes and points per level, written by [`DatasetWriter::finish`] so that whole-dataset
     /// statistics need no walk of the hierarchy; empty in datasets written before it was.
     pub levels: Vec<Level>,
+    /// Files other than the dataset's own that hold some of its node pages (a merge's parts):
+    /// empty for a dataset of one file. See [`crate::linked`].
+    pub files: Vec<crate::linked::LinkedFile>,
 }
 
 /// One level of the hierarchy: its nodes, their points (aggregates included), and the finest
@@ -93,7 +96,7 @@ fn schema_json(s: &Schema) -> Value {
 impl Metadata {
     pub fn to_json(&self) -> Value {
         let q = &self.quantization;
-        json!({
+        let mut v = json!({
             "structure": self.structure,
             "parameters": self.parameters,
             "points": self.points,
@@ -112,7 +115,12 @@ impl Metadata {
                 "level": l.level, "nodes": l.nodes, "points": l.points,
                 "spacing": l.spacing.is_finite().then_some(l.spacing),
             })).collect::<Vec<_>>(),
-        })
+        });
+        // Absent from datasets of one file, as before there were others.
+        if !self.files.is_empty() {
+            v["files"] = self.files.iter().map(|f| f.to_json()).collect();
+        }
+        v
     }
 
     /// Every number that JSON must carry is finite (JSON has no NaN or infinity: serde_json
@@ -253,6 +261,12 @@ impl Metadata {
                 .unwrap_or_default()
                 .to_string(),
             levels,
+            files: match v.get("files") {
+                Some(f) => (f.as_array().ok_or("files is not a list")?.iter())
+                    .map(crate::linked::LinkedFile::from_json)
+                    .collect::<std::result::Result<_, _>>()?,
+                None => Vec::new(),
+            },
         })
     }
 }

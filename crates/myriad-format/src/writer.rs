@@ -115,6 +115,19 @@ impl DatasetWriter {
         Ok(page.len() as u64)
     }
 
+    /// Adds `entry`, read from a dataset that stays where it is, as linked file `file` (its
+    /// index in the `files` of the metadata given to [`DatasetWriter::finish`]): its page is
+    /// not copied, the entry refers to it there ([`crate::linked`]). Splat pages are not
+    /// linked: for octree and layered datasets.
+    pub fn link_node(&self, entry: &NodeEntry, file: usize) {
+        let mut e = entry.clone();
+        if e.page.length > 0 {
+            e.page.offset += crate::linked::base(file);
+        }
+        e.splats = None;
+        self.entries.lock().expect("entries lock").push(e);
+    }
+
     /// Adds an entry as given, its page written elsewhere or nowhere: for fixtures that
     /// measure a hierarchy alone (`myriad bench open --fixture`); a reader reports a node whose
     /// page is not in the file as damaged.
@@ -373,6 +386,11 @@ fn encode_tail(
     };
     out.extend_from_slice(&json);
     let header = Header {
+        version: if meta.files.is_empty() {
+            crate::FORMAT_VERSION
+        } else {
+            crate::LINKED_VERSION
+        },
         metadata,
         hierarchy,
         file_length: start + out.len() as u64,

@@ -219,6 +219,7 @@ fn write_quadtree(path: &std::path::Path, depth: u32) -> Vec<NodeKey> {
         las_header: None,
         software: "test".into(),
         levels: vec![],
+        files: vec![],
     })
     .unwrap();
     keys

@@ -46,6 +46,23 @@ pub struct Catalog {
     files: BTreeMap<String, File>,
 }
 
+/// The name `rel` (a path relative to the file served as `name`) is served under: `.` and `..`
+/// taken out; `None` where it leaves the served names' root.
+fn served_name(name: &str, rel: &str) -> Option<String> {
+    let mut segs: Vec<&str> = name.split('/').collect();
+    segs.pop();
+    for s in rel.split('/') {
+        match s {
+            "" | "." => {}
+            ".." => {
+                segs.pop()?;
+            }
+            s => segs.push(s),
+        }
+    }
+    Some(segs.join("/"))
+}
+
 /// Files at most this deep in a served folder, and at most this many.
 const MAX_DEPTH: usize = 8;
 const MAX_FILES: usize = 100_000;
@@ -143,6 +160,9 @@ impl Catalog {
             )));
         }
         let work = (kind == Kind::Dataset).then(|| myriad_measure::work::sidecar_for(&path));
+        if kind == Kind::Dataset {
+            self.add_linked(&name, &path)?;
+        }
         self.files.insert(
             name,
             File {
@@ -154,6 +174,36 @@ impl Catalog {
                 len,
             },
         );
+        Ok(())
+    }
+
+    /// The files a dataset of several files links (a merge's parts), under the names its
+    /// relative paths give them beside `name`, so that a browser or `HttpBytes` resolving
+    /// them against the dataset's URL finds them here.
+    fn add_linked(&mut self, name: &str, path: &Path) -> Result<()> {
+        let Ok(ds) = myriad_format::Dataset::open(path) else {
+            // Not a dataset (or a damaged one): served as given, its readers say what is wrong.
+            return Ok(());
+        };
+        // Every file it links is the dataset part it was (length and header): nothing else
+        // is served in their names.
+        ds.check_files()?;
+        let folder = path.parent().unwrap_or(Path::new(""));
+        for f in ds.files() {
+            let Some(linked) = served_name(name, &f.path) else {
+                return Err(Error::Invalid(format!(
+                    "{}: links {}, which lies above it: no URL beside the dataset reaches it \
+                     (keep the parts in a folder beside or below it, or merge with --single-file)",
+                    path.display(),
+                    f.path
+                )));
+            };
+            let at = folder.join(&f.path);
+            match self.files.get(&linked) {
+                Some(g) if g.path == at => {}
+                _ => self.add(linked, at, Some(Kind::Export))?,
+            }
+        }
         Ok(())
     }
 

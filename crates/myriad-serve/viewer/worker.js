@@ -4,7 +4,10 @@
 "use strict";
 
 let wasm = null;
-let url = null;
+// The dataset's files: its own, then those it links (their pages' offsets are
+// file * 2^40 + the offset in the file, myriad-format's linked.rs).
+let urls = [];
+const SLOT = 2 ** 40;
 let failure = "";
 const stats = { requests: 0, bytes: 0 };
 
@@ -12,9 +15,15 @@ function memory(ptr, len) {
   return new Uint8Array(wasm.exports.memory.buffer, ptr, len);
 }
 
-// The import the module reads the dataset through: one synchronous range request.
-function myr_read(offset, len, dst) {
+// The import the module reads the dataset through: one synchronous range request of file
+// `file` (0: the dataset's own).
+function myr_read(file, offset, len, dst) {
   const x = new XMLHttpRequest();
+  const url = urls[file];
+  if (url === undefined) {
+    failure = `file ${file} of the dataset is not known`;
+    return 1;
+  }
   x.open("GET", url, false);
   x.responseType = "arraybuffer";
   x.setRequestHeader("Range", `bytes=${offset}-${offset + len - 1}`);
@@ -74,7 +83,10 @@ function withName(name, f) {
 }
 
 async function fetchPage(page) {
-  const [offset, length] = page;
+  const file = Math.floor(page[0] / SLOT);
+  const [offset, length] = [page[0] - file * SLOT, page[1]];
+  const url = urls[file];
+  if (url === undefined) throw new Error(`page in file ${file} of the dataset, which links ${urls.length - 1}`);
   const r = await fetch(url, { headers: { Range: `bytes=${offset}-${offset + length - 1}` } });
   stats.requests += 1;
   if (r.status !== 206) throw new Error(`${url}: HTTP ${r.status} for a range request`);
@@ -128,10 +140,13 @@ onmessage = async (e) => {
   const m = e.data;
   try {
     if (m.type === "init") {
-      url = m.url;
+      const url = m.url;
+      urls = [url];
       wasm = await WebAssembly.instantiate(m.module, { env: { myr_read } });
       const open = m.role === "select" ? wasm.exports.myr_open : wasm.exports.myr_open_pages;
       const info = withName(m.name, (p, n) => json(open(m.length, p, n)));
+      const base = new URL(url, self.location.href);
+      urls = [url, ...(info.files || []).map((f) => new URL(f, base).href)];
       postMessage({ id: m.id, info, stats });
     } else if (m.type === "camera") {
       postMessage({ id: m.id, camera: json(wasm.exports.myr_camera(m.width, m.height, m.fov)) });

@@ -54,7 +54,11 @@ impl Viewer {
     /// Opens a dataset from `bytes` (reads the header, metadata, root hierarchy page and root
     /// node, as the native scene does).
     pub fn open(bytes: Arc<dyn ByteSource>, name: &str) -> myriad_core::Result<Viewer> {
-        let dataset = Dataset::from_source(bytes, Path::new(name))?;
+        Viewer::from_dataset(Dataset::from_source(bytes, Path::new(name))?)
+    }
+
+    /// [`Viewer::open`] of a dataset opened already.
+    pub fn from_dataset(dataset: Dataset) -> myriad_core::Result<Viewer> {
         let meta = &dataset.meta;
         let hierarchy = match dataset.hierarchy_page(&dataset.root_page()) {
             Ok(page) => Hierarchy::from_root_page(meta.root, page, meta.depth),
@@ -93,6 +97,8 @@ impl Viewer {
             "columns": Column::columns(&m.schema).into_iter().map(|(n, _)| n).collect::<Vec<_>>(),
             "gradients": Gradient::ALL.iter().map(|g| gradient_name(*g)).collect::<Vec<_>>(),
             "crs": m.crs,
+            // The files besides the dataset's own that hold its pages, relative to it.
+            "files": m.files.iter().map(|f| f.path.as_str()).collect::<Vec<_>>(),
             // The ASPRS classes' names and colours (as `render` colours them), for the class list.
             "classes": (0..=255u8).map(|c| json!({
                 "class": c,

@@ -15,13 +15,41 @@ use std::sync::Arc;
 
 #[link(wasm_import_module = "env")]
 unsafe extern "C" {
-    /// Copies `len` bytes of the dataset at `offset` into memory at `dst`; 0 when it did.
-    fn myr_read(offset: f64, len: u32, dst: *mut u8) -> i32;
+    /// Copies `len` bytes at `offset` of file `file` (0: the dataset's own, `i`: the `i`-th
+    /// it links) into memory at `dst`; 0 when it did.
+    fn myr_read(file: u32, offset: f64, len: u32, dst: *mut u8) -> i32;
 }
 
-/// The dataset over the viewer's range requests.
+/// A file of the dataset over the viewer's range requests.
 struct Remote {
+    file: u32,
     len: u64,
+}
+
+impl Remote {
+    /// The dataset's own file, of `len` bytes.
+    fn dataset(len: f64) -> Arc<Remote> {
+        Arc::new(Remote {
+            file: 0,
+            len: len as u64,
+        })
+    }
+}
+
+/// Opens a dataset whose linked files are read through the same import.
+fn open(len: f64, name: &str) -> myriad_core::Result<Dataset> {
+    let opener: myriad_format::linked::Opener = Arc::new(|i, f| {
+        Ok(Arc::new(Remote {
+            file: i as u32 + 1,
+            len: f.length,
+        }))
+    });
+    Dataset::from_source_linked(
+        Remote::dataset(len),
+        Path::new(name),
+        opener,
+        Arc::new(|p: &str| p.to_string()),
+    )
 }
 
 impl ByteSource for Remote {
@@ -31,7 +59,7 @@ impl ByteSource for Remote {
     fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
         let mut b = vec![0u8; len];
         // SAFETY: `b` holds `len` writable bytes; the import writes at most that many.
-        match unsafe { myr_read(offset as f64, len as u32, b.as_mut_ptr()) } {
+        match unsafe { myr_read(self.file, offset as f64, len as u32, b.as_mut_ptr()) } {
             0 => Ok(b),
             _ => Err(std::io::Error::other(format!(
                 "range request for {len} bytes at {offset} failed"
@@ -164,8 +192,7 @@ fn name(p: *const u8, n: u32) -> String {
 /// Opens the dataset of `len` bytes for selecting (the selection worker): its information.
 #[unsafe(no_mangle)]
 pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
-    let source = Arc::new(Remote { len: len as u64 });
-    match Viewer::open(source, &name(name_ptr, name_len)) {
+    match open(len, &name(name_ptr, name_len)).and_then(Viewer::from_dataset) {
         Ok(v) => {
             let info = v.info();
             VIEWER.with(|s| *s.borrow_mut() = Some(v));
@@ -178,11 +205,12 @@ pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 
 /// Opens the dataset of `len` bytes for decoding (header and metadata only: decode workers).
 #[unsafe(no_mangle)]
 pub extern "C" fn myr_open_pages(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
-    let source = Arc::new(Remote { len: len as u64 });
-    match Dataset::from_source(source, Path::new(&name(name_ptr, name_len))) {
+    match open(len, &name(name_ptr, name_len)) {
         Ok(d) => {
+            let files: Vec<&str> = d.meta.files.iter().map(|f| f.path.as_str()).collect();
+            let info = json!({ "files": files });
             DATASET.with(|s| *s.borrow_mut() = Some(d));
-            answer_json(json!({}))
+            answer_json(info)
         }
         Err(e) => error(e),
     }

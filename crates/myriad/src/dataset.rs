@@ -319,6 +319,8 @@ pub fn verify(a: VerifyArgs) -> Result<()> {
     let mut first = None;
     for path in &a.datasets {
         let ds = Dataset::open(path)?;
+        // A file of its missing or replaced is one line, not a line per page in it.
+        ds.check_files()?;
         let bar = ProgressBar::new(ds.meta.points);
         let r = extract::verify(&ds, |n| bar.inc(n));
         bar.finish_and_clear();
@@ -328,8 +330,12 @@ pub fn verify(a: VerifyArgs) -> Result<()> {
             println!("damaged: {}", ds.damage_error(d));
         }
         if r.damage.is_empty() {
+            let files = match ds.files().len() {
+                0 => String::new(),
+                n => format!(" (in {} files: its own and {n} it links)", n + 1),
+            };
             println!(
-                "{}: ok, {} nodes, {} points, every checksum and invariant holds",
+                "{}: ok, {} nodes, {} points{files}, every checksum and invariant holds",
                 path.display(),
                 thousands(r.nodes),
                 thousands(r.points)

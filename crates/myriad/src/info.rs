@@ -195,14 +195,21 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
     } else {
         (m.levels.clone(), None)
     };
-    let bpp = ds.file_length as f64 / m.points.max(1) as f64;
+    // A dataset of several files counts the bytes of the files it links (the parts' files
+    // hold their headers and hierarchies too).
+    let linked: u64 = ds.files().iter().map(|f| f.length).sum();
+    let bpp = (ds.file_length + linked) as f64 / m.points.max(1) as f64;
+    let version = match ds.files().is_empty() {
+        true => myriad_format::FORMAT_VERSION,
+        false => myriad_format::LINKED_VERSION,
+    };
     if as_json {
         println!(
             "{}",
             json!({
                 "path": path.display().to_string(),
                 "format": "myriad",
-                "version": myriad_format::FORMAT_VERSION,
+                "version": version,
                 "points": m.points,
                 "nodes": m.nodes,
                 "depth": m.depth,
@@ -216,6 +223,7 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
                 "crs_info": crs_json(m.crs.as_deref()),
                 "attributes": m.schema.names(),
                 "file_size": ds.file_length,
+                "files": ds.files().iter().map(|f| json!({"path": f.path, "bytes": f.length})).collect::<Vec<_>>(),
                 "bytes_per_point": bpp,
                 "sources": m.sources,
                 "levels": levels.iter().map(|l| json!({"level": l.level, "nodes": l.nodes, "points": l.points, "node_size": l.spacing.is_finite().then_some(l.spacing)})).collect::<Vec<_>>(),
@@ -226,10 +234,7 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
     }
     let b = m.bounds;
     println!("{}", path.display());
-    println!(
-        "  format      Myriad dataset {}",
-        myriad_format::FORMAT_VERSION
-    );
+    println!("  format      Myriad dataset {version}");
     println!("  structure   {} {}", m.structure, m.parameters);
     println!("  points      {}", thousands(m.points));
     println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
@@ -240,9 +245,18 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
     print_crs(m.crs.as_deref());
     println!(
         "  file size   {} bytes, {:.2} bytes per point",
-        thousands(ds.file_length),
+        thousands(ds.file_length + linked),
         bpp
     );
+    if !ds.files().is_empty() {
+        println!(
+            "  files       its own ({} bytes) and {} it links, beside it: {}{}",
+            thousands(ds.file_length),
+            ds.files().len(),
+            ds.files()[0].path,
+            if ds.files().len() > 1 { ", ..." } else { "" }
+        );
+    }
     println!("  level      nodes         points   node size");
     for l in &levels {
         println!(

@@ -257,6 +257,10 @@ pub struct MergeArgs {
     /// Replace an existing output
     #[arg(long)]
     force: bool,
+    /// Copy the parts' pages into the output, one file that stands alone (by default it links
+    /// the parts' files where they are: keep them there)
+    #[arg(long)]
+    single_file: bool,
     /// Worker threads [default: all cores]
     #[arg(long)]
     threads: Option<usize>,
@@ -271,13 +275,23 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let bar = Bar::new();
-    let s = partition::merge(&plan, &a.parts, &a.output, a.force, threads, &bar)?;
+    let s = partition::merge(
+        &plan,
+        &a.parts,
+        &a.output,
+        a.force,
+        a.single_file,
+        threads,
+        &bar,
+    )?;
     bar.clear();
     if a.json {
         println!(
             "{}",
             json!({"output": a.output.display().to_string(), "points": s.points,
-                   "nodes": s.nodes, "pages_copied": s.copied, "nodes_built": s.built,
+                   "nodes": s.nodes, "pages_copied": if a.single_file { s.copied } else { 0 },
+                   "pages_linked": if a.single_file { 0 } else { s.copied },
+                   "files_linked": s.linked, "nodes_built": s.built,
                    "seconds": s.seconds, "bytes": s.bytes,
                    "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
                    "cpu_seconds": myriad_io::process::cpu_seconds()})
@@ -291,12 +305,25 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         plan.parts.len()
     );
     println!(
-        "  nodes       {} ({} pages copied from the parts, {} built above level {})",
+        "  nodes       {} ({} pages {} the parts, {} built above level {})",
         thousands(s.nodes),
         thousands(s.copied),
+        if a.single_file {
+            "copied from"
+        } else {
+            "left in"
+        },
         thousands(s.built),
         plan.partition_level
     );
+    if !a.single_file {
+        println!(
+            "  files       {} (its own, {} bytes) and the {} part files it links: keep them where they are",
+            a.output.display(),
+            thousands(s.bytes),
+            s.linked
+        );
+    }
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(0);
     Ok(())

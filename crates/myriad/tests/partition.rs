@@ -65,12 +65,32 @@ fn parts_built_apart_merge_to_the_one_machine_build() {
     ]);
     assert!(std::fs::read(&tops).unwrap() == before);
 
+    // By default the merge links the parts' files; --single-file copies their pages.
     let merged = d.join("merged.myr");
     let out = ok(&["merge", s(&plan), s(&parts), "-o", s(&merged), "--json"]);
     let m: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(m["points"], 300_000);
-    assert!(m["pages_copied"].as_u64().unwrap() > 0, "{m}");
+    assert_eq!(m["pages_copied"], 0, "{m}");
+    assert!(m["pages_linked"].as_u64().unwrap() > 0, "{m}");
+    assert_eq!(m["files_linked"], 4, "{m}");
     holds(&merged, &want);
+    let said = ok(&["verify", s(&merged)]);
+    assert!(said.contains("ok") && said.contains("in 5 files"), "{said}");
+    let single = d.join("single.myr");
+    let out = ok(&[
+        "merge",
+        s(&plan),
+        s(&parts),
+        "-o",
+        s(&single),
+        "--json",
+        "--single-file",
+    ]);
+    let m1: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(m1["pages_copied"], m["pages_linked"], "{m1}");
+    assert_eq!(m1["files_linked"], 0, "{m1}");
+    assert!(m1["bytes"].as_u64() > m["bytes"].as_u64());
+    holds(&single, &want);
 
     // The same as the whole plan on one machine: the same nodes and points in each.
     let one = d.join("one.myr");
@@ -93,6 +113,51 @@ fn parts_built_apart_merge_to_the_one_machine_build() {
         );
     }
     holds(&one, &want);
+
+    // Served, the dataset of five files renders the one-machine build's pixels over HTTP (its
+    // parts found beside it, by the URLs its relative paths give them).
+    let server = common::serve(&[s(&merged), s(&one)], std::process::Stdio::inherit());
+    assert!(
+        server.lines[0].contains("serving 6 files"),
+        "{:?}",
+        server.lines
+    );
+    let render = |input: &str, out: &Path| {
+        ok(&[
+            "render",
+            input,
+            "-o",
+            s(out),
+            "--raster",
+            "cpu",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--force",
+        ])
+    };
+    let (png_one, png_merged) = (d.join("one.png"), d.join("merged.png"));
+    render(&format!("{}/d/one.myr", server.base), &png_one);
+    render(&format!("{}/d/merged.myr", server.base), &png_merged);
+    assert_eq!(
+        common::decode_png(&png_one).2,
+        common::decode_png(&png_merged).2
+    );
+    drop(server);
+
+    // A part missing: `verify` names it in one line, exit 1.
+    let part = parts.join("part-2.myr");
+    std::fs::rename(&part, d.join("aside.myr")).unwrap();
+    let r = myriad(&["verify", s(&merged)]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("part-2.myr"), "{}", r.stderr);
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    // ... and `serve` will not serve the dataset without it.
+    let r = myriad(&["serve", s(&merged), "--bind", "127.0.0.1:0"]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("part-2.myr"), "{}", r.stderr);
+    std::fs::rename(d.join("aside.myr"), &part).unwrap();
 
     // A missing part: one line naming it, exit 1, no output.
     std::fs::remove_file(parts.join("part-1.tops")).unwrap();
@@ -192,6 +257,14 @@ fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
     assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
     assert!(r.stdout.contains("4 array tasks"), "{}", r.stdout);
     holds(&out, &want);
+    // The merge left the parts' pages in city.myr.parts/ and links them.
+    let files = Dataset::open(&out).unwrap().files().to_vec();
+    assert_eq!(files.len(), 4, "{files:?}");
+    assert!(
+        files
+            .iter()
+            .all(|f| f.path.starts_with("city.myr.parts/part-"))
+    );
     // Every part ran as an array task, its log next to it.
     let logs = std::fs::read_dir(d.join("city.myr.parts"))
         .unwrap()

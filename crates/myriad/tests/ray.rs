@@ -239,6 +239,13 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
         &format!("s3.download_file('scans', 'city.myr', '{}')", s(&got)),
     );
     holds(&got, &want);
+    // Staged parts are gone after the merge: their pages were copied into the dataset.
+    assert!(
+        myriad_format::Dataset::open(&got)
+            .unwrap()
+            .files()
+            .is_empty()
+    );
     let keys = s3(
         &py,
         "print(sorted(o['Key'] for o in s3.list_objects_v2(Bucket='scans', Prefix='city-parts/')['Contents']))",
@@ -260,6 +267,10 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
     ]);
     assert_eq!(c, 0, "{out}{err}");
     holds(&fs_out, &want);
+    // There the dataset links the parts where they were built.
+    let linked = myriad_format::Dataset::open(&fs_out).unwrap();
+    assert!(linked.files().len() >= 2, "{:?}", linked.files());
+    assert!(linked.files()[0].path.starts_with("fs-parts/"));
 
     // An input gone from the store: the parts that read it fail, nothing is merged.
     s3(

@@ -5,7 +5,7 @@
 //! download work. Skipped (with a message) where Chromium is missing; `.ci/run` installs it.
 
 mod common;
-use common::{myriad, s, serve, tempdir};
+use common::{myriad, ok, s, serve, tempdir};
 use myriad_core::NodeKey;
 use myriad_format::Dataset;
 use myriad_serve::browser::{self, Browser};
@@ -96,9 +96,35 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
     let at = victim.page.offset as usize + victim.page.length as usize / 2;
     bytes[at] ^= 0x5a;
     std::fs::write(&bad, bytes).unwrap();
+    // The same scan built in 4 parts and merged: a dataset of 5 files (the parts linked).
+    let plan = common::make_plan(&d, &[&laz], "plan.json");
+    let parts = d.join("parts");
+    for i in 0..4 {
+        ok(&[
+            "convert",
+            "--plan",
+            s(&plan),
+            "--part",
+            &i.to_string(),
+            "-o",
+            s(&parts),
+        ]);
+    }
+    let merged = d.join("merged.myr");
+    ok(&["merge", s(&plan), s(&parts), "-o", s(&merged)]);
+    assert_eq!(Dataset::open(&merged).unwrap().files().len(), 4);
+    let single = d.join("single.myr");
+    ok(&[
+        "merge",
+        s(&plan),
+        s(&parts),
+        "-o",
+        s(&single),
+        "--single-file",
+    ]);
     let log = d.join("serve.log");
     let server = serve(
-        &[s(&myr), s(&bad), "--log"],
+        &[s(&myr), s(&bad), s(&merged), s(&single), "--log"],
         std::fs::File::create(&log).unwrap().into(),
     );
     let mut b = Browser::launch(&exe).unwrap();
@@ -449,6 +475,30 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
     assert!(link.as_str().unwrap().contains("hide=6"), "{link}");
     drop(b);
 
+    // The dataset of five files draws what the same merge in one file draws, its pages
+    // fetched from the parts' files (below, in the log), nothing said wrong.
+    let mut shown = Vec::new();
+    for name in ["merged.myr", "single.myr"] {
+        let mut b = Browser::launch(&exe).unwrap();
+        b.open(
+            &format!("{}/view/{name}#renderer=webgl2", server.base),
+            W,
+            H,
+        )
+        .unwrap();
+        let st = converge(&mut b);
+        assert_eq!(st["errors"], serde_json::json!([]), "{st}");
+        b.eval("document.getElementById('panel').style.display = 'none'; new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            .unwrap();
+        shown.push((
+            st["points"].clone(),
+            st["nodes"].clone(),
+            png(&b.screenshot().unwrap()),
+        ));
+    }
+    assert!(shown[0].0.as_u64().unwrap() > 200_000, "{:?}", shown[0].0);
+    assert!(shown[0] == shown[1], "points, nodes or pixels differ");
+
     // A damaged node page: the viewer shows the rest and says which file, node and byte.
     let mut b = Browser::launch(&exe).unwrap();
     b.open(&format!("{}/view/bad.myr", server.base), W, H)
@@ -474,6 +524,14 @@ fn the_web_viewer_draws_picks_measures_clips_and_links() {
     // browser revalidates ranges it has cached (304).
     drop(server);
     let log = std::fs::read_to_string(&log).unwrap();
+    for i in 0..4 {
+        let part = format!(" /d/parts/part-{i}.myr ");
+        assert!(
+            log.lines()
+                .any(|l| l.contains(&part) && l.contains(" 206 ")),
+            "no page read from{part}: {log}"
+        );
+    }
     let reads: Vec<&str> = log.lines().filter(|l| l.contains(" /d/s.myr ")).collect();
     assert!(reads.len() >= 10, "{log}");
     for l in &reads {

@@ -370,6 +370,7 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
         las_header,
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
         levels: Vec::new(),
+        files: Vec::new(),
     };
     let mut plan = BuildPlan {
         id: String::new(),
@@ -975,19 +976,27 @@ pub fn build_part(
 pub struct MergeSummary {
     pub points: u64,
     pub nodes: u64,
-    /// Pages copied from the parts as they were, and nodes built (the levels above the parts).
+    /// Pages below the partition level, copied from the parts as they were (`single_file`)
+    /// or linked where they are; nodes built (the levels above the parts).
     pub copied: u64,
     pub built: u64,
+    /// Bytes of the merged file (without the parts it links).
     pub bytes: u64,
+    /// Part files the dataset links (0 with `single_file`).
+    pub linked: u64,
     pub seconds: f64,
 }
 
-/// Merges the parts of `plan` in `dir` into one dataset at `out`.
+/// Merges the parts of `plan` in `dir` into one dataset at `out`. The parts' pages below the
+/// partition level stay in the parts' files, which the dataset links (by their paths relative
+/// to `out`: keep them there), unless `single_file`, which copies them into `out`.
+#[allow(clippy::too_many_arguments)]
 pub fn merge(
     plan: &BuildPlan,
     dir: &Path,
     out: &Path,
     force: bool,
+    single_file: bool,
     threads: usize,
     report: &dyn Report,
 ) -> Result<MergeSummary> {
@@ -1075,27 +1084,47 @@ pub fn merge(
         .build()
         .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
     let writer = DatasetWriter::create(out, force, plan.dataset.quantization)?;
-    // 1. The parts' pages below the partition level, as they are.
-    let copies: Vec<_> = parts
-        .iter()
-        .flat_map(|ds| {
-            let (entries, _) = ds.nodes();
+    // 1. The parts' pages below the partition level: linked where they are, or copied.
+    let mut copies = Vec::new();
+    for (i, ds) in parts.iter().enumerate() {
+        let (entries, damage) = ds.nodes();
+        if let Some(d) = damage.first() {
+            return Err(ds.damage_error(d));
+        }
+        copies.extend(
             entries
                 .into_iter()
                 .filter(|e| e.key.level > p)
-                .map(move |e| (ds, e))
-        })
-        .collect();
-    report.phase("copying", copies.len() as u64);
+                .map(|e| (i, e)),
+        );
+    }
     let copied = copies.len() as u64;
-    pool.install(|| {
-        copies.par_iter().try_for_each(|(ds, e)| -> Result<()> {
-            let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
-            writer.copy_node(e, &page)?;
-            report.advance(1);
-            Ok(())
-        })
-    })?;
+    let mut files = Vec::new();
+    if single_file {
+        report.phase("copying", copied);
+        pool.install(|| {
+            copies.par_iter().try_for_each(|(i, e)| -> Result<()> {
+                let ds = &parts[*i];
+                let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
+                writer.copy_node(e, &page)?;
+                report.advance(1);
+                Ok(())
+            })
+        })?;
+    } else {
+        let abs = |p: &Path| std::fs::canonicalize(p).map_err(|e| Error::io(p, e));
+        let from = abs(&parent)?;
+        for ds in &parts {
+            files.push(myriad_format::linked::LinkedFile {
+                path: myriad_format::linked::relative_path(&from, &abs(ds.path())?),
+                length: ds.file_length,
+                header_crc: ds.header_crc,
+            });
+        }
+        for (i, e) in &copies {
+            writer.link_node(e, *i);
+        }
+    }
 
     // 2. The levels above, from the parts' tops, as `convert` builds them.
     // Unused: a plan is octree or layered; `Above` takes them for mwkd.
@@ -1143,6 +1172,8 @@ pub fn merge(
     meta.sources = sources;
     meta.parameters["plan"] = json!(plan.id);
     meta.software = format!("myriad {}", env!("CARGO_PKG_VERSION"));
+    let linked = files.len() as u64;
+    meta.files = files;
     let bytes = writer.finish(meta)?;
     Ok(MergeSummary {
         points,
@@ -1150,6 +1181,7 @@ pub fn merge(
         copied,
         built: nodes - copied,
         bytes,
+        linked,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
