@@ -2,8 +2,11 @@
 //! loaded ahead) saves a viewer that orbits. Each run opens the dataset afresh, converges on
 //! `render`'s default view, then orbits the target by `--degrees` in `--frames` frames drawn as
 //! a viewer draws them (never waiting) and keeps drawing at the last view until it has
-//! converged. Reported per mode (off, on; runs alternate): frames drawn with selected nodes
-//! missing, the nodes missing per frame, and the time to converge once the orbit stops.
+//! converged. Reported per mode (prefetching off and on, `mwkd`'s ancestors standing in for
+//! nodes that come into view off and on; runs alternate):
+//! frames drawn with selected nodes missing, frames with a hole (a node missing that nothing
+//! drawn stands in for), the nodes missing per frame, the PSNR of the frames with nodes missing
+//! against the same view converged, and the time to converge once the orbit stops.
 //! `--cold` drops the file from the page cache before each run (loads then wait for the disk).
 
 use anyhow::{Result, bail};
@@ -38,17 +41,30 @@ pub struct PrefetchBenchArgs {
     /// Start from a standard view (overview, top, close) instead of `render`'s default
     #[arg(long, value_parser = ["overview", "top", "close"])]
     view: Option<String>,
+    /// `mwkd`: ancestors on the GPU standing in for nodes that come into view: both (rows for
+    /// each), on or off
+    #[arg(long, default_value = "both", value_parser = ["both", "on", "off"])]
+    stand_ins: String,
     #[command(flatten)]
     device: crate::render::Device,
 }
 
 struct Run {
     incomplete: usize,
+    holes: usize,
     missing: f64,
+    /// Median PSNR of the incomplete frames against their views converged (infinite: none).
+    psnr: f64,
     settle: f64,
 }
 
-fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gpu) -> Result<Run> {
+fn orbit(
+    path: &Path,
+    widen: f64,
+    stand_ins: bool,
+    a: &PrefetchBenchArgs,
+    gpu: &myriad_render::Gpu,
+) -> Result<Run> {
     if a.cold {
         crate::open::drop_cache(path)?;
     }
@@ -61,6 +77,7 @@ fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gp
     let ds = Arc::new(Dataset::open(path)?);
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
     scene.prefetch = widen;
+    scene.ancestor_stand_ins = stand_ins;
     let start = crate::view_camera(
         a.view.as_deref(),
         &scene.view_bounds,
@@ -70,7 +87,9 @@ fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gp
     )?;
     scene.converge(&start, &options, None);
     let mut cam = start;
-    let (mut incomplete, mut missing) = (0, 0usize);
+    let (mut incomplete, mut holes, mut missing) = (0, 0, 0usize);
+    // The frames with nodes missing, to compare with their views converged.
+    let mut shown = Vec::new();
     let turn = |step: usize| {
         let angle = (a.degrees * step as f64 / a.frames.max(1) as f64).to_radians();
         let v: [f64; 3] = std::array::from_fn(|i| start.position[i] - start.target[i]);
@@ -85,10 +104,12 @@ fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gp
     };
     for step in 1..=a.frames {
         cam = turn(step);
-        let (_, stats) = scene.frame(gpu, &raster, &cam, &options, &style);
+        let (image, stats) = scene.frame(gpu, &raster, &cam, &options, &style);
         if !stats.complete {
             incomplete += 1;
+            shown.push((cam, image));
         }
+        holes += (stats.holes > 0) as usize;
         missing += stats.selected_nodes.saturating_sub(stats.nodes);
     }
     let t = Instant::now();
@@ -101,10 +122,20 @@ fn orbit(path: &Path, widen: f64, a: &PrefetchBenchArgs, gpu: &myriad_render::Gp
             bail!("{}: not converged after the orbit", path.display());
         }
     }
+    let settle = t.elapsed().as_secs_f64();
+    let mut psnr = Vec::new();
+    for (cam, image) in &shown {
+        scene.converge(cam, &options, None);
+        let (full, _) = scene.frame(gpu, &raster, cam, &options, &style);
+        psnr.push(crate::render::psnr(image, &full));
+    }
+    psnr.sort_by(f64::total_cmp);
     Ok(Run {
         incomplete,
+        holes,
         missing: missing as f64 / a.frames.max(1) as f64,
-        settle: t.elapsed().as_secs_f64(),
+        psnr: psnr.get(psnr.len() / 2).copied().unwrap_or(f64::INFINITY),
+        settle,
     })
 }
 
@@ -123,27 +154,47 @@ pub fn run(a: PrefetchBenchArgs) -> Result<()> {
         a.runs
     );
     println!(
-        "{:<16} {:<9} {:>18} {:>16} {:>12}",
-        "dataset", "prefetch", "incomplete frames", "missing / frame", "settle s"
+        "{:<16} {:<9} {:<10} {:>18} {:>12} {:>16} {:>12} {:>9}",
+        "dataset",
+        "prefetch",
+        "stand-ins",
+        "incomplete frames",
+        "hole frames",
+        "missing / frame",
+        "psnr dB",
+        "settle s"
     );
+    let stand_ins: &[bool] = match a.stand_ins.as_str() {
+        "on" => &[true],
+        "off" => &[false],
+        _ => &[false, true],
+    };
+    let modes: Vec<(f64, bool)> = [1.0, myriad_render::scene::DEFAULT_PREFETCH]
+        .into_iter()
+        .flat_map(|w| stand_ins.iter().map(move |&s| (w, s)))
+        .collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
     for path in &a.datasets {
         let name = path.file_name().unwrap_or_default().to_string_lossy();
-        let mut by_mode: [Vec<Run>; 2] = [Vec::new(), Vec::new()];
+        let mut by_mode: Vec<Vec<Run>> = modes.iter().map(|_| Vec::new()).collect();
         for _ in 0..a.runs.max(1) {
-            for (m, widen) in [(0, 1.0), (1, myriad_render::scene::DEFAULT_PREFETCH)] {
-                by_mode[m].push(orbit(path, widen, &a, &gpu)?);
+            for (m, &(widen, stand_in)) in modes.iter().enumerate() {
+                by_mode[m].push(orbit(path, widen, stand_in, &a, &gpu)?);
             }
         }
-        for (m, runs) in by_mode.iter().enumerate() {
+        let on_off = |b: bool| if b { "on" } else { "off" };
+        for (runs, &(widen, stand_in)) in by_mode.iter().zip(&modes) {
             println!(
-                "{name:<16} {:<9} {:>18.0} {:>16.1} {:>12.2}",
-                ["off", "on"][m],
+                "{name:<16} {:<9} {:<10} {:>18.0} {:>12.0} {:>16.1} {:>12.2} {:>9.2}",
+                on_off(widen > 1.0),
+                on_off(stand_in),
                 median(runs.iter().map(|r| r.incomplete as f64).collect()),
+                median(runs.iter().map(|r| r.holes as f64).collect()),
                 median(runs.iter().map(|r| r.missing).collect()),
+                median(runs.iter().map(|r| r.psnr).collect()),
                 median(runs.iter().map(|r| r.settle).collect()),
             );
         }

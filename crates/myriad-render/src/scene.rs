@@ -86,6 +86,10 @@ pub struct Scene {
     /// Prefetching (004): nodes of the view widened by this factor are loaded ahead, at most
     /// [`PREFETCH_NODES`] a frame; 1 or less: off.
     pub prefetch: f64,
+    /// `mwkd`: a front node not loaded yet that nothing drawn last frame can stand in for (it
+    /// has just come into view) has its nearest ancestor on the GPU drawn in its place (on by
+    /// default; off only to measure what it gives: `bench prefetch`).
+    pub ancestor_stand_ins: bool,
     /// The selection thread, started by the first threaded frame.
     selector: Option<Selector>,
     /// The newest answer of the selection thread for this scene alone (before a shared budget).
@@ -135,6 +139,9 @@ pub struct FrameStats {
     pub hierarchy_bytes: usize,
     /// Every selected node drawn (or failed to load).
     pub complete: bool,
+    /// Selected nodes not drawn whose region nothing drawn stands in for (no ancestor and no
+    /// descendant drawn): where the frame has a hole.
+    pub holes: usize,
     /// Nodes culled as hidden.
     pub culled: usize,
     /// On the frame thread: selecting (or, threaded, asking and taking the answer).
@@ -191,6 +198,7 @@ impl Scene {
             pending: None,
             upload_limit: usize::MAX,
             prefetch: DEFAULT_PREFETCH,
+            ancestor_stand_ins: true,
             selector: None,
             alone: None,
             prepared_for: None,
@@ -452,10 +460,10 @@ impl Scene {
     /// and takes in what has landed, without waiting; drops the hierarchy pages unused longest
     /// while they take more than the budget.
     pub fn take(&mut self, selection: &Selection) {
-        let wanted: Vec<NodeEntry> = selection
-            .nodes
-            .iter()
-            .filter_map(|n| self.hierarchy.get(&n.key).cloned())
+        let parents = self.parents_wanted(selection);
+        let wanted: Vec<NodeEntry> = (parents.iter())
+            .filter_map(|k| self.hierarchy.get(k).cloned())
+            .chain((selection.nodes.iter()).filter_map(|n| self.hierarchy.get(&n.key).cloned()))
             .collect();
         // An answer of the selection thread may ask for pages that landed since.
         let pages: Vec<_> = (selection.pages.iter())
@@ -470,6 +478,28 @@ impl Scene {
         self.poll();
         self.pages.touch(selection);
         self.pages.evict(&mut self.hierarchy);
+    }
+
+    /// `mwkd`: the parents of front nodes with no ancestor on the GPU (just come into view),
+    /// to read first and upload, so that they can stand in for their children while those load.
+    pub(crate) fn parents_wanted(&self, selection: &Selection) -> Vec<NodeKey> {
+        let mut out = Vec::new();
+        if !self.hierarchy.splats() || !self.ancestor_stand_ins {
+            return out;
+        }
+        let mut seen = HashSet::new();
+        for n in selection.nodes.iter().filter(|n| n.key.level > 0) {
+            let mut k = n.key;
+            let mut covered = self.buffers.contains(&k);
+            while !covered && k.level > 0 {
+                k = k.parent();
+                covered = self.buffers.contains(&k);
+            }
+            if !covered && seen.insert(n.key.parent()) {
+                out.push(n.key.parent());
+            }
+        }
+        out
     }
 
     /// Takes in the nodes and hierarchy pages that have landed; never waits. How many came
@@ -532,14 +562,52 @@ impl Scene {
                     .copied()
                     .collect();
                 below.sort();
+                found = !below.is_empty();
                 for d in below {
                     if seen.insert(d) {
                         out.push(d);
                     }
                 }
             }
+            // Nothing was drawn there (the node has just come into view): its nearest
+            // ancestor on the GPU, whose aggregates cover its subtree.
+            if !found && self.ancestor_stand_ins {
+                let mut k = n.key;
+                while k.level > 0 {
+                    k = k.parent();
+                    if self.buffers.contains(&k) {
+                        if seen.insert(k) {
+                            out.push(k);
+                        }
+                        break;
+                    }
+                }
+            }
         }
         out
+    }
+
+    /// Selected nodes not on the GPU whose region nothing drawn stands in for: no ancestor
+    /// drawn (an octree's are drawn whole wherever a child is selected, their points sized for
+    /// the children missing), no descendant drawn (`mwkd`'s stand-ins). `drawn`: the keys a
+    /// frame drew.
+    pub(crate) fn holes(&self, selection: &Selection, drawn: &HashSet<NodeKey>) -> usize {
+        let failed = self.loader.failed();
+        (selection.nodes.iter())
+            .filter(|n| !self.buffers.contains(&n.key) && !failed.contains_key(&n.key))
+            .filter(|n| {
+                let mut k = n.key;
+                while k.level > 0 {
+                    k = k.parent();
+                    if drawn.contains(&k) {
+                        return false;
+                    }
+                }
+                !drawn
+                    .iter()
+                    .any(|d| d.level > n.key.level && d.is_within(&n.key))
+            })
+            .count()
     }
 
     /// The draws of `selection` whose buffers are on the GPU (and, `mwkd`, the stand-ins of
@@ -742,6 +810,7 @@ impl Scene {
             ..self.stats(selection, &draws)
         };
         drop(draws);
+        stats.holes = self.holes(selection, &keys);
         stats.draw = t.elapsed();
         (image, stats, keys)
     }

@@ -284,41 +284,124 @@ impl PageReader for GatedSplats {
     }
 }
 
+/// An `mwkd` tree over the square (the root's aggregates, its four children's points), read
+/// one node per permit sent.
+fn gated_mwkd() -> (Scene, Sender<()>) {
+    let root = Aabb::new([0.0; 3], [64.0; 3]);
+    let splat_entry = |key: NodeKey| {
+        let mut e = entry(key);
+        e.bounds = Some(if key.level == 0 {
+            Aabb::new([0.0; 3], [64.0, 64.0, 0.0])
+        } else {
+            let (x, y) = (key.cell[0] as f64 * 32.0, key.cell[1] as f64 * 32.0);
+            Aabb::new([x, y, 0.0], [x + 32.0, y + 32.0, 0.0])
+        });
+        e.splats = Some(myriad_format::splat::SplatInfo {
+            page: PageRef {
+                offset: 64,
+                length: 10,
+                crc: 0,
+            },
+            radius: [0.5, 0.5],
+            cone: [0.0, 0.0, 1.0, 1.0],
+            aggregate: key.level == 0,
+        });
+        e
+    };
+    let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+    let h = Hierarchy::new(root, keys.map(splat_entry));
+    assert!(h.splats());
+    let (permit, permits): (Sender<()>, _) = channel();
+    let reader = Arc::new(GatedSplats(Gated {
+        permits: Mutex::new(permits),
+    }));
+    (
+        Scene::new(reader, h, root, 1, usize::MAX, usize::MAX),
+        permit,
+    )
+}
+
+/// 004 section IV, for nodes that come into view: nothing was drawn in their place, so their
+/// nearest ancestor on the GPU stands in until they land (without it, a hole), and where none
+/// is, their parent is read first.
+#[test]
+fn nodes_coming_into_view_have_their_ancestor_in_their_place() {
+    for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
+        for on in [true, false] {
+            let (mut scene, permit) = gated_mwkd();
+            scene.ancestor_stand_ins = on;
+            let raster = Rasterizer::new(&gpu);
+            let style = Style {
+                size: PointSize::Fixed(1.0),
+                ..Style::default()
+            };
+            // Close above the first quarter: only child 0 is in view.
+            let near = Camera {
+                position: [16.0, 16.0, 20.0],
+                target: [16.0, 16.0, 0.0],
+                ..above()
+            };
+            let frame = |scene: &mut Scene, cam: &Camera, b: u64, want: u64| {
+                let options = SelectOptions {
+                    budget: b,
+                    min_pixels: 0.0,
+                };
+                let t = Instant::now();
+                loop {
+                    let (_, stats) = scene.frame(&gpu, &raster, cam, &options, &style);
+                    if stats.points == want || t.elapsed() > Duration::from_secs(30) {
+                        return stats;
+                    }
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+            };
+            // Child 0 alone is wanted (its quarter fills the view). With stand-ins, its
+            // parent, the root, is read first and drawn in its place; then child 0.
+            permit.send(()).unwrap();
+            let s = frame(&mut scene, &near, 5000, if on { 64 } else { 1024 });
+            if on {
+                assert_eq!((s.points, s.selected_nodes, s.holes), (64, 1, 0));
+                permit.send(()).unwrap();
+                let s = frame(&mut scene, &near, 5000, 1024);
+                assert_eq!((s.points, s.selected_nodes, s.holes), (1024, 1, 0));
+            } else {
+                assert_eq!((s.points, s.holes), (1024, 0));
+                // The root read (a small budget), then child 0 again.
+                permit.send(()).unwrap();
+                assert_eq!(frame(&mut scene, &near, 100, 64).points, 64);
+                assert_eq!(frame(&mut scene, &near, 5000, 1024).points, 1024);
+            }
+            // Up to see the whole square: children 1-3 come into view and are not read (no
+            // permits). The root, on the GPU but not drawn last frame, stands in for them.
+            for _ in 0..3 {
+                let s = frame(
+                    &mut scene,
+                    &above(),
+                    5000,
+                    if on { 1024 + 64 } else { 1024 },
+                );
+                assert_eq!(s.selected_nodes, 4);
+                assert!(!s.complete);
+                if on {
+                    assert_eq!((s.points, s.holes), (1024 + 64, 0), "{}", gpu.name);
+                } else {
+                    assert_eq!((s.points, s.holes), (1024, 3), "{}", gpu.name);
+                }
+            }
+        }
+    }
+}
+
 /// 004 section IV: when the front moves, what was drawn before stays on screen until the new
 /// nodes land: the root in place of its children while they load, the children in place of the
 /// root when the front goes back up.
 #[test]
 fn the_front_moves_without_holes() {
     for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
-        let root = Aabb::new([0.0; 3], [64.0; 3]);
-        let splat_entry = |key: NodeKey| {
-            let mut e = entry(key);
-            e.bounds = Some(if key.level == 0 {
-                Aabb::new([0.0; 3], [64.0, 64.0, 0.0])
-            } else {
-                let (x, y) = (key.cell[0] as f64 * 32.0, key.cell[1] as f64 * 32.0);
-                Aabb::new([x, y, 0.0], [x + 32.0, y + 32.0, 0.0])
-            });
-            e.splats = Some(myriad_format::splat::SplatInfo {
-                page: PageRef {
-                    offset: 64,
-                    length: 10,
-                    crc: 0,
-                },
-                radius: [0.5, 0.5],
-                cone: [0.0, 0.0, 1.0, 1.0],
-                aggregate: key.level == 0,
-            });
-            e
-        };
-        let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
-        let h = Hierarchy::new(root, keys.map(splat_entry));
-        assert!(h.splats());
-        let (permit, permits): (Sender<()>, _) = channel();
-        let reader = Arc::new(GatedSplats(Gated {
-            permits: Mutex::new(permits),
-        }));
-        let mut scene = Scene::new(reader, h, root, 1, usize::MAX, usize::MAX);
+        let (mut scene, permit) = gated_mwkd();
+        // What was drawn stands in here; ancestors read first for nodes coming into view are
+        // the next test's.
+        scene.ancestor_stand_ins = false;
         let permit = permit;
         let raster = Rasterizer::new(&gpu);
         let cam = above();

@@ -171,12 +171,14 @@ fn draw_many(
     let mut drawn = Vec::new();
     for ((scene, selection), uploads) in scenes.iter().zip(&selections).zip(uploads) {
         let (draws, entries, keys) = scene.draws(selection, tree.len() as u32);
+        let holes = scene.holes(selection, &keys);
         drawn.push(keys);
         stats.push(FrameStats {
             uploads: uploads.0,
             upload_bytes: uploads.1,
             read_bytes: raster.bytes_read(gpu, camera, &draws, style),
             upload,
+            holes,
             ..scene.stats(selection, &draws)
         });
         tree.extend(entries);

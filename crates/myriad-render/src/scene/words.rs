@@ -84,11 +84,13 @@ impl Scene {
         self.prepare_words(words);
         let mut uploads = 0;
         let mut bytes_up = 0;
-        for n in &selection.nodes {
-            if self.buffers.touch(&n.key) || bytes_up >= self.upload_limit {
+        // Parents read to stand in for their children come first, as they were read.
+        let keys = self.parents_wanted(selection);
+        for key in keys.iter().chain(selection.nodes.iter().map(|n| &n.key)) {
+            if self.buffers.touch(key) || bytes_up >= self.upload_limit {
                 continue;
             }
-            let Some(batch) = self.loader.get(&n.key) else {
+            let Some(batch) = self.loader.get(key) else {
                 continue;
             };
             // Made on a loader thread; else (read before these settings) encoded here.
@@ -99,12 +101,12 @@ impl Scene {
                 }
                 None => {
                     self.uploads_encoded += 1;
-                    words.encode(&n.key, &batch).into_points(gpu)
+                    words.encode(key, &batch).into_points(gpu)
                 }
             };
             let bytes = p.bytes();
             bytes_up += bytes;
-            self.buffers.insert(n.key, p, bytes);
+            self.buffers.insert(*key, p, bytes);
             uploads += 1;
         }
         (uploads, bytes_up)
