@@ -454,14 +454,19 @@ pub fn convert(
     // 2. Chunks (kd, mwkd: groups of chunks), in parallel, largest first (they take longest).
     report.phase("building", dist.points);
     // Normals: the input's where it has them; else estimated, and turned towards the scanners
-    // where every input says where its scans were taken from (E57 scans from one place).
+    // where every input says where its scans were taken from (E57 scans from one place), or
+    // towards each flight line's side where scan angles say it (airborne LAS).
     let orientation = if schema.has(&myriad_core::Attribute::Normal) {
         crate::mwkd::Orientation::Input
     } else {
         let infos: Vec<_> = dist.sources.iter().map(|(i, _)| i).collect();
         match crate::distribute::scan_origins(&infos) {
             Some((table, _)) => crate::mwkd::Orientation::Scanners(std::sync::Arc::new(table)),
-            None => crate::mwkd::Orientation::Up,
+            // Airborne: towards the side of each flight line its scan angles say.
+            None => match dist.sides.directions() {
+                Some(d) => crate::mwkd::Orientation::Flights(std::sync::Arc::new(d)),
+                None => crate::mwkd::Orientation::Up,
+            },
         }
     };
     let mw = crate::mwkd::MwkdParams {
@@ -704,7 +709,9 @@ pub(crate) fn parameters(
         // sign (a node's normal cone may face away); other estimated ones were turned up.
         "normals": match (structure, mw.map(|m| &m.orientation)) {
             (Structure::Mwkd, Some(Orientation::Input)) => Some("input"),
-            (Structure::Mwkd, Some(Orientation::Scanners(_))) => Some("oriented"),
+            (Structure::Mwkd, Some(Orientation::Scanners(_) | Orientation::Flights(_))) => {
+                Some("oriented")
+            }
             (Structure::Mwkd, _) => Some("estimated"),
             _ => None,
         },

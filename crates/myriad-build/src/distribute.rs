@@ -110,6 +110,9 @@ pub struct Distribution {
     pub not_transformed: u64,
     /// The first LAS/LAZ input's header with its VLRs ([`myriad_io::las::header_to_bytes`]).
     pub las_header: Option<Vec<u8>>,
+    /// Where airborne inputs' scanners saw each flight line's points from (scan angles and
+    /// source IDs fitted as they were read); empty where the scans say where they stood.
+    pub sides: crate::sides::Sides,
     /// The chunks' points, by cell, when they all fit in the write buffers and were never
     /// spilled (taken out as the chunks are loaded): a small build writes and reads back no
     /// spill files, and its points are never turned into rows.
@@ -571,6 +574,7 @@ pub fn distribute_with(
     let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
     let mut not_transformed = 0u64;
     let origins = scan_origins(&infos.iter().collect::<Vec<_>>());
+    let mut sides = crate::sides::Sides::default();
     for (k, (path, kept)) in inputs.iter().zip(sources).enumerate() {
         let scan_offset = origins.as_ref().map_or(0, |o| o.1[k]);
         let mut src = match kept {
@@ -615,6 +619,9 @@ pub fn distribute_with(
                 cells.push(cell);
             }
             scatter.add(&b, &picked, &cells)?;
+            if origins.is_none() {
+                sides.add(&b, &picked);
+            }
             points += picked.len() as u64;
             on_read(Progress::Points(&b));
             on_read(Progress::Read(b.len() as u64));
@@ -708,6 +715,7 @@ pub fn distribute_with(
         trimmed,
         not_transformed,
         las_header,
+        sides,
         resident: std::sync::Mutex::new(resident.unwrap_or_default()),
         _spill: folder,
     })

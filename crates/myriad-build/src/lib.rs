@@ -23,5 +23,6 @@ mod order;
 pub mod partition;
 mod radix;
 pub mod report;
+pub mod sides;
 mod spill;
 pub mod structure;

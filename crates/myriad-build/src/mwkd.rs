@@ -58,6 +58,9 @@ pub enum Orientation {
     /// Estimated normals turned towards the scanner that saw the point: the scanners'
     /// positions by source ID (`s >= 1` was seen from `[s - 1]`; others are turned up).
     Scanners(std::sync::Arc<Vec<[f64; 3]>>),
+    /// Estimated normals turned towards the side of its flight line an airborne scanner saw
+    /// the point from, by source ID ([`crate::sides`]); points of other IDs are turned up.
+    Flights(std::sync::Arc<Vec<Option<crate::sides::Side>>>),
 }
 
 impl Orientation {
@@ -303,8 +306,23 @@ pub fn leaf_splats(b: &PointBatch, orientation: &Orientation) -> Splats {
                     .and_then(|ids| at.get((ids[i] as usize).checked_sub(1)?)),
                 _ => None,
             };
+            let seen = match (orientation, &b.point_source_id) {
+                (Orientation::Flights(sides), Some(ids)) => {
+                    let angle = b.scan_angle.as_ref().map_or(0.0, |a| a[i]);
+                    (sides.get(ids[i] as usize).copied().flatten())
+                        .map(|side| side.seen_from(pos[i], angle))
+                }
+                _ => None,
+            };
             let normal = match (orientation, scanner) {
                 (Orientation::Input, _) if b.normal.is_some() => normal,
+                (Orientation::Flights(_), _) => match seen {
+                    Some(v) if (0..3).map(|a| normal[a] as f64 * v[a]).sum::<f64>() < 0.0 => {
+                        normal.map(|x| -x)
+                    }
+                    Some(_) => normal,
+                    None => up(normal),
+                },
                 // Towards the scanner: the side of the surface it saw.
                 (_, Some(o)) => {
                     let p = pos[i];

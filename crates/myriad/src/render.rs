@@ -85,6 +85,11 @@ pub struct RenderArgs {
     /// occlusion queries on a GPU: they act from the next frame) or off
     #[arg(long, value_parser = Occlusion::parse, default_value = "checked")]
     occlusion: Occlusion,
+    /// mwkd datasets whose normals have a sign (the input's, or turned towards their scanners
+    /// or flight lines): leave out nodes whose normal cones all face away (on), or draw them
+    /// (off)
+    #[arg(long, value_parser = ["on", "off"], default_value = "on")]
+    normal_cones: String,
     /// Cells per side of the occlusion depth buffer
     #[arg(long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
           value_parser = clap::value_parser!(u32).range(8..=1024))]
@@ -233,6 +238,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     scene.set_colour(a.colour.for_dataset(&ds)?);
     scene.occlusion = a.occlusion;
     scene.occlusion_size = a.occlusion_size;
+    if a.normal_cones == "off" {
+        std::sync::Arc::make_mut(&mut scene.hierarchy).cull_backfaces = false;
+    }
     let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
     if a.stereo {
         if !(a.ipd >= 0.0 && a.ipd.is_finite()) {

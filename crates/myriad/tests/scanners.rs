@@ -105,3 +105,98 @@ fn normals_face_their_scanners_and_nodes_facing_away_are_culled() {
     assert!((o.0 as f64) < 0.95 * u.0 as f64, "behind: {o:?} {u:?}");
     assert!(oi.0 as f64 > 0.97 * ui.0 as f64, "inside: {oi:?} {ui:?}");
 }
+
+/// Airborne scans: each flight line's scan angles say which side its points were seen from
+/// (`myriad_build::sides`), so `mwkd` turns the normals it estimates that way ("oriented") and
+/// normal cones leave out what faces away (roofs seen from below), and nothing from a view
+/// above, where everything faces the camera: there the image is `--normal-cones off`'s.
+#[test]
+fn airborne_normals_face_their_flight_lines_and_what_faces_away_is_culled() {
+    use myriad_io::PointSource;
+    use myriad_io::las::{LasSink, LasSource, LasWriteOptions};
+    let d = tempdir("flights");
+    let las = d.join("city.las");
+    ok(&["synth", "--points", "400k", "-o", s(&las)]);
+    // The same points with every scan angle 0: no side to go on, normals turned up.
+    let flat = d.join("flat.las");
+    let mut src = LasSource::open(&las).unwrap();
+    let mut sink = LasSink::create(&flat, LasWriteOptions::like(src.header()), true).unwrap();
+    while let Some(mut b) = src.read_batch(100_000).unwrap() {
+        b.scan_angle.as_mut().unwrap().fill(0.0);
+        sink.write(&b).unwrap();
+    }
+    sink.finish().unwrap();
+    let (oriented, up) = (d.join("o.myr"), d.join("u.myr"));
+    for (input, out) in [(&las, &oriented), (&flat, &up)] {
+        ok(&[
+            "convert",
+            s(input),
+            "-o",
+            s(out),
+            "--structure",
+            "mwkd",
+            "--capacity",
+            "4096",
+        ]);
+    }
+    assert!(ok(&["info", s(&oriented)]).contains("oriented"));
+    assert!(!ok(&["info", s(&up)]).contains("oriented"));
+    let render = |ds: &std::path::Path, png: &std::path::Path, cones: &str, camera: &str| {
+        drawn(&ok(&[
+            "render",
+            s(ds),
+            "-o",
+            s(png),
+            "--camera",
+            camera,
+            "--width",
+            "240",
+            "--height",
+            "160",
+            "--budget",
+            "10M",
+            "--raster",
+            "cpu",
+            "--force",
+            "--normal-cones",
+            cones,
+        ]))
+    };
+    // Above the city's south edge looking north down into its streets, and at street level
+    // looking up, where roofs are seen from below: the backs of what the aircraft saw.
+    for (view, camera) in [
+        ("oblique", "500000,4399900,60,500000,4400040,0"),
+        ("street", "500000,4399990,3,500000,4400060,8"),
+    ] {
+        let (po, pa) = (d.join("o.png"), d.join("all.png"));
+        let on = render(&oriented, &po, "on", camera);
+        let off = render(&oriented, &pa, "off", camera);
+        // Turned up, the normals have no sign: nothing is culled, with or without cones.
+        let pu = d.join("u.png");
+        assert_eq!(
+            render(&up, &pu, "on", camera),
+            render(&up, &pu, "off", camera)
+        );
+        let (a, b) = (decode_png(&po).2, decode_png(&pa).2);
+        let differ = a
+            .chunks_exact(4)
+            .zip(b.chunks_exact(4))
+            .filter(|(x, y)| (0..3).any(|k| (x[k] as i32 - y[k] as i32).abs() > 24))
+            .count();
+        eprintln!(
+            "{view}: cones on {on:?}, off {off:?}; {differ} of {} pixels differ",
+            a.len() / 4
+        );
+        if view == "oblique" {
+            // From above, every node holds something facing up: nothing culled, nothing lost.
+            assert_eq!(on, off);
+            assert_eq!(differ, 0);
+        } else {
+            // From below, roofs (seen from the air, so facing up) face away: left out.
+            assert!(
+                (on.0 as f64) < 0.97 * off.0 as f64,
+                "{view}: {on:?} {off:?}"
+            );
+        }
+    }
+}
