@@ -75,6 +75,38 @@ struct RecordStream {
     at: usize,
 }
 
+impl RecordStream {
+    /// `stride` producer threads named `name`, taken in turn: thread `first` runs `produce` with
+    /// its channel out and the channel of spent buffers coming back.
+    fn of(
+        stride: usize,
+        name: &str,
+        produce: impl Fn(usize, SyncSender<Result<las::PointData>>, Receiver<las::PointData>)
+        + Clone
+        + Send
+        + 'static,
+    ) -> RecordStream {
+        let producers = (0..stride)
+            .map(|first| {
+                let (tx, rx) = sync_channel(1);
+                let (spent, spent_rx) = sync_channel(2);
+                let produce = produce.clone();
+                std::thread::Builder::new()
+                    .name(name.into())
+                    .spawn(move || produce(first, tx, spent_rx))
+                    .expect("spawn a LAS reader thread");
+                (rx, spent)
+            })
+            .collect();
+        RecordStream {
+            producers,
+            next: 0,
+            pending: None,
+            at: 0,
+        }
+    }
+}
+
 /// Records per block a producer thread reads: several LAZ chunks, so that decompression runs
 /// on all cores, and a few tens of megabytes at most.
 pub(crate) const PRODUCER_BLOCK: u64 = 1 << 19;
@@ -302,24 +334,17 @@ fn start_stream(path: &Path, header: &las::Header, data_at: u64, total: u64) -> 
     } else {
         1
     };
-    let producers = (0..stride)
-        .map(|first| {
-            let (tx, rx) = sync_channel(1);
-            let (spent, spent_rx) = sync_channel(2);
-            let path = path.to_path_buf();
-            std::thread::Builder::new()
-                .name("las-reader".into())
-                .spawn(move || produce_records(path, data_at, total, (first, stride), tx, spent_rx))
-                .expect("spawn LAS reader thread");
-            (rx, spent)
-        })
-        .collect();
-    RecordStream {
-        producers,
-        next: 0,
-        pending: None,
-        at: 0,
-    }
+    let path = path.to_path_buf();
+    RecordStream::of(stride, "las-reader", move |first, tx, spent| {
+        produce_records(
+            path.clone(),
+            data_at,
+            total,
+            (first as u64, stride as u64),
+            tx,
+            spent,
+        )
+    })
 }
 
 /// Starts the producer threads that read (and decompress) the LAZ chunks `chunks`, in blocks of
@@ -329,54 +354,37 @@ fn start_chunk_stream(path: &Path, header: &las::Header, chunks: &[LazChunk]) ->
     let stride = blocks.len().clamp(1, 2);
     let builder = las::PointDataBuilder::new().for_header(header);
     let vlr = header.laz_vlr().ok();
-    let producers = (0..stride)
-        .map(|first| {
-            let (tx, rx) = sync_channel(1);
-            let (spent, spent_rx) = sync_channel(2);
-            let (path, blocks) = (path.to_path_buf(), blocks.clone());
-            let (builder, vlr) = (builder.clone(), vlr.clone());
-            std::thread::Builder::new()
-                .name("laz-chunks".into())
-                .spawn(move || {
-                    let produce = |tx: &SyncSender<Result<las::PointData>>| -> Result<()> {
-                        let vlr =
-                            vlr.ok_or_else(|| Error::at_byte(&path, 0, "invalid laszip VLR"))?;
-                        let mut file = File::open(&path).map_err(|e| Error::io(&path, e))?;
-                        let mut compressed = Vec::new();
-                        for block in blocks.iter().skip(first).step_by(stride) {
-                            let n: u64 = block.iter().map(|c| c.points).sum();
-                            let mut data = spent_rx
-                                .try_recv()
-                                .unwrap_or_else(|_| builder.clone().build());
-                            las_chunks::decompress(
-                                &path,
-                                &mut file,
-                                &vlr,
-                                block,
-                                laz::DecompressionSelection::all(),
-                                &mut compressed,
-                                data.resize_for(n as usize),
-                            )?;
-                            if tx.send(Ok(data)).is_err() {
-                                break; // the source was dropped
-                            }
-                        }
-                        Ok(())
-                    };
-                    if let Err(e) = produce(&tx) {
-                        let _ = tx.send(Err(e));
-                    }
-                })
-                .expect("spawn LAZ chunk reader thread");
-            (rx, spent)
-        })
-        .collect();
-    RecordStream {
-        producers,
-        next: 0,
-        pending: None,
-        at: 0,
-    }
+    let path = path.to_path_buf();
+    RecordStream::of(stride, "laz-chunks", move |first, tx, spent_rx| {
+        let produce = |tx: &SyncSender<Result<las::PointData>>| -> Result<()> {
+            let vlr =
+                (vlr.clone()).ok_or_else(|| Error::at_byte(&path, 0, "invalid laszip VLR"))?;
+            let mut file = File::open(&path).map_err(|e| Error::io(&path, e))?;
+            let mut compressed = Vec::new();
+            for block in blocks.iter().skip(first).step_by(stride) {
+                let n: u64 = block.iter().map(|c| c.points).sum();
+                let mut data = spent_rx
+                    .try_recv()
+                    .unwrap_or_else(|_| builder.clone().build());
+                las_chunks::decompress(
+                    &path,
+                    &mut file,
+                    &vlr,
+                    block,
+                    laz::DecompressionSelection::all(),
+                    &mut compressed,
+                    data.resize_for(n as usize),
+                )?;
+                if tx.send(Ok(data)).is_err() {
+                    break; // the source was dropped
+                }
+            }
+            Ok(())
+        };
+        if let Err(e) = produce(&tx) {
+            let _ = tx.send(Err(e));
+        }
+    })
 }
 
 impl RecordStream {
