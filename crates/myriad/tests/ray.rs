@@ -5,51 +5,22 @@
 //! Stops only the processes it started (their process groups).
 
 mod common;
-use common::{holds, make_plan, s, tempdir, two_scans};
-use std::os::unix::process::CommandExt;
+use common::{Group, holds, make_plan, s, tempdir, two_scans, wait_for};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
 const KEY: &str = "myriad-test";
 const SECRET: &str = "myriad-test-secret";
 const ENDPOINT: &str = "http://127.0.0.1:18433";
 const RAY: &str = "127.0.0.1:16390";
 
-/// A process group this test started, killed when dropped.
-struct Group(Child);
-
-impl Drop for Group {
-    fn drop(&mut self) {
-        let pg = format!("-{}", self.0.id());
-        let _ = Command::new("kill").args(["-TERM", "--", &pg]).status();
-        let t = Instant::now();
-        while t.elapsed() < Duration::from_secs(10) {
-            if matches!(self.0.try_wait(), Ok(Some(_))) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        let _ = Command::new("kill").args(["-KILL", "--", &pg]).status();
-        let _ = self.0.wait();
-    }
-}
-
 fn spawn(program: &Path, args: &[&str], log: &Path) -> Group {
-    let out = std::fs::File::create(log).unwrap();
-    Group(
-        Command::new(program)
-            .args(args)
-            .env("AWS_ACCESS_KEY_ID", KEY)
-            .env("AWS_SECRET_ACCESS_KEY", SECRET)
-            .env("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-            .stdout(out.try_clone().unwrap())
-            .stderr(out)
-            .stdin(Stdio::null())
-            .process_group(0)
-            .spawn()
-            .unwrap(),
-    )
+    let env = [
+        ("AWS_ACCESS_KEY_ID", KEY),
+        ("AWS_SECRET_ACCESS_KEY", SECRET),
+        ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0"),
+    ];
+    common::spawn_group(program, args, &env, log)
 }
 
 /// Runs Python code or a script with the S3 credentials; its stdout, stderr and exit code.
@@ -77,18 +48,6 @@ fn s3(py: &Path, code: &str) -> String {
     let (c, out, err) = python(py, &["-c", &script]);
     assert_eq!(c, 0, "{code}: {err}");
     out
-}
-
-fn wait_for(what: &str, log: &Path, mut ready: impl FnMut() -> bool) {
-    let t = Instant::now();
-    while !ready() {
-        assert!(
-            t.elapsed() < Duration::from_secs(90),
-            "{what} did not start: {}",
-            std::fs::read_to_string(log).unwrap_or_default()
-        );
-        std::thread::sleep(Duration::from_millis(250));
-    }
 }
 
 /// The Python to use, or why there is none.
@@ -119,23 +78,8 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
     };
     let d = tempdir("ray");
     let bin = py.parent().unwrap();
-    let store = d.join("store");
-    std::fs::create_dir_all(&store).unwrap();
     let weed_log = d.join("weed.log");
-    let _weed = spawn(
-        &weed,
-        &[
-            "mini",
-            &format!("-dir={}", s(&store)),
-            "-ip=127.0.0.1",
-            "-ip.bind=127.0.0.1",
-            "-s3.port=18433",
-            "-master.telemetry=false",
-            "-admin.ui=false",
-            "-bucket=scans",
-        ],
-        &weed_log,
-    );
+    let _weed = common::seaweed(&weed, &d.join("store"), 18433, (KEY, SECRET), &weed_log);
     let probe = format!(
         "import boto3, sys\ntry:\n  boto3.client('s3', endpoint_url='{ENDPOINT}').head_bucket(Bucket='scans')\nexcept Exception:\n  sys.exit(1)"
     );

@@ -6,33 +6,12 @@
 
 mod common;
 use common::{decode_png, myriad, s, synth, tempdir};
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
 const KEY: &str = "myriad-s3-test";
 const SECRET: &str = "myriad-s3-test-secret";
 const ENDPOINT: &str = "http://127.0.0.1:18533";
-
-/// `weed`'s process group, killed when dropped.
-struct Weed(Child);
-
-impl Drop for Weed {
-    fn drop(&mut self) {
-        let pg = format!("-{}", self.0.id());
-        let _ = Command::new("kill").args(["-TERM", "--", &pg]).status();
-        let t = Instant::now();
-        while t.elapsed() < Duration::from_secs(10) {
-            if matches!(self.0.try_wait(), Ok(Some(_))) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        let _ = Command::new("kill").args(["-KILL", "--", &pg]).status();
-        let _ = self.0.wait();
-    }
-}
 
 /// The Python with boto3 and the `weed` next to it, or why there are none.
 fn tools() -> Result<(PathBuf, PathBuf), String> {
@@ -99,40 +78,11 @@ fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
     let r = myriad(&["convert", s(&scan), "-o", s(&ds)]);
     assert_eq!(r.code, 0, "{}", r.stderr);
 
-    let store = d.join("store");
-    std::fs::create_dir_all(&store).unwrap();
     let log = d.join("weed.log");
-    let out = std::fs::File::create(&log).unwrap();
-    let _weed = Weed(
-        Command::new(&weed)
-            .args([
-                "mini",
-                &format!("-dir={}", s(&store)),
-                "-ip=127.0.0.1",
-                "-ip.bind=127.0.0.1",
-                "-s3.port=18533",
-                "-master.telemetry=false",
-                "-admin.ui=false",
-                "-bucket=scans",
-            ])
-            .env("AWS_ACCESS_KEY_ID", KEY)
-            .env("AWS_SECRET_ACCESS_KEY", SECRET)
-            .stdout(out.try_clone().unwrap())
-            .stderr(out)
-            .stdin(Stdio::null())
-            .process_group(0)
-            .spawn()
-            .unwrap(),
-    );
-    let t = Instant::now();
-    while boto(&py, "s3.head_bucket(Bucket='scans')").0 != 0 {
-        assert!(
-            t.elapsed() < Duration::from_secs(90),
-            "SeaweedFS did not start: {}",
-            std::fs::read_to_string(&log).unwrap_or_default()
-        );
-        std::thread::sleep(Duration::from_millis(250));
-    }
+    let _weed = common::seaweed(&weed, &d.join("store"), 18533, (KEY, SECRET), &log);
+    common::wait_for("SeaweedFS", &log, || {
+        boto(&py, "s3.head_bucket(Bucket='scans')").0 == 0
+    });
     let (c, err) = boto(
         &py,
         &format!("s3.upload_file('{}', 'scans', 'sets/city.myr')", s(&ds)),

@@ -347,3 +347,77 @@ pub fn datasets_in(d: &Path) -> Vec<PathBuf> {
         .filter(|p| p.extension().is_some_and(|e| e == "myr"))
         .collect()
 }
+
+/// A process group a test started (a server, a cluster), stopped when dropped: TERM, then KILL
+/// after 10 s; only what the test started.
+pub struct Group(Child);
+
+impl Drop for Group {
+    fn drop(&mut self) {
+        let pg = format!("-{}", self.0.id());
+        let _ = Command::new("kill").args(["-TERM", "--", &pg]).status();
+        let t = std::time::Instant::now();
+        while t.elapsed() < std::time::Duration::from_secs(10) {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+        let _ = Command::new("kill").args(["-KILL", "--", &pg]).status();
+        let _ = self.0.wait();
+    }
+}
+
+/// `program ARGS` with `env` added, in a process group of its own, its output to `log`.
+pub fn spawn_group(program: &Path, args: &[&str], env: &[(&str, &str)], log: &Path) -> Group {
+    use std::os::unix::process::CommandExt;
+    let out = std::fs::File::create(log).unwrap();
+    Group(
+        Command::new(program)
+            .args(args)
+            .envs(env.iter().copied())
+            .stdout(out.try_clone().unwrap())
+            .stderr(out)
+            .stdin(Stdio::null())
+            .process_group(0)
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// Waits until `ready` (at most 90 s); else fails, naming `what` and showing its log.
+pub fn wait_for(what: &str, log: &Path, mut ready: impl FnMut() -> bool) {
+    let t = std::time::Instant::now();
+    while !ready() {
+        assert!(
+            t.elapsed() < std::time::Duration::from_secs(90),
+            "{what} did not start: {}",
+            std::fs::read_to_string(log).unwrap_or_default()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(250));
+    }
+}
+
+/// SeaweedFS (`weed mini`) with the bucket `scans`, its S3 interface on 127.0.0.1:`port`, its
+/// files in `dir`, accepting the key and secret `keys`; its log in `log`.
+pub fn seaweed(weed: &Path, dir: &Path, port: u16, keys: (&str, &str), log: &Path) -> Group {
+    std::fs::create_dir_all(dir).unwrap();
+    spawn_group(
+        weed,
+        &[
+            "mini",
+            &format!("-dir={}", s(dir)),
+            "-ip=127.0.0.1",
+            "-ip.bind=127.0.0.1",
+            &format!("-s3.port={port}"),
+            "-master.telemetry=false",
+            "-admin.ui=false",
+            "-bucket=scans",
+        ],
+        &[
+            ("AWS_ACCESS_KEY_ID", keys.0),
+            ("AWS_SECRET_ACCESS_KEY", keys.1),
+        ],
+        log,
+    )
+}
