@@ -56,17 +56,106 @@ def staged(stage, url):
 
 
 def download(endpoint, url, dest):
-    """Copies an S3 object to dest (atomically), unless it is there with the same size."""
+    """Copies an S3 object whole to dest, unless it is there whole already."""
+    stage_ranges(endpoint, url, dest, [(0, None)])
+    return dest
+
+
+def stage_ranges(endpoint, url, dest, ranges):
+    """Copies the byte ranges `ranges` ((start, end), end excluded or None: to the end) of an S3
+    object into dest, a file of the object's size whose other bytes are not there (a sparse
+    file); `dest.ranges` lists what is, so that the tasks on one node add to one copy, and
+    only what is missing is fetched. Held under `dest.lock` while it changes. Returns the bytes
+    fetched."""
+    import fcntl
+
     s3 = s3_client(endpoint)
     bucket, key = split_s3(url)
     size = s3.head_object(Bucket=bucket, Key=key)["ContentLength"]
-    if os.path.exists(dest) and os.path.getsize(dest) == size:
-        return dest
     os.makedirs(os.path.dirname(dest), exist_ok=True)
-    tmp = f"{dest}.{os.getpid()}.partial"
-    s3.download_file(bucket, key, tmp)
-    os.replace(tmp, dest)
-    return dest
+    fetched = 0
+    with open(dest + ".lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            with open(dest + ".ranges") as f:
+                have = [tuple(r) for r in json.load(f)]
+        except (OSError, ValueError):
+            have = []
+        if not os.path.exists(dest) or os.path.getsize(dest) != size:
+            with open(dest, "wb") as f:
+                f.truncate(size)
+            have = []
+        with open(dest, "r+b") as f:
+            for start, end in ranges:
+                end = size if end is None else min(end, size)
+                missing = [(start, end)]
+                for a, b in have:
+                    missing = [
+                        piece
+                        for m0, m1 in missing
+                        for piece in ((m0, min(m1, a)), (max(m0, b), m1))
+                        if piece[0] < piece[1]
+                    ]
+                for m0, m1 in missing:
+                    body = s3.get_object(Bucket=bucket, Key=key, Range=f"bytes={m0}-{m1 - 1}")
+                    f.seek(m0)
+                    got = 0
+                    for piece in body["Body"].iter_chunks(1 << 20):
+                        f.write(piece)
+                        got += len(piece)
+                    if got != m1 - m0:
+                        raise RuntimeError(f"{url}: {got} bytes for the range {m0}-{m1}")
+                    fetched += got
+                    have.append((m0, m1))
+            f.flush()
+            os.fsync(f.fileno())
+        with open(dest + ".ranges", "w") as f:
+            json.dump(sorted(have), f)
+        return fetched
+
+
+def stage_part_inputs(endpoint, myriad, local_plan, index, urls):
+    """The S3 inputs part `index` reads, staged where the plan names them: the LAZ inputs it
+    reads some chunks of by their byte ranges (the header and chunk table first, then what
+    `convert --list-ranges` asks for), the others whole. Returns the bytes fetched and the
+    bytes of those inputs whole."""
+    with open(local_plan) as f:
+        plan = json.load(f)
+    chunked = {plan["inputs"][c["input"]]["path"] for c in plan.get("chunked", [])}
+    listed = run_myriad(
+        myriad, ["convert", "--plan", local_plan, "--part", str(index), "--list-inputs"]
+    ).splitlines()
+    fetched = 0
+    for path in listed:
+        if path in urls and path in chunked:
+            # The header (its size and the point data's place at byte 94 and 96), then the
+            # chunk table, whose place is the 8 bytes where the point data start.
+            fetched += stage_ranges(endpoint, urls[path], path, [(0, 375)])
+            with open(path, "rb") as f:
+                head = f.read(375)
+                data_at = int.from_bytes(head[96:100], "little")
+            fetched += stage_ranges(endpoint, urls[path], path, [(0, data_at + 8)])
+            with open(path, "rb") as f:
+                f.seek(data_at)
+                table_at = int.from_bytes(f.read(8), "little", signed=True)
+            if table_at > data_at:
+                fetched += stage_ranges(endpoint, urls[path], path, [(table_at, None)])
+            else:
+                fetched += stage_ranges(endpoint, urls[path], path, [(0, None)])
+    ranges = {}
+    if any(p in urls and p in chunked for p in listed):
+        out = run_myriad(
+            myriad, ["convert", "--plan", local_plan, "--part", str(index), "--list-ranges"]
+        )
+        for line in out.splitlines():
+            path, start, end = line.rsplit(" ", 2)
+            ranges.setdefault(path, []).append((int(start), None if end == "end" else int(end)))
+    whole = 0
+    for path in listed:
+        if path in urls:
+            fetched += stage_ranges(endpoint, urls[path], path, ranges.get(path, [(0, None)]))
+            whole += os.path.getsize(path)
+    return fetched, whole
 
 
 def upload(endpoint, path, url):
@@ -100,12 +189,7 @@ def build_part(index, plan, parts_dir, myriad, endpoint, stage):
         local_plan = fetch(endpoint, plan, work)
         with open(local_plan) as f:
             urls = json.load(f).get("staged_from_s3", {})
-        listed = run_myriad(
-            myriad, ["convert", "--plan", local_plan, "--part", str(index), "--list-inputs"]
-        )
-        for path in listed.splitlines():
-            if path in urls:
-                download(endpoint, urls[path], path)
+        fetched, whole = stage_part_inputs(endpoint, myriad, local_plan, index, urls)
         out = os.path.join(work, "parts") if is_s3(parts_dir) else parts_dir
         summary = json.loads(
             run_myriad(
@@ -113,6 +197,8 @@ def build_part(index, plan, parts_dir, myriad, endpoint, stage):
                 ["convert", "--plan", local_plan, "--part", str(index), "-o", out, "--json"],
             )
         )
+        summary["staged_bytes"] = fetched
+        summary["inputs_bytes"] = whole
         if is_s3(parts_dir):
             # The dataset first, the tops last: a part is complete when its tops are there.
             for name in (f"part-{index}.myr", f"part-{index}.tops"):
@@ -235,7 +321,10 @@ def cmd_run(a):
     for ref, i in refs.items():
         try:
             s = ray.get(ref)
-            print(f"part {i}: {s['points']} points, {s['seconds']:.2f} s")
+            print(
+                f"part {i}: {s['points']} points, {s['seconds']:.2f} s, fetched "
+                f"{s.get('staged_bytes', 0)} of {s.get('inputs_bytes', 0)} bytes of its S3 inputs"
+            )
         except Exception as e:  # a task's error, raised here
             failed.append(f"part {i}: {last_line(e)}")
     if failed:

@@ -23,7 +23,7 @@ pub struct ConvertArgs {
     #[arg(
         short,
         long,
-        required_unless_present_any = ["append", "list_inputs"],
+        required_unless_present_any = ["append", "list_inputs", "list_ranges"],
         conflicts_with = "append"
     )]
     output: Option<PathBuf>,
@@ -43,6 +43,12 @@ pub struct ConvertArgs {
     /// the machine that builds it
     #[arg(long, requires = "part")]
     list_inputs: bool,
+    /// Print the byte ranges of its inputs the part reads (`PATH START END` per line, END
+    /// excluded or `end`: to the file's end; `PATH 0 end`: read whole) and stop: for a LAZ input of which it
+    /// reads some chunks, the header, those chunks and the chunk table, found in a copy that
+    /// holds at least the header and the chunk table (a driver fetches those first)
+    #[arg(long, requires = "part", conflicts_with = "list_inputs")]
+    list_ranges: bool,
     #[command(flatten)]
     build: BuildArgs,
     /// Replace an existing output
@@ -68,7 +74,10 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         return crate::partition::convert_planned(
             plan,
             a.part.as_deref(),
-            a.list_inputs,
+            crate::partition::List {
+                inputs: a.list_inputs,
+                ranges: a.list_ranges,
+            },
             &a.output.clone().unwrap_or_default(),
             a.build.threads,
             a.json,

@@ -157,12 +157,20 @@ fn part_index(s: &str) -> Result<usize> {
     )
 }
 
+/// What `convert --plan --part` prints instead of building the part.
+pub struct List {
+    /// The inputs it reads.
+    pub inputs: bool,
+    /// Their byte ranges it reads.
+    pub ranges: bool,
+}
+
 /// `convert --plan PLAN [--part I] -o OUT`: one part into the folder OUT, or the whole plan on
 /// this machine into the dataset OUT.
 pub fn convert_planned(
     plan_path: &Path,
     part: Option<&str>,
-    list_inputs: bool,
+    list: List,
     output: &Path,
     threads: Option<usize>,
     as_json: bool,
@@ -193,7 +201,7 @@ pub fn convert_planned(
         return Ok(());
     };
     let index = part_index(part)?;
-    if list_inputs {
+    if list.inputs || list.ranges {
         if index >= plan.parts.len() {
             bail!(
                 "--part {index}: the plan has parts 0 to {}",
@@ -201,7 +209,16 @@ pub fn convert_planned(
             );
         }
         for p in plan.inputs_of(Some(index)) {
-            println!("{}", p.display());
+            if !list.ranges {
+                println!("{}", p.display());
+                continue;
+            }
+            for (a, b) in ranges_read(&plan, index, &p)? {
+                match b {
+                    Some(b) => println!("{} {a} {b}", p.display()),
+                    None => println!("{} {a} end", p.display()),
+                }
+            }
         }
         return Ok(());
     }
@@ -243,6 +260,45 @@ pub fn convert_planned(
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(s.skipped_non_finite);
     Ok(())
+}
+
+/// The byte ranges of input `path` that part `index` reads (end excluded; `None`: to the end,
+/// the input read whole): for a LAZ input it reads some chunks of, everything before the first
+/// chunk (header, VLRs, the chunk table's place), its chunks, and what follows the last chunk
+/// (the chunk table, EVLRs).
+fn ranges_read(plan: &BuildPlan, index: usize, path: &Path) -> Result<Vec<(u64, Option<u64>)>> {
+    let k = (plan.inputs.iter().position(|i| i.path == path))
+        .context("a part reads the plan's inputs")?;
+    let Some(chunked) = plan.chunked_input(k) else {
+        return Ok(vec![(0, None)]);
+    };
+    let src = myriad_io::las::LasSource::open(path)?;
+    let table = src.chunks()?.with_context(|| {
+        format!(
+            "{}: no LAZ chunk table (fetch the header and the chunk table first)",
+            path.display()
+        )
+    })?;
+    let (Some(first), Some(last)) = (table.first(), table.last()) else {
+        return Ok(vec![(0, None)]);
+    };
+    let mut out = vec![(0, Some(first.byte_at))];
+    for c in chunked.of(index) {
+        let c = table.get(c as usize).with_context(|| {
+            format!(
+                "{}: chunk {c} of {} in the plan",
+                path.display(),
+                table.len()
+            )
+        })?;
+        let end = c.byte_at + c.bytes;
+        match out.last_mut() {
+            Some((_, Some(b))) if *b == c.byte_at => *b = end,
+            _ => out.push((c.byte_at, Some(end))),
+        }
+    }
+    out.push((last.byte_at + last.bytes, None));
+    Ok(out)
 }
 
 #[derive(Args)]

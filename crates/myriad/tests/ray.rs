@@ -171,8 +171,20 @@ fn ray_runs_the_parts_with_everything_on_s3_and_on_a_filesystem() {
     // Everything on S3.
     let (c, out, err) = plan_s3("s3://scans/in/east.laz", "s3://scans/city.json");
     assert_eq!(c, 0, "{out}{err}");
+    // The parts' nodes have no copies (the plan's were made on this one): each fetches the
+    // byte ranges of the LAZ chunks it reads, the headers and chunk tables.
+    std::fs::remove_dir_all(stage.join("s3")).unwrap();
     let (c, out, err) = run_s3("city");
     assert_eq!(c, 0, "{out}{err}");
+    let (mut fetched, mut whole) = (0u64, 0u64);
+    for l in out.lines().filter(|l| l.contains("bytes of its S3 inputs")) {
+        let w: Vec<&str> = l.split_whitespace().collect();
+        let at = w.iter().position(|x| *x == "fetched").unwrap();
+        fetched += w[at + 1].parse::<u64>().unwrap();
+        whole += w[at + 3].parse::<u64>().unwrap();
+    }
+    eprintln!("the parts fetched {fetched} of {whole} bytes of their S3 inputs");
+    assert!(fetched > 0 && fetched < whole, "{out}");
     assert!(
         out.contains("part 3:") && out.contains("merged s3://scans/city.myr"),
         "{out}"
