@@ -63,6 +63,9 @@ pub struct ConvertOptions {
     /// [`crate::mwkd::fanout_for`]) and the clustering grid's `K` ([`crate::mwkd::MwkdParams`]).
     pub fanout: Option<usize>,
     pub grid: Option<usize>,
+    /// Inputs recorded in the dataset's sources under another name than the path read (an
+    /// `s3://` input copied to a local folder is recorded as its URL).
+    pub recorded_as: std::collections::HashMap<PathBuf, String>,
 }
 
 /// What a plan fixes for a build: the grid (root cube, chunk level, schema, the cells a part
@@ -104,6 +107,7 @@ impl ConvertOptions {
             growing: None,
             fanout: None,
             grid: None,
+            recorded_as: Default::default(),
         }
     }
 }
@@ -496,7 +500,15 @@ pub fn convert(
             None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
         },
         schema: schema.clone(),
-        sources: dist.sources.iter().map(|(i, n)| source(i, *n)).collect(),
+        sources: (dist.sources.iter())
+            .map(|(i, n)| {
+                let mut v = source(i, *n);
+                if let Some(name) = options.recorded_as.get(&i.path) {
+                    v["path"] = name.as_str().into();
+                }
+                v
+            })
+            .collect(),
         las_header: match &options.planned {
             Some(p) => p.las_header.clone(),
             None => dist.las_header.clone(),

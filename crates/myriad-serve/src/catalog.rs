@@ -1,10 +1,13 @@
 //! What a server serves: named once, at start. A file is served under its file name; a folder
 //! (an exported Potree dataset, a folder of COPC files) under its name followed by each file's
-//! path inside it. Requests are answered from these names alone.
+//! path inside it. A dataset or scan on S3-compatible storage or a web server (`s3://BUCKET/KEY`,
+//! `http(s)://`) is served under its last name, its ranges read from there as they are asked
+//! for. Requests are answered from these names alone.
 
 use myriad_core::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// What a served name is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,6 +29,10 @@ pub(crate) struct File {
     pub(crate) work: Option<PathBuf>,
     /// A dataset being built: what the name serves now (`path` is its preview).
     pub(crate) live: Option<std::sync::Arc<crate::live::Live>>,
+    /// Where `path` is a URL (`s3://`, `http(s)://`): the object, open, its ranges read as
+    /// asked for (its requests signed for S3), and when it was opened (nanoseconds since
+    /// 1970: part of its validator).
+    pub(crate) remote: Option<(Arc<myriad_format::remote::HttpBytes>, u128)>,
     len: u64,
 }
 
@@ -95,6 +102,9 @@ impl Catalog {
 
     /// Adds a file (under its file name) or a folder (every file below it).
     pub fn add_input(&mut self, input: &Path) -> Result<()> {
+        if myriad_format::remote::is_url(input) {
+            return self.add_remote(input);
+        }
         let meta = std::fs::metadata(input).map_err(|e| Error::io(input, e))?;
         let name = input
             .file_name()
@@ -139,10 +149,39 @@ impl Catalog {
         Ok(())
     }
 
+    /// Adds an object on S3 or a web server under its last name (a dataset's linked files
+    /// beside it, as for a file).
+    fn add_remote(&mut self, url: &Path) -> Result<()> {
+        let text = url.to_string_lossy();
+        let name = text
+            .trim_end_matches('/')
+            .rsplit('/')
+            .next()
+            .filter(|n| !n.is_empty() && !n.contains(':'))
+            .ok_or_else(|| Error::Invalid(format!("{text}: no object name to serve it under")))?
+            .to_string();
+        self.add(name, url.to_path_buf(), None)
+    }
+
     fn add(&mut self, name: String, path: PathBuf, kind: Option<Kind>) -> Result<()> {
-        let len = std::fs::metadata(&path)
-            .map_err(|e| Error::io(&path, e))?
-            .len();
+        let remote = if myriad_format::remote::is_url(&path) {
+            let url = path.to_string_lossy();
+            let opened = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos());
+            Some((
+                Arc::new(myriad_format::remote::HttpBytes::open(&url)?),
+                opened,
+            ))
+        } else {
+            None
+        };
+        let len = match &remote {
+            Some((r, _)) => myriad_format::ByteSource::len(r.as_ref()),
+            None => std::fs::metadata(&path)
+                .map_err(|e| Error::io(&path, e))?
+                .len(),
+        };
         let kind = kind.unwrap_or(if name.ends_with(".myr") {
             Kind::Dataset
         } else {
@@ -159,7 +198,10 @@ impl Catalog {
                 path.display()
             )));
         }
-        let work = (kind == Kind::Dataset).then(|| myriad_measure::work::sidecar_for(&path));
+        // Saved work is kept beside a dataset on this machine's disk; one on S3 or a web
+        // server has none (`/work/` answers it empty and read-only).
+        let work = (kind == Kind::Dataset && remote.is_none())
+            .then(|| myriad_measure::work::sidecar_for(&path));
         if kind == Kind::Dataset {
             self.add_linked(&name, &path)?;
         }
@@ -171,6 +213,7 @@ impl Catalog {
                 kind,
                 work,
                 live: None,
+                remote,
                 len,
             },
         );
@@ -189,6 +232,7 @@ impl Catalog {
         // is served in their names.
         ds.check_files()?;
         let folder = path.parent().unwrap_or(Path::new(""));
+        let url = myriad_format::remote::is_url(path).then(|| path.to_string_lossy());
         for f in ds.files() {
             let Some(linked) = served_name(name, &f.path) else {
                 return Err(Error::Invalid(format!(
@@ -198,7 +242,10 @@ impl Catalog {
                     f.path
                 )));
             };
-            let at = folder.join(&f.path);
+            let at = match &url {
+                Some(u) => PathBuf::from(myriad_format::linked::join_url(u, &f.path)),
+                None => folder.join(&f.path),
+            };
             match self.files.get(&linked) {
                 Some(g) if g.path == at => {}
                 _ => self.add(linked, at, Some(Kind::Export))?,

@@ -1,7 +1,8 @@
 //! Answers for the files of the catalog: the validator (`ETag`, `If-None-Match`, `If-Range`),
 //! the ranges (one read at once up to [`READ_AT_ONCE`], several merged where they overlap and
 //! sent as `multipart/byteranges`), and bodies streamed from the file in [`CHUNK`]s through the
-//! connection's memory [`Budget`].
+//! connection's memory [`Budget`]. An object on S3 or a web server is answered the same way, its
+//! bytes read from there by range requests as they are sent.
 
 use crate::conn::{Budget, Owned};
 use crate::range::{self, Ranges};
@@ -11,9 +12,35 @@ use http_body_util::{BodyExt, StreamBody};
 use hyper::body::{Frame, Incoming};
 use hyper::header::{self, HeaderValue};
 use hyper::{Method, Request, Response, StatusCode};
+use myriad_format::ByteSource;
 use std::collections::VecDeque;
 use std::io;
 use std::sync::Arc;
+
+/// A local file's bytes by positioned reads.
+pub(crate) struct Local {
+    file: std::fs::File,
+    len: u64,
+}
+
+impl Local {
+    pub(crate) fn new(file: std::fs::File) -> io::Result<Local> {
+        let len = file.metadata()?.len();
+        Ok(Local { file, len })
+    }
+}
+
+impl ByteSource for Local {
+    fn len(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let mut data = vec![0; len];
+        self.file.read_exact_at(&mut data, offset)?;
+        Ok(data)
+    }
+}
 
 /// One range up to this size is read in one go with the file's opening (one trip to the
 /// blocking pool for most requests); larger answers stream in [`CHUNK`]s.
@@ -34,10 +61,10 @@ enum Answer {
     One {
         range: Option<(u64, u64)>,
         data: Option<Vec<u8>>,
-        file: std::fs::File,
+        file: Arc<dyn ByteSource>,
     },
     /// Several ranges (overlapping ones merged), to be streamed.
-    Many(Vec<(u64, u64)>, std::fs::File),
+    Many(Vec<(u64, u64)>, Arc<dyn ByteSource>),
 }
 
 /// Ranges sorted and merged where they overlap or touch, when any do (RFC 9110 lets a server
@@ -58,25 +85,54 @@ fn merge_ranges(mut v: Vec<(u64, u64)>) -> Vec<(u64, u64)> {
     v
 }
 
+/// Where a served file's bytes come from: a file, or an object on S3 or a web server opened
+/// at the given time.
+#[derive(Clone)]
+enum Source {
+    Path(std::path::PathBuf),
+    Remote(Arc<myriad_format::remote::HttpBytes>, u128),
+}
+
+/// The bytes of `source` and their validator: a file's from its length and time, an object's
+/// from its length and when it was opened (an object replaced since makes every read fail:
+/// `HttpBytes` asks with `If-Range`).
+fn open(source: Source) -> io::Result<(Arc<dyn ByteSource>, String)> {
+    match source {
+        Source::Path(path) => {
+            let file = std::fs::File::open(path)?;
+            let meta = file.metadata()?;
+            let len = meta.len();
+            let mtime = meta
+                .modified()
+                .ok()
+                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                .map_or(0, |d| d.as_nanos());
+            Ok((
+                Arc::new(Local { file, len }),
+                format!("\"{len:x}-{mtime:x}\""),
+            ))
+        }
+        Source::Remote(r, opened) => {
+            if let Some(m) = r.changed() {
+                return Err(io::Error::other(m));
+            }
+            let etag = format!("\"{:x}-r{opened:x}\"", r.len());
+            Ok((r, etag))
+        }
+    }
+}
+
 /// Opens the file, takes its validator, resolves the request's ranges and reads one range of
 /// at most `read_up_to` bytes.
 fn plan(
-    path: &std::path::Path,
+    source: Source,
     range: Option<String>,
     if_range: Option<String>,
     if_none_match: Option<String>,
     read_up_to: u64,
 ) -> io::Result<Plan> {
-    use std::os::unix::fs::FileExt;
-    let file = std::fs::File::open(path)?;
-    let meta = file.metadata()?;
-    let len = meta.len();
-    let mtime = meta
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
-    let etag = format!("\"{len:x}-{mtime:x}\"");
+    let (file, etag) = open(source)?;
+    let len = file.len();
     if if_none_match.is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*")) {
         return Ok(Plan {
             len,
@@ -102,9 +158,7 @@ fn plan(
             if v.len() == 1 {
                 let (a, b) = v[0];
                 let data = if b - a < read_up_to {
-                    let mut buf = vec![0; (b - a + 1) as usize];
-                    file.read_exact_at(&mut buf, a)?;
-                    Some(buf)
+                    Some(file.read_at(a, (b - a + 1) as usize)?)
                 } else {
                     None
                 };
@@ -167,9 +221,12 @@ pub(crate) async fn file(
     } else {
         (None, 0)
     };
-    let path = f.path.clone();
+    let source = match &f.remote {
+        Some((r, opened)) => Source::Remote(r.clone(), *opened),
+        None => Source::Path(f.path.clone()),
+    };
     let Plan { len, etag, answer } = tokio::task::spawn_blocking(move || {
-        plan(&path, range, if_range, if_none_match, read_up_to)
+        plan(source, range, if_range, if_none_match, read_up_to)
     })
     .await
     .map_err(io::Error::other)??;
@@ -196,7 +253,7 @@ pub(crate) async fn file(
                 (false, Some(d), Some(h)) => full(Bytes::from_owner(Owned { data: d, _held: h })),
                 (false, Some(d), None) => full(d),
                 (false, None, _) => pieces(
-                    Arc::new(file),
+                    file,
                     VecDeque::from([Piece::File(a, n)]),
                     budget.clone(),
                     None,
@@ -233,7 +290,7 @@ pub(crate) async fn file(
             let body = if head {
                 full(Bytes::new())
             } else {
-                pieces(Arc::new(file), list, budget.clone(), None)
+                pieces(file, list, budget.clone(), None)
             };
             let mut r = Response::new(body);
             *r.status_mut() = StatusCode::PARTIAL_CONTENT;
@@ -263,7 +320,6 @@ pub(crate) async fn snapshot(
     budget: &Budget,
     req: &Request<Incoming>,
 ) -> Response<Body> {
-    use myriad_format::ByteSource;
     let len = s.bytes.len();
     let etag = format!("\"build-{}-{len:x}\"", s.version);
     let range = (req.headers().get(header::RANGE)).and_then(|v| v.to_str().ok());
@@ -333,7 +389,7 @@ pub(crate) enum Piece {
 /// A body of `list`'s pieces in order, the file's read in [`CHUNK`]s as the client takes them,
 /// each held in the budget until written; `keep` lives as long as the body.
 pub(crate) fn pieces(
-    file: Arc<std::fs::File>,
+    file: Arc<dyn ByteSource>,
     list: VecDeque<Piece>,
     budget: Budget,
     keep: Option<tokio::sync::OwnedSemaphorePermit>,
@@ -351,14 +407,10 @@ pub(crate) fn pieces(
                     }
                     let held = budget.take(n as usize).await;
                     let f = file.clone();
-                    let read = tokio::task::spawn_blocking(move || {
-                        use std::os::unix::fs::FileExt;
-                        let mut data = vec![0; n as usize];
-                        f.read_exact_at(&mut data, at).map(|_| data)
-                    })
-                    .await
-                    .map_err(io::Error::other)
-                    .and_then(|r| r);
+                    let read = tokio::task::spawn_blocking(move || f.read_at(at, n as usize))
+                        .await
+                        .map_err(io::Error::other)
+                        .and_then(|r| r);
                     read.map(|data| Bytes::from_owner(Owned { data, _held: held }))
                 }
             };

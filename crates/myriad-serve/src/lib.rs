@@ -860,10 +860,11 @@ async fn box_download(
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };
     shared.counters.add(1);
-    let len = match file.metadata() {
-        Ok(m) => m.len(),
+    let file = match files::Local::new(file) {
+        Ok(f) => f,
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };
+    let len = myriad_format::ByteSource::len(&file);
     let stem = name.trim_end_matches(".myr").replace(['"', '/', '\\'], "_");
     let body = files::pieces(
         Arc::new(file),

@@ -6,7 +6,7 @@
 //! must parse as work (else 400 naming the line or member); it replaces the sidecar atomically,
 //! keeping the dataset's CRS whatever the body says.
 
-use crate::catalog::File;
+use crate::catalog::{File, Kind};
 use crate::{Body, Shared, full, status};
 use http_body_util::{BodyExt, Limited};
 use hyper::body::Incoming;
@@ -56,9 +56,17 @@ fn paths(f: &File) -> (PathBuf, PathBuf) {
 }
 
 pub(crate) async fn get(shared: &Arc<Shared>, name: &str, head: bool) -> Response<Body> {
-    let Some(f) = shared.catalog.file(name).filter(|f| f.work.is_some()) else {
+    let Some(f) = shared
+        .catalog
+        .file(name)
+        .filter(|f| f.kind == Kind::Dataset)
+    else {
         return status(StatusCode::NOT_FOUND, "no such dataset");
     };
+    if f.work.is_none() {
+        // A dataset on S3 or a web server: no saved work, none to be saved.
+        return json(&Work::default(), false, head);
+    }
     let (path, sidecar) = paths(f);
     match tokio::task::spawn_blocking(move || load(&path, &sidecar)).await {
         Ok(Ok(w)) => json(&w, shared.options.edit, head),
@@ -73,9 +81,19 @@ pub(crate) async fn put(
     req: Request<Incoming>,
 ) -> Response<Body> {
     debug_assert_eq!(req.method(), Method::PUT);
-    let Some(f) = shared.catalog.file(name).filter(|f| f.work.is_some()) else {
+    let Some(f) = shared
+        .catalog
+        .file(name)
+        .filter(|f| f.kind == Kind::Dataset)
+    else {
         return status(StatusCode::NOT_FOUND, "no such dataset");
     };
+    if f.work.is_none() {
+        return status(
+            StatusCode::FORBIDDEN,
+            "read-only: work is saved beside datasets on the server's disk, not on S3 or the web",
+        );
+    }
     if !shared.options.edit {
         return status(
             StatusCode::FORBIDDEN,

@@ -104,6 +104,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     o.fanout = a.build.fanout.map(|n| n as usize);
     o.grid = a.build.grid.map(|k| k as usize);
     o.open = a.build.open_options();
+    o.recorded_as = staged.copied.clone();
     let bar = Bar::new();
     let s = convert::convert(&staged.inputs, &o, &bar)?;
     bar.clear();

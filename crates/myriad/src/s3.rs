@@ -14,6 +14,8 @@ pub struct Staged {
     client: Option<Client>,
     pub inputs: Vec<PathBuf>,
     pub output: PathBuf,
+    /// The local copies of `s3://` inputs, with the URL each came from.
+    pub copied: std::collections::HashMap<PathBuf, String>,
     upload: Option<Location>,
 }
 
@@ -33,6 +35,7 @@ pub fn stage(inputs: &[PathBuf], output: &Path, force: bool) -> Result<Staged> {
             client: None,
             inputs: inputs.to_vec(),
             output: output.to_path_buf(),
+            copied: Default::default(),
             upload: None,
         });
     }
@@ -50,7 +53,7 @@ pub fn stage(inputs: &[PathBuf], output: &Path, force: bool) -> Result<Staged> {
         None
     };
     let folder = myriad_io::claim::Folder::create(&std::env::temp_dir(), ".myriad-s3-")?;
-    let mut local = Vec::new();
+    let (mut local, mut copied) = (Vec::new(), std::collections::HashMap::new());
     for (i, p) in inputs.iter().enumerate() {
         if !s3::is_s3(p) {
             local.push(p.clone());
@@ -60,6 +63,7 @@ pub fn stage(inputs: &[PathBuf], output: &Path, force: bool) -> Result<Staged> {
         let name = at.key.rsplit('/').next().unwrap_or("input");
         let to = folder.path().join(format!("{i}-{name}"));
         client.download(&at, &to)?;
+        copied.insert(to.clone(), p.to_string_lossy().into_owned());
         local.push(to);
     }
     let output = match &upload {
@@ -73,6 +77,7 @@ pub fn stage(inputs: &[PathBuf], output: &Path, force: bool) -> Result<Staged> {
         client: Some(client),
         inputs: local,
         output,
+        copied,
         upload,
     })
 }

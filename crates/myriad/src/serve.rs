@@ -10,7 +10,8 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ServeArgs {
-    /// Datasets (.myr), COPC or LAS/LAZ files, folders of exported files (Potree)
+    /// Datasets (.myr), COPC or LAS/LAZ files, folders of exported files (Potree); a dataset
+    /// or COPC file on S3 (s3://BUCKET/KEY) or a web server, read from there as it is asked for
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Address and port to listen on (another machine can connect only when this is not a
@@ -136,6 +137,11 @@ pub fn run(a: ServeArgs) -> Result<()> {
     let (mut to_build, mut scratch) = (Vec::new(), None);
     myriad_io::claim::remove_stale_folders(&std::env::temp_dir(), "myriad-preview-");
     for input in &a.inputs {
+        // A dataset or COPC file on S3 or a web server: served as it is, read from there.
+        if myriad_format::remote::is_url(input) {
+            catalog.add_input(input)?;
+            continue;
+        }
         let name = input
             .file_name()
             .map(|n| n.to_string_lossy().to_lowercase());

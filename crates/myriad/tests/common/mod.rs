@@ -137,9 +137,15 @@ impl Drop for Serving {
 
 /// `myriad serve ARGS --bind 127.0.0.1:0`, its stderr going to `stderr`.
 pub fn serve(args: &[&str], stderr: Stdio) -> Serving {
+    serve_with(args, &[], stderr)
+}
+
+/// [`serve`] with `env` set for it.
+pub fn serve_with(args: &[&str], env: &[(&str, &str)], stderr: Stdio) -> Serving {
     let mut child = Command::new(env!("CARGO_BIN_EXE_myriad"))
         .arg("serve")
         .args(args)
+        .envs(env.iter().copied())
         .args(["--bind", "127.0.0.1:0"])
         .stdout(Stdio::piped())
         .stderr(stderr)
@@ -420,4 +426,21 @@ pub fn seaweed(weed: &Path, dir: &Path, port: u16, keys: (&str, &str), log: &Pat
         ],
         log,
     )
+}
+
+/// `GET PATH` from the server at `base` (`http://HOST:PORT`) with `headers`: the whole answer,
+/// status line, headers and body, as text.
+pub fn http_get(base: &str, path: &str, headers: &[&str]) -> String {
+    use std::io::{Read, Write};
+    let addr = base.trim_start_matches("http://");
+    let mut c = std::net::TcpStream::connect(addr).unwrap();
+    let extra: String = headers.iter().map(|h| format!("{h}\r\n")).collect();
+    write!(
+        c,
+        "GET {path} HTTP/1.1\r\nHost: x\r\n{extra}Connection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = Vec::new();
+    c.read_to_end(&mut answer).unwrap();
+    String::from_utf8_lossy(&answer).into_owned()
 }
