@@ -45,6 +45,13 @@ pub struct PrefetchBenchArgs {
     /// each), on or off
     #[arg(long, default_value = "both", value_parser = ["both", "on", "off"])]
     stand_ins: String,
+    /// `mwkd`: how far behind their place stand-ins are drawn, as shares of their distance
+    /// (a row for each; 0: in place)
+    #[arg(long, value_delimiter = ',', default_values_t = [myriad_render::scene::STAND_INS_BEHIND])]
+    behind: Vec<f32>,
+    /// Prefetching: both (rows for each), on or off
+    #[arg(long, default_value = "both", value_parser = ["both", "on", "off"])]
+    prefetch: String,
     #[command(flatten)]
     device: crate::render::Device,
 }
@@ -61,7 +68,7 @@ struct Run {
 fn orbit(
     path: &Path,
     widen: f64,
-    stand_ins: bool,
+    stand_ins: Option<f32>,
     a: &PrefetchBenchArgs,
     gpu: &myriad_render::Gpu,
 ) -> Result<Run> {
@@ -77,7 +84,8 @@ fn orbit(
     let ds = Arc::new(Dataset::open(path)?);
     let mut scene = Scene::open(ds.clone(), 2 << 30, 1 << 30);
     scene.prefetch = widen;
-    scene.ancestor_stand_ins = stand_ins;
+    scene.ancestor_stand_ins = stand_ins.is_some();
+    scene.stand_ins_behind = stand_ins.unwrap_or(0.0);
     let start = crate::view_camera(
         a.view.as_deref(),
         &scene.view_bounds,
@@ -154,24 +162,33 @@ pub fn run(a: PrefetchBenchArgs) -> Result<()> {
         a.runs
     );
     println!(
-        "{:<16} {:<9} {:<10} {:>18} {:>12} {:>16} {:>12} {:>9}",
+        "{:<16} {:<9} {:<10} {:>6} {:>18} {:>12} {:>16} {:>12} {:>9}",
         "dataset",
         "prefetch",
         "stand-ins",
+        "behind",
         "incomplete frames",
         "hole frames",
         "missing / frame",
         "psnr dB",
         "settle s"
     );
-    let stand_ins: &[bool] = match a.stand_ins.as_str() {
-        "on" => &[true],
-        "off" => &[false],
-        _ => &[false, true],
+    if let Some(b) = a.behind.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
+        bail!("--behind {b}: a share of the distance, 0 or more");
+    }
+    let on: Vec<Option<f32>> = a.behind.iter().map(|&b| Some(b)).collect();
+    let stand_ins: Vec<Option<f32>> = match a.stand_ins.as_str() {
+        "on" => on,
+        "off" => vec![None],
+        _ => [None].into_iter().chain(on).collect(),
     };
-    let modes: Vec<(f64, bool)> = [1.0, myriad_render::scene::DEFAULT_PREFETCH]
-        .into_iter()
-        .flat_map(|w| stand_ins.iter().map(move |&s| (w, s)))
+    let widths: &[f64] = match a.prefetch.as_str() {
+        "on" => &[myriad_render::scene::DEFAULT_PREFETCH],
+        "off" => &[1.0],
+        _ => &[1.0, myriad_render::scene::DEFAULT_PREFETCH],
+    };
+    let modes: Vec<(f64, Option<f32>)> = (widths.iter())
+        .flat_map(|&w| stand_ins.iter().map(move |&s| (w, s)))
         .collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -188,9 +205,10 @@ pub fn run(a: PrefetchBenchArgs) -> Result<()> {
         let on_off = |b: bool| if b { "on" } else { "off" };
         for (runs, &(widen, stand_in)) in by_mode.iter().zip(&modes) {
             println!(
-                "{name:<16} {:<9} {:<10} {:>18.0} {:>12.0} {:>16.1} {:>12.2} {:>9.2}",
+                "{name:<16} {:<9} {:<10} {:>6} {:>18.0} {:>12.0} {:>16.1} {:>12.2} {:>9.2}",
                 on_off(widen > 1.0),
-                on_off(stand_in),
+                on_off(stand_in.is_some()),
+                stand_in.map_or("-".to_string(), |b| format!("{b}")),
                 median(runs.iter().map(|r| r.incomplete as f64).collect()),
                 median(runs.iter().map(|r| r.holes as f64).collect()),
                 median(runs.iter().map(|r| r.missing).collect()),

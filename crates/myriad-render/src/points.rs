@@ -404,6 +404,7 @@ impl Points {
             count: count.min(self.len),
             spacing,
             node: None,
+            behind: 0.0,
         }
     }
 
@@ -477,6 +478,11 @@ pub struct Draw<'a> {
     /// [`crate::Rasterizer::render`] and its cube: each point then takes the spacing of the finest
     /// drawn node around it ([`myriad_lod::DrawnTree`]). None: `spacing` for every point.
     pub node: Option<(u32, myriad_core::Aabb)>,
+    /// How far behind where they are these points are drawn, as a share of their distance
+    /// from the camera (0: where they are). Each moves along its ray from the camera, so it
+    /// covers the same pixels, but loses the depth test to what is drawn where it is: a
+    /// stand-in ([`crate::Scene`], `mwkd`) fills holes without covering loaded detail.
+    pub behind: f32,
 }
 
 /// Where a draw's points are for a frame drawn relative to `origin`: their origin there, the
@@ -491,9 +497,23 @@ pub(crate) struct Layout {
 impl Layout {
     pub(crate) fn of(draw: &Draw, origin: [f64; 3], camera: &Camera, precision: f32) -> Layout {
         let o = draw.points.origin;
+        let offset = std::array::from_fn(|a| (o[a] - origin[a]) as f32);
+        let unit = draw.points.unit();
+        // Pushed behind: p' = c + (p - c)(1 + b) for the camera at c, i.e. the offset and unit
+        // scaled by 1 + b and the offset moved by -b c.
+        let (offset, unit) = if draw.behind > 0.0 {
+            let k = 1.0 + draw.behind as f64;
+            let c: [f64; 3] = std::array::from_fn(|a| camera.position[a] - origin[a]);
+            (
+                std::array::from_fn(|a| (offset[a] as f64 * k - c[a] * draw.behind as f64) as f32),
+                unit.map(|u| (u as f64 * k) as f32),
+            )
+        } else {
+            (offset, unit)
+        };
         Layout {
-            offset: std::array::from_fn(|a| (o[a] - origin[a]) as f32),
-            unit: draw.points.unit(),
+            offset,
+            unit,
             words: draw.points.words,
             read: draw.points.read_words(camera, precision),
         }

@@ -90,6 +90,10 @@ pub struct Scene {
     /// has just come into view) has its nearest ancestor on the GPU drawn in its place (on by
     /// default; off only to measure what it gives: `bench prefetch`).
     pub ancestor_stand_ins: bool,
+    /// `mwkd`: how far behind their place stand-ins are drawn, as a share of their distance
+    /// ([`crate::Draw::behind`]): they fill holes and lose to loaded detail where they overlap
+    /// it. 0: in place (`bench prefetch --behind` measures it).
+    pub stand_ins_behind: f32,
     /// The selection thread, started by the first threaded frame.
     selector: Option<Selector>,
     /// The newest answer of the selection thread for this scene alone (before a shared budget).
@@ -100,6 +104,10 @@ pub struct Scene {
     pub uploads_prepared: usize,
     pub uploads_encoded: usize,
 }
+
+/// How far behind their place `mwkd` stand-ins are drawn by default, as a share of their
+/// distance from the camera (measured with `bench prefetch --behind`: the guide's figures).
+pub const STAND_INS_BEHIND: f32 = 0.01;
 
 /// How much wider than the view prefetching looks by default.
 pub const DEFAULT_PREFETCH: f64 = 1.3;
@@ -199,6 +207,7 @@ impl Scene {
             upload_limit: usize::MAX,
             prefetch: DEFAULT_PREFETCH,
             ancestor_stand_ins: true,
+            stand_ins_behind: STAND_INS_BEHIND,
             selector: None,
             alone: None,
             prepared_for: None,
@@ -648,7 +657,9 @@ impl Scene {
             .chain(self.stand_ins(selection).into_iter().filter_map(|k| {
                 let p = self.buffers.get(&k)?;
                 let spacing = self.hierarchy.get(&k)?.spacing.first().copied()?;
-                Some((k, p.all(spacing)))
+                let mut d = p.all(spacing);
+                d.behind = self.stand_ins_behind;
+                Some((k, d))
             }))
             .collect::<Vec<_>>();
         let keys = draws.iter().map(|(k, _)| *k).collect();

@@ -233,3 +233,89 @@ fn utm_and_ecef_coordinates_land_on_their_pixels_without_cracks_between_nodes() 
         }
     }
 }
+
+#[test]
+fn points_drawn_behind_cover_their_own_pixels_and_lose_to_points_in_place() {
+    // A wall of red points 10 x 10 m and, in the same plane, a blue one twice as wide over it
+    // (an mwkd stand-in and a loaded node beside it: the same surface at two levels).
+    let o = [500_000.0, 4_000_000.0, 200.0];
+    let wall = |width: f64| -> Vec<[f64; 3]> {
+        let n = (width * 10.0) as usize;
+        (0..n * 100)
+            .map(|i| {
+                let (x, z) = ((i % n) as f64 * 0.1, (i / n) as f64 * 0.1);
+                [o[0] + x, o[1], o[2] + z]
+            })
+            .collect()
+    };
+    let (red_at, blue_at) = (wall(10.0), wall(20.0));
+    let camera = Camera {
+        position: [o[0] + 10.0, o[1] - 30.0, o[2] + 5.0],
+        target: [o[0] + 10.0, o[1], o[2] + 5.0],
+        up: [0.0, 0.0, 1.0],
+        fov_y: 50.0,
+        width: 320,
+        height: 240,
+        near: 1.0,
+        far: 5000.0,
+    };
+    let (red, blue) = ([255u8, 0, 0, 255], [0u8, 0, 255, 255]);
+    // The default share stand-ins are drawn behind by: 0.3 m at 30 m.
+    const BEHIND: f32 = myriad_render::scene::STAND_INS_BEHIND;
+    let count = |img: &[u8], c: [u8; 4]| img.chunks_exact(4).filter(|p| *p == c).count();
+    for (gpu, r) in &paths() {
+        let style = style(PointSize::Fixed(2.0));
+        let reds = Points::encode(gpu, Encoding::Grid(MM), &red_at, &vec![red; red_at.len()]);
+        let blues = Points::encode(
+            gpu,
+            Encoding::Grid(MM),
+            &blue_at,
+            &vec![blue; blue_at.len()],
+        );
+        fn draw(p: &Points, behind: f32) -> myriad_render::Draw<'_> {
+            let mut d = p.all(0.1);
+            d.behind = behind;
+            d
+        }
+        // Alone, behind or not, the blue wall covers the same pixels.
+        let in_place = r.render(gpu, &camera, &[draw(&blues, 0.0)], &[], &style);
+        let pushed = r.render(gpu, &camera, &[draw(&blues, BEHIND)], &[], &style);
+        let (a, b) = (count(&in_place, blue), count(&pushed, blue));
+        assert!(a > 10_000, "{:?}: {a} blue pixels", r.path);
+        assert!(
+            differing(&in_place, &pushed) * 100 < a,
+            "{:?}: {} of {a} pixels differ drawn behind ({b} blue)",
+            r.path,
+            differing(&in_place, &pushed)
+        );
+        // With the red wall in place, in either order: red wherever it is, blue beside it.
+        let red_alone = count(
+            &r.render(gpu, &camera, &[draw(&reds, 0.0)], &[], &style),
+            red,
+        );
+        for order in [[true, false], [false, true]] {
+            let draws: Vec<_> = order
+                .iter()
+                .map(|&is_red| {
+                    if is_red {
+                        draw(&reds, 0.0)
+                    } else {
+                        draw(&blues, BEHIND)
+                    }
+                })
+                .collect();
+            let img = r.render(gpu, &camera, &draws, &[], &style);
+            let (rs, bs) = (count(&img, red), count(&img, blue));
+            assert!(
+                rs * 100 >= red_alone * 99,
+                "{:?} {order:?}: {rs} red pixels of {red_alone}",
+                r.path
+            );
+            assert!(
+                (rs + bs) * 100 >= a * 99 && bs * 100 >= (a - red_alone) * 99,
+                "{:?} {order:?}: {bs} blue, {rs} red, of {a}",
+                r.path
+            );
+        }
+    }
+}
