@@ -197,19 +197,9 @@ fn render_full_of_a_damaged_dataset_names_the_damage_and_fails() {
     drop(ds);
     std::fs::write(&myr, &bytes).unwrap();
     let png = d.join("s.png");
-    let r = myriad(&[
-        "render",
-        s(&myr),
-        "-o",
-        s(&png),
-        "--full",
-        "--raster",
-        "cpu",
-        "--width",
-        "160",
-        "--height",
-        "120",
-    ]);
+    let mut args = common::render_cpu(s(&myr), s(&png), ("160", "120"));
+    args.push("--full");
+    let r = myriad(&args);
     assert_eq!(r.code, 1, "{}", r.stderr);
     let warnings = r
         .stderr

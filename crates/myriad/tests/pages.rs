@@ -101,19 +101,9 @@ fn info_reads_the_metadata_and_render_reads_hierarchy_pages_on_demand() {
     // Every node wanted: the page is reached, reported, and the rest drawn; the reference
     // image lacks points, so the command fails (issue 40).
     let png = d.join("p.png");
-    let r = myriad(&[
-        "render",
-        s(&out),
-        "-o",
-        s(&png),
-        "--raster",
-        "cpu",
-        "--width",
-        "160",
-        "--height",
-        "120",
-        "--full",
-    ]);
+    let mut args = common::render_cpu(s(&out), s(&png), ("160", "120"));
+    args.push("--full");
+    let r = myriad(&args);
     assert_eq!(r.code, 1, "{}", r.stderr);
     assert!(r.stderr.contains("error: 1 damaged page"), "{}", r.stderr);
     assert!(

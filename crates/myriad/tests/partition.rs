@@ -123,19 +123,9 @@ fn parts_built_apart_merge_to_the_one_machine_build() {
         server.lines
     );
     let render = |input: &str, out: &Path| {
-        ok(&[
-            "render",
-            input,
-            "-o",
-            s(out),
-            "--raster",
-            "cpu",
-            "--width",
-            "160",
-            "--height",
-            "120",
-            "--force",
-        ])
+        let mut args = common::render_cpu(input, s(out), ("160", "120"));
+        args.push("--force");
+        ok(&args)
     };
     let (png_one, png_merged) = (d.join("one.png"), d.join("merged.png"));
     render(&format!("{}/d/one.myr", server.base), &png_one);

@@ -47,21 +47,9 @@ fn datasets_over_http_and_scans_opened_directly() {
     // The same image from the URL as from the file, for a fraction of the bytes (a 30 k point
     // budget: the top of the tree).
     let render = |input: &str, out: &std::path::Path| {
-        let r = myriad(&[
-            "render",
-            input,
-            "-o",
-            s(out),
-            "--raster",
-            "cpu",
-            "--width",
-            "320",
-            "--height",
-            "240",
-            "--budget",
-            "30k",
-            "--force",
-        ]);
+        let mut args = common::render_cpu(input, s(out), ("320", "240"));
+        args.extend(["--budget", "30k", "--force"]);
+        let r = myriad(&args);
         assert_eq!(r.code, 0, "{}", r.stderr);
         r.stdout
     };

@@ -91,22 +91,9 @@ fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
     assert_eq!(c, 0, "{err}");
 
     let render = |input: &str, png: &Path, secret: &str| {
-        myriad_s3(
-            &[
-                "render",
-                input,
-                "-o",
-                s(png),
-                "--raster",
-                "cpu",
-                "--width",
-                "160",
-                "--height",
-                "120",
-                "--force",
-            ],
-            secret,
-        )
+        let mut args = common::render_cpu(input, s(png), ("160", "120"));
+        args.push("--force");
+        myriad_s3(&args, secret)
     };
     let (local, remote) = (d.join("local.png"), d.join("remote.png"));
     let r = render(s(&ds), &local, SECRET);

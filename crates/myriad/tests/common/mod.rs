@@ -444,3 +444,11 @@ pub fn http_get(base: &str, path: &str, headers: &[&str]) -> String {
     c.read_to_end(&mut answer).unwrap();
     String::from_utf8_lossy(&answer).into_owned()
 }
+
+/// `render INPUT -o OUT --raster cpu --width W --height H`: the CPU image the tests compare;
+/// callers add their own options.
+pub fn render_cpu<'a>(input: &'a str, out: &'a str, (w, h): (&'a str, &'a str)) -> Vec<&'a str> {
+    vec![
+        "render", input, "-o", out, "--raster", "cpu", "--width", w, "--height", h,
+    ]
+}
