@@ -7,6 +7,12 @@
 //! points (never mwkd's aggregates) are extracted to a temporary LAS file, built into an octree
 //! with `convert`'s out-of-core pipeline, and that is exported. Memory is bounded by the group of
 //! nodes in flight ([`GROUP_POINTS`]) and, when re-placing, by `convert`'s budget.
+//!
+//! COPC: a leaf's points join its parent's chunk where the two together hold at most
+//! [`COPC_JOIN`] times the dataset's node capacity (deepest first, so a parent whose leaves all
+//! joined it may join its own):
+//! each LAZ chunk starts its models afresh, and the dataset's small leaves compressed alone made
+//! the file larger than other builders' (a COPC node may hold any points of its cube).
 
 use crate::convert::{self, ConvertOptions, Report};
 use crate::extract::{self, ExtractOptions};
@@ -17,10 +23,15 @@ use myriad_io::potree::{Frame, PotreeSink};
 use myriad_io::tiles3d::{self, TilesSink};
 use myriad_measure::Filter;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// Points decoded at once (the nodes of one group are read and encoded in parallel).
 pub const GROUP_POINTS: u64 = 4_000_000;
+
+/// COPC: a leaf joins its parent's chunk where the two hold at most this many times the
+/// dataset's node capacity together (measured on KY and the 50 M point city: the guide).
+pub const COPC_JOIN: u64 = 2;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Target {
@@ -79,6 +90,9 @@ pub struct ExportOptions {
     pub threads: usize,
     /// Levels per COPC hierarchy page (tests use few, to make many pages).
     pub copc_page_levels: u32,
+    /// COPC: leaves join their parent's chunk up to this many points together (0: node for
+    /// node; `None`: [`COPC_JOIN`] times the dataset's node capacity).
+    pub copc_node_points: Option<u64>,
     /// Move the points into another CRS (`--to-crs`): they are re-placed into an octree of
     /// the target's coordinates, as kd and mwkd datasets are.
     pub reproject: Option<myriad_io::reproject::Reproject>,
@@ -99,6 +113,7 @@ impl ExportOptions {
             memory: convert::default_memory(),
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             copc_page_levels: myriad_io::copc::PAGE_LEVELS,
+            copc_node_points: None,
             reproject: None,
             from_crs: None,
             tiles_version: tiles3d::Version::V1_1,
@@ -357,6 +372,55 @@ fn normals_as_extra(b: &mut PointBatch) {
     b.extra_stride = stride;
 }
 
+/// COPC's chunks: `nodes` less the leaves that join their parent's chunk (deepest first, where
+/// the parent's chunk and the leaf hold at most `limit` points together; a parent all of whose
+/// children joined it is a leaf from then on), and for each parent the leaves that joined it.
+fn join_leaves(
+    nodes: Vec<NodeEntry>,
+    limit: u64,
+    spacing: Option<f64>,
+) -> (Vec<NodeEntry>, HashMap<NodeKey, Vec<NodeEntry>>) {
+    let mut joined: HashMap<NodeKey, Vec<NodeEntry>> = HashMap::new();
+    if limit == 0 {
+        return (nodes, joined);
+    }
+    let mut load: HashMap<NodeKey, u64> = (nodes.iter())
+        .map(|n| (n.key, extract::prefix_for(n, spacing) as u64))
+        .collect();
+    let mut children: HashMap<NodeKey, usize> = HashMap::new();
+    for n in nodes.iter().filter(|n| n.key.level > 0) {
+        *children.entry(n.key.parent()).or_default() += 1;
+    }
+    let mut order: Vec<usize> = (0..nodes.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(nodes[i].key.level));
+    let mut gone = vec![false; nodes.len()];
+    for i in order {
+        let key = nodes[i].key;
+        if key.level == 0 || children.get(&key).is_some_and(|&c| c > 0) {
+            continue;
+        }
+        let parent = key.parent();
+        let (Some(&mine), Some(&theirs)) = (load.get(&key), load.get(&parent)) else {
+            continue;
+        };
+        if mine + theirs > limit {
+            continue;
+        }
+        load.insert(parent, mine + theirs);
+        let mut moved = joined.remove(&key).unwrap_or_default();
+        moved.push(nodes[i].clone());
+        joined.entry(parent).or_default().extend(moved);
+        if let Some(c) = children.get_mut(&parent) {
+            *c -= 1;
+        }
+        gone[i] = true;
+    }
+    let kept = (nodes.into_iter().zip(gone))
+        .filter_map(|(n, g)| (!g).then_some(n))
+        .collect();
+    (kept, joined)
+}
+
 /// An octree dataset, node for node.
 fn export_octree(
     ds: &Dataset,
@@ -430,41 +494,62 @@ fn export_octree(
         ..Default::default()
     };
     let wanted = extract::wanted(ds, nodes, &extract_options);
+    let copc = matches!(sink, Sink::Copc(_));
+    let (wanted, mut joined) = if copc {
+        let capacity = (m.parameters.get("capacity").and_then(|v| v.as_u64()))
+            .unwrap_or(convert::DEFAULT_CAPACITY as u64);
+        let limit = o.copc_node_points.unwrap_or(COPC_JOIN * capacity);
+        join_leaves(wanted, limit, o.spacing)
+    } else {
+        (wanted, HashMap::new())
+    };
     let filter = (o.filter.bind(&m.schema)).map_err(Error::Invalid)?;
     report.phase("exporting", wanted.iter().map(|n| n.points as u64).sum());
-    let mut group: Vec<NodeEntry> = Vec::new();
+    let mut group: Vec<(NodeEntry, Vec<NodeEntry>)> = Vec::new();
     let mut in_group = 0u64;
-    let copc = matches!(sink, Sink::Copc(_));
-    let mut flush = |group: &mut Vec<NodeEntry>, summary: &mut ExportSummary| -> Result<()> {
-        let read: Vec<(NodeEntry, std::result::Result<PointBatch, Damage>)> = group
+    let read_one = |n: &NodeEntry| {
+        ds.read_node(n).map(|mut b| {
+            b.truncate(extract::prefix_for(n, o.spacing));
+            if let Some(bx) = &o.bbox {
+                let keep: Vec<bool> = b.positions.iter().map(|&p| bx.contains(p)).collect();
+                b.retain_mask(&keep);
+            }
+            filter.retain(&mut b);
+            if copc {
+                normals_as_extra(&mut b);
+            }
+            b
+        })
+    };
+    let mut flush = |group: &mut Vec<(NodeEntry, Vec<NodeEntry>)>,
+                     summary: &mut ExportSummary|
+     -> Result<()> {
+        // Each node's points, then those of the leaves that joined it; a damaged one leaves
+        // out its own points only.
+        let read: Vec<(NodeEntry, u64, Option<PointBatch>, Vec<Damage>)> = group
             .par_drain(..)
-            .map(|n| {
-                let b = ds.read_node(&n).map(|mut b| {
-                    b.truncate(extract::prefix_for(&n, o.spacing));
-                    if let Some(bx) = &o.bbox {
-                        let keep: Vec<bool> = b.positions.iter().map(|&p| bx.contains(p)).collect();
-                        b.retain_mask(&keep);
+            .map(|(n, leaves)| {
+                let mut damage = Vec::new();
+                let mut points: Option<PointBatch> = None;
+                for m in std::iter::once(&n).chain(&leaves) {
+                    match (read_one(m), &mut points) {
+                        (Ok(b), Some(p)) => p.append(&b),
+                        (Ok(b), None) => points = Some(b),
+                        (Err(d), _) => damage.push(d),
                     }
-                    filter.retain(&mut b);
-                    if copc {
-                        normals_as_extra(&mut b);
-                    }
-                    b
-                });
-                (n, b)
+                }
+                let total = leaves.iter().map(|l| l.points as u64).sum::<u64>() + n.points as u64;
+                (n, total, points, damage)
             })
             .collect();
         let mut batches = Vec::with_capacity(read.len());
-        for (n, b) in read {
-            report.advance(n.points as u64);
-            match b {
-                Ok(b) if !b.is_empty() => {
-                    summary.points += b.len() as u64;
-                    summary.nodes += 1;
-                    batches.push((n.key, b));
-                }
-                Ok(_) => {}
-                Err(d) => summary.damage.push(d),
+        for (n, total, b, damage) in read {
+            report.advance(total);
+            summary.damage.extend(damage);
+            if let Some(b) = b.filter(|b| !b.is_empty()) {
+                summary.points += b.len() as u64;
+                summary.nodes += 1;
+                batches.push((n.key, b));
             }
         }
         match &mut sink {
@@ -474,8 +559,9 @@ fn export_octree(
         }
     };
     for n in wanted {
-        in_group += n.points as u64;
-        group.push(n);
+        let leaves = joined.remove(&n.key).unwrap_or_default();
+        in_group += n.points as u64 + leaves.iter().map(|l| l.points as u64).sum::<u64>();
+        group.push((n, leaves));
         if in_group >= GROUP_POINTS {
             flush(&mut group, &mut summary)?;
             in_group = 0;
@@ -497,4 +583,51 @@ fn export_octree(
         }
     };
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use myriad_format::hierarchy::PageRef;
+
+    fn node(key: NodeKey, points: u32) -> NodeEntry {
+        NodeEntry::new(key, PageRef::default(), points, vec![points], vec![1.0])
+    }
+
+    #[test]
+    fn small_leaves_join_their_parents_chunk_deepest_first_within_the_limit() {
+        let root = NodeKey::ROOT;
+        let (a, b) = (root.child(0), root.child(1));
+        let (a0, a1, b0) = (a.child(0), a.child(1), b.child(0));
+        let nodes = vec![
+            node(root, 100),
+            node(a, 100),
+            node(b, 100),
+            node(a0, 30),
+            node(a1, 30),
+            node(b0, 500),
+        ];
+        // a's two leaves join it (160), and a, a leaf now, joins the root (260); b0 is too
+        // big for b, so b keeps a child and stays.
+        let (kept, joined) = join_leaves(nodes.clone(), 300, None);
+        let keys: Vec<NodeKey> = kept.iter().map(|n| n.key).collect();
+        assert_eq!(keys, vec![root, b, b0]);
+        let mut into_root: Vec<NodeKey> = joined[&root].iter().map(|n| n.key).collect();
+        into_root.sort();
+        let mut want = vec![a, a0, a1];
+        want.sort();
+        assert_eq!(into_root, want);
+        assert_eq!(joined.len(), 1);
+        // Every point goes somewhere, once.
+        let total: u32 = kept.iter().map(|n| n.points).sum::<u32>()
+            + joined.values().flatten().map(|n| n.points).sum::<u32>();
+        assert_eq!(total, 860);
+        // A tighter limit: the leaves join a (160), a stays under the root.
+        let (kept, joined) = join_leaves(nodes.clone(), 200, None);
+        assert_eq!(kept.len(), 4);
+        assert_eq!(joined[&a].len(), 2);
+        // 0: node for node.
+        let (kept, joined) = join_leaves(nodes, 0, None);
+        assert_eq!((kept.len(), joined.len()), (6, 0));
+    }
 }

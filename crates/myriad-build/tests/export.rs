@@ -51,7 +51,21 @@ fn export_to(
     bbox: Option<Aabb>,
     spacing: Option<f64>,
 ) -> ExportSummary {
+    export_with(ds, out, target, bbox, spacing, None)
+}
+
+/// [`export_to`], COPC's leaves joining their parents' chunks up to `join` points (`Some(0)`:
+/// node for node).
+fn export_with(
+    ds: &Dataset,
+    out: &Path,
+    target: Target,
+    bbox: Option<Aabb>,
+    spacing: Option<f64>,
+    join: Option<u64>,
+) -> ExportSummary {
     let mut o = ExportOptions::new(target);
+    o.copc_node_points = join;
     o.bbox = bbox;
     o.spacing = spacing;
     o.force = true;
@@ -267,7 +281,8 @@ fn kd_and_mwkd_export_their_original_points() {
         whole_degrees(&mut want);
         assert_eq!(want.len(), 60_000);
         let copc = d.join("k.copc.laz");
-        let s = export_to(&ds, &copc, Target::Copc, None, None);
+        // Node for node: the re-placing build's tree as it is.
+        let s = export_with(&ds, &copc, Target::Copc, None, None, Some(0));
         assert_eq!(s.replaced, structure != Structure::Layered, "{structure:?}");
         let got = project(read_all(&copc), &want.schema());
         assert!(
@@ -306,11 +321,32 @@ fn a_damaged_node_is_left_out_and_named() {
     std::fs::write(&out, &bytes).unwrap();
     let ds = Dataset::open(&out).unwrap();
     for (target, name) in [(Target::Copc, "d.copc.laz"), (Target::Potree, "pot")] {
-        let s = export_to(&ds, &d.join(name), target, None, None);
+        let s = export_with(&ds, &d.join(name), target, None, None, Some(0));
         assert_eq!(s.damage.len(), 1);
         assert_eq!(s.damage[0].key, victim.key);
         assert_eq!(s.points, 60_000 - victim.points as u64);
     }
+    // Leaves joining their parents' chunks: the victim's points alone are left out, wherever
+    // it (or the leaves that joined it) went.
+    let s = export_with(
+        &ds,
+        &d.join("j.copc.laz"),
+        Target::Copc,
+        None,
+        None,
+        Some(1 << 30),
+    );
+    assert!(s.nodes < nodes.len() as u64, "{} nodes", s.nodes);
+    assert_eq!(s.damage.len(), 1);
+    assert_eq!(s.damage[0].key, victim.key);
+    assert_eq!(s.points, 60_000 - victim.points as u64);
+    assert_eq!(
+        copc_nodes(&d.join("j.copc.laz"))
+            .iter()
+            .map(|(_, b)| b.len())
+            .sum::<usize>() as u64,
+        s.points
+    );
     // The hierarchy still reaches the victim's children.
     let copc = copc_nodes(&d.join("d.copc.laz"));
     let children = nodes

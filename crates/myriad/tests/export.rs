@@ -116,14 +116,21 @@ fn copc_is_read_by_laspy_and_copclib() {
         v["laspy_outside"], 0,
         "every point in its node's cube (laspy): {v}"
     );
-    assert_eq!(v["laspy_nodes"].as_u64(), Some(ds.meta.nodes), "{v}");
+    // Small leaves join their parents' chunks: fewer nodes than the dataset's, the same ones
+    // for both readers.
+    let nodes = v["laspy_nodes"].as_u64().unwrap();
+    assert!(
+        nodes > 100 && nodes < ds.meta.nodes,
+        "{nodes} of {}: {v}",
+        ds.meta.nodes
+    );
     assert_eq!(v["copclib_points"], 200_000, "{v}");
     assert_eq!(v["copclib_bad_counts"], 0, "{v}");
     assert_eq!(
         v["copclib_outside"], 0,
         "every point in its node's cube: {v}"
     );
-    assert_eq!(v["copclib_nodes"].as_u64(), Some(ds.meta.nodes), "{v}");
+    assert_eq!(v["copclib_nodes"].as_u64(), Some(nodes), "{v}");
     assert_eq!(v["wkt"], true, "{v}");
     for (i, bx) in boxes.iter().enumerate() {
         let las = d.join(format!("box{i}.las"));
