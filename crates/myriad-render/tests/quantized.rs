@@ -24,6 +24,20 @@ fn style(size: PointSize) -> Style {
     }
 }
 
+/// A 320 x 240 camera at `position` looking at `target`, Z up.
+fn looking(position: [f64; 3], target: [f64; 3]) -> Camera {
+    Camera {
+        position,
+        target,
+        up: [0.0, 0.0, 1.0],
+        fov_y: 50.0,
+        width: 320,
+        height: 240,
+        near: 1.0,
+        far: 5000.0,
+    }
+}
+
 /// Pixels (of RGBA8 images) whose channels differ by more than 2.
 fn differing(a: &[u8], b: &[u8]) -> usize {
     a.chunks_exact(4)
@@ -50,19 +64,13 @@ fn quantized_points_draw_the_images_of_f32_points_near_and_far() {
         n.1.push(c);
     }
     let centre = [o[0] + 50.0, o[1] + 50.0, o[2] + 5.0];
-    let at = |distance: f64| Camera {
-        position: [
+    let at = |distance: f64| {
+        let position = [
             centre[0] - distance * 0.3,
             centre[1] - distance * 0.8,
             centre[2] + distance * 0.5,
-        ],
-        target: centre,
-        up: [0.0, 0.0, 1.0],
-        fov_y: 50.0,
-        width: 320,
-        height: 240,
-        near: 1.0,
-        far: 5000.0,
+        ];
+        looking(position, centre)
     };
     // Near: every word is read; far (the terrain about 80 pixels wide; the first word's step,
     // 64 mm, under a tenth of a pixel): the first alone.
@@ -249,16 +257,10 @@ fn points_drawn_behind_cover_their_own_pixels_and_lose_to_points_in_place() {
             .collect()
     };
     let (red_at, blue_at) = (wall(10.0), wall(20.0));
-    let camera = Camera {
-        position: [o[0] + 10.0, o[1] - 30.0, o[2] + 5.0],
-        target: [o[0] + 10.0, o[1], o[2] + 5.0],
-        up: [0.0, 0.0, 1.0],
-        fov_y: 50.0,
-        width: 320,
-        height: 240,
-        near: 1.0,
-        far: 5000.0,
-    };
+    let camera = looking(
+        [o[0] + 10.0, o[1] - 30.0, o[2] + 5.0],
+        [o[0] + 10.0, o[1], o[2] + 5.0],
+    );
     let (red, blue) = ([255u8, 0, 0, 255], [0u8, 0, 255, 255]);
     // The default share stand-ins are drawn behind by: 0.3 m at 30 m.
     const BEHIND: f32 = myriad_render::scene::STAND_INS_BEHIND;
