@@ -148,6 +148,9 @@ fn orbit(
 }
 
 pub fn run(a: PrefetchBenchArgs) -> Result<()> {
+    if let Some(b) = a.behind.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
+        bail!("--behind {b}: a share of the distance, 0 or more");
+    }
     let gpu = a.device.gpu()?;
     println!(
         "{}, {}x{}, {} view, budget {}, an orbit of {} degrees in {} frames, {} page cache; medians of {} runs",
@@ -173,9 +176,6 @@ pub fn run(a: PrefetchBenchArgs) -> Result<()> {
         "psnr dB",
         "settle s"
     );
-    if let Some(b) = a.behind.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
-        bail!("--behind {b}: a share of the distance, 0 or more");
-    }
     let on: Vec<Option<f32>> = a.behind.iter().map(|&b| Some(b)).collect();
     let stand_ins: Vec<Option<f32>> = match a.stand_ins.as_str() {
         "on" => on,

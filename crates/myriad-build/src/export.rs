@@ -505,7 +505,8 @@ fn export_octree(
     };
     let filter = (o.filter.bind(&m.schema)).map_err(Error::Invalid)?;
     report.phase("exporting", wanted.iter().map(|n| n.points as u64).sum());
-    let mut group: Vec<(NodeEntry, Vec<NodeEntry>)> = Vec::new();
+    // Each node with the leaves that joined it and the points of them all.
+    let mut group: Vec<(NodeEntry, Vec<NodeEntry>, u64)> = Vec::new();
     let mut in_group = 0u64;
     let read_one = |n: &NodeEntry| {
         ds.read_node(n).map(|mut b| {
@@ -521,14 +522,14 @@ fn export_octree(
             b
         })
     };
-    let mut flush = |group: &mut Vec<(NodeEntry, Vec<NodeEntry>)>,
+    let mut flush = |group: &mut Vec<(NodeEntry, Vec<NodeEntry>, u64)>,
                      summary: &mut ExportSummary|
      -> Result<()> {
         // Each node's points, then those of the leaves that joined it; a damaged one leaves
         // out its own points only.
         let read: Vec<(NodeEntry, u64, Option<PointBatch>, Vec<Damage>)> = group
             .par_drain(..)
-            .map(|(n, leaves)| {
+            .map(|(n, leaves, total)| {
                 let mut damage = Vec::new();
                 let mut points: Option<PointBatch> = None;
                 for m in std::iter::once(&n).chain(&leaves) {
@@ -538,7 +539,6 @@ fn export_octree(
                         (Err(d), _) => damage.push(d),
                     }
                 }
-                let total = leaves.iter().map(|l| l.points as u64).sum::<u64>() + n.points as u64;
                 (n, total, points, damage)
             })
             .collect();
@@ -560,8 +560,9 @@ fn export_octree(
     };
     for n in wanted {
         let leaves = joined.remove(&n.key).unwrap_or_default();
-        in_group += n.points as u64 + leaves.iter().map(|l| l.points as u64).sum::<u64>();
-        group.push((n, leaves));
+        let total = n.points as u64 + leaves.iter().map(|l| l.points as u64).sum::<u64>();
+        in_group += total;
+        group.push((n, leaves, total));
         if in_group >= GROUP_POINTS {
             flush(&mut group, &mut summary)?;
             in_group = 0;

@@ -497,23 +497,13 @@ pub(crate) struct Layout {
 impl Layout {
     pub(crate) fn of(draw: &Draw, origin: [f64; 3], camera: &Camera, precision: f32) -> Layout {
         let o = draw.points.origin;
-        let offset = std::array::from_fn(|a| (o[a] - origin[a]) as f32);
-        let unit = draw.points.unit();
-        // Pushed behind: p' = c + (p - c)(1 + b) for the camera at c, i.e. the offset and unit
-        // scaled by 1 + b and the offset moved by -b c.
-        let (offset, unit) = if draw.behind > 0.0 {
-            let k = 1.0 + draw.behind as f64;
-            let c: [f64; 3] = std::array::from_fn(|a| camera.position[a] - origin[a]);
-            (
-                std::array::from_fn(|a| (offset[a] as f64 * k - c[a] * draw.behind as f64) as f32),
-                unit.map(|u| (u as f64 * k) as f32),
-            )
-        } else {
-            (offset, unit)
-        };
+        // Pushed behind by b: p' = c + (p - c)(1 + b) for the camera at c, i.e. the offset and
+        // unit scaled by 1 + b and the offset moved by -b c (exactly as they are for b = 0).
+        let b = draw.behind as f64;
+        let c: [f64; 3] = std::array::from_fn(|a| camera.position[a] - origin[a]);
         Layout {
-            offset,
-            unit,
+            offset: std::array::from_fn(|a| ((o[a] - origin[a]) * (1.0 + b) - c[a] * b) as f32),
+            unit: draw.points.unit().map(|u| (u as f64 * (1.0 + b)) as f32),
             words: draw.points.words,
             read: draw.points.read_words(camera, precision),
         }
