@@ -21,6 +21,7 @@ mod las_extra;
 mod las_guard;
 pub mod las_preview;
 mod las_records;
+mod las_write;
 pub mod mesh;
 pub mod pcd;
 pub mod placement;
