@@ -29,6 +29,10 @@ pub struct PartitionBenchArgs {
     /// its cells whole): the partitioned build as it was before chunks were chosen
     #[arg(long)]
     whole_inputs: bool,
+    /// Runs `myriad slurm --no-exchange`: each part decompresses the LAZ chunks it shares with
+    /// others itself, no scatter job before the parts
+    #[arg(long)]
+    no_exchange: bool,
 }
 
 /// CPU seconds (user and system) of this process's children that have ended.
@@ -63,11 +67,13 @@ fn run(args: &[&str]) -> Result<(String, f64)> {
 
 /// What a part's or the merge's Slurm log gives.
 struct Figures {
-    /// "time  X s", "cpu  X s", "memory  Y MB", "read  N points" (NaN where absent).
+    /// "time  X s", "cpu  X s", "memory  Y MB", "read  N points", "exchanged  N points" (NaN
+    /// where absent).
     seconds: f64,
     cpu: f64,
     mb: f64,
     read: f64,
+    exchanged: f64,
 }
 
 /// The numbers a part's or the merge's Slurm log gives.
@@ -85,6 +91,7 @@ fn log_figures(path: &Path) -> Result<Figures> {
         cpu: field("cpu"),
         mb: field("memory"),
         read: field("read"),
+        exchanged: field("exchanged"),
     })
 }
 
@@ -123,7 +130,7 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         points as f64 / one_secs / 1e6
     );
     println!(
-        "{:>5} {:>3} {:>7} {:>8} {:>8} {:>6} {:>7} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>8} {:>7}",
+        "{:>5} {:>3} {:>7} {:>8} {:>8} {:>6} {:>7} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>8} {:>7} {:>9}",
         "parts",
         "P",
         "plan s",
@@ -138,7 +145,8 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         "part MB",
         "merge s",
         "merge MB",
-        "copy s"
+        "copy s",
+        "scatter s"
     );
     for &n in &a.parts {
         let plan = scratch.join(format!("plan-{n}.json"));
@@ -169,17 +177,21 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         let dir = scratch.join(format!("parts-{n}"));
         let _ = std::fs::remove_dir_all(&dir);
         let cpus = format!("--cpus-per-task={}", a.cpus_per_part);
-        let (log, wall) = run(&[
+        let (out_s, dir_s) = (s(&out), s(&dir));
+        let mut args = vec![
             "slurm",
             &plan_s,
             "-o",
-            &s(&out),
+            &out_s,
             "--parts-dir",
-            &s(&dir),
+            &dir_s,
             "--wait",
-            "--",
-            &cpus,
-        ])?;
+        ];
+        if a.no_exchange {
+            args.push("--no-exchange");
+        }
+        args.extend(["--", &cpus]);
+        let (log, wall) = run(&args)?;
         let job = log
             .lines()
             .find_map(|l| l.strip_prefix("parts  job "))
@@ -192,15 +204,30 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
             .and_then(|r| r.split_whitespace().next())
             .context("the merge's job id")?
             .to_string();
+        let scatter_job = log
+            .lines()
+            .find_map(|l| l.strip_prefix("scatter job "))
+            .and_then(|r| r.split_whitespace().next());
         let mut times = Vec::new();
         let (mut peak, mut cpu, mut read) = (0f64, 0f64, 0f64);
+        let (mut scatter_max, mut scatter_cpu) = (0f64, 0f64);
         for i in 0..n {
             let f = log_figures(&dir.join(format!("slurm-{job}_{i}.out")))?;
             times.push(f.seconds);
             peak = peak.max(f.mb);
             cpu += f.cpu;
-            read += f.read;
+            // Points the part decompressed itself: what it read of the exchange is counted where
+            // it was decompressed, by the scatter tasks.
+            read += f.read - f.exchanged.max(0.0);
+            if let Some(sj) = scatter_job {
+                let f = log_figures(&dir.join(format!("slurm-scatter-{sj}_{i}.out")))?;
+                scatter_max = scatter_max.max(f.seconds);
+                scatter_cpu += f.cpu;
+                peak = peak.max(f.mb);
+                read += f.read;
+            }
         }
+        cpu += scatter_cpu;
         let m = log_figures(&dir.join(format!("slurm-merge-{merge_job}.out")))?;
         // The whole build's CPU: plan, parts and merge.
         cpu += plan_cpu + m.cpu;
@@ -219,7 +246,7 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
         ])?;
         std::fs::remove_file(&single)?;
         println!(
-            "{n:>5} {:>3} {plan_secs:>7.2} {plan_cpu:>8.2} {wall:>8.1} {:>6.2} {med:>7.1} {max:>8.1} {cpu:>8.1} {:>7.3} {:>7.2} {peak:>7.0} {:>8.1} {:>8.0} {copy_secs:>7.1}",
+            "{n:>5} {:>3} {plan_secs:>7.2} {plan_cpu:>8.2} {wall:>8.1} {:>6.2} {med:>7.1} {max:>8.1} {cpu:>8.1} {:>7.3} {:>7.2} {peak:>7.0} {:>8.1} {:>8.0} {copy_secs:>7.1} {scatter_max:>9.1}",
             p["partition_level"].as_u64().unwrap_or(0),
             wall / one_secs,
             cpu / one_cpu,
@@ -241,9 +268,10 @@ pub fn run_bench(a: PartitionBenchArgs) -> Result<()> {
     }
     println!(
         "(part s: median of the parts; wall: submission to merged, {cores} cores shared by the parts; \
-         cpu s: plan, parts and merge together, x one against the one-machine build's; read x: \
-         points the parts read over the points; merge s: the merge that links the parts' files, \
-         copy s: the same parts merged with --single-file)"
+         cpu s: plan, scatter tasks, parts and merge together, x one against the one-machine build's; \
+         read x: points decompressed (by the parts, and by the scatter tasks) over the points; \
+         merge s: the merge that links the parts' files, copy s: the same parts merged with \
+         --single-file; scatter s: the longest scatter task, 0 without the exchange)"
     );
     Ok(())
 }

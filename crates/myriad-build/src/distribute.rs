@@ -455,7 +455,7 @@ pub(crate) fn root_cube(bounds: &Aabb, step: f64) -> Aabb {
     Aabb::new(min, min.map(|m| m + extent + 2.0 * margin))
 }
 
-fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] {
+pub(crate) fn cell_of(root: &Aabb, level: u32, p: [f64; 3], clamped: &mut u64) -> [u32; 3] {
     let side = root.size()[0];
     let n = (1u64 << level) as f64;
     let mut outside = false;

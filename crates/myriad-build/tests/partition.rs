@@ -48,10 +48,10 @@ fn pages(path: &Path) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-fn build_all(plan: &BuildPlan, parts: &Path) -> Vec<partition::PartSummary> {
+fn build_all(plan: &BuildPlan, parts: &Path, exchanged: bool) -> Vec<partition::PartSummary> {
     let mut out = Vec::new();
     for i in 0..plan.parts.len() {
-        let s = partition::build_part(plan, i, parts, 2, &Silent).unwrap();
+        let s = partition::build_part(plan, i, parts, 2, exchanged, &Silent).unwrap();
         if s.points > 0 {
             let ds = Dataset::open(&partition::part_paths(parts, i).0).unwrap();
             let r = myriad_build::extract::verify(&ds, |_| {});
@@ -115,7 +115,7 @@ fn same_as_one_machine(structure: Structure, name: &str, laz: bool) {
     let plan = BuildPlan::load(&plan_path).unwrap();
 
     let parts = d.join("parts");
-    let summaries = build_all(&plan, &parts);
+    let summaries = build_all(&plan, &parts, false);
     let read: u64 = summaries
         .iter()
         .flat_map(|s| &s.inputs)
@@ -195,7 +195,67 @@ fn same_as_one_machine(structure: Structure, name: &str, laz: bool) {
         assert!(r.damage.is_empty());
         assert_eq!(r.points, 250_000);
     }
+    if laz {
+        same_with_the_exchange(&plan, &d, &las, &b);
+    }
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// The exchange: the scatter tasks decompress each chunk that some part reads once and sort
+/// its records by part; the parts built from them read exactly their points and merge to the
+/// one-machine build (`one`'s pages).
+fn same_with_the_exchange(plan: &BuildPlan, d: &Path, las: &Path, one: &[(String, Vec<u8>)]) {
+    let dir = d.join("exchanged");
+    // A part before the scatter tasks have run is refused, naming the missing manifest.
+    let e = partition::build_part(plan, 0, &dir, 2, true, &Silent).unwrap_err();
+    assert!(
+        e.to_string().contains("t0.json") && e.to_string().contains("--scatter 0"),
+        "{e}"
+    );
+    let tasks = plan.scatter_tasks();
+    assert_eq!(tasks.len(), plan.parts.len());
+    let chunks = myriad_io::las::chunk_bounds(las).unwrap().unwrap();
+    let c = &plan.chunked[0];
+    let mut shared: Vec<u32> = (0..plan.parts.len()).flat_map(|i| c.of(i)).collect();
+    shared.sort_unstable();
+    shared.dedup();
+    // The tasks take those chunks once each, in order.
+    let taken: Vec<u32> = tasks
+        .iter()
+        .flatten()
+        .flat_map(|(_, v)| v.clone())
+        .collect();
+    assert_eq!(taken, shared);
+    let (mut read, mut routed) = (0, vec![0u64; plan.parts.len()]);
+    for t in 0..tasks.len() {
+        let s = partition::scatter(plan, t, &dir, &Silent).unwrap();
+        assert_eq!(s.outside, 0);
+        read += s.read;
+        for (r, n) in routed.iter_mut().zip(&s.routed) {
+            *r += n;
+        }
+    }
+    let want: u64 = shared.iter().map(|&k| chunks[k as usize].0.points).sum();
+    assert_eq!(read, want, "every chunk a part reads decompressed once");
+    assert_eq!(routed.iter().sum::<u64>(), 250_000);
+    let summaries = build_all(plan, &dir, true);
+    for (i, s) in summaries.iter().enumerate() {
+        // Each part read its own points and no other.
+        assert_eq!(s.inputs[0].map_or(0, |x| x.1), s.points, "part {i}");
+        assert_eq!(s.points, routed[i], "part {i}");
+    }
+    let merged = d.join("exchanged.myr");
+    partition::merge(plan, &dir, &merged, false, true, 2, &Silent).unwrap();
+    let a = pages(&merged);
+    assert_eq!(a.len(), one.len(), "node counts");
+    for (x, y) in a.iter().zip(one) {
+        assert_eq!(x.0, y.0);
+        assert!(x.1 == y.1, "{}: page bytes differ", x.0);
+    }
+    assert!(
+        !partition::exchange_dir(&dir).exists(),
+        "the merge removes the records"
+    );
 }
 
 /// A merged dataset links its parts' files: they are found relative to it (the folders moved
@@ -206,7 +266,7 @@ fn a_linked_part_missing_or_changed_is_named() {
     let las = synth(&d, 80_000, 6);
     let plan = partition::plan(std::slice::from_ref(&las), &options(3, Structure::Octree)).unwrap();
     let parts = d.join("job").join("parts");
-    build_all(&plan, &parts);
+    build_all(&plan, &parts, false);
     let out = d.join("job").join("city.myr");
     let m = partition::merge(&plan, &parts, &out, false, false, 1, &Silent).unwrap();
     assert!(m.linked >= 2, "{m:?}");
@@ -365,7 +425,7 @@ fn an_empty_input_is_planned_and_merged() {
     let plan = BuildPlan::load(&p).unwrap();
     assert_eq!(plan.inputs[1].points, 0);
     let parts = d.join("parts");
-    build_all(&plan, &parts);
+    build_all(&plan, &parts, false);
     let m = partition::merge(&plan, &parts, &d.join("m.myr"), false, false, 1, &Silent).unwrap();
     assert_eq!(m.points, 30_000);
 }
@@ -376,8 +436,8 @@ fn merge_refuses_missing_and_foreign_parts() {
     let las = synth(&d, 60_000, 2);
     let plan = partition::plan(std::slice::from_ref(&las), &options(3, Structure::Octree)).unwrap();
     let parts = d.join("parts");
-    partition::build_part(&plan, 0, &parts, 1, &Silent).unwrap();
-    partition::build_part(&plan, 2, &parts, 1, &Silent).unwrap();
+    partition::build_part(&plan, 0, &parts, 1, false, &Silent).unwrap();
+    partition::build_part(&plan, 2, &parts, 1, false, &Silent).unwrap();
     let out = d.join("out.myr");
     let e = partition::merge(&plan, &parts, &out, false, false, 1, &Silent)
         .unwrap_err()
@@ -390,7 +450,7 @@ fn merge_refuses_missing_and_foreign_parts() {
     o.params.capacity = 2000;
     let other = partition::plan(std::slice::from_ref(&las), &o).unwrap();
     assert_ne!(other.id, plan.id);
-    partition::build_part(&other, 1, &parts, 1, &Silent).unwrap();
+    partition::build_part(&other, 1, &parts, 1, false, &Silent).unwrap();
     let e = partition::merge(&plan, &parts, &out, false, false, 1, &Silent)
         .unwrap_err()
         .to_string();
@@ -401,7 +461,7 @@ fn merge_refuses_missing_and_foreign_parts() {
     assert!(!out.exists());
 
     // Rerun: it replaces the foreign part; then the merge works.
-    partition::build_part(&plan, 1, &parts, 1, &Silent).unwrap();
+    partition::build_part(&plan, 1, &parts, 1, false, &Silent).unwrap();
     let m = partition::merge(&plan, &parts, &out, false, false, 1, &Silent).unwrap();
     assert_eq!(m.points, 60_000);
 

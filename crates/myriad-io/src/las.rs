@@ -60,6 +60,9 @@ pub struct LasSource {
     stream: Option<RecordStream>,
     /// The LAZ chunks to read, where only some are ([`LasSource::keep_chunks`]).
     kept: Option<Vec<LazChunk>>,
+    /// Files of this file's raw records to read instead of its own point data
+    /// ([`LasSource::keep_exchanged`]).
+    exchanged: Option<Vec<PathBuf>>,
 }
 
 /// Raw record blocks from the producer threads, and the part of the last block not yet decoded.
@@ -267,6 +270,7 @@ impl LasSource {
             remaining: count,
             stream: None,
             kept: None,
+            exchanged: None,
         })
     }
 
@@ -314,6 +318,84 @@ impl LasSource {
         self.info.points = Some(self.remaining);
         self.kept = Some(kept);
         Ok(())
+    }
+
+    /// Reads its records from `files` instead of its own point data, before any point is read:
+    /// each file holds raw records of this file's point format, one after another, as
+    /// [`LasSource::next_records`] gives them (a partitioned build's scatter task wrote them for
+    /// one part). The source then holds their points only (`info().points` says how many).
+    pub fn keep_exchanged(&mut self, files: &[PathBuf]) -> Result<()> {
+        if self.stream.is_some() {
+            return Err(Error::Invalid(format!(
+                "{}: records to read chosen after reading began",
+                self.info.path.display()
+            )));
+        }
+        let len = self.record_len as u64;
+        let mut total = 0u64;
+        for f in files {
+            let bytes = std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len();
+            if bytes % len != 0 {
+                return Err(Error::at_byte(
+                    f,
+                    bytes - bytes % len,
+                    format!(
+                        "ends inside a record of {len} bytes (records of {} cut short?)",
+                        self.info.path.display()
+                    ),
+                ));
+            }
+            total += bytes / len;
+        }
+        self.remaining = total;
+        self.info.points = Some(total);
+        self.kept = None;
+        self.exchanged = Some(files.to_vec());
+        Ok(())
+    }
+
+    /// The next block of raw records (LAZ decompressed), none decoded into columns: for a
+    /// caller that copies records as they are, by their positions ([`LasSource::position_of`]).
+    /// `None` at the end.
+    pub fn next_records(&mut self) -> Result<Option<&[u8]>> {
+        self.take_records(usize::MAX)
+    }
+
+    /// The length of one record, in bytes.
+    pub fn record_len(&self) -> usize {
+        self.record_len
+    }
+
+    /// A raw record's position, as [`PointSource::read_batch`] decodes it.
+    pub fn position_of(&self) -> impl Fn(&[u8]) -> [f64; 3] + Copy + use<> {
+        let q = self.quant;
+        move |record| las_records::position(record, &q)
+    }
+
+    /// Up to `max` records of the block being read (the next block once it is read to its
+    /// end), taken from what remains.
+    fn take_records(&mut self, max: usize) -> Result<Option<&[u8]>> {
+        if self.remaining == 0 {
+            return Ok(None);
+        }
+        let (path, header) = (&self.info.path, &self.header);
+        let (data_at, total) = (self.data_at, self.remaining);
+        let (kept, exchanged) = (self.kept.as_deref(), self.exchanged.as_deref());
+        let stream = self.stream.get_or_insert_with(|| match (kept, exchanged) {
+            (_, Some(files)) => start_file_stream(header, files),
+            (Some(k), None) => start_chunk_stream(path, header, k),
+            (None, None) => start_stream(path, header, data_at, total),
+        });
+        if stream.at == stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) {
+            stream.advance(path)?;
+        }
+        let pending = stream.pending.as_ref().map_or(&[][..], |d| d.0.raw_bytes());
+        let left = (pending.len() - stream.at) / self.record_len;
+        let n = left.min(max).min(self.remaining as usize);
+        let bytes = &pending[stream.at..stream.at + n * self.record_len];
+        stream.at += n * self.record_len;
+        self.remaining -= n as u64;
+        Ok(Some(bytes))
     }
 
     /// The parsed LAS header, for writers that copy a file's point format, VLRs and scaling.
@@ -378,6 +460,40 @@ fn start_chunk_stream(path: &Path, header: &las::Header, chunks: &[LazChunk]) ->
                 )?;
                 if tx.send(Ok(data)).is_err() {
                     break; // the source was dropped
+                }
+            }
+            Ok(())
+        };
+        if let Err(e) = produce(&tx) {
+            let _ = tx.send(Err(e));
+        }
+    })
+}
+
+/// Starts the producer thread that reads the raw records of `files` (see
+/// [`LasSource::keep_exchanged`]) in blocks, one file after another.
+fn start_file_stream(header: &las::Header, files: &[PathBuf]) -> RecordStream {
+    let builder = las::PointDataBuilder::new().for_header(header);
+    let len = header.point_format().len() as u64;
+    let files = files.to_vec();
+    RecordStream::of(1, "records-reader", move |_, tx, spent_rx| {
+        let produce = |tx: &SyncSender<Result<las::PointData>>| -> Result<()> {
+            for path in &files {
+                let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+                let bytes = file.metadata().map_err(|e| Error::io(path, e))?.len();
+                let (mut left, mut at) = (bytes / len, 0u64);
+                while left > 0 {
+                    let n = left.min(PRODUCER_BLOCK);
+                    let mut data = spent_rx
+                        .try_recv()
+                        .unwrap_or_else(|_| builder.clone().build());
+                    file.read_exact(data.resize_for(n as usize))
+                        .map_err(|e| Error::at_byte(path, at, format!("cannot read: {e}")))?;
+                    if tx.send(Ok(data)).is_err() {
+                        return Ok(()); // the source was dropped
+                    }
+                    left -= n;
+                    at += n * len;
                 }
             }
             Ok(())
@@ -615,34 +731,14 @@ impl PointSource for LasSource {
     }
 
     fn read_batch(&mut self, max: usize) -> Result<Option<PointBatch>> {
-        if self.remaining == 0 {
+        let (record_len, layout, quant) = (self.record_len, self.layout, self.quant);
+        let Some(bytes) = self.take_records(crate::batch_len(max))? else {
             return Ok(None);
-        }
-        let (path, header) = (&self.info.path, &self.header);
-        let (data_at, total) = (self.data_at, self.remaining);
-        let kept = self.kept.as_deref();
-        let stream = self.stream.get_or_insert_with(|| match kept {
-            Some(k) => start_chunk_stream(path, header, k),
-            None => start_stream(path, header, data_at, total),
-        });
-        if stream.at == stream.pending.as_ref().map_or(0, |d| d.0.raw_bytes().len()) {
-            stream.advance(path)?;
-        }
-        let pending = stream.pending.as_ref().map_or(&[][..], |d| d.0.raw_bytes());
-        let left = (pending.len() - stream.at) / self.record_len;
-        let n = left.min(crate::batch_len(max)).min(self.remaining as usize);
-        let bytes = &pending[stream.at..stream.at + n * self.record_len];
-        let extra = self.record_len - self.layout.base_len;
-        let mut batch = las_records::batch_for(&self.layout, extra, n);
-        las_records::decode(
-            bytes,
-            self.record_len,
-            &self.layout,
-            &self.quant,
-            &mut batch,
-        );
-        stream.at += n * self.record_len;
-        self.remaining -= n as u64;
+        };
+        let n = bytes.len() / record_len;
+        let extra = record_len - layout.base_len;
+        let mut batch = las_records::batch_for(&layout, extra, n);
+        las_records::decode(bytes, record_len, &layout, &quant, &mut batch);
         Ok(Some(batch))
     }
 }

@@ -105,6 +105,16 @@ fn f64_at(r: &[u8], o: usize) -> f64 {
     f64::from_le_bytes(r[o..o + 8].try_into().unwrap())
 }
 
+/// A record's position.
+#[inline]
+pub fn position(r: &[u8], q: &Quantization) -> [f64; 3] {
+    [
+        i32_at(r, 0) as f64 * q.scale[0] + q.offset[0],
+        i32_at(r, 4) as f64 * q.scale[1] + q.offset[1],
+        i32_at(r, 8) as f64 * q.scale[2] + q.offset[2],
+    ]
+}
+
 /// Appends the records in `bytes` (each `record_len` long) to `batch`, which must have the columns
 /// of `Schema::for_las_format(layout.format)` plus extra bytes of `record_len - base_len`.
 pub fn decode(
@@ -117,13 +127,7 @@ pub fn decode(
     // Column by column: one tight loop over the records per field, each extending its column
     // by an iterator of known length (no per-point capacity checks).
     let records = || bytes.chunks_exact(record_len);
-    batch.positions.extend(records().map(|r| {
-        [
-            i32_at(r, 0) as f64 * q.scale[0] + q.offset[0],
-            i32_at(r, 4) as f64 * q.scale[1] + q.offset[1],
-            i32_at(r, 8) as f64 * q.scale[2] + q.offset[2],
-        ]
-    }));
+    batch.positions.extend(records().map(|r| position(r, q)));
     macro_rules! col {
         ($f:ident, $r:ident => $v:expr) => {
             batch

@@ -187,6 +187,10 @@ pub struct OpenOptions {
     /// LAZ inputs of which only some chunks are read (their indices in the chunk table,
     /// ascending): a part of a partitioned build reads the chunks that meet its cells.
     pub laz_chunks: Option<std::sync::Arc<std::collections::HashMap<PathBuf, Vec<u32>>>>,
+    /// LAS/LAZ inputs whose records are read from other files instead (each file raw records
+    /// of the input's point format, in order): a part of a partitioned build reads what the
+    /// scatter tasks decompressed for it ([`las::LasSource::keep_exchanged`]).
+    pub exchanged: Option<std::sync::Arc<std::collections::HashMap<PathBuf, Vec<PathBuf>>>>,
 }
 
 /// Opens `path` with the reader its magic bytes (or, for text, its extension) call for.
@@ -201,7 +205,9 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn PointSource>> 
     let source: Box<dyn PointSource> = match detect(path)? {
         Format::Las | Format::Laz => {
             let mut s = las::LasSource::open(path)?;
-            if let Some(kept) = options.laz_chunks.as_ref().and_then(|m| m.get(path)) {
+            if let Some(files) = options.exchanged.as_ref().and_then(|m| m.get(path)) {
+                s.keep_exchanged(files)?;
+            } else if let Some(kept) = options.laz_chunks.as_ref().and_then(|m| m.get(path)) {
                 s.keep_chunks(kept)?;
             }
             Box::new(s)

@@ -49,6 +49,22 @@ pub struct ConvertArgs {
     /// holds at least the header and the chunk table (a driver fetches those first)
     #[arg(long, requires = "part", conflicts_with = "list_inputs")]
     list_ranges: bool,
+    /// Run one of the plan's scatter tasks (an index, or auto as for --part) into the parts'
+    /// folder given by -o: the chunks of the LAZ inputs that several parts read, each
+    /// decompressed once, its records sorted into the parts' files there (`exchange/`), for
+    /// parts built with --exchanged
+    #[arg(
+        long,
+        requires = "plan",
+        conflicts_with = "part",
+        value_name = "I|auto"
+    )]
+    scatter: Option<String>,
+    /// Build the part from what every scatter task of the plan wrote in its folder, instead of
+    /// decompressing the chunks it shares with other parts (`myriad slurm` runs the scatter
+    /// tasks first and builds its parts so)
+    #[arg(long, requires = "part")]
+    exchanged: bool,
     #[command(flatten)]
     build: BuildArgs,
     /// Replace an existing output
@@ -71,9 +87,14 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         return append(&a, d);
     }
     if let Some(plan) = &a.plan {
+        let step = match (&a.part, &a.scatter) {
+            (Some(i), _) => crate::partition::Step::Part(i, a.exchanged),
+            (None, Some(t)) => crate::partition::Step::Scatter(t),
+            (None, None) => crate::partition::Step::Whole,
+        };
         return crate::partition::convert_planned(
             plan,
-            a.part.as_deref(),
+            step,
             crate::partition::List {
                 inputs: a.list_inputs,
                 ranges: a.list_ranges,

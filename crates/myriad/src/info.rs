@@ -46,8 +46,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
         columns: args.columns.clone(),
         placement: args.placement.clone(),
         sidecar_placements: !args.no_placement,
-        reproject: None,
-        laz_chunks: None,
+        ..Default::default()
     };
     for path in &args.files {
         if myriad_format::is_dataset(path)

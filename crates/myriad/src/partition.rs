@@ -108,6 +108,14 @@ pub fn plan(a: PlanArgs) -> Result<()> {
             p.chunked.len(),
             thousands(chunks)
         );
+        let shared: usize = p.scatter_tasks().iter().flatten().map(|t| t.1.len()).sum();
+        println!(
+            "  scatter     {} tasks decompress the {} chunks parts read once each, before the parts (convert --plan {} --scatter T -o PARTS/, T = 0..{}; then --part I --exchanged)",
+            p.parts.len(),
+            thousands(shared as u64),
+            a.output.display(),
+            p.parts.len() - 1
+        );
     }
     for (i, (cells, n)) in p.parts.iter().enumerate() {
         let chunks: usize = p.chunked.iter().map(|c| c.of(i).len()).sum();
@@ -132,12 +140,13 @@ pub fn plan(a: PlanArgs) -> Result<()> {
     Ok(())
 }
 
-/// The part index `--part` names: a number, or `auto` from the engine's array index.
-fn part_index(s: &str) -> Result<usize> {
+/// The part index `--part` (or `--scatter`, `flag`) names: a number, or `auto` from the
+/// engine's array index.
+fn part_index(s: &str, flag: &str) -> Result<usize> {
     if s != "auto" {
         return s
             .parse()
-            .map_err(|_| anyhow::anyhow!("--part {s:?}: a part index or \"auto\""));
+            .map_err(|_| anyhow::anyhow!("{flag} {s:?}: an index or \"auto\""));
     }
     for var in [
         "SLURM_ARRAY_TASK_ID",
@@ -148,13 +157,23 @@ fn part_index(s: &str) -> Result<usize> {
             return v
                 .trim()
                 .parse()
-                .map_err(|_| anyhow::anyhow!("--part auto: {var}={v:?} is not an index"));
+                .map_err(|_| anyhow::anyhow!("{flag} auto: {var}={v:?} is not an index"));
         }
     }
     bail!(
-        "--part auto: none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX, \
+        "{flag} auto: none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX, \
          AWS_BATCH_JOB_ARRAY_INDEX is set (give the index)"
     )
+}
+
+/// What `convert --plan` builds.
+pub enum Step<'a> {
+    /// The whole plan on this machine.
+    Whole,
+    /// `--part I [--exchanged]`.
+    Part(&'a str, bool),
+    /// `--scatter T`.
+    Scatter(&'a str),
 }
 
 /// What `convert --plan --part` prints instead of building the part.
@@ -165,11 +184,11 @@ pub struct List {
     pub ranges: bool,
 }
 
-/// `convert --plan PLAN [--part I] -o OUT`: one part into the folder OUT, or the whole plan on
-/// this machine into the dataset OUT.
+/// `convert --plan PLAN [--part I | --scatter T] -o OUT`: one part or scatter task into the
+/// folder OUT, or the whole plan on this machine into the dataset OUT.
 pub fn convert_planned(
     plan_path: &Path,
-    part: Option<&str>,
+    step: Step,
     list: List,
     output: &Path,
     threads: Option<usize>,
@@ -180,27 +199,39 @@ pub fn convert_planned(
     let threads = threads.unwrap_or(plan.threads);
     crate::progress::global_threads(threads);
     let bar = Bar::new();
-    let Some(part) = part else {
-        let o = plan.convert_options(None, output, threads);
-        let s = convert::convert(&plan.inputs_of(None), &o, &bar)?;
-        bar.clear();
-        if as_json {
-            println!(
-                "{}",
-                json!({"output": output.display().to_string(), "points": s.points,
+    let (part, exchanged) = match step {
+        Step::Part(i, exchanged) => (i, exchanged),
+        Step::Scatter(t) => {
+            return scatter(
+                &plan,
+                plan_path,
+                part_index(t, "--scatter")?,
+                output,
+                as_json,
+            );
+        }
+        Step::Whole => {
+            let o = plan.convert_options(None, output, threads);
+            let s = convert::convert(&plan.inputs_of(None), &o, &bar)?;
+            bar.clear();
+            if as_json {
+                println!(
+                    "{}",
+                    json!({"output": output.display().to_string(), "points": s.points,
                        "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,
                        "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
                    "cpu_seconds": myriad_io::process::cpu_seconds()})
-            );
-        } else {
-            println!("{}", output.display());
-            println!("  points      {}", thousands(s.points));
-            println!("  nodes       {} (depth {})", thousands(s.nodes), s.depth);
-            println!("  time        {:.2} s", s.seconds);
+                );
+            } else {
+                println!("{}", output.display());
+                println!("  points      {}", thousands(s.points));
+                println!("  nodes       {} (depth {})", thousands(s.nodes), s.depth);
+                println!("  time        {:.2} s", s.seconds);
+            }
+            return Ok(());
         }
-        return Ok(());
     };
-    let index = part_index(part)?;
+    let index = part_index(part, "--part")?;
     if list.inputs || list.ranges {
         if index >= plan.parts.len() {
             bail!(
@@ -222,7 +253,7 @@ pub fn convert_planned(
         }
         return Ok(());
     }
-    let s = partition::build_part(&plan, index, output, threads, &bar)?;
+    let s = partition::build_part(&plan, index, output, threads, exchanged, &bar)?;
     bar.clear();
     let (myr, tops) = partition::part_paths(output, index);
     let opened = s.inputs.iter().filter(|i| i.is_some()).count();
@@ -256,9 +287,65 @@ pub fn convert_planned(
         plan.inputs.len()
     );
     println!("  read        {} points", thousands(read));
+    if exchanged {
+        let from: u64 = (plan.chunked.iter())
+            .filter_map(|c| s.inputs[c.input])
+            .map(|i| i.1)
+            .sum();
+        println!(
+            "  exchanged   {} points of them from the scatter tasks",
+            thousands(from)
+        );
+    }
     println!("  nodes       {}", thousands(s.nodes));
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(s.skipped_non_finite);
+    Ok(())
+}
+
+/// `convert --plan PLAN --scatter T -o DIR`.
+fn scatter(
+    plan: &BuildPlan,
+    plan_path: &Path,
+    task: usize,
+    dir: &Path,
+    as_json: bool,
+) -> Result<()> {
+    let bar = Bar::new();
+    let s = partition::scatter(plan, task, dir, &bar)?;
+    bar.clear();
+    let written: u64 = s.routed.iter().sum();
+    if as_json {
+        println!(
+            "{}",
+            json!({"scatter": task, "points_read": s.read, "points_written": written,
+                   "outside": s.outside, "per_part": s.routed, "seconds": s.seconds,
+                   "folder": partition::exchange_dir(dir).display().to_string(),
+                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
+                   "cpu_seconds": myriad_io::process::cpu_seconds()})
+        );
+        return Ok(());
+    }
+    println!(
+        "scatter task {task} of {} ({})",
+        plan.parts.len(),
+        plan_path.display()
+    );
+    println!("  folder      {}", partition::exchange_dir(dir).display());
+    println!("  read        {} points", thousands(s.read));
+    println!(
+        "  written     {} points for {} parts",
+        thousands(written),
+        s.routed.iter().filter(|&&n| n > 0).count()
+    );
+    if s.outside > 0 {
+        println!(
+            "  outside     {} points in no part's cells",
+            thousands(s.outside)
+        );
+    }
+    println!("  time        {:.2} s", s.seconds);
+    crate::progress::print_memory_and_skipped(0);
     Ok(())
 }
 
@@ -404,7 +491,11 @@ pub struct SlurmArgs {
     /// The myriad program as the compute nodes see it [default: this one's path]
     #[arg(long)]
     myriad: Option<PathBuf>,
-    /// Options for both sbatch calls, after `--` (e.g. -- --partition=cpu --mem=8G)
+    /// Let each part decompress the LAZ chunks it shares with other parts itself, instead of a
+    /// scatter job decompressing each once before the parts (`convert --plan ... --scatter`)
+    #[arg(long)]
+    no_exchange: bool,
+    /// Options for every sbatch call, after `--` (e.g. -- --partition=cpu --mem=8G)
     #[arg(last = true)]
     sbatch: Vec<String>,
 }
@@ -419,23 +510,28 @@ fn sh_quote(s: &str) -> String {
 }
 
 /// Submits a job and returns its id; `dry_run`: prints the command as a shell line instead,
-/// the first setting `$JOB` for the second.
-fn sbatch(args: &[String], dry_run: bool) -> Result<String> {
+/// setting the shell variable `var` (when not empty) to the job's id, and returns `$VAR` for
+/// the lines after it (an argument ending in `$NAME` is left unquoted there).
+fn sbatch(args: &[String], dry_run: bool, var: &str) -> Result<String> {
     if dry_run {
         let words: Vec<String> = args
             .iter()
-            .map(|a| match a.strip_suffix("$JOB") {
-                Some(head) => format!("{}$JOB", sh_quote(head)),
-                None => sh_quote(a),
+            .map(|a| match a.rfind('$') {
+                Some(at)
+                    if a.len() > at + 1 && a[at + 1..].chars().all(|c| c.is_ascii_uppercase()) =>
+                {
+                    format!("{}{}", sh_quote(&a[..at]), &a[at..])
+                }
+                _ => sh_quote(a),
             })
             .collect();
         let line = format!("sbatch --parsable {}", words.join(" "));
-        if args.iter().any(|a| a.ends_with("$JOB")) {
+        if var.is_empty() {
             println!("{line}");
         } else {
-            println!("JOB=$({line})");
+            println!("{var}=$({line})");
         }
-        return Ok("$JOB".into());
+        return Ok(format!("${var}"));
     }
     let out = Command::new("sbatch")
         .arg("--parsable")
@@ -509,19 +605,43 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
     };
     let q = |p: &Path| sh_quote(&p.display().to_string());
     let n = plan.parts.len();
+    // The chunks that several parts read, decompressed once by a job of scatter tasks first.
+    let exchange = !a.no_exchange && !plan.chunked.is_empty();
+    let scatter_job = if exchange {
+        let mut array = vec![
+            "--job-name=myriad-scatter".to_string(),
+            format!("--array=0-{}", n - 1),
+            format!("--output={}/slurm-scatter-%A_%a.out", parts.display()),
+        ];
+        array.extend(a.sbatch.iter().cloned());
+        array.push(format!(
+            "--wrap=exec {} convert --plan {} --scatter auto -o {}",
+            q(&exe),
+            q(&plan_path),
+            q(&parts)
+        ));
+        Some(sbatch(&array, a.dry_run, "SCATTER")?)
+    } else {
+        None
+    };
     let mut array = vec![
         "--job-name=myriad-part".to_string(),
         format!("--array=0-{}", n - 1),
         format!("--output={}/slurm-%A_%a.out", parts.display()),
     ];
+    if let Some(job) = &scatter_job {
+        array.push(format!("--dependency=afterok:{job}"));
+        array.push("--kill-on-invalid-dep=yes".to_string());
+    }
     array.extend(a.sbatch.iter().cloned());
     array.push(format!(
-        "--wrap=exec {} convert --plan {} --part auto -o {}",
+        "--wrap=exec {} convert --plan {} --part auto -o {}{}",
         q(&exe),
         q(&plan_path),
-        q(&parts)
+        q(&parts),
+        if exchange { " --exchanged" } else { "" }
     ));
-    let parts_job = sbatch(&array, a.dry_run)?;
+    let parts_job = sbatch(&array, a.dry_run, "PARTS")?;
     let mut merge = vec![
         "--job-name=myriad-merge".to_string(),
         format!("--dependency=afterok:{parts_job}"),
@@ -536,9 +656,14 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
         q(&parts),
         q(&output)
     ));
-    let merge_job = sbatch(&merge, a.dry_run)?;
+    let merge_job = sbatch(&merge, a.dry_run, "")?;
     if a.dry_run {
         return Ok(());
+    }
+    if let Some(job) = &scatter_job {
+        println!(
+            "scatter job {job} ({n} array tasks: the LAZ chunks parts share, decompressed once)"
+        );
     }
     println!(
         "parts  job {parts_job} ({n} array tasks), logs in {}",
@@ -564,17 +689,25 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
             println!("merged {}", output.display());
             return Ok(());
         }
-        let failed: Vec<String> = job_states(&parts_job)?
-            .into_iter()
-            .filter(|t| t.1 != "COMPLETED" && !RUNNING.contains(&t.1.as_str()))
-            .map(|(i, s, e)| {
-                let i = i.unwrap_or_default();
-                format!(
-                    "part {i} {s} (exit {e}; log {}/slurm-{parts_job}_{i}.out)",
-                    parts.display()
-                )
-            })
-            .collect();
+        let mut failed = Vec::new();
+        for (job, what, log) in [
+            (scatter_job.as_deref(), "scatter task", "slurm-scatter-"),
+            (Some(parts_job.as_str()), "part", "slurm-"),
+        ] {
+            let Some(job) = job else { continue };
+            failed.extend(
+                job_states(job)?
+                    .into_iter()
+                    .filter(|t| t.1 != "COMPLETED" && !RUNNING.contains(&t.1.as_str()))
+                    .map(|(i, s, e)| {
+                        let i = i.unwrap_or_default();
+                        format!(
+                            "{what} {i} {s} (exit {e}; log {}/{log}{job}_{i}.out)",
+                            parts.display()
+                        )
+                    }),
+            );
+        }
         if failed.is_empty() {
             bail!(
                 "merge job {merge_job} {state}: see {}/slurm-merge-{merge_job}.out",

@@ -243,10 +243,20 @@ fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
     let (west, east, want) = two_scans(&d);
     let plan = make_plan(&d, &[&west, &east], "plan.json");
     let out = d.join("city.myr");
+    // The two scans each meet several parts: a scatter job decompresses their chunks once
+    // before the parts.
+    let chunked = std::fs::read_to_string(&plan).unwrap();
+    let chunked: serde_json::Value = serde_json::from_str(&chunked).unwrap();
+    assert_eq!(chunked["chunked"].as_array().unwrap().len(), 2);
     let r = slurm.myriad(&["slurm", s(&plan), "-o", s(&out), "--wait"]);
     assert_eq!(r.code, 0, "{}{}", r.stdout, r.stderr);
     assert!(r.stdout.contains("4 array tasks"), "{}", r.stdout);
+    assert!(r.stdout.contains("scatter job"), "{}", r.stdout);
     holds(&out, &want);
+    assert!(
+        !d.join("city.myr.parts/exchange").exists(),
+        "the merge removes the scatter tasks' records"
+    );
     // The merge left the parts' pages in city.myr.parts/ and links them.
     let files = Dataset::open(&out).unwrap().files().to_vec();
     assert_eq!(files.len(), 4, "{files:?}");
@@ -255,19 +265,21 @@ fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
             .iter()
             .all(|f| f.path.starts_with("city.myr.parts/part-"))
     );
-    // Every part ran as an array task, its log next to it.
-    let logs = std::fs::read_dir(d.join("city.myr.parts"))
-        .unwrap()
-        .filter(|e| {
-            let n = e.as_ref().unwrap().file_name();
-            let n = n.to_string_lossy();
-            n.starts_with("slurm-") && !n.contains("merge")
-        })
-        .count();
-    assert_eq!(logs, 4);
+    // Every scatter task and part ran as an array task, its log next to the parts.
+    let logs = |what: &str| {
+        std::fs::read_dir(d.join("city.myr.parts"))
+            .unwrap()
+            .filter(|e| {
+                let n = e.as_ref().unwrap().file_name();
+                let n = n.to_string_lossy();
+                n.starts_with("slurm-") && !n.contains("merge") && n.contains(what)
+            })
+            .count()
+    };
+    assert_eq!((logs("scatter"), logs("_")), (4, 8));
 
-    // An input gone before the parts run: the parts that read it fail, the merge does not run,
-    // and `slurm --wait` says which.
+    // An input gone before the build runs: the scatter tasks that read it fail, the parts and
+    // the merge do not run, and `slurm --wait` says which.
     let gone = d.join("east-copy.laz");
     std::fs::copy(&east, &gone).unwrap();
     let plan2 = make_plan(&d, &[&west, &gone], "plan2.json");
@@ -276,7 +288,7 @@ fn slurm_runs_the_parts_as_an_array_and_a_failed_part_fails_the_merge() {
     let r = slurm.myriad(&["slurm", s(&plan2), "-o", s(&out2), "--wait"]);
     assert_eq!(r.code, 1, "{}{}", r.stdout, r.stderr);
     assert!(
-        r.stderr.contains("not merged") && r.stderr.contains("part 3 FAILED"),
+        r.stderr.contains("not merged") && r.stderr.contains("scatter task 3 FAILED"),
         "{}",
         r.stderr
     );

@@ -1,5 +1,6 @@
 //! The merge of a plan's parts ([`merge`]): their pages below the partition level linked where
-//! they are (or copied, `single_file`), the levels above built from their tops.
+//! they are (or copied, `single_file`), the levels above built from their tops. The exchange's
+//! records ([`super::scatter`]) are removed once the merged dataset is written.
 
 use super::*;
 
@@ -20,7 +21,8 @@ pub struct MergeSummary {
 
 /// Merges the parts of `plan` in `dir` into one dataset at `out`. The parts' pages below the
 /// partition level stay in the parts' files, which the dataset links (by their paths relative
-/// to `out`: keep them there), unless `single_file`, which copies them into `out`.
+/// to `out`: keep them there), unless `single_file`, which copies them into `out`. Removes
+/// `dir/exchange` once the dataset is written.
 #[allow(clippy::too_many_arguments)]
 pub fn merge(
     plan: &BuildPlan,
@@ -206,6 +208,8 @@ pub fn merge(
     let linked = files.len() as u64;
     meta.files = files;
     let bytes = writer.finish(meta)?;
+    // The scatter tasks' records are in the parts now.
+    let _ = std::fs::remove_dir_all(exchange_dir(dir));
     Ok(MergeSummary {
         points,
         nodes,

@@ -11,15 +11,18 @@
 //! any level above took points from them. [`merge`] links every part's pages below `P` where
 //! they are (or copies them, without decoding them) and builds the levels above `P` from the
 //! tops as `convert` does: the result has the same nodes with the same points, page for page, as
-//! `convert --plan` on one machine. Which LAZ chunks each part reads: `chunks.rs`; the merge:
-//! `merge.rs`.
+//! `convert --plan` on one machine. Which LAZ chunks each part reads: `chunks.rs`; the chunks
+//! that several parts read decompressed once, before the parts (the exchange): `exchange.rs`;
+//! the merge: `merge.rs`.
 //!
 //! Octree and layered structures only: kd and mwkd trees group chunks across the whole scan.
 
 mod chunks;
+mod exchange;
 mod merge;
 mod tops;
 
+pub use exchange::{ScatterSummary, exchange_dir, scatter};
 pub use merge::{MergeSummary, merge};
 
 pub use chunks::ChunkedInput;
@@ -666,12 +669,15 @@ pub struct PartSummary {
 }
 
 /// Builds part `index` of `plan` into `dir` (`part-I.myr` and `part-I.tops`), replacing what a
-/// previous run of it left. A part whose cells hold no points writes only its `.tops`.
+/// previous run of it left. A part whose cells hold no points writes only its `.tops`. With
+/// `exchanged`, the part reads its points of the chunked inputs from what the plan's scatter
+/// tasks wrote in `dir` ([`scatter`]), which must all have run, instead of decompressing chunks.
 pub fn build_part(
     plan: &BuildPlan,
     index: usize,
     dir: &Path,
     threads: usize,
+    exchanged: bool,
     report: &dyn Report,
 ) -> Result<PartSummary> {
     if index >= plan.parts.len() {
@@ -696,7 +702,10 @@ pub fn build_part(
     let start = Instant::now();
     let mut top_nodes = Vec::new();
     if !inputs.is_empty() {
-        let o = plan.convert_options(Some(index), &myr, threads);
+        let mut o = plan.convert_options(Some(index), &myr, threads);
+        if exchanged && !plan.chunked.is_empty() {
+            o.open.exchanged = Some(std::sync::Arc::new(exchange::files_of(plan, index, dir)?));
+        }
         let s = convert::convert(&inputs, &o, report)?;
         for (path, taken, read) in &s.sources {
             let i = plan
