@@ -6,6 +6,7 @@
 
 pub mod baselines;
 pub mod capacity;
+pub mod contours;
 pub mod convert;
 pub mod culling;
 pub mod export;

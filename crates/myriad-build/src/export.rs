@@ -31,7 +31,7 @@ pub const GROUP_POINTS: u64 = 4_000_000;
 
 /// COPC: a leaf joins its parent's chunk where the two hold at most this many times the
 /// dataset's node capacity together (measured on KY and the 50 M point city: the guide).
-pub const COPC_JOIN: u64 = 2;
+pub const COPC_JOIN: u64 = 3;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Target {

@@ -216,10 +216,11 @@ fn copc_and_potree_hold_what_extract_gives() {
             "{bbox:?} {spacing:?}: COPC records differ from extract's"
         );
         let nodes = copc_nodes(&copc);
+        // A box or a coarse spacing leaves few points: their nodes may all join one chunk.
         let least = if bbox.is_none() && spacing.is_none() {
             100
         } else {
-            2
+            1
         };
         assert!(
             nodes.len() >= least,

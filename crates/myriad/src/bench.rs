@@ -33,6 +33,9 @@ pub enum BenchCommand {
     /// overview, a close and a detail view with occlusion culling and without: nodes, points,
     /// frame time and the time to load each view
     Capacity(myriad_bench::capacity::CapacityBenchArgs),
+    /// Layered datasets' contours (the subtree's oriented box, as stored) against the contours
+    /// of each node's own points (000): their areas and thicknesses, per level
+    Contours(myriad_bench::contours::ContoursBenchArgs),
     /// Surfaces from a view's points: cells and the milliseconds of cluster, move,
     /// reduce, reconstruct and the frame for the full method, without move and for an octree
     /// level as the baseline; distance from the points to the surface; holes
@@ -79,6 +82,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Passes(a) => myriad_bench::passes::run(a),
         BenchCommand::Culling(a) => myriad_bench::culling::run(a),
         BenchCommand::Capacity(a) => myriad_bench::capacity::run(a),
+        BenchCommand::Contours(a) => myriad_bench::contours::run(a),
         BenchCommand::Surface(a) => myriad_bench::surface::run(a),
         BenchCommand::Stereo(a) => myriad_bench::stereo::run(a),
         BenchCommand::Export(a) => myriad_bench::export::run(a),
