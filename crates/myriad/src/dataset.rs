@@ -133,19 +133,14 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     let rate = s.points as f64 / s.seconds;
     let bpp = s.bytes as f64 / s.points as f64;
     if a.json {
-        println!(
-            "{}",
-            json!({
-                "output": output.display().to_string(),
-                "points": s.points, "nodes": s.nodes, "depth": s.depth, "chunks": s.chunks,
-                "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
-                "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
-                "trimmed": s.trimmed, "not_transformed": s.not_transformed,
-                "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                "cpu_seconds": myriad_io::process::cpu_seconds(),
-                "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
-            })
-        );
+        crate::progress::print_json(json!({
+            "output": output.display().to_string(),
+            "points": s.points, "nodes": s.nodes, "depth": s.depth, "chunks": s.chunks,
+            "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
+            "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
+            "trimmed": s.trimmed, "not_transformed": s.not_transformed,
+            "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
+        }));
         return Ok(());
     }
     println!("{}", output.display());
@@ -219,19 +214,14 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
         );
     }
     if a.json {
-        println!(
-            "{}",
-            json!({
-                "dataset": dataset.display().to_string(), "added": s.added, "points": s.points,
-                "nodes_rebuilt": s.rebuilt, "nodes_copied": s.copied,
-                "cut_level": s.cut, "cells_rebuilt": s.cells_rebuilt, "cells": s.cells,
-                "levels_grown": s.grown,
-                "seconds": s.seconds, "bytes": s.bytes,
-                "skipped_non_finite": s.skipped_non_finite,
-                "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                "cpu_seconds": myriad_io::process::cpu_seconds(),
-            })
-        );
+        crate::progress::print_json(json!({
+            "dataset": dataset.display().to_string(), "added": s.added, "points": s.points,
+            "nodes_rebuilt": s.rebuilt, "nodes_copied": s.copied,
+            "cut_level": s.cut, "cells_rebuilt": s.cells_rebuilt, "cells": s.cells,
+            "levels_grown": s.grown,
+            "seconds": s.seconds, "bytes": s.bytes,
+            "skipped_non_finite": s.skipped_non_finite,
+        }));
         return Ok(());
     }
     println!("{}", dataset.display());

@@ -215,12 +215,9 @@ pub fn convert_planned(
             let s = convert::convert(&plan.inputs_of(None), &o, &bar)?;
             bar.clear();
             if as_json {
-                println!(
-                    "{}",
+                crate::progress::print_json(
                     json!({"output": output.display().to_string(), "points": s.points,
-                       "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,
-                       "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds()})
+                       "nodes": s.nodes, "seconds": s.seconds, "bytes": s.bytes,}),
                 );
             } else {
                 println!("{}", output.display());
@@ -259,13 +256,10 @@ pub fn convert_planned(
     let opened = s.inputs.iter().filter(|i| i.is_some()).count();
     let read: u64 = s.inputs.iter().flatten().map(|i| i.1).sum();
     if as_json {
-        println!(
-            "{}",
+        crate::progress::print_json(
             json!({"part": index, "dataset": (s.points > 0).then(|| myr.display().to_string()),
                    "tops": tops.display().to_string(), "points": s.points, "nodes": s.nodes,
-                   "inputs_read": opened, "points_read": read, "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds()})
+                   "inputs_read": opened, "points_read": read, "seconds": s.seconds, "bytes": s.bytes,}),
         );
         return Ok(());
     }
@@ -316,13 +310,10 @@ fn scatter(
     bar.clear();
     let written: u64 = s.routed.iter().sum();
     if as_json {
-        println!(
-            "{}",
+        crate::progress::print_json(
             json!({"scatter": task, "points_read": s.read, "points_written": written,
                    "outside": s.outside, "per_part": s.routed, "seconds": s.seconds,
-                   "folder": partition::exchange_dir(dir).display().to_string(),
-                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds()})
+                   "folder": partition::exchange_dir(dir).display().to_string(),}),
         );
         return Ok(());
     }
@@ -429,15 +420,12 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     )?;
     bar.clear();
     if a.json {
-        println!(
-            "{}",
+        crate::progress::print_json(
             json!({"output": a.output.display().to_string(), "points": s.points,
                    "nodes": s.nodes, "pages_copied": if a.single_file { s.copied } else { 0 },
                    "pages_linked": if a.single_file { 0 } else { s.copied },
                    "files_linked": s.linked, "nodes_built": s.built,
-                   "seconds": s.seconds, "bytes": s.bytes,
-                   "peak_rss_bytes": myriad_io::process::peak_rss_bytes(),
-                   "cpu_seconds": myriad_io::process::cpu_seconds()})
+                   "seconds": s.seconds, "bytes": s.bytes,}),
         );
         return Ok(());
     }

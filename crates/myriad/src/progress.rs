@@ -62,6 +62,14 @@ pub(crate) fn global_threads(t: usize) {
 
 /// A build summary's last lines: peak memory, and the points skipped for NaN or infinite
 /// coordinates (when there were any).
+/// Prints a command's summary as one JSON object, with this process's peak memory and CPU
+/// seconds (`peak_rss_bytes`, `cpu_seconds`) added.
+pub(crate) fn print_json(mut v: serde_json::Value) {
+    v["peak_rss_bytes"] = serde_json::json!(myriad_io::process::peak_rss_bytes());
+    v["cpu_seconds"] = serde_json::json!(myriad_io::process::cpu_seconds());
+    println!("{v}");
+}
+
 pub(crate) fn print_memory_and_skipped(skipped: u64) {
     if let Some(c) = myriad_io::process::cpu_seconds() {
         println!("  cpu         {c:.2} s (all threads)");
