@@ -124,6 +124,23 @@ pub fn decode(
     q: &Quantization,
     batch: &mut PointBatch,
 ) {
+    // A few thousand records at a time, so that the passes over them (one a field) find them in
+    // the core's cache rather than in memory.
+    for block in bytes.chunks(record_len * DECODE_BLOCK) {
+        decode_block(block, record_len, layout, q, batch);
+    }
+}
+
+/// Records [`decode`] decodes at once (8192 of 30-70 bytes: 240-570 KB).
+const DECODE_BLOCK: usize = 8192;
+
+fn decode_block(
+    bytes: &[u8],
+    record_len: usize,
+    layout: &Layout,
+    q: &Quantization,
+    batch: &mut PointBatch,
+) {
     // Column by column: one tight loop over the records per field, each extending its column
     // by an iterator of known length (no per-point capacity checks).
     let records = || bytes.chunks_exact(record_len);
