@@ -595,41 +595,45 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
     let n = plan.parts.len();
     // The chunks that several parts read, decompressed once by a job of scatter tasks first.
     let exchange = !a.no_exchange && !plan.chunked.is_empty();
-    let scatter_job = if exchange {
-        let mut array = vec![
-            "--job-name=myriad-scatter".to_string(),
+    // An array job of one task per part, after `after` succeeded where given.
+    let array_job = |name: &str, log: &str, after: Option<&str>, command: String, var: &str| {
+        let mut args = vec![
+            format!("--job-name=myriad-{name}"),
             format!("--array=0-{}", n - 1),
-            format!("--output={}/slurm-scatter-%A_%a.out", parts.display()),
+            format!("--output={}/{log}%A_%a.out", parts.display()),
         ];
-        array.extend(a.sbatch.iter().cloned());
-        array.push(format!(
-            "--wrap=exec {} convert --plan {} --scatter auto -o {}",
+        if let Some(job) = after {
+            args.push(format!("--dependency=afterok:{job}"));
+            args.push("--kill-on-invalid-dep=yes".to_string());
+        }
+        args.extend(a.sbatch.iter().cloned());
+        args.push(format!(
+            "--wrap=exec {} convert --plan {} {command} -o {}",
             q(&exe),
             q(&plan_path),
             q(&parts)
         ));
-        Some(sbatch(&array, a.dry_run, "SCATTER")?)
+        sbatch(&args, a.dry_run, var)
+    };
+    let scatter_job = if exchange {
+        let command = "--scatter auto".to_string();
+        Some(array_job(
+            "scatter",
+            "slurm-scatter-",
+            None,
+            command,
+            "SCATTER",
+        )?)
     } else {
         None
     };
-    let mut array = vec![
-        "--job-name=myriad-part".to_string(),
-        format!("--array=0-{}", n - 1),
-        format!("--output={}/slurm-%A_%a.out", parts.display()),
-    ];
-    if let Some(job) = &scatter_job {
-        array.push(format!("--dependency=afterok:{job}"));
-        array.push("--kill-on-invalid-dep=yes".to_string());
-    }
-    array.extend(a.sbatch.iter().cloned());
-    array.push(format!(
-        "--wrap=exec {} convert --plan {} --part auto -o {}{}",
-        q(&exe),
-        q(&plan_path),
-        q(&parts),
-        if exchange { " --exchanged" } else { "" }
-    ));
-    let parts_job = sbatch(&array, a.dry_run, "PARTS")?;
+    let parts_job = array_job(
+        "part",
+        "slurm-",
+        scatter_job.as_deref(),
+        format!("--part auto{}", if exchange { " --exchanged" } else { "" }),
+        "PARTS",
+    )?;
     let mut merge = vec![
         "--job-name=myriad-merge".to_string(),
         format!("--dependency=afterok:{parts_job}"),
