@@ -1,8 +1,8 @@
 //! `myriad bench contours D.myr`: how far a layered dataset's contours (000's oriented boxes,
-//! which the selection sizes a node's detail and culls by) are from the boxes of the nodes' own
-//! points. A node's stored contour holds its whole subtree (culling needs that: a box of its own
-//! points alone could leave out a descendant); 000 sizes detail by the contour of the node's own
-//! points. Each node's points are read and their contour made as the build makes contours
+//! which the selection culls by) are from the boxes of the nodes' own points. A node's contour
+//! holds its whole subtree (culling needs that: a box of its own points alone could leave out a
+//! descendant); 000 sizes detail by the contour of the node's own points, which nodes that pass
+//! points down store beside it (and which is checked against the one made here). Each node's points are read and their contour made as the build makes contours
 //! ([`myriad_build::ntree::contour`]); the two are compared by their area (the sum of their
 //! three faces' areas: what a view projects of them, over all directions) and by their
 //! thickness (the smallest extent: what an edge-on view sees), per level and in all.
@@ -34,6 +34,39 @@ fn thickness(o: &Obb) -> f64 {
     2.0 * o.half_extents.iter().copied().fold(f64::INFINITY, f64::min)
 }
 
+#[derive(Default)]
+struct Ratios {
+    area: Vec<f64>,
+    thick: Vec<f64>,
+    flat_stored: usize,
+    flat_own: usize,
+}
+
+impl Ratios {
+    fn add(&mut self, own: &Obb, stored: &Obb) {
+        self.area
+            .push(area(own) / area(stored).max(f64::MIN_POSITIVE));
+        self.thick
+            .push((thickness(own) / thickness(stored).max(f64::MIN_POSITIVE)).min(10.0));
+        self.flat_stored += myriad_lod::select::flat(stored) as usize;
+        self.flat_own += myriad_lod::select::flat(own) as usize;
+    }
+
+    fn row(&mut self, name: &str) {
+        println!(
+            "{name:>6} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>10.3} {:>10.3} {:>12} {:>9}",
+            self.area.len(),
+            quantile(&mut self.area, 0.1),
+            quantile(&mut self.area, 0.5),
+            quantile(&mut self.area, 0.9),
+            quantile(&mut self.thick, 0.1),
+            quantile(&mut self.thick, 0.5),
+            self.flat_stored,
+            self.flat_own
+        );
+    }
+}
+
 /// The value at fraction `q` of the sorted `v`.
 fn quantile(v: &mut [f64], q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -54,50 +87,58 @@ pub fn run(a: ContoursBenchArgs) -> Result<()> {
             );
         }
         nodes.sort_by_key(|e| e.key);
-        // Per level: own area / stored area, own thickness / stored thickness.
-        let mut by_level: BTreeMap<u32, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
-        let (mut areas, mut thick) = (Vec::new(), Vec::new());
+        // Per level, and in all: own over stored areas and thicknesses, and how many of each
+        // are flat (the selection's rule on detail binds only on flat contours).
+        let mut by_level: BTreeMap<u32, Ratios> = BTreeMap::new();
+        let mut all = Ratios::default();
+        // Nodes that store their own points' contour, and how far it is from the one made here.
+        let (mut stored_own, mut worst) = (0usize, 0f64);
         for e in nodes.iter().step_by(a.every.max(1)) {
             let Ok(b) = ds.read_node(e) else { continue };
             let stored = e.contour.expect("kept: nodes with a contour");
             let own =
                 myriad_build::ntree::contour(&b.positions, &myriad_build::ntree::pca(&b.positions));
-            let ra = area(&own) / area(&stored).max(f64::MIN_POSITIVE);
-            let rt = thickness(&own) / thickness(&stored).max(f64::MIN_POSITIVE);
-            let l = by_level.entry(e.key.level).or_default();
-            l.0.push(ra);
-            l.1.push(rt.min(10.0));
-            areas.push(ra);
-            thick.push(rt.min(10.0));
+            if let Some(d) = &e.detail {
+                stored_own += 1;
+                worst = worst.max((area(d) / area(&own).max(f64::MIN_POSITIVE) - 1.0).abs());
+            }
+            for r in [by_level.entry(e.key.level).or_default(), &mut all] {
+                r.add(&own, &stored);
+            }
         }
         println!(
             "{}: {} nodes with contours, {} read; own points' contour against the stored (subtree) contour",
             path.display(),
             nodes.len(),
-            areas.len()
+            all.area.len()
         );
         println!(
-            "{:>6} {:>6} {:>9} {:>9} {:>9} {:>10} {:>10}",
-            "level", "nodes", "area p10", "area p50", "area p90", "thick p10", "thick p50"
+            "{:>6} {:>6} {:>9} {:>9} {:>9} {:>10} {:>10} {:>12} {:>9}",
+            "level",
+            "nodes",
+            "area p10",
+            "area p50",
+            "area p90",
+            "thick p10",
+            "thick p50",
+            "flat stored",
+            "flat own"
         );
-        let row = |name: String, v: &mut (Vec<f64>, Vec<f64>)| {
-            println!(
-                "{name:>6} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>10.3} {:>10.3}",
-                v.0.len(),
-                quantile(&mut v.0, 0.1),
-                quantile(&mut v.0, 0.5),
-                quantile(&mut v.0, 0.9),
-                quantile(&mut v.1, 0.1),
-                quantile(&mut v.1, 0.5)
-            )
-        };
-        for (level, v) in by_level.iter_mut() {
-            row(level.to_string(), v);
+        for (level, r) in by_level.iter_mut() {
+            r.row(&level.to_string());
         }
-        row("all".into(), &mut (areas, thick));
+        all.row("all");
         println!(
             "(area: the sum of the box's three faces' areas, own over stored; thick: its smallest \
-             extent, own over stored; p10/p50/p90: quantiles over the nodes)"
+             extent, own over stored; p10/p50/p90: quantiles over the nodes; flat: nodes whose \
+             box is at most {} as thick as long, on which the selection limits detail)",
+            myriad_lod::select::FLAT_CONTOUR
+        );
+        println!(
+            "{stored_own} of the nodes read store their own points' contour (the build's since \
+             December 5: the selection sizes their detail by it); largest area difference from \
+             the one made here: {:.2e}",
+            worst
         );
     }
     Ok(())

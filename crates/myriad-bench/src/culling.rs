@@ -18,6 +18,7 @@ use anyhow::Result;
 use clap::Args;
 use myriad_format::Dataset;
 use myriad_io::image::write_png;
+use myriad_lod::hierarchy::DetailContour;
 use myriad_lod::{Camera, Occlusion, SelectOptions};
 use myriad_render::{ColorBy, Rasterizer, Scene, Style};
 use std::path::PathBuf;
@@ -46,11 +47,23 @@ pub struct CullingBenchArgs {
     /// Write the images into this folder (NAME-VIEW-METHOD-BUDGET.png and -full)
     #[arg(long)]
     images: Option<PathBuf>,
+    /// Which contour sizes a layered node's detail: subtree (its subtree's, as datasets built
+    /// before own contours were stored), own (its own points', 000) or tighter (the flat one of
+    /// the two covering fewer pixels: the default)
+    #[arg(long, value_parser = parse_detail_contour, default_value = "tighter")]
+    detail_contour: DetailContour,
     /// Also walk N steps from the inside view (forward along its axis, turning a quarter
     /// turn), without a budget: per method, the frames that differ from culling off's (holes:
     /// a node showing that was culled), queries in the same frame and from the next one
     #[arg(long, default_value_t = 0)]
     walk: usize,
+}
+
+fn parse_detail_contour(s: &str) -> std::result::Result<DetailContour, String> {
+    DetailContour::ALL
+        .into_iter()
+        .find(|d| d.name() == s)
+        .ok_or_else(|| format!("{s}: subtree, own or tighter"))
 }
 
 /// The eye in the middle of `b`, a third of the way up, looking level along the longer
@@ -95,13 +108,15 @@ pub fn run(a: CullingBenchArgs) -> Result<()> {
             .map_or("dataset".into(), |s| s.to_string_lossy().to_string());
         let mut scene = Scene::open(ds.clone(), 4 << 30, 2 << 30);
         scene.set_colour(a.color);
+        Arc::make_mut(&mut scene.hierarchy).detail_contour = a.detail_contour;
         println!(
-            "\n{name}: {} points, {} nodes; {}x{}, frame times median of {}",
+            "\n{name}: {} points, {} nodes; {}x{}, frame times median of {}; detail by the {} contour",
             myriad_core::units::thousands(ds.meta.points),
             ds.meta.nodes,
             a.width,
             a.height,
-            a.frames
+            a.frames,
+            a.detail_contour.name()
         );
         println!(
             "{:<8} {:<9} {:>9} {:>7} {:>11} {:>7} {:>10} {:>9} {:>9} {:>7}",
@@ -244,6 +259,7 @@ fn walk(
         .map(|&(_, occlusion, same_frame)| {
             let mut s = Scene::open(ds.clone(), 1 << 30, 1 << 30);
             s.set_colour(a.color);
+            Arc::make_mut(&mut s.hierarchy).detail_contour = a.detail_contour;
             s.occlusion = occlusion;
             s.same_frame = same_frame;
             s

@@ -349,6 +349,7 @@ pub fn append(
                         }
                         let mut n = nested::leaf_node(cell, batch, &root, &params);
                         n.shape.contour = e.contour;
+                        n.shape.detail = e.detail;
                         top = Some(n);
                     } else {
                         let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;

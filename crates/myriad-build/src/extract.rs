@@ -299,7 +299,11 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                 ),
             ));
         }
-        if let Some(c) = &n.contour {
+        let contours = [(&n.contour, "contour"), (&n.detail, "own points' contour")];
+        for (c, name) in contours
+            .iter()
+            .filter_map(|(c, name)| Some(((*c).as_ref()?, name)))
+        {
             let slack = q.scale.into_iter().fold(0.0, f64::max)
                 + c.half_extents.into_iter().fold(0.0, f64::max) * 1e-9;
             let loose = myriad_core::Obb {
@@ -310,7 +314,7 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                 damage.push(node_damage(
                     n,
                     format!(
-                        "point {i} {:?} lies outside the node's contour",
+                        "point {i} {:?} lies outside the node's {name}",
                         batch.positions[i]
                     ),
                 ));

@@ -95,6 +95,7 @@ impl MwNode {
             shape: myriad_format::NodeShape {
                 bounds: Some(self.bounds),
                 contour: None,
+                detail: None,
             },
             splats: Some((self.splats, self.aggregate)),
             acquisition: false,

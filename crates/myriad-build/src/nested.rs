@@ -10,7 +10,7 @@
 
 use crate::{mospt, ntree};
 pub use myriad_core::NodeKey;
-use myriad_core::{Aabb, PointBatch};
+use myriad_core::{Aabb, Obb, PointBatch};
 use myriad_format::NodeShape;
 use myriad_format::splat::Splats;
 
@@ -145,6 +145,9 @@ pub fn build_subtree_with<E>(
             let keep = m.order.len();
             let mut node = node_from_prefix(node_key, &own, &m, keep);
             node.shape.contour = Some(ntree::contour(&own.positions, &pca));
+            if keep < n {
+                node.shape.detail = own_contour(&node.points);
+            }
             (node, (keep < n).then(|| m.order[..keep].to_vec()))
         } else {
             // A node that passes points down orders only those it keeps.
@@ -188,6 +191,13 @@ pub fn build_subtree_with<E>(
         emit(node)?;
     }
     Ok(())
+}
+
+/// The contour of a node's own points (000 section 3.1), which sizes its detail where it passes
+/// points down (its stored contour holds the whole subtree, for culling). None for a node left
+/// without points (its parent took them all).
+fn own_contour(points: &PointBatch) -> Option<Obb> {
+    (!points.is_empty()).then(|| ntree::contour(&points.positions, &ntree::pca(&points.positions)))
 }
 
 /// The node of `batch` at `key`: all of it in level order (a leaf's content).
@@ -278,10 +288,17 @@ pub fn take_up(
     keep_rest(&mut children, &m.order[..keep], &|child, stay| {
         let mut c = leaf_node(child.key, stay, root, params);
         c.shape = child.shape;
+        if params.ntree {
+            // The subtree's contour still holds all of it; the node's own points are fewer.
+            c.shape.detail = own_contour(&c.points);
+        }
         c
     });
     let mut top = node_from_prefix(parent, &union, &m, keep);
     top.shape.contour = contour;
+    if params.ntree {
+        top.shape.detail = own_contour(&top.points);
+    }
     (top, children)
 }
 

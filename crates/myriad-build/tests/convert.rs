@@ -203,6 +203,18 @@ fn every_structure_many_chunks() {
                 .filter(|n| n.contour.unwrap().axes[0] != [1.0, 0.0, 0.0])
                 .count();
             assert!(oriented > 0, "no flat node among {}", nodes.len());
+            // Every node that passes points down has the contour of its own points (verify
+            // checked that they lie in it).
+            let keys: std::collections::HashSet<_> = nodes.iter().map(|n| n.key).collect();
+            let parents: std::collections::HashSet<_> = nodes
+                .iter()
+                .filter(|n| n.key.level > 0 && keys.contains(&n.key.parent()))
+                .map(|n| n.key.parent())
+                .collect();
+            assert!(parents.len() > 1);
+            for n in nodes.iter().filter(|n| parents.contains(&n.key)) {
+                assert!(n.detail.is_some(), "{:?} has no own contour", n.key);
+            }
         }
         assert_eq!(
             ds.meta.structure,

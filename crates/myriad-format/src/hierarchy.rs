@@ -44,8 +44,12 @@ pub struct NodeEntry {
     /// Where the node's subtree lies, for structures whose nodes are not the cells of their
     /// key's octree (kd-trees); `None`: the key's cube.
     pub bounds: Option<Aabb>,
-    /// A tighter outline of the subtree (000's contour: an oriented box for flat nodes).
+    /// A tighter outline of the subtree (000's contour: an oriented box for flat nodes); what
+    /// the selection culls by.
     pub contour: Option<Obb>,
+    /// The contour of the node's own points where it is not [`NodeEntry::contour`] (a node that
+    /// passes points down: 000 sizes its detail by the points it stores); `None`: the contour.
+    pub detail: Option<Obb>,
     /// The splat page of an `mwkd` node.
     pub splats: Option<SplatInfo>,
 }
@@ -67,6 +71,7 @@ impl NodeEntry {
             spacing,
             bounds: None,
             contour: None,
+            detail: None,
             splats: None,
         }
     }
@@ -88,6 +93,17 @@ impl NodeEntry {
 const HAS_BOUNDS: u8 = 1;
 const HAS_CONTOUR: u8 = 2;
 const HAS_SPLATS: u8 = 4;
+const HAS_DETAIL: u8 = 8;
+
+fn put_obb(out: &mut Vec<u8>, c: &Obb) {
+    put_f64s(
+        out,
+        c.center
+            .into_iter()
+            .chain(c.axes.into_iter().flatten())
+            .chain(c.half_extents),
+    );
+}
 
 fn put_f64s(out: &mut Vec<u8>, v: impl IntoIterator<Item = f64>) {
     for x in v {
@@ -147,19 +163,14 @@ impl HierarchyPage {
             }
             let flags = if n.bounds.is_some() { HAS_BOUNDS } else { 0 }
                 | if n.contour.is_some() { HAS_CONTOUR } else { 0 }
-                | if n.splats.is_some() { HAS_SPLATS } else { 0 };
+                | if n.splats.is_some() { HAS_SPLATS } else { 0 }
+                | if n.detail.is_some() { HAS_DETAIL } else { 0 };
             out.push(flags);
             if let Some(b) = &n.bounds {
                 put_f64s(&mut out, b.min.into_iter().chain(b.max));
             }
             if let Some(c) = &n.contour {
-                put_f64s(
-                    &mut out,
-                    c.center
-                        .into_iter()
-                        .chain(c.axes.into_iter().flatten())
-                        .chain(c.half_extents),
-                );
+                put_obb(&mut out, c);
             }
             if let Some(sp) = &n.splats {
                 put_ref(&mut out, sp.page);
@@ -167,6 +178,9 @@ impl HierarchyPage {
                     out.extend_from_slice(&v.to_le_bytes());
                 }
                 out.push(sp.aggregate as u8);
+            }
+            if let Some(c) = &n.detail {
+                put_obb(&mut out, c);
             }
         }
         for c in &self.children {
@@ -208,7 +222,7 @@ impl HierarchyPage {
             }
             let at = r.at;
             let flags = r.bytes(1)?[0];
-            if flags & !(HAS_BOUNDS | HAS_CONTOUR | HAS_SPLATS) != 0 {
+            if flags & !(HAS_BOUNDS | HAS_CONTOUR | HAS_SPLATS | HAS_DETAIL) != 0 {
                 return Err((at, format!("unknown entry flags {flags:#x}")));
             }
             let mut e = NodeEntry::new(key, pr, points, prefix, spacing);
@@ -217,12 +231,7 @@ impl HierarchyPage {
                 e.bounds = Some(Aabb::new([v[0], v[1], v[2]], [v[3], v[4], v[5]]));
             }
             if flags & HAS_CONTOUR != 0 {
-                let v = r.f64s::<15>()?;
-                e.contour = Some(Obb {
-                    center: [v[0], v[1], v[2]],
-                    axes: [[v[3], v[4], v[5]], [v[6], v[7], v[8]], [v[9], v[10], v[11]]],
-                    half_extents: [v[12], v[13], v[14]],
-                });
+                e.contour = Some(r.obb()?);
             }
             if flags & HAS_SPLATS != 0 {
                 let page = r.page_ref()?;
@@ -240,6 +249,9 @@ impl HierarchyPage {
                     cone: [v[2], v[3], v[4], v[5]],
                     aggregate: r.bytes(1)?[0] != 0,
                 });
+            }
+            if flags & HAS_DETAIL != 0 {
+                e.detail = Some(r.obb()?);
             }
             page.nodes.push(e);
         }
@@ -301,6 +313,14 @@ impl<'a> Cursor<'a> {
         }
         Ok(NodeKey { level, cell })
     }
+    fn obb(&mut self) -> Result<Obb, (usize, String)> {
+        let v = self.f64s::<15>()?;
+        Ok(Obb {
+            center: [v[0], v[1], v[2]],
+            axes: [[v[3], v[4], v[5]], [v[6], v[7], v[8]], [v[9], v[10], v[11]]],
+            half_extents: [v[12], v[13], v[14]],
+        })
+    }
     fn page_ref(&mut self) -> Result<PageRef, (usize, String)> {
         let offset = u64::from_le_bytes(self.bytes(8)?.try_into().unwrap());
         Ok(PageRef {
@@ -337,6 +357,11 @@ mod tests {
                     center: [1.0, 2.0, 3.0],
                     axes: [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
                     half_extents: [1.0, 0.5, 0.01],
+                }),
+                detail: Some(Obb {
+                    center: [1.0, 2.0, 3.0],
+                    axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                    half_extents: [0.5, 0.25, 0.005],
                 }),
                 splats: Some(SplatInfo {
                     page: PageRef {

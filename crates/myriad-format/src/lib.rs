@@ -153,7 +153,12 @@ pub struct FileBytes {
 impl FileBytes {
     pub fn open(path: &Path) -> Result<FileBytes> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        FileBytes::of(file).map_err(|e| Error::io(path, e))
+    }
+
+    /// The bytes of a file already open, at the length it has now.
+    pub fn of(file: std::fs::File) -> std::io::Result<FileBytes> {
+        let len = file.metadata()?.len();
         Ok(FileBytes { file, len })
     }
 }
@@ -177,9 +182,7 @@ fn open_bytes(at: &str) -> std::io::Result<Arc<dyn ByteSource>> {
     let bytes: Arc<dyn ByteSource> = if remote::is_url(Path::new(at)) {
         Arc::new(remote::HttpBytes::open(at).map_err(std::io::Error::other)?)
     } else {
-        let file = std::fs::File::open(at)?;
-        let len = file.metadata()?.len();
-        Arc::new(FileBytes { file, len })
+        Arc::new(FileBytes::of(std::fs::File::open(at)?)?)
     };
     Ok(bytes)
 }

@@ -18,6 +18,9 @@ use std::sync::Mutex;
 pub struct NodeShape {
     pub bounds: Option<Aabb>,
     pub contour: Option<Obb>,
+    /// The contour of the node's own points where it differs from `contour` (layered nodes
+    /// that pass points down).
+    pub detail: Option<Obb>,
 }
 
 /// Writes a dataset: node pages appended by any thread as they are built, then
@@ -95,6 +98,7 @@ impl DatasetWriter {
         );
         entry.bounds = shape.bounds;
         entry.contour = shape.contour;
+        entry.detail = shape.detail;
         self.entries.lock().expect("entries lock").push(entry);
         Ok(bytes.len() as u64)
     }

@@ -86,7 +86,7 @@ pub const CONTOUR_POINTS: f64 = 1.5;
 /// nothing of how many of its points show, and keeps its levels.
 pub const FLAT_CONTOUR: f64 = 0.1;
 
-fn flat(c: &Obb) -> bool {
+pub fn flat(c: &Obb) -> bool {
     let h = c.half_extents;
     let thinnest = h.iter().copied().fold(f64::INFINITY, f64::min);
     thinnest <= FLAT_CONTOUR * h.iter().copied().fold(0.0, f64::max)
@@ -317,18 +317,25 @@ pub fn select_eyes(
         // 000 section 3.2.2: the projected size of the node's contour is its level of detail.
         // A flat node's levels stop at the first holding more points than its contour covers
         // pixels (seen edge-on it covers a line: its coarse levels draw it); its coarsest
-        // level is always drawn.
-        let levels = match &e.contour {
-            Some(c) if levels > 1 && o.min_pixels > 0.0 && flat(c) => {
-                let most =
-                    CONTOUR_POINTS * contour_pixels(cam, c, ppu) / (o.min_pixels * o.min_pixels);
-                let mut l = levels;
-                while l > 1 && e.prefix[l - 1] as f64 > most {
-                    l -= 1;
-                }
-                l
+        // level is always drawn. Both of its contours hold its own points (its subtree's and,
+        // for a node that passes points down, its own points'): by default the tighter flat
+        // one counts ([`crate::hierarchy::DetailContour`]).
+        let most = h
+            .detail_contour
+            .of(e)
+            .into_iter()
+            .flatten()
+            .filter(|c| flat(c))
+            .map(|c| CONTOUR_POINTS * contour_pixels(cam, c, ppu) / (o.min_pixels * o.min_pixels))
+            .fold(f64::INFINITY, f64::min);
+        let levels = if levels > 1 && o.min_pixels > 0.0 && most.is_finite() {
+            let mut l = levels;
+            while l > 1 && e.prefix[l - 1] as f64 > most {
+                l -= 1;
             }
-            _ => levels,
+            l
+        } else {
+            levels
         };
         let whole = levels == e.prefix.len();
         let mut count = if e.points == 0 {

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::DrawnTree;
+use crate::hierarchy::DetailContour;
 use myriad_format::PageRef;
 
 /// The selection's point count is its nodes' and each node comes after its parent.
@@ -197,6 +198,74 @@ fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
     assert_eq!(drawn(&with, &edge), 64);
 }
 
+/// 000 sizes a node's detail by the contour of its own points: a node whose own points are a
+/// plate but whose subtree fills the cube (its stored contour, not flat) draws its coarsest
+/// level edge-on; without the own points' contour, the subtree's says nothing and the spacing
+/// decides. Culling still goes by the subtree's: seen where only the subtree's contour is in
+/// view, the node is drawn.
+#[test]
+fn the_contour_of_a_nodes_own_points_sizes_its_detail_and_the_subtrees_culls() {
+    let root = Aabb::new([0.0; 3], [1.0; 3]);
+    let mut node = NodeEntry::new(
+        NodeKey::ROOT,
+        PageRef {
+            offset: 64,
+            length: 100,
+            crc: 0,
+        },
+        65_536,
+        vec![64, 1024, 16_384, 65_536],
+        vec![1.0 / 8.0, 1.0 / 32.0, 1.0 / 128.0, 1.0 / 256.0],
+    );
+    node.contour = Some(Obb::from_aabb(&root));
+    node.detail = Some(Obb {
+        center: [0.5, 0.5, 0.1],
+        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        half_extents: [0.5, 0.5, 0.0005],
+    });
+    let cam = |position: [f64; 3], target: [f64; 3]| Camera {
+        position,
+        target,
+        up: [0.0, 0.0, 1.0],
+        fov_y: 60.0,
+        width: 400,
+        height: 400,
+        near: 0.01,
+        far: 100.0,
+    };
+    let o = SelectOptions {
+        budget: u64::MAX,
+        min_pixels: 1.0,
+    };
+    let drawn = |h: &Hierarchy, c: &Camera| select(h, c, &o).points;
+    let with = Hierarchy::new(root, [node.clone()]);
+    let mut subtree_only = node.clone();
+    subtree_only.detail = None;
+    let without = Hierarchy::new(root, [subtree_only]);
+    // Edge-on to the plate, 2.5 units from it.
+    let edge = cam([0.5, -2.0, 0.1], [0.5, 0.5, 0.1]);
+    assert_eq!(drawn(&without, &edge), 16_384);
+    assert_eq!(drawn(&with, &edge), 64);
+    // By the subtree's contour alone, as a dataset without own contours; by the own one.
+    let by = |rule| {
+        let mut h = with.clone();
+        h.detail_contour = rule;
+        drawn(&h, &edge)
+    };
+    assert_eq!(by(DetailContour::Subtree), 16_384);
+    assert_eq!(by(DetailContour::Own), 64);
+    assert_eq!(by(DetailContour::Tighter), 64);
+    // Looking at the top of the cube, the plate (at z 0.1) below the view: the subtree's
+    // contour is in view, so the node is drawn.
+    let above = cam([0.5, -0.2, 0.95], [0.5, 0.5, 0.95]);
+    assert!(
+        !above
+            .frustum()
+            .intersects_obb(node.detail.as_ref().unwrap())
+    );
+    assert!(drawn(&with, &above) > 0);
+}
+
 /// A full octree of `depth` levels over the unit cube scaled to `side`, each node with
 /// `per_node` points in 3 LOD levels whose spacing follows the node size (as on a surface:
 /// 16 times the points at a quarter of the spacing).
@@ -220,6 +289,7 @@ pub(crate) fn tree(depth: u32, side: f64, per_node: u32) -> Hierarchy {
                 spacing: vec![s, s / 4.0, s / 16.0],
                 bounds: None,
                 contour: None,
+                detail: None,
                 splats: None,
             });
             next.extend((0..8).map(|o| k.child(o)));
@@ -470,6 +540,7 @@ fn point_spacing_follows_density_where_cells_stop_saying() {
         spacing: vec![64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 0.25, 0.03125],
         bounds: None,
         contour: None,
+        detail: None,
         splats: None,
     };
     let s = point_spacing(&e);

@@ -449,6 +449,7 @@ mod tests {
             spacing: vec![1.0],
             bounds: None,
             contour: None,
+            detail: None,
             splats: None,
         }
     }

@@ -141,6 +141,7 @@ fn entry_of(key: NodeKey, p: &[[f64; 3]], spacing: f64) -> NodeEntry {
         spacing: vec![spacing],
         bounds: Some(bounds),
         contour: None,
+        detail: None,
         splats: None,
     }
 }

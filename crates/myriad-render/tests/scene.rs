@@ -52,6 +52,7 @@ fn entry(key: NodeKey) -> NodeEntry {
         spacing: vec![spacing],
         bounds: None,
         contour: None,
+        detail: None,
         splats: None,
     }
 }

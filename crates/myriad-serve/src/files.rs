@@ -17,31 +17,6 @@ use std::collections::VecDeque;
 use std::io;
 use std::sync::Arc;
 
-/// A local file's bytes by positioned reads.
-pub(crate) struct Local {
-    file: std::fs::File,
-    len: u64,
-}
-
-impl Local {
-    pub(crate) fn new(file: std::fs::File) -> io::Result<Local> {
-        let len = file.metadata()?.len();
-        Ok(Local { file, len })
-    }
-}
-
-impl ByteSource for Local {
-    fn len(&self) -> u64 {
-        self.len
-    }
-    fn read_at(&self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
-        use std::os::unix::fs::FileExt;
-        let mut data = vec![0; len];
-        self.file.read_exact_at(&mut data, offset)?;
-        Ok(data)
-    }
-}
-
 /// One range up to this size is read in one go with the file's opening (one trip to the
 /// blocking pool for most requests); larger answers stream in [`CHUNK`]s.
 const READ_AT_ONCE: u64 = 4 << 20;
@@ -101,16 +76,14 @@ fn open(source: Source) -> io::Result<(Arc<dyn ByteSource>, String)> {
         Source::Path(path) => {
             let file = std::fs::File::open(path)?;
             let meta = file.metadata()?;
-            let len = meta.len();
+            let bytes = myriad_format::FileBytes::of(file)?;
+            let len = bytes.len();
             let mtime = meta
                 .modified()
                 .ok()
                 .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
                 .map_or(0, |d| d.as_nanos());
-            Ok((
-                Arc::new(Local { file, len }),
-                format!("\"{len:x}-{mtime:x}\""),
-            ))
+            Ok((Arc::new(bytes), format!("\"{len:x}-{mtime:x}\"")))
         }
         Source::Remote(r, opened) => {
             if let Some(m) = r.changed() {

@@ -860,7 +860,7 @@ async fn box_download(
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };
     shared.counters.add(1);
-    let file = match files::Local::new(file) {
+    let file = match myriad_format::FileBytes::of(file) {
         Ok(f) => f,
         Err(e) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
     };

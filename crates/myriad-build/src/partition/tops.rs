@@ -16,6 +16,7 @@ fn shape_json(s: &NodeShape) -> Value {
     json!({
         "bounds": s.bounds.map(|b| json!({"min": b.min, "max": b.max})),
         "contour": s.contour.as_ref().map(obb),
+        "detail": s.detail.as_ref().map(obb),
     })
 }
 
@@ -28,18 +29,22 @@ fn shape_from(v: &Value) -> Option<NodeShape> {
         Value::Null => None,
         b => Some(Aabb::new(f3(&b["min"])?, f3(&b["max"])?)),
     };
-    let contour = match &v["contour"] {
-        Value::Null => None,
-        c => {
-            let axes = c["axes"].as_array().filter(|a| a.len() == 3)?;
-            Some(Obb {
-                center: f3(&c["center"])?,
-                axes: [f3(&axes[0])?, f3(&axes[1])?, f3(&axes[2])?],
-                half_extents: f3(&c["half"])?,
-            })
+    let obb = |c: &Value| -> Option<Option<Obb>> {
+        if c.is_null() {
+            return Some(None);
         }
+        let axes = c["axes"].as_array().filter(|a| a.len() == 3)?;
+        Some(Some(Obb {
+            center: f3(&c["center"])?,
+            axes: [f3(&axes[0])?, f3(&axes[1])?, f3(&axes[2])?],
+            half_extents: f3(&c["half"])?,
+        }))
     };
-    Some(NodeShape { bounds, contour })
+    Some(NodeShape {
+        bounds,
+        contour: obb(&v["contour"])?,
+        detail: obb(&v["detail"])?,
+    })
 }
 
 /// The `.tops` file: magic, the head's length (u64) and the head (JSON: plan, part, summary, the
