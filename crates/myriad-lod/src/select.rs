@@ -115,12 +115,12 @@ fn benefit_of_box(cam: &Camera, b: &Obb) -> f64 {
     over_angle(cam, area.sqrt() * cam.pixels_per_unit(depth), dir)
 }
 
-/// Whether a node may be in view: its contour, else its box, against the frustum.
+/// Whether a node may be in view: its box, and its contour where it has one, against the
+/// frustum (its points lie in both; an oriented contour can reach out of the box, and a node
+/// whose box is out of view has nothing to draw, and its page is never asked for).
 fn in_view(h: &Hierarchy, frustum: &Frustum, e: &NodeEntry) -> bool {
-    match &e.contour {
-        Some(c) => frustum.intersects_obb(c),
-        None => frustum.intersects(&h.bounds(&e.key)),
-    }
+    frustum.intersects(&h.bounds(&e.key))
+        && e.contour.as_ref().is_none_or(|c| frustum.intersects_obb(c))
 }
 
 /// Chooses the nodes and prefixes to draw for `cam`.

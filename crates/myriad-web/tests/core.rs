@@ -15,6 +15,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 fn dataset(name: &str) -> PathBuf {
+    dataset_of(name, myriad_build::convert::Structure::Octree)
+}
+
+fn dataset_of(name: &str, structure: myriad_build::convert::Structure) -> PathBuf {
     let d = std::env::temp_dir().join(format!("myriad-web-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
@@ -30,6 +34,7 @@ fn dataset(name: &str) -> PathBuf {
     o.open = myriad_io::OpenOptions::default();
     // Small nodes: a deep tree, several hierarchy pages.
     o.params.capacity = 300;
+    o.structure = structure;
     convert(std::slice::from_ref(&las), &o, &Silent).unwrap();
     out
 }
@@ -38,15 +43,10 @@ fn source(p: &Path) -> Arc<dyn ByteSource> {
     Arc::new(FileBytes::open(p).unwrap())
 }
 
-#[test]
-fn selection_decoding_and_damage() {
-    let path = dataset("core");
-    let mut v = Viewer::open(source(&path), "city.myr").unwrap();
-    assert_eq!(v.info()["points"], 200_000);
-    let ds = Dataset::open(&path).unwrap();
-    let (entries, damage) = ds.nodes();
-    assert!(damage.is_empty());
-    let whole = Hierarchy::new(ds.meta.root, entries.clone());
+/// The viewer's selection, hierarchy pages read as it asks for them, against the selection of
+/// the whole hierarchy: the same nodes and prefixes. Returns what the viewer was asked.
+fn same_selection(v: &mut Viewer, ds: &Dataset, entries: &[myriad_format::NodeEntry]) -> Ask {
+    let whole = Hierarchy::new(ds.meta.root, entries.to_vec());
     let mut camera = v.default_camera(800, 600, 60.0);
     camera.position[2] -= 0.6 * (camera.position[2] - camera.target[2]);
     let options = SelectOptions {
@@ -101,6 +101,18 @@ fn selection_decoding_and_damage() {
         got, want,
         "the same nodes and prefixes as the whole hierarchy gives"
     );
+    ask
+}
+
+#[test]
+fn selection_decoding_and_damage() {
+    let path = dataset("core");
+    let mut v = Viewer::open(source(&path), "city.myr").unwrap();
+    assert_eq!(v.info()["points"], 200_000);
+    let ds = Dataset::open(&path).unwrap();
+    let (entries, damage) = ds.nodes();
+    assert!(damage.is_empty());
+    let ask = same_selection(&mut v, &ds, &entries);
     // The drawn nodes' tree: every drawn node has its entry.
     let drawn: HashSet<NodeKey> = entries.iter().take(5).map(|e| e.key).collect();
     let a = v.select(&Ask { drawn, ..ask });
@@ -153,6 +165,22 @@ fn selection_decoding_and_damage() {
         err.contains("city.myr") && err.contains(&format!("byte {}", e.page.offset)),
         "{err}"
     );
+    let _ = std::fs::remove_dir_all(path.parent().unwrap());
+}
+
+/// A layered dataset (contours of subtrees and of nodes' own points in its hierarchy entries):
+/// the viewer reads them and selects as the whole hierarchy does (it did not while a contour
+/// reaching out of its node's cube put the node in view: the viewer never read the page of a
+/// node whose cube is out of view).
+#[test]
+fn layered_selection() {
+    let path = dataset_of("layered", myriad_build::convert::Structure::Layered);
+    let mut v = Viewer::open(source(&path), "city.myr").unwrap();
+    let ds = Dataset::open(&path).unwrap();
+    let (entries, damage) = ds.nodes();
+    assert!(damage.is_empty());
+    assert!(entries.iter().any(|e| e.detail.is_some()));
+    same_selection(&mut v, &ds, &entries);
     let _ = std::fs::remove_dir_all(path.parent().unwrap());
 }
 
