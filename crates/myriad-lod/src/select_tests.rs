@@ -148,13 +148,9 @@ fn contours_cull_and_weigh_flat_nodes() {
     assert!(b(&face) > 10.0 * b(&edge), "{} {}", b(&face), b(&edge));
 }
 
-/// 000's contour-driven detail: a flat node (a plate of 65,536 points in four levels) draws as
-/// many levels face-on as its spacing allows, edge-on at the same distance only its coarsest
-/// (its contour covers a line of pixels); without a contour, the spacing alone decides.
-#[test]
-fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
-    let root = Aabb::new([0.0; 3], [1.0; 3]);
-    let mut plate = NodeEntry::new(
+/// The root, 65,536 points in four levels of detail (a plate's spacings over the unit cube).
+fn four_levels() -> NodeEntry {
+    NodeEntry::new(
         NodeKey::ROOT,
         PageRef {
             offset: 64,
@@ -164,22 +160,36 @@ fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
         65_536,
         vec![64, 1024, 16_384, 65_536],
         vec![1.0 / 8.0, 1.0 / 32.0, 1.0 / 128.0, 1.0 / 256.0],
-    );
-    plate.contour = Some(Obb {
-        center: [0.5, 0.5, 0.5],
-        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        half_extents: [0.5, 0.5, 0.0005],
-    });
-    let cam = |position: [f64; 3], up: [f64; 3]| Camera {
+    )
+}
+
+/// A 400x400 camera with a 60 degree field of view.
+fn camera(position: [f64; 3], target: [f64; 3], up: [f64; 3]) -> Camera {
+    Camera {
         position,
-        target: [0.5, 0.5, 0.5],
+        target,
         up,
         fov_y: 60.0,
         width: 400,
         height: 400,
         near: 0.01,
         far: 100.0,
-    };
+    }
+}
+
+/// 000's contour-driven detail: a flat node (a plate of 65,536 points in four levels) draws as
+/// many levels face-on as its spacing allows, edge-on at the same distance only its coarsest
+/// (its contour covers a line of pixels); without a contour, the spacing alone decides.
+#[test]
+fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
+    let root = Aabb::new([0.0; 3], [1.0; 3]);
+    let mut plate = four_levels();
+    plate.contour = Some(Obb {
+        center: [0.5, 0.5, 0.5],
+        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        half_extents: [0.5, 0.5, 0.0005],
+    });
+    let cam = |position, up| camera(position, [0.5; 3], up);
     let face = cam([0.5, 0.5, 3.0], [0.0, 1.0, 0.0]);
     let edge = cam([0.5, -2.0, 0.5], [0.0, 0.0, 1.0]);
     let o = SelectOptions {
@@ -206,33 +216,14 @@ fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
 #[test]
 fn the_contour_of_a_nodes_own_points_sizes_its_detail_and_the_subtrees_culls() {
     let root = Aabb::new([0.0; 3], [1.0; 3]);
-    let mut node = NodeEntry::new(
-        NodeKey::ROOT,
-        PageRef {
-            offset: 64,
-            length: 100,
-            crc: 0,
-        },
-        65_536,
-        vec![64, 1024, 16_384, 65_536],
-        vec![1.0 / 8.0, 1.0 / 32.0, 1.0 / 128.0, 1.0 / 256.0],
-    );
+    let mut node = four_levels();
     node.contour = Some(Obb::from_aabb(&root));
     node.detail = Some(Obb {
         center: [0.5, 0.5, 0.1],
         axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         half_extents: [0.5, 0.5, 0.0005],
     });
-    let cam = |position: [f64; 3], target: [f64; 3]| Camera {
-        position,
-        target,
-        up: [0.0, 0.0, 1.0],
-        fov_y: 60.0,
-        width: 400,
-        height: 400,
-        near: 0.01,
-        far: 100.0,
-    };
+    let cam = |position, target| camera(position, target, [0.0, 0.0, 1.0]);
     let o = SelectOptions {
         budget: u64::MAX,
         min_pixels: 1.0,
