@@ -16,8 +16,9 @@
 //! root cube grow the tree: new levels above the old root, whose nodes keep their cubes (and
 //! pages), their keys moved down.
 //!
-//! The dataset is written under a temporary name and renamed over the old one at the end (as
-//! every output): until then the old dataset is there, whole; a killed append leaves it as it was.
+//! The dataset is written under a temporary name, read back whole and checked (as `verify`
+//! does), and only then renamed over the old one: until then the old dataset is there, whole; a
+//! killed or failed append leaves it as it was.
 //! Memory: the new points, and per thread one rebuilt cell; refused up front where that exceeds
 //! the budget (from the headers' counts, then from the cells to rebuild).
 
@@ -38,6 +39,9 @@ const MAX_GROWTH: u32 = 16;
 pub struct AppendSummary {
     pub added: u64,
     pub points: u64,
+    /// Nodes of the dataset written, every one read back and checked before it replaced the
+    /// old one.
+    pub nodes: u64,
     /// Nodes built anew and nodes whose pages were copied as they were.
     pub rebuilt: u64,
     pub copied: u64,
@@ -347,9 +351,12 @@ pub fn append(
                         if let Some(b) = &back {
                             batch.append(b);
                         }
+                        // Its contour grows to hold the points taken back (the levels above
+                        // kept them from reaching it: the old contour need not hold them).
+                        let contour = e.contour.map(|c| nested::holding(&c, &batch));
                         let mut n = nested::leaf_node(cell, batch, &root, &params);
-                        n.shape.contour = e.contour;
-                        n.shape.detail = e.detail;
+                        n.shape.contour = contour;
+                        n.shape.detail = contour.and_then(|_| nested::own_contour(&n.points));
                         top = Some(n);
                     } else {
                         let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
@@ -390,11 +397,29 @@ pub fn append(
     meta.bounds = meta.bounds.union(&bounds);
     meta.root = root;
     meta.software = format!("myriad {}", env!("CARGO_PKG_VERSION"));
-    let bytes = writer.finish(meta)?;
+    // Read back whole before it replaces the old one: every page's checksum, the counts, the
+    // invariants; where anything is wrong the old dataset stays as it was.
+    let mut nodes = 0;
+    let bytes = writer.finish_checked(meta, |ds| {
+        let r = crate::extract::verify(ds, |_| {});
+        nodes = r.nodes;
+        match r.damage.first() {
+            None => Ok(()),
+            Some(d) => Err(Error::Invalid(format!(
+                "{}: the dataset appended to fails its check (node {} at byte {} of what was \
+                 written: {}); nothing appended, it is as it was (please report this)",
+                dataset.display(),
+                d.key,
+                d.offset,
+                d.message
+            ))),
+        }
+    })?;
     report.advance(1);
     Ok(AppendSummary {
         added,
         points,
+        nodes,
         rebuilt,
         copied,
         cut: k,

@@ -196,8 +196,16 @@ pub fn build_subtree_with<E>(
 /// The contour of a node's own points (000 section 3.1), which sizes its detail where it passes
 /// points down (its stored contour holds the whole subtree, for culling). None for a node left
 /// without points (its parent took them all).
-fn own_contour(points: &PointBatch) -> Option<Obb> {
+pub(crate) fn own_contour(points: &PointBatch) -> Option<Obb> {
     (!points.is_empty()).then(|| ntree::contour(&points.positions, &ntree::pca(&points.positions)))
+}
+
+/// A contour holding `contour` and every point of `points` (000's contour, made anew from the
+/// points and the old contour's corners, as the levels above the chunks make theirs).
+pub(crate) fn holding(contour: &Obb, points: &PointBatch) -> Obb {
+    let mut outline = points.positions.clone();
+    outline.extend(contour.corners());
+    ntree::contour(&outline, &ntree::pca(&outline))
 }
 
 /// The node of `batch` at `key`: all of it in level order (a leaf's content).

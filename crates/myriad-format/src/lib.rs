@@ -622,6 +622,15 @@ mod tests {
     use super::*;
 
     fn write(dir: &Path, name: &str, bounds: Aabb) -> (PathBuf, Result<u64>) {
+        write_checked(dir, name, bounds, |_| Ok(()))
+    }
+
+    fn write_checked(
+        dir: &Path,
+        name: &str,
+        bounds: Aabb,
+        check: impl FnOnce(&Dataset) -> Result<()>,
+    ) -> (PathBuf, Result<u64>) {
         let path = dir.join(name);
         let quant = Quantization {
             scale: [0.01; 3],
@@ -650,8 +659,35 @@ mod tests {
             levels: vec![],
             files: vec![],
         };
-        let r = w.finish(meta);
+        let r = w.finish_checked(meta, check);
         (path, r)
+    }
+
+    /// A dataset whose check fails replaces nothing: the one under its name stays as it was,
+    /// and no temporary file stays.
+    #[test]
+    fn a_failed_check_leaves_the_old_dataset() {
+        let dir = std::env::temp_dir().join(format!("myriad-format-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let old = Aabb::new([1.0, 2.0, 3.0], [4.0, 5.0, 6.0]);
+        let (path, r) = write(&dir, "d.myr", old);
+        r.unwrap();
+        let before = std::fs::read(&path).unwrap();
+        let new = Aabb::new([1.0, 2.0, 3.0], [7.0, 7.0, 7.0]);
+        let mut seen = None;
+        let (_, r) = write_checked(&dir, "d.myr", new, |ds| {
+            seen = Some(ds.meta.bounds);
+            Err(Error::Invalid("d.myr: refused by the check".into()))
+        });
+        assert_eq!(seen, Some(new), "the check sees the dataset written");
+        assert_eq!(r.unwrap_err().to_string(), "d.myr: refused by the check");
+        assert_eq!(std::fs::read(&path).unwrap(), before);
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("d.myr")]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Metadata with a number JSON cannot hold is refused before the rename: nothing appears

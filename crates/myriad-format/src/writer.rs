@@ -226,7 +226,18 @@ impl DatasetWriter {
     /// Writes the hierarchy pages (children before parents), the metadata and the header, syncs,
     /// and renames the file to its name. `meta.nodes` and `meta.depth` are set here. Returns the
     /// file's size.
-    pub fn finish(self, mut meta: Metadata) -> Result<u64> {
+    pub fn finish(self, meta: Metadata) -> Result<u64> {
+        self.finish_checked(meta, |_| Ok(()))
+    }
+
+    /// As [`DatasetWriter::finish`], with `check` run on the dataset written before it is
+    /// renamed to its name: where it fails, nothing is renamed (a dataset being replaced stays
+    /// as it was) and its error is returned.
+    pub fn finish_checked(
+        self,
+        mut meta: Metadata,
+        check: impl FnOnce(&Dataset) -> Result<()>,
+    ) -> Result<u64> {
         let path = self.path.clone();
         let io = |e| Error::io(&path, e);
         let entries = self.entries.into_inner().expect("entries lock");
@@ -256,19 +267,24 @@ impl DatasetWriter {
                 ));
             }
             match ds.nodes() {
-                (nodes, damage) if damage.is_empty() && nodes.len() as u64 == meta.nodes => Ok(()),
+                (nodes, damage) if damage.is_empty() && nodes.len() as u64 == meta.nodes => Ok(ds),
                 (_, damage) => Err(match damage.first() {
                     Some(d) => ds.damage_error(d),
                     None => Error::Invalid("its hierarchy lacks nodes".into()),
                 }),
             }
         });
-        if let Err(e) = reopened {
-            return Err(Error::Invalid(format!(
-                "{}: the dataset written does not open again ({e}); no dataset written",
-                path.display()
-            )));
-        }
+        let ds = match reopened {
+            Ok(ds) => ds,
+            Err(e) => {
+                return Err(Error::Invalid(format!(
+                    "{}: the dataset written does not open again ({e}); no dataset written",
+                    path.display()
+                )));
+            }
+        };
+        check(&ds)?;
+        drop(ds);
         self.file.commit()?;
         Ok(header.file_length)
     }

@@ -116,3 +116,50 @@ fn appended_scans_hold_every_record_and_a_kill_loses_nothing() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Scans added to a layered dataset: the cells kept take back the points the levels above held,
+/// and their contours (and their own points') grow to hold them; the dataset is checked whole
+/// before it replaces the old one, and holds every record of both scans.
+#[test]
+fn appended_to_a_layered_dataset_every_point_lies_in_its_contours() {
+    let d = tempdir("append-layered");
+    let (a, b) = (d.join("a.las"), d.join("b.las"));
+    for (f, seed, n) in [(&a, "1", "300k"), (&b, "2", "200k")] {
+        let args = [
+            "synth",
+            "-o",
+            s(f),
+            "--points",
+            n,
+            "--scene",
+            "city",
+            "--seed",
+            seed,
+        ];
+        ok(&args);
+    }
+    let site = d.join("site.myr");
+    ok(&[
+        "convert",
+        s(&a),
+        "-o",
+        s(&site),
+        "--structure",
+        "layered",
+        "--capacity",
+        "5000",
+    ]);
+    let out = ok(&["convert", s(&b), "--append", s(&site), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    // Some cells kept: their top nodes took back points from the levels above.
+    assert!(v["cells_rebuilt"].as_u64() < v["cells"].as_u64(), "{v}");
+    ok(&["verify", s(&site)]);
+    let ds = Dataset::open(&site).unwrap();
+    assert_eq!(ds.meta.structure, "layered");
+    let all = d.join("all.las");
+    ok(&["extract", s(&site), "-o", s(&all)]);
+    let mut want: Vec<Vec<i64>> = records(&a).into_iter().chain(records(&b)).collect();
+    want.sort();
+    assert_eq!(records(&all), want, "the records of both scans, each once");
+    let _ = std::fs::remove_dir_all(&d);
+}
