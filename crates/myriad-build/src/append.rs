@@ -353,7 +353,7 @@ pub fn append(
                         }
                         // Its contour grows to hold the points taken back (the levels above
                         // kept them from reaching it: the old contour need not hold them).
-                        let contour = e.contour.map(|c| nested::holding(&c, &batch));
+                        let contour = e.contour.map(|c| nested::enclosing(&batch, [&c]));
                         let mut n = nested::leaf_node(cell, batch, &root, &params);
                         n.shape.contour = contour;
                         n.shape.detail = contour.and_then(|_| nested::own_contour(&n.points));

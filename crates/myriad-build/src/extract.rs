@@ -299,16 +299,13 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                 ),
             ));
         }
-        let contours = [(&n.contour, "contour"), (&n.detail, "own points' contour")];
-        for (c, name) in contours
-            .iter()
-            .filter_map(|(c, name)| Some(((*c).as_ref()?, name)))
-        {
+        for (c, name) in [(n.contour, "contour"), (n.detail, "own points' contour")] {
+            let Some(c) = c else { continue };
             let slack = q.scale.into_iter().fold(0.0, f64::max)
                 + c.half_extents.into_iter().fold(0.0, f64::max) * 1e-9;
             let loose = myriad_core::Obb {
                 half_extents: c.half_extents.map(|h| h + slack),
-                ..*c
+                ..c
             };
             if let Some(i) = batch.positions.iter().position(|&p| !loose.contains(p)) {
                 damage.push(node_damage(

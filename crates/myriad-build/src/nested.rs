@@ -200,11 +200,12 @@ pub(crate) fn own_contour(points: &PointBatch) -> Option<Obb> {
     (!points.is_empty()).then(|| ntree::contour(&points.positions, &ntree::pca(&points.positions)))
 }
 
-/// A contour holding `contour` and every point of `points` (000's contour, made anew from the
-/// points and the old contour's corners, as the levels above the chunks make theirs).
-pub(crate) fn holding(contour: &Obb, points: &PointBatch) -> Obb {
+/// A contour holding every point of `points` and every box of `boxes` (000's contour, made from
+/// the points and the boxes' corners): a parent's over its children's, a cell's grown to hold
+/// points it takes back.
+pub(crate) fn enclosing<'a>(points: &PointBatch, boxes: impl IntoIterator<Item = &'a Obb>) -> Obb {
     let mut outline = points.positions.clone();
-    outline.extend(contour.corners());
+    boxes.into_iter().for_each(|b| outline.extend(b.corners()));
     ntree::contour(&outline, &ntree::pca(&outline))
 }
 
@@ -279,15 +280,12 @@ pub fn take_up(
     let (m, keep, contour) = if params.ntree {
         let (m, _) = ntree::build(&union, params.capacity, false);
         // The contour holds the children's contours, hence the whole subtree.
-        let mut outline = union.positions.clone();
-        for c in &children {
-            if let Some(o) = &c.shape.contour {
-                outline.extend(o.corners());
-            }
-        }
-        let pca = ntree::pca(&outline);
+        let contour = enclosing(
+            &union,
+            children.iter().filter_map(|c| c.shape.contour.as_ref()),
+        );
         let keep = m.order.len();
-        (m, keep, Some(ntree::contour(&outline, &pca)))
+        (m, keep, Some(contour))
     } else {
         let m = mospt::build(&union, &parent.bounds(root), params.inner_depth);
         let keep = fitting_prefix(&m, params.capacity).min(union.len());

@@ -663,6 +663,14 @@ mod tests {
         (path, r)
     }
 
+    /// The names of the files in `dir`.
+    fn names(dir: &Path) -> Vec<std::ffi::OsString> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect()
+    }
+
     /// A dataset whose check fails replaces nothing: the one under its name stays as it was,
     /// and no temporary file stays.
     #[test]
@@ -682,10 +690,7 @@ mod tests {
         assert_eq!(seen, Some(new), "the check sees the dataset written");
         assert_eq!(r.unwrap_err().to_string(), "d.myr: refused by the check");
         assert_eq!(std::fs::read(&path).unwrap(), before);
-        let left: Vec<_> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
+        let left = names(&dir);
         assert_eq!(left, vec![std::ffi::OsString::from("d.myr")]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -716,10 +721,7 @@ mod tests {
             "{e}"
         );
         assert!(!bad.exists());
-        let left: Vec<_> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
+        let left = names(&dir);
         assert_eq!(left, vec![std::ffi::OsString::from("good.myr")]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
