@@ -1,13 +1,13 @@
-//! `myriad bench baselines SCAN`: seed 003's tables 6.1-6.4, the nested octree against the
+//! `myriad bench baselines SCAN`: Scheiblauer 2006's tables 6.1-6.4, the nested octree against the
 //! baselines Scheiblauer measured it against, from three viewpoints (the model at a distance,
 //! from its border, from its centre), all points in memory:
 //!
-//! - every point drawn as one buffer (003's "VBO");
-//! - one sequential point tree (SPT, Dachsbacher et al. 2003) over the whole scan, with 003's
-//!   simpler error metric (a node's projected size): an octree's occupied cells of more than one
-//!   point get a new point (their points' mean position and colour) with the interval
-//!   [its side, its parent's side); every original point [0, the side of the smallest cell it
-//!   shares); sorted by the interval's top. A frame processes the prefix whose tops project to
+//! - every point drawn as one buffer (Scheiblauer 2006's "VBO");
+//! - one sequential point tree (SPT, Dachsbacher et al. 2003) over the whole scan, with
+//!   Scheiblauer 2006's simpler error metric (a node's projected size): an octree's occupied cells
+//!   of more than one point get a new point (their points' mean position and colour) with the
+//!   interval [its side, its parent's side); every original point [0, the side of the smallest cell
+//!   it shares); sorted by the interval's top. A frame processes the prefix whose tops project to
 //!   more than the threshold at the model's nearest distance, then keeps a point where its own
 //!   distance puts the threshold inside its interval (the GPU's vertex test, here on the CPU);
 //! - one MOSPT (`myriad_build::mospt`) over the whole scan: the prefix of the levels the
@@ -16,8 +16,9 @@
 //!   with `checked` (the software test and the queries).
 //!
 //! Per structure and view: the points in memory and their bytes (16 a point: position and colour;
-//! the SPT's 24 with its interval), points processed (003 table 6.3), points drawn, and the frame
-//! on this machine's path with 1-pixel points (003 tables 6.2, 6.4: fps and vertices a second).
+//! the SPT's 24 with its interval), points processed (Scheiblauer 2006, table 6.3), points drawn,
+//! and the frame on this machine's path with 1-pixel points (Scheiblauer 2006, tables 6.2, 6.4: fps
+//! and vertices a second).
 
 use crate::median;
 use anyhow::{Result, bail};

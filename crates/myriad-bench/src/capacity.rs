@@ -1,12 +1,12 @@
-//! `myriad bench capacity SCAN`: 000's table 3, the points a node holds against what a view
-//! costs. The scan is converted at each `--capacities` (000 tried 2^15, 2^16 and 2^17 points a
-//! node); each dataset is then opened cold (its pages dropped from the page cache) and walked
-//! through three views in the paper's order: overview (from above at 45 degrees), close (the
-//! standard close view) and detail (the eye inside the data, as `bench culling`'s inside view),
-//! with occlusion culling (the default, `checked`) and without ("w/o z-test" in 000). Per view:
-//! nodes and points drawn (the 1-pixel threshold, no budget: as 000 draws), the median frame
-//! time of `--frames` frames, and the time to load the view completely from the one before
-//! (000's arrows; the first view's from opening).
+//! `myriad bench capacity SCAN`: table 3 of Kanzok et al. 2015, the points a node holds against
+//! what a view costs. The scan is converted at each `--capacities` (Kanzok et al. tried 2^15, 2^16
+//! and 2^17 points a node); each dataset is then opened cold (its pages dropped from the page
+//! cache) and walked through three views in the paper's order: overview (from above at 45 degrees),
+//! close (the standard close view) and detail (the eye inside the data, as `bench culling`'s inside
+//! view), with occlusion culling (the default, `checked`) and without ("w/o z-test" in the paper).
+//! Per view: nodes and points drawn (the 1-pixel threshold, no budget: as Kanzok et al. draw), the
+//! median frame time of `--frames` frames, and the time to load the view completely from the one
+//! before (the paper's arrows; the first view's from opening).
 
 use crate::culling::inside_view;
 use anyhow::{Result, bail};

@@ -1,9 +1,9 @@
-//! `myriad bench contours D.myr`: how far a layered dataset's contours (000's oriented boxes,
-//! which the selection culls by) are from the boxes of the nodes' own points. A node's contour
-//! holds its whole subtree (culling needs that: a box of its own points alone could leave out a
-//! descendant); 000 sizes detail by the contour of the node's own points, which nodes that pass
-//! points down store beside it (and which is checked against the one made here). Each node's
-//! points are read and their contour made as the build makes contours
+//! `myriad bench contours D.myr`: how far a layered dataset's contours (the oriented boxes of
+//! Kanzok et al. 2015, which the selection culls by) are from the boxes of the nodes' own points. A
+//! node's contour holds its whole subtree (culling needs that: a box of its own points alone could
+//! leave out a descendant); Kanzok et al. size detail by the contour of the node's own points,
+//! which nodes that pass points down store beside it (and which is checked against the one made
+//! here). Each node's points are read and their contour made as the build makes contours
 //! ([`myriad_build::ntree::contour`]); the two are compared by their area (the sum of their
 //! three faces' areas: what a view projects of them, over all directions) and by their
 //! thickness (the smallest extent: what an edge-on view sees), per level and in all.

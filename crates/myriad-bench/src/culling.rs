@@ -48,8 +48,8 @@ pub struct CullingBenchArgs {
     #[arg(long)]
     images: Option<PathBuf>,
     /// Which contour sizes a layered node's detail: subtree (its subtree's, as datasets built
-    /// before own contours were stored), own (its own points', 000) or tighter (the flat one of
-    /// the two covering fewer pixels: the default)
+    /// before own contours were stored), own (its own points', Kanzok et al. 2015) or tighter (the
+    /// flat one of the two covering fewer pixels: the default)
     #[arg(long, value_parser = parse_detail_contour, default_value = "tighter")]
     detail_contour: DetailContour,
     /// Also walk N steps from the inside view (forward along its axis, turning a quarter

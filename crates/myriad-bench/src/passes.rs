@@ -3,9 +3,9 @@
 //! Cost: the median frame time of `--frames` converged frames of the overview at
 //! `--frame-budget` points with no pass, each pass alone and the default chain (adaptive
 //! squares), then without passes fixed 1-pixel squares, 5-pixel squares and 5-pixel paraboloids
-//! (002's table 2: adaptive sizes, multisampling, paraboloids against 5-pixel squares), at each
-//! `--sizes` (1280x720 and 2160x2160, one eye of a current headset, by default); a pass's cost
-//! is its median minus the median without passes, measured in the same run.
+//! (table 2 of Discher et al. 2018: adaptive sizes, multisampling, paraboloids against 5-pixel
+//! squares), at each `--sizes` (1280x720 and 2160x2160, one eye of a current headset, by default);
+//! a pass's cost is its median minus the median without passes, measured in the same run.
 //! Quality: for each dataset and standard view, the PSNR of the image at each `--budgets` against
 //! the image of every point drawn with the same passes, for no pass, fill, fill+blur, the
 //! default chain, blending and the default chain blended; and the blended images against every
@@ -83,8 +83,9 @@ pub fn run(a: PassesBenchArgs) -> Result<()> {
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir)?;
     }
-    // Each pass alone over adaptive squares; then 002's table 2 rows that are no pass: fixed
-    // 1-pixel points against adaptive ones, and 5-pixel squares against 5-pixel paraboloids.
+    // Each pass alone over adaptive squares; then the rows of Discher et al. 2018's table 2 that
+    // are no pass: fixed 1-pixel points against adaptive ones, and 5-pixel squares against 5-pixel
+    // paraboloids.
     let adaptive = (PointSize::adaptive(), Shape::Square);
     let default_blend = format!("{DEFAULT_PASSES},blend");
     let timed: [(&str, &str, _); 14] = [

@@ -1,7 +1,7 @@
-//! `myriad bench prefetch DATASET...`: what prefetching (004: the nodes just outside the view
-//! loaded ahead) saves a viewer that orbits. Each run opens the dataset afresh, converges on
-//! `render`'s default view, then orbits the target by `--degrees` in `--frames` frames drawn as
-//! a viewer draws them (never waiting) and keeps drawing at the last view until it has
+//! `myriad bench prefetch DATASET...`: what prefetching (Goswami et al. 2010: the nodes just
+//! outside the view loaded ahead) saves a viewer that orbits. Each run opens the dataset afresh,
+//! converges on `render`'s default view, then orbits the target by `--degrees` in `--frames` frames
+//! drawn as a viewer draws them (never waiting) and keeps drawing at the last view until it has
 //! converged. Reported per mode (prefetching off and on, `mwkd`'s ancestors standing in for
 //! nodes that come into view off and on; runs alternate):
 //! frames drawn with selected nodes missing, frames with a hole (a node missing that nothing

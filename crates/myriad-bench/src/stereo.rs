@@ -1,10 +1,11 @@
-//! `myriad bench stereo DATASET...`: seed 002's table 1 for stereo frames. For each dataset, the
-//! overview (or `--view`) at `--size` x `--size` per eye (2160: one eye of a current headset), the budget
-//! `--budget`: the median frame (selection, loads, uploads, drawing, post passes) of the mono
-//! view, of both eyes in two passes and in a single pass, each with and without the hidden-area
-//! mask (single pass: one pass over the points on the CPU, one dispatch on the compute path, one
-//! instanced draw on the quad path). On the quad path each is timed with the nodes drawn front
-//! to back (002's reverse painter's order) and in the selection's order.
+//! `myriad bench stereo DATASET...`: table 1 of Discher et al. 2018, for stereo frames. For each
+//! dataset, the overview (or `--view`) at `--size` x `--size` per eye (2160: one eye of a current
+//! headset), the budget `--budget`: the median frame (selection, loads, uploads, drawing, post
+//! passes) of the mono view, of both eyes in two passes and in a single pass, each with and without
+//! the hidden-area mask (single pass: one pass over the points on the CPU, one dispatch on the
+//! compute path, one instanced draw on the quad path). On the quad path each is timed with the
+//! nodes drawn front to back (the reverse painter's order of Discher et al. 2018) and in the
+//! selection's order.
 
 use crate::median;
 use anyhow::Result;

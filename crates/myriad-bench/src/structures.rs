@@ -43,10 +43,12 @@ pub struct StructuresBenchArgs {
     /// Where the datasets are written; kept when given, else a temporary folder removed at the end
     #[arg(long)]
     keep: Option<PathBuf>,
-    /// Most points per node, for every structure (004's "VBO size") [default: convert's]
+    /// Most points per node, for every structure (Goswami et al. 2010's "VBO size") [default:
+    /// convert's]
     #[arg(long)]
     capacity: Option<usize>,
-    /// mwkd's fan-out N and clustering grid K (004's tables II and IV) [default: convert's]
+    /// mwkd's fan-out N and clustering grid K (Goswami et al. 2010, tables II and IV) [default:
+    /// convert's]
     #[arg(long)]
     fanout: Option<u32>,
     #[arg(long)]

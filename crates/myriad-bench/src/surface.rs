@@ -1,5 +1,5 @@
-//! `myriad bench surface DATASET...`: seed 001's table 1 and figure 4, on the CPU (`--cpu`) or
-//! with the steps and the frames on the GPU (`--gpu`).
+//! `myriad bench surface DATASET...`: table 1 and figure 4 of Schiffner et al. 2015, on the CPU
+//! (`--cpu`) or with the steps and the frames on the GPU (`--gpu`).
 //!
 //! For each dataset, the points a standard view selects at `--budget` (`--all`: every point) are
 //! clustered in the `--grid` frustum grid by each variant: the full method (move to 3

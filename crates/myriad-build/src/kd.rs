@@ -41,9 +41,9 @@ fn longest_axis(b: &Aabb) -> usize {
     (0..3).max_by(|&i, &j| s[i].total_cmp(&s[j])).unwrap_or(0)
 }
 
-/// 002 section 5.1 sizes points "based on a node's bounding box rather than its LoD": the
-/// spacing of the first `p` points of a node is that of `p` points spread over its box's two
-/// largest extents (the area of the surface the box can hold).
+/// Discher et al. 2018 (section 5.1) size points "based on a node's bounding box rather than its
+/// LoD": the spacing of the first `p` points of a node is that of `p` points spread over its box's
+/// two largest extents (the area of the surface the box can hold).
 fn box_spacing(bounds: &Aabb, prefix: &[u64]) -> Vec<f64> {
     let mut s = bounds.size();
     s.sort_by(|a, b| b.total_cmp(a));

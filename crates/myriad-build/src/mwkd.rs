@@ -1,4 +1,5 @@
-//! The `mwkd` structure (Goswami, Zhang, Pajarola, Gobbetti, section III): a multi-way kd-tree.
+//! The `mwkd` structure (Goswami, Zhang, Pajarola, Gobbetti 2010, section III): a multi-way
+//! kd-tree.
 //!
 //! Top-down, a node with more than `s` points is split along its longest axis into `N` children
 //! of equal count; the leaves hold the original points (at most `s` each). `N` is chosen so that
@@ -39,9 +40,9 @@ pub struct MwkdParams {
     pub fanout: usize,
     /// Target points per node `s`.
     pub capacity: usize,
-    /// Cells per side `K` of the clustering grid to start from (004 used 35 throughout);
-    /// `None`: the square root of the representatives wanted. Made coarser where it is too fine
-    /// to reach their count.
+    /// Cells per side `K` of the clustering grid to start from (Goswami et al. 2010 used 35
+    /// throughout); `None`: the square root of the representatives wanted. Made coarser where it is
+    /// too fine to reach their count.
     pub grid: Option<usize>,
     /// How the normals get their sign.
     pub orientation: Orientation,

@@ -22,7 +22,7 @@ pub struct NestedParams {
     pub inner_depth: u32,
     /// Deepest outer level; nodes there keep every point they get.
     pub max_level: u32,
-    /// The `layered` structure (000): representatives from the adaptive n-tree
+    /// The `layered` structure (Kanzok et al. 2015): representatives from the adaptive n-tree
     /// ([`crate::ntree`]) and a contour per node, instead of the MOSPT.
     pub ntree: bool,
 }
@@ -193,16 +193,16 @@ pub fn build_subtree_with<E>(
     Ok(())
 }
 
-/// The contour of a node's own points (000 section 3.1), which sizes its detail where it passes
-/// points down (its stored contour holds the whole subtree, for culling). None for a node left
-/// without points (its parent took them all).
+/// The contour of a node's own points (Kanzok et al. 2015, section 3.1), which sizes its detail
+/// where it passes points down (its stored contour holds the whole subtree, for culling). None for
+/// a node left without points (its parent took them all).
 pub(crate) fn own_contour(points: &PointBatch) -> Option<Obb> {
     (!points.is_empty()).then(|| ntree::contour(&points.positions, &ntree::pca(&points.positions)))
 }
 
-/// A contour holding every point of `points` and every box of `boxes` (000's contour, made from
-/// the points and the boxes' corners): a parent's over its children's, a cell's grown to hold
-/// points it takes back.
+/// A contour holding every point of `points` and every box of `boxes` (the contour of
+/// Kanzok et al. 2015, made from the points and the boxes' corners): a parent's over its
+/// children's, a cell's grown to hold points it takes back.
 pub(crate) fn enclosing<'a>(points: &PointBatch, boxes: impl IntoIterator<Item = &'a Obb>) -> Obb {
     let mut outline = points.positions.clone();
     boxes.into_iter().for_each(|b| outline.extend(b.corners()));

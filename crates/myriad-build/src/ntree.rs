@@ -25,7 +25,7 @@ use myriad_core::{Aabb, Obb, PointBatch};
 /// The paper's threshold on the Westin measures.
 pub const FLAT_THRESHOLD: f64 = 0.03;
 
-/// Local dimensionality by Westin's measures (000 equation 1).
+/// Local dimensionality by Westin's measures (Kanzok et al. 2015, equation 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dimensionality {
     Linear,
@@ -61,7 +61,7 @@ impl Dimensionality {
     }
 }
 
-/// The contour of a node whose subtree holds `positions` (000 section 3.1).
+/// The contour of a node whose subtree holds `positions` (Kanzok et al. 2015, section 3.1).
 pub fn contour(positions: &[[f64; 3]], p: &Pca) -> Obb {
     if Dimensionality::of(p) == Dimensionality::Volumetric {
         let mut b = Aabb::EMPTY;

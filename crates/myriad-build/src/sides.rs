@@ -10,7 +10,7 @@
 //! the strip's centre line, at an angle that grows with its distance from it (up to
 //! [`STRIP_HALF_ANGLE`] at the strip's edge). `mwkd` turns the normals it estimates towards
 //! that side, so that they have a sign and the renderer's normal cones cull what faces away
-//! (004 section III).
+//! (Goswami et al. 2010, section III).
 
 use myriad_core::PointBatch;
 

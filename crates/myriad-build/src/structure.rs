@@ -3,13 +3,14 @@
 /// The hierarchy a dataset is built as (`convert --structure`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Structure {
-    /// Nested octree of MOSPTs (Scheiblauer 2006, 003).
+    /// Nested octree of MOSPTs (Scheiblauer 2006).
     Octree,
-    /// Octree whose nodes' representatives come from an adaptive n-tree, with contours (000).
+    /// Octree whose nodes' representatives come from an adaptive n-tree, with contours
+    /// (Kanzok et al. 2015).
     Layered,
-    /// Balanced binary kd-tree with median splits (002).
+    /// Balanced binary kd-tree with median splits (Discher et al. 2018).
     Kd,
-    /// Multi-way kd-tree of aggregates drawn as splats (004).
+    /// Multi-way kd-tree of aggregates drawn as splats (Goswami et al. 2010).
     Mwkd,
 }
 

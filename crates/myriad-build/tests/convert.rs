@@ -85,9 +85,9 @@ fn nothing_lost_many_chunks_and_nodes() {
     assert_eq!(std::fs::read(&out).unwrap(), before);
 }
 
-/// `mwkd` with the fan-out and clustering grid asked for (`convert --fanout N --grid K`, 004's
-/// tables II and IV): no node has more than N children and some have N, a smaller N makes a
-/// deeper tree, the dataset records both, and nothing is lost.
+/// `mwkd` with the fan-out and clustering grid asked for (`convert --fanout N --grid K`,
+/// Goswami et al. 2010, tables II and IV): no node has more than N children and some have N, a
+/// smaller N makes a deeper tree, the dataset records both, and nothing is lost.
 #[test]
 fn mwkd_takes_the_fanout_and_grid_asked_for() {
     let d = tempdir("convert-fanout");

@@ -44,11 +44,12 @@ pub struct NodeEntry {
     /// Where the node's subtree lies, for structures whose nodes are not the cells of their
     /// key's octree (kd-trees); `None`: the key's cube.
     pub bounds: Option<Aabb>,
-    /// A tighter outline of the subtree (000's contour: an oriented box for flat nodes); what
-    /// the selection culls by.
+    /// A tighter outline of the subtree (the contour of Kanzok et al. 2015: an oriented box for
+    /// flat nodes); what the selection culls by.
     pub contour: Option<Obb>,
     /// The contour of the node's own points where it is not [`NodeEntry::contour`] (a node that
-    /// passes points down: 000 sizes its detail by the points it stores); `None`: the contour.
+    /// passes points down: Kanzok et al. 2015 size its detail by the points it stores); `None`: the
+    /// contour.
     pub detail: Option<Obb>,
     /// The splat page of an `mwkd` node.
     pub splats: Option<SplatInfo>,

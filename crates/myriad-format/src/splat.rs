@@ -1,8 +1,8 @@
-//! Splat pages of the `mwkd` structure (Goswami et al., section III.C): for each point of a node,
-//! its normal as a 16-bit index into a cube map of 104 x 104 cells per face, and its splat radius
-//! in 8 bits between the node's smallest and largest radius. The page is the normal codes (u16,
-//! little-endian) then the radius codes, zstd-compressed; its entry in the hierarchy carries the
-//! radius range, the node's normal cone and whether its points are aggregates (inner nodes) or
+//! Splat pages of the `mwkd` structure (Goswami et al. 2010, section III.C): for each point of a
+//! node, its normal as a 16-bit index into a cube map of 104 x 104 cells per face, and its splat
+//! radius in 8 bits between the node's smallest and largest radius. The page is the normal codes
+//! (u16, little-endian) then the radius codes, zstd-compressed; its entry in the hierarchy carries
+//! the radius range, the node's normal cone and whether its points are aggregates (inner nodes) or
 //! original points (leaves).
 
 pub use crate::hierarchy::SplatInfo;

@@ -1,15 +1,15 @@
 //! The drawn nodes of a frame as a small array octree that the shaders walk per point, for
-//! adaptive point sizes (003 section 4.4, 002 section 5.1).
+//! adaptive point sizes (Scheiblauer 2006, section 4.4; Discher et al. 2018, section 5.1).
 
 use crate::selection::Selection;
 use myriad_core::{Aabb, NodeKey};
 use std::collections::HashMap;
 
-/// The drawn nodes as a small octree that the GPU walks per point (adaptive point size, 003
-/// section 4.4 and 002 section 5.1, per point as Potree does): from the point's own node down
-/// through the drawn children that contain it, the spacing of the finest one is the point's. So
-/// a coarse point shrinks where finer nodes are drawn around it, and stays large where nothing
-/// finer is drawn (yet), covering the hole.
+/// The drawn nodes as a small octree that the GPU walks per point (adaptive point size,
+/// Scheiblauer 2006 section 4.4 and Discher et al. 2018 section 5.1, per point as Potree does):
+/// from the point's own node down through the drawn children that contain it, the spacing of the
+/// finest one is the point's. So a coarse point shrinks where finer nodes are drawn around it, and
+/// stays large where nothing finer is drawn (yet), covering the hole.
 ///
 /// Entries in breadth-first order, children of a node contiguous in octant order:
 /// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.

@@ -1,4 +1,4 @@
-//! The rendering front of a multi-way kd-tree (`mwkd`, Goswami et al. 2013, section IV): its
+//! The rendering front of a multi-way kd-tree (`mwkd`, Goswami et al. 2010, section IV): its
 //! nodes replace their parents when drawn (inner nodes hold aggregates), so a frame draws a cut
 //! through the tree rather than a subtree from the root.
 
@@ -9,9 +9,9 @@ use myriad_core::{Aabb, NodeKey};
 use myriad_format::NodeEntry;
 use std::collections::{BinaryHeap, HashSet};
 
-/// Whether a node's normals all face away from the eye (004 section IV, normal-cone culling):
-/// the angle between the cone's axis and the direction to the eye exceeds 90 degrees plus the
-/// cone's half angle plus the angle the node's bounding sphere subtends.
+/// Whether a node's normals all face away from the eye (Goswami et al. 2010, section IV,
+/// normal-cone culling): the angle between the cone's axis and the direction to the eye exceeds 90
+/// degrees plus the cone's half angle plus the angle the node's bounding sphere subtends.
 pub fn backfacing(cam: &Camera, bounds: &Aabb, cone: [f32; 4]) -> bool {
     if cone[3] <= 0.0 {
         return false;
@@ -31,8 +31,8 @@ pub fn backfacing(cam: &Camera, bounds: &Aabb, cone: [f32; 4]) -> bool {
     phi > std::f64::consts::FRAC_PI_2 + alpha + beta
 }
 
-/// 004's LOD metric `(l_max - l + 1) / d^2` (their `c0 = c2 = 1, c1 = 0`), `d` the distance from
-/// the eye to the node's box.
+/// Goswami et al. 2010's LOD metric `(l_max - l + 1) / d^2` (their `c0 = c2 = 1, c1 = 0`), `d` the
+/// distance from the eye to the node's box.
 fn metric(h: &Hierarchy, cam: &Camera, e: &NodeEntry) -> f64 {
     let b = h.bounds(&e.key);
     let d: f64 = (0..3)
@@ -69,10 +69,10 @@ fn fine(h: &Hierarchy, cam: &Camera, o: &SelectOptions, e: &NodeEntry) -> bool {
     2.0 * radius * cam.pixels_per_unit(depth) < o.min_pixels
 }
 
-/// The rendering front of a tree whose nodes replace their parents (`mwkd`, 004 section IV,
-/// Figure 5): from the root, the node with the highest LOD metric is replaced by its children
-/// in view while the count stays within the budget; the first node that cannot be refined
-/// ends the refinement, and the front is every node reached. The metric is 004's
+/// The rendering front of a tree whose nodes replace their parents (`mwkd`, Goswami et al. 2010,
+/// section IV, Figure 5): from the root, the node with the highest LOD metric is replaced by its
+/// children in view while the count stays within the budget; the first node that cannot be refined
+/// ends the refinement, and the front is every node reached. The metric is Goswami et al. 2010's
 /// `(l_max - l + 1) / d^2` (their `c0 = c2 = 1, c1 = 0`), `d` the distance to the node's box; a
 /// node whose splats are smaller than `min_pixels` on screen is not refined; nodes outside the
 /// frustum, rejected by `keep`, or (with [`Hierarchy::cull_backfaces`]) facing away are left
@@ -155,9 +155,9 @@ pub fn select_front(
     out
 }
 
-/// 004 section IV: the past frame's front refined and coarsened by the projected size of its
-/// splats, rather than a front rebuilt from the root: each node of `previous` (or its nearest
-/// ancestor still known), with the subtrees beside their paths at their roots so that the
+/// Goswami et al. 2010, section IV: the past frame's front refined and coarsened by the projected
+/// size of its splats, rather than a front rebuilt from the root: each node of `previous` (or its
+/// nearest ancestor still known), with the subtrees beside their paths at their roots so that the
 /// whole tree is covered, climbs while its parent's splats are smaller than `min_pixels`
 /// (coarsening) and descends into its visible children while its own are not (refining);
 /// nodes out of view, rejected by `keep` or facing away drop out. Splats shrink down the tree,
@@ -371,9 +371,9 @@ mod tests {
         assert_eq!(s.points, select_front(&h, &cam, &o, &keep).points);
     }
 
-    /// 004 section IV: a multi-way kd-tree's front refines a node only when its children fit
-    /// the budget in its place; children out of view give their share back; normal cones cull
-    /// nodes that face away.
+    /// Goswami et al. 2010, section IV: a multi-way kd-tree's front refines a node only when its
+    /// children fit the budget in its place; children out of view give their share back; normal
+    /// cones cull nodes that face away.
     #[test]
     fn the_front_replaces_parents_within_the_budget() {
         let root = Aabb::new([0.0; 3], [10.0; 3]);

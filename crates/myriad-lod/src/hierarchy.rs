@@ -66,13 +66,14 @@ pub struct Hierarchy {
     bytes: usize,
 }
 
-/// Which contour sizes a layered node's detail (000 section 3.2.2: the projected size of the
-/// node's contour; the rule binds on flat contours only). Both hold the node's own points.
+/// Which contour sizes a layered node's detail (Kanzok et al. 2015, section 3.2.2: the projected
+/// size of the node's contour; the rule binds on flat contours only). Both hold the node's own
+/// points.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DetailContour {
     /// The subtree's, which culling uses (datasets built before own contours were stored).
     Subtree,
-    /// The node's own points' where the dataset stores it (000), else the subtree's.
+    /// The node's own points' where the dataset stores it (Kanzok et al. 2015), else the subtree's.
     Own,
     /// Of the two, the flat one that covers fewer pixels (the measured best: bench culling
     /// --detail-contour).
@@ -208,8 +209,8 @@ impl Hierarchy {
         })
     }
 
-    /// Whether nodes hold splats that replace their parents' when drawn (`mwkd`, 004): select
-    /// with [`select_front`](crate::select_front).
+    /// Whether nodes hold splats that replace their parents' when drawn (`mwkd`,
+    /// Goswami et al. 2010): select with [`select_front`](crate::select_front).
     pub fn splats(&self) -> bool {
         self.splats
     }

@@ -35,8 +35,8 @@ pub enum Occlusion {
     Off,
     /// The coarse depth buffer of this module.
     Software,
-    /// Occlusion queries (003): each frame the boxes of the nodes drawn and culled are tested
-    /// against the frame's depth (on the GPU, or the CPU path's mirror); the next selection
+    /// Occlusion queries (Scheiblauer 2006): each frame the boxes of the nodes drawn and culled are
+    /// tested against the frame's depth (on the GPU, or the CPU path's mirror); the next selection
     /// culls those of which no pixel showed.
     Queries,
     /// The software test, its culls checked: after each frame the boxes of the nodes it culled
@@ -482,9 +482,9 @@ mod tests {
         assert_eq!(select_occluded(&h, &cam, &o, &keep, Some(&mut occ)), all);
     }
 
-    /// An `mwkd` front (004): the wall and the node behind it are both in the front (a cut,
-    /// not a subtree); the wall, nearer, covers first and the node behind it leaves the front,
-    /// with its points; the node beside it stays.
+    /// An `mwkd` front (Goswami et al. 2010): the wall and the node behind it are both in the front
+    /// (a cut, not a subtree); the wall, nearer, covers first and the node behind it leaves the
+    /// front, with its points; the node beside it stays.
     #[test]
     fn an_mwkd_front_loses_the_node_behind_a_wall() {
         let root = Aabb::new([0.0; 3], [20.0; 3]);

@@ -1,4 +1,5 @@
-//! Prefetching (004 section IV): the nodes the view will want next, loaded before it does.
+//! Prefetching (Goswami et al. 2010, section IV): the nodes the view will want next, loaded before
+//! it does.
 
 use crate::hierarchy::Hierarchy;
 use crate::select::select_where;
@@ -6,9 +7,9 @@ use crate::selection::{SelectOptions, Selection};
 use crate::view::Camera;
 use myriad_core::{Aabb, NodeKey};
 
-/// Nodes to load before the view needs them (004 section IV, prefetching): those a view just
-/// wider than `cam` would draw and `main` does not (`cam` widened by `widen` in field of view
-/// and image alike, so that the pixel scale and with it the level of detail stay), and, where
+/// Nodes to load before the view needs them (Goswami et al. 2010, section IV, prefetching): those a
+/// view just wider than `cam` would draw and `main` does not (`cam` widened by `widen` in field of
+/// view and image alike, so that the pixel scale and with it the level of detail stay), and, where
 /// nodes replace their parents (`mwkd`), the parents of the front (zooming out). Best first, at
 /// most `limit`. (Not the hierarchy pages that view would want: where memory for pages is
 /// short they push out pages in use and are dropped again, read after read.)
@@ -55,7 +56,8 @@ mod tests {
     use crate::select::select;
     use crate::select::tests::{looking_down, tree};
 
-    /// 004's prefetching: the nodes a slightly wider view would draw, none of those drawn.
+    /// Goswami et al. 2010's prefetching: the nodes a slightly wider view would draw, none of those
+    /// drawn.
     #[test]
     fn prefetch_takes_the_nodes_just_outside_the_view() {
         let h = tree(4, 100.0, 4000);

@@ -5,10 +5,11 @@
 //! still covers at least the threshold in pixels is drawn (a prefix of a node is a coarser level
 //! of detail of it). Children are visited only below a node drawn whole: they refine it.
 //!
-//! Adaptive point size (003 section 4.4, 002 section 5.1): each selected node gets the spacing
-//! of the finest level it draws; where nodes are octree cells, the shaders then size each point
-//! from the finest drawn node around it ([`crate::DrawnTree`]); in kd-trees, a node all of whose
-//! children in view are drawn takes their finest spacing, pulled up the tree.
+//! Adaptive point size (Scheiblauer 2006, section 4.4; Discher et al. 2018, section 5.1): each
+//! selected node gets the spacing of the finest level it draws; where nodes are octree cells, the
+//! shaders then size each point from the finest drawn node around it ([`crate::DrawnTree`]); in
+//! kd-trees, a node all of whose children in view are drawn takes their finest spacing, pulled up
+//! the tree.
 //!
 //! The structures whose nodes are not plain octree cells: layered nodes carry a contour, kd
 //! nodes their box; both are culled by it and weighed by its projected area. mwkd trees, whose
@@ -45,10 +46,11 @@ pub fn point_spacing(e: &NodeEntry) -> Vec<f64> {
 }
 
 /// Nodes within this angle (radians, about 17 degrees) of the view axis count as central alike.
-/// 003 floors the angle only against division by zero; a wider floor spreads the budget more
-/// evenly over the middle of the view: `myriad bench render` (PSNR at a 1 M budget against every
-/// point, KY and sheridan, three views) gains up to 1.35 dB with 0.3 over 0.001 and loses nowhere
-/// by more than 0.06 dB; ignoring the angle altogether (3.2) loses 0.8 dB looking straight down.
+/// Scheiblauer 2006 floors the angle only against division by zero; a wider floor spreads the
+/// budget more evenly over the middle of the view: `myriad bench render` (PSNR at a 1 M budget
+/// against every point, KY and sheridan, three views) gains up to 1.35 dB with 0.3 over 0.001 and
+/// loses nowhere by more than 0.06 dB; ignoring the angle altogether (3.2) loses 0.8 dB looking
+/// straight down.
 const CENTRAL_ANGLE: f64 = 0.3;
 
 /// The unit direction from the eye to `p` (the view direction when they coincide).
@@ -62,8 +64,8 @@ fn sight(cam: &Camera, p: [f64; 3]) -> [f64; 3] {
     }
 }
 
-/// 003 section 4.3: a projected size over the angle between the view direction and `dir` (the
-/// direction to the node's centre), the angle floored at [`CENTRAL_ANGLE`].
+/// Scheiblauer 2006, section 4.3: a projected size over the angle between the view direction and
+/// `dir` (the direction to the node's centre), the angle floored at [`CENTRAL_ANGLE`].
 fn over_angle(cam: &Camera, projected: f64, dir: [f64; 3]) -> f64 {
     let f = cam.forward();
     let cos = (dir[0] * f[0] + dir[1] * f[1] + dir[2] * f[2]).clamp(-1.0, 1.0);
@@ -81,8 +83,8 @@ fn benefit(cam: &Camera, cube: &Aabb, depth: f64) -> f64 {
 /// such a node's levels whole.
 pub const CONTOUR_POINTS: f64 = 1.5;
 
-/// A contour is flat (000: an oriented box of the node's own points, on one surface) where its
-/// thinnest side is at most this share of its longest; a box around several surfaces says
+/// A contour is flat (Kanzok et al. 2015: an oriented box of the node's own points, on one surface)
+/// where its thinnest side is at most this share of its longest; a box around several surfaces says
 /// nothing of how many of its points show, and keeps its levels.
 pub const FLAT_CONTOUR: f64 = 0.1;
 
@@ -103,9 +105,9 @@ fn contour_pixels(cam: &Camera, c: &Obb, ppu: f64) -> f64 {
     4.0 * (h[1] * h[2] * d(0) + h[0] * h[2] * d(1) + h[0] * h[1] * d(2)) * ppu * ppu
 }
 
-/// A box of any orientation (a contour, 000 section 3.1; a kd box): the square root of its area
-/// projected along the line of sight to its centre (a flat contour seen edge-on is small), in
-/// pixels at its nearest depth.
+/// A box of any orientation (a contour, Kanzok et al. 2015, section 3.1; a kd box): the square root
+/// of its area projected along the line of sight to its centre (a flat contour seen edge-on is
+/// small), in pixels at its nearest depth.
 fn benefit_of_box(cam: &Camera, b: &Obb) -> f64 {
     let depth = nearest_depth_of(cam, &b.corners());
     let dir = sight(cam, b.center);
@@ -207,10 +209,10 @@ fn cull_front(h: &Hierarchy, s: &mut Selection, occ: &mut Occluder) {
     });
 }
 
-/// One selection for several eyes seen together (002's stereo: one selection for both eyes):
-/// a node is in view where any eye's frustum meets it, and its benefit and its level of detail
-/// are those of the eye that sees it best (the nearest). Occlusion, where given, is tested as
-/// the first eye sees. `mwkd` fronts are selected for the first eye.
+/// One selection for several eyes seen together (Discher et al. 2018's stereo: one selection for
+/// both eyes): a node is in view where any eye's frustum meets it, and its benefit and its level of
+/// detail are those of the eye that sees it best (the nearest). Occlusion, where given, is tested
+/// as the first eye sees. `mwkd` fronts are selected for the first eye.
 pub fn select_eyes(
     h: &Hierarchy,
     eyes: &[Camera],
@@ -235,9 +237,10 @@ pub fn select_eyes(
             return;
         }
         let benefit = match &contour {
-            // An octree cell: its side (003).
+            // An octree cell: its side (Scheiblauer 2006).
             None if h.cells() => best(&|cam| benefit(cam, &cube, nearest_depth(cam, &cube))),
-            // A contour (000) or a kd box (002): the square root of its projected area.
+            // A contour (Kanzok et al. 2015) or a kd box (Discher et al. 2018): the square root of
+            // its projected area.
             Some(c) => best(&|cam| benefit_of_box(cam, c)),
             None => best(&|cam| benefit_of_box(cam, &Obb::from_aabb(&cube))),
         };
@@ -314,9 +317,9 @@ pub fn select_eyes(
         } else {
             levels
         };
-        // 000 section 3.2.2: the projected size of the node's contour is its level of detail.
-        // A flat node's levels stop at the first holding more points than its contour covers
-        // pixels (seen edge-on it covers a line: its coarse levels draw it); its coarsest
+        // Kanzok et al. 2015, section 3.2.2: the projected size of the node's contour is its level
+        // of detail. A flat node's levels stop at the first holding more points than its contour
+        // covers pixels (seen edge-on it covers a line: its coarse levels draw it); its coarsest
         // level is always drawn. Both of its contours hold its own points (its subtree's and,
         // for a node that passes points down, its own points'): by default the tighter flat
         // one counts ([`crate::hierarchy::DetailContour`]).
@@ -395,11 +398,11 @@ pub fn select_eyes(
     out
 }
 
-/// Adaptive point size per node for trees whose nodes are not octree cells (002 section 5.1):
-/// a node drawn whole, all of whose children in view are drawn, takes the finest spacing among
-/// them (pulled up from the deepest drawn descendants), so its points shrink where its children
-/// fill in between them. A node with a child in view that is not drawn keeps its own spacing:
-/// there its points are all there is.
+/// Adaptive point size per node for trees whose nodes are not octree cells (Discher et al. 2018,
+/// section 5.1): a node drawn whole, all of whose children in view are drawn, takes the finest
+/// spacing among them (pulled up from the deepest drawn descendants), so its points shrink where
+/// its children fill in between them. A node with a child in view that is not drawn keeps its own
+/// spacing: there its points are all there is.
 fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustums: &[Frustum]) {
     let index: HashMap<NodeKey, usize> = s
         .nodes
@@ -428,9 +431,10 @@ fn pull_up_spacing(h: &Hierarchy, s: &mut Selection, frustums: &[Frustum]) {
     }
 }
 
-/// Selection over several datasets sharing one point budget (002 section 3.1): each is selected
-/// alone with the whole budget, then their nodes are taken in one benefit order (each dataset's
-/// own order kept, so parents still come before children) until the budget is spent.
+/// Selection over several datasets sharing one point budget (Discher et al. 2018, section 3.1):
+/// each is selected alone with the whole budget, then their nodes are taken in one benefit order
+/// (each dataset's own order kept, so parents still come before children) until the budget is
+/// spent.
 pub fn select_many(
     hs: &[&Hierarchy],
     cam: &Camera,

@@ -73,7 +73,8 @@ fn kd_nodes_are_selected_by_their_stored_bounds() {
     let s = select(&h, &cam, &o);
     assert_counted_parents_first(&s);
     assert_eq!(s.nodes.len(), 3);
-    // Both children drawn: the root takes the finest spacing among them (002 5.1).
+    // Both children drawn: the root takes the finest spacing among them (Discher et al. 2018,
+    // section 5.1).
     assert_eq!(s.nodes[0].key, NodeKey::ROOT);
     assert_eq!(s.nodes[0].spacing, 0.1);
     // Looking along +x from x = -20: the near child [0, 1] has the larger benefit.
@@ -92,8 +93,8 @@ fn kd_nodes_are_selected_by_their_stored_bounds() {
     assert_eq!(s.nodes[0].spacing, 1.0);
 }
 
-/// 000 section 3.1: a flat node's contour is its oriented box; outside the frustum it is
-/// culled even though its cube is in view, and seen edge-on it is worth less than face-on.
+/// Kanzok et al. 2015, section 3.1: a flat node's contour is its oriented box; outside the frustum
+/// it is culled even though its cube is in view, and seen edge-on it is worth less than face-on.
 #[test]
 fn contours_cull_and_weigh_flat_nodes() {
     let root = Aabb::new([0.0; 3], [1.0; 3]);
@@ -177,9 +178,10 @@ fn camera(position: [f64; 3], target: [f64; 3], up: [f64; 3]) -> Camera {
     }
 }
 
-/// 000's contour-driven detail: a flat node (a plate of 65,536 points in four levels) draws as
-/// many levels face-on as its spacing allows, edge-on at the same distance only its coarsest
-/// (its contour covers a line of pixels); without a contour, the spacing alone decides.
+/// The contour-driven detail of Kanzok et al. 2015: a flat node (a plate of 65,536 points in four
+/// levels) draws as many levels face-on as its spacing allows, edge-on at the same distance only
+/// its coarsest (its contour covers a line of pixels); without a contour, the spacing alone
+/// decides.
 #[test]
 fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
     let root = Aabb::new([0.0; 3], [1.0; 3]);
@@ -208,11 +210,11 @@ fn a_flat_node_seen_edge_on_draws_fewer_points_than_face_on() {
     assert_eq!(drawn(&with, &edge), 64);
 }
 
-/// 000 sizes a node's detail by the contour of its own points: a node whose own points are a
-/// plate but whose subtree fills the cube (its stored contour, not flat) draws its coarsest
-/// level edge-on; without the own points' contour, the subtree's says nothing and the spacing
-/// decides. Culling still goes by the subtree's: seen where only the subtree's contour is in
-/// view, the node is drawn.
+/// Kanzok et al. 2015 size a node's detail by the contour of its own points: a node whose own
+/// points are a plate but whose subtree fills the cube (its stored contour, not flat) draws its
+/// coarsest level edge-on; without the own points' contour, the subtree's says nothing and the
+/// spacing decides. Culling still goes by the subtree's: seen where only the subtree's contour is
+/// in view, the node is drawn.
 #[test]
 fn the_contour_of_a_nodes_own_points_sizes_its_detail_and_the_subtrees_culls() {
     let root = Aabb::new([0.0; 3], [1.0; 3]);

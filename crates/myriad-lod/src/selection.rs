@@ -9,7 +9,7 @@ use myriad_format::ChildPage;
 pub struct SelectOptions {
     /// Most points drawn.
     pub budget: u64,
-    /// Spacing, in pixels, below which a level adds nothing visible (003: usually 1 or 2).
+    /// Spacing, in pixels, below which a level adds nothing visible (Scheiblauer 2006 uses 1 or 2).
     pub min_pixels: f64,
 }
 

@@ -1,5 +1,6 @@
-//! Streaming (003 section 4.4): a prioritized load queue, loader threads that read and decode
-//! node pages off the frame thread, and an LRU cache of decoded nodes in RAM with a byte budget.
+//! Streaming (Scheiblauer 2006, section 4.4): a prioritized load queue, loader threads that read
+//! and decode node pages off the frame thread, and an LRU cache of decoded nodes in RAM with a byte
+//! budget.
 //!
 //! Each frame the caller hands [`Loader::request`] the nodes it wants, best first; the queue is
 //! replaced, so requests for nodes the view has moved away from are cancelled before they are
@@ -9,7 +10,7 @@
 //! go through the same queue ahead of the nodes (they are small, and the view refines only
 //! once they are in); [`Loader::take_pages`] hands over those that landed. What shows a node
 //! may give the loader threads its own work on each node read ([`Loader::set_prepare`]: the
-//! renderer's colours and GPU words), so that no frame does it (000 section 3.4).
+//! renderer's colours and GPU words), so that no frame does it (Kanzok et al. 2015, section 3.4).
 
 use crate::cache::Lru;
 use myriad_core::{NodeKey, PointBatch};

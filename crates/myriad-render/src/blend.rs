@@ -1,10 +1,10 @@
-//! Blending (`Passes::blend`): 004's deferred blending (after Zhang and Pajarola 2007: splats
-//! smoothly interpolated where they overlap) with 001's EWA splats (after Zwicker et al. 2002:
-//! each splat a Gaussian on its plane, projected to the screen and filtered). The point pass
-//! first keeps each pixel's nearest depth; a second pass over the same points adds every
-//! fragment that lies within its point's own size behind that depth, its colour times its
-//! weight; the pixel shows the weighted mean instead of the nearest point's colour. Depth,
-//! normals and everything the post passes read are the first pass's.
+//! Blending (`Passes::blend`): the deferred blending of Goswami et al. 2010 (after Zhang and
+//! Pajarola 2007: splats smoothly interpolated where they overlap) with the EWA splats of
+//! Schiffner et al. 2015 (after Zwicker et al. 2002: each splat a Gaussian on its plane, projected
+//! to the screen and filtered). The point pass first keeps each pixel's nearest depth; a second
+//! pass over the same points adds every fragment that lies within its point's own size behind that
+//! depth, its colour times its weight; the pixel shows the weighted mean instead of the nearest
+//! point's colour. Depth, normals and everything the post passes read are the first pass's.
 //!
 //! This file is the CPU mirror of blend.wgsl (the weight), of compute.wgsl's mode 2 and
 //! quads.wgsl's `blend` (which fragments count) and of the fb_*.wgsl `colour_at` (the mean):

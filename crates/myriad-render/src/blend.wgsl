@@ -2,8 +2,8 @@
 // `d` (pixels) from the point's projected centre and the point's footprint `shape`: the
 // reconstruction kernel's variance in pixels² and, for an oriented splat, its eye normal as
 // (right, -up, forward) (points: 0, 0, 1). The splat's Gaussian, projected to the screen (an
-// ellipse), convolved with a low-pass filter of BLEND_PREFILTER pixels² (EWA: 001 after Zwicker
-// et al.); 1 to 255.
+// ellipse), convolved with a low-pass filter of BLEND_PREFILTER pixels² (EWA: Schiffner et al. 2015
+// after Zwicker et al.); 1 to 255.
 const BLEND_PREFILTER: f32 = 0.5;
 
 fn blend_weight(d: vec2<f32>, shape: vec4<f32>) -> u32 {

@@ -117,10 +117,10 @@ pub(crate) fn gbuffer(
         .expect("one eye")
 }
 
-/// [`gbuffer`] for several eyes in one pass over the points (single-pass stereo, 002 section
-/// 4.3): each point decoded once, then projected into each eye's own framebuffer, so that a
-/// point never spills into the other eye's image. An eye's mask (true: hidden, the hidden area
-/// of a headset's lens) keeps the points off its pixels.
+/// [`gbuffer`] for several eyes in one pass over the points (single-pass stereo,
+/// Discher et al. 2018, section 4.3): each point decoded once, then projected into each eye's own
+/// framebuffer, so that a point never spills into the other eye's image. An eye's mask (true:
+/// hidden, the hidden area of a headset's lens) keeps the points off its pixels.
 pub(crate) fn gbuffers(
     eyes: &[(Camera, Option<&[bool]>)],
     draws: &[Draw],

@@ -49,8 +49,9 @@ pub struct Rasterizer {
     /// Precision per batch (Schütz 2022): a draw's points are read with as few position words
     /// as leave them within half this many pixels of where all words put them (0: all words).
     pub precision: f32,
-    /// On the quad path, draw nodes front to back (002's reverse painter's order: the depth
-    /// test then rejects what lies behind before it is shaded); else in the selection's order.
+    /// On the quad path, draw nodes front to back (Discher et al. 2018's reverse painter's order:
+    /// the depth test then rejects what lies behind before it is shaded); else in the selection's
+    /// order.
     pub front_to_back: bool,
 }
 

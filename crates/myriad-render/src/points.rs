@@ -1,5 +1,5 @@
-//! Points on the GPU (or in memory for the CPU path): positions quantized per node (seed 000's
-//! x = o + x̂∘r) and RGBA8 colour.
+//! Points on the GPU (or in memory for the CPU path): positions quantized per node
+//! (Kanzok et al. 2015: x = o + x̂∘r) and RGBA8 colour.
 //!
 //! A node's points are integers on a grid relative to the node's own corner (`origin`, `step`
 //! per axis): on the dataset's grid where the node's extent fits 30 bits an axis, so that no

@@ -17,9 +17,9 @@ struct Corner {
     @location(6) @interpolate(flat) footprint: vec4<f32>,
 }
 
-// A headset's hidden area (002 section 4.1), one bit a g-buffer pixel (a few words of zeros:
-// none): set where every pixel within REJECT_REACH of it is hidden. A point whose centre falls
-// there covers hidden pixels alone and is dropped before it is rasterized; the g-buffer pass
+// A headset's hidden area (Discher et al. 2018, section 4.1), one bit a g-buffer pixel (a few words
+// of zeros: none): set where every pixel within REJECT_REACH of it is hidden. A point whose centre
+// falls there covers hidden pixels alone and is dropped before it is rasterized; the g-buffer pass
 // empties the hidden pixels the others reach.
 @group(0) @binding(7) var<storage, read> reject_bits: array<u32>;
 // chain.rs's REJECT_REACH.

@@ -1,4 +1,4 @@
-//! Occlusion queries (Scheiblauer's 003): after a frame, the boxes of nodes are tested against
+//! Occlusion queries (Scheiblauer 2006): after a frame, the boxes of nodes are tested against
 //! its depth; a box of which no pixel passes the depth test is hidden, and the next selection
 //! culls its node (`myriad_lod::Occlusion::Queries`). On the GPU paths, hardware occlusion
 //! queries (`queries.wgsl`: the frame's depth first written into a depth texture as

@@ -1,5 +1,5 @@
-// Occlusion queries (003): node boxes drawn against a frame's depth inside occlusion queries,
-// no colour, no depth written. The frame's depth is first written into a depth texture as
+// Occlusion queries (Scheiblauer 2006): node boxes drawn against a frame's depth inside occlusion
+// queries, no colour, no depth written. The frame's depth is first written into a depth texture as
 // near / w (1 at the near plane, 0 where nothing was drawn: reversed, so that f32 keeps its
 // precision far away), from the compute path's framebuffer or the quad path's depth buffer; a
 // box's fragment passes where it is as near or nearer. The CPU path's mirror is queries.rs.

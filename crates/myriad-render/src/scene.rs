@@ -76,15 +76,15 @@ pub struct Scene {
     /// frame, when the GPU has them: the viewer's way).
     pub query_wait: bool,
     /// With `query_wait`: the nodes a selection culled as hidden are queried against the frame
-    /// just drawn, and those that show are drawn in the same frame (003 as Gobbetti and Marton
-    /// schedule the queries), not from the next one.
+    /// just drawn, and those that show are drawn in the same frame (Scheiblauer 2006, as Gobbetti
+    /// and Marton schedule the queries), not from the next one.
     pub same_frame: bool,
     /// Queries submitted and not read yet, and their nodes.
     pending: Option<(crate::QueryTicket, Vec<NodeKey>)>,
     /// Most bytes uploaded to the GPU in one frame (the rest follow in later frames).
     pub upload_limit: usize,
-    /// Prefetching (004): nodes of the view widened by this factor are loaded ahead, at most
-    /// [`PREFETCH_NODES`] a frame; 1 or less: off.
+    /// Prefetching (Goswami et al. 2010): nodes of the view widened by this factor are loaded
+    /// ahead, at most [`PREFETCH_NODES`] a frame; 1 or less: off.
     pub prefetch: f64,
     /// `mwkd`: a front node not loaded yet that nothing drawn last frame can stand in for (it
     /// has just come into view) has its nearest ancestor on the GPU drawn in its place (on by
@@ -536,10 +536,10 @@ impl Scene {
             .count()
     }
 
-    /// `mwkd` (004 section IV, transitions): for each front node not on the GPU yet, what was
-    /// drawn in the last frame in its place and still is on the GPU: its nearest such ancestor
-    /// (the front refined), else such descendants (the front coarsened). Until the node lands,
-    /// they are drawn instead, so the view never has a hole where it had points.
+    /// `mwkd` (Goswami et al. 2010, section IV, transitions): for each front node not on the GPU
+    /// yet, what was drawn in the last frame in its place and still is on the GPU: its nearest such
+    /// ancestor (the front refined), else such descendants (the front coarsened). Until the node
+    /// lands, they are drawn instead, so the view never has a hole where it had points.
     fn stand_ins(&self, selection: &Selection) -> Vec<NodeKey> {
         if !self.hierarchy.splats() {
             return Vec::new();

@@ -1,5 +1,5 @@
-//! Selection on its own thread (000 section 3.4: the frame is split into selection, loading and
-//! drawing threads, so that drawing never waits for the others).
+//! Selection on its own thread (Kanzok et al. 2015, section 3.4: the frame is split into selection,
+//! loading and drawing threads, so that drawing never waits for the others).
 //!
 //! The frame thread asks for the selection of its camera ([`Selector::ask`]) and draws the newest
 //! one that has finished ([`Selector::take`]), the one before while none has: a frame never waits

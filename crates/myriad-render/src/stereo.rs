@@ -1,15 +1,15 @@
-//! Stereo (seed 002): two eyes' images of one selection, side by side.
+//! Stereo (Discher et al. 2018): two eyes' images of one selection, side by side.
 //!
-//! - Single-pass stereo (002 section 4.3): each point decoded once and projected into both eyes'
-//!   images: on the CPU path into each eye's framebuffer (`cpu::gbuffers`), on the compute path
-//!   by one dispatch into a frame twice as wide (compute.wgsl's `draw_point` per eye, each eye's
-//!   pixels clipped to its half), so a point at an eye's border never reaches the other eye's
-//!   image; on the quad path by one instanced draw of twice the points, each square clamped to
-//!   its eye's columns. Two passes (one frame per eye) are the baseline.
-//! - The hidden-area mask (002 section 4.1): the pixels a lens cannot show: a headset runtime's
-//!   own triangles (`triangles_mask`), else those outside the ellipse inscribed in an eye's image
-//!   (a lens shows a disc). The CPU's point pass and post passes skip them; every path leaves
-//!   them black.
+//! - Single-pass stereo (Discher et al. 2018, section 4.3): each point decoded once and projected
+//!   into both eyes' images: on the CPU path into each eye's framebuffer (`cpu::gbuffers`), on the
+//!   compute path by one dispatch into a frame twice as wide (compute.wgsl's `draw_point` per eye,
+//!   each eye's pixels clipped to its half), so a point at an eye's border never reaches the other
+//!   eye's image; on the quad path by one instanced draw of twice the points, each square clamped
+//!   to its eye's columns. Two passes (one frame per eye) are the baseline.
+//! - The hidden-area mask (Discher et al. 2018, section 4.1): the pixels a lens cannot show: a
+//!   headset runtime's own triangles (`triangles_mask`), else those outside the ellipse inscribed
+//!   in an eye's image (a lens shows a disc). The CPU's point pass and post passes skip them; every
+//!   path leaves them black.
 
 use crate::{Draw, Gpu, Path, Rasterizer, Style};
 use myriad_lod::Camera;

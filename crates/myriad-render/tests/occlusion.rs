@@ -1,7 +1,7 @@
-//! Occlusion queries (003) on every path this machine runs (hardware queries on the GPU paths,
-//! their mirror on the CPU): a wall hides the box behind it and nothing else, a box seen through
-//! a hole is kept; in a scene, the node behind the wall is culled from the next frame on and
-//! comes back when the eye moves round the wall: in the frame that sees it (queries in the same
+//! Occlusion queries (Scheiblauer 2006) on every path this machine runs (hardware queries on the
+//! GPU paths, their mirror on the CPU): a wall hides the box behind it and nothing else, a box seen
+//! through a hole is kept; in a scene, the node behind the wall is culled from the next frame on
+//! and comes back when the eye moves round the wall: in the frame that sees it (queries in the same
 //! frame), and along a walk round the wall no frame differs from culling off. Checked culling (the default) leaves no pixel
 //! of a room seen through a slit in its wall different from culling off, where the software
 //! test alone loses what shows through the slit.

@@ -322,9 +322,9 @@ fn gated_mwkd() -> (Scene, Sender<()>) {
     )
 }
 
-/// 004 section IV, for nodes that come into view: nothing was drawn in their place, so their
-/// nearest ancestor on the GPU stands in until they land (without it, a hole), and where none
-/// is, their parent is read first.
+/// Goswami et al. 2010, section IV, for nodes that come into view: nothing was drawn in their
+/// place, so their nearest ancestor on the GPU stands in until they land (without it, a hole), and
+/// where none is, their parent is read first.
 #[test]
 fn nodes_coming_into_view_have_their_ancestor_in_their_place() {
     for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
@@ -393,9 +393,9 @@ fn nodes_coming_into_view_have_their_ancestor_in_their_place() {
     }
 }
 
-/// 004 section IV: when the front moves, what was drawn before stays on screen until the new
-/// nodes land: the root in place of its children while they load, the children in place of the
-/// root when the front goes back up.
+/// Goswami et al. 2010, section IV: when the front moves, what was drawn before stays on screen
+/// until the new nodes land: the root in place of its children while they load, the children in
+/// place of the root when the front goes back up.
 #[test]
 fn the_front_moves_without_holes() {
     for gpu in std::iter::once(Gpu::cpu()).chain(Gpu::headless().ok()) {
@@ -583,8 +583,8 @@ impl PageReader for ByNode {
 
 #[test]
 fn the_quad_paths_node_order_changes_no_pixel() {
-    // Front to back (002's reverse painter's order) or as selected, the depth test keeps the
-    // nearest point: the order may change the time, not the picture.
+    // Front to back (Discher et al. 2018's reverse painter's order) or as selected, the depth test
+    // keeps the nearest point: the order may change the time, not the picture.
     let gpu = match Gpu::headless() {
         Ok(g) => g,
         Err(e) => {

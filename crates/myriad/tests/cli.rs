@@ -812,7 +812,8 @@ fn every_structure_converts_verifies_extracts_and_renders() {
             "--capacity",
             "8192",
         ];
-        // 004's parameters, for mwkd alone: one line and nothing written for the others.
+        // Goswami et al. 2010's parameters, for mwkd alone: one line and nothing written for the
+        // others.
         let tuned = ["--fanout", "4", "--grid", "35"];
         if structure != "mwkd" {
             let r = myriad(&[&args[..], &tuned[..]].concat());

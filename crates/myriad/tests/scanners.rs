@@ -1,7 +1,7 @@
 //! Normals turned towards the scanners that saw the points: `synth --scene indoor -o X.e57`
 //! writes one posed scan per station; `convert --structure mwkd` turns the normals it estimates
-//! towards their scan's station, and `render` then leaves out the nodes that face away (004's
-//! normal cones), where normals turned up could not.
+//! towards their scan's station, and `render` then leaves out the nodes that face away (the
+//! normal cones of Goswami et al. 2010), where normals turned up could not.
 
 mod common;
 use common::*;

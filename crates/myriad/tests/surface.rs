@@ -1,5 +1,6 @@
-//! Surfaces (seed 001) through the CLI: `render --surface` draws them, `mesh` writes them, and an
-//! independent reader (a Python script of the standard library, below) reads the files back.
+//! Surfaces (Schiffner et al. 2015) through the CLI: `render --surface` draws them, `mesh` writes
+//! them, and an independent reader (a Python script of the standard library, below) reads the files
+//! back.
 
 mod common;
 use common::*;

@@ -145,12 +145,12 @@ fn the_viewer_opens_converges_and_shows_the_scan() {
         true
     };
     // On the GPU also with hardware occlusion queries, read a frame or more late.
-    // And the surface the points make (seed 001), which the window shows from the CPU even
-    // where the points went straight to its texture.
+    // And the surface the points make (Schiffner et al. 2015), which the window shows from the CPU
+    // even where the points went straight to its texture.
     if run(&[]) && run(&["--gpu"]) {
         run(&["--gpu", "--occlusion", "queries"]);
         run(&["--gpu", "--surface", "quads", "--grid", "100x80x30"]);
-        // Both eyes side by side (seed 002).
+        // Both eyes side by side (Discher et al. 2018).
         run(&["--stereo", "--ipd", "5"]);
     }
     // Any attribute through a gradient (the panel then offers the gradient and the range).

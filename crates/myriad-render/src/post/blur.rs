@@ -1,5 +1,5 @@
-//! A depth-aware 3x3 binomial blur over the pixels of the same surface (seed 002), against
-//! aliasing and z-fighting. GPU: blur.wgsl; CPU mirror: [`pixel`].
+//! A depth-aware 3x3 binomial blur over the pixels of the same surface (Discher et al. 2018),
+//! against aliasing and z-fighting. GPU: blur.wgsl; CPU mirror: [`pixel`].
 
 use super::gbuffer::{GBuffer, at, keep, pack_colour, unpack_colour, xy};
 

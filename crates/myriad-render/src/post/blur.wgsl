@@ -1,5 +1,5 @@
 // A 3x3 binomial blur over the pixels of the same surface (depth within a relative threshold),
-// against aliasing and z-fighting (002). Mirror: blur.rs.
+// against aliasing and z-fighting (Discher et al. 2018). Mirror: blur.rs.
 
 @compute @workgroup_size(128)
 fn blur(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {

@@ -1,5 +1,5 @@
-//! Hole filling after Dobrev (seed 002 section 5.3): two 1-D passes, along rows then columns;
-//! a pixel with nearer pixels on both sides within the radius, enough of them, takes the
+//! Hole filling after Dobrev (Discher et al. 2018, section 5.3): two 1-D passes, along rows then
+//! columns; a pixel with nearer pixels on both sides within the radius, enough of them, takes the
 //! nearest one's depth, colour and normal. GPU: fill.wgsl; CPU mirror: [`pixel`].
 
 use super::gbuffer::{GBuffer, at, keep, xy};
@@ -7,10 +7,11 @@ use super::gbuffer::{GBuffer, at, keep, xy};
 /// fill.wgsl after common.wgsl.
 pub(crate) const SOURCE: &str = concat!(include_str!("common.wgsl"), include_str!("fill.wgsl"));
 
-/// Hole filling parameters (002 section 5.3).
+/// Hole filling parameters (Discher et al. 2018, section 5.3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fill {
-    /// Neighbours looked at on each side, in pixels (2: a 5-pixel kernel, as 002's figure 8).
+    /// Neighbours looked at on each side, in pixels (2: a 5-pixel kernel, as Discher et al. 2018's
+    /// figure 8).
     pub radius: u32,
     /// A neighbour is nearer when its depth is below this fraction of the pixel's own.
     pub threshold: f32,

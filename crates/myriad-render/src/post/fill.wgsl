@@ -1,5 +1,6 @@
-// Hole filling (002 after Dobrev), one 1-D pass: a pixel with nearer neighbours on both sides
-// within the radius, at least `fill_min` of them, takes the nearest one. Mirror: fill.rs.
+// Hole filling (Discher et al. 2018 after Dobrev), one 1-D pass: a pixel with nearer neighbours on
+// both sides within the radius, at least `fill_min` of them, takes the nearest one. Mirror:
+// fill.rs.
 
 fn fill(i: u32, axis: u32) {
     if (hidden(i)) {

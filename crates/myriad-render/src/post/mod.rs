@@ -1,15 +1,15 @@
-//! The frame's post passes over the g-buffer (seeds 002 section 5.3, 000 section 3.2.4): the
-//! point pass leaves per pixel a linear eye depth, a colour and, where the points carry one
-//! (splats), a normal; then, in this fixed order and in any combination:
+//! The frame's post passes over the g-buffer (Discher et al. 2018, section 5.3; Kanzok et al. 2015,
+//! section 3.2.4): the point pass leaves per pixel a linear eye depth, a colour and, where the
+//! points carry one (splats), a normal; then, in this fixed order and in any combination:
 //!
-//! - `fill`: hole filling after Dobrev (002): two 1-D passes (rows, then columns); a pixel with
-//!   nearer pixels (by more than a relative depth threshold) on both sides within `radius`, at
-//!   least `min` of them, takes the nearest one's depth, colour and normal. A pixel at the edge
-//!   of a near surface has nearer pixels on one side only, so a near surface never grows over a
-//!   far one.
-//! - normals: reconstructed in image space from depth where the points gave none (000), from
-//!   the neighbour on each axis nearer in depth (so that edges do not bend them); run when
-//!   `shade` or `ssao` needs them.
+//! - `fill`: hole filling after Dobrev (Discher et al. 2018): two 1-D passes (rows, then columns);
+//!   a pixel with nearer pixels (by more than a relative depth threshold) on both sides within
+//!   `radius`, at least `min` of them, takes the nearest one's depth, colour and normal. A pixel at
+//!   the edge of a near surface has nearer pixels on one side only, so a near surface never grows
+//!   over a far one.
+//! - normals: reconstructed in image space from depth where the points gave none
+//!   (Kanzok et al. 2015), from the neighbour on each axis nearer in depth (so that edges do not
+//!   bend them); run when `shade` or `ssao` needs them.
 //! - `shade`: deferred shading, a headlight (light along the view direction: a plane seen
 //!   head-on is lit uniformly) and a sun direction, over an ambient term.
 //! - `ssao`: screen-space ambient occlusion, the neighbours at two radii in eight directions
@@ -17,7 +17,7 @@
 //!   down with distance.
 //! - `edl`: eye-dome lighting (Boucheny 2009), as before, now one pass of the chain.
 //! - `blur`: a 3x3 binomial filter over the pixels of the same surface (depth within a relative
-//!   threshold), against aliasing and z-fighting (002).
+//!   threshold), against aliasing and z-fighting (Discher et al. 2018).
 //! - `aa`: supersampling: everything above drawn at `aa` times the width and height, the
 //!   finish pass averaging each `aa` x `aa` block.
 //!

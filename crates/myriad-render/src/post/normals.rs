@@ -1,5 +1,5 @@
-//! Normals reconstructed in image space from depth where the points gave none (seed 000), from
-//! the neighbour on each axis nearer in depth, facing the eye. GPU: normals.wgsl; CPU mirror:
+//! Normals reconstructed in image space from depth where the points gave none (Kanzok et al. 2015),
+//! from the neighbour on each axis nearer in depth, facing the eye. GPU: normals.wgsl; CPU mirror:
 //! [`pixel`].
 
 use super::gbuffer::{GBuffer, View, at, dot, eye_position, keep, pack_normal, sub, xy};

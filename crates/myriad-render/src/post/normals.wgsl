@@ -1,5 +1,5 @@
-// Normals in image space (000) where the points gave none: the cross product of the tangents
-// to the neighbour nearer in depth on each axis, facing the eye. Mirror: normals.rs.
+// Normals in image space (Kanzok et al. 2015) where the points gave none: the cross product of the
+// tangents to the neighbour nearer in depth on each axis, facing the eye. Mirror: normals.rs.
 
 // The tangent along (dx, dy) at the pixel (x, y, p, d); w = 0 when there is no neighbour.
 fn tangent(x: i32, y: i32, p: vec3<f32>, d: f32, dx: i32, dy: i32) -> vec4<f32> {

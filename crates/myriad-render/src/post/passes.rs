@@ -6,10 +6,10 @@ use super::{blur::Blur, edl::Edl, fill::Fill, shade::Shade, ssao::Ssao};
 /// aa), each on when set.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Passes {
-    /// Blending (004's deferred blending with 001's EWA kernels): the point pass keeps each
-    /// pixel's nearest depth, then every point's fragments within its own size of that depth
-    /// add their colour weighted by the point's Gaussian footprint; the pixel shows the weighted
-    /// mean (`blend.rs`).
+    /// Blending (the deferred blending of Goswami et al. 2010 with the EWA kernels of
+    /// Schiffner et al. 2015): the point pass keeps each pixel's nearest depth, then every point's
+    /// fragments within its own size of that depth add their colour weighted by the point's
+    /// Gaussian footprint; the pixel shows the weighted mean (`blend.rs`).
     pub blend: bool,
     pub fill: Option<Fill>,
     pub shade: Option<Shade>,

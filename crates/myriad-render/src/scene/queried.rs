@@ -1,5 +1,5 @@
-//! A scene's occlusion queries after each frame (`Occlusion::Queries`, 003, and the checks of
-//! `Occlusion::Checked`): which boxes are tested, and what their answers make of the next
+//! A scene's occlusion queries after each frame (`Occlusion::Queries`, Scheiblauer 2006, and the
+//! checks of `Occlusion::Checked`): which boxes are tested, and what their answers make of the next
 //! selection.
 
 use super::Scene;
@@ -42,9 +42,9 @@ impl Scene {
         selection
     }
 
-    /// Occlusion queries (`Occlusion::Queries`, 003): the boxes of the nodes `selection` chose
-    /// and of those it culled as hidden, tested against the frame just drawn; the next
-    /// selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
+    /// Occlusion queries (`Occlusion::Queries`, Scheiblauer 2006): the boxes of the nodes
+    /// `selection` chose and of those it culled as hidden, tested against the frame just drawn; the
+    /// next selection culls those of which no pixel showed. With `Occlusion::Checked`, the boxes of
     /// the nodes the software test culled (and of those drawn because the last queries saw
     /// them): the next selection lets it cull only those of which no pixel showed.
     /// `still_hidden`: the culled nodes were just queried against this frame and none showed
@@ -135,8 +135,8 @@ impl Scene {
             .collect()
     }
 
-    /// 003's queries as Gobbetti and Marton schedule them ([`Scene::same_frame`]): the nodes
-    /// `selection` culled as hidden, queried against the frame just drawn of it; those that
+    /// Scheiblauer 2006's queries as Gobbetti and Marton schedule them ([`Scene::same_frame`]): the
+    /// nodes `selection` culled as hidden, queried against the frame just drawn of it; those that
     /// show are no longer culled (`Queries`: out of the hidden set; `Checked`: seen), so that
     /// selecting again draws them in this frame. Returns how many showed.
     pub(super) fn reveal(

@@ -1,7 +1,7 @@
 //! A node's GPU words (its positions encoded, its colours by the scheme shown, its splat codes)
-//! made on the loader threads as each node is read (000 section 3.4: no per-point work on the
-//! frame thread), so that an upload only hands them to the GPU. Made for the settings current
-//! when the node was read ([`Words`]); a node read under other settings (the scheme changed
+//! made on the loader threads as each node is read (Kanzok et al. 2015, section 3.4: no per-point
+//! work on the frame thread), so that an upload only hands them to the GPU. Made for the settings
+//! current when the node was read ([`Words`]); a node read under other settings (the scheme changed
 //! since) is encoded at its upload, as before.
 
 use super::Scene;

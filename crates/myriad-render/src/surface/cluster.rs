@@ -1,4 +1,4 @@
-//! Cluster, move and reduce (seed 001 sections 3.1 and 3.2), on the CPU.
+//! Cluster, move and reduce (Schiffner et al. 2015, sections 3.1 and 3.2), on the CPU.
 //!
 //! Cells are found by sorting the points by cell key (a run of equal keys is a cell), so the
 //! work is O(N log N) in the points and the memory O(N), whatever the grid's size; a neighbour
@@ -169,10 +169,10 @@ struct Moments {
 }
 
 /// The point distribution tensor's weight of a point `d` (eye units) from its cell's mean, in a
-/// cell of sides `e` (001 after Ritter and Benger: the tensor "includes distance weighting
-/// functions"): a Gaussian of the distance in the cell's mean side, sigma half of it, so that a
-/// cell's far points (another surface reaching into it, points moved in from a neighbour) turn
-/// its normal less. As `tensor_weight` in cluster.wgsl.
+/// cell of sides `e` (Schiffner et al. 2015 after Ritter and Benger: the tensor "includes distance
+/// weighting functions"): a Gaussian of the distance in the cell's mean side, sigma half of it, so
+/// that a cell's far points (another surface reaching into it, points moved in from a neighbour)
+/// turn its normal less. As `tensor_weight` in cluster.wgsl.
 pub fn tensor_weight(d: [f64; 3], e: [f64; 3]) -> f64 {
     let side2 = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) / 3.0;
     let r2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / side2.max(1e-300);
@@ -234,7 +234,7 @@ fn planarity(m: &Moments, count: usize) -> f64 {
 }
 
 /// Clusters `points` (world coordinates, with their colours) in `grid` seen by `camera`: the
-/// cluster, move and reduce steps of seed 001.
+/// cluster, move and reduce steps of Schiffner et al. 2015.
 pub fn cluster(
     camera: &Camera,
     grid: &Grid,
@@ -352,8 +352,8 @@ pub fn cluster(
         }
     }
     for c in &mut cells {
-        // Towards the eye (at the origin of eye coordinates): seed 001 favours normals facing
-        // the observer.
+        // Towards the eye (at the origin of eye coordinates): Schiffner et al. 2015 favour normals
+        // facing the observer.
         if let Some(n) = &mut c.normal
             && n[0] * c.mean[0] + n[1] * c.mean[1] + n[2] * c.mean[2] > 0.0
         {
@@ -377,9 +377,9 @@ pub fn cluster(
     }
 }
 
-/// The cells' normal (seed 001 section 3.2): the sum of the directions to the empty neighbours
-/// among the 26 (neighbours beyond the grid's sides are unknown, not empty), None when there is
-/// none or they cancel. Summed in grid coordinates, where a cell is a unit cube (in eye
+/// The cells' normal (Schiffner et al. 2015, section 3.2): the sum of the directions to the empty
+/// neighbours among the 26 (neighbours beyond the grid's sides are unknown, not empty), None when
+/// there is none or they cancel. Summed in grid coordinates, where a cell is a unit cube (in eye
 /// coordinates a frustum cell is several times deeper than wide, and the directions to its
 /// nearer and farther layers would tilt every normal towards the eye), then carried into eye
 /// coordinates as a normal (by the inverse transpose of the grid's local Jacobian).

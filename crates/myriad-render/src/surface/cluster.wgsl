@@ -1,9 +1,9 @@
-// Cluster, move and reduce (seed 001) on the GPU, mirrored by cluster.rs on the CPU: the grid in
-// the view frustum, per cell sums by 32-bit integer atomics (WebGPU has no float atomics; the
-// paper converts floats to integers the same way): each point's offset from its cell's centre, in
-// cell sides, times SCALE, its extremes and colour; then, once the means are known, the products
-// of the offsets from the mean (the point distribution tensor) times SCALE2. Dispatched per point
-// (first, moved, spread) or per cell (clear, density, reduce).
+// Cluster, move and reduce (Schiffner et al. 2015) on the GPU, mirrored by cluster.rs on the CPU:
+// the grid in the view frustum, per cell sums by 32-bit integer atomics (WebGPU has no float
+// atomics; the paper converts floats to integers the same way): each point's offset from its cell's
+// centre, in cell sides, times SCALE, its extremes and colour; then, once the means are known, the
+// products of the offsets from the mean (the point distribution tensor) times SCALE2. Dispatched
+// per point (first, moved, spread) or per cell (clear, density, reduce).
 
 struct Params {
     // columns, rows, layers, neighbours (0, 1, 3)

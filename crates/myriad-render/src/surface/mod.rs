@@ -1,4 +1,4 @@
-//! Surfaces from points, every frame (seed 001: Schiffner, Stockhausen, Ritter): the points a
+//! Surfaces from points, every frame (Schiffner, Stockhausen, Ritter 2015): the points a
 //! frame draws are clustered into a grid laid in the camera's view frustum, the grid made
 //! curvilinear by moving points to a neighbouring cell by relative density, each cell reduced to
 //! one representative, and one surface element made per cell.
@@ -152,8 +152,8 @@ pub fn parse_grid(s: &str) -> Result<[u32; 3], String> {
 /// How points are mapped to cells.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Grid {
-    /// Seed 001's grid in the view frustum: `dims[0]` columns and `dims[1]` rows over the
-    /// image, `dims[2]` layers from depth `near` to `far`, each deeper by the same factor.
+    /// The grid of Schiffner et al. 2015 in the view frustum: `dims[0]` columns and `dims[1]` rows
+    /// over the image, `dims[2]` layers from depth `near` to `far`, each deeper by the same factor.
     Frustum {
         dims: [u32; 3],
         width: f64,

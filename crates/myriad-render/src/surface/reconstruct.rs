@@ -1,5 +1,5 @@
-//! Reconstruct (seed 001 section 3.3): one surface element per cell, from its mean, its box and
-//! its normal, as polygons in eye coordinates turned into a world-coordinate [`Mesh`].
+//! Reconstruct (Schiffner et al. 2015, section 3.3): one surface element per cell, from its mean,
+//! its box and its normal, as polygons in eye coordinates turned into a world-coordinate [`Mesh`].
 
 use super::{Cell, Clustering, Grid, Kind};
 use myriad_core::Mesh;

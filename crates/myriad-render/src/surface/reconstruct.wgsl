@@ -1,6 +1,6 @@
-// Reconstruct (seed 001 section 3.3) on the GPU, after cluster.wgsl (its parameters, grid and
-// reduced cells), mirrored by reconstruct.rs: per reduced cell its element's triangles, as the
-// CPU's Mesh::polygon fans them, straight into a vertex buffer (position relative to the eye in
+// Reconstruct (Schiffner et al. 2015, section 3.3) on the GPU, after cluster.wgsl (its parameters,
+// grid and reduced cells), mirrored by reconstruct.rs: per reduced cell its element's triangles, as
+// the CPU's Mesh::polygon fans them, straight into a vertex buffer (position relative to the eye in
 // world axes, normal in world axes, colour), which draw.wgsl draws: the cells never leave the
 // GPU to be drawn.
 

@@ -173,7 +173,8 @@ fn quads_lie_within_half_a_cell_of_a_sphere() {
     // Half a cell: half its longest side at that depth (along the view where the sphere turns
     // away). The quads' centres lie within it, and their corners, at the cell's sides on the
     // tangent plane, mostly: where the sphere turns away from the eye within a deep layer, a
-    // quad kept within its cell's box leaves the sphere (seed 001's "misplaced patches").
+    // quad kept within its cell's box leaves the sphere (the "misplaced patches" of
+    // Schiffner et al. 2015).
     let off = |p: [f64; 3]| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 2.0).abs();
     let half = |p: [f64; 3]| {
         0.5 * grid
@@ -332,11 +333,11 @@ fn boxes_and_splats_make_their_primitives() {
         .filter_map(|c| c.normal)
         .map(|n| std::array::from_fn(|k| n[0] * r[k] + n[1] * u[k] + n[2] * f[k]))
         .collect();
-    // The rough method (seed 001: the tensor's is smoother; a 26-neighbourhood knows 13
-    // directions): most of the normals within 60 degrees of up, and their mean within 20. A
-    // cell with no empty neighbour has none ("which is correct", 001 section 3.2): since the
-    // move fills the cells' faces (half cells, December 4) about a quarter of the inner cells
-    // (88 of 324 here), before almost none.
+    // The rough method (Schiffner et al. 2015: the tensor's is smoother; a 26-neighbourhood knows
+    // 13 directions): most of the normals within 60 degrees of up, and their mean within 20. A
+    // cell with no empty neighbour has none ("which is correct", Schiffner et al., section 3.2):
+    // since the move fills the cells' faces (half cells, December 4) about a quarter of the inner
+    // cells (88 of 324 here), before almost none.
     let up = normals.iter().filter(|n| n[2] > 0.5).count();
     assert!(
         normals.len() * 2 >= inner.len(),

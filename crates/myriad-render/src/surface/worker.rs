@@ -1,6 +1,6 @@
-//! Surfaces made off the frame's thread (seed 001 recomputes them whenever the view or the drawn
-//! points change): the frame hands the worker the points it drew and goes on showing the last
-//! surface until the new one is made; a request while one is being made waits for the next
+//! Surfaces made off the frame's thread (Schiffner et al. 2015 recompute them whenever the view or
+//! the drawn points change): the frame hands the worker the points it drew and goes on showing the
+//! last surface until the new one is made; a request while one is being made waits for the next
 //! frame's (never a queue of stale views). Given a GPU ([`Worker::on`]), the worker runs the
 //! cluster, move and reduce steps there (`gpu.rs`), as `render --surface` does; on the CPU where
 //! the GPU cannot (a grid beyond its largest binding).
