@@ -22,6 +22,8 @@ pub mod remote;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod s3;
 #[cfg(not(target_arch = "wasm32"))]
+mod tls;
+#[cfg(not(target_arch = "wasm32"))]
 mod writer;
 
 pub use hierarchy::{ChildPage, HierarchyPage, NodeEntry, PageRef};

@@ -16,9 +16,11 @@
 //! `--header "NAME: VALUE"`), else the environment's `MYRIAD_HEADER` (headers, one a line) and
 //! `MYRIAD_TOKEN` (as `Authorization: Bearer TOKEN`). A 401 or 403 answer says what to give.
 //! `https://` is checked against Mozilla's roots, or only against the certificates of the PEM
-//! file `MYRIAD_CA_CERT` names (a server's own, self-signed one).
+//! file `MYRIAD_CA_CERT` names (a server's own, self-signed one; [`crate::tls`], which S3's
+//! requests share).
 
 use crate::ByteSource;
+use crate::tls::trusted;
 use myriad_core::{Error, Result};
 use std::io;
 use std::path::Path;
@@ -78,30 +80,6 @@ fn headers() -> &'static [(String, String)] {
         }
         out
     })
-}
-
-/// The certificates `https://` trusts: those of `MYRIAD_CA_CERT` where it names a PEM file,
-/// else Mozilla's.
-pub(crate) fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
-    use ureq::tls::{PemItem, RootCerts, TlsConfig};
-    let Ok(file) = std::env::var("MYRIAD_CA_CERT") else {
-        return Ok(TlsConfig::default());
-    };
-    let pem = std::fs::read(&file).map_err(|e| format!("MYRIAD_CA_CERT {file}: {e}"))?;
-    let mut certs = Vec::new();
-    for item in ureq::tls::parse_pem(&pem) {
-        match item {
-            Ok(PemItem::Certificate(c)) => certs.push(c.to_owned()),
-            Ok(_) => {}
-            Err(e) => return Err(format!("MYRIAD_CA_CERT {file}: {e}")),
-        }
-    }
-    if certs.is_empty() {
-        return Err(format!("MYRIAD_CA_CERT {file}: no certificate in it"));
-    }
-    Ok(TlsConfig::builder()
-        .root_certs(RootCerts::Specific(std::sync::Arc::new(certs)))
-        .build())
 }
 
 /// Whether `path` names a dataset on a web server or in S3-compatible storage (`s3://`, read

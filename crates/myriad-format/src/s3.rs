@@ -177,7 +177,7 @@ struct Answer {
 
 impl Client {
     pub fn from_env() -> Result<Client> {
-        let tls = crate::remote::trusted().map_err(Error::Invalid)?;
+        let tls = crate::tls::trusted().map_err(Error::Invalid)?;
         let agent = ureq::Agent::config_builder()
             .tls_config(tls)
             .http_status_as_error(false)

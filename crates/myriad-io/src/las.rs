@@ -1,10 +1,11 @@
 //! LAS 1.0-1.4 and LAZ (COPC included, read as plain LAZ) through the `las` crate: it parses
 //! headers and VLRs and decompresses LAZ on all cores; records are decoded into columns here
-//! (`las_records`), which is several times faster than materializing `las::Point`s. The writer
-//! ([`LasSink`]) is in `las_write.rs`.
+//! (`las_records`), which is several times faster than materializing `las::Point`s. LAZ chunks
+//! are found and decompressed by `las_chunks.rs`; [`chunk_bounds`] is the pass over them that
+//! gives each chunk's bounds. The writer ([`LasSink`]) is in `las_write.rs`.
 
 use crate::las_chunks;
-pub use crate::las_chunks::{LazChunk, chunk_bounds};
+pub use crate::las_chunks::LazChunk;
 pub use crate::las_extra::{extra_bytes_vlr, extra_dims};
 use crate::las_guard::{
     HEADER_PREFIX, check_evlr, check_header, check_laz_chunk_table, check_laz_layers, check_vlrs,
@@ -113,7 +114,7 @@ impl RecordStream {
 
 /// Records per block a producer thread reads: several LAZ chunks, so that decompression runs
 /// on all cores, and a few tens of megabytes at most.
-pub(crate) const PRODUCER_BLOCK: u64 = 1 << 19;
+const PRODUCER_BLOCK: u64 = 1 << 19;
 
 fn header_error(path: &Path, e: las::Error) -> Error {
     Error::at_byte(
@@ -402,6 +403,69 @@ impl LasSource {
     pub fn header(&self) -> &las::Header {
         &self.header
     }
+}
+
+/// The bounds of each chunk's points (`Aabb::EMPTY` for an empty chunk), in the file's
+/// coordinates (records times scale plus offset, as they are read), and each chunk's points.
+/// Only X, Y and Z are decompressed where the point format is layered; older formats are
+/// decompressed whole (their fields share one arithmetic coder). Chunks run on all cores.
+/// `None` when `path` is not LAZ or has no chunk table.
+pub fn chunk_bounds(path: &Path) -> Result<Option<Vec<(LazChunk, Aabb)>>> {
+    let source = LasSource::open(path)?;
+    let Some(chunks) = source.chunks()? else {
+        return Ok(None);
+    };
+    let header = source.header();
+    let vlr = header
+        .laz_vlr()
+        .map_err(|e| Error::at_byte(path, 0, format!("invalid laszip VLR: {e}")))?;
+    let q = Quantization::of(header);
+    let record = header.point_format().len() as usize;
+    let selection = laz::DecompressionSelection::xy_returns_channel().decompress_z();
+    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let (mut compressed, mut records) = (Vec::new(), Vec::new());
+    let mut out = Vec::with_capacity(chunks.len());
+    for block in las_chunks::blocks(&chunks, PRODUCER_BLOCK) {
+        let n: u64 = block.iter().map(|c| c.points).sum();
+        records.resize(n as usize * record, 0u8);
+        las_chunks::decompress(
+            path,
+            &mut file,
+            &vlr,
+            &block,
+            selection,
+            &mut compressed,
+            &mut records,
+        )?;
+        let mut at = 0usize;
+        for c in block {
+            let end = at + c.points as usize * record;
+            let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
+            for r in records[at..end].chunks_exact(record) {
+                for a in 0..3 {
+                    let v = i32::from_le_bytes(r[4 * a..4 * a + 4].try_into().unwrap());
+                    lo[a] = lo[a].min(v);
+                    hi[a] = hi[a].max(v);
+                }
+            }
+            let b = if c.points == 0 {
+                Aabb::EMPTY
+            } else {
+                // A negative scale mirrors the records: both ends, then the order.
+                let end = |v: [i32; 3]| -> [f64; 3] {
+                    std::array::from_fn(|a| v[a] as f64 * q.scale[a] + q.offset[a])
+                };
+                let (a, z) = (end(lo), end(hi));
+                Aabb::new(
+                    std::array::from_fn(|i| a[i].min(z[i])),
+                    std::array::from_fn(|i| a[i].max(z[i])),
+                )
+            };
+            out.push((c, b));
+            at = end;
+        }
+    }
+    Ok(Some(out))
 }
 
 /// Starts the producer threads that read (and decompress) `total` records from `path`.

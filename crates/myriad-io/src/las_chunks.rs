@@ -1,15 +1,16 @@
 //! LAZ read chunk by chunk (issue 43): where each chunk lies in the file and how many points
-//! it holds, the bounds of each chunk's points (a pass that decompresses only the coordinates
-//! where the point format allows), and the chunks a [`LasSource`](crate::las::LasSource) is
-//! restricted to, so that a part of a partitioned build decompresses only the chunks that meet
-//! its cells.
+//! it holds, blocks of whole chunks, and their decompression (whole, or only the coordinates
+//! where the point format allows, for the bounds of each chunk's points that
+//! [`chunk_bounds`](crate::las::chunk_bounds) finds): what reading only the chunks a
+//! [`LasSource`](crate::las::LasSource) is restricted to needs, so that a part of a partitioned
+//! build decompresses only the chunks that meet its cells.
 //!
 //! A LAZ chunk decompresses on its own from its bytes and its point count (the chunk table
 //! gives both, or the byte counts and the fixed chunk size of the laszip VLR), so chunks are
 //! read here straight from the file and decompressed with `laz::par_decompress_selective`,
 //! which also takes the variable-size chunks of COPC files.
 
-use myriad_core::{Aabb, Error, Result};
+use myriad_core::{Error, Result};
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
@@ -173,69 +174,6 @@ pub(crate) fn blocks(chunks: &[LazChunk], block: u64) -> Vec<Vec<LazChunk>> {
         points += c.points;
     }
     out
-}
-
-/// The bounds of each chunk's points (`Aabb::EMPTY` for an empty chunk), in the file's
-/// coordinates (records times scale plus offset, as they are read), and each chunk's points.
-/// Only X, Y and Z are decompressed where the point format is layered; older formats are
-/// decompressed whole (their fields share one arithmetic coder). Chunks run on all cores.
-/// `None` when `path` is not LAZ or has no chunk table.
-pub fn chunk_bounds(path: &Path) -> Result<Option<Vec<(LazChunk, Aabb)>>> {
-    let source = crate::las::LasSource::open(path)?;
-    let Some(chunks) = source.chunks()? else {
-        return Ok(None);
-    };
-    let header = source.header();
-    let vlr = header
-        .laz_vlr()
-        .map_err(|e| Error::at_byte(path, 0, format!("invalid laszip VLR: {e}")))?;
-    let q = crate::las_records::Quantization::of(header);
-    let record = header.point_format().len() as usize;
-    let selection = laz::DecompressionSelection::xy_returns_channel().decompress_z();
-    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let (mut compressed, mut records) = (Vec::new(), Vec::new());
-    let mut out = Vec::with_capacity(chunks.len());
-    for block in blocks(&chunks, crate::las::PRODUCER_BLOCK) {
-        let n: u64 = block.iter().map(|c| c.points).sum();
-        records.resize(n as usize * record, 0u8);
-        decompress(
-            path,
-            &mut file,
-            &vlr,
-            &block,
-            selection,
-            &mut compressed,
-            &mut records,
-        )?;
-        let mut at = 0usize;
-        for c in block {
-            let end = at + c.points as usize * record;
-            let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
-            for r in records[at..end].chunks_exact(record) {
-                for a in 0..3 {
-                    let v = i32::from_le_bytes(r[4 * a..4 * a + 4].try_into().unwrap());
-                    lo[a] = lo[a].min(v);
-                    hi[a] = hi[a].max(v);
-                }
-            }
-            let b = if c.points == 0 {
-                Aabb::EMPTY
-            } else {
-                // A negative scale mirrors the records: both ends, then the order.
-                let end = |v: [i32; 3]| -> [f64; 3] {
-                    std::array::from_fn(|a| v[a] as f64 * q.scale[a] + q.offset[a])
-                };
-                let (a, z) = (end(lo), end(hi));
-                Aabb::new(
-                    std::array::from_fn(|i| a[i].min(z[i])),
-                    std::array::from_fn(|i| a[i].max(z[i])),
-                )
-            };
-            out.push((c, b));
-            at = end;
-        }
-    }
-    Ok(Some(out))
 }
 
 #[cfg(test)]

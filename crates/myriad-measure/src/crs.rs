@@ -1,9 +1,9 @@
 //! What a CRS's WKT (1 or 2) says of itself, for `info` and the viewers: its name, EPSG code,
 //! kind, horizontal units and vertical part. Read from the text alone (no PROJ): the top-level
 //! element's name and last authority, the horizontal and vertical elements of a compound CRS
-//! found by matching brackets.
-
-use crate::measurement::{metres_per_unit, unit_name};
+//! found by matching brackets. The units are read here too, for measurements as well
+//! ([`crate::measurement`] converts lengths with them): the metres per unit of a WKT's linear
+//! `UNIT` ([`metres_per_unit`]) and the unit's name ([`unit_name`]).
 
 /// A CRS as `info` names it.
 #[derive(Debug, Clone, PartialEq)]
@@ -196,6 +196,44 @@ impl Described {
     }
 }
 
+/// Metres per unit of a CRS's horizontal coordinates, from its WKT: the factor of its last
+/// linear `UNIT` (`None` for a geographic CRS, a bare `EPSG:n`, or none).
+pub fn metres_per_unit(wkt: &str) -> Option<f64> {
+    let mut found = None;
+    for part in wkt.split("UNIT[").skip(1) {
+        let name = part.split('"').nth(1)?.to_ascii_lowercase();
+        let factor: f64 = part
+            .split(',')
+            .nth(1)?
+            .trim_end_matches(']')
+            .trim()
+            .parse()
+            .ok()?;
+        let linear = ["metre", "meter", "foot", "feet", "ft"]
+            .iter()
+            .any(|u| name.contains(u));
+        if linear && factor > 0.0 {
+            found = Some(factor);
+        }
+    }
+    // A geographic CRS (degrees horizontally) has no length per coordinate unit.
+    if wkt.trim_start().starts_with("GEOGCS") || wkt.trim_start().starts_with("GEOGCRS") {
+        return None;
+    }
+    found
+}
+
+/// The name of a length unit of `metres` (from [`metres_per_unit`]): "m", "ft", "US ft", or
+/// "units" where the CRS does not say.
+pub fn unit_name(metres: Option<f64>) -> &'static str {
+    match metres {
+        Some(m) if (m - 1.0).abs() < 1e-9 => "m",
+        Some(m) if (m - 0.3048).abs() < 1e-9 => "ft",
+        Some(m) if (m - 1200.0 / 3937.0).abs() < 1e-9 => "US ft",
+        _ => "units",
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -273,5 +311,18 @@ mod tests {
             );
         }
         assert_eq!(describe("not a crs").kind, "unknown");
+    }
+
+    #[test]
+    fn units_from_wkt() {
+        let utm = r#"PROJCS["WGS 84 / UTM zone 33N",GEOGCS["WGS 84",UNIT["degree",0.0174532925199433]],UNIT["metre",1,AUTHORITY["EPSG","9001"]]]"#;
+        assert_eq!(metres_per_unit(utm), Some(1.0));
+        let ft = r#"PROJCS["NAD83 / Oregon GIC Lambert (ft)",GEOGCS["NAD83",UNIT["degree",0.01745]],UNIT["foot",0.3048,AUTHORITY["EPSG","9002"]]]"#;
+        assert_eq!(metres_per_unit(ft), Some(0.3048));
+        assert_eq!(
+            metres_per_unit(r#"GEOGCS["WGS 84",UNIT["degree",0.0174532925199433]]"#),
+            None
+        );
+        assert_eq!(metres_per_unit("EPSG:32633"), None);
     }
 }

@@ -2,7 +2,11 @@
 //! a distance along a polyline (with its segments), a height between two points, an area as
 //! seen from above (its projection on the horizontal plane, as surveyors give a parcel's area),
 //! the angle at the middle of three points, the circle through three points, and an azimuth
-//! (the bearing of the second point from the first, clockwise from grid north).
+//! (the bearing of the second point from the first, clockwise from grid north). A CRS's length
+//! unit is read by [`crate::crs`] ([`metres_per_unit`], kept here under its old path too).
+
+pub use crate::crs::metres_per_unit;
+use crate::crs::unit_name;
 
 /// What a measurement measures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,44 +84,6 @@ impl Units {
             Units::Feet => " ft",
             Units::UsFeet => " US ft",
         }
-    }
-}
-
-/// Metres per unit of a CRS's horizontal coordinates, from its WKT: the factor of its last
-/// linear `UNIT` (`None` for a geographic CRS, a bare `EPSG:n`, or none).
-pub fn metres_per_unit(wkt: &str) -> Option<f64> {
-    let mut found = None;
-    for part in wkt.split("UNIT[").skip(1) {
-        let name = part.split('"').nth(1)?.to_ascii_lowercase();
-        let factor: f64 = part
-            .split(',')
-            .nth(1)?
-            .trim_end_matches(']')
-            .trim()
-            .parse()
-            .ok()?;
-        let linear = ["metre", "meter", "foot", "feet", "ft"]
-            .iter()
-            .any(|u| name.contains(u));
-        if linear && factor > 0.0 {
-            found = Some(factor);
-        }
-    }
-    // A geographic CRS (degrees horizontally) has no length per coordinate unit.
-    if wkt.trim_start().starts_with("GEOGCS") || wkt.trim_start().starts_with("GEOGCRS") {
-        return None;
-    }
-    found
-}
-
-/// The name of a length unit of `metres` (from [`metres_per_unit`]): "m", "ft", "US ft", or
-/// "units" where the CRS does not say.
-pub fn unit_name(metres: Option<f64>) -> &'static str {
-    match metres {
-        Some(m) if (m - 1.0).abs() < 1e-9 => "m",
-        Some(m) if (m - 0.3048).abs() < 1e-9 => "ft",
-        Some(m) if (m - 1200.0 / 3937.0).abs() < 1e-9 => "US ft",
-        _ => "units",
     }
 }
 
@@ -487,19 +453,6 @@ mod tests {
         // In feet, from metres: 1524 m is 5000 ft.
         let l = a.label(Units::Feet, Some(1.0)).unwrap();
         assert_eq!(l, "25000000.00 ft² area");
-    }
-
-    #[test]
-    fn units_from_wkt() {
-        let utm = r#"PROJCS["WGS 84 / UTM zone 33N",GEOGCS["WGS 84",UNIT["degree",0.0174532925199433]],UNIT["metre",1,AUTHORITY["EPSG","9001"]]]"#;
-        assert_eq!(metres_per_unit(utm), Some(1.0));
-        let ft = r#"PROJCS["NAD83 / Oregon GIC Lambert (ft)",GEOGCS["NAD83",UNIT["degree",0.01745]],UNIT["foot",0.3048,AUTHORITY["EPSG","9002"]]]"#;
-        assert_eq!(metres_per_unit(ft), Some(0.3048));
-        assert_eq!(
-            metres_per_unit(r#"GEOGCS["WGS 84",UNIT["degree",0.0174532925199433]]"#),
-            None
-        );
-        assert_eq!(metres_per_unit("EPSG:32633"), None);
     }
 
     #[test]

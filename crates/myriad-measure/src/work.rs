@@ -16,8 +16,9 @@
 //! `value` and `label` are written for readers (the web viewer shows the label) and ignored on
 //! reading: the figure is always computed again from the points.
 
+use crate::crs::metres_per_unit;
 use crate::geojson::{self, epsg_code};
-use crate::measurement::{Kind, Measurement, Units, metres_per_unit};
+use crate::measurement::{Kind, Measurement, Units};
 use serde_json::{Map, Value, json};
 
 /// A sidecar file larger than this is refused (a few thousand annotations fit in far less).

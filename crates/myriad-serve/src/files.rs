@@ -2,9 +2,12 @@
 //! the ranges (one read at once up to [`READ_AT_ONCE`], several merged where they overlap and
 //! sent as `multipart/byteranges`), and bodies streamed from the file in [`CHUNK`]s through the
 //! connection's memory [`Budget`]. An object on S3 or a web server is answered the same way, its
-//! bytes read from there by range requests as they are sent.
+//! bytes read from there by range requests as they are sent. A dataset being built
+//! ([`crate::live`]) is answered with the version asked for ([`answer_dataset`]): its file, or
+//! its snapshot held in memory.
 
 use crate::conn::{Budget, Owned};
+use crate::live::{Live, Version};
 use crate::range::{self, Ranges};
 use crate::{BOUNDARY, Body, CHUNK, catalog, full, status};
 use bytes::Bytes;
@@ -350,6 +353,48 @@ pub(crate) async fn snapshot(
     h.insert(header::ETAG, HeaderValue::from_str(&etag).expect("ascii"));
     h.entry(header::CONTENT_TYPE)
         .or_insert(HeaderValue::from_static(content_type));
+    r
+}
+
+/// `/d/NAME` of a name being built: the version asked for (`?v=`), else the newest, its name
+/// in `X-Myriad-Version` and whether the build runs in `X-Myriad-Building`; 410 Gone for a
+/// version no longer kept.
+pub(crate) async fn answer_dataset(
+    f: &catalog::File,
+    live: &Live,
+    budget: &Budget,
+    req: &Request<Incoming>,
+) -> Response<Body> {
+    let asked = (req.uri().query().unwrap_or("").split('&'))
+        .find_map(|p| p.strip_prefix("v="))
+        .map(str::to_string);
+    let version = match &asked {
+        Some(v) => live.version(v),
+        None => Some(live.current()),
+    };
+    let Some(version) = version else {
+        return status(
+            StatusCode::GONE,
+            "that version of the dataset is gone (it is being built): open it again",
+        );
+    };
+    let mut r = match &version {
+        Version::Preview(p) | Version::Final(p) => {
+            match file(&f.at(p.clone()), budget, req).await {
+                Ok(r) => r,
+                Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+            }
+        }
+        Version::Snapshot(s) => snapshot(s, f.content_type, budget, req).await,
+    };
+    let h = r.headers_mut();
+    if let Ok(v) = HeaderValue::from_str(&version.name()) {
+        h.insert("x-myriad-version", v);
+    }
+    h.insert(
+        "x-myriad-building",
+        HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
+    );
     r
 }
 

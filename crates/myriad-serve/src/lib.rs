@@ -723,7 +723,7 @@ async fn route(
             Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
         };
     };
-    live::answer_dataset(f, live, budget, req).await
+    files::answer_dataset(f, live, budget, req).await
 }
 
 /// A served dataset as it is for good: itself, or a built one's finished dataset; `None` while

@@ -14,14 +14,13 @@
 //! version, and which of its nodes are new against the version `V` it draws, so that it keeps
 //! every node it has whose page is still the same (the build only appends to its file: a page
 //! written before a snapshot is the same bytes in every later version); `focus`, where its camera
-//! looks, is where the build goes next ([`Growing::set_focus`]). Both answers are made here
-//! ([`answer_dataset`], [`answer_changes`]); the router only finds the name.
+//! looks, is where the build goes next ([`Growing::set_focus`]). The changes are answered here
+//! ([`answer_changes`]), the versions' bytes with the catalog's other files (`answer_dataset` in
+//! `files.rs`, from what [`Live`] holds); the router only finds the name.
 
-use crate::conn::Budget;
-use crate::{Body, catalog, files, full, percent_decode, status};
-use hyper::body::Incoming;
+use crate::{Body, full, percent_decode, status};
 use hyper::header::{self, HeaderValue};
-use hyper::{Request, Response, StatusCode};
+use hyper::{Response, StatusCode};
 use myriad_build::growing::{Growing, Shown};
 use myriad_core::NodeKey;
 use myriad_format::{ByteSource, Dataset, NodeEntry};
@@ -212,48 +211,6 @@ impl Live {
             }
         }
     }
-}
-
-/// `/d/NAME` of a name being built: the version asked for (`?v=`), else the newest, its name
-/// in `X-Myriad-Version` and whether the build runs in `X-Myriad-Building`; 410 Gone for a
-/// version no longer kept.
-pub(crate) async fn answer_dataset(
-    f: &catalog::File,
-    live: &Live,
-    budget: &Budget,
-    req: &Request<Incoming>,
-) -> Response<Body> {
-    let asked = (req.uri().query().unwrap_or("").split('&'))
-        .find_map(|p| p.strip_prefix("v="))
-        .map(str::to_string);
-    let version = match &asked {
-        Some(v) => live.version(v),
-        None => Some(live.current()),
-    };
-    let Some(version) = version else {
-        return status(
-            StatusCode::GONE,
-            "that version of the dataset is gone (it is being built): open it again",
-        );
-    };
-    let mut r = match &version {
-        Version::Preview(p) | Version::Final(p) => {
-            match files::file(&f.at(p.clone()), budget, req).await {
-                Ok(r) => r,
-                Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
-            }
-        }
-        Version::Snapshot(s) => files::snapshot(s, f.content_type, budget, req).await,
-    };
-    let h = r.headers_mut();
-    if let Ok(v) = HeaderValue::from_str(&version.name()) {
-        h.insert("x-myriad-version", v);
-    }
-    h.insert(
-        "x-myriad-building",
-        HeaderValue::from_static(if live.is_building() { "yes" } else { "no" }),
-    );
-    r
 }
 
 /// `/build/NAME?since=V&focus=X,Y,Z` ([`Live::changes`]): the newest version of a dataset
