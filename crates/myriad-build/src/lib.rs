@@ -19,6 +19,7 @@ pub mod mwkd;
 pub mod nested;
 mod nodes;
 pub mod ntree;
+pub mod open;
 mod order;
 pub mod partition;
 mod radix;

@@ -39,6 +39,7 @@ pub mod preview;
 pub mod scene;
 pub mod selector;
 pub mod stereo;
+pub mod still;
 pub mod surface;
 
 pub use compute::RASTER_WGSL;

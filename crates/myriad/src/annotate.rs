@@ -17,33 +17,38 @@ pub struct AnnotateArgs {
     /// `view` and `serve` (the work is kept beside it as NAME.work.json)
     path: PathBuf,
     /// Add an annotation at X,Y,Z (with --title, --text and --camera)
-    #[arg(long, value_parser = parse_floats::<3>, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    #[arg(help_heading = "Adding", long, value_parser = parse_floats::<3>, allow_hyphen_values = true, value_name = "X,Y,Z")]
     add: Option<[f64; 3]>,
     /// With --add: its title
-    #[arg(long, requires = "add", default_value = "")]
+    #[arg(help_heading = "Adding", long, requires = "add", default_value = "")]
     title: String,
     /// With --add: its text
-    #[arg(long, requires = "add", default_value = "")]
+    #[arg(help_heading = "Adding", long, requires = "add", default_value = "")]
     text: String,
     /// With --add: the view it is shown from, EX,EY,EZ,TX,TY,TZ (eye and target)
-    #[arg(long, requires = "add", value_parser = parse_floats::<6>, allow_hyphen_values = true)]
+    #[arg(help_heading = "Adding", long, requires = "add", value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     camera: Option<[f64; 6]>,
     /// Add a measurement, KIND:X,Y,Z[,X,Y,Z...]: point, distance, height, area, angle, circle
     /// or azimuth through those points (repeatable)
-    #[arg(long, value_name = "KIND:POINTS", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Adding",
+        long,
+        value_name = "KIND:POINTS",
+        allow_hyphen_values = true
+    )]
     measure: Vec<String>,
     /// Remove the annotations of this title (repeatable)
-    #[arg(long, value_name = "TITLE")]
+    #[arg(help_heading = "Removing", long, value_name = "TITLE")]
     remove: Vec<String>,
     /// Remove every annotation and measurement first
-    #[arg(long)]
+    #[arg(help_heading = "Removing", long)]
     clear: bool,
     /// Add the annotations and measurements of a GeoJSON, DXF or work file (repeatable; its
     /// CRS must be the dataset's)
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Import and export", long, value_name = "FILE")]
     import: Vec<PathBuf>,
     /// Write the work to a .geojson (the CRS named) or .dxf file
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Import and export", long, value_name = "FILE")]
     export: Option<PathBuf>,
     /// Replace an existing --export file
     #[arg(long)]

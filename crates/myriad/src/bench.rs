@@ -22,19 +22,19 @@ pub enum BenchCommand {
     /// One file converted with every structure (octree, layered, kd): build speed, peak memory,
     /// bytes per point, nodes, depth, PSNR at a budget in three views, frame time
     Structures(myriad_bench::structures::StructuresBenchArgs),
-    /// 003's tables 6.1-6.4: every point, one sequential point tree (SPT), one MOSPT and the
-    /// nested octree (culling off and on) from a distance, the border and the centre: points in
-    /// memory, processed and drawn, selection and frame time
+    /// Scheiblauer 2006's tables 6.1-6.4: every point, one sequential point tree (SPT), one MOSPT
+    /// and the nested octree (culling off and on) from a distance, the border and the centre:
+    /// points in memory, processed and drawn, selection and frame time
     Baselines(myriad_bench::baselines::BaselinesBenchArgs),
     /// Occlusion culling from a view inside and one outside each dataset: nodes and points
     /// selected, nodes culled, selection and frame time, PSNR against every point unculled
     Culling(myriad_bench::culling::CullingBenchArgs),
-    /// 000's table 3: a scan converted at several node capacities, each walked through an
-    /// overview, a close and a detail view with occlusion culling and without: nodes, points,
-    /// frame time and the time to load each view
+    /// Table 3 of Kanzok et al. 2015: a scan converted at several node capacities, each walked
+    /// through an overview, a close and a detail view with occlusion culling and without: nodes,
+    /// points, frame time and the time to load each view
     Capacity(myriad_bench::capacity::CapacityBenchArgs),
     /// Layered datasets' contours (the subtree's oriented box, as stored) against the contours
-    /// of each node's own points (000): their areas and thicknesses, per level
+    /// of each node's own points (Kanzok et al. 2015): their areas and thicknesses, per level
     Contours(myriad_bench::contours::ContoursBenchArgs),
     /// Surfaces from a view's points: cells and the milliseconds of cluster, move,
     /// reduce, reconstruct and the frame for the full method, without move and for an octree

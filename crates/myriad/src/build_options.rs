@@ -18,32 +18,38 @@ pub struct BuildArgs {
     /// Worker threads [default: all cores]
     #[arg(long)]
     pub(crate) threads: Option<usize>,
-    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units (the target's with --to-crs); LAS/LAZ keep their scale
-    #[arg(long, default_value_t = 0.0001)]
-    pub(crate) precision: f64,
     /// Most points per node
-    #[arg(long, default_value_t = convert::DEFAULT_CAPACITY)]
+    #[arg(help_heading = "Hierarchy", long, default_value_t = convert::DEFAULT_CAPACITY)]
     pub(crate) capacity: usize,
     /// --structure mwkd: children per node, 2 to 8 [default: the one that makes the tree's
     /// depth whole]
-    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=8))]
+    #[arg(help_heading = "Hierarchy", long, value_parser = clap::value_parser!(u32).range(2..=8))]
     pub(crate) fanout: Option<u32>,
     /// --structure mwkd: cells per side of the grid an inner node's representatives are
-    /// clustered in, 2 to 256 (004 used 35) [default: the square root of their count]
-    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=256))]
+    /// clustered in, 2 to 256 (Goswami et al. 2010 used 35) [default: the square root of their
+    /// count]
+    #[arg(help_heading = "Hierarchy", long, value_parser = clap::value_parser!(u32).range(2..=256))]
     pub(crate) grid: Option<u32>,
+    /// Quantization step of float inputs (PLY, PCD, E57, text), in their units (the target's with --to-crs); LAS/LAZ keep their scale
+    #[arg(help_heading = "Inputs", long, default_value_t = 0.0001)]
+    pub(crate) precision: f64,
     /// Column layout of text inputs, e.g. x,y,z,intensity,r,g,b
-    #[arg(long)]
+    #[arg(help_heading = "Inputs", long)]
     pub(crate) columns: Option<String>,
     /// Ignore SCAN.placement files next to inputs (see README)
-    #[arg(long)]
+    #[arg(help_heading = "Inputs", long)]
     pub(crate) no_placement: bool,
     /// Move every point into this coordinate system: EPSG:NNNN, EPSG:H+V, WKT or a PROJ string
     /// (through PROJ; a target without heights keeps the inputs' vertical part)
-    #[arg(long, value_name = "CRS")]
+    #[arg(help_heading = "Coordinates", long, value_name = "CRS")]
     pub(crate) to_crs: Option<String>,
     /// The coordinate system of inputs whose files name none (with --to-crs)
-    #[arg(long, value_name = "CRS", requires = "to_crs")]
+    #[arg(
+        help_heading = "Coordinates",
+        long,
+        value_name = "CRS",
+        requires = "to_crs"
+    )]
     pub(crate) from_crs: Option<String>,
 }
 

@@ -1,40 +1,35 @@
-//! Any scan opens directly (`myriad_build::cached`): the dataset kept next to it, converted
-//! with `convert`'s progress bar when there is none yet.
+//! Any input opens directly (`myriad_build::open`, the one place that decides what it is): the
+//! binary only lends it `convert`'s progress bar for a scan converted first.
 
 use anyhow::Result;
+use myriad_build::open::{Opened, Opener};
 use std::path::{Path, PathBuf};
 
-/// `path` itself when it is a dataset (or a URL), else the dataset made from it.
-pub fn dataset_for(path: &Path) -> Result<PathBuf> {
+/// `input` opened by `opener`, a conversion's progress drawn on a bar.
+pub fn open(opener: &mut Opener, input: &Path) -> Result<Opened> {
     let bar = crate::progress::Bar::new();
-    let found = myriad_build::cached::dataset_for(path, &bar);
+    let opened = opener.open(input, &bar);
+    bar.clear();
+    Ok(opened?)
+}
+
+/// The dataset of `input`: itself when it is one (or a URL), else the one made from it (now,
+/// with a progress bar, or before).
+pub fn dataset_for(input: &Path) -> Result<PathBuf> {
+    let bar = crate::progress::Bar::new();
+    let found = myriad_build::open::dataset(input, &bar);
     bar.clear();
     Ok(found?)
 }
 
-/// [`dataset_for`], its build's snapshots made into `growing` while it runs.
-pub fn dataset_growing(
-    path: &Path,
-    growing: std::sync::Arc<myriad_build::growing::Growing>,
+/// The dataset of the scan `pending` shows, built now with a progress bar, its snapshots made
+/// into `growing` while it runs.
+pub fn build(
+    pending: &myriad_build::open::Pending,
+    growing: Option<std::sync::Arc<myriad_build::growing::Growing>>,
 ) -> Result<PathBuf> {
     let bar = crate::progress::Bar::new();
-    let found = myriad_build::cached::dataset_growing(path, &bar, Some(growing));
+    let built = pending.build(&bar, growing);
     bar.clear();
-    Ok(found?)
-}
-
-/// Whether `path` is a LAS/LAZ scan or a folder of them (what has a preview).
-pub fn previewable(path: &std::path::Path) -> Result<bool> {
-    if myriad_format::is_dataset(path) {
-        return Ok(false);
-    }
-    for f in myriad_build::cached::inputs_of(path)? {
-        if !matches!(
-            myriad_io::detect(&f)?,
-            myriad_io::Format::Las | myriad_io::Format::Laz
-        ) {
-            return Ok(false);
-        }
-    }
-    Ok(true)
+    Ok(built?)
 }

@@ -31,29 +31,47 @@ pub struct ConvertArgs {
     /// fall in are rebuilt, the rest kept; verified whole, then it replaces the old one
     #[arg(long, value_name = "DATASET")]
     append: Option<PathBuf>,
+    #[command(flatten)]
+    build: BuildArgs,
     /// Build from a plan (`myriad plan`): its inputs and parameters; with --part, one part into
     /// the folder given by -o, else the whole plan on this machine
-    #[arg(long, value_name = "PLAN", conflicts_with = "append")]
+    #[arg(
+        help_heading = "Building in parts",
+        long,
+        value_name = "PLAN",
+        conflicts_with = "append"
+    )]
     plan: Option<PathBuf>,
     /// The part of the plan to build: an index, or auto (SLURM_ARRAY_TASK_ID,
     /// JOB_COMPLETION_INDEX or AWS_BATCH_JOB_ARRAY_INDEX)
-    #[arg(long, requires = "plan", value_name = "I|auto")]
+    #[arg(
+        help_heading = "Building in parts",
+        long,
+        requires = "plan",
+        value_name = "I|auto"
+    )]
     part: Option<String>,
     /// Print the inputs the part reads (one path per line) and stop: what a driver copies to
     /// the machine that builds it
-    #[arg(long, requires = "part")]
+    #[arg(help_heading = "Building in parts", long, requires = "part")]
     list_inputs: bool,
     /// Print the byte ranges of its inputs the part reads (`PATH START END` per line, END
     /// excluded or `end`: to the file's end; `PATH 0 end`: read whole) and stop: for a LAZ input of which it
     /// reads some chunks, the header, those chunks and the chunk table, found in a copy that
     /// holds at least the header and the chunk table (a driver fetches those first)
-    #[arg(long, requires = "part", conflicts_with = "list_inputs")]
+    #[arg(
+        help_heading = "Building in parts",
+        long,
+        requires = "part",
+        conflicts_with = "list_inputs"
+    )]
     list_ranges: bool,
     /// Run one of the plan's scatter tasks (an index, or auto as for --part) into the parts'
     /// folder given by -o: the chunks of the LAZ inputs that several parts read, each
     /// decompressed once, its records sorted into the parts' files there (`exchange/`), for
     /// parts built with --exchanged
     #[arg(
+        help_heading = "Building in parts",
         long,
         requires = "plan",
         conflicts_with = "part",
@@ -63,10 +81,8 @@ pub struct ConvertArgs {
     /// Build the part from what every scatter task of the plan wrote in its folder, instead of
     /// decompressing the chunks it shares with other parts (`myriad slurm` runs the scatter
     /// tasks first and builds its parts so)
-    #[arg(long, requires = "part")]
+    #[arg(help_heading = "Building in parts", long, requires = "part")]
     exchanged: bool,
-    #[command(flatten)]
-    build: BuildArgs,
     /// Replace an existing output
     #[arg(long)]
     force: bool,

@@ -23,29 +23,29 @@ pub struct ExportArgs {
     /// Format: copc, potree, 3dtiles, las or laz [default: from the output's name]
     #[arg(long = "to", value_parser = Target::parse)]
     target: Option<Target>,
+    /// Replace an existing output (a folder only when it holds a Potree or 3D Tiles export)
+    #[arg(long)]
+    force: bool,
     /// Only points in this box: minx,miny,minz,maxx,maxy,maxz
-    #[arg(long = "box", value_parser = parse_box, allow_hyphen_values = true)]
+    #[arg(help_heading = "Selection", long = "box", value_parser = parse_box, allow_hyphen_values = true)]
     bbox: Option<Aabb>,
     /// Level of detail: points at about this spacing [default: every original point]
-    #[arg(long)]
+    #[arg(help_heading = "Selection", long)]
     spacing: Option<f64>,
     /// Memory budget of the octree build that kd and mwkd datasets go through: 512MB, 2GB
     #[arg(long, value_parser = myriad_build::convert::parse_size)]
     memory: Option<u64>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Selection")]
     filter: crate::measure::FilterArgs,
-    /// Replace an existing output (a folder only when it holds a Potree or 3D Tiles export)
-    #[arg(long)]
-    force: bool,
     /// Move the points into this coordinate system (EPSG:NNNN, EPSG:H+V, WKT or a PROJ string):
     /// they are re-placed into an octree of the new coordinates first
-    #[arg(long, value_name = "CRS")]
+    #[arg(help_heading = "Coordinates", long, value_name = "CRS")]
     to_crs: Option<String>,
     /// The dataset's coordinate system where it names none (with --to-crs or --to 3dtiles)
-    #[arg(long, value_name = "CRS")]
+    #[arg(help_heading = "Coordinates", long, value_name = "CRS")]
     from_crs: Option<String>,
     /// 3D Tiles version: 1.1 (glTF tiles) or 1.0 (.pnts tiles, for older clients)
-    #[arg(long, value_name = "VERSION", default_value = "1.1", value_parser = myriad_io::tiles3d::Version::parse)]
+    #[arg(help_heading = "3D Tiles", long, value_name = "VERSION", default_value = "1.1", value_parser = myriad_io::tiles3d::Version::parse)]
     tiles_version: myriad_io::tiles3d::Version,
 }
 

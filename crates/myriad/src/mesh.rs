@@ -1,5 +1,5 @@
 //! `myriad mesh DATASET -o OUT.ply|OUT.glb`: the surface reconstructed from what a view draws
-//! (seed 001), as a mesh file; and the surface options `render` and `view` share.
+//! (Schiffner et al. 2015), as a mesh file; and the surface options `render` and `view` share.
 
 use anyhow::{Result, bail};
 use clap::Args;
@@ -19,22 +19,25 @@ pub struct MeshArgs {
     /// Surface element per cell: quads (cell-filling), boxes or splats (octagons)
     #[arg(long, value_parser = Kind::parse, default_value = "quads")]
     pub surface: Kind,
+    /// Replace an existing output
+    #[arg(long)]
+    pub force: bool,
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the whole dataset from above at 45 degrees]
-    #[arg(long, value_parser = myriad_core::units::parse_floats::<6>, allow_hyphen_values = true)]
+    #[arg(help_heading = "Camera", long, value_parser = myriad_core::units::parse_floats::<6>, allow_hyphen_values = true)]
     pub camera: Option<[f64; 6]>,
     /// One of the standard views instead of --camera: overview, top, close
-    #[arg(long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
+    #[arg(help_heading = "Camera", long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
     pub view: Option<String>,
     /// Up direction
-    #[arg(long, value_parser = myriad_core::units::parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
+    #[arg(help_heading = "Camera", long, value_parser = myriad_core::units::parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
     pub up: [f64; 3],
     /// Vertical field of view in degrees
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(help_heading = "Camera", long, default_value_t = 60.0)]
     pub fov: f64,
     /// The view's image size (the grid spans it)
-    #[arg(long, default_value_t = 1280)]
+    #[arg(help_heading = "Camera", long, default_value_t = 1280)]
     pub width: u32,
-    #[arg(long, default_value_t = 720)]
+    #[arg(help_heading = "Camera", long, default_value_t = 720)]
     pub height: u32,
     /// Most points drawn, and so clustered
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
@@ -43,11 +46,8 @@ pub struct MeshArgs {
     /// uniform
     #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "rgb")]
     pub color: myriad_render::ColorBy,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Surface")]
     pub options: myriad_render::args::SurfaceArgs,
-    /// Replace an existing output
-    #[arg(long)]
-    pub force: bool,
 }
 
 /// A scene of a dataset whose last selection is everything a view selects at `budget`, loaded,

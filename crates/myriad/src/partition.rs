@@ -5,10 +5,10 @@
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use myriad_build::convert;
+use myriad_build::partition::slurm::{self, Sbatch, SlurmBuild};
 use myriad_build::partition::{self, BuildPlan, PlanOptions};
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use crate::progress::Bar;
 use myriad_core::units::thousands;
@@ -33,11 +33,11 @@ pub struct PlanArgs {
     #[arg(long)]
     force: bool,
     /// Points per chunk instead of what --memory gives (for tests)
-    #[arg(long, hide = true)]
+    #[arg(help_heading = "Parts", long, hide = true)]
     chunk_points: Option<u64>,
     /// Let each part decompress whole every LAZ input that reaches its cells, instead of
     /// finding, once here, which of each input's chunks meet which part
-    #[arg(long)]
+    #[arg(help_heading = "Parts", long)]
     whole_inputs: bool,
 }
 
@@ -140,32 +140,6 @@ pub fn plan(a: PlanArgs) -> Result<()> {
     Ok(())
 }
 
-/// The part index `--part` (or `--scatter`, `flag`) names: a number, or `auto` from the
-/// engine's array index.
-fn part_index(s: &str, flag: &str) -> Result<usize> {
-    if s != "auto" {
-        return s
-            .parse()
-            .map_err(|_| anyhow::anyhow!("{flag} {s:?}: an index or \"auto\""));
-    }
-    for var in [
-        "SLURM_ARRAY_TASK_ID",
-        "JOB_COMPLETION_INDEX",
-        "AWS_BATCH_JOB_ARRAY_INDEX",
-    ] {
-        if let Ok(v) = std::env::var(var) {
-            return v
-                .trim()
-                .parse()
-                .map_err(|_| anyhow::anyhow!("{flag} auto: {var}={v:?} is not an index"));
-        }
-    }
-    bail!(
-        "{flag} auto: none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX, \
-         AWS_BATCH_JOB_ARRAY_INDEX is set (give the index)"
-    )
-}
-
 /// What `convert --plan` builds.
 pub enum Step<'a> {
     /// The whole plan on this machine.
@@ -205,7 +179,7 @@ pub fn convert_planned(
             return scatter(
                 &plan,
                 plan_path,
-                part_index(t, "--scatter")?,
+                partition::part_index(t, "--scatter")?,
                 output,
                 as_json,
             );
@@ -228,7 +202,7 @@ pub fn convert_planned(
             return Ok(());
         }
     };
-    let index = part_index(part, "--part")?;
+    let index = partition::part_index(part, "--part")?;
     if list.inputs || list.ranges {
         if index >= plan.parts.len() {
             bail!(
@@ -241,7 +215,7 @@ pub fn convert_planned(
                 println!("{}", p.display());
                 continue;
             }
-            for (a, b) in ranges_read(&plan, index, &p)? {
+            for (a, b) in partition::ranges_read(&plan, index, &p)? {
                 match b {
                     Some(b) => println!("{} {a} {b}", p.display()),
                     None => println!("{} {a} end", p.display()),
@@ -338,45 +312,6 @@ fn scatter(
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(0);
     Ok(())
-}
-
-/// The byte ranges of input `path` that part `index` reads (end excluded; `None`: to the end,
-/// the input read whole): for a LAZ input it reads some chunks of, everything before the first
-/// chunk (header, VLRs, the chunk table's place), its chunks, and what follows the last chunk
-/// (the chunk table, EVLRs).
-fn ranges_read(plan: &BuildPlan, index: usize, path: &Path) -> Result<Vec<(u64, Option<u64>)>> {
-    let k = (plan.inputs.iter().position(|i| i.path == path))
-        .context("a part reads the plan's inputs")?;
-    let Some(chunked) = plan.chunked_input(k) else {
-        return Ok(vec![(0, None)]);
-    };
-    let src = myriad_io::las::LasSource::open(path)?;
-    let table = src.chunks()?.with_context(|| {
-        format!(
-            "{}: no LAZ chunk table (fetch the header and the chunk table first)",
-            path.display()
-        )
-    })?;
-    let (Some(first), Some(last)) = (table.first(), table.last()) else {
-        return Ok(vec![(0, None)]);
-    };
-    let mut out = vec![(0, Some(first.byte_at))];
-    for c in chunked.of(index) {
-        let c = table.get(c as usize).with_context(|| {
-            format!(
-                "{}: chunk {c} of {} in the plan",
-                path.display(),
-                table.len()
-            )
-        })?;
-        let end = c.byte_at + c.bytes;
-        match out.last_mut() {
-            Some((_, Some(b))) if *b == c.byte_at => *b = end,
-            _ => out.push((c.byte_at, Some(end))),
-        }
-    }
-    out.push((last.byte_at + last.bytes, None));
-    Ok(out)
 }
 
 #[derive(Args)]
@@ -488,93 +423,9 @@ pub struct SlurmArgs {
     sbatch: Vec<String>,
 }
 
-/// A word for `sh -c`, quoted where it has to be.
-fn sh_quote(s: &str) -> String {
-    let plain = |c: char| c.is_ascii_alphanumeric() || "_-=:/.,%+@".contains(c);
-    if !s.is_empty() && s.chars().all(plain) {
-        return s.to_string();
-    }
-    format!("'{}'", s.replace('\'', "'\\''"))
-}
-
-/// Submits a job and returns its id; `dry_run`: prints the command as a shell line instead,
-/// setting the shell variable `var` (when not empty) to the job's id, and returns `$VAR` for
-/// the lines after it (an argument ending in `$NAME` is left unquoted there).
-fn sbatch(args: &[String], dry_run: bool, var: &str) -> Result<String> {
-    if dry_run {
-        let words: Vec<String> = args
-            .iter()
-            .map(|a| match a.rfind('$') {
-                Some(at)
-                    if a.len() > at + 1 && a[at + 1..].chars().all(|c| c.is_ascii_uppercase()) =>
-                {
-                    format!("{}{}", sh_quote(&a[..at]), &a[at..])
-                }
-                _ => sh_quote(a),
-            })
-            .collect();
-        let line = format!("sbatch --parsable {}", words.join(" "));
-        if var.is_empty() {
-            println!("{line}");
-        } else {
-            println!("{var}=$({line})");
-        }
-        return Ok(format!("${var}"));
-    }
-    let out = Command::new("sbatch")
-        .arg("--parsable")
-        .args(args)
-        .output()
-        .context("sbatch: is Slurm installed and SLURM_CONF set?")?;
-    if !out.status.success() {
-        bail!("sbatch: {}", String::from_utf8_lossy(&out.stderr).trim());
-    }
-    let id = String::from_utf8_lossy(&out.stdout);
-    // "--parsable" prints "id" or "id;cluster".
-    Ok(id.trim().split(';').next().unwrap_or("").to_string())
-}
-
-/// The tasks of job `id` as (array index or none, state, exit code), from `scontrol`.
-fn job_states(id: &str) -> Result<Vec<(Option<String>, String, String)>> {
-    let out = Command::new("scontrol")
-        .args(["show", "job", "-o", id])
-        .output()
-        .context("scontrol")?;
-    if !out.status.success() {
-        bail!(
-            "scontrol show job {id}: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
-    }
-    Ok(String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let get = |k: &str| {
-                l.split_whitespace()
-                    .find_map(|t| t.strip_prefix(k).map(String::from))
-            };
-            (
-                get("ArrayTaskId="),
-                get("JobState=").unwrap_or_default(),
-                get("ExitCode=").unwrap_or_default(),
-            )
-        })
-        .collect())
-}
-
-const RUNNING: [&str; 5] = [
-    "PENDING",
-    "RUNNING",
-    "CONFIGURING",
-    "COMPLETING",
-    "SUSPENDED",
-];
-
 pub fn slurm(a: SlurmArgs) -> Result<()> {
     let plan = BuildPlan::load(&a.plan)?;
     let abs = |p: &Path| std::path::absolute(p).with_context(|| p.display().to_string());
-    let plan_path = abs(&a.plan)?;
     let output = abs(&a.output)?;
     let parts = match &a.parts_dir {
         Some(d) => abs(d)?,
@@ -587,129 +438,47 @@ pub fn slurm(a: SlurmArgs) -> Result<()> {
     if !a.dry_run {
         std::fs::create_dir_all(&parts).with_context(|| parts.display().to_string())?;
     }
-    let exe = match a.myriad {
-        Some(p) => p,
-        None => std::env::current_exe().context("the path of this program")?,
+    let build = SlurmBuild {
+        plan: abs(&a.plan)?,
+        output,
+        parts,
+        myriad: match a.myriad {
+            Some(p) => p,
+            None => std::env::current_exe().context("the path of this program")?,
+        },
+        exchange: !a.no_exchange,
+        sbatch: a.sbatch,
     };
-    let q = |p: &Path| sh_quote(&p.display().to_string());
-    let n = plan.parts.len();
-    // The chunks that several parts read, decompressed once by a job of scatter tasks first.
-    let exchange = !a.no_exchange && !plan.chunked.is_empty();
-    // An array job of one task per part, after `after` succeeded where given.
-    let array_job = |name: &str, log: &str, after: Option<&str>, command: String, var: &str| {
-        let mut args = vec![
-            format!("--job-name=myriad-{name}"),
-            format!("--array=0-{}", n - 1),
-            format!("--output={}/{log}%A_%a.out", parts.display()),
-        ];
-        if let Some(job) = after {
-            args.push(format!("--dependency=afterok:{job}"));
-            args.push("--kill-on-invalid-dep=yes".to_string());
-        }
-        args.extend(a.sbatch.iter().cloned());
-        args.push(format!(
-            "--wrap=exec {} convert --plan {} {command} -o {}",
-            q(&exe),
-            q(&plan_path),
-            q(&parts)
-        ));
-        sbatch(&args, a.dry_run, var)
+    let mut sbatch = Sbatch {
+        dry_run: a.dry_run,
+        lines: Vec::new(),
     };
-    let scatter_job = if exchange {
-        let command = "--scatter auto".to_string();
-        Some(array_job(
-            "scatter",
-            "slurm-scatter-",
-            None,
-            command,
-            "SCATTER",
-        )?)
-    } else {
-        None
-    };
-    let parts_job = array_job(
-        "part",
-        "slurm-",
-        scatter_job.as_deref(),
-        format!("--part auto{}", if exchange { " --exchanged" } else { "" }),
-        "PARTS",
-    )?;
-    let mut merge = vec![
-        "--job-name=myriad-merge".to_string(),
-        format!("--dependency=afterok:{parts_job}"),
-        "--kill-on-invalid-dep=yes".to_string(),
-        format!("--output={}/slurm-merge-%j.out", parts.display()),
-    ];
-    merge.extend(a.sbatch.iter().cloned());
-    merge.push(format!(
-        "--wrap=exec {} merge {} {} -o {} --force",
-        q(&exe),
-        q(&plan_path),
-        q(&parts),
-        q(&output)
-    ));
-    let merge_job = sbatch(&merge, a.dry_run, "")?;
+    let submitted = slurm::submit(&plan, &build, &mut sbatch);
+    for line in &sbatch.lines {
+        println!("{line}");
+    }
+    let jobs = submitted?;
     if a.dry_run {
         return Ok(());
     }
-    if let Some(job) = &scatter_job {
+    let (n, parts) = (jobs.tasks, build.parts.display());
+    if let Some(job) = &jobs.scatter {
         println!(
             "scatter job {job} ({n} array tasks: the LAZ chunks parts share, decompressed once)"
         );
     }
     println!(
-        "parts  job {parts_job} ({n} array tasks), logs in {}",
-        parts.display()
+        "parts  job {} ({n} array tasks), logs in {parts}",
+        jobs.parts
     );
     println!(
-        "merge  job {merge_job} (after every part succeeds) -> {}",
-        output.display()
+        "merge  job {} (after every part succeeds) -> {}",
+        jobs.merge,
+        build.output.display()
     );
-    if !a.wait {
-        return Ok(());
+    if a.wait {
+        slurm::wait(&jobs, &build.parts, &build.output)?;
+        println!("merged {}", build.output.display());
     }
-    // Slurm reports a job cancelled for a failed dependency as ended, not failed (sbatch --wait
-    // returns 0): the states tell.
-    loop {
-        let m = job_states(&merge_job)?;
-        let state = m.first().map(|t| t.1.clone()).unwrap_or_default();
-        if RUNNING.contains(&state.as_str()) {
-            std::thread::sleep(std::time::Duration::from_millis(500));
-            continue;
-        }
-        if state == "COMPLETED" {
-            println!("merged {}", output.display());
-            return Ok(());
-        }
-        let mut failed = Vec::new();
-        for (job, what, log) in [
-            (scatter_job.as_deref(), "scatter task", "slurm-scatter-"),
-            (Some(parts_job.as_str()), "part", "slurm-"),
-        ] {
-            let Some(job) = job else { continue };
-            failed.extend(
-                job_states(job)?
-                    .into_iter()
-                    .filter(|t| t.1 != "COMPLETED" && !RUNNING.contains(&t.1.as_str()))
-                    .map(|(i, s, e)| {
-                        let i = i.unwrap_or_default();
-                        format!(
-                            "{what} {i} {s} (exit {e}; log {}/{log}{job}_{i}.out)",
-                            parts.display()
-                        )
-                    }),
-            );
-        }
-        if failed.is_empty() {
-            bail!(
-                "merge job {merge_job} {state}: see {}/slurm-merge-{merge_job}.out",
-                parts.display()
-            );
-        }
-        bail!(
-            "{}: not merged, merge job {merge_job} {state}: {}",
-            output.display(),
-            failed.join("; ")
-        );
-    }
+    Ok(())
 }

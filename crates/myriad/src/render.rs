@@ -3,6 +3,7 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
+use myriad_build::open::{Opened, Opener, Preview};
 use myriad_core::Aabb;
 use myriad_core::units::parse_floats;
 use myriad_format::Dataset;
@@ -28,17 +29,28 @@ pub struct RenderArgs {
     width: u32,
     #[arg(long, default_value_t = 720)]
     height: u32,
+    /// Eye-dome lighting: adds edl to --passes
+    #[arg(long)]
+    edl: bool,
+    /// Draw the first image there is without waiting: a LAS/LAZ scan whose dataset is not
+    /// built yet is drawn from a preview read without decoding it (the first point of each LAZ
+    /// chunk, LAS records at a stride), and not converted; a dataset as without it
+    #[arg(long, conflicts_with_all = ["stereo", "surface"])]
+    no_wait: bool,
+    /// Replace an existing output
+    #[arg(long)]
+    force: bool,
     /// Eye and target: EX,EY,EZ,TX,TY,TZ [default: the whole dataset from above at 45 degrees]
-    #[arg(long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
+    #[arg(help_heading = "Camera", long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     camera: Option<[f64; 6]>,
     /// One of the standard views instead of --camera: overview (the default), top, close
-    #[arg(long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
+    #[arg(help_heading = "Camera", long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
     view: Option<String>,
     /// Up direction
-    #[arg(long, value_parser = parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
+    #[arg(help_heading = "Camera", long, value_parser = parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
     up: [f64; 3],
     /// Vertical field of view in degrees
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(help_heading = "Camera", long, default_value_t = 60.0)]
     fov: f64,
     /// Most points drawn
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
@@ -46,90 +58,161 @@ pub struct RenderArgs {
     /// Draw every point of the dataset (the reference image)
     #[arg(long)]
     full: bool,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Colour")]
     colour: crate::measure::ColourArgs,
     /// Point size: fixed:PX, or adaptive (the spacing of the level of detail drawn, as seen)
-    #[arg(long, value_parser = parse_point_size, default_value = "adaptive")]
+    #[arg(help_heading = "Points and passes", long, value_parser = parse_point_size, default_value = "adaptive")]
     point_size: PointSize,
     /// Point shape: square, round, paraboloid
-    #[arg(long, value_parser = parse_shape, default_value = "square")]
+    #[arg(help_heading = "Points and passes", long, value_parser = parse_shape, default_value = "square")]
     shape: Shape,
     /// Post passes over the frame, comma-separated, run in the pipeline's order whatever the
     /// order given: fill (hole filling), shade (headlight on normals), ssao (ambient
     /// occlusion), edl (eye-dome lighting), blur, aa (2x2 supersampling); or none
-    #[arg(long, value_parser = parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
+    #[arg(help_heading = "Points and passes", long, value_parser = parse_passes, default_value = myriad_render::DEFAULT_PASSES)]
     passes: Passes,
-    /// Eye-dome lighting: adds edl to --passes
-    #[arg(long)]
-    edl: bool,
     /// Eye-dome lighting strength
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(help_heading = "Points and passes", long, default_value_t = 1.0)]
     edl_strength: f32,
     /// Eye-dome lighting radius in pixels
-    #[arg(long, default_value_t = 1.4)]
+    #[arg(help_heading = "Points and passes", long, default_value_t = 1.4)]
     edl_radius: f32,
     /// Draw only the points in this box: MINX,MINY,MINZ,MAXX,MAXY,MAXZ
-    #[arg(long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
+    #[arg(help_heading = "Clipping and filters", long, value_parser = parse_floats::<6>, allow_hyphen_values = true)]
     clip: Option<[f64; 6]>,
     /// With --clip: draw only the points outside the box
-    #[arg(long, requires = "clip")]
+    #[arg(help_heading = "Clipping and filters", long, requires = "clip")]
     clip_outside: bool,
     /// Rasterizer: compute (needs 64-bit atomics), quads, or cpu [default: compute on a
     /// hardware GPU, quads on one without 64-bit atomics; cpu without one]
-    #[arg(long = "raster", value_parser = parse_path)]
+    #[arg(help_heading = "Points and passes", long = "raster", value_parser = parse_path)]
     path: Option<Path>,
     /// Cull nodes hidden behind nearer ones: checked (the software test, each node it culls
     /// then queried against the frame: one that shows is drawn, frames repeated until the
     /// selection settles), software (a coarse depth buffer filled by the nodes already
     /// selected), queries (the nodes' boxes tested against each frame's depth, hardware
     /// occlusion queries on a GPU: they act from the next frame) or off
-    #[arg(long, value_parser = Occlusion::parse, default_value = "checked")]
+    #[arg(help_heading = "Level of detail and culling", long, value_parser = Occlusion::parse, default_value = "checked")]
     occlusion: Occlusion,
     /// mwkd datasets whose normals have a sign (the input's, or turned towards their scanners
     /// or flight lines): leave out nodes whose normal cones all face away (on), or draw them
     /// (off)
-    #[arg(long, value_parser = ["on", "off"], default_value = "on")]
+    #[arg(help_heading = "Level of detail and culling", long, value_parser = ["on", "off"], default_value = "on")]
     normal_cones: String,
     /// Cells per side of the occlusion depth buffer
-    #[arg(long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
+    #[arg(help_heading = "Level of detail and culling", long, default_value_t = myriad_lod::occlusion::DEFAULT_SIZE,
           value_parser = clap::value_parser!(u32).range(8..=1024))]
     occlusion_size: u32,
     /// Pixels a level's point spacing must cover to be drawn (1 or 2 are usual)
-    #[arg(long, value_parser = parse_lod_threshold, default_value = "1")]
+    #[arg(help_heading = "Level of detail and culling", long, value_parser = parse_lod_threshold, default_value = "1")]
     lod_threshold: f64,
     /// Stereo: the left and right eyes side by side, each --width x --height, from
     /// one selection for both eyes (single-pass on the CPU path)
-    #[arg(long, conflicts_with = "surface")]
+    #[arg(help_heading = "Stereo", long, conflicts_with = "surface")]
     stereo: bool,
     /// With --stereo: the distance between the eyes, in the dataset's units
-    #[arg(long, default_value_t = 0.064, requires = "stereo")]
+    #[arg(
+        help_heading = "Stereo",
+        long,
+        default_value_t = 0.064,
+        requires = "stereo"
+    )]
     ipd: f64,
     /// With --stereo: one frame per eye instead of one pass over the points for both
-    #[arg(long, requires = "stereo")]
+    #[arg(help_heading = "Stereo", long, requires = "stereo")]
     two_pass: bool,
     /// With --stereo: black out the pixels a headset's lens cannot show (outside the ellipse
     /// inscribed in each eye's image)
-    #[arg(long, requires = "stereo")]
+    #[arg(help_heading = "Stereo", long, requires = "stereo")]
     hidden_area: bool,
-    /// Draw the first image there is without waiting: a LAS/LAZ scan whose dataset is not
-    /// built yet is drawn from a preview read without decoding it (the first point of each LAZ
-    /// chunk, LAS records at a stride), and not converted; a dataset as without it
-    #[arg(long, conflicts_with_all = ["stereo", "surface"])]
-    no_wait: bool,
     /// Draw the surface the points make instead of the points: quads (cell-filling),
     /// boxes or splats, one per cell of a grid in the view frustum, lit by a headlight
-    #[arg(long, value_parser = myriad_render::surface::Kind::parse)]
+    #[arg(help_heading = "Surface", long, value_parser = myriad_render::surface::Kind::parse)]
     surface: Option<myriad_render::surface::Kind>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Surface")]
     surface_options: myriad_render::args::SurfaceArgs,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Clipping and filters")]
     filter: crate::measure::FilterArgs,
-    /// Replace an existing output
-    #[arg(long)]
-    force: bool,
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
+    check(&a)?;
+    let filter = a.filter.filter()?;
+    let surface = (a.surface.map(|k| a.surface_options.surface(k)).transpose())
+        .map_err(anyhow::Error::msg)?;
+    let t0 = Instant::now();
+    let (gpu, raster) = drawing_on(a.path)?;
+    let style = style_of(&a);
+    let preview = if a.no_wait {
+        Preview::Sample
+    } else {
+        Preview::None
+    };
+    let dataset = match crate::cached::open(&mut Opener::new(preview), &a.dataset)? {
+        Opened::Dataset(d) => d,
+        Opened::Preview(p) => {
+            return render_preview(&a, &p.files, &filter, &gpu, &raster, &style, t0);
+        }
+    };
+    let ds = Arc::new(Dataset::open(&dataset)?);
+    let options = SelectOptions {
+        budget: if a.full { u64::MAX } else { a.budget },
+        min_pixels: if a.full { 0.0 } else { a.lod_threshold },
+    };
+    let mut scene = scene_of(&a, &ds, &filter)?;
+    let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
+    if a.stereo {
+        return render_stereo(&a, &mut scene, &ds, (&gpu, &raster), &cam, &options, &style);
+    }
+    let still = myriad_render::still::draw(
+        &mut scene,
+        &gpu,
+        &raster,
+        &cam,
+        &options,
+        &style,
+        surface.as_ref(),
+        t0,
+    );
+    if let Some(s) = &still.surface {
+        print_surface(s);
+    }
+    // An image of two versions of a dataset replaced on its server is no image of either.
+    ds.check_unchanged()?;
+    write_png(&a.output, a.width, a.height, &still.image)?;
+    let damaged = warn_damage(&scene);
+    if let Some((requests, bytes)) = ds.fetched() {
+        println!(
+            "fetched {} bytes in {requests} range requests ({:.2} % of the dataset's {} bytes)",
+            myriad_core::units::thousands(bytes),
+            100.0 * bytes as f64 / ds.file_length.max(1) as f64,
+            myriad_core::units::thousands(ds.file_length)
+        );
+    }
+    let stats = &still.stats;
+    println!(
+        "{}: {} points in {} nodes ({} hidden nodes culled), {:.1} bytes a point in the point buffers ({:.1} read per drawn point), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
+        a.output.display(),
+        myriad_core::units::thousands(stats.points),
+        stats.nodes,
+        stats.culled,
+        stats.gpu_bytes as f64 / stats.gpu_points.max(1) as f64,
+        stats.read_bytes as f64 / stats.points.max(1) as f64,
+        still.frame.as_secs_f64() * 1e3,
+        still.first_image.as_secs_f64(),
+        still.converged.as_secs_f64(),
+        gpu.name,
+        raster.path,
+    );
+    // Every selected point drawn, but those of damaged pages.
+    debug_assert!(damaged > 0 || stats.points == still.selected_points);
+    full_image_whole(&a, damaged)
+}
+
+/// The options' values checked before anything is read: the output a PNG that is not an
+/// input (nor there, without --force), the image's size, the field of view, the clipping box,
+/// eye-dome lighting's strength and radius.
+fn check(a: &RenderArgs) -> Result<()> {
     if !a
         .output
         .extension()
@@ -161,23 +244,21 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if !(a.edl_radius >= 0.5 && a.edl_radius <= 32.0) {
         bail!("--edl-radius must be from 0.5 to 32 pixels");
     }
-    let filter = a.filter.filter()?;
-    let surface = a
-        .surface
-        .map(|k| a.surface_options.surface(k))
-        .transpose()
-        .map_err(anyhow::Error::msg)?;
-    let t0 = Instant::now();
-    let (gpu, why) = match a.path {
+    Ok(())
+}
+
+/// The device and rasterizer `--raster` asks for: the CPU; any adapter (a software one too)
+/// for a GPU path; by default the best there is, else the CPU with a warning saying why.
+fn drawing_on(path: Option<Path>) -> Result<(Gpu, Rasterizer)> {
+    let (gpu, why) = match path {
         Some(Path::Cpu) => (Gpu::cpu(), None),
-        // A GPU path asked for: any adapter, a software one too.
         Some(_) => (Gpu::headless().map_err(anyhow::Error::msg)?, None),
         None => Gpu::best(),
     };
     if let Some(why) = why {
         eprintln!("warning: {why}: drawing on the CPU");
     }
-    let raster = match a.path {
+    let raster = match path {
         Some(Path::Compute) if !gpu.atomics => bail!(
             "{}: no 64-bit atomics, so no compute path (--raster quads or cpu)",
             gpu.name
@@ -185,7 +266,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(p) => Rasterizer::with_path(&gpu, p),
         None => Rasterizer::new(&gpu),
     };
-    let style = Style {
+    Ok((gpu, raster))
+}
+
+/// How points are drawn: size, shape, post passes (`--edl` adding eye-dome lighting) and the
+/// clipping box.
+fn style_of(a: &RenderArgs) -> Style {
+    Style {
         size: a.point_size,
         shape: a.shape,
         passes: Passes {
@@ -200,176 +287,95 @@ pub fn run(a: RenderArgs) -> Result<()> {
             bounds: Aabb::new([c[0], c[1], c[2]], [c[3], c[4], c[5]]),
             inside: !a.clip_outside,
         }),
-    };
-    if a.no_wait && myriad_build::cached::existing(&a.dataset).is_none() {
-        let files = myriad_build::cached::inputs_of(&a.dataset)?;
-        let mut other = None;
-        for f in &files {
-            match myriad_io::detect(f)? {
-                myriad_io::Format::Las | myriad_io::Format::Laz => {}
-                k => other = Some(k),
-            }
-        }
-        match other {
-            None => return render_preview(&a, &files, &filter, &gpu, &raster, &style, t0),
-            Some(f) => eprintln!(
-                "warning: {}: no preview of {} files: converting it first",
-                a.dataset.display(),
-                f.name()
-            ),
-        }
     }
-    let ds = Arc::new(Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?);
-    let options = SelectOptions {
-        budget: if a.full { u64::MAX } else { a.budget },
-        min_pixels: if a.full { 0.0 } else { a.lod_threshold },
-    };
-    // Caches as the viewer's: 2 GiB of decoded points, 1 GiB on the GPU (what a frame uses is
-    // kept even beyond them).
+}
+
+/// The scene of `ds` as the options ask: its points filtered, coloured, culled. Caches as the
+/// viewer's: 2 GiB of decoded points, 1 GiB on the GPU (what a frame uses is kept even beyond
+/// them). A damaged root hierarchy page (the only one read before drawing) leaves nothing to
+/// draw; damage below is reported as the view reaches it.
+fn scene_of(a: &RenderArgs, ds: &Arc<Dataset>, filter: &myriad_measure::Filter) -> Result<Scene> {
     let bound = filter.bind(&ds.meta.schema).map_err(anyhow::Error::msg)?;
     let mut scene = Scene::open_filtered(ds.clone(), bound, 2 << 30, 1 << 30);
-    // The root's hierarchy page (the only one read before drawing) damaged: nothing can be
-    // drawn. Pages below are read as the view reaches them; damage there is reported below.
     if scene.hierarchy.pages() == 0
         && let Err(d) = ds.hierarchy_page(&ds.root_page())
     {
         bail!("{} (nothing left to draw)", ds.damage_error(&d));
     }
-    scene.set_colour(a.colour.for_dataset(&ds)?);
+    scene.set_colour(a.colour.for_dataset(ds)?);
     scene.occlusion = a.occlusion;
     scene.occlusion_size = a.occlusion_size;
     if a.normal_cones == "off" {
         std::sync::Arc::make_mut(&mut scene.hierarchy).cull_backfaces = false;
     }
-    let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
-    if a.stereo {
-        if !(a.ipd >= 0.0 && a.ipd.is_finite()) {
-            bail!("--ipd must be a distance of 0 or more");
-        }
-        let eyes = cam.eyes(a.ipd);
-        let stereo = myriad_render::stereo::Stereo {
-            ipd: a.ipd,
-            single_pass: !a.two_pass,
-            hidden_area: a.hidden_area,
-        };
-        scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, &options, style.clip));
-        let t = Instant::now();
-        let (img, stats) =
-            scene.frame_stereo(&gpu, &raster, &eyes, &options, &style, &stereo, None);
-        let frame = t.elapsed();
-        ds.check_unchanged()?;
-        write_png(&a.output, 2 * a.width, a.height, &img)?;
-        let damaged = warn_damage(&scene);
-        println!(
-            "{}: both eyes side by side ({}x{} each, {} apart): {} points in {} nodes, frame {:.1} ms ({}, {:?} path, {})",
-            a.output.display(),
-            a.width,
-            a.height,
-            a.ipd,
-            myriad_core::units::thousands(stats.points),
-            stats.nodes,
-            frame.as_secs_f64() * 1e3,
-            gpu.name,
-            raster.path,
-            if a.two_pass || raster.path != Path::Cpu {
-                "two passes"
-            } else {
-                "single pass"
-            },
-        );
-        return full_image_whole(&a, damaged);
-    }
-    // First image: as soon as the first selected node (the root) is in.
-    let first = scene.update(&cam, &options);
-    if let Some(root) = first.nodes.first() {
-        let l = &mut scene.loader;
-        while !l.is_resident(&root.key) && !l.failed().contains_key(&root.key) {
-            if l.poll() == 0 {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
-        }
-    }
-    scene.frame(&gpu, &raster, &cam, &options, &style);
-    let first_image = t0.elapsed();
+    Ok(scene)
+}
 
-    let mut selection = scene.converge(&cam, &options, style.clip);
-    scene.frame(&gpu, &raster, &cam, &options, &style);
-    // Occlusion queries act from the frame after theirs: draw until the selection settles.
-    let mut settled = None;
-    for _ in 0..(if scene.occlusion.queries() { 12 } else { 0 }) {
-        selection = scene.converge(&cam, &options, style.clip);
-        let (_, s) = scene.frame(&gpu, &raster, &cam, &options, &style);
-        if settled == Some((s.nodes, s.culled, s.points)) {
-            break;
-        }
-        settled = Some((s.nodes, s.culled, s.points));
+/// `render --stereo`: both eyes side by side from one selection.
+fn render_stereo(
+    a: &RenderArgs,
+    scene: &mut Scene,
+    ds: &Dataset,
+    (gpu, raster): (&Gpu, &Rasterizer),
+    cam: &Camera,
+    options: &SelectOptions,
+    style: &Style,
+) -> Result<()> {
+    if !(a.ipd >= 0.0 && a.ipd.is_finite()) {
+        bail!("--ipd must be a distance of 0 or more");
     }
-    let converged = t0.elapsed();
-    // The frame as a viewer would draw it now: selection, cache lookups, drawing, readback.
+    let eyes = cam.eyes(a.ipd);
+    let stereo = myriad_render::stereo::Stereo {
+        ipd: a.ipd,
+        single_pass: !a.two_pass,
+        hidden_area: a.hidden_area,
+    };
+    scene.converge_with(&|s: &Scene| s.select_eyes(&eyes, options, style.clip));
     let t = Instant::now();
-    let (mut img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+    let (img, stats) = scene.frame_stereo(gpu, raster, &eyes, options, style, &stereo, None);
     let frame = t.elapsed();
-    if let Some(s) = &surface {
-        // The surface of the points that frame drew, in their place.
-        let t = Instant::now();
-        let (points, colours) = myriad_render::surface::drawn_points(&scene, style.clip);
-        // Cluster, move and reduce on the GPU where the frame was drawn on one.
-        let built = myriad_render::surface::Built::on(&gpu, &cam, &points, &colours, s)
-            .unwrap_or_else(|why| {
-                eprintln!("warning: {why}: the surface is made on the CPU");
-                myriad_render::surface::Built::new(&cam, &points, &colours, s)
-            });
-        let made = t.elapsed();
-        let t = Instant::now();
-        img = if gpu.is_cpu() {
-            myriad_render::surface::draw(&cam, &built.mesh, &style)
-        } else {
-            myriad_render::surface::Drawer::new(&gpu).draw_built(&gpu, &cam, &built, &style)
-        };
-        let c = &built.clustering;
-        println!(
-            "surface: {} cells ({} triangles) from {} points in view ({} moved); cluster {:.1} ms, move {:.1} ms, reduce {:.1} ms, reconstruct {:.1} ms, made in {:.1} ms, drawn in {:.1} ms",
-            myriad_core::units::thousands(c.cells.len() as u64),
-            myriad_core::units::thousands(built.mesh.triangles.len() as u64),
-            myriad_core::units::thousands(c.inside as u64),
-            myriad_core::units::thousands(c.moved as u64),
-            c.cluster.as_secs_f64() * 1e3,
-            c.moving.as_secs_f64() * 1e3,
-            c.reduce.as_secs_f64() * 1e3,
-            built.reconstruct.as_secs_f64() * 1e3,
-            made.as_secs_f64() * 1e3,
-            t.elapsed().as_secs_f64() * 1e3,
-        );
-    }
-    // An image of two versions of a dataset replaced on its server is no image of either.
     ds.check_unchanged()?;
-    write_png(&a.output, a.width, a.height, &img)?;
-    let damaged = warn_damage(&scene);
-    if let Some((requests, bytes)) = ds.fetched() {
-        println!(
-            "fetched {} bytes in {requests} range requests ({:.2} % of the dataset's {} bytes)",
-            myriad_core::units::thousands(bytes),
-            100.0 * bytes as f64 / ds.file_length.max(1) as f64,
-            myriad_core::units::thousands(ds.file_length)
-        );
-    }
+    write_png(&a.output, 2 * a.width, a.height, &img)?;
+    let damaged = warn_damage(scene);
     println!(
-        "{}: {} points in {} nodes ({} hidden nodes culled), {:.1} bytes a point in the point buffers ({:.1} read per drawn point), frame {:.1} ms, first image after {:.2} s, converged after {:.2} s ({}, {:?} path)",
+        "{}: both eyes side by side ({}x{} each, {} apart): {} points in {} nodes, frame {:.1} ms ({}, {:?} path, {})",
         a.output.display(),
+        a.width,
+        a.height,
+        a.ipd,
         myriad_core::units::thousands(stats.points),
         stats.nodes,
-        stats.culled,
-        stats.gpu_bytes as f64 / stats.gpu_points.max(1) as f64,
-        stats.read_bytes as f64 / stats.points.max(1) as f64,
         frame.as_secs_f64() * 1e3,
-        first_image.as_secs_f64(),
-        converged.as_secs_f64(),
         gpu.name,
         raster.path,
+        if a.two_pass || raster.path != Path::Cpu {
+            "two passes"
+        } else {
+            "single pass"
+        },
     );
-    // Every selected point drawn, but those of damaged pages.
-    debug_assert!(damaged > 0 || stats.points == selection.points);
-    full_image_whole(&a, damaged)
+    full_image_whole(a, damaged)
+}
+
+/// What making and drawing the surface took.
+fn print_surface(s: &myriad_render::still::SurfaceDrawn) {
+    if let Some(why) = &s.on_cpu {
+        eprintln!("warning: {why}: the surface is made on the CPU");
+    }
+    let (c, built) = (&s.built.clustering, &s.built);
+    println!(
+        "surface: {} cells ({} triangles) from {} points in view ({} moved); cluster {:.1} ms, move {:.1} ms, reduce {:.1} ms, reconstruct {:.1} ms, made in {:.1} ms, drawn in {:.1} ms",
+        myriad_core::units::thousands(c.cells.len() as u64),
+        myriad_core::units::thousands(built.mesh.triangles.len() as u64),
+        myriad_core::units::thousands(c.inside as u64),
+        myriad_core::units::thousands(c.moved as u64),
+        c.cluster.as_secs_f64() * 1e3,
+        c.moving.as_secs_f64() * 1e3,
+        c.reduce.as_secs_f64() * 1e3,
+        built.reconstruct.as_secs_f64() * 1e3,
+        s.made.as_secs_f64() * 1e3,
+        s.drawn.as_secs_f64() * 1e3,
+    );
 }
 
 /// `render --no-wait` of a LAS/LAZ scan, or a folder of tiles, without its dataset: its preview

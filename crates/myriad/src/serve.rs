@@ -3,10 +3,12 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use myriad_build::open::{Opened, Opener, Pending, Preview};
 use myriad_serve::{Catalog, Kind, Options, Server, href};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 #[derive(Args)]
 pub struct ServeArgs {
@@ -22,16 +24,16 @@ pub struct ServeArgs {
     #[arg(long)]
     open: bool,
     /// Connections served at once (when full, the one idle the longest is closed for a new one)
-    #[arg(long, default_value_t = 512)]
+    #[arg(help_heading = "Limits", long, default_value_t = 512)]
     max_connections: usize,
     /// Seconds a client has from connecting to send its first request
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(help_heading = "Limits", long, default_value_t = 10.0)]
     header_timeout: f64,
     /// Seconds after which a connection on which nothing moves is closed
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(help_heading = "Limits", long, default_value_t = 30.0)]
     idle_timeout: f64,
     /// Most points a box download (/x/) may hold; a larger box is answered 413
-    #[arg(long, default_value_t = 20_000_000)]
+    #[arg(help_heading = "Limits", long, default_value_t = 20_000_000)]
     max_box_points: u64,
     /// Print a line on stderr for each request: method, path, range, status, bytes
     #[arg(long)]
@@ -43,20 +45,40 @@ pub struct ServeArgs {
     /// Serve privately: only requests with one of this file's tokens (one a line, 16
     /// characters or more) as "Authorization: Bearer TOKEN", the cookie of the one-time link
     /// printed at start, or a signed link (--sign)
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Privacy", long, value_name = "FILE")]
     token_file: Option<PathBuf>,
     /// Print a link to URL (http://HOST:PORT/view/NAME or /d/NAME) signed with --token-file's
     /// key, good until --expires, and exit
-    #[arg(long, value_name = "URL", requires = "token_file")]
+    #[arg(
+        help_heading = "Privacy",
+        long,
+        value_name = "URL",
+        requires = "token_file"
+    )]
     sign: Option<String>,
     /// How long a signed link holds: 90s, 30m, 24h, 7d
-    #[arg(long, default_value = "24h", requires = "sign")]
+    #[arg(
+        help_heading = "Privacy",
+        long,
+        default_value = "24h",
+        requires = "sign"
+    )]
     expires: String,
     /// Serve HTTPS with this certificate chain (PEM; with --tls-key)
-    #[arg(long, value_name = "CERT.pem", requires = "tls_key")]
+    #[arg(
+        help_heading = "Privacy",
+        long,
+        value_name = "CERT.pem",
+        requires = "tls_key"
+    )]
     tls_cert: Option<PathBuf>,
     /// The private key of --tls-cert (PEM)
-    #[arg(long, value_name = "KEY.pem", requires = "tls_cert")]
+    #[arg(
+        help_heading = "Privacy",
+        long,
+        value_name = "KEY.pem",
+        requires = "tls_cert"
+    )]
     tls_key: Option<PathBuf>,
 }
 
@@ -94,22 +116,112 @@ fn signed(access: &myriad_serve::access::Access, url: &str, expires: &str) -> Re
     })
 }
 
-/// Whether a folder is one scan cut into LAS/LAZ tiles (served as one dataset made of them)
-/// rather than a folder to serve as it is: an export (Potree's metadata.json, a 3D Tiles
-/// tileset.json) or COPC files, which clients read directly.
-fn is_tile_folder(dir: &std::path::Path) -> bool {
-    if ["metadata.json", "tileset.json", "hierarchy.bin"]
-        .iter()
-        .any(|f| dir.join(f).exists())
-    {
-        return false;
+/// The catalog of what `inputs` serve, and the scans served before their datasets, to build.
+/// Datasets, COPC files and folders of exported files as they are (a dataset or COPC file on S3
+/// or a web server read from there); any other scan as a dataset made from it (kept for next
+/// time), named after it (a folder of tiles after the folder: `tiles/` -> tiles.myr). A LAS/LAZ
+/// scan (or folder of tiles) without its dataset is served at once: its preview, then its build
+/// as it goes, then its dataset.
+fn catalog_of(inputs: &[PathBuf], opener: &mut Opener) -> Result<(Catalog, Vec<Building>)> {
+    let mut catalog = Catalog::default();
+    let mut to_build = Vec::new();
+    for input in inputs {
+        if myriad_build::open::served_as_is(input) {
+            catalog.add_input(input)?;
+            continue;
+        }
+        let stem = if input.is_dir() {
+            input.file_name()
+        } else {
+            input.file_stem()
+        };
+        let name = format!("{}.myr", stem.unwrap_or_default().to_string_lossy());
+        match crate::cached::open(opener, input)? {
+            Opened::Dataset(ds) => catalog.add_file_as(&name, &ds, input)?,
+            Opened::Preview(pending) => {
+                let preview = (pending.preview.as_ref()).context("a preview without a dataset")?;
+                let live = myriad_serve::live::Live::new(preview);
+                catalog.add_live(&name, live.clone(), preview, input)?;
+                eprintln!(
+                    "{}: serving its preview while its dataset is built",
+                    input.display()
+                );
+                to_build.push((pending, live));
+            }
+        }
     }
-    myriad_build::cached::inputs_of(dir).is_ok_and(|tiles| {
-        !tiles.iter().any(|t| {
-            t.file_name()
-                .is_some_and(|n| n.to_string_lossy().to_lowercase().ends_with(".copc.laz"))
-        })
-    })
+    Ok((catalog, to_build))
+}
+
+/// A scan served before its dataset, and what serves it meanwhile.
+type Building = (Pending, Arc<myriad_serve::live::Live>);
+
+/// Builds the scans served before their datasets, one after another, each served as it goes.
+fn build_served(to_build: Vec<Building>) {
+    for (pending, live) in to_build {
+        let g = myriad_build::growing::Growing::new(myriad_build::growing::DEFAULT_EVERY);
+        live.building(g.clone());
+        match crate::cached::build(&pending, Some(g)) {
+            Ok(d) => {
+                live.ended(Some(d));
+                eprintln!(
+                    "{}: its dataset is built, served from now on",
+                    pending.scan.display()
+                );
+            }
+            Err(e) => {
+                live.ended(None);
+                eprintln!("error: {e:#} (what is served stays)");
+            }
+        }
+    }
+}
+
+/// A number of seconds given as `flag`, checked.
+fn seconds(s: f64, flag: &str) -> Result<std::time::Duration> {
+    if !(s.is_finite() && s > 0.0 && s <= 86_400.0) {
+        anyhow::bail!("{flag} must be a number of seconds from 0 to 86400");
+    }
+    Ok(std::time::Duration::from_secs_f64(s))
+}
+
+/// What the server's first lines say: each file's address, the viewer's for datasets, and how a
+/// browser signs in to a private server.
+fn print_addresses(server: &Server, names: &[(String, Kind, u64)], base: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "serving {} files on {base}/", names.len())?;
+    for (n, kind, len) in names {
+        writeln!(
+            out,
+            "  {base}/d/{} ({} bytes)",
+            href(n),
+            myriad_core::units::thousands(*len)
+        )?;
+        if *kind == Kind::Dataset {
+            writeln!(out, "    in the browser: {base}/view/{}", href(n))?;
+        }
+    }
+    if let Some(login) = server.one_time_link() {
+        writeln!(
+            out,
+            "private: requests need a token from the token file; a browser signs in once with {base}{login}"
+        )?;
+    }
+    writeln!(out, "stop with Ctrl-C")?;
+    out.flush()?;
+    Ok(())
+}
+
+/// The desktop's browser, where there is one, on the first dataset (else the index); the
+/// server runs on either way.
+fn open_browser(names: &[(String, Kind, u64)], base: &str) {
+    let page = match names.iter().find(|(_, kind, _)| *kind == Kind::Dataset) {
+        Some((n, _, _)) => format!("{base}/view/{}", href(n)),
+        None => format!("{base}/"),
+    };
+    if let Err(e) = std::process::Command::new("xdg-open").arg(&page).spawn() {
+        eprintln!("warning: could not open a browser ({e}); open {page}");
+    }
 }
 
 pub fn run(a: ServeArgs) -> Result<()> {
@@ -130,69 +242,12 @@ pub fn run(a: ServeArgs) -> Result<()> {
             a.bind
         );
     }
-    // Datasets, COPC files and folders as they are; any other scan as a dataset made from it
-    // (kept for next time), named after it. A LAS/LAZ scan (or folder of tiles) without its
-    // dataset is served at once: its preview, then its build as it goes, then its dataset.
-    let mut catalog = Catalog::default();
-    let (mut to_build, mut scratch) = (Vec::new(), None);
-    myriad_io::claim::remove_stale_folders(&std::env::temp_dir(), "myriad-preview-");
-    for input in &a.inputs {
-        // A dataset or COPC file on S3 or a web server: served as it is, read from there.
-        if myriad_format::remote::is_url(input) {
-            catalog.add_input(input)?;
-            continue;
-        }
-        let name = input
-            .file_name()
-            .map(|n| n.to_string_lossy().to_lowercase());
-        let tiles = input.is_dir() && is_tile_folder(input);
-        let raw = (input.is_dir() && !tiles)
-            || myriad_format::is_dataset(input)
-            || name.is_some_and(|n| n.ends_with(".copc.laz"));
-        if raw {
-            catalog.add_input(input)?;
-            continue;
-        }
-        // A folder of tiles is named after the folder (`tiles/` -> tiles.myr).
-        let stem = if tiles {
-            input.file_name()
-        } else {
-            input.file_stem()
-        };
-        let name = format!("{}.myr", stem.unwrap_or_default().to_string_lossy());
-        if myriad_build::cached::existing(input).is_none() && crate::cached::previewable(input)? {
-            if scratch.is_none() {
-                scratch = Some(myriad_io::claim::Folder::create(
-                    &std::env::temp_dir(),
-                    "myriad-preview-",
-                )?);
-            }
-            let dir =
-                (scratch.as_ref().expect("made above").path()).join(to_build.len().to_string());
-            std::fs::create_dir_all(&dir).with_context(|| format!("{}", dir.display()))?;
-            let preview = myriad_build::cached::preview_dataset(input, &dir)?;
-            let live = myriad_serve::live::Live::new(&preview);
-            catalog.add_live(&name, live.clone(), &preview, input)?;
-            eprintln!(
-                "{}: serving its preview while its dataset is built",
-                input.display()
-            );
-            to_build.push((input.clone(), live));
-            continue;
-        }
-        let ds = crate::cached::dataset_for(input)?;
-        catalog.add_file_as(&name, &ds, input)?;
-    }
+    let mut opener = Opener::new(Preview::Dataset);
+    let (catalog, to_build) = catalog_of(&a.inputs, &mut opener)?;
     let names: Vec<(String, Kind, u64)> = catalog
         .names()
         .map(|(n, kind, len)| (n.to_string(), kind, len))
         .collect();
-    let seconds = |s: f64, flag: &str| -> Result<std::time::Duration> {
-        if !(s.is_finite() && s > 0.0 && s <= 86_400.0) {
-            anyhow::bail!("{flag} must be a number of seconds from 0 to 86400");
-        }
-        Ok(std::time::Duration::from_secs_f64(s))
-    };
     let server = Server::start_with(
         catalog,
         a.bind,
@@ -211,61 +266,13 @@ pub fn run(a: ServeArgs) -> Result<()> {
     )
     .with_context(|| format!("cannot listen on {}", a.bind))?;
     let base = format!("{scheme}://{}", server.addr);
-    let mut out = std::io::stdout().lock();
-    writeln!(out, "serving {} files on {base}/", names.len())?;
-    for (n, kind, len) in &names {
-        writeln!(
-            out,
-            "  {base}/d/{} ({} bytes)",
-            href(n),
-            myriad_core::units::thousands(*len)
-        )?;
-        if *kind == Kind::Dataset {
-            writeln!(out, "    in the browser: {base}/view/{}", href(n))?;
-        }
-    }
-    if private && let Some(login) = server.one_time_link() {
-        writeln!(
-            out,
-            "private: requests need a token from the token file; a browser signs in once with {base}{login}"
-        )?;
-    }
-    writeln!(out, "stop with Ctrl-C")?;
-    out.flush()?;
-    drop(out);
-    // The scans served before their datasets: built one after another, each served as it goes.
-    std::thread::spawn(move || {
-        for (scan, live) in to_build {
-            let g = myriad_build::growing::Growing::new(myriad_build::growing::DEFAULT_EVERY);
-            live.building(g.clone());
-            match crate::cached::dataset_growing(&scan, g) {
-                Ok(d) => {
-                    live.ended(Some(d));
-                    eprintln!(
-                        "{}: its dataset is built, served from now on",
-                        scan.display()
-                    );
-                }
-                Err(e) => {
-                    live.ended(None);
-                    eprintln!("error: {e:#} (what is served stays)");
-                }
-            }
-        }
-    });
+    print_addresses(&server, &names, &base)?;
+    std::thread::spawn(move || build_served(to_build));
     if a.open {
-        // The desktop's browser, where there is one, on the first dataset (else the index);
-        // the server runs on either way.
-        let page = match names.iter().find(|(_, kind, _)| *kind == Kind::Dataset) {
-            Some((n, _, _)) => format!("{base}/view/{}", href(n)),
-            None => format!("{base}/"),
-        };
-        if let Err(e) = std::process::Command::new("xdg-open").arg(&page).spawn() {
-            eprintln!("warning: could not open a browser ({e}); open {page}");
-        }
+        open_browser(&names, &base);
     }
-    // Until Ctrl-C or SIGTERM; the server's temporary files go with it.
+    // Until Ctrl-C or SIGTERM; the server's temporary files (and the previews') go with it.
     server.wait();
-    drop(scratch);
+    drop(opener);
     Ok(())
 }

@@ -13,15 +13,19 @@
 //! tops as `convert` does: the result has the same nodes with the same points, page for page, as
 //! `convert --plan` on one machine. Which LAZ chunks each part reads: `chunks.rs`; the chunks
 //! that several parts read decompressed once, before the parts (the exchange): `exchange.rs`;
-//! the merge: `merge.rs`.
+//! the merge: `merge.rs`; what the drivers that run parts elsewhere need of a plan (an array
+//! task's part, the byte ranges a part reads): `driver.rs`; the Slurm driver: `slurm.rs`.
 //!
 //! Octree and layered structures only: kd and mwkd trees group chunks across the whole scan.
 
 mod chunks;
+mod driver;
 mod exchange;
 mod merge;
+pub mod slurm;
 mod tops;
 
+pub use driver::{part_index, ranges_read};
 pub use exchange::{ScatterSummary, exchange_dir, scatter};
 pub use merge::{MergeSummary, merge};
 
