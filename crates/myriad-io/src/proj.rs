@@ -110,10 +110,12 @@ fn load() -> Result<Api, String> {
         .map(String::from)
         .to_vec(),
     };
-    // SAFETY: loading PROJ runs its initialisers, which only set up its own state.
     let mut why = String::new();
     let lib = names
         .iter()
+        // SAFETY: loading PROJ runs its initialisers, which only set up its own state (no
+        // callbacks into this process, no global state of ours touched); the library is kept
+        // loaded for the rest of the process, in `Api`, so nothing it gave out dangles.
         .find_map(|n| match unsafe { libloading::Library::new(n) } {
             Ok(l) => Some(l),
             Err(e) => {
@@ -181,6 +183,8 @@ impl Context {
         }
         // Quiet (PROJ logs errors to stderr itself) and offline: a transform uses the grids
         // installed, never a download in the middle of a build.
+        // SAFETY: `ptr` is the non-null context just made, not yet shared with anything or
+        // any thread; both setters take a context and plain integers and keep no pointer.
         unsafe {
             (api.log_level)(ptr, 0);
             (api.context_set_enable_network)(ptr, 0);
@@ -206,7 +210,13 @@ impl Drop for Context {
 }
 
 /// A string PROJ returned (owned by PROJ), copied.
+///
+/// # Safety
+/// `s` is null or a NUL-terminated string that PROJ keeps valid during this call (callers pass
+/// what PROJ just returned, before any other call on the object or context that owns it).
 unsafe fn text(s: Str) -> Option<String> {
+    // SAFETY: `s` is not null here, and by this function's contract points to a NUL-terminated
+    // string valid while it is copied.
     (!s.is_null()).then(|| unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned())
 }
 
@@ -230,9 +240,13 @@ impl Object {
         self.ctx.api
     }
     fn kind(&self) -> c_int {
+        // SAFETY: `self.ptr` is a non-null PJ (checked in `wrap`) not yet destroyed (only Drop
+        // does that), used by the one thread that holds this value (Object is not Sync).
         unsafe { (self.api().get_type)(self.ptr) }
     }
     fn name(&self) -> Option<String> {
+        // SAFETY: a live PJ as in `kind`; the name PROJ returns (or null) belongs to the object,
+        // which outlives this call, and `text` copies it before anything else touches it.
         unsafe { text((self.api().get_name)(self.ptr)) }
     }
     fn derived(&self, ptr: *mut Pj, what: &str) -> Result<Object, String> {
@@ -300,6 +314,9 @@ impl Crs {
             CString::new(def).map_err(|_| "a coordinate system has no NUL bytes".to_string())?;
         let obj = Object::wrap(
             ctx,
+            // SAFETY: `ctx.ptr` is a live context (the Rc keeps it until its objects are gone);
+            // `c` is NUL-terminated and lives past the call, which copies what it needs. The new
+            // PJ (or null) is owned by `wrap`, which destroys it once.
             unsafe { (ctx.api.create)(ctx.ptr, c.as_ptr()) },
             &short(def),
         )?;
@@ -313,6 +330,8 @@ impl Crs {
         }
         let source = (obj.kind() == BOUND)
             .then(|| {
+                // SAFETY: `obj` is a live PJ of the live context `obj.ctx`; PROJ returns a new
+                // object (or null), owned from here on by `derived` and destroyed once.
                 let p = unsafe { (obj.api().get_source_crs)(obj.ctx.ptr, obj.ptr) };
                 obj.derived(p, "the bound CRS's source").ok()
             })
@@ -329,6 +348,8 @@ impl Crs {
     pub fn horizontal_kind(&self) -> Kind {
         let o = self.core();
         let k = if o.kind() == COMPOUND {
+            // SAFETY: `o` is a live compound CRS of its live context; the part PROJ returns for
+            // index 0 (or null) is a new object owned by `derived`, destroyed once.
             let p = unsafe { (o.api().crs_get_sub_crs)(o.ctx.ptr, o.ptr, 0) };
             match o.derived(p, "horizontal part") {
                 Ok(h) => h.kind(),
@@ -357,7 +378,10 @@ impl Crs {
     /// "EPSG:n" where the definition carries that identifier.
     pub fn code(&self) -> Option<String> {
         let o = &self.obj;
+        // SAFETY: `o` is a live PJ; the identifier strings (or null) belong to it, outlive
+        // these calls, and `text` copies each before the next call.
         let auth = unsafe { text((o.api().get_id_auth_name)(o.ptr, 0)) }?;
+        // SAFETY: as above.
         let code = unsafe { text((o.api().get_id_code)(o.ptr, 0)) }?;
         Some(format!("{auth}:{code}"))
     }
@@ -368,7 +392,11 @@ impl Crs {
         let one_line = c"MULTILINE=NO";
         let options = [one_line.as_ptr(), std::ptr::null()];
         for kind in [WKT1_GDAL, WKT2_2019] {
+            // SAFETY: live context and PJ; `options` is a null-terminated list of pointers to a
+            // 'static NUL-terminated literal, alive across the call. The WKT returned (or null)
+            // belongs to `o` and stays valid until the next call on it.
             let s = unsafe { (o.api().as_wkt)(o.ctx.ptr, o.ptr, kind, options.as_ptr()) };
+            // SAFETY: `s` is what PROJ just returned, still valid; copied at once.
             if let Some(t) = unsafe { text(s) } {
                 return Ok(t);
             }
@@ -379,7 +407,10 @@ impl Crs {
     /// The PROJ.4 string of the horizontal part (what proj4js, and Potree's map, read).
     pub fn proj4(&self) -> Result<String, String> {
         let o = &self.obj;
+        // SAFETY: live context and PJ; null is PROJ's "no options". The string returned (or
+        // null) belongs to `o` and stays valid until the next call on it.
         let s = unsafe { (o.api().as_proj_string)(o.ctx.ptr, o.ptr, PROJ_4, std::ptr::null()) };
+        // SAFETY: `s` is what PROJ just returned, still valid; copied at once.
         let s = unsafe { text(s) }
             .ok_or_else(|| format!("{}: PROJ cannot write it as a PROJ string", self.name()))?;
         Ok(s.replace(" +type=crs", "").trim().to_string())
@@ -392,6 +423,8 @@ impl Crs {
         let parts: Vec<Object> = if o.kind() == COMPOUND {
             (0..2)
                 .map(|i| {
+                    // SAFETY: `o` is a live compound CRS of its live context; each part PROJ
+                    // returns (or null) is a new object owned by `derived`, destroyed once.
                     let p = unsafe { (o.api().crs_get_sub_crs)(o.ctx.ptr, o.ptr, i) };
                     o.derived(p, "part of a compound CRS")
                 })
@@ -405,13 +438,20 @@ impl Crs {
             parts.iter().collect()
         };
         for part in list {
+            // SAFETY: `part` is a live CRS of its live context; the coordinate system returned
+            // (or null) is a new object owned by `derived`, destroyed once.
             let cs = unsafe { (part.api().crs_get_coordinate_system)(part.ctx.ptr, part.ptr) };
             let cs = part.derived(cs, "coordinate system")?;
+            // SAFETY: `cs` is a live, non-null coordinate system of its live context.
             let n = unsafe { (cs.api().cs_get_axis_count)(cs.ctx.ptr, cs.ptr) };
             for i in 0..n.max(0) {
                 let mut factor = 0.0;
                 let mut unit: Str = std::ptr::null();
                 let null = std::ptr::null_mut();
+                // SAFETY: live context and coordinate system, `i` below its axis count; PROJ
+                // writes only through the out-pointers that are not null (it allows null for
+                // each), here `factor` and `unit`, locals that outlive the call. The unit name
+                // belongs to `cs`, which lives to the end of this loop's body.
                 let ok = unsafe {
                     (cs.api().cs_get_axis_info)(
                         cs.ctx.ptr,
@@ -429,6 +469,7 @@ impl Crs {
                 if ok == 0 {
                     return Err(format!("{}: axis {i}: {}", self.name(), cs.ctx.error()));
                 }
+                // SAFETY: `unit` is null or the name PROJ just set, owned by the live `cs`.
                 let name = unsafe { text(unit) }
                     .unwrap_or_default()
                     .to_ascii_lowercase();
@@ -443,9 +484,13 @@ impl Crs {
     /// The ellipsoid's semi-major axis and inverse flattening (0 for a sphere).
     pub fn ellipsoid(&self) -> Result<(f64, f64), String> {
         let o = &self.obj;
+        // SAFETY: live context and PJ; the ellipsoid returned (or null) is a new object owned
+        // by `derived`, destroyed once.
         let e = unsafe { (o.api().get_ellipsoid)(o.ctx.ptr, o.ptr) };
         let e = o.derived(e, "ellipsoid")?;
         let (mut a, mut b, mut computed, mut inv_f) = (0.0, 0.0, 0, 0.0);
+        // SAFETY: live context and ellipsoid; the four out-pointers are locals of the types
+        // proj.h gives (double, double, int, double), alive across the call; PROJ keeps none.
         let ok = unsafe {
             (e.api().ellipsoid_get_parameters)(
                 e.ctx.ptr,
@@ -502,6 +547,8 @@ impl Transform {
         let mut target = Crs::in_context(&ctx, to)?;
         if source.is_compound() && matches!(target.core().kind(), PROJECTED | GEOGRAPHIC_2D) {
             let s = source.core();
+            // SAFETY: `s` is a live compound CRS made in `ctx`, which is alive; the vertical
+            // part returned (or null) is a new object owned by `derived`, destroyed once.
             let v = unsafe { (ctx.api.crs_get_sub_crs)(ctx.ptr, s.ptr, 1) };
             let v = s.derived(v, "the vertical part")?;
             let name = CString::new(format!(
@@ -510,6 +557,10 @@ impl Transform {
                 v.name().unwrap_or_default()
             ))
             .unwrap_or_default();
+            // SAFETY: live context; `name` is NUL-terminated and outlives the call; both parts
+            // are live PJs of this context that PROJ only reads (the compound keeps references
+            // of its own, so destroying `target` and `v` afterwards is sound). The compound
+            // returned (or null) is owned by `wrap`, destroyed once.
             let c = unsafe {
                 (ctx.api.create_compound_crs)(ctx.ptr, name.as_ptr(), target.obj.ptr, v.ptr)
             };
@@ -518,6 +569,9 @@ impl Transform {
                 source: None,
             };
         }
+        // SAFETY: live context; source and target are live CRSs of it, only read; null area
+        // and null options are PROJ's defaults. The operation returned (or null) is owned by
+        // `wrap`, destroyed once.
         let op = unsafe {
             (ctx.api.create_crs_to_crs_from_pj)(
                 ctx.ptr,
@@ -532,6 +586,8 @@ impl Transform {
             op,
             &format!("from {} to {}", source.name(), target.name()),
         )?;
+        // SAFETY: live context and operation (only read); the normalised operation returned
+        // (or null) is a new object owned by `wrap`, destroyed once; `op` is destroyed apart.
         let norm = unsafe { (ctx.api.normalize_for_visualization)(ctx.ptr, op.ptr) };
         let op = Object::wrap(&ctx, norm, "the transformation's axis order")?;
         Ok(Transform { op, source, target })
@@ -553,7 +609,10 @@ impl Transform {
         let n = points.len();
         let stride = std::mem::size_of::<[f64; 3]>();
         let base = points.as_mut_ptr() as *mut f64;
-        // SAFETY: three strided views of the same array of [x, y, z], n each, inside it.
+        // SAFETY: `self.op` is a live operation used by this thread alone (`&mut self`). The
+        // three strided views (x, y, z of each [f64; 3], `stride` bytes apart, n each) lie inside
+        // `points`, borrowed mutably for the call; the null fourth view is PROJ's "no time".
+        // PROJ writes the results in place and keeps no pointer.
         unsafe {
             (self.op.api().errno_reset)(self.op.ptr);
             (self.op.api().trans_generic)(
