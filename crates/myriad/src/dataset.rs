@@ -122,6 +122,17 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     }
     let output = a.output.clone().expect("clap: --output or --append");
     let staged = crate::s3::stage(&a.inputs, &output, a.force)?;
+    let o = convert_options(&a, &staged)?;
+    let bar = Bar::new();
+    let s = convert::convert(&staged.inputs, &o, &bar)?;
+    bar.clear();
+    staged.finish()?;
+    print_converted(&a, &output, &s);
+    Ok(())
+}
+
+/// `convert`'s options: the build's (checked), the staged output and inputs' names.
+fn convert_options(a: &ConvertArgs, staged: &crate::s3::Staged) -> Result<ConvertOptions> {
     let structure = a.build.structure()?;
     let mut o = ConvertOptions::new(&staged.output);
     o.force = a.force;
@@ -142,10 +153,11 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
     o.grid = a.build.grid.map(|k| k as usize);
     o.open = a.build.open_options();
     o.recorded_as = staged.copied.clone();
-    let bar = Bar::new();
-    let s = convert::convert(&staged.inputs, &o, &bar)?;
-    bar.clear();
-    staged.finish()?;
+    Ok(o)
+}
+
+/// What a build did: its summary lines, or one JSON object with `--json`.
+fn print_converted(a: &ConvertArgs, output: &Path, s: &convert::Summary) {
     let rate = s.points as f64 / s.seconds;
     let bpp = s.bytes as f64 / s.points as f64;
     if a.json {
@@ -157,7 +169,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             "trimmed": s.trimmed, "not_transformed": s.not_transformed,
             "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
         }));
-        return Ok(());
+        return;
     }
     println!("{}", output.display());
     println!("  points      {}", thousands(s.points));
@@ -192,7 +204,6 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
             a.build.to_crs.as_deref().unwrap_or("the target CRS")
         );
     }
-    Ok(())
 }
 
 /// `convert NEW... --append DATASET`: the scans added in place (the dataset verified before it

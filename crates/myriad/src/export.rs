@@ -64,6 +64,42 @@ pub fn run(a: ExportArgs) -> Result<()> {
     }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
+    let o = export_options(&a, target)?;
+    let bar = Bar::new();
+    let t = Instant::now();
+    let s = export::export(&ds, &a.output, &o, &bar)?;
+    bar.clear();
+    let secs = t.elapsed().as_secs_f64();
+    for d in &s.damage {
+        eprintln!("warning: {}", ds.damage_error(d));
+    }
+    for l in &s.not_kept {
+        eprintln!("warning: not kept: {l}");
+    }
+    print_exported(&a, target, &ds, &s, secs);
+    if let Some(d) = s.damage.first() {
+        bail!(
+            "{} ({} damaged page{} left out; {} lacks node{} {})",
+            ds.damage_error(d),
+            s.damage.len(),
+            if s.damage.len() == 1 { "" } else { "s" },
+            a.output.display(),
+            if s.damage.len() == 1 { "" } else { "s" },
+            s.damage
+                .iter()
+                .map(|d| format!(
+                    "{}-{}-{}-{}",
+                    d.key.level, d.key.cell[0], d.key.cell[1], d.key.cell[2]
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// The export's options from the command line.
+fn export_options(a: &ExportArgs, target: Target) -> Result<ExportOptions> {
     let mut o = ExportOptions::new(target);
     o.bbox = a.bbox;
     o.spacing = a.spacing;
@@ -78,17 +114,18 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(m) = a.memory {
         o.memory = m;
     }
-    let bar = Bar::new();
-    let t = Instant::now();
-    let s = export::export(&ds, &a.output, &o, &bar)?;
-    bar.clear();
-    let secs = t.elapsed().as_secs_f64();
-    for d in &s.damage {
-        eprintln!("warning: {}", ds.damage_error(d));
-    }
-    for l in &s.not_kept {
-        eprintln!("warning: not kept: {l}");
-    }
+    Ok(o)
+}
+
+/// What the export wrote: points, nodes, tilesets or the structure re-placed, size, speed;
+/// points left out; peak memory.
+fn print_exported(
+    a: &ExportArgs,
+    target: Target,
+    ds: &Dataset,
+    s: &export::ExportSummary,
+    secs: f64,
+) {
     println!(
         "{}: {} points in {} nodes{}, {:.1} MB, {:.1} s ({:.2} M points/s)",
         a.output.display(),
@@ -132,23 +169,4 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(p) = myriad_io::process::peak_rss_bytes() {
         println!("peak resident memory: {:.0} MB", p as f64 / 1e6);
     }
-    if let Some(d) = s.damage.first() {
-        bail!(
-            "{} ({} damaged page{} left out; {} lacks node{} {})",
-            ds.damage_error(d),
-            s.damage.len(),
-            if s.damage.len() == 1 { "" } else { "s" },
-            a.output.display(),
-            if s.damage.len() == 1 { "" } else { "s" },
-            s.damage
-                .iter()
-                .map(|d| format!(
-                    "{}-{}-{}-{}",
-                    d.key.level, d.key.cell[0], d.key.cell[1], d.key.cell[2]
-                ))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    Ok(())
 }

@@ -133,38 +133,76 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     let u = units_of(&ds);
     let start = Instant::now();
     if matches!(ext.as_str(), "las" | "laz") {
-        let s = extract::extract(
-            &ds,
-            &a.output,
-            &ExtractOptions {
-                region: Some(Arc::new(corridor.clone())),
-                filter,
-                force: a.force,
-                ..Default::default()
-            },
-        )?;
-        if let Some(d) = s.damage.first() {
-            bail!("{} (the profile would lack its points)", ds.damage_error(d));
-        }
-        println!(
-            "{}: {} points within {} {u} of a {:.3} {u} line, from {} nodes, {:.2} s",
-            a.output.display(),
-            thousands(s.points),
-            a.width / 2.0,
-            corridor.length(),
-            thousands(s.nodes_read),
-            start.elapsed().as_secs_f64()
-        );
-        if s.points == 0 {
-            println!("the corridor holds no point: the file is empty");
-        }
-        return Ok(());
+        return profile_points(&a, &ds, &corridor, filter, start);
     }
     let bound = filter.bind(&ds.meta.schema).map_err(|e| anyhow!(e))?;
     let colour = a.colour.for_dataset(&ds)?;
     let p =
         myriad_measure::profile::profile(&ds, &corridor, &bound, colour).map_err(|e| anyhow!(e))?;
-    match ext.as_str() {
+    write_profile(&a, &ext, &ds, &corridor, &p)?;
+    let (z0, z1) = p.z_range();
+    println!(
+        "{}: {} points within {} {u} of a {:.3} {u} line (elevation {z0:.3} to {z1:.3}), from {} nodes, {:.2} s",
+        a.output.display(),
+        thousands(p.len() as u64),
+        a.width / 2.0,
+        corridor.length(),
+        thousands(p.nodes_read),
+        start.elapsed().as_secs_f64()
+    );
+    if p.is_empty() {
+        println!("the corridor holds no point: the file has no rows");
+    }
+    Ok(())
+}
+
+/// `profile -o CUT.las|laz`: the corridor's original points, as `extract` writes them.
+fn profile_points(
+    a: &ProfileArgs,
+    ds: &Dataset,
+    corridor: &Corridor,
+    filter: myriad_measure::Filter,
+    start: Instant,
+) -> Result<()> {
+    let u = units_of(ds);
+    let s = extract::extract(
+        ds,
+        &a.output,
+        &ExtractOptions {
+            region: Some(Arc::new(corridor.clone())),
+            filter,
+            force: a.force,
+            ..Default::default()
+        },
+    )?;
+    if let Some(d) = s.damage.first() {
+        bail!("{} (the profile would lack its points)", ds.damage_error(d));
+    }
+    println!(
+        "{}: {} points within {} {u} of a {:.3} {u} line, from {} nodes, {:.2} s",
+        a.output.display(),
+        thousands(s.points),
+        a.width / 2.0,
+        corridor.length(),
+        thousands(s.nodes_read),
+        start.elapsed().as_secs_f64()
+    );
+    if s.points == 0 {
+        println!("the corridor holds no point: the file is empty");
+    }
+    Ok(())
+}
+
+/// The profile `p` written as the output's extension `ext` says: CSV rows, GeoJSON (the line
+/// and the profile's top line), a DXF drawing, or a PNG plot.
+fn write_profile(
+    a: &ProfileArgs,
+    ext: &str,
+    ds: &Dataset,
+    corridor: &Corridor,
+    p: &myriad_measure::profile::Profile,
+) -> Result<()> {
+    match ext {
         "csv" => write_atomic(&a.output, a.force, |w| p.write_csv(w))?,
         "geojson" => {
             use myriad_measure::geojson::{collection, feature, line_geometry};
@@ -174,7 +212,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
                 serde_json::json!({
                     "dataset": a.dataset.display().to_string(), "length": corridor.length(),
                     "width": corridor.width(), "points": p.len(),
-                    "z_min": z0, "z_max": z1, "units": u,
+                    "z_min": z0, "z_max": z1, "units": units_of(ds),
                     // The profile line: (distance along, elevation), the highest point per
                     // half-width step.
                     "profile": p.top_line((p.width / 2.0).max(1e-3)),
@@ -187,7 +225,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
             })?
         }
         "dxf" => save_drawing(
-            &myriad_measure::files::profile_drawing(&p, &corridor)?,
+            &myriad_measure::files::profile_drawing(p, corridor)?,
             &a.output,
             a.force,
         )?,
@@ -207,19 +245,6 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
                 a.output.display()
             );
         }
-    }
-    let (z0, z1) = p.z_range();
-    println!(
-        "{}: {} points within {} {u} of a {:.3} {u} line (elevation {z0:.3} to {z1:.3}), from {} nodes, {:.2} s",
-        a.output.display(),
-        thousands(p.len() as u64),
-        a.width / 2.0,
-        corridor.length(),
-        thousands(p.nodes_read),
-        start.elapsed().as_secs_f64()
-    );
-    if p.is_empty() {
-        println!("the corridor holds no point: the file has no rows");
     }
     Ok(())
 }
@@ -298,21 +323,7 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         _ => format!("the surface of {}", a.base),
     };
     if let Some(g) = &a.geojson {
-        use myriad_measure::geojson::{collection, feature, polygon_geometry};
-        let f = feature(
-            polygon_geometry(polygon.vertices(), None),
-            serde_json::json!({
-                "dataset": a.dataset.display().to_string(),
-                "fill": v.fill, "cut": v.cut, "net": v.net(), "area": v.area, "cell": v.cell,
-                "cells": v.cells, "empty_cells": v.empty_cells, "base": base_text,
-                "points": v.points, "units": units_of(&ds),
-            }),
-        );
-        let doc = collection(vec![f], ds.meta.crs.as_deref());
-        write_atomic(g, a.force, |w| {
-            serde_json::to_writer_pretty(&mut *w, &doc)?;
-            writeln!(w)
-        })?;
+        volume_geojson(&a, g, &ds, &polygon, &v, &base_text)?;
     }
     if a.json {
         println!(
@@ -327,7 +338,47 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let u = units_of(&ds);
+    print_volume(&a, &ds, &v, &base, &base_text, secs);
+    Ok(())
+}
+
+/// `volume --geojson`: the polygon with the volume's figures as a GeoJSON feature.
+fn volume_geojson(
+    a: &VolumeArgs,
+    g: &Path,
+    ds: &Dataset,
+    polygon: &Polygon,
+    v: &volume::Volume,
+    base_text: &str,
+) -> Result<()> {
+    use myriad_measure::geojson::{collection, feature, polygon_geometry};
+    let f = feature(
+        polygon_geometry(polygon.vertices(), None),
+        serde_json::json!({
+            "dataset": a.dataset.display().to_string(),
+            "fill": v.fill, "cut": v.cut, "net": v.net(), "area": v.area, "cell": v.cell,
+            "cells": v.cells, "empty_cells": v.empty_cells, "base": base_text,
+            "points": v.points, "units": units_of(ds),
+        }),
+    );
+    let doc = collection(vec![f], ds.meta.crs.as_deref());
+    write_atomic(g, a.force, |w| {
+        serde_json::to_writer_pretty(&mut *w, &doc)?;
+        writeln!(w)
+    })?;
+    Ok(())
+}
+
+/// The volume's figures, a line each.
+fn print_volume(
+    a: &VolumeArgs,
+    ds: &Dataset,
+    v: &volume::Volume,
+    base: &Base,
+    base_text: &str,
+    secs: f64,
+) {
+    let u = units_of(ds);
     println!("{}", a.dataset.display());
     println!("  fill        {:.3} {u}3 above the base", v.fill);
     println!("  cut         {:.3} {u}3 below the base", v.cut);
@@ -355,5 +406,4 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         thousands(v.points),
         thousands(v.nodes_read)
     );
-    Ok(())
 }

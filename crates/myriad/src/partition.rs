@@ -204,28 +204,47 @@ pub fn convert_planned(
     };
     let index = partition::part_index(part, "--part")?;
     if list.inputs || list.ranges {
-        if index >= plan.parts.len() {
-            bail!(
-                "--part {index}: the plan has parts 0 to {}",
-                plan.parts.len() - 1
-            );
-        }
-        for p in plan.inputs_of(Some(index)) {
-            if !list.ranges {
-                println!("{}", p.display());
-                continue;
-            }
-            for (a, b) in partition::ranges_read(&plan, index, &p)? {
-                match b {
-                    Some(b) => println!("{} {a} {b}", p.display()),
-                    None => println!("{} {a} end", p.display()),
-                }
-            }
-        }
-        return Ok(());
+        return list_part(&plan, index, list.ranges);
     }
     let s = partition::build_part(&plan, index, output, threads, exchanged, &bar)?;
     bar.clear();
+    print_part(&plan, plan_path, index, output, exchanged, &s, as_json);
+    Ok(())
+}
+
+/// `--list-inputs` or `--list-ranges`: what part `index` reads, a line each.
+fn list_part(plan: &BuildPlan, index: usize, ranges: bool) -> Result<()> {
+    if index >= plan.parts.len() {
+        bail!(
+            "--part {index}: the plan has parts 0 to {}",
+            plan.parts.len() - 1
+        );
+    }
+    for p in plan.inputs_of(Some(index)) {
+        if !ranges {
+            println!("{}", p.display());
+            continue;
+        }
+        for (a, b) in partition::ranges_read(plan, index, &p)? {
+            match b {
+                Some(b) => println!("{} {a} {b}", p.display()),
+                None => println!("{} {a} end", p.display()),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What a part built: its dataset and tops, points, what it read, nodes, time.
+fn print_part(
+    plan: &BuildPlan,
+    plan_path: &Path,
+    index: usize,
+    output: &Path,
+    exchanged: bool,
+    s: &partition::PartSummary,
+    as_json: bool,
+) {
     let (myr, tops) = partition::part_paths(output, index);
     let opened = s.inputs.iter().filter(|i| i.is_some()).count();
     let read: u64 = s.inputs.iter().flatten().map(|i| i.1).sum();
@@ -235,7 +254,7 @@ pub fn convert_planned(
                    "tops": tops.display().to_string(), "points": s.points, "nodes": s.nodes,
                    "inputs_read": opened, "points_read": read, "seconds": s.seconds, "bytes": s.bytes,}),
         );
-        return Ok(());
+        return;
     }
     println!(
         "part {index} of {} ({})",
@@ -268,7 +287,6 @@ pub fn convert_planned(
     println!("  nodes       {}", thousands(s.nodes));
     println!("  time        {:.2} s", s.seconds);
     crate::progress::print_memory_and_skipped(s.skipped_non_finite);
-    Ok(())
 }
 
 /// `convert --plan PLAN --scatter T -o DIR`.
