@@ -371,6 +371,104 @@ pub fn convert(
 ) -> Result<Summary> {
     let start = Instant::now();
     let out = &options.output;
+    check_request(inputs, options)?;
+    remove_stale(out);
+    let structure = options.structure;
+    let params = NestedParams {
+        ntree: structure == Structure::Layered,
+        ..options.params
+    };
+    let plan = plan(options.memory, options.threads.max(1), &params);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(plan.threads)
+        .build()
+        .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
+    let mut phases = Vec::new();
+    let mut t = Instant::now();
+
+    // 1. Distribution. A build drawn while it runs: octree and layered only.
+    let growing = (options.growing.as_ref())
+        .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd));
+    let dist = read_inputs(inputs, options, &plan, growing, report)?;
+    phases.push(("reading", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    let quant = dataset_quantization(options, &dist)?;
+    let writer = DatasetWriter::create(out, options.force, quant)?;
+    let root = dist.root;
+    let schema = dist.schema.clone();
+    let spill_dir = dist.spill_dir().to_path_buf();
+
+    // 2. Chunks (kd, mwkd: groups of chunks), in parallel, largest first (they take longest).
+    report.phase("building", dist.points);
+    let orientation = orientation(&dist);
+    let mw = crate::mwkd::MwkdParams {
+        fanout: (options.fanout)
+            .unwrap_or_else(|| crate::mwkd::fanout_for(dist.points, params.capacity)),
+        capacity: params.capacity,
+        grid: options.grid,
+        orientation,
+    };
+    let meta = metadata(options, &params, &mw, &dist, quant);
+    let chunks = Chunks {
+        dist: &dist,
+        params: &params,
+        writer: &writer,
+        pool: &pool,
+        spill_dir: &spill_dir,
+        report,
+    };
+    let pending = if matches!(structure, Structure::Kd | Structure::Mwkd) {
+        let chunk_points = options.chunk_points.unwrap_or(plan.chunk_points);
+        chunks.build_groups(structure, &mw, chunk_points)?
+    } else {
+        chunks.build_nested(growing, &meta)?
+    };
+    phases.push(("building", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    // 3. The levels above the chunks.
+    let tops_level = options.planned.as_ref().and_then(|p| p.tops_level);
+    let tops = Above {
+        structure,
+        params: &params,
+        mw: &mw,
+        root: &root,
+        schema: &schema,
+        writer: &writer,
+        pool: &pool,
+        spill_dir: &spill_dir,
+    }
+    .build(pending, tops_level, report)?;
+    phases.push(("merging", t.elapsed().as_secs_f64()));
+    t = Instant::now();
+
+    // 4. Hierarchy, metadata, header.
+    let (nodes, depth, bytes) = write_dataset(writer, meta, dist.points, out, report)?;
+    phases.push(("writing", t.elapsed().as_secs_f64()));
+    let seconds = start.elapsed().as_secs_f64();
+    Ok(summary(&dist, (nodes, depth, bytes), seconds, phases, tops))
+}
+
+/// The dataset's integer grid: the plan's, else the one the inputs give ([`quantization`]).
+fn dataset_quantization(
+    options: &ConvertOptions,
+    dist: &distribute::Distribution,
+) -> Result<Quantization> {
+    Ok(match &options.planned {
+        Some(p) => p.quantization,
+        None => {
+            let infos: Vec<_> = dist.sources.iter().map(|(i, _)| i).collect();
+            quantization(&infos, &dist.root, options.precision)?
+        }
+    })
+}
+
+/// Refuses a build that cannot be made as asked: an output that exists (without `--force`), or
+/// that is no dataset name ([`check_output`]), a budget below the least, a precision that is
+/// no length.
+fn check_request(inputs: &[PathBuf], options: &ConvertOptions) -> Result<()> {
+    let out = &options.output;
     if !options.force && out.exists() {
         return Err(Error::Invalid(format!(
             "{}: output exists (use --force to replace it)",
@@ -384,27 +482,23 @@ pub fn convert(
             "--precision must be a positive length".into(),
         ));
     }
-    remove_stale(out);
-    let structure = options.structure;
-    let params = NestedParams {
-        ntree: structure == Structure::Layered,
-        ..options.params
-    };
-    let plan = plan(options.memory, options.threads.max(1), &params);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(plan.threads)
-        .build()
-        .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
-    let temp_dir = match out.parent() {
+    Ok(())
+}
+
+/// Step 1: every input read once and its points scattered to chunks next to the output
+/// ([`distribute::distribute_with`]), the reading reported and sampled for a build drawn while
+/// it runs; refused where the inputs hold no points (but for a planned part).
+fn read_inputs(
+    inputs: &[PathBuf],
+    options: &ConvertOptions,
+    plan: &Plan,
+    growing: Option<&std::sync::Arc<crate::growing::Growing>>,
+    report: &dyn Report,
+) -> Result<distribute::Distribution> {
+    let temp_dir = match options.output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let mut phases = Vec::new();
-    let mut t = Instant::now();
-
-    // 1. Distribution. A build drawn while it runs: octree and layered only.
-    let growing = (options.growing.as_ref())
-        .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd));
     let dist = distribute::distribute_with(
         inputs,
         &options.open,
@@ -440,27 +534,14 @@ pub fn convert(
             inputs[0].display()
         )));
     }
-    phases.push(("reading", t.elapsed().as_secs_f64()));
-    t = Instant::now();
+    Ok(dist)
+}
 
-    let quant = match &options.planned {
-        Some(p) => p.quantization,
-        None => {
-            let infos: Vec<_> = dist.sources.iter().map(|(i, _)| i).collect();
-            quantization(&infos, &dist.root, options.precision)?
-        }
-    };
-    let writer = DatasetWriter::create(out, options.force, quant)?;
-    let root = dist.root;
-    let schema = dist.schema.clone();
-    let spill_dir = dist.spill_dir().to_path_buf();
-
-    // 2. Chunks (kd, mwkd: groups of chunks), in parallel, largest first (they take longest).
-    report.phase("building", dist.points);
-    // Normals: the input's where it has them; else estimated, and turned towards the scanners
-    // where every input says where its scans were taken from (E57 scans from one place), or
-    // towards each flight line's side where scan angles say it (airborne LAS).
-    let orientation = if schema.has(&myriad_core::Attribute::Normal) {
+/// How the normals get their sign: the input's where it has them; else estimated, and turned
+/// towards the scanners where every input says where its scans were taken from (E57 scans from
+/// one place), or towards each flight line's side where scan angles say it (airborne LAS).
+fn orientation(dist: &distribute::Distribution) -> crate::mwkd::Orientation {
+    if dist.schema.has(&myriad_core::Attribute::Normal) {
         crate::mwkd::Orientation::Input
     } else {
         let infos: Vec<_> = dist.sources.iter().map(|(i, _)| i).collect();
@@ -472,34 +553,39 @@ pub fn convert(
                 None => crate::mwkd::Orientation::Up,
             },
         }
-    };
-    let mw = crate::mwkd::MwkdParams {
-        fanout: (options.fanout)
-            .unwrap_or_else(|| crate::mwkd::fanout_for(dist.points, params.capacity)),
-        capacity: params.capacity,
-        grid: options.grid,
-        orientation,
-    };
-    // The dataset's metadata (its counts are set when it is written).
-    let meta = Metadata {
+    }
+}
+
+/// The dataset's metadata (its counts are set when it is written): its structure and
+/// parameters, the distribution's bounds, root, schema and sources, the plan's CRS and LAS
+/// header where a plan fixes them.
+fn metadata(
+    options: &ConvertOptions,
+    params: &NestedParams,
+    mw: &crate::mwkd::MwkdParams,
+    dist: &distribute::Distribution,
+    quant: Quantization,
+) -> Metadata {
+    let structure = options.structure;
+    Metadata {
         structure: structure.stored_name().into(),
         parameters: parameters(
             structure,
-            &params,
-            (structure == Structure::Mwkd).then_some(&mw),
+            params,
+            (structure == Structure::Mwkd).then_some(mw),
             options.planned.as_ref(),
         ),
         points: dist.points,
         nodes: 0,
         depth: 0,
         bounds: dist.bounds,
-        root,
+        root: dist.root,
         quantization: quant,
         crs: match &options.planned {
             Some(p) => p.crs.clone(),
             None => dist.sources.iter().find_map(|(i, _)| i.crs.clone()),
         },
-        schema: schema.clone(),
+        schema: dist.schema.clone(),
         sources: (dist.sources.iter())
             .map(|(i, n)| {
                 let mut v = source(i, *n);
@@ -516,20 +602,37 @@ pub fn convert(
         levels: Vec::new(),
         files: Vec::new(),
         software: format!("myriad {}", env!("CARGO_PKG_VERSION")),
-    };
-    let chunk_keys: Vec<NodeKey> = (dist.chunks.iter())
-        .map(|c| NodeKey {
-            level: c.level,
-            cell: c.cell,
-        })
-        .collect();
-    let built = std::sync::Mutex::new(std::collections::HashSet::new());
-    let offer = |force: bool| {
-        if let Some(g) = growing {
-            g.offer(&writer, &meta, &chunk_keys, &built, force);
-        }
-    };
-    let pending: Vec<Pending> = if matches!(structure, Structure::Kd | Structure::Mwkd) {
+    }
+}
+
+/// What step 2 builds the chunks' subtrees with: each subtree's nodes but its root written as
+/// they are built, its root spilled for the levels above.
+struct Chunks<'a> {
+    dist: &'a distribute::Distribution,
+    params: &'a NestedParams,
+    writer: &'a DatasetWriter,
+    pool: &'a rayon::ThreadPool,
+    spill_dir: &'a Path,
+    report: &'a dyn Report,
+}
+
+impl Chunks<'_> {
+    /// kd and mwkd: the chunks grouped by count ([`kd::group_chunks`]), each group's subtree
+    /// built, largest group first.
+    fn build_groups(
+        &self,
+        structure: Structure,
+        mw: &crate::mwkd::MwkdParams,
+        chunk_points: u64,
+    ) -> Result<Vec<Pending>> {
+        let Chunks {
+            dist,
+            params,
+            writer,
+            pool,
+            spill_dir,
+            report,
+        } = *self;
         let boxes: Vec<_> = dist
             .chunks
             .iter()
@@ -540,38 +643,64 @@ pub fn convert(
         } else {
             2
         };
-        let mut groups = kd::group_chunks(
-            &boxes,
-            options.chunk_points.unwrap_or(plan.chunk_points),
-            arity,
-        );
+        let mut groups = kd::group_chunks(&boxes, chunk_points, arity);
         groups.sort_by_key(|g| std::cmp::Reverse(g.points));
-        largest_first(&pool, &groups, |g| -> Result<Pending> {
-            let mut batch = PointBatch::with_schema(&schema, g.points as usize);
+        largest_first(pool, &groups, |g| -> Result<Pending> {
+            let mut batch = PointBatch::with_schema(&dist.schema, g.points as usize);
             for &i in &g.chunks {
                 batch.append(&dist.load(&dist.chunks[i])?);
             }
             if structure == Structure::Mwkd {
                 let n = batch.len() as u64;
-                let top = crate::mwkd::build_subtree_with(batch, g.key, &mw, &mut |node| {
-                    write(&writer, node.into_built()).map(|_| ())
+                let top = crate::mwkd::build_subtree_with(batch, g.key, mw, &mut |node| {
+                    write(writer, node.into_built()).map(|_| ())
                 })?;
                 report.advance(n);
-                return spill(top.into_built(), &spill_dir);
+                return spill(top.into_built(), spill_dir);
             }
             let mut top = None;
-            kd::build_subtree_with(batch, g.key, &params, &mut |node| {
+            kd::build_subtree_with(batch, g.key, params, &mut |node| {
                 report.advance(node.points.len() as u64);
                 if node.key == g.key {
-                    top = Some(spill(node, &spill_dir)?);
+                    top = Some(spill(node, spill_dir)?);
                 } else {
-                    write(&writer, node)?;
+                    write(writer, node)?;
                 }
                 Ok::<(), Error>(())
             })?;
             Ok(top.expect("a group has points, so its subtree has a root"))
-        })?
-    } else {
+        })
+    }
+
+    /// Octree and layered: each chunk's subtree ([`nested::build_subtree_with`]), largest
+    /// first, or nearest first where a viewer looks at the build as it grows (offered a
+    /// snapshot as each chunk is done, and once when all are).
+    fn build_nested(
+        &self,
+        growing: Option<&std::sync::Arc<crate::growing::Growing>>,
+        meta: &Metadata,
+    ) -> Result<Vec<Pending>> {
+        let Chunks {
+            dist,
+            params,
+            writer,
+            pool,
+            spill_dir,
+            report,
+        } = *self;
+        let root = dist.root;
+        let chunk_keys: Vec<NodeKey> = (dist.chunks.iter())
+            .map(|c| NodeKey {
+                level: c.level,
+                cell: c.cell,
+            })
+            .collect();
+        let built = std::sync::Mutex::new(std::collections::HashSet::new());
+        let offer = |force: bool| {
+            if let Some(g) = growing {
+                g.offer(writer, meta, &chunk_keys, &built, force);
+            }
+        };
         let mut chunks = dist.chunks.clone();
         chunks.sort_by_key(|c| std::cmp::Reverse(c.points));
         // Where a viewer looks, the chunks nearest that point first.
@@ -597,19 +726,19 @@ pub fn convert(
                 .copied()
                 .min_by(|a, b| far(a).total_cmp(&far(b)))
         };
-        in_order(&pool, &chunks, &nearer, |chunk| -> Result<Pending> {
+        let pending = in_order(pool, &chunks, &nearer, |chunk| -> Result<Pending> {
             let batch = dist.load(chunk)?;
             let key = NodeKey {
                 level: chunk.level,
                 cell: chunk.cell,
             };
             let mut top = None;
-            nested::build_subtree_with(batch, &root, key, &params, &mut |node| {
+            nested::build_subtree_with(batch, &root, key, params, &mut |node| {
                 report.advance(node.points.len() as u64);
                 if node.key == key {
-                    top = Some(spill(node, &spill_dir)?);
+                    top = Some(spill(node, spill_dir)?);
                 } else {
-                    write(&writer, node)?;
+                    write(writer, node)?;
                 }
                 Ok::<(), Error>(())
             })?;
@@ -619,37 +748,30 @@ pub fn convert(
             }
             offer(false);
             Ok(top.expect("a chunk has points, so its subtree has a root"))
-        })?
-    };
-    offer(true);
-    phases.push(("building", t.elapsed().as_secs_f64()));
-    t = Instant::now();
-
-    // 3. The levels above the chunks.
-    let tops_level = options.planned.as_ref().and_then(|p| p.tops_level);
-    let tops = Above {
-        structure,
-        params: &params,
-        mw: &mw,
-        root: &root,
-        schema: &schema,
-        writer: &writer,
-        pool: &pool,
-        spill_dir: &spill_dir,
+        })?;
+        offer(true);
+        Ok(pending)
     }
-    .build(pending, tops_level, report)?;
-    phases.push(("merging", t.elapsed().as_secs_f64()));
-    t = Instant::now();
+}
 
-    // 4. Hierarchy, metadata, header.
+/// Step 4: the hierarchy pages, metadata and header written and the file renamed, once the
+/// nodes hold every point read (`points`). The nodes, depth and bytes of the dataset; a part
+/// whose cells hold no points writes none (0 bytes).
+fn write_dataset(
+    writer: DatasetWriter,
+    meta: Metadata,
+    points: u64,
+    out: &Path,
+    report: &dyn Report,
+) -> Result<(u64, u32, u64)> {
     report.phase("writing", 1);
     let (written, nodes, depth) = writer.totals();
-    if written != dist.points {
+    if written != points {
         // Only a builder bug could lose points; the partial file is removed, nothing appears.
         return Err(Error::Invalid(format!(
             "{}: internal error: {} points read, {written} in the nodes",
             out.display(),
-            dist.points
+            points
         )));
     }
     // A part whose cells hold no points (the plan's estimate was off) writes no dataset.
@@ -659,14 +781,26 @@ pub fn convert(
         writer.finish(meta)?
     };
     report.advance(1);
-    phases.push(("writing", t.elapsed().as_secs_f64()));
-    Ok(Summary {
+    Ok((nodes, depth, bytes))
+}
+
+/// What the build did: the distribution's counts, the dataset's nodes, depth and bytes
+/// (`written`), the time it took in all and by phase, and the tops kept for a merge.
+fn summary(
+    dist: &distribute::Distribution,
+    written: (u64, u32, u64),
+    seconds: f64,
+    phases: Vec<(&'static str, f64)>,
+    tops: Vec<BuiltNode>,
+) -> Summary {
+    let (nodes, depth, bytes) = written;
+    Summary {
         points: dist.points,
         nodes,
         depth,
         bytes,
         chunks: dist.chunks.len(),
-        seconds: start.elapsed().as_secs_f64(),
+        seconds,
         phases,
         skipped_non_finite: dist.skipped_non_finite,
         trimmed: dist.trimmed,
@@ -680,7 +814,7 @@ pub fn convert(
             .map(|((i, n), r)| (i.path.clone(), *n, *r))
             .collect(),
         tops,
-    })
+    }
 }
 
 /// An input as the dataset's metadata lists it, with the points taken from it.

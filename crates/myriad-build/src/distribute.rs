@@ -503,9 +503,88 @@ pub fn distribute_with(
     if inputs.is_empty() {
         return Err(Error::Invalid("no inputs".into()));
     }
+    let Headers {
+        infos,
+        sources,
+        bounds,
+        declared,
+        las_header,
+    } = read_headers(inputs, open, options)?;
+    let margin_step = infos
+        .iter()
+        .filter_map(|i| i.scale)
+        .flatten()
+        .fold(0.0f64, f64::max);
+    let (schema, root) = match &options.grid {
+        Some(g) => (g.schema.clone(), g.root),
+        None => (merged_schema(&infos)?, root_cube(&bounds, margin_step)),
+    };
+    let level = match &options.grid {
+        Some(g) => g.level,
+        None => chunk_level(declared, options.chunk_points, options.min_chunks),
+    };
+
+    let folder = myriad_io::claim::Folder::create(&options.temp_dir, SPILL_PREFIX)?;
+    let codec = spill_codec(&infos, declared, &schema, options.compress_above);
+    let mut scatter = Scatter::new(
+        folder.path(),
+        level,
+        &schema,
+        options.buffer_bytes,
+        options.resident_bytes,
+        codec,
+        declared,
+    );
+    on_read(Progress::Declared(declared));
+    let pass = Pass {
+        open,
+        options,
+        root,
+        level,
+        schema: &schema,
+    };
+    let tally = pass.run(inputs, sources, &infos, &mut scatter, on_read)?;
+    let (root, chunks, resident) = settle(&mut scatter, &tally, root, margin_step, options)?;
+    let done = split_large(chunks, &root, &schema, folder.path(), options, codec)?;
+    Ok(Distribution {
+        root,
+        schema,
+        chunks: done,
+        points: tally.points,
+        bounds: tally.actual,
+        clamped: tally.clamped,
+        sources: infos.into_iter().zip(tally.taken).collect(),
+        read: tally.read,
+        skipped_non_finite: tally.skipped,
+        trimmed: tally.trimmed,
+        not_transformed: tally.not_transformed,
+        las_header,
+        sides: tally.sides,
+        resident: std::sync::Mutex::new(resident.unwrap_or_default()),
+        _spill: folder,
+    })
+}
+
+/// What the inputs' headers say, before any point is scattered.
+struct Headers {
+    infos: Vec<myriad_io::SourceInfo>,
+    /// Sources whose header gave the bounds are kept open for the scatter pass; a source that
+    /// was read for its bounds is opened again (None).
+    sources: Vec<Option<Box<dyn PointSource>>>,
+    bounds: Aabb,
+    declared: u64,
+    /// The first LAS/LAZ input's header with its VLRs.
+    las_header: Option<Vec<u8>>,
+}
+
+/// Step 1: every input opened, its header read (and its points counted and bounded, where the
+/// header does not say and no plan fixes the grid).
+fn read_headers(
+    inputs: &[PathBuf],
+    open: &OpenOptions,
+    options: &DistributeOptions,
+) -> Result<Headers> {
     let mut infos = Vec::new();
-    // Sources whose header gave the bounds are kept open for the scatter pass; a source that was
-    // read for its bounds is opened again (None).
     let mut sources: Vec<Option<Box<dyn PointSource>>> = Vec::new();
     let mut bounds = Aabb::EMPTY;
     let mut declared = 0u64;
@@ -530,25 +609,26 @@ pub fn distribute_with(
         infos.push(info);
         sources.push(kept);
     }
-    let margin_step = infos
-        .iter()
-        .filter_map(|i| i.scale)
-        .flatten()
-        .fold(0.0f64, f64::max);
-    let (schema, root) = match &options.grid {
-        Some(g) => (g.schema.clone(), g.root),
-        None => (merged_schema(&infos)?, root_cube(&bounds, margin_step)),
-    };
-    let level = match &options.grid {
-        Some(g) => g.level,
-        None => chunk_level(declared, options.chunk_points, options.min_chunks),
-    };
-    let keep = options.grid.as_ref().and_then(|g| g.cells.as_ref());
+    Ok(Headers {
+        infos,
+        sources,
+        bounds,
+        declared,
+        las_header,
+    })
+}
 
-    let folder = myriad_io::claim::Folder::create(&options.temp_dir, SPILL_PREFIX)?;
-    let row = PointBatch::with_schema(&schema, 0).row_size() as u64;
-    let codec = Codec {
-        compress: declared.saturating_mul(row) > options.compress_above,
+/// How the spill files are written: compressed where the inputs would spill more than
+/// `compress_above` bytes as rows, as pages on the first input's grid where one has a grid.
+fn spill_codec(
+    infos: &[myriad_io::SourceInfo],
+    declared: u64,
+    schema: &Schema,
+    compress_above: u64,
+) -> Codec {
+    let row = PointBatch::with_schema(schema, 0).row_size() as u64;
+    Codec {
+        compress: declared.saturating_mul(row) > compress_above,
         // The grid of the first input with one, its step's size (a negative LAS scale mirrors
         // the records, not the coordinates). Frames are checked to lie on it.
         grid: infos
@@ -558,80 +638,141 @@ pub fn distribute_with(
                 scale: s.map(f64::abs),
                 offset,
             }),
-    };
-    let mut scatter = Scatter::new(
-        folder.path(),
-        level,
-        &schema,
-        options.buffer_bytes,
-        options.resident_bytes,
-        codec,
-        declared,
-    );
-    let (mut picked, mut cells) = (Vec::new(), Vec::new());
-    on_read(Progress::Declared(declared));
-    let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
-    let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
-    let mut not_transformed = 0u64;
-    let origins = scan_origins(&infos.iter().collect::<Vec<_>>());
-    let mut sides = crate::sides::Sides::default();
-    for (k, (path, kept)) in inputs.iter().zip(sources).enumerate() {
-        let scan_offset = origins.as_ref().map_or(0, |o| o.1[k]);
-        let mut src = match kept {
-            Some(src) => src,
-            None => myriad_io::open(path, open)?,
-        };
-        let before = points;
-        let mut all = 0u64;
-        while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
-            all += b.len() as u64;
-            let mut b = conform(b, &schema);
-            // Scan numbers into the table of every input's scans.
-            if let (true, Some(ids)) = (scan_offset > 0, &mut b.point_source_id) {
-                for id in ids.iter_mut().filter(|id| **id > 0) {
-                    *id += scan_offset;
-                }
-            }
-            picked.clear();
-            cells.clear();
-            for i in 0..b.len() {
-                let p = b.positions[i];
-                let cell = cell_of(&root, level, p, &mut clamped);
-                if clamped > 0 && options.grid.is_some() {
-                    return Err(Error::Invalid(format!(
-                        "{}: a point at ({}, {}, {}) lies outside the planned root cube {:?} to \
-                         {:?} (its header understates its bounds): plan again",
-                        path.display(),
-                        p[0],
-                        p[1],
-                        p[2],
-                        root.min,
-                        root.max
-                    )));
-                }
-                if let Some((at, cells)) = keep
-                    && !cells.contains(&cell.map(|c| c >> (level - at)))
-                {
-                    continue;
-                }
-                actual.extend(p);
-                picked.push(i as u32);
-                cells.push(cell);
-            }
-            scatter.add(&b, &picked, &cells)?;
-            if origins.is_none() {
-                sides.add(&b, &picked);
-            }
-            points += picked.len() as u64;
-            on_read(Progress::Points(&b));
-            on_read(Progress::Read(b.len() as u64));
-        }
-        skipped += src.skipped_non_finite();
-        trimmed += src.trimmed();
-        not_transformed += src.not_transformed();
-        taken.push(points - before);
-        read.push(all);
     }
+}
+
+/// Step 2, the scatter pass: where its points go (the root cube and chunk level, in the
+/// dataset's schema; the cells a part keeps).
+struct Pass<'a> {
+    open: &'a OpenOptions,
+    options: &'a DistributeOptions,
+    root: Aabb,
+    level: u32,
+    schema: &'a Schema,
+}
+
+/// What the scatter pass counted.
+struct Tally {
+    /// Points taken, those outside the root cube (sent to the nearest cell), and their bounds.
+    points: u64,
+    clamped: u64,
+    actual: Aabb,
+    skipped: u64,
+    trimmed: u64,
+    not_transformed: u64,
+    /// Per input: the points taken, and those read.
+    taken: Vec<u64>,
+    read: Vec<u64>,
+    sides: crate::sides::Sides,
+}
+
+impl Pass<'_> {
+    /// Every input read once (`sources`: those still open from their header), its scan numbers
+    /// moved into the table of every input's scans where there is one, its points scattered to
+    /// their cells (those a part keeps), `on_read` told of each batch.
+    fn run(
+        &self,
+        inputs: &[PathBuf],
+        sources: Vec<Option<Box<dyn PointSource>>>,
+        infos: &[myriad_io::SourceInfo],
+        scatter: &mut Scatter,
+        on_read: &mut dyn FnMut(Progress),
+    ) -> Result<Tally> {
+        let (open, options, root, level, schema) =
+            (self.open, self.options, self.root, self.level, self.schema);
+        let keep = options.grid.as_ref().and_then(|g| g.cells.as_ref());
+        let (mut picked, mut cells) = (Vec::new(), Vec::new());
+        let (mut points, mut clamped, mut actual) = (0u64, 0u64, Aabb::EMPTY);
+        let (mut skipped, mut trimmed, mut taken, mut read) = (0u64, 0u64, Vec::new(), Vec::new());
+        let mut not_transformed = 0u64;
+        let origins = scan_origins(&infos.iter().collect::<Vec<_>>());
+        let mut sides = crate::sides::Sides::default();
+        for (k, (path, kept)) in inputs.iter().zip(sources).enumerate() {
+            let scan_offset = origins.as_ref().map_or(0, |o| o.1[k]);
+            let mut src = match kept {
+                Some(src) => src,
+                None => myriad_io::open(path, open)?,
+            };
+            let before = points;
+            let mut all = 0u64;
+            while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH)? {
+                all += b.len() as u64;
+                let mut b = conform(b, schema);
+                // Scan numbers into the table of every input's scans.
+                if let (true, Some(ids)) = (scan_offset > 0, &mut b.point_source_id) {
+                    for id in ids.iter_mut().filter(|id| **id > 0) {
+                        *id += scan_offset;
+                    }
+                }
+                picked.clear();
+                cells.clear();
+                for i in 0..b.len() {
+                    let p = b.positions[i];
+                    let cell = cell_of(&root, level, p, &mut clamped);
+                    if clamped > 0 && options.grid.is_some() {
+                        return Err(Error::Invalid(format!(
+                            "{}: a point at ({}, {}, {}) lies outside the planned root cube \
+                             {:?} to {:?} (its header understates its bounds): plan again",
+                            path.display(),
+                            p[0],
+                            p[1],
+                            p[2],
+                            root.min,
+                            root.max
+                        )));
+                    }
+                    if let Some((at, cells)) = keep
+                        && !cells.contains(&cell.map(|c| c >> (level - at)))
+                    {
+                        continue;
+                    }
+                    actual.extend(p);
+                    picked.push(i as u32);
+                    cells.push(cell);
+                }
+                scatter.add(&b, &picked, &cells)?;
+                if origins.is_none() {
+                    sides.add(&b, &picked);
+                }
+                points += picked.len() as u64;
+                on_read(Progress::Points(&b));
+                on_read(Progress::Read(b.len() as u64));
+            }
+            skipped += src.skipped_non_finite();
+            trimmed += src.trimmed();
+            not_transformed += src.not_transformed();
+            taken.push(points - before);
+            read.push(all);
+        }
+        Ok(Tally {
+            points,
+            clamped,
+            actual,
+            skipped,
+            trimmed,
+            not_transformed,
+            taken,
+            read,
+            sides,
+        })
+    }
+}
+
+/// The chunks' points by cell, where they stayed in the write buffers.
+type Resident = HashMap<[u32; 3], PointBatch>;
+
+/// The chunks as the pass left them: kept in memory where they all fit in the write buffers and
+/// none is to be split or scattered again, else flushed to their spill files; scattered again
+/// over a root cube from the bounds read where points fell outside the headers' bounds or those
+/// overstate them by far. The root cube, the chunks, and their points where kept in memory.
+fn settle(
+    scatter: &mut Scatter,
+    tally: &Tally,
+    root: Aabb,
+    margin_step: f64,
+    options: &DistributeOptions,
+) -> Result<(Aabb, Vec<Chunk>, Option<Resident>)> {
+    let (clamped, actual, level) = (tally.clamped, &tally.actual, scatter.level);
     // Points outside the headers' bounds went to the nearest cell, whose cube does not hold
     // them. Rare (a header not updated after editing), but the tree must contain its points:
     // scatter the spill files again over a root cube from the bounds actually read. So too when
@@ -639,7 +780,7 @@ pub fn distribute_with(
     // one chunk and the tree would spend its levels on empty space.
     let overstated = options.grid.is_none()
         && !actual.is_empty()
-        && root.size()[0] > 16.0 * root_cube(&actual, margin_step).size()[0];
+        && root.size()[0] > 16.0 * root_cube(actual, margin_step).size()[0];
     // Everything still in the write buffers, and no chunk to scatter again: the rows stay in
     // memory (KY: 374 MB not written to disk and read back; the reading phase 2.7-3.0 -> 1.9-2.1 s).
     let split = scatter
@@ -656,24 +797,34 @@ pub fn distribute_with(
     }
     let mut chunks = scatter.chunks();
     let root = if clamped > 0 || overstated {
-        let root = root_cube(&actual, margin_step);
+        let root = root_cube(actual, margin_step);
         chunks = rescatter(
             &chunks,
             &root,
             level + 1,
-            &schema,
-            folder.path(),
+            scatter.schema,
+            scatter.folder,
             options.buffer_bytes,
-            codec,
+            scatter.codec,
         )?;
         root
     } else {
         root
     };
+    Ok((root, chunks, resident))
+}
 
-    // Split chunks that came out too large, from their own spill files, until they fit: those
-    // of one round in parallel, each with its share of the write buffers (one at a time left a
-    // core idle for 130 of the 420 s that 500 M points took).
+/// Split chunks that came out too large, from their own spill files, until they fit: those
+/// of one round in parallel, each with its share of the write buffers (one at a time left a
+/// core idle for 130 of the 420 s that 500 M points took). Every chunk, by level and cell.
+fn split_large(
+    mut chunks: Vec<Chunk>,
+    root: &Aabb,
+    schema: &Schema,
+    folder: &Path,
+    options: &DistributeOptions,
+    codec: Codec,
+) -> Result<Vec<Chunk>> {
     let mut done = Vec::new();
     loop {
         let (fit, big): (Vec<Chunk>, Vec<Chunk>) = chunks
@@ -690,10 +841,10 @@ pub fn distribute_with(
             .map(|chunk| {
                 rescatter(
                     std::slice::from_ref(chunk),
-                    &root,
+                    root,
                     chunk.level + 1,
-                    &schema,
-                    folder.path(),
+                    schema,
+                    folder,
                     share.max(1 << 20),
                     codec,
                 )
@@ -702,23 +853,7 @@ pub fn distribute_with(
         chunks = split.into_iter().flatten().collect();
     }
     done.sort_by_key(|c| (c.level, c.cell));
-    Ok(Distribution {
-        root,
-        schema,
-        chunks: done,
-        points,
-        bounds: actual,
-        clamped,
-        sources: infos.into_iter().zip(taken).collect(),
-        read,
-        skipped_non_finite: skipped,
-        trimmed,
-        not_transformed,
-        las_header,
-        sides,
-        resident: std::sync::Mutex::new(resident.unwrap_or_default()),
-        _spill: folder,
-    })
+    Ok(done)
 }
 
 /// Scatters the points of `chunks` into the cells of `level` over `root` and removes their
