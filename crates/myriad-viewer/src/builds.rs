@@ -4,7 +4,7 @@
 //! scan's own dataset arrives, and then draws that, with the layer's settings and the view as
 //! they are. The build takes the chunks nearest the camera's target first.
 
-use crate::{App, Layer};
+use crate::shown::{Layer, Layers};
 use myriad_build::growing::Growing;
 use myriad_format::Dataset;
 use std::collections::HashMap;
@@ -43,16 +43,19 @@ impl Builds {
     pub fn done(&self) -> bool {
         self.left == 0
     }
-}
-
-impl App {
-    /// Puts the datasets that arrived in their layers, in place of their previews (or of the
+    /// Puts the datasets that arrived in `layers`, in place of their previews (or of the
     /// datasets of scans that changed), and looks again within a second: builds still running
-    /// and watched scans send theirs while the window may be idle.
-    pub(crate) fn take_builds(&mut self, ctx: &eframe::egui::Context) {
-        let Some(b) = &mut self.builds else {
-            return;
-        };
+    /// and watched scans send theirs while the window may be idle. The builds take the chunks
+    /// around `focus` (what the camera looks at) next. Whether a layer's scene changed (the
+    /// next frame is drawn).
+    pub(crate) fn take(
+        &mut self,
+        ctx: &eframe::egui::Context,
+        layers: &mut Layers,
+        focus: [f64; 3],
+    ) -> bool {
+        let b = self;
+        let mut redraw = false;
         ctx.request_repaint_after(std::time::Duration::from_secs(1));
         // Snapshots newer than those drawn.
         let running: Vec<(usize, Arc<Growing>)> = (b.growing.lock().expect("builds lock").iter())
@@ -60,23 +63,23 @@ impl App {
             .collect();
         for (i, g) in running {
             // The chunks around what the camera looks at are built next.
-            g.set_focus(Some(self.nav.camera.target));
+            g.set_focus(Some(focus));
             let Some(s) = g.latest() else { continue };
             if b.shown.get(&i).is_some_and(|v| *v >= s.version) {
                 continue;
             }
             let first = !b.shown.contains_key(&i);
             b.shown.insert(i, s.version);
-            self.redraw = true;
-            let Some(layer) = self.layers.get_mut(i) else {
+            redraw = true;
+            let Some(layer) = layers.list.get_mut(i) else {
                 continue;
             };
             layer.scene = crate::shown::reopen(
                 &layer.scene,
                 s.dataset.clone(),
-                &self.filter,
-                self.shares,
-                self.colour,
+                &layers.filter,
+                layers.shares,
+                layers.colour,
             );
             layer.dataset = s.dataset;
             let name = base_name(&layer.name).to_string();
@@ -87,16 +90,17 @@ impl App {
         }
         while let Ok((i, built)) = b.rx.try_recv() {
             b.shown.remove(&i);
-            self.redraw = true;
+            redraw = true;
             b.left = b.left.saturating_sub(1);
-            let Some(layer) = self.layers.get_mut(i) else {
+            let Some(layer) = layers.list.get_mut(i) else {
                 continue;
             };
             match built {
-                Ok(ds) => swap(layer, ds, &self.filter, self.shares, self.colour),
+                Ok(ds) => swap(layer, ds, &layers.filter, layers.shares, layers.colour),
                 Err(why) => eprintln!("error: {why} (what is shown stays)"),
             }
         }
+        redraw
     }
 }
 

@@ -1,6 +1,6 @@
 //! What the command line gives the viewer.
 
-use crate::Builds;
+use crate::builds::Builds;
 use myriad_render::{ColorBy, Style};
 use std::path::PathBuf;
 
@@ -37,9 +37,10 @@ pub struct ViewOptions {
     pub occlusion: myriad_lod::Occlusion,
     /// Pixels a level's spacing must cover to be drawn.
     pub lod_threshold: f64,
-    /// Show the surface the points make (seed 001) instead of the points.
+    /// Show the surface the points make (Schiffner et al. 2015) instead of the points.
     pub surface: Option<myriad_render::surface::Surface>,
-    /// Both eyes side by side, this far apart (seed 002), from the first visible dataset.
+    /// Both eyes side by side, this far apart (Discher et al. 2018), from the first visible
+    /// dataset.
     pub stereo: Option<f64>,
     /// Datasets being built while their layers show a preview.
     pub builds: Option<Builds>,

@@ -1,10 +1,10 @@
 //! The viewer's frame on a GPU without a readback (the window's texture), and the panel of the
 //! post passes.
 
-use crate::App;
 use eframe::egui;
+use eframe::egui_wgpu;
 use eframe::wgpu;
-use myriad_render::Edl;
+use myriad_render::{Edl, Rasterizer};
 
 /// The window's texture a GPU frame is drawn into, shown without a readback.
 pub(crate) struct Presented {
@@ -12,12 +12,24 @@ pub(crate) struct Presented {
     pub id: egui::TextureId,
 }
 
-impl App {
-    /// On a GPU drawing for the window: the window's texture of `w` x `h` pixels (made or
-    /// remade at that size, registered with egui), set as the rasterizer's target. None: the
-    /// frame is read back.
-    pub(crate) fn present_texture(&mut self, w: u32, h: u32) -> Option<egui::TextureId> {
-        let (rs, presented) = self.present.as_mut()?;
+/// GPU frames drawn into the window's texture: the window's render state and the texture.
+pub(crate) struct Present {
+    rs: egui_wgpu::RenderState,
+    presented: Option<Presented>,
+}
+
+impl Present {
+    pub fn new(rs: egui_wgpu::RenderState) -> Present {
+        Present {
+            rs,
+            presented: None,
+        }
+    }
+
+    /// The window's texture of `w` x `h` pixels (made or remade at that size, registered with
+    /// egui), set as `raster`'s target.
+    pub fn texture(&mut self, raster: &Rasterizer, w: u32, h: u32) -> egui::TextureId {
+        let (rs, presented) = (&self.rs, &mut self.presented);
         let size = wgpu::Extent3d {
             width: w,
             height: h,
@@ -55,22 +67,17 @@ impl App {
                     renderer.register_native_texture(&rs.device, &shown, wgpu::FilterMode::Nearest)
                 }
             };
-            self.raster
-                .present_to(Some(texture.create_view(&Default::default())));
+            raster.present_to(Some(texture.create_view(&Default::default())));
             *presented = Some(Presented { texture, id });
         }
-        presented.as_ref().map(|p| p.id)
+        presented.as_ref().map(|p| p.id).expect("made above")
     }
-}
 
-impl App {
     /// Frames read back again (for a surface, drawn on the CPU): the window's texture freed.
-    pub(crate) fn stop_presenting(&mut self) {
-        if let Some((rs, presented)) = &mut self.present
-            && let Some(p) = presented.take()
-        {
-            rs.renderer.write().free_texture(&p.id);
-            self.raster.present_to(None);
+    pub fn stop(&mut self, raster: &Rasterizer) {
+        if let Some(p) = self.presented.take() {
+            self.rs.renderer.write().free_texture(&p.id);
+            raster.present_to(None);
         }
     }
 }

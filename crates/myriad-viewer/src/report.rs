@@ -1,52 +1,7 @@
-//! What the viewer writes out: the frame times of a scripted orbit, screenshots, and the text
-//! of a picked point.
+//! What the viewer writes out: screenshots, the text of a picked point, and the shortcuts the
+//! help window lists.
 
 use eframe::egui;
-use myriad_render::FrameStats;
-
-/// Prints the frame times seen while orbiting: the interval between frames (what input waits
-/// for at most twice: an event arriving during one frame is drawn by the next) and the drawing.
-pub(crate) fn report_orbit(times: &mut [(f64, f64)], stats: &[FrameStats], target: Option<f64>) {
-    if times.is_empty() {
-        return;
-    }
-    if let Some(target) = target {
-        // When the interval first came within 15 % of the target, and how many frames after
-        // that stayed there (pages landing while orbiting make single slow frames).
-        let ms = target * 1e3;
-        let near = |t: &(f64, f64)| (t.0 - ms).abs() <= 0.15 * ms;
-        match times.iter().position(near) {
-            Some(first) => {
-                let after: f64 = times[..first].iter().map(|t| t.0).sum::<f64>() / 1e3;
-                let rest = &times[first..];
-                let within = rest.iter().filter(|t| near(t)).count();
-                let mut tail: Vec<f64> = rest.iter().map(|t| t.0).collect();
-                tail.sort_by(f64::total_cmp);
-                println!(
-                    "frame interval within 15 % of {ms:.0} ms after {after:.2} s (frame {first}); then {within} of {} frames within, median {:.1} ms",
-                    rest.len(),
-                    tail[tail.len() / 2]
-                );
-            }
-            None => println!("frame interval never within 15 % of {ms:.0} ms"),
-        }
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let mut interval: Vec<f64> = times.iter().map(|t| t.0).collect();
-    let mut draw: Vec<f64> = times.iter().map(|t| t.1).collect();
-    let points: u64 = stats.iter().map(|s| s.points).sum();
-    println!(
-        "orbiting {} frames: median frame interval {:.1} ms (max {:.1}), drawing {:.1} ms, {} points in the last",
-        times.len(),
-        median(&mut interval),
-        interval.last().copied().unwrap_or(0.0),
-        median(&mut draw),
-        points
-    );
-}
 
 pub(crate) fn write_png(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
     let [w, h] = image.size;

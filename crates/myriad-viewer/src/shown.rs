@@ -5,18 +5,45 @@
 //! schemes, or any attribute through a gradient over a range). The panel's "where" box adds
 //! conditions (`--where`'s syntax) to the command line's, checked against every dataset's
 //! attributes first: one the data lack is said there and nothing changes.
+//!
+//! It holds the window's layers ([`Layers`]: each dataset's scene, whether it is shown), the
+//! filter they draw and their colour.
 
-use crate::{App, Layer};
 use eframe::egui;
+use myriad_core::Aabb;
 use myriad_core::colour::{Gradient, choose};
 use myriad_core::{Column, Schema};
 use myriad_format::Dataset;
+use myriad_lod::Camera;
 use myriad_measure::Filter;
 use myriad_measure::filter::Condition;
 use myriad_measure::filter::class_name;
 use myriad_render::{ColorBy, Scene};
 use std::collections::BTreeMap;
 use std::sync::Arc;
+
+/// A dataset in the window: its name, scene, and whether it is shown.
+pub(crate) struct Layer {
+    pub name: String,
+    pub scene: Scene,
+    pub dataset: Arc<Dataset>,
+    pub visible: bool,
+}
+
+/// The layers, what they draw (the filter: the command line's, the panel's conditions, the
+/// classes ticked) and in what colour.
+pub(crate) struct Layers {
+    pub list: Vec<Layer>,
+    /// The caches' shares a layer's new scene gets: decoded points and GPU buffers (bytes).
+    pub shares: (usize, usize),
+    /// The command line's filter, and the overview's classes: points there, shown.
+    pub filter: Filter,
+    classes: BTreeMap<u8, (u64, bool)>,
+    /// The panel's colour ramp and "where" box: what is typed, the conditions it gave (on top
+    /// of the command line's), and why the last one was not taken.
+    typed: Typed,
+    pub colour: ColorBy,
+}
 
 /// The classes of the dataset's root node (the overview: a sample of the whole) and their
 /// points there.
@@ -90,7 +117,105 @@ impl Layer {
     }
 }
 
-impl App {
+/// What the data open with: the datasets' extent for framing (their scenes' bounds) and the
+/// extent of everything there is (for near and far planes).
+pub(crate) struct Extent {
+    pub view: Aabb,
+    pub all: Aabb,
+}
+
+impl Layers {
+    /// A layer for each dataset, drawing what `filter` keeps in `colour`: one memory budget
+    /// for all datasets, in equal shares.
+    pub fn open(
+        datasets: Vec<(String, Arc<Dataset>)>,
+        filter: Filter,
+        colour: ColorBy,
+        occlusion: myriad_lod::Occlusion,
+    ) -> Result<(Layers, Extent), String> {
+        let shares = datasets.len().max(1);
+        let ram = (2usize << 30) / shares;
+        let gpu_bytes = (1usize << 30) / shares;
+        let mut list = Vec::new();
+        let mut bounds = Aabb::EMPTY;
+        let mut all = Aabb::EMPTY;
+        let mut classes = BTreeMap::new();
+        for (name, ds) in datasets {
+            for (c, n) in overview_classes(&ds) {
+                let shown = filter.classes.as_ref().is_none_or(|l| l.contains(&c));
+                classes.entry(c).or_insert((0, shown)).0 += n;
+            }
+            let bound = (filter.bind(&ds.meta.schema))
+                .map_err(|e| format!("{}: {e}", ds.path().display()))?;
+            let mut scene = Scene::open_filtered(ds.clone(), bound, ram, gpu_bytes);
+            scene.set_colour(colour);
+            scene.occlusion = occlusion;
+            // At most 64 MB to the GPU per frame (4 M points), shared by the datasets.
+            scene.upload_limit = (64 << 20) / shares;
+            // Occlusion queries read when the GPU has them: a frame never waits for the last
+            // one (on the CPU path they are answered at once and waited for: `Render::draw`).
+            scene.query_wait = false;
+            bounds.extend(scene.view_bounds.min);
+            bounds.extend(scene.view_bounds.max);
+            all.extend(ds.meta.bounds.min);
+            all.extend(ds.meta.bounds.max);
+            list.push(Layer {
+                name,
+                scene,
+                dataset: ds,
+                visible: true,
+            });
+        }
+        if list.is_empty() {
+            return Err("no dataset to view".into());
+        }
+        let layers = Layers {
+            list,
+            shares: (ram, gpu_bytes),
+            filter,
+            classes,
+            typed: Typed::default(),
+            colour,
+        };
+        Ok((layers, Extent { view: bounds, all }))
+    }
+
+    /// The first dataset's coordinate reference system.
+    pub fn crs(&self) -> Option<String> {
+        self.list.first().and_then(|l| l.dataset.meta.crs.clone())
+    }
+
+    /// The first visible layer (the tools work on its dataset).
+    pub fn first_visible(&self) -> Option<&Layer> {
+        self.list.iter().find(|l| l.visible)
+    }
+
+    /// The visible layers' scenes.
+    pub fn visible_scenes(&mut self) -> Vec<&mut Scene> {
+        (self.list.iter_mut())
+            .filter(|l| l.visible)
+            .map(|l| &mut l.scene)
+            .collect()
+    }
+
+    /// The nearest point drawn within 6 pixels of (`x`, `y`) seen by `cam`, of any visible
+    /// layer.
+    pub fn pick(&self, cam: &Camera, x: f64, y: f64) -> Option<myriad_render::Picked> {
+        self.list
+            .iter()
+            .filter(|l| l.visible)
+            .filter_map(|l| l.scene.pick(cam, x, y, 6.0))
+            .min_by(|a, b| a.depth.total_cmp(&b.depth))
+    }
+
+    /// A box per dataset: shown or not.
+    pub fn list_panel(&mut self, ui: &mut egui::Ui) {
+        ui.label("datasets");
+        for l in &mut self.list {
+            ui.checkbox(&mut l.visible, &l.name);
+        }
+    }
+
     /// The filter the view draws: the command line's conditions and the panel's, and the
     /// classes ticked.
     pub(crate) fn filter(&self) -> Filter {
@@ -129,7 +254,7 @@ impl App {
                     ui.selectable_value(&mut self.colour, c, format!("{c:?}"));
                 }
                 // Any attribute of the first dataset through a gradient.
-                let Some(ds) = self.layers.first().map(|l| l.dataset.clone()) else {
+                let Some(ds) = self.list.first().map(|l| l.dataset.clone()) else {
                     return;
                 };
                 ui.separator();
@@ -167,7 +292,7 @@ impl App {
             });
         }
         if self.colour != before {
-            for l in &mut self.layers {
+            for l in &mut self.list {
                 l.scene.set_colour(self.colour);
             }
         }
@@ -184,15 +309,14 @@ impl App {
             apply |= ui.button("apply").clicked();
         });
         if apply {
-            let schemas: Vec<&Schema> =
-                self.layers.iter().map(|l| &l.dataset.meta.schema).collect();
+            let schemas: Vec<&Schema> = self.list.iter().map(|l| &l.dataset.meta.schema).collect();
             match typed_conditions(&self.typed.text, &schemas) {
                 Ok(c) => {
                     self.typed.problem = None;
                     if c != self.typed.conditions {
                         self.typed.conditions = c;
                         let f = self.filter();
-                        for l in &mut self.layers {
+                        for l in &mut self.list {
                             l.refilter(&f, self.shares, self.colour);
                         }
                     }
@@ -229,7 +353,7 @@ impl App {
             });
         if changed {
             let f = self.filter();
-            for l in &mut self.layers {
+            for l in &mut self.list {
                 l.refilter(&f, self.shares, self.colour);
             }
         }

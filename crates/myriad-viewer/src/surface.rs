@@ -1,12 +1,12 @@
-//! Surfaces and stereo in the viewer. Surfaces (seed 001): made on their own thread from the points the frames draw,
-//! again whenever the view, the drawn points or the parameters change; the last surface is shown
-//! (from the current view, drawn on the frame's device and read back) until the new one is in,
-//! so a frame never waits for one.
+//! Surfaces and stereo in the viewer. Surfaces (Schiffner et al. 2015): made on their own
+//! thread from the points the frames draw, again whenever the view, the drawn points or the
+//! parameters change; the last surface is shown (from the current view, drawn on the frame's
+//! device and read back) until the new one is in, so a frame never waits for one.
 
-use crate::App;
 use eframe::egui;
-use myriad_lod::Camera;
+use myriad_lod::{Camera, SelectOptions};
 use myriad_render::surface::{self, Kind, Made, Normals, Surface, Worker};
+use myriad_render::{FrameStats, Gpu, Rasterizer, Scene, Style};
 
 pub(crate) struct Surfaces {
     pub on: bool,
@@ -33,9 +33,6 @@ impl Surfaces {
             reported: false,
         }
     }
-}
-
-impl Surfaces {
     /// Its steps on `gpu` from now on (the frames' device, where it is a GPU).
     pub fn on_gpu(&mut self, gpu: myriad_render::Gpu) {
         self.worker = Worker::on(Some(gpu));
@@ -47,14 +44,20 @@ impl Surfaces {
         !self.on
             || (!self.worker.busy() && self.made.as_ref().is_some_and(|m| m.surface == self.params))
     }
-}
-
-impl App {
     /// With surfaces on: the newest surface taken in, a new one asked for where the view, the
-    /// drawn points or the parameters changed (when the worker is free), and the image of the
-    /// last surface seen from `cam` (the points' image until there is one).
-    pub(crate) fn surface_image(&mut self, cam: &Camera, points_image: Vec<u8>) -> Vec<u8> {
-        let s = &mut self.surfaces;
+    /// drawn points (`stats`: the frame's) or the parameters changed (when the worker is free),
+    /// and the image of the last surface seen from `cam` (the points' image until there is
+    /// one), drawn on `gpu`. `visible`: the scenes drawn.
+    pub(crate) fn image<'a>(
+        &mut self,
+        cam: &Camera,
+        points_image: Vec<u8>,
+        stats: &[FrameStats],
+        visible: impl Iterator<Item = &'a Scene>,
+        style: &Style,
+        gpu: &Gpu,
+    ) -> Vec<u8> {
+        let s = self;
         if let Some(m) = s.worker.take() {
             if !s.reported && !m.built.clustering.cells.is_empty() {
                 s.reported = true;
@@ -67,14 +70,14 @@ impl App {
             }
             s.made = Some(m);
         }
-        let drawn: u64 = self.stats.iter().map(|x| x.points).sum();
+        let drawn: u64 = stats.iter().map(|x| x.points).sum();
         let key = (*cam, drawn);
         let stale = s.asked != Some(key) || s.made.as_ref().is_some_and(|m| m.surface != s.params);
         if stale && !s.worker.busy() {
             let mut points = Vec::new();
             let mut colours = Vec::new();
-            for l in self.layers.iter().filter(|l| l.visible) {
-                let (p, c) = surface::drawn_points(&l.scene, self.style.clip);
+            for scene in visible {
+                let (p, c) = surface::drawn_points(scene, style.clip);
                 points.extend(p);
                 colours.extend(c);
             }
@@ -85,12 +88,12 @@ impl App {
         let Some(m) = &s.made else {
             return points_image;
         };
-        if self.gpu.is_cpu() {
-            return surface::draw(cam, &m.built.mesh, &self.style);
+        if gpu.is_cpu() {
+            return surface::draw(cam, &m.built.mesh, style);
         }
         s.drawer
-            .get_or_insert_with(|| surface::Drawer::new(&self.gpu))
-            .draw(&self.gpu, cam, &m.built.mesh, &self.style)
+            .get_or_insert_with(|| surface::Drawer::new(gpu))
+            .draw(gpu, cam, &m.built.mesh, style)
     }
 }
 
@@ -154,45 +157,44 @@ pub(crate) fn surface_panel(ui: &mut egui::Ui, s: &mut Surfaces) {
     }
 }
 
-/// Both eyes side by side in the window (seed 002), for a check without a headset.
+/// Both eyes side by side in the window (Discher et al. 2018), for a check without a headset.
 pub(crate) struct StereoView {
     pub on: bool,
     /// Distance between the eyes, in the data's units.
     pub ipd: f64,
 }
 
-impl App {
-    /// Both eyes of the first visible dataset side by side, each half the view's width (one
-    /// selection for both: `Scene::frame_stereo`, single-pass on the CPU path).
-    pub(crate) fn draw_stereo(&mut self, cam: &Camera) -> Vec<u8> {
+impl StereoView {
+    /// Both eyes of `scene` (the first visible dataset's; none: black) side by side, each half
+    /// the view's width (one selection for both: `Scene::frame_stereo`, single-pass on the CPU
+    /// path); the frame's statistics where it was drawn.
+    pub(crate) fn draw(
+        &self,
+        cam: &Camera,
+        scene: Option<&mut Scene>,
+        (gpu, raster): (&Gpu, &Rasterizer),
+        options: &SelectOptions,
+        style: &Style,
+    ) -> (Vec<u8>, Option<FrameStats>) {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut eye = *cam;
         eye.width = (cam.width / 2).max(1);
-        let eyes = eye.eyes(self.stereo.ipd);
+        let eyes = eye.eyes(self.ipd);
         let stereo = myriad_render::stereo::Stereo {
-            ipd: self.stereo.ipd,
+            ipd: self.ipd,
             ..Default::default()
         };
-        let Some(layer) = self.layers.iter_mut().find(|l| l.visible) else {
-            return vec![0; w * h * 4];
+        let Some(scene) = scene else {
+            return (vec![0; w * h * 4], None);
         };
-        let (image, stats) = layer.scene.frame_stereo(
-            &self.gpu,
-            &self.raster,
-            &eyes,
-            &self.options,
-            &self.style,
-            &stereo,
-            None,
-        );
-        self.stats = vec![stats];
+        let (image, stats) = scene.frame_stereo(gpu, raster, &eyes, options, style, &stereo, None);
         // An odd width leaves a column: black.
         let half = 2 * eye.width as usize;
         let mut out = vec![0u8; w * h * 4];
         for y in 0..h {
             out[y * w * 4..][..half * 4].copy_from_slice(&image[y * half * 4..][..half * 4]);
         }
-        out
+        (out, Some(stats))
     }
 }
 

@@ -1,25 +1,32 @@
-//! `myriad view --vr`: a dataset in a headset through OpenXR (seed 002). The `openxr` crate over
-//! the system's loader; Vulkan through XR_KHR_vulkan_enable2, the runtime making the instance
-//! and the device wgpu then drives (`vr_vulkan.rs`); each frame the runtime's predicted display
-//! time, both eyes' poses and fields of view located, one selection for both eyes, both images
-//! drawn in one pass (on the runtime's GPU into a texture; on the CPU where that GPU is a
-//! software one, unless `--gpu`), cut into the eyes' swapchain images on the GPU and submitted
-//! as a projection layer. The data stand in front of the user at the stage's origin, `scale`
-//! metres a data unit, Z up.
+//! `myriad view --vr`: a dataset in a headset through OpenXR (Discher et al. 2018). The `openxr`
+//! crate over the system's loader; Vulkan through XR_KHR_vulkan_enable2, the runtime making the
+//! instance and the device wgpu then drives (`vr_vulkan.rs`); each frame the runtime's
+//! predicted display time, both eyes' poses and fields of view located, one selection for both
+//! eyes, both images drawn in one pass (on the runtime's GPU into a texture; on the CPU where
+//! that GPU is a software one, unless `--gpu`), cut into the eyes' swapchain images on the GPU
+//! and submitted as a projection layer. The data stand in front of the user at the stage's
+//! origin, `scale` metres a data unit, Z up.
+//!
+//! The session is [`run`]'s steps: the runtime opened (`Runtime`), the session set up
+//! (`Vr::begin`), then per frame: events polled, the frame waited for, the eyes located, the
+//! controllers read, the eyes' fields fitted, both eyes selected and drawn, a measuring point
+//! taken, the image checked, the frame submitted, the budget paced and the frame reported;
+//! the session let go (`Vr::finish`).
 //!
 //! The hidden area: the runtime's triangles (XR_KHR_visibility_mask, fetched again when it says
 //! they changed) mask each eye's pixels for the point pass, and are drawn black over the
 //! swapchain images.
 //!
-//! The controllers (002's interaction; bound for the Khronos simple controller, which every
-//! runtime maps its controllers to): the right trigger flies along the right hand's pointing
-//! direction, both triggers grab the data (move with the hands, scale with their distance:
-//! `vr_nav.rs`), the right menu button marks a measuring point where its ray meets the drawn
-//! points; the report gives the distances.
+//! The controllers (`vr_hands.rs`; Discher et al. 2018's interaction; bound for the Khronos
+//! simple controller, which every runtime maps its controllers to): the right trigger flies
+//! along the right hand's pointing direction, both triggers grab the data (move with the hands,
+//! scale with their distance: `vr_nav.rs`), the right menu button marks a measuring point where
+//! its ray meets the drawn points; the report gives the distances.
 //!
 //! Off-axis eyes: each eye's field is cut from a symmetric image holding both eyes' fields
 //! (`vr_nav::cover`), pixel for pixel what an off-axis projection draws.
 
+use crate::vr_hands::{Hands, Input, rotate};
 use myriad_format::Dataset;
 use myriad_lod::{Camera, SelectOptions};
 use myriad_render::stereo::Stereo;
@@ -88,189 +95,339 @@ fn err(what: &str) -> impl Fn(xr::sys::Result) -> String + '_ {
     move |e| format!("{what}: {e}")
 }
 
-/// Runs a VR session on `dataset` until the runtime ends it (or `o.frames` were submitted).
+/// Runs a VR session on `dataset` until the runtime ends it (or `o.frames` were submitted):
+/// the runtime opened, the session set up, then frame after frame (events polled, the frame
+/// waited for, the eyes located, the controllers read, both eyes selected and drawn, the
+/// frame submitted, the budget paced) until the session ends.
 pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
-    // SAFETY: the system's OpenXR loader conforms to the specification. Debian's
-    // libopenxr-loader1 has the versioned name only (libopenxr-dev adds the plain one).
-    let entry = unsafe {
-        xr::Entry::load(&())
-            .or_else(|_| xr::Entry::load_from(std::path::Path::new("libopenxr_loader.so.1"), &()))
-    }
-    .map_err(|e| {
-        format!("no OpenXR loader ({e}): install the OpenXR loader (Debian: libopenxr-loader1)")
-    })?;
-    let available = entry
-        .enumerate_extensions()
-        .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
-    if !available.khr_vulkan_enable2 {
-        return Err("the OpenXR runtime has no XR_KHR_vulkan_enable2 (Vulkan)".into());
-    }
-    let mut wanted = xr::ExtensionSet::default();
-    wanted.khr_vulkan_enable2 = true;
-    wanted.khr_visibility_mask = available.khr_visibility_mask;
-    let instance = entry
-        .create_instance(
-            &xr::ApplicationInfo {
-                application_name: "myriad",
-                application_version: 1,
-                engine_name: "myriad",
-                engine_version: 1,
-                api_version: xr::Version::new(1, 0, 0),
-            },
-            &wanted,
-            &[],
-            &(),
-        )
-        .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
-    let system = instance
-        .system(xr::FormFactor::HEAD_MOUNTED_DISPLAY)
-        .map_err(|e| format!("no headset ({e})"))?;
-    let views_config = instance
-        .enumerate_view_configuration_views(system, xr::ViewConfigurationType::PRIMARY_STEREO)
-        .map_err(err("the headset's views"))?;
-    if views_config.len() != 2 {
-        return Err(format!(
-            "the headset has {} views, not two",
-            views_config.len()
-        ));
-    }
-    // Vulkan through the runtime, under wgpu.
-    let xr_device = crate::vr_vulkan::create(&instance, system)?;
-    // SAFETY: the handles come from the runtime's Vulkan instance and device above.
-    let (session, mut waiter, mut stream) =
-        unsafe { instance.create_session::<xr::Vulkan>(system, &xr_device.session_info) }
-            .map_err(err("the OpenXR session"))?;
-    let space = session
-        .create_reference_space(xr::ReferenceSpaceType::STAGE, xr::Posef::IDENTITY)
-        .or_else(|_| {
-            session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY)
-        })
-        .map_err(err("a reference space"))?;
-    let (w, h) = (
-        views_config[0].recommended_image_rect_width,
-        views_config[0].recommended_image_rect_height,
-    );
-    let xr_gpu = xr_device.gpu;
-    let mut swapchains = crate::vr_vulkan::Eyes::new(&session, &xr_gpu, (w, h))?;
-    // The lenses' hidden areas (the runtime's triangles), and each eye's mask in its symmetric
-    // image made from them for the fields the runtime gives.
-    // A runtime that offers the extension but fails to give a mesh: drawn without it.
-    let fetch = |session: &xr::Session<xr::Vulkan>| {
-        hidden_meshes(session)
-            .inspect_err(|e| eprintln!("warning: {e}: no hidden-area mask"))
-            .ok()
-    };
-    let mut hidden = if wanted.khr_visibility_mask {
-        fetch(&session)
-    } else {
-        None
-    };
-    let mut masks: Option<(crate::vr_nav::Cover, [Vec<bool>; 2])> = None;
+    let runtime = Runtime::open()?;
+    let mut vr = Vr::begin(&runtime, dataset, o)?;
+    while vr.frame(&runtime, o)? {}
+    Ok(vr.finish())
+}
 
-    // The data and the renderer.
-    let mut scene = Scene::open(dataset.clone(), 2 << 30, 1 << 30);
-    // The runtime's device draws where it is a hardware GPU (or where asked to); a software
-    // one (lavapipe) leaves the drawing to the CPU path, as the window does.
-    let on_gpu = o.gpu || !xr_gpu.software;
-    let cpu = Gpu::cpu();
-    let gpu = if on_gpu { &xr_gpu } else { &cpu };
-    let raster = Rasterizer::new(gpu);
-    let mut options = SelectOptions {
-        budget: o.budget,
-        min_pixels: 1.0,
-    };
-    // The budget follows the time a frame's work takes against the runtime's display period
-    // (002: the budget adjusted to hold the headset's rate; 90 fps where it says none).
-    let mut pace: Option<myriad_lod::Pace> = None;
-    let mut last_image = 0u64;
-    let centre = scene.view_bounds.center();
-    // The data's centre, at its ground, at the stage's origin.
-    let mut nav =
-        crate::vr_nav::StageNav::new([centre[0], centre[1], scene.view_bounds.min[2]], o.scale);
-    let hands = Hands::new(&instance, &session)?;
-    let mut measure_was = false;
-    let mut last_work: Option<Instant> = None;
-    let mut report = VrReport {
-        views: 2,
-        size: (w, h),
-        device: format!(
-            "{}, drawing on {}",
-            xr_gpu.name,
-            if on_gpu { "it" } else { "the CPU" }
-        ),
-        ..Default::default()
-    };
-    let mut running = false;
-    let mut last = None;
-    let mut events = xr::EventDataBuffer::new();
-    'frames: loop {
+/// The OpenXR runtime: the loader, the instance (with the extensions wanted), the headset and
+/// its two views. (Fields drop in this order: the reverse of their making.)
+struct Runtime {
+    views: Vec<xr::ViewConfigurationView>,
+    system: xr::SystemId,
+    instance: xr::Instance,
+    wanted: xr::ExtensionSet,
+    _entry: xr::Entry,
+}
+
+impl Runtime {
+    /// The system's loader, a runtime with Vulkan, a headset with two views.
+    fn open() -> Result<Runtime, String> {
+        // SAFETY: the system's OpenXR loader conforms to the specification. Debian's
+        // libopenxr-loader1 has the versioned name only (libopenxr-dev adds the plain one).
+        let entry = unsafe {
+            xr::Entry::load(&()).or_else(|_| {
+                xr::Entry::load_from(std::path::Path::new("libopenxr_loader.so.1"), &())
+            })
+        }
+        .map_err(|e| {
+            format!("no OpenXR loader ({e}): install the OpenXR loader (Debian: libopenxr-loader1)")
+        })?;
+        let available = entry
+            .enumerate_extensions()
+            .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
+        if !available.khr_vulkan_enable2 {
+            return Err("the OpenXR runtime has no XR_KHR_vulkan_enable2 (Vulkan)".into());
+        }
+        let mut wanted = xr::ExtensionSet::default();
+        wanted.khr_vulkan_enable2 = true;
+        wanted.khr_visibility_mask = available.khr_visibility_mask;
+        let instance = entry
+            .create_instance(
+                &xr::ApplicationInfo {
+                    application_name: "myriad",
+                    application_version: 1,
+                    engine_name: "myriad",
+                    engine_version: 1,
+                    api_version: xr::Version::new(1, 0, 0),
+                },
+                &wanted,
+                &[],
+                &(),
+            )
+            .map_err(|e| format!("no OpenXR runtime ({e}): install one, or set XR_RUNTIME_JSON"))?;
+        let system = instance
+            .system(xr::FormFactor::HEAD_MOUNTED_DISPLAY)
+            .map_err(|e| format!("no headset ({e})"))?;
+        let views = instance
+            .enumerate_view_configuration_views(system, xr::ViewConfigurationType::PRIMARY_STEREO)
+            .map_err(err("the headset's views"))?;
+        if views.len() != 2 {
+            return Err(format!("the headset has {} views, not two", views.len()));
+        }
+        Ok(Runtime {
+            views,
+            system,
+            instance,
+            wanted,
+            _entry: entry,
+        })
+    }
+}
+
+/// A hidden-area mask (the runtime's triangles, XR_KHR_visibility_mask): each eye's triangles
+/// in tangents of its view.
+type Hidden = [Vec<[[f64; 2]; 3]>; 2];
+
+/// A running session and what draws into it. (Fields drop in this order, the reverse of their
+/// making, as the locals of one function did; [`Vr::finish`] drops the swapchains and the
+/// session first.)
+struct Vr {
+    events: xr::EventDataBuffer,
+    /// When the last frame was submitted.
+    last: Option<Instant>,
+    /// The session is running (between READY and STOPPING).
+    running: bool,
+    report: VrReport,
+    /// When the last frame's work began (the controllers' time step).
+    last_work: Option<Instant>,
+    /// The measure button was down in the frame before.
+    measure_was: bool,
+    hands: Hands,
+    nav: crate::vr_nav::StageNav,
+    /// FNV-1a of the last image checked.
+    last_image: u64,
+    /// The budget following the time a frame's work takes against the runtime's display
+    /// period (Discher et al. 2018: the budget adjusted to hold the headset's rate; 90 fps
+    /// where it says none).
+    pace: Option<myriad_lod::Pace>,
+    options: SelectOptions,
+    raster: Rasterizer,
+    /// The CPU path, drawing where the runtime's device is a software one.
+    cpu: Gpu,
+    /// The runtime's device draws.
+    on_gpu: bool,
+    scene: Scene,
+    /// The cut of the eyes' fields and each eye's mask in it, for the hidden area below.
+    masks: Option<(crate::vr_nav::Cover, [Vec<bool>; 2])>,
+    hidden: Option<Hidden>,
+    swapchains: crate::vr_vulkan::Eyes,
+    xr_gpu: Gpu,
+    /// Each eye's image size (the runtime's recommendation).
+    size: (u32, u32),
+    space: xr::Space,
+    stream: xr::FrameStream<xr::Vulkan>,
+    waiter: xr::FrameWaiter,
+    session: xr::Session<xr::Vulkan>,
+}
+
+/// A frame drawn: the side-by-side image (both eyes' symmetric images), its statistics, its
+/// size, whether it was looked at (read back) and whether its swapchain images are compared.
+struct Drawn {
+    image: Vec<u8>,
+    stats: myriad_render::FrameStats,
+    wide: (u32, u32),
+    checked: bool,
+    verify: bool,
+}
+
+/// The hidden area's triangles, where the runtime gives them; a runtime that offers the
+/// extension but fails to give a mesh: drawn without it.
+fn fetch_hidden(session: &xr::Session<xr::Vulkan>) -> Option<Hidden> {
+    hidden_meshes(session)
+        .inspect_err(|e| eprintln!("warning: {e}: no hidden-area mask"))
+        .ok()
+}
+
+impl Vr {
+    /// Session set-up: Vulkan through the runtime (under wgpu), the session, the stage, the
+    /// eyes' swapchains, the lenses' hidden areas; the data, the renderer, the controllers.
+    fn begin(rt: &Runtime, dataset: Arc<Dataset>, o: &VrOptions) -> Result<Vr, String> {
+        let (instance, system) = (&rt.instance, rt.system);
+        // Vulkan through the runtime, under wgpu.
+        let xr_device = crate::vr_vulkan::create(instance, system)?;
+        // SAFETY: the handles come from the runtime's Vulkan instance and device above.
+        let (session, waiter, stream) =
+            unsafe { instance.create_session::<xr::Vulkan>(system, &xr_device.session_info) }
+                .map_err(err("the OpenXR session"))?;
+        let space = session
+            .create_reference_space(xr::ReferenceSpaceType::STAGE, xr::Posef::IDENTITY)
+            .or_else(|_| {
+                session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY)
+            })
+            .map_err(err("a reference space"))?;
+        let (w, h) = (
+            rt.views[0].recommended_image_rect_width,
+            rt.views[0].recommended_image_rect_height,
+        );
+        let xr_gpu = xr_device.gpu;
+        let swapchains = crate::vr_vulkan::Eyes::new(&session, &xr_gpu, (w, h))?;
+        // The lenses' hidden areas (the runtime's triangles), and each eye's mask in its
+        // symmetric image made from them for the fields the runtime gives.
+        let hidden = if rt.wanted.khr_visibility_mask {
+            fetch_hidden(&session)
+        } else {
+            None
+        };
+
+        // The data and the renderer.
+        let scene = Scene::open(dataset.clone(), 2 << 30, 1 << 30);
+        // The runtime's device draws where it is a hardware GPU (or where asked to); a software
+        // one (lavapipe) leaves the drawing to the CPU path, as the window does.
+        let on_gpu = o.gpu || !xr_gpu.software;
+        let cpu = Gpu::cpu();
+        let raster = Rasterizer::new(if on_gpu { &xr_gpu } else { &cpu });
+        let options = SelectOptions {
+            budget: o.budget,
+            min_pixels: 1.0,
+        };
+        let centre = scene.view_bounds.center();
+        // The data's centre, at its ground, at the stage's origin.
+        let nav =
+            crate::vr_nav::StageNav::new([centre[0], centre[1], scene.view_bounds.min[2]], o.scale);
+        let hands = Hands::new(instance, &session)?;
+        let report = VrReport {
+            views: 2,
+            size: (w, h),
+            device: format!(
+                "{}, drawing on {}",
+                xr_gpu.name,
+                if on_gpu { "it" } else { "the CPU" }
+            ),
+            ..Default::default()
+        };
+        Ok(Vr {
+            events: xr::EventDataBuffer::new(),
+            last: None,
+            running: false,
+            report,
+            last_work: None,
+            measure_was: false,
+            hands,
+            nav,
+            last_image: 0,
+            pace: None,
+            options,
+            raster,
+            cpu,
+            on_gpu,
+            scene,
+            masks: None,
+            hidden,
+            swapchains,
+            xr_gpu,
+            size: (w, h),
+            space,
+            stream,
+            waiter,
+            session,
+        })
+    }
+
+    /// One turn of the frame loop; false: the session ended.
+    fn frame(&mut self, rt: &Runtime, o: &VrOptions) -> Result<bool, String> {
+        if !self.poll_events(&rt.instance)? {
+            return Ok(false);
+        }
+        if !self.running {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            return Ok(true);
+        }
+        let Some((state, work)) = self.wait_frame()? else {
+            return Ok(true);
+        };
+        let views = self.locate_views(state.predicted_display_time)?;
+        let input = self.steer(state.predicted_display_time)?;
+        let cover = self.fit(&views);
+        let eyes = self.eyes(&views, &cover);
+        let drawn = self.draw(&eyes, &cover, o);
+        self.measure(&input);
+        self.check(&drawn, &cover);
+        self.submit(&state, &views, &cover, &drawn)?;
+        self.pace(&state, work, &drawn.stats, &views, o)?;
+        Ok(true)
+    }
+
+    /// Step: the runtime's events: the session begun when READY, ended when STOPPING; the
+    /// hidden area fetched again when it changed. False: the session is over (EXITING, LOSS
+    /// PENDING, the instance lost).
+    fn poll_events(&mut self, instance: &xr::Instance) -> Result<bool, String> {
         while let Some(event) = instance
-            .poll_event(&mut events)
+            .poll_event(&mut self.events)
             .map_err(err("OpenXR events"))?
         {
             match event {
                 xr::Event::SessionStateChanged(e) => match e.state() {
                     xr::SessionState::READY => {
-                        session
+                        self.session
                             .begin(xr::ViewConfigurationType::PRIMARY_STEREO)
                             .map_err(err("beginning the session"))?;
-                        running = true;
+                        self.running = true;
                     }
-                    xr::SessionState::FOCUSED => report.focused = true,
+                    xr::SessionState::FOCUSED => self.report.focused = true,
                     xr::SessionState::STOPPING => {
-                        session.end().map_err(err("ending the session"))?;
-                        running = false;
+                        self.session.end().map_err(err("ending the session"))?;
+                        self.running = false;
                     }
                     xr::SessionState::EXITING | xr::SessionState::LOSS_PENDING => {
-                        report.ended = true;
-                        break 'frames;
+                        self.report.ended = true;
+                        return Ok(false);
                     }
                     _ => {}
                 },
                 xr::Event::VisibilityMaskChangedKHR(_) => {
-                    hidden = fetch(&session);
-                    masks = None;
+                    self.hidden = fetch_hidden(&self.session);
+                    self.masks = None;
                 }
-                xr::Event::InstanceLossPending(_) => break 'frames,
+                xr::Event::InstanceLossPending(_) => return Ok(false),
                 _ => {}
             }
         }
-        if !running {
-            std::thread::sleep(std::time::Duration::from_millis(5));
-            continue;
-        }
-        let state = waiter.wait().map_err(err("waiting for a frame"))?;
+        Ok(true)
+    }
+
+    /// Step: waits for the runtime's go and begins the frame; the frame state and when its
+    /// work began, or None where it is not to be drawn (then ended empty).
+    fn wait_frame(&mut self) -> Result<Option<(xr::FrameState, Instant)>, String> {
+        let state = self.waiter.wait().map_err(err("waiting for a frame"))?;
         let work = Instant::now();
-        report
+        self.report
             .periods
             .push(state.predicted_display_period.as_nanos() as f64 / 1e6);
-        stream.begin().map_err(err("beginning a frame"))?;
+        self.stream.begin().map_err(err("beginning a frame"))?;
         if !state.should_render {
-            stream
+            self.stream
                 .end(
                     state.predicted_display_time,
                     xr::EnvironmentBlendMode::OPAQUE,
                     &[],
                 )
                 .map_err(err("ending a frame"))?;
-            continue;
+            return Ok(None);
         }
-        let (_, views) = session
-            .locate_views(
-                xr::ViewConfigurationType::PRIMARY_STEREO,
-                state.predicted_display_time,
-                &space,
-            )
+        Ok(Some((state, work)))
+    }
+
+    /// Step: both eyes' poses and fields at the predicted display `time`, in the stage.
+    fn locate_views(&self, time: xr::Time) -> Result<Vec<xr::View>, String> {
+        let (_, views) = self
+            .session
+            .locate_views(xr::ViewConfigurationType::PRIMARY_STEREO, time, &self.space)
             .map_err(err("locating the eyes"))?;
+        Ok(views)
+    }
+
+    /// Step: the controllers at `time`: fly with the right trigger, grab with both (move and
+    /// scale); what they did (the measure button is taken after drawing).
+    fn steer(&mut self, time: xr::Time) -> Result<Input, String> {
         // Stage space (metres, Y up) to data (units, Z up): the data's centre at the stage's
         // origin, a data unit `scale` metres.
         // The controllers: fly with the right trigger, grab with both (move and scale), mark a
         // measuring point with the right menu button where its ray meets the data.
-        let input = hands.read(&session, &space, state.predicted_display_time)?;
+        let input = self.hands.read(&self.session, &self.space, time)?;
         let now = Instant::now();
-        let dt = last_work.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
-        last_work = Some(now);
-        report.hands += input.located as u64;
+        let dt = self
+            .last_work
+            .map_or(0.0, |t| now.duration_since(t).as_secs_f64());
+        self.last_work = Some(now);
+        self.report.hands += input.located as u64;
+        let nav = &mut self.nav;
         match (input.select, input.aim) {
             ([true, true], [Some(l), Some(r)]) => nav.grab(Some([l.0, r.0])),
             ([false, true], [_, Some(r)]) => {
@@ -279,8 +436,14 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             }
             _ => nav.grab(None),
         }
-        let to_data = |v: xr::Vector3f| nav.to_data([v.x as f64, v.y as f64, v.z as f64]);
-        // Off-axis eyes cut from symmetric images holding both fields (`vr_nav::cover`).
+        Ok(input)
+    }
+
+    /// Step: off-axis eyes cut from symmetric images holding both fields
+    /// (`vr_nav::cover`); where the cut changed, each eye's mask of the hidden area in it, and
+    /// the hidden area drawn black into its swapchain image.
+    fn fit(&mut self, views: &[xr::View]) -> crate::vr_nav::Cover {
+        let (w, h) = self.size;
         let tangents = [0, 1].map(|k| {
             let f = views[k].fov;
             crate::vr_nav::Tangents {
@@ -291,24 +454,33 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             }
         });
         let cover = crate::vr_nav::cover(tangents, w, h);
-        if masks.as_ref().is_none_or(|m| m.0 != cover) {
+        if self.masks.as_ref().is_none_or(|m| m.0 != cover) {
+            let hidden = &self.hidden;
             let none = [Vec::new(), Vec::new()];
             let tris = hidden.as_ref().unwrap_or(&none);
             let m = [0, 1].map(|k| cover.mask(k, w, h, &tris[k]));
             // The runtime's hidden pixels in each eye's own field (its cut).
             let outside = (cover.width * cover.height - w * h) as u64;
-            report.hidden = hidden.is_some().then(|| {
+            self.report.hidden = hidden.is_some().then(|| {
                 m.each_ref()
                     .map(|m| m.iter().filter(|&&b| b).count() as u64 - outside)
             });
-            masks = Some((cover, m));
+            self.masks = Some((cover, m));
             // The hidden area over each eye's cut, drawn black into its swapchain image.
             for k in 0..2 {
                 let tris = hidden.as_ref().map_or(&[][..], |t| &t[k][..]);
-                swapchains.set_hidden(&xr_gpu, k, tris, cover.drawn[k]);
+                (self.swapchains).set_hidden(&self.xr_gpu, k, tris, cover.drawn[k]);
             }
         }
-        let eyes: [Camera; 2] = std::array::from_fn(|k| {
+        cover
+    }
+
+    /// Step: the eyes' cameras in the data (the runtime's poses through the stage's place in
+    /// the data), each seeing `cover`'s symmetric field.
+    fn eyes(&self, views: &[xr::View], cover: &crate::vr_nav::Cover) -> [Camera; 2] {
+        let nav = &self.nav;
+        let to_data = |v: xr::Vector3f| nav.to_data([v.x as f64, v.y as f64, v.z as f64]);
+        std::array::from_fn(|k| {
             let pose = views[k].pose;
             let forward = rotate(pose.orientation, [0.0, 0.0, -1.0]);
             let up = rotate(pose.orientation, [0.0, 1.0, 0.0]);
@@ -329,31 +501,55 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 near: 0.05 / nav.scale,
                 far: 1e4 / nav.scale,
             }
-        });
+        })
+    }
+
+    /// Step: one selection for both eyes and both images drawn in one pass, the hidden area
+    /// masked. On the GPU the frame is drawn into the texture the eyes are cut from, and read
+    /// back (to see that it follows the head) every `CHECK_EVERY` frames only.
+    fn draw(&mut self, eyes: &[Camera; 2], cover: &crate::vr_nav::Cover, o: &VrOptions) -> Drawn {
         let stereo = Stereo {
             ipd: 0.0,
             single_pass: true,
             hidden_area: true,
         };
-        let eye_masks = masks.as_ref().map(|m| &m.1);
-        // On the GPU the frame is drawn into the texture the eyes are cut from, and read back
-        // (to see that it follows the head) every `CHECK_EVERY` frames only.
+        let eye_masks = self.masks.as_ref().map(|m| &m.1);
         let wide = (2 * cover.width, cover.height);
-        let verify = report.frames.is_multiple_of(CHECK_EVERY);
-        let checked = !on_gpu || verify;
-        raster.present_to((!checked).then(|| {
-            swapchains
-                .frame(&xr_gpu, wide.0, wide.1)
+        let verify = self.report.frames.is_multiple_of(CHECK_EVERY);
+        let checked = !self.on_gpu || verify;
+        self.raster.present_to((!checked).then(|| {
+            (self.swapchains)
+                .frame(&self.xr_gpu, wide.0, wide.1)
                 .create_view(&Default::default())
         }));
-        let (image, stats) =
-            scene.frame_stereo(gpu, &raster, &eyes, &options, &o.style, &stereo, eye_masks);
+        let gpu = if self.on_gpu { &self.xr_gpu } else { &self.cpu };
+        let (image, stats) = (self.scene).frame_stereo(
+            gpu,
+            &self.raster,
+            eyes,
+            &self.options,
+            &o.style,
+            &stereo,
+            eye_masks,
+        );
+        Drawn {
+            image,
+            stats,
+            wide,
+            checked,
+            verify,
+        }
+    }
+
+    /// Step: the right menu button pressed: a measuring point where its ray meets the drawn
+    /// points.
+    fn measure(&mut self, input: &Input) {
         if input.measure
-            && !measure_was
+            && !self.measure_was
             && let Some((at, dir)) = input.aim[1]
         {
             // A narrow camera along the ray; the nearest drawn point under its centre.
-            let from = nav.to_data(at);
+            let from = self.nav.to_data(at);
             let d = crate::vr_nav::to_data_axes(dir);
             let ray = Camera {
                 position: from,
@@ -362,25 +558,33 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 fov_y: 5.0,
                 width: 65,
                 height: 65,
-                near: 0.01 / nav.scale,
-                far: 1e4 / nav.scale,
+                near: 0.01 / self.nav.scale,
+                far: 1e4 / self.nav.scale,
             };
-            if let Some(p) = scene.pick(&ray, 32.5, 32.5, 3.0) {
-                report.measured.push(p.position);
+            if let Some(p) = self.scene.pick(&ray, 32.5, 32.5, 3.0) {
+                self.report.measured.push(p.position);
             }
         }
-        measure_was = input.measure;
-        if checked {
+        self.measure_was = input.measure;
+    }
+
+    /// Step: a frame looked at: did the view change since the last one checked; every
+    /// `CHECK_EVERY`th frame (read back on a GPU too): no pixel the runtime hides lit.
+    fn check(&mut self, drawn: &Drawn, cover: &crate::vr_nav::Cover) {
+        let (image, report) = (&drawn.image, &mut self.report);
+        if drawn.checked {
             // FNV-1a of the image: did the view change since the last frame checked?
             let hash = image.iter().fold(0xcbf29ce484222325u64, |h, &b| {
                 (h ^ b as u64).wrapping_mul(0x100000001b3)
             });
-            report.changed += (report.checked > 0 && hash != last_image) as u64;
+            report.changed += (report.checked > 0 && hash != self.last_image) as u64;
             report.checked += 1;
-            last_image = hash;
+            self.last_image = hash;
         }
         // Every `CHECK_EVERY`th frame (read back on a GPU too): no pixel the runtime hides lit.
-        if verify && let Some((_, m)) = &masks {
+        if drawn.verify
+            && let Some((_, m)) = &self.masks
+        {
             let full = cover.width as usize;
             for (k, m) in m.iter().enumerate() {
                 report.hidden_lit += m
@@ -393,6 +597,18 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                     .count() as u64;
             }
         }
+    }
+
+    /// Step: each eye's field cut from its half of the side-by-side frame into its swapchain,
+    /// and the frame submitted as a projection layer (each view the field its cut covers).
+    fn submit(
+        &mut self,
+        state: &xr::FrameState,
+        views: &[xr::View],
+        cover: &crate::vr_nav::Cover,
+        drawn: &Drawn,
+    ) -> Result<(), String> {
+        let (w, h) = self.size;
         // Each eye's field cut from its half of the side-by-side frame into its swapchain.
         let corners = [0, 1].map(|k| {
             (
@@ -400,9 +616,10 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                 cover.corners[k].1,
             )
         });
-        let upload = checked.then_some(&image[..]);
-        if let Some(d) = swapchains.submit(&xr_gpu, upload, verify, wide, corners)? {
-            report.swapchain_differ += d;
+        let upload = drawn.checked.then_some(&drawn.image[..]);
+        let (wide, verify) = (drawn.wide, drawn.verify);
+        if let Some(d) = (self.swapchains).submit(&self.xr_gpu, upload, verify, wide, corners)? {
+            self.report.swapchain_differ += d;
         }
         // The field each cut covers (the eye's own, to a pixel).
         let layer_views: Vec<(xr::Posef, xr::Fovf)> = (0..2)
@@ -419,7 +636,7 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
             .collect();
         let projection: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = layer_views
             .iter()
-            .zip(&swapchains.swapchains)
+            .zip(&self.swapchains.swapchains)
             .map(|(&(pose, fov), sc)| {
                 xr::CompositionLayerProjectionView::new()
                     .pose(pose)
@@ -438,42 +655,85 @@ pub fn run(dataset: Arc<Dataset>, o: &VrOptions) -> Result<VrReport, String> {
                     )
             })
             .collect();
-        stream
+        self.stream
             .end(
                 state.predicted_display_time,
                 xr::EnvironmentBlendMode::OPAQUE,
                 &[&xr::CompositionLayerProjection::new()
-                    .space(&space)
+                    .space(&self.space)
                     .views(&projection)],
             )
             .map_err(err("submitting a frame"))?;
+        Ok(())
+    }
+
+    /// Step: the frame reported (its work since `work`, the head, the interval) and the budget
+    /// paced to the runtime's display period; the exit asked for after the frames wanted.
+    fn pace(
+        &mut self,
+        state: &xr::FrameState,
+        work: Instant,
+        stats: &myriad_render::FrameStats,
+        views: &[xr::View],
+        o: &VrOptions,
+    ) -> Result<(), String> {
+        let report = &mut self.report;
         report.frames += 1;
         let period = state.predicted_display_period.as_nanos() as f64 / 1e9;
-        let p = pace.get_or_insert_with(|| myriad_lod::Pace::new(90.0, o.budget, 20_000, o.budget));
+        let p = (self.pace)
+            .get_or_insert_with(|| myriad_lod::Pace::new(90.0, o.budget, 20_000, o.budget));
         // The runtime's period as it predicts it now (it may settle after the first frames).
         if period > 0.0 {
             p.target = period;
         }
         report.work.push(work.elapsed().as_secs_f64() * 1e3);
-        let limited = stats.selected_points as f64 >= 0.98 * options.budget as f64;
-        options.budget = p.frame(work.elapsed().as_secs_f64(), stats.points, limited);
-        report.budget = options.budget;
+        let limited = stats.selected_points as f64 >= 0.98 * self.options.budget as f64;
+        self.options.budget = p.frame(work.elapsed().as_secs_f64(), stats.points, limited);
+        report.budget = self.options.budget;
         let p = views[0].pose.position;
         report.heads.push([p.x, p.y, p.z]);
         let now = Instant::now();
-        if let Some(t) = last {
+        if let Some(t) = self.last {
             report
                 .intervals
                 .push(now.duration_since(t).as_secs_f64() * 1e3);
         }
-        last = Some(now);
+        self.last = Some(now);
         if o.frames.is_some_and(|n| report.frames == n) {
-            session.request_exit().map_err(err("asking to end"))?;
+            (self.session)
+                .request_exit()
+                .map_err(err("asking to end"))?;
         }
+        Ok(())
     }
-    drop(swapchains);
-    drop(session);
-    Ok(report)
+
+    /// The session's end: the swapchains and the session let go first, then the rest in
+    /// turn; what the session did.
+    fn finish(self) -> VrReport {
+        let Vr {
+            events,
+            report,
+            hands,
+            raster,
+            cpu,
+            scene,
+            masks,
+            hidden,
+            swapchains,
+            xr_gpu,
+            space,
+            stream,
+            waiter,
+            session,
+            ..
+        } = self;
+        drop(swapchains);
+        drop(session);
+        drop((
+            events, hands, raster, cpu, scene, masks, hidden, xr_gpu, space, stream, waiter,
+        ));
+        report
+    }
 }
 
 /// Each eye's hidden-area triangles from the runtime (XR_KHR_visibility_mask), in tangents of
@@ -508,130 +768,3 @@ pub const CHECK_EVERY: u64 = 10;
 
 /// Metres a second the right trigger flies.
 const FLY_SPEED: f64 = 2.0;
-
-/// The controllers' actions: aim poses and triggers (select) of both hands, the right menu
-/// button (measure), bound for the Khronos simple controller (every runtime maps its controllers
-/// to it).
-struct Hands {
-    set: xr::ActionSet,
-    select: xr::Action<bool>,
-    menu: xr::Action<bool>,
-    paths: [xr::Path; 2],
-    spaces: [xr::Space; 2],
-}
-
-/// What the controllers did this frame.
-struct Input {
-    /// Each hand's aim: position and pointing direction (stage).
-    aim: [Option<([f64; 3], [f64; 3])>; 2],
-    select: [bool; 2],
-    measure: bool,
-    /// Both aims located.
-    located: bool,
-}
-
-impl Hands {
-    fn new(instance: &xr::Instance, session: &xr::Session<xr::Vulkan>) -> Result<Hands, String> {
-        let e = |what: &'static str| move |r: xr::sys::Result| format!("controllers ({what}): {r}");
-        let set = instance
-            .create_action_set("myriad", "myriad", 0)
-            .map_err(e("action set"))?;
-        let paths = [
-            instance
-                .string_to_path("/user/hand/left")
-                .map_err(e("path"))?,
-            instance
-                .string_to_path("/user/hand/right")
-                .map_err(e("path"))?,
-        ];
-        let aim = set
-            .create_action::<xr::Posef>("aim", "pointing", &paths)
-            .map_err(e("aim"))?;
-        let select = set
-            .create_action::<bool>("select", "fly, and with both hands grab", &paths)
-            .map_err(e("select"))?;
-        let menu = set
-            .create_action::<bool>("measure", "measure", &paths[1..])
-            .map_err(e("measure"))?;
-        let p = |s: &str| instance.string_to_path(s).map_err(e("binding path"));
-        instance
-            .suggest_interaction_profile_bindings(
-                p("/interaction_profiles/khr/simple_controller")?,
-                &[
-                    xr::Binding::new(&aim, p("/user/hand/left/input/aim/pose")?),
-                    xr::Binding::new(&aim, p("/user/hand/right/input/aim/pose")?),
-                    xr::Binding::new(&select, p("/user/hand/left/input/select/click")?),
-                    xr::Binding::new(&select, p("/user/hand/right/input/select/click")?),
-                    xr::Binding::new(&menu, p("/user/hand/right/input/menu/click")?),
-                ],
-            )
-            .map_err(e("bindings"))?;
-        session.attach_action_sets(&[&set]).map_err(e("attach"))?;
-        let spaces = [
-            aim.create_space(session, paths[0], xr::Posef::IDENTITY)
-                .map_err(e("space"))?,
-            aim.create_space(session, paths[1], xr::Posef::IDENTITY)
-                .map_err(e("space"))?,
-        ];
-        Ok(Hands {
-            set,
-            select,
-            menu,
-            paths,
-            spaces,
-        })
-    }
-
-    fn read(
-        &self,
-        session: &xr::Session<xr::Vulkan>,
-        base: &xr::Space,
-        time: xr::Time,
-    ) -> Result<Input, String> {
-        let e = |r: xr::sys::Result| format!("controllers: {r}");
-        session.sync_actions(&[(&self.set).into()]).map_err(e)?;
-        let mut aim = [None, None];
-        for (k, space) in self.spaces.iter().enumerate() {
-            let l = space.locate(base, time).map_err(e)?;
-            let valid =
-                xr::SpaceLocationFlags::POSITION_VALID | xr::SpaceLocationFlags::ORIENTATION_VALID;
-            if l.location_flags.contains(valid) {
-                let q = l.pose.orientation;
-                let d = rotate(q, [0.0, 0.0, -1.0]);
-                let p = l.pose.position;
-                aim[k] = Some((
-                    [p.x as f64, p.y as f64, p.z as f64],
-                    [d.x as f64, d.y as f64, d.z as f64],
-                ));
-            }
-        }
-        let on = |a: &xr::Action<bool>, path| -> Result<bool, String> {
-            let s = a.state(session, path).map_err(e)?;
-            Ok(s.is_active && s.current_state)
-        };
-        Ok(Input {
-            located: aim.iter().all(Option::is_some),
-            aim,
-            select: [
-                on(&self.select, self.paths[0])?,
-                on(&self.select, self.paths[1])?,
-            ],
-            measure: on(&self.menu, self.paths[1])?,
-        })
-    }
-}
-
-/// `v` turned by the unit quaternion `q`.
-fn rotate(q: xr::Quaternionf, v: [f32; 3]) -> xr::Vector3f {
-    let (x, y, z, w) = (q.x, q.y, q.z, q.w);
-    let t = [
-        2.0 * (y * v[2] - z * v[1]),
-        2.0 * (z * v[0] - x * v[2]),
-        2.0 * (x * v[1] - y * v[0]),
-    ];
-    xr::Vector3f {
-        x: v[0] + w * t[0] + (y * t[2] - z * t[1]),
-        y: v[1] + w * t[1] + (z * t[0] - x * t[2]),
-        z: v[2] + w * t[2] + (x * t[1] - y * t[0]),
-    }
-}

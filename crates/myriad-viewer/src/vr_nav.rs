@@ -1,6 +1,6 @@
-//! Where the headset's stage stands in the data, the controllers' navigation (002: fly, rotate
-//! and scale the clouds), and the eyes' off-axis fields of view cut from symmetric images: pure
-//! arithmetic, tested without a runtime.
+//! Where the headset's stage stands in the data, the controllers' navigation (Discher et al.
+//! 2018: fly, rotate and scale the clouds), and the eyes' off-axis fields of view cut from
+//! symmetric images: pure arithmetic, tested without a runtime.
 //!
 //! Stage space is the runtime's (metres, Y up, -Z ahead); data space is the dataset's (its
 //! units, Z up). A stage vector (x, y, z) is the data direction (x, -z, y); `scale` metres show one

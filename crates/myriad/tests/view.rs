@@ -364,7 +364,7 @@ fn the_viewer_shows_a_scans_preview_while_its_dataset_is_built() {
 /// beside the dataset are drawn over the view (the annotation's mark, the measurement's
 /// lines), and closing the window leaves the sidecar as it was; without them, neither colour
 /// is drawn. (The window's own editing, written back as it changes, is tested in
-/// myriad-viewer's `saved.rs`.)
+/// myriad-viewer's `tools/annotate.rs`.)
 #[test]
 fn the_viewer_shows_the_saved_annotations_and_measurements() {
     if Command::new("xvfb-run").arg("--help").output().is_err() {

@@ -4,9 +4,13 @@
 //! volume` measures, on a thread of its own). The result is in the panel; the view draws the
 //! polygon, the base (its outline at the base's heights) and the grid (each cell at the
 //! surface's height, green where there is fill, red where there is cut; coarser blocks of cells
-//! where there are more than a few thousand).
+//! where there are more than a few thousand). One asked for on the command line (`view
+//! --volume`) is measured on the first frame, its result printed.
 
+use crate::options::VolumeAsked;
+use crate::shown::Layers;
 use eframe::egui;
+use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_measure::volume::{Base, Cells, Volume, volume_and_cells};
 use myriad_measure::{Filter, Polygon};
@@ -40,11 +44,14 @@ pub(crate) struct Volumes {
     units: &'static str,
     /// Print each result on stdout (`view --volume`, for scripts).
     pub print: bool,
+    /// The volume asked for on the command line, measured on the first frame.
+    asked: Option<VolumeAsked>,
 }
 
 impl Volumes {
-    pub fn new(units: &'static str) -> Volumes {
+    pub fn new(units: &'static str, asked: Option<VolumeAsked>) -> Volumes {
         Volumes {
+            asked,
             drawing: false,
             polygon: Vec::new(),
             base: Down::Rim,
@@ -54,6 +61,32 @@ impl Volumes {
             problem: None,
             units,
             print: false,
+        }
+    }
+
+    /// The volume asked for on the command line, its polygon at the bottom of `bounds` (the
+    /// data's extent), measured in `layers` (once).
+    pub fn start(&mut self, bounds: &Aabb, layers: &Layers) {
+        if let Some(VolumeAsked {
+            polygon,
+            base,
+            cell,
+        }) = self.asked.take()
+        {
+            let z = bounds.min[2];
+            self.polygon = polygon.iter().map(|p| [p[0], p[1], z]).collect();
+            self.base = base.map_or(Down::Rim, Down::Elevation);
+            self.cell = cell.unwrap_or(0.0);
+            self.print = true;
+            self.measure_first(layers);
+        }
+    }
+
+    /// Measures the volume over the polygon drawn, in the first visible dataset of `layers`.
+    pub fn measure_first(&mut self, layers: &Layers) {
+        let filter = layers.filter();
+        if let Some(l) = layers.first_visible() {
+            self.measure(l.dataset.clone(), &filter);
         }
     }
 

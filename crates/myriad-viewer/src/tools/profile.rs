@@ -3,9 +3,12 @@
 //! that corridor (`myriad_measure::profile`, as `myriad profile` cuts it, on a thread of its
 //! own), shown in a window of its own: distance along the line against height, coloured as the
 //! view. Two clicks in it measure along, in height, the slope and straight; its points save as
-//! CSV, DXF, PNG or LAZ in the current folder, never over a file.
+//! CSV, DXF, PNG or LAZ in the current folder, never over a file. One asked for on the command
+//! line (`view --section`) is cut on the first frame.
 
+use crate::shown::Layers;
 use eframe::egui;
+use myriad_core::Aabb;
 use myriad_format::Dataset;
 use myriad_measure::profile::{Frame, Profile, between};
 use myriad_measure::{Corridor, Filter};
@@ -42,12 +45,15 @@ pub(crate) struct Section {
     name: String,
     units: &'static str,
     saves: u32,
+    /// The line in plan and the width asked for on the command line, cut on the first frame.
+    asked: Option<(Vec<[f64; 2]>, f64)>,
 }
 
 impl Section {
     /// `spacing`: the data's point spacing (the width starts at four of it).
     pub fn new(name: &str, units: &'static str, spacing: f64) -> Section {
         Section {
+            asked: None,
             drawing: false,
             line: Vec::new(),
             width: (4.0 * spacing).max(1e-3),
@@ -57,6 +63,47 @@ impl Section {
             name: name.to_string(),
             units,
             saves: 0,
+        }
+    }
+
+    /// The tool for the first of `layers` (its name and spacing; `crs`: its units), `asked`
+    /// (a line in plan and a width) to cut on the first frame.
+    pub fn first(
+        layers: &Layers,
+        crs: Option<&str>,
+        asked: Option<(Vec<[f64; 2]>, f64)>,
+    ) -> Section {
+        let first = &layers.list[0];
+        let m = &first.dataset.meta;
+        let s = m.bounds.size();
+        let spacing = (s[0] * s[1] / m.points.max(1) as f64).sqrt();
+        let stem = std::path::Path::new(&first.name)
+            .file_stem()
+            .map_or_else(|| "view".into(), |n| n.to_string_lossy().into_owned());
+        let units = myriad_measure::measurement::crs_units(crs);
+        Section {
+            asked,
+            ..Section::new(&stem, units, spacing)
+        }
+    }
+
+    /// The line asked for on the command line, at the top of `bounds` (the data's extent), cut
+    /// across `layers` (once).
+    pub fn start(&mut self, bounds: &Aabb, layers: &Layers) {
+        if let Some((line, width)) = self.asked.take() {
+            let z = bounds.max[2];
+            self.line = line.iter().map(|p| [p[0], p[1], z]).collect();
+            self.width = width;
+            self.cut_first(layers);
+        }
+    }
+
+    /// Cuts the section line drawn across the first visible dataset of `layers`, drawing what
+    /// they draw in their colours.
+    pub fn cut_first(&mut self, layers: &Layers) {
+        let filter = layers.filter();
+        if let Some(l) = layers.first_visible() {
+            self.cut(l.dataset.clone(), &filter, layers.colour);
         }
     }
 

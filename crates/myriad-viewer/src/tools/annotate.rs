@@ -1,4 +1,5 @@
-//! Saved work in the window: the annotations and measurements of the first dataset, loaded
+//! The annotation tool (T, then a click on a point; titles and texts in the panel) and the
+//! saved work in the window: the annotations and measurements of the first dataset, loaded
 //! from its sidecar (`myriad_measure::work`) when the window opens and written back (atomically)
 //! half a second after each change and when it closes, so that they are there when it opens
 //! again, in `serve`'s web viewer and for `myriad annotate`. A sidecar that does not parse is
