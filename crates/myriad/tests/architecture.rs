@@ -433,3 +433,23 @@ fn the_checker_sees_group_imports_and_spares_children() {
     edges.insert(m("c"), BTreeSet::from([m("a")]));
     assert_eq!(circle(&edges), Some(vec![m("a"), m("b"), m("c")]));
 }
+
+/// The viewer's window state is small values each owned by one file: only `app.rs` adds
+/// methods to `App` (ARCHITECTURE.md's myriad-viewer invariant).
+#[test]
+fn only_the_viewers_app_file_adds_methods_to_app() {
+    let src = crates_dir().join("myriad-viewer/src");
+    let adding: Vec<String> = sources(&src)
+        .into_iter()
+        .filter(|f| {
+            let t = tokens(&code(&std::fs::read_to_string(f).unwrap()));
+            t.windows(3).any(|w| {
+                w[0] == Tok::Ident("impl".into())
+                    && w[1] == Tok::Ident("App".into())
+                    && matches!(w[2], Tok::Open | Tok::Other)
+            })
+        })
+        .map(|f| f.strip_prefix(&src).unwrap().display().to_string())
+        .collect();
+    assert_eq!(adding, vec!["app.rs".to_string()], "files with `impl App`");
+}
