@@ -26,4 +26,5 @@ mod radix;
 pub mod report;
 pub mod sides;
 mod spill;
+pub mod staged;
 pub mod structure;

@@ -183,6 +183,23 @@ pub fn is_tile_folder(dir: &Path) -> bool {
     })
 }
 
+/// The coordinate system of what `input` names, converting nothing: its dataset's (itself, or
+/// made from it before), else its (first) file's header's.
+pub fn crs_of(input: &Path) -> Result<Option<String>> {
+    if let Some(ds) = cached::existing(input) {
+        return Ok(myriad_format::Dataset::open(&ds)?.meta.crs.clone());
+    }
+    let inputs = cached::inputs_of(input)?;
+    let Some(first) = inputs.first() else {
+        return Err(Error::Invalid(format!(
+            "{}: no scan there",
+            input.display()
+        )));
+    };
+    let src = myriad_io::open(first, &myriad_io::OpenOptions::default())?;
+    Ok(src.info().crs.clone())
+}
+
 /// How often a scan shown is looked at for changes.
 pub const WATCH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 

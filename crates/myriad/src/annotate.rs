@@ -5,7 +5,6 @@
 use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use myriad_core::units::parse_floats;
-use myriad_format::Dataset;
 use myriad_measure::files::{export_work, import_work, load_work, save_work};
 use myriad_measure::measurement::Kind;
 use myriad_measure::work::{self, Annotation, View, Work, sidecar_for};
@@ -56,19 +55,6 @@ pub struct AnnotateArgs {
     /// Print the work as the sidecar's JSON instead of a list
     #[arg(long)]
     json: bool,
-}
-
-/// The CRS of what `path` names: its dataset's, else its (first) file's header's.
-fn crs_of(path: &Path) -> Result<Option<String>> {
-    if let Some(ds) = myriad_build::cached::existing(path) {
-        return Ok(Dataset::open(&ds)?.meta.crs.clone());
-    }
-    let inputs = myriad_build::cached::inputs_of(path)?;
-    let Some(first) = inputs.first() else {
-        bail!("{}: no scan there", path.display());
-    };
-    let src = myriad_io::open(first, &myriad_io::OpenOptions::default())?;
-    Ok(src.info().crs.clone())
 }
 
 /// `KIND:X,Y,Z,...` as a measurement.
@@ -155,7 +141,7 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
         bail!("{}: no such file or folder", a.path.display());
     }
     let sidecar = sidecar_for(&a.path);
-    let crs = crs_of(&a.path)?;
+    let crs = myriad_build::open::crs_of(&a.path)?;
     let mut w = load_work(&sidecar, crs.as_deref())?;
     let before = w.clone();
     if a.clear {

@@ -121,7 +121,7 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
         );
     }
     let output = a.output.clone().expect("clap: --output or --append");
-    let staged = crate::s3::stage(&a.inputs, &output, a.force)?;
+    let staged = myriad_build::staged::stage(&a.inputs, &output, a.force)?;
     let o = convert_options(&a, &staged)?;
     let bar = Bar::new();
     let s = convert::convert(&staged.inputs, &o, &bar)?;
@@ -132,7 +132,10 @@ pub fn convert(a: ConvertArgs) -> Result<()> {
 }
 
 /// `convert`'s options: the build's (checked), the staged output and inputs' names.
-fn convert_options(a: &ConvertArgs, staged: &crate::s3::Staged) -> Result<ConvertOptions> {
+fn convert_options(
+    a: &ConvertArgs,
+    staged: &myriad_build::staged::Staged,
+) -> Result<ConvertOptions> {
     let structure = a.build.structure()?;
     let mut o = ConvertOptions::new(&staged.output);
     o.force = a.force;

@@ -13,7 +13,6 @@ mod mesh;
 mod partition;
 mod progress;
 mod render;
-mod s3;
 mod serve;
 mod synth;
 mod view;

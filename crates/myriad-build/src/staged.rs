@@ -1,10 +1,10 @@
-//! `convert` with inputs or its output on S3-compatible storage (`s3://BUCKET/KEY`): the inputs
-//! are copied to a folder of this process (under the system's temporary folder, removed however
-//! the command ends) and read from there; the dataset is built there and written to the bucket
+//! A build with inputs or its output on S3-compatible storage (`s3://BUCKET/KEY`, `convert`):
+//! the inputs are copied to a folder of this process (under the system's temporary folder,
+//! removed however the command ends) and read from there; the dataset is built there and written to the bucket
 //! by a multipart upload, so that it appears whole or not at all. Datasets that commands only
 //! read are read in place by range requests ([`myriad_format::remote`]).
 
-use anyhow::{Context, Result, bail};
+use myriad_core::{Error, Result};
 use myriad_format::s3::{self, Client, Location};
 use std::path::{Path, PathBuf};
 
@@ -21,7 +21,7 @@ pub struct Staged {
 
 fn location(p: &Path) -> Result<Location> {
     let t = p.to_str().unwrap_or_default();
-    s3::parse(t).with_context(|| format!("{t}: not s3://BUCKET/KEY"))
+    s3::parse(t).ok_or_else(|| Error::Invalid(format!("{t}: not s3://BUCKET/KEY")))
 }
 
 /// Copies the `s3://` inputs to a folder of this process and, where `output` is on S3, builds
@@ -43,10 +43,10 @@ pub fn stage(inputs: &[PathBuf], output: &Path, force: bool) -> Result<Staged> {
     let upload = if remote_out {
         let at = location(output)?;
         if !force && client.exists(&at)? {
-            bail!(
+            return Err(Error::Invalid(format!(
                 "{}: output exists (use --force to replace it)",
                 output.display()
-            );
+            )));
         }
         Some(at)
     } else {
