@@ -36,13 +36,14 @@ pub fn thousands(n: u64) -> String {
     out
 }
 
-/// `N` comma-separated numbers, such as a camera's `EX,EY,EZ,TX,TY,TZ`.
+/// `N` comma-separated finite numbers, such as a camera's `EX,EY,EZ,TX,TY,TZ` (NaN, inf and
+/// numbers beyond f64's range, such as 1e400, are refused).
 pub fn parse_floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
     let v: Vec<f64> = s
         .split(',')
-        .map(|t| t.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("\"{s}\": expected {N} comma-separated numbers"))?;
+        .map(|t| t.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("\"{s}\": expected {N} comma-separated finite numbers"))?;
     v.try_into()
         .map_err(|v: Vec<f64>| format!("\"{s}\": expected {N} numbers, got {}", v.len()))
 }
@@ -94,5 +95,9 @@ mod tests {
         assert_eq!(thousands(999), "999");
         assert_eq!(parse_floats::<3>("1, -2.5,3"), Ok([1.0, -2.5, 3.0]));
         assert!(parse_floats::<3>("1,2").is_err());
+        // One NaN or infinity would be saved as JSON's null and make the work unreadable.
+        for bad in ["NaN,1,2", "1,inf,2", "1,2,-inf", "1e400,1,2"] {
+            assert!(parse_floats::<3>(bad).is_err(), "{bad}");
+        }
     }
 }

@@ -279,6 +279,9 @@ pub fn load_work(sidecar: &Path, crs: Option<&str>) -> Result<Work> {
 
 /// Writes the sidecar atomically (replacing the one there).
 pub fn save_work(sidecar: &Path, w: &Work) -> Result<()> {
+    w.finite().map_err(|e| {
+        Error::Invalid(format!("{}: {e}: the work is not saved", sidecar.display()))
+    })?;
     let text = w.to_text();
     write_atomic(sidecar, true, |out| out.write_all(text.as_bytes()))
 }
@@ -340,6 +343,32 @@ fn extension(p: &Path) -> String {
 mod tests {
     use super::*;
     use crate::work::View;
+
+    /// Work holding a NaN is refused before anything is written: the sidecar there stays.
+    #[test]
+    fn work_that_is_not_finite_is_not_saved() {
+        let dir = std::env::temp_dir().join(format!("myriad-work-nan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let sidecar = dir.join("a.work.json");
+        let good = Work::default();
+        save_work(&sidecar, &good).unwrap();
+        let before = std::fs::read(&sidecar).unwrap();
+        let mut bad = Work::default();
+        bad.annotations.push(Annotation {
+            position: [1.0, f64::NAN, 2.0],
+            title: "x".into(),
+            text: String::new(),
+            camera: None,
+        });
+        let e = save_work(&sidecar, &bad).unwrap_err().to_string();
+        assert!(
+            e.contains("not a finite number") && e.contains("a.work.json"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&sidecar).unwrap(), before);
+        assert!(load_work(&sidecar, None).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn work_round_trips_through_dxf() {

@@ -95,14 +95,16 @@ struct Grid {
 impl Grid {
     fn new(polygon: &Polygon, cell: f64) -> Result<Grid, String> {
         let (lo, hi) = polygon.plan_bounds();
-        let nx = ((hi[0] - lo[0]) / cell).ceil().max(1.0) as u64;
-        let ny = ((hi[1] - lo[1]) / cell).ceil().max(1.0) as u64;
-        if nx * ny > MAX_CELLS {
+        // Counted in floating point: a tiny cell (1e-20) makes more cells than any integer.
+        let nx = ((hi[0] - lo[0]) / cell).ceil().max(1.0);
+        let ny = ((hi[1] - lo[1]) / cell).ceil().max(1.0);
+        if !(nx * ny <= MAX_CELLS as f64) {
             return Err(format!(
-                "--cell {cell}: {} cells over the polygon, more than {MAX_CELLS}: a larger cell",
+                "--cell {cell}: {:.3e} cells over the polygon, more than {MAX_CELLS}: a larger cell",
                 nx * ny
             ));
         }
+        let (nx, ny) = (nx as u64, ny as u64);
         let n = (nx * ny) as usize;
         Ok(Grid {
             origin: lo,
@@ -378,6 +380,7 @@ fn measure(
             })?;
             let (h, empty) = g2.heights(&inside);
             v.base_empty_cells = empty;
+            uncovered_base(&h, &inside, v.cells)?;
             Box::new(move |k| h[k])
         }
     };
@@ -404,6 +407,22 @@ fn measure(
         }
     }
     Ok((v, cells))
+}
+
+/// An earlier survey that leaves cells of the polygon without a height even from their
+/// neighbours is no base for them: an error naming the share it does not cover, rather than a
+/// volume that leaves those cells out (0 where it covers nothing).
+fn uncovered_base(base: &[Option<f64>], inside: &[bool], cells: u64) -> Result<(), String> {
+    let uncovered = (base.iter().zip(inside))
+        .filter(|(h, inside)| **inside && h.is_none())
+        .count() as u64;
+    if uncovered == 0 {
+        return Ok(());
+    }
+    Err(format!(
+        "--base: the earlier survey does not cover {:.1} % of the polygon ({uncovered} of its {cells} cells have no height there, even from their neighbours): a polygon within both surveys",
+        100.0 * uncovered as f64 / cells.max(1) as f64
+    ))
 }
 
 /// Solves a 3x3 system by Cramer's rule; `None` when it is singular.
@@ -464,6 +483,40 @@ mod tests {
                 [1.0; 3]
             )
             .is_none()
+        );
+    }
+
+    /// A cell of 1e-20 over a 100 m polygon makes more cells than a u64 holds: refused, no
+    /// overflow.
+    #[test]
+    fn a_tiny_cell_is_refused_not_overflowed() {
+        let square = [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]];
+        let polygon = Polygon::new(&square).unwrap();
+        for cell in [1e-20, 1e-200, f64::MIN_POSITIVE] {
+            let e = Grid::new(&polygon, cell).err().expect("refused");
+            assert!(e.contains("more than 100000000"), "{e}");
+        }
+        assert!(Grid::new(&polygon, 0.5).is_ok());
+    }
+
+    /// A base that covers part of the polygon is named with the share it misses; one that
+    /// covers it all (holes filled from neighbours) passes.
+    #[test]
+    fn a_base_that_does_not_cover_the_polygon_is_an_error() {
+        let inside = [true, true, true, true, false];
+        let all = [Some(1.0), Some(2.0), Some(3.0), Some(4.0), None];
+        assert_eq!(uncovered_base(&all, &inside, 4), Ok(()));
+        let none = [None; 5];
+        let e = uncovered_base(&none, &inside, 4).unwrap_err();
+        assert!(
+            e.contains("100.0 %") && e.contains("4 of its 4 cells"),
+            "{e}"
+        );
+        let half = [Some(1.0), None, Some(3.0), None, None];
+        let e = uncovered_base(&half, &inside, 4).unwrap_err();
+        assert!(
+            e.contains("50.0 %") && e.contains("2 of its 4 cells"),
+            "{e}"
         );
     }
 }

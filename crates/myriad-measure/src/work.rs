@@ -317,8 +317,40 @@ impl Work {
         })
     }
 
-    /// Adds `other`'s annotations and measurements (an import), refusing work of another CRS.
+    /// The first number of the work that is not finite (NaN, an infinity), named as the
+    /// sidecar names it (`annotations[2].position`): JSON has no such number, so work holding
+    /// one would be saved as `null` and read back nowhere.
+    pub fn finite(&self) -> Result<(), String> {
+        let bad = |p: &[f64; 3]| p.iter().any(|x| !x.is_finite());
+        for (i, a) in self.annotations.iter().enumerate() {
+            let views = a.camera.iter().flat_map(|c| {
+                [
+                    ("camera.position", &c.position),
+                    ("camera.target", &c.target),
+                ]
+            });
+            for (what, p) in std::iter::once(("position", &a.position)).chain(views) {
+                if bad(p) {
+                    return Err(format!(
+                        "annotations[{i}].{what}: not a finite number: {p:?}"
+                    ));
+                }
+            }
+        }
+        for (i, m) in self.measurements.iter().enumerate() {
+            if let Some((j, p)) = m.points.iter().enumerate().find(|(_, p)| bad(p)) {
+                return Err(format!(
+                    "measurements[{i}].points[{j}]: not a finite number: {p:?}"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds `other`'s annotations and measurements (an import), refusing work of another CRS
+    /// or with a number that is not finite.
     pub fn merge(&mut self, other: Work) -> Result<(), String> {
+        other.finite()?;
         let code = |c: &Option<String>| c.as_deref().and_then(epsg_code);
         if let (Some(a), Some(b)) = (code(&self.crs), code(&other.crs))
             && a != b
@@ -501,6 +533,45 @@ mod tests {
             w.measurements.push(measurement(kind, pts, "test").unwrap());
         }
         w
+    }
+
+    /// A NaN or an infinity (from a command line, a DXF, a viewer) is named and never merged:
+    /// saved, it would be JSON's null, and the sidecar unreadable everywhere.
+    #[test]
+    fn work_with_a_number_that_is_not_finite_is_named_and_not_merged() {
+        let mut w = sample();
+        assert_eq!(w.finite(), Ok(()));
+        let mut bad = Work::new(w.crs.as_deref());
+        bad.annotations.push(Annotation {
+            position: [f64::NAN, 1.0, 2.0],
+            title: "x".into(),
+            text: String::new(),
+            camera: None,
+        });
+        let e = bad.finite().unwrap_err();
+        assert!(
+            e.starts_with("annotations[0].position: not a finite number"),
+            "{e}"
+        );
+        assert!(w.merge(bad.clone()).is_err());
+        assert_eq!(w.annotations.len(), 2, "nothing merged");
+        bad.annotations[0].position = [0.0; 3];
+        bad.annotations[0].camera = Some(View {
+            position: [0.0; 3],
+            target: [0.0, f64::INFINITY, 0.0],
+        });
+        let e = bad.finite().unwrap_err();
+        assert!(e.starts_with("annotations[0].camera.target"), "{e}");
+        let mut m = Work::new(None);
+        m.measurements.push(Measurement {
+            kind: Kind::Distance,
+            points: vec![[0.0; 3], [f64::NEG_INFINITY, 0.0, 0.0]],
+        });
+        assert!(
+            m.finite()
+                .unwrap_err()
+                .starts_with("measurements[0].points[1]")
+        );
     }
 
     #[test]

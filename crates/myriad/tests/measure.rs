@@ -167,6 +167,31 @@ print(round(p["fill"], 3))
         &["volume", s(&myr), "--polygon", polygon, "--cell", "0"],
         "--cell 0",
     );
+    // A cell so small that the cells overflowed any integer: refused, not a panic.
+    fails(
+        &["volume", s(&myr), "--polygon", polygon, "--cell", "1e-20"],
+        "more than 100000000",
+    );
+    // An earlier survey of another pile alone does not cover this one: an error naming the
+    // share, not a volume of 0.
+    let xy: Vec<f64> = (polygon2.split(',')).map(|v| v.parse().unwrap()).collect();
+    let (xs, ys): (Vec<f64>, Vec<f64>) = xy.chunks(2).map(|p| (p[0], p[1])).unzip();
+    let lo = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let other = d.join("other.las");
+    let b = format!("{},{},-1e6,{},{},1e6", lo(&xs), lo(&ys), hi(&xs), hi(&ys));
+    ok(&["extract", s(&myr), "-o", s(&other), "--box", &b]);
+    let other_myr = d.join("other.myr");
+    ok(&["convert", s(&other), "-o", s(&other_myr)]);
+    let args = [
+        "volume",
+        s(&later),
+        "--polygon",
+        polygon,
+        "--base",
+        s(&other_myr),
+    ];
+    fails(&args, "the earlier survey does not cover");
 }
 
 /// Distance along and across a polyline, computed here on its own: the nearest segment.
@@ -680,6 +705,25 @@ fn annotations_are_kept_exported_and_imported() {
         serde_json::from_str(&std::fs::read_to_string(&sidecar).unwrap()).unwrap();
     assert_eq!(saved["annotations"][0]["text"], "north side\nsee photo 12");
     assert_eq!(saved["annotations"][0]["camera"]["position"][2], 60.0);
+    // A number that is not finite is a usage error, and nothing is saved: one NaN kept as
+    // JSON's null made the work unreadable everywhere.
+    let kept = std::fs::read(&sidecar).unwrap();
+    for bad in [
+        &["--add", "NaN,1,2", "--title", "x"][..],
+        &["--add", "1,inf,2"],
+        &["--add", "1e400,1,2"],
+        &["--add", "1,2,3", "--camera", "0,0,0,1,1,NaN"],
+    ] {
+        let r = myriad(&[&["annotate", s(&myr)][..], bad].concat());
+        assert_eq!(r.code, 2, "{bad:?}: {}", r.stderr);
+        assert!(r.stderr.contains("finite"), "{bad:?}: {}", r.stderr);
+    }
+    assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
+    fails(
+        &["annotate", s(&myr), "--measure", "distance:0,0,0,NaN,1,1"],
+        "not a number",
+    );
+    assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
     // The scan shares the dataset's work (the same name beside it).
     let again = ok(&["annotate", s(&laz)]);
     assert!(again.contains("1 annotations, 3 measurements"), "{again}");
