@@ -265,9 +265,13 @@ pub fn parse_duration(s: &str) -> Result<u64, String> {
         }
     };
     n.checked_mul(k)
-        .filter(|&v| v > 0)
-        .ok_or_else(|| format!("--expires \"{s}\": out of range"))
+        .filter(|&v| v > 0 && v <= MAX_EXPIRES)
+        .ok_or_else(|| format!("--expires \"{s}\": from 1s to 3650d"))
 }
+
+/// The longest a signed link holds: ten years (a longer one would wrap past the clock's range
+/// and be printed already expired).
+pub const MAX_EXPIRES: u64 = 3650 * 86_400;
 
 #[cfg(test)]
 mod tests {
@@ -343,5 +347,10 @@ mod tests {
         assert!(parse_duration("1y").is_err());
         assert!(parse_duration("0s").is_err());
         assert!(parse_duration("h").is_err());
+        // A link past the clock's range wrapped and was printed already expired.
+        assert_eq!(parse_duration("3650d"), Ok(MAX_EXPIRES));
+        for long in ["3651d", "18446744073709551615", "9999999999999h"] {
+            assert!(parse_duration(long).is_err(), "{long}");
+        }
     }
 }
