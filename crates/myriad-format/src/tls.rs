@@ -11,7 +11,9 @@ pub(crate) fn trusted() -> std::result::Result<ureq::tls::TlsConfig, String> {
     let Ok(file) = std::env::var("MYRIAD_CA_CERT") else {
         return Ok(TlsConfig::default());
     };
-    let pem = std::fs::read(&file).map_err(|e| format!("MYRIAD_CA_CERT {file}: {e}"))?;
+    // A bundle of every root is about 200 KB.
+    let pem = myriad_io::read_small(std::path::Path::new(&file), 16 << 20)
+        .map_err(|e| format!("MYRIAD_CA_CERT: {e}"))?;
     let mut certs = Vec::new();
     for item in ureq::tls::parse_pem(&pem) {
         match item {

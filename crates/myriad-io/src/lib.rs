@@ -34,6 +34,8 @@ pub mod reproject;
 pub mod text;
 pub mod tiles3d;
 
+pub use read_util::read_small;
+
 use myriad_core::{Aabb, Error, PointBatch, Result, Schema};
 use std::path::{Path, PathBuf};
 

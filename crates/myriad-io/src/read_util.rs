@@ -1,10 +1,45 @@
 //! Small shared pieces for the hand-written readers: a buffered reader that knows its byte offset,
-//! and fixed-size little/big-endian scalar decoding.
+//! and fixed-size little/big-endian scalar decoding; small files a user names (a token file, a
+//! certificate, an import) read whole with a bound.
 
 use myriad_core::{Error, Result};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
+
+/// The whole of a small file a user names (a token file, a certificate, an import), read with a
+/// bound: a device (such as `/dev/zero` or `/dev/urandom`), a folder or a socket is refused by
+/// what it is, and a file or pipe of more than `max` bytes by its size, after at most `max + 1`
+/// bytes were read.
+pub fn read_small(path: &Path, max: u64) -> Result<Vec<u8>> {
+    use std::os::unix::fs::FileTypeExt;
+    let f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let kind = f.metadata().map_err(|e| Error::io(path, e))?.file_type();
+    let what = if kind.is_dir() {
+        Some("a folder")
+    } else if kind.is_char_device() || kind.is_block_device() {
+        Some("a device")
+    } else if kind.is_socket() {
+        Some("a socket")
+    } else {
+        None
+    };
+    if let Some(what) = what {
+        return Err(Error::Invalid(format!(
+            "{}: {what}, not a file",
+            path.display()
+        )));
+    }
+    let mut out = Vec::new();
+    (f.take(max + 1).read_to_end(&mut out)).map_err(|e| Error::io(path, e))?;
+    if out.len() as u64 > max {
+        return Err(Error::Invalid(format!(
+            "{}: larger than {max} bytes",
+            path.display()
+        )));
+    }
+    Ok(out)
+}
 
 pub fn read_prefix(path: &Path, buf: &mut [u8]) -> Result<usize> {
     let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
@@ -191,4 +226,31 @@ pub fn to_u16_channel(v: f64, ty: Scalar) -> u16 {
 
 pub fn parse_f64(tok: &[u8]) -> Option<f64> {
     std::str::from_utf8(tok).ok()?.parse::<f64>().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A token file, a certificate or an import given as /dev/zero grew to gigabytes: devices
+    /// and folders are refused by what they are, files past the bound by their size.
+    #[test]
+    fn small_files_are_read_with_a_bound() {
+        let dir = std::env::temp_dir().join(format!("myriad-read-small-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("token");
+        std::fs::write(&f, b"0123456789abcdef\n").unwrap();
+        assert_eq!(read_small(&f, 17).unwrap(), b"0123456789abcdef\n");
+        let e = read_small(&f, 16).unwrap_err().to_string();
+        assert!(e.contains("larger than 16 bytes"), "{e}");
+        let e = read_small(&dir, 1 << 20).unwrap_err().to_string();
+        assert!(e.contains("a folder"), "{e}");
+        for dev in ["/dev/zero", "/dev/urandom"] {
+            if Path::new(dev).exists() {
+                let e = read_small(Path::new(dev), 1 << 20).unwrap_err().to_string();
+                assert!(e.contains("a device, not a file"), "{e}");
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -13,14 +13,21 @@ pub use tokio_rustls::TlsAcceptor;
 
 /// An acceptor for the certificate chain in `cert` and the private key in `key` (PEM); errors
 /// name the file.
+/// The most bytes of a certificate chain or a key file.
+const MAX_PEM: u64 = 1 << 20;
+
 pub fn acceptor(cert: &Path, key: &Path) -> Result<TlsAcceptor, String> {
-    let certs: Vec<CertificateDer<'static>> = CertificateDer::pem_file_iter(cert)
-        .and_then(|i| i.collect::<Result<_, _>>())
+    // Read with a bound (a chain is a few KB; /dev/urandom never ended).
+    let read = |p: &Path| myriad_io::read_small(p, MAX_PEM).map_err(|e| e.to_string());
+    let chain = read(cert)?;
+    let certs: Vec<CertificateDer<'static>> = (CertificateDer::pem_slice_iter(&chain))
+        .collect::<Result<_, _>>()
         .map_err(|e| format!("{}: {e}", cert.display()))?;
     if certs.is_empty() {
         return Err(format!("{}: no certificate in it (PEM)", cert.display()));
     }
-    let key = PrivateKeyDer::from_pem_file(key).map_err(|e| format!("{}: {e}", key.display()))?;
+    let key = PrivateKeyDer::from_pem_slice(&read(key)?)
+        .map_err(|e| format!("{}: {e}", key.display()))?;
     let provider = Arc::new(rustls::crypto::ring::default_provider());
     let mut config = rustls::ServerConfig::builder_with_provider(provider)
         .with_safe_default_protocol_versions()

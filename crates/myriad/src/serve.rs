@@ -87,8 +87,11 @@ fn access(a: &ServeArgs) -> Result<Option<myriad_serve::access::Access>> {
     let Some(f) = &a.token_file else {
         return Ok(None);
     };
-    let text = std::fs::read_to_string(f)
+    // Tokens are lines of 16 characters or more: a megabyte holds thousands.
+    let bytes = myriad_io::read_small(f, 1 << 20)
         .with_context(|| format!("{}: cannot read the token file", f.display()))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| anyhow::anyhow!("{}: the token file is not UTF-8 text", f.display()))?;
     let access = myriad_serve::access::Access::from_tokens(&text)
         .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
     Ok(Some(access))

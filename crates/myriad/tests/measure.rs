@@ -724,6 +724,14 @@ fn annotations_are_kept_exported_and_imported() {
         "not a number",
     );
     assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
+    // An import read with a bound: a GeoJSON name for /dev/zero grew to gigabytes.
+    let zero = d.join("zero.geojson");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    fails(
+        &["annotate", s(&myr), "--import", s(&zero)],
+        "a device, not a file",
+    );
+    assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
     // The scan shares the dataset's work (the same name beside it).
     let again = ok(&["annotate", s(&laz)]);
     assert!(again.contains("1 annotations, 3 measurements"), "{again}");

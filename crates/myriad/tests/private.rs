@@ -90,6 +90,25 @@ fn a_private_server_answers_only_its_token_its_links_and_their_cookies() {
         "{}",
         r.stderr
     );
+    // Token files and certificates read with a bound: /dev/zero grew to gigabytes, and
+    // /dev/urandom never ended; each is one line naming it.
+    for (flag, dev) in [
+        ("--token-file", "/dev/zero"),
+        ("--tls-cert", "/dev/urandom"),
+    ] {
+        let mut args = vec!["serve", s(&myr), "--bind", "127.0.0.1:0", flag, dev];
+        if flag == "--tls-cert" {
+            args.extend(["--tls-key", s(&tokens)]);
+        }
+        let r = myriad(&args);
+        assert_eq!(r.code, 1, "{flag} {dev}: {}", r.stderr);
+        assert!(
+            r.stderr.contains(&format!("{dev}: a device, not a file")),
+            "{}",
+            r.stderr
+        );
+        assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    }
 
     let server = serve(&[s(&myr), "--token-file", s(&tokens)], Stdio::null());
     let base = server.base.clone();
