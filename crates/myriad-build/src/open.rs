@@ -11,6 +11,9 @@
 //! dataset) can be watched for changes with [`Watched`], so that its dataset is built again.
 
 use crate::cached;
+/// Whether an input is read as a dataset (a dataset's magic, a URL, a `.myr` name) rather than
+/// a scan a dataset is made from: what is shown of it never changes under the viewer.
+pub use crate::cached::is_dataset;
 use crate::growing::Growing;
 use crate::report::Report;
 use myriad_core::{Error, Result};
@@ -142,12 +145,6 @@ fn other_format(files: &[PathBuf]) -> Result<Option<myriad_io::Format>> {
         }
     }
     Ok(other)
-}
-
-/// Whether `input` is read as a dataset (a dataset's magic, a URL, a `.myr` name) rather than
-/// a scan a dataset is made from: what is shown of it never changes under the viewer.
-pub fn is_dataset(input: &Path) -> bool {
-    cached::is_dataset(input)
 }
 
 /// Whether `serve` hands `input` out as it is, files for other viewers and tools rather than a

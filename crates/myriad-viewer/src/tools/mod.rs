@@ -94,18 +94,12 @@ impl Tools {
         if pressed(egui::Key::V) && !fly {
             let on = !self.volume.drawing;
             self.stop();
-            self.volume.drawing = on;
-            if on {
-                self.volume.polygon.clear();
-            }
+            self.volume.draw_polygon(on);
         }
         if pressed(egui::Key::X) && !fly {
             let on = !self.profile.drawing;
             self.stop();
-            self.profile.drawing = on;
-            if on {
-                self.profile.line.clear();
-            }
+            self.profile.draw_line(on);
         }
         if pressed(egui::Key::T) && !fly {
             let on = !self.annotate.placing;

@@ -166,6 +166,14 @@ impl Section {
         }
     }
 
+    /// Starts drawing a section line anew (`on`), or stops drawing it.
+    pub fn draw_line(&mut self, on: bool) {
+        self.drawing = on;
+        if on {
+            self.line.clear();
+        }
+    }
+
     /// The panel's part: the line tool, the width, the cut.
     pub fn panel(&mut self, ui: &mut egui::Ui) -> bool {
         ui.label("profile");
@@ -176,10 +184,7 @@ impl Section {
                 .on_hover_text("click points of the section line; a right click cuts")
                 .clicked()
             {
-                self.drawing = !self.drawing;
-                if self.drawing {
-                    self.line.clear();
-                }
+                self.draw_line(!self.drawing);
             }
             ui.add(
                 egui::DragValue::new(&mut self.width)

@@ -147,6 +147,14 @@ impl Volumes {
         v.summary(self.units)
     }
 
+    /// Starts drawing a polygon anew (`on`), or stops drawing it.
+    pub fn draw_polygon(&mut self, on: bool) {
+        self.drawing = on;
+        if on {
+            self.polygon.clear();
+        }
+    }
+
     /// The panel's part; whether to measure now.
     pub fn panel(&mut self, ui: &mut egui::Ui) -> bool {
         ui.label("volume");
@@ -157,9 +165,8 @@ impl Volumes {
                 .on_hover_text("click the polygon's corners; a right click measures")
                 .clicked()
             {
-                self.drawing = !self.drawing;
+                self.draw_polygon(!self.drawing);
                 if self.drawing {
-                    self.polygon.clear();
                     self.result = None;
                 }
             }
