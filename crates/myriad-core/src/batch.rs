@@ -277,6 +277,51 @@ impl PointBatch {
         self.positions.is_empty()
     }
 
+    /// Drops the columns `schema` does not name (a reader that decodes whole records, asked
+    /// for some columns only); columns `schema` names that the batch lacks stay absent.
+    pub fn keep_columns(&mut self, schema: &Schema) {
+        macro_rules! keep {
+            ($f:ident, $t:ty, $a:ident) => {
+                if !schema.has(&Attribute::$a) {
+                    self.$f = None;
+                }
+            };
+        }
+        for_each_column!(keep);
+        if schema.extra_bytes == 0 {
+            self.extra_bytes = None;
+            self.extra_stride = 0;
+        }
+    }
+
+    /// Gives the batch exactly the columns of `schema`: those it lacks filled with zeros, those
+    /// `schema` does not name dropped (points decoded from files that disagree with their
+    /// dataset's schema: an EPT node written in another LAS point format).
+    pub fn conform(&mut self, schema: &Schema) {
+        self.keep_columns(schema);
+        let n = self.len();
+        macro_rules! fill {
+            ($f:ident, $t:ty, $a:ident) => {
+                if schema.has(&Attribute::$a) && self.$f.is_none() {
+                    self.$f = Some(vec![Default::default(); n]);
+                }
+            };
+        }
+        for_each_column!(fill);
+        if schema.extra_bytes > 0 && self.extra_stride != schema.extra_bytes {
+            let mut e = vec![0u8; n * schema.extra_bytes];
+            if let Some(old) = &self.extra_bytes {
+                let w = self.extra_stride.min(schema.extra_bytes);
+                for i in 0..n {
+                    let (from, to) = (i * self.extra_stride, i * schema.extra_bytes);
+                    e[to..to + w].copy_from_slice(&old[from..from + w]);
+                }
+            }
+            self.extra_bytes = Some(e);
+            self.extra_stride = schema.extra_bytes;
+        }
+    }
+
     /// The schema of the columns this batch has.
     pub fn schema(&self) -> Schema {
         let mut attributes = Vec::new();

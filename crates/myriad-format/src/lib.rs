@@ -16,6 +16,8 @@ pub mod page;
 pub mod splat;
 
 mod codec;
+#[cfg(not(target_arch = "wasm32"))]
+pub mod foreign;
 pub mod metadata;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod remote;
@@ -40,12 +42,13 @@ use std::sync::Arc;
 
 pub const MAGIC: &[u8; 8] = b"MYRIAD\x00\x1a";
 
-/// Whether `path` is a dataset: a URL (over HTTP only datasets are read), or a file that starts
-/// with [`MAGIC`].
+/// Whether `path` is a dataset: a URL (over HTTP only datasets are read), a file that starts
+/// with [`MAGIC`], or a dataset of the field's cloud formats read in place (COPC, EPT, Potree
+/// 2.0: [`foreign::kind_of`]).
 #[cfg(not(target_arch = "wasm32"))]
 pub fn is_dataset(path: &std::path::Path) -> bool {
     use std::io::Read;
-    if remote::is_url(path) {
+    if remote::is_url(path) || foreign::kind_of(path).is_some() {
         return true;
     }
     let mut head = [0u8; 8];
@@ -224,6 +227,31 @@ impl std::fmt::Display for Damage {
     }
 }
 
+/// What a dataset in one of the field's formats read in place answers instead of `.myr` pages
+/// ([`foreign`]).
+pub(crate) trait Foreign: Send + Sync {
+    /// The page of the subtree rooted at `key`, [`hierarchy::PAGE_LEVELS`] levels deep.
+    fn hierarchy_page(&self, key: NodeKey) -> std::result::Result<HierarchyPage, Damage>;
+    /// A node's points, every column.
+    fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage>;
+    /// Requests made and bytes fetched, where read over a network.
+    fn fetched(&self) -> Option<(u64, u64)>;
+    /// Why a source is no longer the one opened, once known.
+    fn changed(&self) -> Option<String>;
+}
+
+/// No bytes: the source of a dataset whose files a [`Foreign`] reader opens itself.
+struct NoBytes;
+
+impl ByteSource for NoBytes {
+    fn len(&self) -> u64 {
+        0
+    }
+    fn read_at(&self, _: u64, _: usize) -> std::io::Result<Vec<u8>> {
+        Err(std::io::Error::other("no bytes"))
+    }
+}
+
 /// An open dataset. Cheap to share: readers on many threads call it at once.
 pub struct Dataset {
     bytes: Arc<dyn ByteSource>,
@@ -235,6 +263,8 @@ pub struct Dataset {
     pub file_length: u64,
     /// Its header's CRC-32 (what a dataset linking this one records of it).
     pub header_crc: u32,
+    /// The reader of a COPC, EPT or Potree 2.0 dataset read in place (`None`: a `.myr`).
+    foreign: Option<Arc<dyn Foreign>>,
 }
 
 impl Dataset {
@@ -242,6 +272,23 @@ impl Dataset {
     /// range requests, [`remote::HttpBytes`]).
     #[cfg(not(target_arch = "wasm32"))]
     pub fn open(path: &Path) -> Result<Dataset> {
+        match foreign::kind_of(path) {
+            Some(foreign::Kind::Copc) if remote::is_url(path) => {
+                let url = path.to_str().expect("a URL is text");
+                let bytes = remote::HttpBytes::open_with_head(url, foreign::copc::HEAD)?;
+                return Dataset::copc(Arc::new(bytes), path);
+            }
+            Some(foreign::Kind::Copc) => return Dataset::copc(Arc::new(FileBytes::open(path)?), path),
+            Some(foreign::Kind::Ept) => {
+                let (meta, ept) = foreign::ept::Ept::open(path)?;
+                return Ok(Dataset::of_foreign(Arc::new(NoBytes), path, meta, Arc::new(ept)));
+            }
+            Some(foreign::Kind::Potree) => {
+                let (meta, p) = foreign::potree::Potree::open(path)?;
+                return Ok(Dataset::of_foreign(Arc::new(NoBytes), path, meta, Arc::new(p)));
+            }
+            None => {}
+        }
         if remote::is_url(path) {
             let url = path.to_str().expect("a URL is text");
             return Dataset::from_source(Arc::new(remote::HttpBytes::open(url)?), path);
@@ -249,9 +296,45 @@ impl Dataset {
         Dataset::from_source(Arc::new(FileBytes::open(path)?), path)
     }
 
+    /// A COPC file in `bytes`, read in place.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn copc(bytes: Arc<dyn ByteSource>, name: &Path) -> Result<Dataset> {
+        let (meta, copc) = foreign::copc::Copc::open(bytes.clone(), name)?;
+        Ok(Dataset::of_foreign(bytes, name, meta, Arc::new(copc)))
+    }
+
+    fn of_foreign(
+        bytes: Arc<dyn ByteSource>,
+        name: &Path,
+        meta: Metadata,
+        reader: Arc<dyn Foreign>,
+    ) -> Dataset {
+        let none: linked::Opener = Arc::new(|_, _| Err(std::io::Error::other("no linked files")));
+        Dataset {
+            file_length: bytes.len(),
+            bytes,
+            linked: linked::Linked::new(Vec::new(), none, Arc::new(|s: &str| s.to_string())),
+            path: name.to_path_buf(),
+            meta,
+            root: PageRef::default(),
+            header_crc: 0,
+            foreign: Some(reader),
+        }
+    }
+
+    /// The format of a dataset read in place ("COPC 1.0", "EPT", "Potree 2.0"), `None` for a
+    /// `.myr`.
+    pub fn foreign_format(&self) -> Option<&str> {
+        self.foreign.as_ref()?;
+        self.meta.parameters["format"].as_str()
+    }
+
     /// Requests made and bytes fetched so far, for a dataset read over a network (its linked
     /// files' included).
     pub fn fetched(&self) -> Option<(u64, u64)> {
+        if let Some(f) = &self.foreign {
+            return f.fetched();
+        }
         let mut total = self.bytes.fetched()?;
         for s in self.linked.opened() {
             let (r, b) = s.fetched().unwrap_or_default();
@@ -263,6 +346,9 @@ impl Dataset {
     /// An error naming the dataset when its source changed while it was read (a dataset on a
     /// web server replaced): a command's results from it cannot be trusted.
     pub fn check_unchanged(&self) -> Result<()> {
+        if let Some(m) = self.foreign.as_ref().and_then(|f| f.changed()) {
+            return Err(Error::Invalid(format!("{}: {m}", self.path.display())));
+        }
         let linked = (self.linked.opened()).find_map(|s| s.changed());
         match self.bytes.changed().or(linked) {
             Some(m) => Err(Error::Invalid(format!("{}: {m}", self.path.display()))),
@@ -346,6 +432,11 @@ impl Dataset {
         let head = bytes
             .read_at(0, HEADER_LEN)
             .map_err(|e| Error::io(name, e))?;
+        #[cfg(not(target_arch = "wasm32"))]
+        if head.starts_with(b"LASF") {
+            // A COPC file at a URL not named .copc.laz.
+            return Dataset::copc(bytes, name);
+        }
         let header = Header::decode(head.as_slice().try_into().unwrap())
             .map_err(|(at, m)| Error::at_byte(name, at, m))?;
         if header.file_length != len {
@@ -391,6 +482,7 @@ impl Dataset {
             root: header.hierarchy,
             file_length: len,
             header_crc: u32::from_le_bytes(head[12..16].try_into().unwrap()),
+            foreign: None,
         })
     }
 
@@ -440,6 +532,9 @@ impl Dataset {
 
     /// Reads one hierarchy page.
     pub fn hierarchy_page(&self, p: &ChildPage) -> std::result::Result<HierarchyPage, Damage> {
+        if let Some(f) = &self.foreign {
+            return f.hierarchy_page(p.key);
+        }
         let damage = |offset: u64, message: String| Damage {
             key: p.key,
             offset,
@@ -527,6 +622,11 @@ impl Dataset {
         e: &NodeEntry,
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
+        if let Some(f) = &self.foreign {
+            let mut b = f.read_node(e)?;
+            b.keep_columns(schema);
+            return Ok(b);
+        }
         if e.page.length == 0 {
             return self.decode_node(e, &[], schema);
         }
@@ -542,6 +642,7 @@ impl Dataset {
     /// Node `e`'s page as stored, its checksum checked (to copy it into another dataset with
     /// the same quantization: a page holds its own origin).
     pub fn node_page(&self, e: &NodeEntry) -> std::result::Result<Vec<u8>, Damage> {
+        self.no_pages(e)?;
         if e.page.length == 0 {
             return Ok(Vec::new());
         }
@@ -561,6 +662,7 @@ impl Dataset {
         page: &[u8],
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
+        self.no_pages(e)?;
         let damage = |offset: u64, message: String| Damage {
             key: e.key,
             offset,
@@ -595,6 +697,20 @@ impl Dataset {
             ));
         }
         Ok(batch)
+    }
+
+    /// A dataset read in place has no `.myr` pages to copy or decode: an error naming its
+    /// format.
+    fn no_pages(&self, e: &NodeEntry) -> std::result::Result<(), Damage> {
+        match self.foreign_format() {
+            Some(f) => Err(Damage {
+                key: e.key,
+                offset: 0,
+                message: format!("a {f} dataset has no Myriad pages (convert it first)"),
+                subtree: false,
+            }),
+            None => Ok(()),
+        }
     }
 
     /// A damage report as an error naming the file.

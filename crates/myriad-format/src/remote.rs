@@ -119,17 +119,28 @@ impl HttpBytes {
     /// Asks for the first [`crate::HEADER_LEN`] bytes of `url` (kept: the dataset header): the
     /// answer must be 206 with a `Content-Range` that gives the resource's length.
     pub fn open(url: &str) -> Result<HttpBytes> {
+        HttpBytes::open_with_head(url, crate::HEADER_LEN)
+    }
+
+    /// [`HttpBytes::open`] asking for the first `head` bytes in the opening request (kept):
+    /// a COPC file's header and VLRs, or the whole of a small file, in one round trip.
+    pub fn open_with_head(url: &str, head: usize) -> Result<HttpBytes> {
         if crate::s3::is_s3(Path::new(url)) {
             let at = crate::s3::parse(url)
                 .ok_or_else(|| Error::Invalid(format!("{url}: not s3://BUCKET/KEY")))?;
             let config = crate::s3::Config::from_env();
-            return HttpBytes::open_as(&config.url(&at), url, Some(config));
+            return HttpBytes::open_as(&config.url(&at), url, Some(config), head);
         }
-        HttpBytes::open_as(url, url, None)
+        HttpBytes::open_as(url, url, None, head)
     }
 
     /// Opens `url`, naming it `name` in errors, its requests signed for S3 with `s3`.
-    fn open_as(url: &str, name: &str, s3: Option<crate::s3::Config>) -> Result<HttpBytes> {
+    fn open_as(
+        url: &str,
+        name: &str,
+        s3: Option<crate::s3::Config>,
+        head: usize,
+    ) -> Result<HttpBytes> {
         let tls = trusted().map_err(|e| Error::io(Path::new(name), io::Error::other(e)))?;
         let agent: ureq::Agent = ureq::Agent::config_builder()
             .tls_config(tls)
@@ -153,7 +164,7 @@ impl HttpBytes {
             changed: Mutex::new(None),
         };
         let (head, total, etag) =
-            (h.range(0, crate::HEADER_LEN)).map_err(|e| Error::io(Path::new(name), e))?;
+            (h.range(0, head.max(1))).map_err(|e| Error::io(Path::new(name), e))?;
         h.len = total;
         h.head = head;
         h.etag = etag;

@@ -828,7 +828,7 @@ pub fn read_raw_records(path: &Path) -> Result<u64> {
     Ok(read)
 }
 
-fn crs_of(header: &las::Header) -> Option<String> {
+pub(crate) fn crs_of(header: &las::Header) -> Option<String> {
     if let Some(wkt) = header.get_wkt_crs_bytes() {
         let s = String::from_utf8_lossy(wkt)
             .trim_end_matches('\0')

@@ -16,6 +16,7 @@ pub mod copc;
 pub mod e57;
 pub mod image;
 pub mod las;
+pub mod las_bytes;
 mod las_chunks;
 mod las_extra;
 mod las_guard;

@@ -49,7 +49,14 @@ pub fn run(args: InfoArgs) -> Result<()> {
         ..Default::default()
     };
     for path in &args.files {
-        if myriad_format::is_dataset(path)
+        // A COPC file on disk is reported as the LAZ file it is (header, point format); over
+        // HTTP, and EPT and Potree 2.0 datasets, as the datasets they are read as.
+        let las_file = !myriad_format::remote::is_url(path)
+            && matches!(
+                myriad_io::detect(path),
+                Ok(myriad_io::Format::Las | myriad_io::Format::Laz)
+            );
+        if (myriad_format::is_dataset(path) && !las_file)
             || path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("myr"))
@@ -202,16 +209,26 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
         true => myriad_format::FORMAT_VERSION,
         false => myriad_format::LINKED_VERSION,
     };
+    // A dataset read in place (COPC, EPT, Potree 2.0) counts its nodes by walking its pages.
+    let foreign = ds.foreign_format();
+    let (nodes, depth) = match foreign {
+        Some(_) => (
+            levels.iter().map(|l| l.nodes).sum(),
+            levels.last().map_or(0, |l| l.level),
+        ),
+        None => (m.nodes, m.depth),
+    };
     if as_json {
         println!(
             "{}",
             json!({
                 "path": path.display().to_string(),
-                "format": "myriad",
+                "format": foreign.unwrap_or("myriad"),
                 "version": version,
+                "read_in_place": foreign.is_some(),
                 "points": m.points,
-                "nodes": m.nodes,
-                "depth": m.depth,
+                "nodes": nodes,
+                "depth": depth,
                 "structure": m.structure,
                 "parameters": m.parameters,
                 "bounds": json!({"min": m.bounds.min, "max": m.bounds.max}),
@@ -233,20 +250,25 @@ fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
     }
     let b = m.bounds;
     println!("{}", path.display());
-    println!("  format      Myriad dataset {version}");
+    match foreign {
+        Some(f) => println!("  format      {f}, read in place"),
+        None => println!("  format      Myriad dataset {version}"),
+    }
     println!("  structure   {} {}", m.structure, m.parameters);
     println!("  points      {}", thousands(m.points));
-    println!("  nodes       {} (depth {})", thousands(m.nodes), m.depth);
+    println!("  nodes       {} (depth {depth})", thousands(nodes));
     print_bounds(&b);
     println!("  attributes  {}", m.schema);
     let q = m.quantization;
     println!("  scale       {} {} {}", q.scale[0], q.scale[1], q.scale[2]);
     print_crs(m.crs.as_deref());
-    println!(
-        "  file size   {} bytes, {:.2} bytes per point",
-        thousands(ds.file_length + linked),
-        bpp
-    );
+    if foreign.is_none() || ds.file_length > 0 {
+        println!(
+            "  file size   {} bytes, {:.2} bytes per point",
+            thousands(ds.file_length + linked),
+            bpp
+        );
+    }
     if !ds.files().is_empty() {
         println!(
             "  files       its own ({} bytes) and {} it links, beside it: {}{}",
