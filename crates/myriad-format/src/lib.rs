@@ -278,14 +278,26 @@ impl Dataset {
                 let bytes = remote::HttpBytes::open_with_head(url, foreign::copc::HEAD)?;
                 return Dataset::copc(Arc::new(bytes), path);
             }
-            Some(foreign::Kind::Copc) => return Dataset::copc(Arc::new(FileBytes::open(path)?), path),
+            Some(foreign::Kind::Copc) => {
+                return Dataset::copc(Arc::new(FileBytes::open(path)?), path);
+            }
             Some(foreign::Kind::Ept) => {
                 let (meta, ept) = foreign::ept::Ept::open(path)?;
-                return Ok(Dataset::of_foreign(Arc::new(NoBytes), path, meta, Arc::new(ept)));
+                return Ok(Dataset::of_foreign(
+                    Arc::new(NoBytes),
+                    path,
+                    meta,
+                    Arc::new(ept),
+                ));
             }
             Some(foreign::Kind::Potree) => {
                 let (meta, p) = foreign::potree::Potree::open(path)?;
-                return Ok(Dataset::of_foreign(Arc::new(NoBytes), path, meta, Arc::new(p)));
+                return Ok(Dataset::of_foreign(
+                    Arc::new(NoBytes),
+                    path,
+                    meta,
+                    Arc::new(p),
+                ));
             }
             None => {}
         }

@@ -5,7 +5,7 @@
 //! come from a URL as often as from a disk. The same checks as [`crate::las::LasSource::open`]
 //! run before the `las` and `laz` crates see the bytes (they size buffers from header fields).
 
-use crate::las_guard::{HEADER_PREFIX, check_header, check_vlrs};
+use crate::las_guard::{HEADER_PREFIX, check_header, check_vlrs_in};
 use crate::las_records::{self, Layout, Quantization};
 use myriad_core::{Aabb, Attribute, Error, PointBatch, Result, Schema};
 use std::path::Path;
@@ -60,10 +60,9 @@ impl LasLayout {
         if bytes[25] >= 4 && bytes.len() >= 247 {
             bytes[235..247].fill(0);
         }
-        let raw = las::raw::Header::read_from(std::io::Cursor::new(&bytes)).map_err(|e| {
-            Error::at_byte(name, 0, format!("invalid LAS header: {e}"))
-        })?;
-        check_vlrs(name, &raw)?;
+        let raw = las::raw::Header::read_from(std::io::Cursor::new(&bytes))
+            .map_err(|e| Error::at_byte(name, 0, format!("invalid LAS header: {e}")))?;
+        check_vlrs_in(name, &raw, std::io::Cursor::new(&bytes))?;
         let header = las::Header::new(std::io::Cursor::new(&bytes))
             .map_err(|e| Error::at_byte(name, 0, format!("invalid LAS header or VLRs: {e}")))?;
         let fmt = header.point_format();
@@ -95,7 +94,9 @@ impl LasLayout {
         let mut schema = Schema::for_las_format(format);
         schema.extra_bytes = fmt.extra_bytes as usize;
         let extra = crate::las_extra::extra_dims(&header);
-        schema.attributes.extend(extra.into_iter().map(Attribute::Extra));
+        schema
+            .attributes
+            .extend(extra.into_iter().map(Attribute::Extra));
         let bounds = crate::las_guard::header_bounds(&raw).map(|(min, max)| Aabb::new(min, max));
         Ok(LasLayout {
             crs: crate::las::crs_of(&header),
@@ -127,22 +128,43 @@ impl LasLayout {
         let extra = self.record_len - self.layout.base_len;
         let mut batch = las_records::batch_for(&self.layout, extra, n);
         let bytes = &bytes[..n * self.record_len];
-        las_records::decode(bytes, self.record_len, &self.layout, &self.quant, &mut batch);
+        las_records::decode(
+            bytes,
+            self.record_len,
+            &self.layout,
+            &self.quant,
+            &mut batch,
+        );
         batch
     }
 
     /// Decodes one LAZ chunk of `points` points on its own (a COPC node), `at` its byte offset
     /// in `name` for errors. The layer sizes are checked against the chunk before `laz` sizes
     /// buffers from them.
-    pub fn decode_chunk(&self, name: &Path, at: u64, chunk: &[u8], points: u64) -> Result<PointBatch> {
+    pub fn decode_chunk(
+        &self,
+        name: &Path,
+        at: u64,
+        chunk: &[u8],
+        points: u64,
+    ) -> Result<PointBatch> {
         let Some(vlr) = &self.laz else {
-            return Err(Error::at_byte(name, at, "not a LAZ file: no chunks to decode"));
+            return Err(Error::at_byte(
+                name,
+                at,
+                "not a LAZ file: no chunks to decode",
+            ));
         };
         let bad = |off: u64, m: String| Error::at_byte(name, at + off, m);
         let out_len = (points as usize)
             .checked_mul(self.record_len)
             .filter(|&n| points <= chunk.len() as u64 * 64 && n < 1 << 34)
-            .ok_or_else(|| bad(0, format!("{points} points cannot be in a {}-byte chunk", chunk.len())))?;
+            .ok_or_else(|| {
+                bad(
+                    0,
+                    format!("{points} points cannot be in a {}-byte chunk", chunk.len()),
+                )
+            })?;
         check_layers(vlr, chunk).map_err(|(off, m)| bad(off, m))?;
         let mut out = vec![0u8; out_len];
         let entry = laz::laszip::ChunkTableEntry {
@@ -156,7 +178,12 @@ impl LasLayout {
             std::slice::from_ref(&entry),
             laz::DecompressionSelection::all(),
         )
-        .map_err(|e| bad(0, format!("LAZ chunk of {points} points does not decompress: {e}")))?;
+        .map_err(|e| {
+            bad(
+                0,
+                format!("LAZ chunk of {points} points does not decompress: {e}"),
+            )
+        })?;
         Ok(self.decode_records(&out))
     }
 
@@ -178,7 +205,11 @@ impl LasLayout {
         };
         // The chunk table: an i64 offset, then (version u32, count u32, ...) at that offset.
         if data.len() < 8 {
-            return Err(Error::at_byte(name, l.data_at, "file ends before its LAZ chunk table offset"));
+            return Err(Error::at_byte(
+                name,
+                l.data_at,
+                "file ends before its LAZ chunk table offset",
+            ));
         }
         let table_at = i64::from_le_bytes(data[..8].try_into().unwrap());
         let chunks: Vec<(u64, u64)> = match table_at {
@@ -191,14 +222,23 @@ impl LasLayout {
                 ));
             }
             t => {
-                let count = u32::from_le_bytes(bytes[t as usize + 4..t as usize + 8].try_into().unwrap());
+                let count =
+                    u32::from_le_bytes(bytes[t as usize + 4..t as usize + 8].try_into().unwrap());
                 if count as u64 > l.points.max(1) {
-                    return Err(Error::at_byte(name, t as u64 + 4, format!("{count} LAZ chunks for {} points", l.points)));
+                    return Err(Error::at_byte(
+                        name,
+                        t as u64 + 4,
+                        format!("{count} LAZ chunks for {} points", l.points),
+                    ));
                 }
                 let mut cur = std::io::Cursor::new(bytes);
                 cur.set_position(l.data_at);
                 let table = laz::laszip::ChunkTable::read_from(&mut cur, vlr).map_err(|e| {
-                    Error::at_byte(name, t as u64, format!("cannot read the LAZ chunk table: {e}"))
+                    Error::at_byte(
+                        name,
+                        t as u64,
+                        format!("cannot read the LAZ chunk table: {e}"),
+                    )
                 })?;
                 let fixed = (!vlr.uses_variable_size_chunks()).then(|| vlr.chunk_size() as u64);
                 let mut left = l.points;
@@ -213,12 +253,20 @@ impl LasLayout {
                     .collect()
             }
         };
-        let mut batch = las_records::batch_for(&l.layout, l.record_len - l.layout.base_len, l.points as usize);
+        let mut batch = las_records::batch_for(
+            &l.layout,
+            l.record_len - l.layout.base_len,
+            l.points as usize,
+        );
         let mut at = l.data_at + 8;
         for (bytes_n, n) in chunks {
             let end = at.saturating_add(bytes_n);
             if end > bytes.len() as u64 {
-                return Err(Error::at_byte(name, at, format!("LAZ chunk of {bytes_n} bytes runs past the end")));
+                return Err(Error::at_byte(
+                    name,
+                    at,
+                    format!("LAZ chunk of {bytes_n} bytes runs past the end"),
+                ));
             }
             let b = l.decode_chunk(name, at, &bytes[at as usize..end as usize], n)?;
             batch.append(&b);
@@ -228,7 +276,11 @@ impl LasLayout {
             return Err(Error::at_byte(
                 name,
                 l.data_at,
-                format!("{} points decoded, the header says {}", batch.len(), l.points),
+                format!(
+                    "{} points decoded, the header says {}",
+                    batch.len(),
+                    l.points
+                ),
             ));
         }
         Ok((l, batch))
@@ -259,7 +311,13 @@ fn check_layers(vlr: &laz::LazVlr, chunk: &[u8]) -> std::result::Result<(), (u64
     }
     let head = first_point + 4 + 4 * layers;
     if (chunk.len() as u64) < head {
-        return Err((0, format!("a {}-byte LAZ chunk is shorter than its {head}-byte head", chunk.len())));
+        return Err((
+            0,
+            format!(
+                "a {}-byte LAZ chunk is shorter than its {head}-byte head",
+                chunk.len()
+            ),
+        ));
     }
     let sizes = &chunk[first_point as usize + 4..head as usize];
     let total: u64 = sizes
@@ -269,7 +327,10 @@ fn check_layers(vlr: &laz::LazVlr, chunk: &[u8]) -> std::result::Result<(), (u64
     if head + total > chunk.len() as u64 {
         return Err((
             first_point + 4,
-            format!("LAZ chunk: its layers claim {total} bytes of a {}-byte chunk", chunk.len()),
+            format!(
+                "LAZ chunk: its layers claim {total} bytes of a {}-byte chunk",
+                chunk.len()
+            ),
         ));
     }
     Ok(())

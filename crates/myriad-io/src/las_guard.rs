@@ -139,9 +139,18 @@ pub(crate) fn header_bounds(raw: &las::raw::Header) -> Option<([f64; 3], [f64; 3
 /// | 20 | 2 | u16 record length after header |
 /// | 22 | 32 | description |
 pub(crate) fn check_vlrs(path: &Path, raw: &las::raw::Header) -> Result<()> {
+    let f = File::open(path).map_err(|e| Error::io(path, e))?;
+    check_vlrs_in(path, raw, f)
+}
+
+/// [`check_vlrs`] on the file's bytes read by `f` (a file, or bytes in memory named `path`).
+pub(crate) fn check_vlrs_in(
+    path: &Path,
+    raw: &las::raw::Header,
+    mut f: impl Read + Seek,
+) -> Result<()> {
     let data_at = raw.offset_to_point_data as u64;
     let mut at = raw.header_size as u64;
-    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
     for i in 0..raw.number_of_variable_length_records {
         if at + 54 > data_at {
             return Err(Error::at_byte(

@@ -59,7 +59,9 @@ impl Copc {
     pub(crate) fn open(bytes: Arc<dyn ByteSource>, name: &Path) -> Result<(Metadata, Copc)> {
         let len = bytes.len();
         let io = |e: std::io::Error| Error::io(name, e);
-        let mut head = bytes.read_at(0, (HEAD as u64).min(len) as usize).map_err(io)?;
+        let mut head = bytes
+            .read_at(0, (HEAD as u64).min(len) as usize)
+            .map_err(io)?;
         if !is_copc_head(&head) {
             return Err(bad(
                 name,
@@ -70,7 +72,11 @@ impl Copc {
         let data_at = myriad_io::las_bytes::data_offset(name, &head)?;
         if data_at > head.len() as u64 {
             if data_at > 16 << 20 || data_at > len {
-                return Err(bad(name, 96, format!("VLRs up to byte {data_at}: too long")));
+                return Err(bad(
+                    name,
+                    96,
+                    format!("VLRs up to byte {data_at}: too long"),
+                ));
             }
             head = bytes.read_at(0, data_at as usize).map_err(io)?;
         }
@@ -81,17 +87,30 @@ impl Copc {
         let (center, half, spacing) = ([f(0), f(1), f(2)], f(3), f(4));
         let at = 375 + 54;
         if !(center.iter().all(|c| c.is_finite()) && half.is_finite() && half > 0.0) {
-            return Err(bad(name, at, format!("COPC info: centre {center:?}, half size {half}")));
+            return Err(bad(
+                name,
+                at,
+                format!("COPC info: centre {center:?}, half size {half}"),
+            ));
         }
         if !(spacing.is_finite() && spacing > 0.0) {
-            return Err(bad(name, at + 32, format!("COPC info: root spacing {spacing}")));
+            return Err(bad(
+                name,
+                at + 32,
+                format!("COPC info: root spacing {spacing}"),
+            ));
         }
         let (root_at, root_len) = (u(5), u(6));
-        if root_at.saturating_add(root_len) > len || root_len > MAX_PAGE || root_len % ENTRY_LEN as u64 != 0 {
+        if root_at.saturating_add(root_len) > len
+            || root_len > MAX_PAGE
+            || root_len % ENTRY_LEN as u64 != 0
+        {
             return Err(bad(
                 name,
                 at + 40,
-                format!("COPC info: root hierarchy page of {root_len} bytes at {root_at} does not fit the file"),
+                format!(
+                    "COPC info: root hierarchy page of {root_len} bytes at {root_at} does not fit the file"
+                ),
             ));
         }
         let cube = Aabb::new(center.map(|c| c - half), center.map(|c| c + half));
@@ -107,9 +126,14 @@ impl Copc {
             quantization: Quantization { scale, offset },
             crs: las.crs.clone(),
             schema: las.schema.clone(),
-            sources: vec![json!({"path": name.display().to_string(), "format": "COPC", "points": las.points})],
+            sources: vec![
+                json!({"path": name.display().to_string(), "format": "COPC", "points": las.points}),
+            ],
             las_header: las.header_bytes().ok(),
-            software: String::from_utf8_lossy(&head[26 + 32..26 + 64]).trim_end_matches('\0').trim().to_string(),
+            software: String::from_utf8_lossy(&head[26 + 32..26 + 64])
+                .trim_end_matches('\0')
+                .trim()
+                .to_string(),
             levels: Vec::new(),
             files: Vec::new(),
         };
@@ -132,7 +156,10 @@ impl Copc {
         let len = self.bytes.len();
         let hurt = |at: u64, m: String| damage(key, at, m, true);
         if r.offset.saturating_add(r.length as u64) > len || r.length as usize % ENTRY_LEN != 0 {
-            return Err(hurt(r.offset, format!("a {}-byte hierarchy page does not fit the file", r.length)));
+            return Err(hurt(
+                r.offset,
+                format!("a {}-byte hierarchy page does not fit the file", r.length),
+            ));
         }
         let b = self
             .bytes
@@ -147,14 +174,20 @@ impl Copc {
             let (size, count) = (i32_at(24), i32_at(28));
             let side = 1i64 << level.clamp(0, 31);
             if !(0..=30).contains(&level) || [x, y, z].iter().any(|&c| c < 0 || c as i64 >= side) {
-                return Err(hurt(at, format!("entry {i}: key {level}-{x}-{y}-{z} is not a node of the octree")));
+                return Err(hurt(
+                    at,
+                    format!("entry {i}: key {level}-{x}-{y}-{z} is not a node of the octree"),
+                ));
             }
             let k = NodeKey {
                 level: level as u32,
                 cell: [x as u32, y as u32, z as u32],
             };
             if size < 0 || offset.saturating_add(size as u64) > len {
-                return Err(hurt(at + 16, format!("entry {k}: {size} bytes at {offset} do not fit the file")));
+                return Err(hurt(
+                    at + 16,
+                    format!("entry {k}: {size} bytes at {offset} do not fit the file"),
+                ));
             }
             match count {
                 -1 => page.below.push((

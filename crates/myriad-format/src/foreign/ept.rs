@@ -122,10 +122,15 @@ impl Ept {
             .map_err(|m| Error::Invalid(format!("{}: {m}", json_path.display())))?;
         let name = json_path.clone();
         let v: Value = serde_json::from_slice(&text).map_err(|e| {
-            bad(&name, e.column() as u64, format!("ept.json, line {}: {e}", e.line()))
+            bad(
+                &name,
+                e.column() as u64,
+                format!("ept.json, line {}: {e}", e.line()),
+            )
         })?;
         let field = |m: &str| Error::Invalid(format!("{}: ept.json: {m}", name.display()));
-        let b = super::numbers::<6>(&v, "bounds").ok_or_else(|| field("no \"bounds\" of 6 numbers"))?;
+        let b =
+            super::numbers::<6>(&v, "bounds").ok_or_else(|| field("no \"bounds\" of 6 numbers"))?;
         let cube = Aabb::new([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
         if (0..3).any(|a| cube.max[a] <= cube.min[a]) {
             return Err(field("\"bounds\" is empty"));
@@ -133,13 +138,19 @@ impl Ept {
         let conforming = super::numbers::<6>(&v, "boundsConforming")
             .map(|c| Aabb::new([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
             .unwrap_or(cube);
-        let points = v["points"].as_u64().ok_or_else(|| field("no \"points\" count"))?;
+        let points = v["points"]
+            .as_u64()
+            .ok_or_else(|| field("no \"points\" count"))?;
         let span = v["span"].as_f64().filter(|s| *s >= 1.0).unwrap_or(128.0);
         let data = match v["dataType"].as_str() {
             Some("laszip") => DataType::Laszip,
             Some("binary") => DataType::Binary,
             Some("zstandard") => DataType::Zstandard,
-            other => return Err(field(&format!("dataType {other:?}: laszip, binary or zstandard expected"))),
+            other => {
+                return Err(field(&format!(
+                    "dataType {other:?}: laszip, binary or zstandard expected"
+                )));
+            }
         };
         if v["hierarchyType"].as_str().is_some_and(|h| h != "json") {
             return Err(field("hierarchyType: only \"json\" is defined"));
@@ -148,10 +159,18 @@ impl Ept {
         let mut at = 0;
         let mut extra = 0;
         let mut attributes: Vec<Attribute> = Vec::new();
-        for d in v["schema"].as_array().ok_or_else(|| field("no \"schema\""))? {
-            let dname = d["name"].as_str().ok_or_else(|| field("a dimension without a name"))?;
-            let size = d["size"].as_u64().filter(|s| [1, 2, 4, 8].contains(s))
-                .ok_or_else(|| field(&format!("dimension {dname}: size must be 1, 2, 4 or 8")))? as usize;
+        for d in v["schema"]
+            .as_array()
+            .ok_or_else(|| field("no \"schema\""))?
+        {
+            let dname = d["name"]
+                .as_str()
+                .ok_or_else(|| field("a dimension without a name"))?;
+            let size = d["size"]
+                .as_u64()
+                .filter(|s| [1, 2, 4, 8].contains(s))
+                .ok_or_else(|| field(&format!("dimension {dname}: size must be 1, 2, 4 or 8")))?
+                as usize;
             let kind = match d["type"].as_str() {
                 Some("signed") => 's',
                 Some("unsigned") => 'u',
@@ -163,8 +182,14 @@ impl Ept {
                 kind,
                 size,
                 at,
-                scale: d["scale"].as_f64().filter(|s| s.is_finite() && *s != 0.0).unwrap_or(1.0),
-                offset: d["offset"].as_f64().filter(|s| s.is_finite()).unwrap_or(0.0),
+                scale: d["scale"]
+                    .as_f64()
+                    .filter(|s| s.is_finite() && *s != 0.0)
+                    .unwrap_or(1.0),
+                offset: d["offset"]
+                    .as_f64()
+                    .filter(|s| s.is_finite())
+                    .unwrap_or(0.0),
                 extra_at: None,
             };
             at += size;
@@ -232,7 +257,9 @@ impl Ept {
             },
             crs,
             schema: schema.clone(),
-            sources: vec![json!({"path": name.display().to_string(), "format": "EPT", "points": points})],
+            sources: vec![
+                json!({"path": name.display().to_string(), "format": "EPT", "points": points}),
+            ],
             las_header: None,
             software: "Entwine Point Tile".into(),
             levels: Vec::new(),
@@ -259,10 +286,15 @@ impl Ept {
     fn read_page(&self, key: NodeKey) -> std::result::Result<SourcePage, Damage> {
         let rel = format!("ept-hierarchy/{}.json", Ept::key_name(key));
         let hurt = |m: String| damage(key, 0, format!("{}: {m}", self.place.name(&rel)), true);
-        let text = self.place.read(&rel, MAX_JSON).map_err(|m| damage(key, 0, m, true))?;
-        let v: Value = serde_json::from_slice(&text)
-            .map_err(|e| hurt(format!("line {}: {e}", e.line())))?;
-        let map = v.as_object().ok_or_else(|| hurt("not a JSON object".into()))?;
+        let text = self
+            .place
+            .read(&rel, MAX_JSON)
+            .map_err(|m| damage(key, 0, m, true))?;
+        let v: Value =
+            serde_json::from_slice(&text).map_err(|e| hurt(format!("line {}: {e}", e.line())))?;
+        let map = v
+            .as_object()
+            .ok_or_else(|| hurt("not a JSON object".into()))?;
         let mut page = SourcePage::default();
         for (k, count) in map {
             let parts: Vec<u32> = k.split('-').filter_map(|p| p.parse().ok()).collect();
@@ -293,7 +325,13 @@ impl Ept {
     }
 
     /// Decodes binary records into the dataset's columns.
-    fn decode_binary(&self, key: NodeKey, rel: &str, b: &[u8], points: u64) -> std::result::Result<PointBatch, Damage> {
+    fn decode_binary(
+        &self,
+        key: NodeKey,
+        rel: &str,
+        b: &[u8],
+        points: u64,
+    ) -> std::result::Result<PointBatch, Damage> {
         if b.len() as u64 != points * self.record_len as u64 {
             return Err(damage(
                 key,
@@ -312,7 +350,8 @@ impl Ept {
         let get = |name: &str| self.dims.iter().find(|d| d.name == name);
         let (x, y, z) = (get("X").unwrap(), get("Y").unwrap(), get("Z").unwrap());
         let records = || b.chunks_exact(self.record_len);
-        out.positions.extend(records().map(|r| [x.value(r), y.value(r), z.value(r)]));
+        out.positions
+            .extend(records().map(|r| [x.value(r), y.value(r), z.value(r)]));
         macro_rules! col {
             ($f:ident, $name:expr, $t:ty) => {
                 if let (Some(c), Some(d)) = (out.$f.as_mut(), get($name)) {
@@ -344,7 +383,9 @@ impl Ept {
         if let Some(c) = out.classification_flags.as_mut() {
             match get("ClassFlags") {
                 Some(d) => c.extend(records().map(|r| d.value(r) as u8)),
-                None => c.extend(records().map(|r| bits(&["Synthetic", "KeyPoint", "Withheld", "Overlap"], r))),
+                None => c.extend(
+                    records().map(|r| bits(&["Synthetic", "KeyPoint", "Withheld", "Overlap"], r)),
+                ),
             }
         }
         if let Some(c) = out.rgb.as_mut() {
@@ -394,8 +435,11 @@ impl Foreign for Ept {
             }
             DataType::Binary => self.decode_binary(e.key, &rel, &b, e.points as u64)?,
             DataType::Zstandard => {
-                let raw = zstd::bulk::decompress(&b, (e.points as usize).saturating_mul(self.record_len))
-                    .map_err(|err| damage(e.key, 0, format!("{file}: zstandard: {err}"), false))?;
+                let raw =
+                    zstd::bulk::decompress(&b, (e.points as usize).saturating_mul(self.record_len))
+                        .map_err(|err| {
+                            damage(e.key, 0, format!("{file}: zstandard: {err}"), false)
+                        })?;
                 self.decode_binary(e.key, &rel, &raw, e.points as u64)?
             }
         };
@@ -403,7 +447,11 @@ impl Foreign for Ept {
             return Err(damage(
                 e.key,
                 0,
-                format!("{file}: {} points, the hierarchy says {}", batch.len(), e.points),
+                format!(
+                    "{file}: {} points, the hierarchy says {}",
+                    batch.len(),
+                    e.points
+                ),
                 false,
             ));
         }

@@ -134,7 +134,9 @@ impl Place {
         let name = self.name(rel);
         if self.url {
             // Counted by the source itself ([`ByteSource::fetched`]).
-            return Ok(Arc::new(crate::remote::HttpBytes::open_with_head(&name, head)?));
+            return Ok(Arc::new(crate::remote::HttpBytes::open_with_head(
+                &name, head,
+            )?));
         }
         Ok(Arc::new(FileBytes::open(Path::new(&name))?))
     }
@@ -152,7 +154,9 @@ impl Place {
             self.count(&h);
             return Err(format!("{name}: {} bytes, more than {most}", h.len()));
         }
-        let b = h.read_at(0, h.len() as usize).map_err(|e| format!("{name}: {e}"));
+        let b = h
+            .read_at(0, h.len() as usize)
+            .map_err(|e| format!("{name}: {e}"));
         self.count(&h);
         b
     }

@@ -76,39 +76,63 @@ impl Potree {
             .read("metadata.json", MAX_JSON)
             .map_err(|m| Error::Invalid(format!("{}: {m}", name.display())))?;
         let v: Value = serde_json::from_slice(&text).map_err(|e| {
-            bad(&name, e.column() as u64, format!("metadata.json, line {}: {e}", e.line()))
+            bad(
+                &name,
+                e.column() as u64,
+                format!("metadata.json, line {}: {e}", e.line()),
+            )
         })?;
         let field = |m: &str| Error::Invalid(format!("{}: metadata.json: {m}", name.display()));
         if !v["version"].as_str().is_some_and(|s| s.starts_with("2.")) {
-            return Err(field(&format!("version {}: Potree 2.x expected", v["version"])));
+            return Err(field(&format!(
+                "version {}: Potree 2.x expected",
+                v["version"]
+            )));
         }
         let bb = &v["boundingBox"];
-        let (Some(min), Some(max)) = (super::numbers::<3>(bb, "min"), super::numbers::<3>(bb, "max")) else {
+        let (Some(min), Some(max)) = (
+            super::numbers::<3>(bb, "min"),
+            super::numbers::<3>(bb, "max"),
+        ) else {
             return Err(field("no boundingBox min and max"));
         };
         let cube = Aabb::new(min, max);
         if (0..3).any(|a| max[a] <= min[a]) {
             return Err(field("boundingBox is empty"));
         }
-        let scale = super::numbers::<3>(&v, "scale").filter(|s| s.iter().all(|x| *x > 0.0))
+        let scale = super::numbers::<3>(&v, "scale")
+            .filter(|s| s.iter().all(|x| *x > 0.0))
             .ok_or_else(|| field("no positive scale"))?;
         let offset = super::numbers::<3>(&v, "offset").ok_or_else(|| field("no offset"))?;
-        let spacing = v["spacing"].as_f64().filter(|s| *s > 0.0 && s.is_finite())
+        let spacing = v["spacing"]
+            .as_f64()
+            .filter(|s| *s > 0.0 && s.is_finite())
             .ok_or_else(|| field("no spacing"))?;
-        let points = v["points"].as_u64().ok_or_else(|| field("no points count"))?;
+        let points = v["points"]
+            .as_u64()
+            .ok_or_else(|| field("no points count"))?;
         let brotli = match v["encoding"].as_str().unwrap_or("DEFAULT") {
             "DEFAULT" => false,
             "BROTLI" => true,
             e => return Err(field(&format!("encoding {e}: DEFAULT or BROTLI expected"))),
         };
-        let first = v["hierarchy"]["firstChunkSize"].as_u64().filter(|s| *s > 0 && s % RECORD as u64 == 0)
+        let first = v["hierarchy"]["firstChunkSize"]
+            .as_u64()
+            .filter(|s| *s > 0 && s % RECORD as u64 == 0)
             .ok_or_else(|| field("hierarchy.firstChunkSize is not a multiple of 22"))?;
         let mut attrs = Vec::new();
         let mut attributes = Vec::new();
         let mut record_len = 0;
-        for a in v["attributes"].as_array().ok_or_else(|| field("no attributes"))? {
+        for a in v["attributes"]
+            .as_array()
+            .ok_or_else(|| field("no attributes"))?
+        {
             let an = a["name"].as_str().unwrap_or_default().to_string();
-            let size = a["size"].as_u64().filter(|s| *s > 0 && *s <= 64).ok_or_else(|| field(&format!("attribute {an}: no size")))? as usize;
+            let size = a["size"]
+                .as_u64()
+                .filter(|s| *s > 0 && *s <= 64)
+                .ok_or_else(|| field(&format!("attribute {an}: no size")))?
+                as usize;
             let elements = a["numElements"].as_u64().unwrap_or(1).max(1) as usize;
             record_len += size;
             if let Some(at) = attribute_of(&an)
@@ -123,13 +147,18 @@ impl Potree {
                 kind: a["type"].as_str().unwrap_or_default().to_string(),
             });
         }
-        if !attrs.first().is_some_and(|a| matches!(a.name.as_str(), "position" | "POSITION_CARTESIAN") && a.size == 12) {
+        if !attrs.first().is_some_and(|a| {
+            matches!(a.name.as_str(), "position" | "POSITION_CARTESIAN") && a.size == 12
+        }) {
             return Err(field("the first attribute is not an int32 x3 position"));
         }
         let schema = Schema::new(attributes);
         let hierarchy = place.open("hierarchy.bin", 1 << 20)?;
         let octree = place.open("octree.bin", 64)?;
-        let crs = v["projection"].as_str().filter(|p| !p.trim().is_empty()).map(str::to_string);
+        let crs = v["projection"]
+            .as_str()
+            .filter(|p| !p.trim().is_empty())
+            .map(str::to_string);
         let meta = Metadata {
             structure: "potree-2.0".into(),
             parameters: json!({"format": "Potree 2.0", "encoding": v["encoding"], "read_in_place": true}),
@@ -144,7 +173,9 @@ impl Potree {
             quantization: Quantization { scale, offset },
             crs,
             schema: schema.clone(),
-            sources: vec![json!({"path": name.display().to_string(), "format": "Potree 2.0", "points": points})],
+            sources: vec![
+                json!({"path": name.display().to_string(), "format": "Potree 2.0", "points": points}),
+            ],
             las_header: None,
             software: "PotreeConverter 2".into(),
             levels: Vec::new(),
@@ -172,12 +203,28 @@ impl Potree {
 
     /// Reads the hierarchy chunk at `r`, whose first node is `key`.
     fn read_chunk(&self, key: NodeKey, r: PageRef) -> std::result::Result<SourcePage, Damage> {
-        let hurt = |at: u64, m: String| damage(key, at, format!("{}: {m}", self.place.name("hierarchy.bin")), true);
+        let hurt = |at: u64, m: String| {
+            damage(
+                key,
+                at,
+                format!("{}: {m}", self.place.name("hierarchy.bin")),
+                true,
+            )
+        };
         let len = self.hierarchy.len();
-        if r.offset.saturating_add(r.length as u64) > len || r.length as usize % RECORD != 0 || r.length == 0 {
-            return Err(hurt(r.offset, format!("a {}-byte chunk does not fit the file", r.length)));
+        if r.offset.saturating_add(r.length as u64) > len
+            || r.length as usize % RECORD != 0
+            || r.length == 0
+        {
+            return Err(hurt(
+                r.offset,
+                format!("a {}-byte chunk does not fit the file", r.length),
+            ));
         }
-        let b = self.hierarchy.read_at(r.offset, r.length as usize).map_err(|e| hurt(r.offset, e.to_string()))?;
+        let b = self
+            .hierarchy
+            .read_at(r.offset, r.length as usize)
+            .map_err(|e| hurt(r.offset, e.to_string()))?;
         let mut page = SourcePage::default();
         let mut keys = vec![key];
         let octree_len = self.octree.len();
@@ -191,16 +238,41 @@ impl Potree {
             let offset = u64::from_le_bytes(rec[6..14].try_into().unwrap());
             let size = u64::from_le_bytes(rec[14..22].try_into().unwrap());
             if kind == 2 {
-                if i == 0 || size == 0 || size % RECORD as u64 != 0 || offset.saturating_add(size) > len || size > u32::MAX as u64 {
-                    return Err(hurt(at, format!("node {k}: proxy of {size} bytes at {offset}")));
+                if i == 0
+                    || size == 0
+                    || size % RECORD as u64 != 0
+                    || offset.saturating_add(size) > len
+                    || size > u32::MAX as u64
+                {
+                    return Err(hurt(
+                        at,
+                        format!("node {k}: proxy of {size} bytes at {offset}"),
+                    ));
                 }
-                page.below.push((k, PageRef { offset, length: size as u32, crc: 0 }));
+                page.below.push((
+                    k,
+                    PageRef {
+                        offset,
+                        length: size as u32,
+                        crc: 0,
+                    },
+                ));
                 continue;
             }
             if offset.saturating_add(size) > octree_len {
-                return Err(hurt(at, format!("node {k}: {size} bytes at {offset} lie past octree.bin's end")));
+                return Err(hurt(
+                    at,
+                    format!("node {k}: {size} bytes at {offset} lie past octree.bin's end"),
+                ));
             }
-            page.nodes.push((k, Known { points: if size == 0 { 0 } else { points }, at: offset, len: size }));
+            page.nodes.push((
+                k,
+                Known {
+                    points: if size == 0 { 0 } else { points },
+                    at: offset,
+                    len: size,
+                },
+            ));
             for c in 0..8 {
                 if mask & (1 << c) != 0 {
                     // Potree's child index: bit 2 +x, bit 1 +y, bit 0 +z; Myriad's octant: bit 0 +x.
@@ -222,7 +294,12 @@ impl Potree {
             true => self.attrs.iter().map(|a| brotli_size(a)).sum(),
         };
         if b.len() != n * per_point {
-            return Err(damage(key, 0, format!("{} bytes for {n} points of {per_point} bytes", b.len()), false));
+            return Err(damage(
+                key,
+                0,
+                format!("{} bytes for {n} points of {per_point} bytes", b.len()),
+                false,
+            ));
         }
         let mut out = PointBatch::with_schema(&self.schema, n);
         // Where each attribute's value of point `i` lies.
@@ -238,11 +315,15 @@ impl Potree {
                 out.positions.extend((0..n).map(|i| {
                     let p = &b[at(i)..at(i) + stride];
                     let xyz: [i64; 3] = match self.brotli {
-                        false => std::array::from_fn(|k| i32::from_le_bytes(p[k * 4..k * 4 + 4].try_into().unwrap()) as i64),
+                        false => std::array::from_fn(|k| {
+                            i32::from_le_bytes(p[k * 4..k * 4 + 4].try_into().unwrap()) as i64
+                        }),
                         true => {
                             let hi = u64::from_le_bytes(p[0..8].try_into().unwrap());
                             let lo = u64::from_le_bytes(p[8..16].try_into().unwrap());
-                            std::array::from_fn(|k| (unmorton(lo, k) | unmorton(hi, k) << 16) as i32 as i64)
+                            std::array::from_fn(|k| {
+                                (unmorton(lo, k) | unmorton(hi, k) << 16) as i32 as i64
+                            })
                         }
                     };
                     std::array::from_fn(|k| xyz[k] as f64 * self.scale[k] + self.offset[k])
@@ -259,8 +340,13 @@ impl Potree {
                             c.extend((0..n).map(|i| match self.brotli {
                                 false => [val(i, 0) as u16, val(i, 1) as u16, val(i, 2) as u16],
                                 true => {
-                                    let m = u64::from_le_bytes(b[at(i)..at(i) + 8].try_into().unwrap());
-                                    [unmorton(m, 0) as u16, unmorton(m, 1) as u16, unmorton(m, 2) as u16]
+                                    let m =
+                                        u64::from_le_bytes(b[at(i)..at(i) + 8].try_into().unwrap());
+                                    [
+                                        unmorton(m, 0) as u16,
+                                        unmorton(m, 1) as u16,
+                                        unmorton(m, 2) as u16,
+                                    ]
                                 }
                             }));
                         }
@@ -318,16 +404,43 @@ fn scalar(kind: &str, b: &[u8]) -> f64 {
 /// Fills the column of `attr` with `values`.
 fn fill(out: &mut PointBatch, attr: Attribute, values: impl Iterator<Item = f64>) {
     match attr {
-        Attribute::Intensity => out.intensity.as_mut().map(|c| c.extend(values.map(|v| v as u16))),
-        Attribute::ReturnNumber => out.return_number.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
-        Attribute::NumberOfReturns => out.number_of_returns.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
-        Attribute::Classification => out.classification.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
-        Attribute::ClassificationFlags => out.classification_flags.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
-        Attribute::ScanAngle => out.scan_angle.as_mut().map(|c| c.extend(values.map(|v| v as f32))),
-        Attribute::UserData => out.user_data.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
-        Attribute::PointSourceId => out.point_source_id.as_mut().map(|c| c.extend(values.map(|v| v as u16))),
+        Attribute::Intensity => out
+            .intensity
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u16))),
+        Attribute::ReturnNumber => out
+            .return_number
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::NumberOfReturns => out
+            .number_of_returns
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::Classification => out
+            .classification
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::ClassificationFlags => out
+            .classification_flags
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::ScanAngle => out
+            .scan_angle
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as f32))),
+        Attribute::UserData => out
+            .user_data
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::PointSourceId => out
+            .point_source_id
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u16))),
         Attribute::GpsTime => out.gps_time.as_mut().map(|c| c.extend(values)),
-        Attribute::ScannerChannel => out.scanner_channel.as_mut().map(|c| c.extend(values.map(|v| v as u8))),
+        Attribute::ScannerChannel => out
+            .scanner_channel
+            .as_mut()
+            .map(|c| c.extend(values.map(|v| v as u8))),
         _ => None,
     };
 }
@@ -335,7 +448,10 @@ fn fill(out: &mut PointBatch, attr: Attribute, values: impl Iterator<Item = f64>
 /// The points' bounds: the position attribute's `min` and `max`, where given.
 fn attrs_minmax(v: &Value) -> Option<Aabb> {
     let a = v["attributes"].as_array()?.first()?;
-    Some(Aabb::new(super::numbers::<3>(a, "min")?, super::numbers::<3>(a, "max")?))
+    Some(Aabb::new(
+        super::numbers::<3>(a, "min")?,
+        super::numbers::<3>(a, "max")?,
+    ))
 }
 
 impl Foreign for Potree {
@@ -384,6 +500,9 @@ impl Foreign for Potree {
     }
 
     fn changed(&self) -> Option<String> {
-        self.place.changed().or_else(|| self.hierarchy.changed()).or_else(|| self.octree.changed())
+        self.place
+            .changed()
+            .or_else(|| self.hierarchy.changed())
+            .or_else(|| self.octree.changed())
     }
 }
