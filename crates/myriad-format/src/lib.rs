@@ -634,8 +634,9 @@ impl Dataset {
         e: &NodeEntry,
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
+        #[cfg(not(target_arch = "wasm32"))]
         if let Some(f) = &self.foreign {
-            let mut b = f.read_node(e)?;
+            let mut b = foreign::spread(f.read_node(e)?);
             b.keep_columns(schema);
             return Ok(b);
         }

@@ -17,7 +17,7 @@ pub mod potree;
 
 use crate::hierarchy::PAGE_LEVELS;
 use crate::{ByteSource, ChildPage, Damage, FileBytes, HierarchyPage, NodeEntry, PageRef};
-use myriad_core::{Error, NodeKey, Result};
+use myriad_core::{Error, NodeKey, PointBatch, Result};
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -329,6 +329,30 @@ pub(crate) fn damage(key: NodeKey, at: u64, message: impl Into<String>, subtree:
         message: message.into(),
         subtree,
     }
+}
+
+/// A node's points in an order whose every prefix is spread over the whole node: the selection
+/// draws a prefix of the last node within its budget, which in a `.myr` node is a coarser level
+/// of detail; the formats read here store points in any order (often sorted in space, where a
+/// prefix would be one corner). A stride through the points near the golden ratio of their
+/// count, coprime with it, visits each once.
+pub(crate) fn spread(b: PointBatch) -> PointBatch {
+    let n = b.len() as u64;
+    if n < 3 {
+        return b;
+    }
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let mut step = ((n as f64) * 0.618_033_988_75) as u64;
+    while gcd(step, n) != 1 {
+        step += 1;
+    }
+    let order: Vec<u32> = (0..n).map(|i| (i * step % n) as u32).collect();
+    b.gather(&order)
 }
 
 /// A node's error as a damage report: its byte offset where it names one, else `at`, and its

@@ -1,0 +1,200 @@
+//! The field's cloud formats read in place by the commands (issue 66): Myriad's own COPC export
+//! renders as its `.myr` (the same pixels with every point drawn at one pixel, within a small
+//! PSNR at the same budget), `profile`, `volume` and `extract --box` find the same points in it,
+//! nothing is written beside it, and `myriad serve` hands it to `render` over HTTP.
+
+mod common;
+use common::{myriad, s, serve, tempdir};
+use std::path::Path;
+use std::process::Stdio;
+
+fn pixels(path: &Path) -> Vec<u8> {
+    let d = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut r = d.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size().unwrap()];
+    r.next_frame(&mut buf).unwrap();
+    buf
+}
+
+fn psnr(a: &[u8], b: &[u8]) -> f64 {
+    let mse = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+        .sum::<f64>()
+        / a.len() as f64;
+    10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+}
+
+fn ok(args: &[&str]) -> String {
+    let r = myriad(args);
+    assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+    r.stdout
+}
+
+fn names(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_copc_export_reads_in_place_as_its_myr() {
+    let d = tempdir("cloud");
+    let scan = d.join("scan.laz");
+    ok(&["synth", "-o", s(&scan), "--points", "200000"]);
+    let myr = d.join("site.myr");
+    ok(&["convert", s(&scan), "-o", s(&myr)]);
+    let sub = d.join("copc");
+    std::fs::create_dir_all(&sub).unwrap();
+    let copc = sub.join("site.copc.laz");
+    ok(&["export", s(&myr), "-o", s(&copc), "--to", "copc"]);
+    let before = names(&sub);
+
+    let render = |input: &str, out: &Path, extra: &[&str]| {
+        let mut args = common::render_cpu(input, s(out), ("320", "240"));
+        args.extend(extra);
+        args.push("--force");
+        ok(&args)
+    };
+    let info: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(&myr)])).unwrap();
+    let (min, max) = (&info["bounds"]["min"], &info["bounds"]["max"]);
+    let f = |v: &serde_json::Value, i: usize| v[i].as_f64().unwrap();
+    let (x0, y0, x1, y1) = (f(min, 0), f(min, 1), f(max, 0), f(max, 1));
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (w, h) = (x1 - x0, y1 - y0);
+    // One camera and one colour for both (the default view frames the root node's points,
+    // which differ between the hierarchies).
+    let camera = format!(
+        "{},{},{},{},{},{}",
+        cx,
+        y0 - 0.8 * h,
+        f(max, 2) + 0.8 * h,
+        cx,
+        cy,
+        (f(min, 2) + f(max, 2)) / 2.0
+    );
+    let fixed = ["--camera", camera.as_str(), "--color", "classification"];
+    // Every point at one pixel: the same image.
+    let (a, b) = (d.join("full-myr.png"), d.join("full-copc.png"));
+    render(
+        s(&myr),
+        &a,
+        &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+    );
+    render(
+        s(&copc),
+        &b,
+        &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+    );
+    // Points of equal depth in a pixel blend in drawing order, which the two hierarchies
+    // differ in: a few pixels of the edge of overlaps differ, nothing else.
+    let differ = |a: &[u8], b: &[u8]| a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
+    let (pa, pb) = (pixels(&a), pixels(&b));
+    let n = differ(&pa, &pb);
+    assert!(
+        n * 1000 <= pa.len() / 4,
+        "every point drawn: {n} pixels differ"
+    );
+    // At a budget: the hierarchies differ (COPC's export re-places points), the images are
+    // close.
+    let (a, b) = (d.join("b-myr.png"), d.join("b-copc.png"));
+    render(s(&myr), &a, &[&fixed[..], &["--budget", "60k"]].concat());
+    let said = render(s(&copc), &b, &[&fixed[..], &["--budget", "60k"]].concat());
+    let p = psnr(&pixels(&a), &pixels(&b));
+    assert!(p > 20.0, "PSNR {p:.1} dB at the same budget ({said})");
+
+    // The tools find the same points.
+    let line = format!("{},{},{},{}", x0 + 0.1 * w, cy, x1 - 0.1 * w, cy);
+    let profile = |input: &Path, out: &Path| {
+        ok(&[
+            "profile",
+            s(input),
+            "--line",
+            &line,
+            "--width",
+            "2",
+            "-o",
+            s(out),
+        ])
+    };
+    let (pa, pb) = (d.join("pa.csv"), d.join("pb.csv"));
+    let said_a = profile(&myr, &pa);
+    let said_b = profile(&copc, &pb);
+    let rows = |p: &Path| {
+        let mut v: Vec<String> = std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
+            .collect();
+        v.sort();
+        v
+    };
+    let (ra, rb) = (rows(&pa), rows(&pb));
+    assert!(ra.len() > 100, "{said_a}");
+    assert_eq!(ra, rb, "the profile's points: {said_a} / {said_b}");
+    let polygon = format!(
+        "{},{},{},{},{},{},{},{}",
+        cx - 0.2 * w,
+        cy - 0.2 * h,
+        cx + 0.2 * w,
+        cy - 0.2 * h,
+        cx + 0.2 * w,
+        cy + 0.2 * h,
+        cx - 0.2 * w,
+        cy + 0.2 * h
+    );
+    let vol = |input: &Path| -> serde_json::Value {
+        serde_json::from_str(&ok(&["volume", s(input), "--polygon", &polygon, "--json"])).unwrap()
+    };
+    let (va, vb) = (vol(&myr), vol(&copc));
+    assert_eq!(va["points"], vb["points"], "volume: {va} / {vb}");
+    for k in ["fill", "cut"] {
+        let (a, b) = (va[k].as_f64().unwrap(), vb[k].as_f64().unwrap());
+        // The same points summed in another order.
+        assert!(
+            (a - b).abs() <= 1e-9 * a.abs().max(1.0),
+            "volume {k}: {va} / {vb}"
+        );
+    }
+    let bbox = format!(
+        "{},{},{},{},{},{}",
+        cx - 0.25 * w,
+        cy - 0.25 * h,
+        f(min, 2) - 1.0,
+        cx + 0.25 * w,
+        cy + 0.25 * h,
+        f(max, 2) + 1.0
+    );
+    let (ea, eb) = (d.join("ea.las"), d.join("eb.las"));
+    ok(&["extract", s(&myr), "--box", &bbox, "-o", s(&ea)]);
+    ok(&["extract", s(&copc), "--box", &bbox, "-o", s(&eb)]);
+    let count = |p: &Path| -> u64 {
+        let v: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(p)])).unwrap();
+        v["points"].as_u64().unwrap()
+    };
+    let n = count(&ea);
+    assert!(n > 1000);
+    assert_eq!(n, count(&eb), "extract --box: the same points");
+
+    // Nothing was written beside the COPC file.
+    assert_eq!(names(&sub), before);
+
+    // Over HTTP through `myriad serve`: the same image.
+    let server = serve(&[s(&copc)], Stdio::inherit());
+    let url = format!("{}/d/site.copc.laz", server.base);
+    let c = d.join("http.png");
+    let said = render(
+        &url,
+        &c,
+        &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+    );
+    assert_eq!(pixels(&c), pixels(&d.join("full-copc.png")), "{said}");
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", &url])).unwrap();
+    assert_eq!(v["format"], "COPC 1.0");
+    assert_eq!(v["points"], 200_000);
+}
