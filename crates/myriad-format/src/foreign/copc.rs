@@ -103,7 +103,7 @@ impl Copc {
         let (root_at, root_len) = (u(5), u(6));
         if root_at.saturating_add(root_len) > len
             || root_len > MAX_PAGE
-            || root_len % ENTRY_LEN as u64 != 0
+            || !root_len.is_multiple_of(ENTRY_LEN as u64)
         {
             return Err(bad(
                 name,
@@ -155,7 +155,9 @@ impl Copc {
     fn read_page(&self, key: NodeKey, r: PageRef) -> std::result::Result<SourcePage, Damage> {
         let len = self.bytes.len();
         let hurt = |at: u64, m: String| damage(key, at, m, true);
-        if r.offset.saturating_add(r.length as u64) > len || r.length as usize % ENTRY_LEN != 0 {
+        if r.offset.saturating_add(r.length as u64) > len
+            || !(r.length as usize).is_multiple_of(ENTRY_LEN)
+        {
             return Err(hurt(
                 r.offset,
                 format!("a {}-byte hierarchy page does not fit the file", r.length),

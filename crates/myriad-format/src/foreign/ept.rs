@@ -195,11 +195,8 @@ impl Ept {
             at += size;
             match (dname, attribute_of(dname)) {
                 ("X" | "Y" | "Z", _) => {}
-                (_, Some(a)) => {
-                    if !attributes.contains(&a) {
-                        attributes.push(a);
-                    }
-                }
+                (_, Some(a)) if !attributes.contains(&a) => attributes.push(a),
+                (_, Some(_)) => {}
                 (_, None) if data != DataType::Laszip => {
                     if let Some(t) = dim.extra_type() {
                         attributes.push(Attribute::Extra(ExtraDim {

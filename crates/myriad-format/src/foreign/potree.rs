@@ -118,7 +118,7 @@ impl Potree {
         };
         let first = v["hierarchy"]["firstChunkSize"]
             .as_u64()
-            .filter(|s| *s > 0 && s % RECORD as u64 == 0)
+            .filter(|s| *s > 0 && s.is_multiple_of(RECORD as u64))
             .ok_or_else(|| field("hierarchy.firstChunkSize is not a multiple of 22"))?;
         let mut attrs = Vec::new();
         let mut attributes = Vec::new();
@@ -165,10 +165,7 @@ impl Potree {
             points,
             nodes: 0,
             depth: 0,
-            bounds: {
-                let p = attrs_minmax(&v).unwrap_or(cube);
-                p
-            },
+            bounds: attrs_minmax(&v).unwrap_or(cube),
             root: cube,
             quantization: Quantization { scale, offset },
             crs,
@@ -213,7 +210,7 @@ impl Potree {
         };
         let len = self.hierarchy.len();
         if r.offset.saturating_add(r.length as u64) > len
-            || r.length as usize % RECORD != 0
+            || !(r.length as usize).is_multiple_of(RECORD)
             || r.length == 0
         {
             return Err(hurt(
@@ -240,7 +237,7 @@ impl Potree {
             if kind == 2 {
                 if i == 0
                     || size == 0
-                    || size % RECORD as u64 != 0
+                    || !size.is_multiple_of(RECORD as u64)
                     || offset.saturating_add(size) > len
                     || size > u32::MAX as u64
                 {
@@ -291,7 +288,7 @@ impl Potree {
     fn decode(&self, key: NodeKey, b: &[u8], n: usize) -> std::result::Result<PointBatch, Damage> {
         let per_point: usize = match self.brotli {
             false => self.record_len,
-            true => self.attrs.iter().map(|a| brotli_size(a)).sum(),
+            true => self.attrs.iter().map(brotli_size).sum(),
         };
         if b.len() != n * per_point {
             return Err(damage(
