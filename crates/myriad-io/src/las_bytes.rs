@@ -296,19 +296,9 @@ impl LasLayout {
 /// Checks a layered chunk's layer byte counts against its length (LAS 1.4 formats 6-10; older
 /// formats have no counts): the offset in the chunk and what is wrong.
 fn check_layers(vlr: &laz::LazVlr, chunk: &[u8]) -> std::result::Result<(), (u64, String)> {
-    use laz::LazItemType as T;
-    let mut first_point = 0u64;
-    let mut layers = 0u64;
-    for item in vlr.items() {
-        first_point += item.size() as u64;
-        layers += match item.item_type() {
-            T::Point14 => 9,
-            T::RGB14 | T::WavePacket14 => 1,
-            T::RGBNIR14 => 2,
-            T::Byte14(n) => n as u64,
-            _ => return Ok(()),
-        };
-    }
+    let Some((first_point, layers)) = crate::las_guard::layered(vlr) else {
+        return Ok(());
+    };
     let head = first_point + 4 + 4 * layers;
     if (chunk.len() as u64) < head {
         return Err((
@@ -319,11 +309,7 @@ fn check_layers(vlr: &laz::LazVlr, chunk: &[u8]) -> std::result::Result<(), (u64
             ),
         ));
     }
-    let sizes = &chunk[first_point as usize + 4..head as usize];
-    let total: u64 = sizes
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as u64)
-        .sum();
+    let total = crate::las_guard::layer_bytes(&chunk[first_point as usize + 4..head as usize]);
     if head + total > chunk.len() as u64 {
         return Err((
             first_point + 4,

@@ -290,7 +290,6 @@ pub(crate) fn check_laz_layers(
     data_start: u64,
     file_size: u64,
 ) -> Result<()> {
-    use laz::LazItemType as T;
     let bad = |at: u64, m: String| Error::at_byte(path, at, m);
     let vlr = header
         .laz_vlr()
@@ -310,18 +309,9 @@ pub(crate) fn check_laz_layers(
     if !vlr.uses_variable_size_chunks() && vlr.chunk_size() == 0 {
         return Err(bad(0, "laszip VLR declares chunks of 0 points".into()));
     }
-    let mut first_point = 0u64;
-    let mut layers = 0u64;
-    for item in vlr.items() {
-        first_point += item.size() as u64;
-        layers += match item.item_type() {
-            T::Point14 => 9,
-            T::RGB14 | T::WavePacket14 => 1,
-            T::RGBNIR14 => 2,
-            T::Byte14(n) => n as u64,
-            _ => return Ok(()), // not layered: no per-layer sizes to check
-        };
-    }
+    let Some((first_point, layers)) = layered(&vlr) else {
+        return Ok(()); // not layered: no per-layer sizes to check
+    };
     let mut f = BufReader::new(File::open(path).map_err(|e| Error::io(path, e))?);
     f.seek(SeekFrom::Start(data_start))
         .map_err(|e| Error::io(path, e))?;
@@ -353,10 +343,7 @@ pub(crate) fn check_laz_layers(
         f.seek(SeekFrom::Start(start + first_point + 4))
             .map_err(|e| Error::io(path, e))?;
         f.read_exact(&mut sizes).map_err(|e| Error::io(path, e))?;
-        let total: u64 = sizes
-            .chunks_exact(4)
-            .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as u64)
-            .sum();
+        let total = layer_bytes(&sizes);
         if head + total > chunk.byte_count {
             return Err(bad(
                 start + first_point + 4,
@@ -369,4 +356,31 @@ pub(crate) fn check_laz_layers(
         start += chunk.byte_count;
     }
     Ok(())
+}
+
+/// A layered chunk's (LAS 1.4, point formats 6-10) first point's bytes and its number of
+/// layers, from the laszip VLR's items; `None` for formats that are not layered.
+pub(crate) fn layered(vlr: &laz::LazVlr) -> Option<(u64, u64)> {
+    use laz::LazItemType as T;
+    let mut first_point = 0u64;
+    let mut layers = 0u64;
+    for item in vlr.items() {
+        first_point += item.size() as u64;
+        layers += match item.item_type() {
+            T::Point14 => 9,
+            T::RGB14 | T::WavePacket14 => 1,
+            T::RGBNIR14 => 2,
+            T::Byte14(n) => n as u64,
+            _ => return None,
+        };
+    }
+    Some((first_point, layers))
+}
+
+/// The bytes a chunk's layers claim: the sum of its u32 layer byte counts.
+pub(crate) fn layer_bytes(sizes: &[u8]) -> u64 {
+    sizes
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as u64)
+        .sum()
 }

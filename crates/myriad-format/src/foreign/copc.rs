@@ -8,7 +8,7 @@
 //! is 32-byte entries: i32 level, x, y, z; u64 offset; i32 byte size; i32 point count (-1: the
 //! entry points to the page of the subtree rooted at that key, which holds the node itself).
 
-use super::{Foreign, Known, SourcePage, Tree, bad, damage};
+use super::{Foreign, Known, SourcePage, Tree, damage};
 use crate::{ByteSource, Damage, HierarchyPage, Metadata, NodeEntry, PageRef, Quantization};
 use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result};
 use myriad_io::las_bytes::LasLayout;
@@ -63,7 +63,7 @@ impl Copc {
             .read_at(0, (HEAD as u64).min(len) as usize)
             .map_err(io)?;
         if !is_copc_head(&head) {
-            return Err(bad(
+            return Err(Error::at_byte(
                 name,
                 0,
                 "not a COPC file (LAS 1.4 whose first VLR is \"copc\" record 1)",
@@ -72,7 +72,7 @@ impl Copc {
         let data_at = myriad_io::las_bytes::data_offset(name, &head)?;
         if data_at > head.len() as u64 {
             if data_at > 16 << 20 || data_at > len {
-                return Err(bad(
+                return Err(Error::at_byte(
                     name,
                     96,
                     format!("VLRs up to byte {data_at}: too long"),
@@ -87,14 +87,14 @@ impl Copc {
         let (center, half, spacing) = ([f(0), f(1), f(2)], f(3), f(4));
         let at = 375 + 54;
         if !(center.iter().all(|c| c.is_finite()) && half.is_finite() && half > 0.0) {
-            return Err(bad(
+            return Err(Error::at_byte(
                 name,
                 at,
                 format!("COPC info: centre {center:?}, half size {half}"),
             ));
         }
         if !(spacing.is_finite() && spacing > 0.0) {
-            return Err(bad(
+            return Err(Error::at_byte(
                 name,
                 at + 32,
                 format!("COPC info: root spacing {spacing}"),
@@ -105,7 +105,7 @@ impl Copc {
             || root_len > MAX_PAGE
             || !root_len.is_multiple_of(ENTRY_LEN as u64)
         {
-            return Err(bad(
+            return Err(Error::at_byte(
                 name,
                 at + 40,
                 format!(

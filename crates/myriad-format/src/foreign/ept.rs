@@ -9,14 +9,14 @@
 //! file; the others show. Dimensions that are no LAS field (`OriginId`, a scanner's own) are
 //! kept as extra dimensions in binary and zstandard datasets.
 
-use super::{Foreign, Known, MAX_JSON, MAX_NODE, Place, SourcePage, Tree, bad, damage};
+use super::{Foreign, Known, MAX_JSON, MAX_NODE, Place, SourcePage, Tree, damage};
 use crate::{Damage, HierarchyPage, Metadata, NodeEntry, PageRef, Quantization};
 use myriad_core::{
     Aabb, Attribute, Error, ExtraDim, ExtraType, NodeKey, PointBatch, Result, Schema,
 };
 use myriad_io::las_bytes::LasLayout;
 use serde_json::{Value, json};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum DataType {
@@ -101,7 +101,6 @@ fn attribute_of(name: &str) -> Option<Attribute> {
 
 pub(crate) struct Ept {
     place: Place,
-    name: PathBuf,
     data: DataType,
     dims: Vec<Dim>,
     record_len: usize,
@@ -112,22 +111,7 @@ pub(crate) struct Ept {
 impl Ept {
     /// Opens the EPT dataset whose `ept.json` is `path` (a file or URL; a folder holding one).
     pub(crate) fn open(path: &Path) -> Result<(Metadata, Ept)> {
-        let json_path = match !crate::remote::is_url(path) && path.is_dir() {
-            true => path.join("ept.json"),
-            false => path.to_path_buf(),
-        };
-        let place = Place::new(&json_path);
-        let text = place
-            .read("ept.json", MAX_JSON)
-            .map_err(|m| Error::Invalid(format!("{}: {m}", json_path.display())))?;
-        let name = json_path.clone();
-        let v: Value = serde_json::from_slice(&text).map_err(|e| {
-            bad(
-                &name,
-                e.column() as u64,
-                format!("ept.json, line {}: {e}", e.line()),
-            )
-        })?;
+        let (place, name, v) = super::open_json(path, "ept.json")?;
         let field = |m: &str| Error::Invalid(format!("{}: ept.json: {m}", name.display()));
         let b =
             super::numbers::<6>(&v, "bounds").ok_or_else(|| field("no \"bounds\" of 6 numbers"))?;
@@ -265,7 +249,6 @@ impl Ept {
         let spacing = (cube.max[0] - cube.min[0]) / span;
         let ept = Ept {
             place,
-            name,
             data,
             dims,
             record_len: at,
@@ -462,13 +445,5 @@ impl Foreign for Ept {
 
     fn changed(&self) -> Option<String> {
         self.place.changed()
-    }
-}
-
-impl Ept {
-    /// Where the dataset's `ept.json` is.
-    #[allow(dead_code)]
-    pub(crate) fn path(&self) -> &Path {
-        &self.name
     }
 }

@@ -18,6 +18,7 @@ pub mod potree;
 use crate::hierarchy::PAGE_LEVELS;
 use crate::{ByteSource, ChildPage, Damage, FileBytes, HierarchyPage, NodeEntry, PageRef};
 use myriad_core::{Error, NodeKey, PointBatch, Result};
+use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -368,9 +369,21 @@ pub(crate) fn as_damage(key: NodeKey, e: Error, at: u64) -> Damage {
     }
 }
 
-/// An error about `name` at byte `at`.
-pub(crate) fn bad(name: &Path, at: u64, m: impl Into<String>) -> Error {
-    Error::at_byte(name, at, m)
+/// A dataset's JSON document (`ept.json`, `metadata.json`) named `file`, given as its path or
+/// URL or as the folder holding it: where the dataset lies, the document's name, and the
+/// document (a syntax error named by its line).
+pub(crate) fn open_json(path: &Path, file: &str) -> Result<(Place, std::path::PathBuf, Value)> {
+    let name = match !crate::remote::is_url(path) && path.is_dir() {
+        true => path.join(file),
+        false => path.to_path_buf(),
+    };
+    let place = Place::new(&name);
+    let text = place
+        .read(file, MAX_JSON)
+        .map_err(|m| Error::Invalid(format!("{}: {m}", name.display())))?;
+    let v = serde_json::from_slice(&text)
+        .map_err(|e| Error::at_line(&name, e.line() as u64, e.to_string()))?;
+    Ok((place, name, v))
 }
 
 /// A JSON document's number array of `n` entries at `field`.

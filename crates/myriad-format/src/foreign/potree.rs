@@ -15,7 +15,7 @@
 //! first, bit k + 16), and `rgb` as an 8-byte one (bit k + 16 of the channels in the first
 //! u32 pair's high word: the same interleaving over one u64 read as two u32).
 
-use super::{Foreign, Known, MAX_JSON, MAX_NODE, Place, SourcePage, Tree, bad, damage};
+use super::{Foreign, Known, MAX_NODE, Place, SourcePage, Tree, damage};
 use crate::{ByteSource, Damage, HierarchyPage, Metadata, NodeEntry, PageRef, Quantization};
 use myriad_core::{Aabb, Attribute, Error, NodeKey, PointBatch, Result, Schema};
 use serde_json::{Value, json};
@@ -66,22 +66,7 @@ fn attribute_of(name: &str) -> Option<Attribute> {
 impl Potree {
     /// Opens the Potree 2.0 dataset whose `metadata.json` is `path` (a file or URL; a folder).
     pub(crate) fn open(path: &Path) -> Result<(Metadata, Potree)> {
-        let json_path = match !crate::remote::is_url(path) && path.is_dir() {
-            true => path.join("metadata.json"),
-            false => path.to_path_buf(),
-        };
-        let place = Place::new(&json_path);
-        let name = json_path.clone();
-        let text = place
-            .read("metadata.json", MAX_JSON)
-            .map_err(|m| Error::Invalid(format!("{}: {m}", name.display())))?;
-        let v: Value = serde_json::from_slice(&text).map_err(|e| {
-            bad(
-                &name,
-                e.column() as u64,
-                format!("metadata.json, line {}: {e}", e.line()),
-            )
-        })?;
+        let (place, name, v) = super::open_json(path, "metadata.json")?;
         let field = |m: &str| Error::Invalid(format!("{}: metadata.json: {m}", name.display()));
         if !v["version"].as_str().is_some_and(|s| s.starts_with("2.")) {
             return Err(field(&format!(
