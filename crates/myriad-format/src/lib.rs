@@ -299,6 +299,15 @@ impl Dataset {
                     Arc::new(p),
                 ));
             }
+            Some(foreign::Kind::Tiles) => {
+                let (meta, t) = foreign::tiles::Tiles::open(path)?;
+                return Ok(Dataset::of_foreign(
+                    Arc::new(NoBytes),
+                    path,
+                    meta,
+                    Arc::new(t),
+                ));
+            }
             None => {}
         }
         if remote::is_url(path) {

@@ -29,7 +29,7 @@ mod geo;
 pub mod live;
 pub mod range;
 pub mod tls;
-mod viewer;
+pub mod viewer;
 mod work;
 
 pub use catalog::{Catalog, Kind, href};

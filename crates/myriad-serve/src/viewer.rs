@@ -91,3 +91,32 @@ pub(crate) fn page() -> &'static Asset {
 pub(crate) fn file(name: &str) -> Option<&'static Asset> {
     FILES.iter().find(|(n, _)| *n == name).map(|(_, a)| a)
 }
+
+/// Writes the viewer as a static site into `dir` (`myriad export --to web`): `index.html` (the
+/// page, its files named relative to it, `window.MYRIAD_SITE` listing `datasets`: URLs relative
+/// to the page or absolute; the first opens, `?d=URL` opens another) and `viewer/` (the
+/// scripts, the shader and the WebAssembly). Any static server that answers range requests
+/// serves it; nothing in it needs `myriad serve`.
+pub fn write_site(dir: &std::path::Path, datasets: &[String]) -> std::io::Result<()> {
+    let page = String::from_utf8_lossy(PAGE.bytes).replace("src=\"/viewer/", "src=\"viewer/");
+    let site = serde_json::json!({ "datasets": datasets });
+    // `</` never appears inside the script: a dataset's name cannot end it.
+    let config = format!(
+        "<script>window.MYRIAD_SITE = {};</script>\n",
+        site.to_string().replace("</", "<\\/")
+    );
+    let at = page.find("<script").unwrap_or(page.len());
+    let page = format!("{}{config}{}", &page[..at], &page[at..]);
+    std::fs::write(dir.join("index.html"), page)?;
+    let files = dir.join("viewer");
+    std::fs::create_dir_all(&files)?;
+    for (name, asset) in &FILES {
+        std::fs::write(files.join(name), asset.bytes)?;
+    }
+    Ok(())
+}
+
+/// Whether `dir` is a site [`write_site`] wrote (what `--force` may replace).
+pub fn is_site(dir: &std::path::Path) -> bool {
+    dir.join("index.html").is_file() && dir.join("viewer").join("myriad_web.wasm").is_file()
+}

@@ -79,6 +79,12 @@ function viewProj(c, origin, width, height, zeroToOne) {
 }
 
 let canvas = document.getElementById("view");
+// Where the viewer's files are (`/viewer/` behind `myriad serve`, `viewer/` beside a static
+// site's page: `myriad export --to web`).
+const VIEWER = new URL(".", document.currentScript.src).href;
+// A static site's datasets (`window.MYRIAD_SITE`, written into its page by the export), else
+// null: the page is `myriad serve`'s, the dataset named by its address.
+const SITE = window.MYRIAD_SITE || null;
 let renderer = null;
 
 // ---- view state ----
@@ -129,7 +135,7 @@ function cameraLink() {
   if (settings.where) p.set("where", settings.where);
   if (settings.hidden.size) p.set("hide", [...settings.hidden].join(","));
   if (settings.clip) p.set("clip", settings.clip.box.join(",") + (settings.clip.inside ? "" : ",outside"));
-  return `${location.origin}${location.pathname}#${p.toString().replace(/%2C/g, ",")}`;
+  return `${location.origin}${location.pathname}${location.search}#${p.toString().replace(/%2C/g, ",")}`;
 }
 
 // ---- workers ----
@@ -166,14 +172,14 @@ function error(msg) {
 
 // Workers for the dataset at `url` (`length` bytes): one selects, the others decode.
 async function startWorkers(url, name, length) {
-  const sel = new Worker("/viewer/worker.js");
+  const sel = new Worker(VIEWER + "worker.js");
   sel.onmessage = onWorker;
   const opened = call(sel, { type: "init", role: "select", module: wasmModule, url, name, length });
   const count = Math.min(4, Math.max(2, navigator.hardwareConcurrency || 2));
   const ready = [];
   const decs = [];
   for (let i = 0; i < count; i++) {
-    const w = new Worker("/viewer/worker.js");
+    const w = new Worker(VIEWER + "worker.js");
     w.onmessage = onWorker;
     w.busy = 0;
     decs.push(w);
@@ -191,17 +197,69 @@ function versioned(url, head) {
   return v ? `${url}?v=${encodeURIComponent(v)}` : url;
 }
 
+// The dataset's HEAD, and on a static site a one-byte range read: one line when the server
+// cannot be read from this page (down, or no CORS headers for this origin), answers with an
+// error, or ignores ranges (the whole file would come: the read is stopped).
+async function reachable(url) {
+  const where = new URL(url, location.href);
+  const cors = where.origin !== location.origin ? ` (or sends no CORS headers for ${location.origin})` : "";
+  let head;
+  try {
+    head = await fetch(url, { method: "HEAD" });
+  } catch (e) {
+    throw new Error(`${url}: no answer this page may read: the server is down${cors}`);
+  }
+  if (!head.ok) throw new Error(`${url}: HTTP ${head.status}`);
+  if (SITE) {
+    const stop = new AbortController();
+    let r;
+    try {
+      r = await fetch(url, { headers: { Range: "bytes=0-0" }, signal: stop.signal });
+    } catch (e) {
+      throw new Error(`${url}: no answer to a range request this page may read${cors}`);
+    }
+    stop.abort();
+    if (r.status !== 206) {
+      throw new Error(`${url}: the server does not answer range requests (HTTP ${r.status} to one): ` +
+        "serve the site from one that does (nginx, Apache, a bucket)");
+    }
+  }
+  return head;
+}
+
+// A static site of several datasets: a link to each in the panel.
+function siteLinks(current) {
+  if (SITE.datasets.length < 2) return;
+  const div = document.createElement("div");
+  div.id = "datasets";
+  for (const d of SITE.datasets) {
+    const a = document.createElement("a");
+    a.href = `?d=${encodeURIComponent(d)}`;
+    a.textContent = decodeURIComponent(d.split("/").pop());
+    if (d === current) a.style.fontWeight = "bold";
+    div.append(a, " ");
+  }
+  document.getElementById("panel").prepend(div);
+}
+
 let wasmModule = null;
 async function open() {
-  const name = decodeURIComponent(location.pathname.replace(/^\/view\//, ""));
-  const base = `/d/${encodeURIComponent(name)}`;
+  let name, base;
+  if (SITE) {
+    const given = new URLSearchParams(location.search).get("d") || SITE.datasets[0];
+    base = new URL(given, location.href).href;
+    name = decodeURIComponent(base.split(/[?#]/)[0].split("/").pop());
+    siteLinks(given);
+  } else {
+    name = decodeURIComponent(location.pathname.replace(/^\/view\//, ""));
+    base = `/d/${encodeURIComponent(name)}`;
+  }
   state.dataset = name;
   document.title = `${name}: Myriad`;
-  const head = await fetch(base, { method: "HEAD" });
-  if (!head.ok) throw new Error(`${base}: HTTP ${head.status}`);
+  const head = await reachable(base);
   const url = versioned(base, head);
   const length = Number(head.headers.get("content-length"));
-  wasmModule = await WebAssembly.compileStreaming(fetch("/viewer/myriad_web.wasm"));
+  wasmModule = await WebAssembly.compileStreaming(fetch(VIEWER + "myriad_web.wasm"));
   const { sel, decs, opened, ready } = await startWorkers(url, name, length);
   selector = sel;
   decoders.push(...decs);
@@ -226,7 +284,8 @@ async function open() {
   ui();
   if (settings.ramp || settings.where) await applyStyle();
   requestSelection();
-  loadWork().catch((e) => error(`saved work: ${e.message || e}`));
+  // Saved work lives on `myriad serve --edit`; a static site has none.
+  if (!SITE) loadWork().catch((e) => error(`saved work: ${e.message || e}`));
   if (state.building) setTimeout(follow, 1000);
 }
 
@@ -504,7 +563,7 @@ async function pick(x, y, radius = 6) {
   const p = { node: hit.sel.key.join("-"), index: hit.index, ...m.point };
   // Longitude, latitude and ellipsoidal height from the server's PROJ (/geo/), where the
   // dataset names its CRS and the server has PROJ; asked no more once it says it cannot.
-  if (state.geo !== false) {
+  if (state.geo !== false && !SITE) {
     try {
       const r = await fetch(`/geo/${encodeURIComponent(state.dataset)}?at=${p.x},${p.y},${p.z}`);
       if (r.ok) Object.assign(p, await r.json());

@@ -130,7 +130,7 @@ async function makeWebGPU(canvas, software) {
   context.configure({ device, format, alphaMode: "opaque" });
 
   const STRIDE = 256; // a draw's uniforms, at the dynamic-offset alignment
-  const native = await (await fetch("/viewer/draw.wgsl")).text();
+  const native = await (await fetch(VIEWER + "draw.wgsl")).text();
   const from = native.indexOf("fn point_pixels(");
   const to = native.indexOf("\n}\n", from);
   if (from < 0 || to < 0) throw new Error("draw.wgsl has no point_pixels");

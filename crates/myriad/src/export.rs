@@ -1,4 +1,5 @@
-//! `myriad export`: a dataset as COPC, Potree 2.0, 3D Tiles, LAS or LAZ.
+//! `myriad export`: a dataset as COPC, Potree 2.0, 3D Tiles, LAS or LAZ, or the web viewer as a
+//! static site opening it (`--to web`).
 
 use anyhow::{Result, bail};
 use clap::Args;
@@ -20,9 +21,15 @@ pub struct ExportArgs {
     /// or a .las/.laz file
     #[arg(short, long)]
     output: PathBuf,
-    /// Format: copc, potree, 3dtiles, las or laz [default: from the output's name]
-    #[arg(long = "to", value_parser = Target::parse)]
-    target: Option<Target>,
+    /// Format: copc, potree, 3dtiles, las or laz [default: from the output's name]; or web: a
+    /// folder any static web server serves, the web viewer opening the dataset (copied in) and
+    /// those --add names
+    #[arg(long = "to", value_parser = parse_to)]
+    target: Option<To>,
+    /// --to web: another dataset the site opens (a URL, on this host or another that sends
+    /// CORS headers; or a .myr, copied in); may be given again
+    #[arg(long, value_name = "DATASET")]
+    add: Vec<PathBuf>,
     /// Replace an existing output (a folder only when it holds a Potree or 3D Tiles export)
     #[arg(long)]
     force: bool,
@@ -49,11 +56,37 @@ pub struct ExportArgs {
     tiles_version: myriad_io::tiles3d::Version,
 }
 
+/// What `--to` names: a format the points are written in, or the web viewer's static site.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum To {
+    Points(Target),
+    Web,
+}
+
+fn parse_to(s: &str) -> std::result::Result<To, String> {
+    match s.eq_ignore_ascii_case("web") {
+        true => Ok(To::Web),
+        false => Target::parse(s)
+            .map(To::Points)
+            .map_err(|_| format!("\"{s}\": expected copc, potree, 3dtiles, las, laz or web")),
+    }
+}
+
 pub fn run(a: ExportArgs) -> Result<()> {
     if a.spacing.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
         bail!("--spacing must be a positive length");
     }
-    let Some(target) = a.target.or_else(|| Target::from_output(&a.output)) else {
+    if a.target == Some(To::Web) {
+        return web(&a);
+    }
+    if !a.add.is_empty() {
+        bail!("--add goes with --to web");
+    }
+    let target = a.target.map(|t| match t {
+        To::Points(t) => t,
+        To::Web => unreachable!("handled above"),
+    });
+    let Some(target) = target.or_else(|| Target::from_output(&a.output)) else {
         bail!(
             "{}: cannot tell the format from the name; give --to copc|potree|3dtiles|las|laz",
             a.output.display()
@@ -95,6 +128,85 @@ pub fn run(a: ExportArgs) -> Result<()> {
                 .join(", ")
         );
     }
+    Ok(())
+}
+
+/// `--to web`: the web viewer as a static site in the folder `a.output`, opening the dataset
+/// and those `--add` names (a URL as it is; a local `.myr` hard-linked or copied into `data/`).
+fn web(a: &ExportArgs) -> Result<()> {
+    if a.bbox.is_some() || a.spacing.is_some() || a.to_crs.is_some() || {
+        let f = a.filter.filter()?;
+        f.classes.is_some() || !f.conditions.is_empty()
+    } {
+        bail!(
+            "--to web writes the viewer and the datasets as they are: no --box, --spacing, --to-crs or filter"
+        );
+    }
+    let inputs: Vec<&PathBuf> = std::iter::once(&a.dataset).chain(&a.add).collect();
+    let locals: Vec<&PathBuf> = (inputs.iter().copied())
+        .filter(|p| !myriad_format::remote::is_url(p))
+        .collect();
+    myriad_io::atomic::refuse_input_as_output(&a.output, &locals)?;
+    let dir = myriad_io::atomic::AtomicDir::create(
+        &a.output,
+        a.force,
+        myriad_serve::viewer::is_site,
+        "a web export",
+    )?;
+    let data = dir.temp().join("data");
+    let mut urls = Vec::new();
+    let mut copied = 0u64;
+    for p in inputs {
+        let text = p.to_string_lossy();
+        if myriad_format::remote::is_url(p) {
+            if text.starts_with("s3://") {
+                bail!(
+                    "{text}: a browser reads http(s):// addresses (give the bucket's https:// URL)"
+                );
+            }
+            urls.push(text.into_owned());
+            continue;
+        }
+        let ds = Dataset::open(p)?;
+        if let Some(f) = ds.foreign_format() {
+            bail!(
+                "{text}: a {f} dataset: the web viewer reads .myr datasets (convert it first, or give the URL of one)"
+            );
+        }
+        if !ds.files().is_empty() {
+            bail!(
+                "{text}: a dataset of several files: merge it into one first (merge --single-file)"
+            );
+        }
+        let name = p
+            .file_name()
+            .map_or("dataset.myr".into(), |n| n.to_string_lossy().into_owned());
+        std::fs::create_dir_all(&data)?;
+        let mut to = data.join(&name);
+        let mut i = 1;
+        while to.exists() {
+            to = data.join(format!("{i}-{name}"));
+            i += 1;
+        }
+        // A hard link costs nothing and the original is never written through it (the site is
+        // read only); another file system gets a copy.
+        if std::fs::hard_link(p, &to).is_err() {
+            std::fs::copy(p, &to).map_err(|e| myriad_core::Error::io(p, e))?;
+        }
+        copied += ds.file_length;
+        let rel = to.strip_prefix(dir.temp()).expect("below the site");
+        urls.push(rel.to_string_lossy().replace('\\', "/"));
+    }
+    myriad_serve::viewer::write_site(dir.temp(), &urls)
+        .map_err(|e| myriad_core::Error::io(dir.temp(), e))?;
+    dir.commit()?;
+    println!(
+        "{}: the web viewer, opening {} ({:.1} MB of datasets in it): serve the folder from any \
+         web server that answers range requests and open index.html",
+        a.output.display(),
+        urls.join(", "),
+        copied as f64 / 1e6
+    );
     Ok(())
 }
 

@@ -184,6 +184,70 @@ fn a_copc_export_reads_in_place_as_its_myr() {
     // Nothing was written beside the COPC file.
     assert_eq!(names(&sub), before);
 
+    // The scan cut into four COPC tiles, read as one (a folder of them, and a `.vpc` naming
+    // them): every point once, the same image with every point drawn, the same points found.
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    // Cut between quantized coordinates: no point on an edge.
+    let (mx, my) = (cx + 0.000_37, cy + 0.000_41);
+    let mut features = Vec::new();
+    for (i, (ax, bx, ay, by)) in [
+        (x0 - 1.0, mx, y0 - 1.0, my),
+        (mx, x1 + 1.0, y0 - 1.0, my),
+        (x0 - 1.0, mx, my, y1 + 1.0),
+        (mx, x1 + 1.0, my, y1 + 1.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let b = format!(
+            "{ax},{ay},{},{bx},{by},{}",
+            f(min, 2) - 1.0,
+            f(max, 2) + 1.0
+        );
+        let t = tiles.join(format!("t{i}.copc.laz"));
+        ok(&["export", s(&myr), "-o", s(&t), "--to", "copc", "--box", &b]);
+        features.push(serde_json::json!({"type": "Feature", "stac_version": "1.0.0", "id": format!("t{i}"),
+            "properties": {}, "assets": {"data": {"href": format!("./tiles/t{i}.copc.laz"), "roles": ["data"]}}}));
+    }
+    let vpc = d.join("site.vpc");
+    let fc = serde_json::json!({"type": "FeatureCollection", "features": features});
+    std::fs::write(&vpc, fc.to_string()).unwrap();
+    let before = names(&tiles);
+    for set in [&tiles, &vpc] {
+        let v: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(set)])).unwrap();
+        assert_eq!(v["points"], 200_000, "{v}");
+    }
+    let t = d.join("full-tiles.png");
+    render(
+        s(&tiles),
+        &t,
+        &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+    );
+    let (pa, pt) = (pixels(&d.join("full-myr.png")), pixels(&t));
+    let n = differ(&pa, &pt);
+    assert!(
+        n * 1000 <= pa.len() / 4,
+        "tiles, every point drawn: {n} pixels differ"
+    );
+    let et = d.join("et.las");
+    ok(&["extract", s(&vpc), "--box", &bbox, "-o", s(&et)]);
+    assert_eq!(
+        count(&ea),
+        count(&et),
+        "extract --box of the tiles: the same points"
+    );
+    assert_eq!(vol(&vpc)["points"], va["points"], "volume of the tiles");
+    let pt = d.join("pt.csv");
+    profile(&tiles, &pt);
+    assert_eq!(rows(&pt), ra, "the tiles' profile");
+    // At a budget the overview draws every tile's share (points at every zoom).
+    let bt = d.join("b-tiles.png");
+    render(s(&vpc), &bt, &[&fixed[..], &["--budget", "60k"]].concat());
+    let p = psnr(&pixels(&d.join("b-myr.png")), &pixels(&bt));
+    assert!(p > 18.0, "tiles: PSNR {p:.1} dB at the same budget");
+    assert_eq!(names(&tiles), before);
+
     // Over HTTP through `myriad serve`: the same image.
     let server = serve(&[s(&copc)], Stdio::inherit());
     let url = format!("{}/d/site.copc.laz", server.base);

@@ -14,6 +14,7 @@
 pub mod copc;
 pub mod ept;
 pub mod potree;
+pub mod tiles;
 
 use crate::hierarchy::PAGE_LEVELS;
 use crate::{ByteSource, ChildPage, Damage, FileBytes, HierarchyPage, NodeEntry, PageRef};
@@ -32,6 +33,8 @@ pub enum Kind {
     Copc,
     Ept,
     Potree,
+    /// Many tiles as one: a `.vpc`, or a folder of COPC files ([`tiles`]).
+    Tiles,
 }
 
 impl Kind {
@@ -40,13 +43,15 @@ impl Kind {
             Kind::Copc => "COPC",
             Kind::Ept => "EPT",
             Kind::Potree => "Potree 2.0",
+            Kind::Tiles => "tiles",
         }
     }
 }
 
 /// What `path` names: a COPC file (`.copc.laz`, or a LAZ file whose first VLR is COPC's info),
 /// an EPT dataset (its `ept.json`, or a folder holding one), a Potree 2.0 dataset (its
-/// `metadata.json`, or a folder holding one with `hierarchy.bin`), or none of them. A URL is
+/// `metadata.json`, or a folder holding one with `hierarchy.bin`), a set of tiles (a `.vpc`, or
+/// a folder whose LAS/LAZ files are all COPC), or none of them. A URL is
 /// told by its name alone.
 pub fn kind_of(path: &Path) -> Option<Kind> {
     let s = path.to_string_lossy();
@@ -60,6 +65,9 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
     if lower.ends_with("metadata.json") && potree_metadata(path) {
         return Some(Kind::Potree);
     }
+    if lower.ends_with(".vpc") {
+        return Some(Kind::Tiles);
+    }
     if crate::remote::is_url(path) {
         return None;
     }
@@ -69,6 +77,9 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
         }
         if path.join("metadata.json").is_file() && path.join("hierarchy.bin").is_file() {
             return Some(Kind::Potree);
+        }
+        if !tiles::folder_tiles(path).is_empty() {
+            return Some(Kind::Tiles);
         }
         return None;
     }

@@ -1,0 +1,663 @@
+//! Many tiles read in place as one dataset: a folder of COPC files, or a virtual point cloud
+//! (`.vpc`: QGIS's and PDAL wrench's STAC ItemCollection, each item's `data` asset a COPC, EPT,
+//! Potree 2.0 or `.myr` tile, on disk or by URL relative to the `.vpc`).
+//!
+//! Opening reads each tile's header and root hierarchy page (in parallel), never its points.
+//! The tiles then hang under a few *virtual* levels: the set is split in up to eight groups by
+//! the octant of their centres (by their order where centres coincide), again and again until
+//! each group is one tile, whose root takes the group's key; a tile's own nodes take the keys
+//! below it. Every node carries its bounds (a virtual node: its tiles' bounds; a tile's node: its
+//! cube within the tile's bounds), so the selection culls and orders them as kd-tree nodes.
+//!
+//! Points at every zoom, each point once: a virtual node draws a share of the root nodes of up
+//! to [`SOURCES`] of its tiles (spread through them), the first points of each root in the
+//! spread order ([`super::spread`]: every prefix a sample), the shallowest level first; the
+//! tile's root keeps the rest. A share is the tile's footprint over the node's, times the tiles
+//! it stands for (at most a quarter of the root), so a virtual node holds about as many points
+//! as one tile's root, and all shares together stay under [`VIRTUAL_POINTS`] (the deepest
+//! virtual levels give way first). A tile's shares are decoded once, with its root, on all
+//! cores, and kept (bounded by that total): the first image of a thousand tiles waits for 64
+//! roots, the converged overview decodes each root once.
+
+use super::{Foreign, damage, open_json};
+use crate::hierarchy::PAGE_LEVELS;
+use crate::{ChildPage, Damage, Dataset, HierarchyPage, Metadata, NodeEntry, PageRef};
+use myriad_core::{Aabb, Error, NodeKey, PointBatch, Result, Schema};
+use serde_json::json;
+use std::collections::HashMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// The most points all virtual nodes together hold (what their shares keep in memory).
+pub const VIRTUAL_POINTS: u64 = 2_000_000;
+/// The most tiles a virtual node draws from: its first image waits for their roots only.
+const SOURCES: usize = 64;
+/// The most tiles one set opens.
+const MAX_TILES: usize = 100_000;
+/// Tiles opened at once (their header and root page; over HTTP, requests in flight).
+const OPENING: usize = 8;
+
+/// One tile: its dataset, its root node and the shares of its root the virtual levels draw.
+struct Tile {
+    name: String,
+    ds: Dataset,
+    /// The key of its root among the set's nodes.
+    key: NodeKey,
+    /// Its root node, as its own hierarchy gives it.
+    root: NodeEntry,
+    /// Its points' bounds.
+    bounds: Aabb,
+    /// The first points of its spread root the virtual levels draw (from `shares` in order).
+    taken: usize,
+    /// Those points, decoded once.
+    head: Mutex<Option<Arc<PointBatch>>>,
+}
+
+/// A node above the tiles.
+struct Virtual {
+    bounds: Aabb,
+    spacing: f64,
+    /// (tile, the points of its spread root drawn here).
+    shares: Vec<(usize, Range<usize>)>,
+}
+
+pub(crate) struct Tiles {
+    tiles: Vec<Tile>,
+    virtuals: HashMap<NodeKey, Virtual>,
+    /// Tiles by their root's key.
+    by_key: HashMap<NodeKey, usize>,
+    schema: Schema,
+    /// Tiles' hierarchy pages read so far, by (tile, page root in the tile's keys).
+    pages: Mutex<HashMap<(usize, NodeKey), Arc<HierarchyPage>>>,
+}
+
+/// The tiles a folder holds: its COPC files, sorted by name; empty when any LAS/LAZ file in it
+/// is not COPC (a folder of plain tiles is converted, not read in place).
+pub fn folder_tiles(dir: &Path) -> Vec<PathBuf> {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for e in rd.flatten() {
+        let p = e.path();
+        let ext = p.extension().map(|e| e.to_ascii_lowercase());
+        match ext.as_deref().and_then(|e| e.to_str()) {
+            Some("laz") if super::copc::has_info(&p) => out.push(p),
+            Some("las" | "laz") => return Vec::new(),
+            _ => {}
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The tiles a `.vpc` names: each item's `data` asset (else its first), relative to the
+/// `.vpc`'s folder or URL.
+fn vpc_tiles(path: &Path) -> Result<Vec<String>> {
+    let file = path
+        .file_name()
+        .map_or("set.vpc".into(), |f| f.to_string_lossy().into_owned());
+    let (place, name, v) = open_json(path, &file)?;
+    let bad = |m: String| Error::Invalid(format!("{}: {m}", name.display()));
+    let features = v["features"].as_array().ok_or_else(|| {
+        bad("not a virtual point cloud (a STAC ItemCollection with \"features\")".into())
+    })?;
+    let mut out = Vec::new();
+    for (i, f) in features.iter().enumerate() {
+        let assets = f["assets"]
+            .as_object()
+            .ok_or_else(|| bad(format!("item {i} has no assets")))?;
+        let data = assets
+            .values()
+            .find(|a| {
+                a["roles"]
+                    .as_array()
+                    .is_some_and(|r| r.iter().any(|r| r == "data"))
+            })
+            .or_else(|| assets.values().next());
+        let href = data
+            .and_then(|a| a["href"].as_str())
+            .ok_or_else(|| bad(format!("item {i}: no asset with an \"href\"")))?;
+        out.push(
+            match crate::remote::is_url(Path::new(href)) || Path::new(href).is_absolute() {
+                true => href.to_string(),
+                false => place.name(href.strip_prefix("./").unwrap_or(href)),
+            },
+        );
+    }
+    Ok(out)
+}
+
+/// A tile opened: its dataset and its root node.
+type Opened = (Dataset, NodeEntry);
+
+/// Opens every tile (header and root page), `OPENING` at a time, in the given order.
+fn open_all(names: &[String]) -> Result<Vec<Opened>> {
+    let next = AtomicUsize::new(0);
+    let out: Vec<Mutex<Option<Result<Opened>>>> = names.iter().map(|_| Mutex::new(None)).collect();
+    std::thread::scope(|s| {
+        for _ in 0..OPENING.min(names.len()) {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(name) = names.get(i) else { break };
+                    *out[i].lock().expect("tile lock") = Some(open_tile(name));
+                }
+            });
+        }
+    });
+    out.into_iter()
+        .map(|m| {
+            m.into_inner()
+                .expect("tile lock")
+                .expect("every tile opened")
+        })
+        .collect()
+}
+
+fn open_tile(name: &str) -> Result<Opened> {
+    let path = Path::new(name);
+    if !crate::remote::is_url(path) && super::kind_of(path).is_none() && !crate::is_dataset(path) {
+        return Err(Error::Invalid(format!(
+            "{name}: a tile must be COPC, EPT, Potree 2.0 or .myr (a LAS/LAZ file without an index is converted first)"
+        )));
+    }
+    let ds = Dataset::open(path)?;
+    let page = (ds.hierarchy_page(&ds.root_page())).map_err(|d| ds.damage_error(&d))?;
+    let root = (page.nodes.iter().find(|n| n.key == NodeKey::ROOT).cloned())
+        .ok_or_else(|| Error::Invalid(format!("{name}: no root node")))?;
+    Ok((ds, root))
+}
+
+/// Area of a box's footprint, never zero.
+fn footprint(b: &Aabb) -> f64 {
+    let s = b.size();
+    (s[0].max(1e-9) * s[1].max(1e-9)).max(1e-12)
+}
+
+impl Tiles {
+    /// Opens the set `path` names (a `.vpc`, or a folder of COPC files).
+    pub(crate) fn open(path: &Path) -> Result<(Metadata, Tiles)> {
+        let (names, format) = match path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("vpc"))
+        {
+            true => (vpc_tiles(path)?, "VPC"),
+            false => {
+                let files = folder_tiles(path);
+                let names = files.iter().map(|p| p.display().to_string()).collect();
+                (names, "COPC tiles")
+            }
+        };
+        if names.is_empty() {
+            return Err(Error::Invalid(format!("{}: no tiles", path.display())));
+        }
+        if names.len() > MAX_TILES {
+            return Err(Error::Invalid(format!(
+                "{}: {} tiles, more than {MAX_TILES}",
+                path.display(),
+                names.len()
+            )));
+        }
+        let opened = open_all(&names)?;
+        let first = &opened[0].0.meta;
+        for (n, (ds, _)) in names.iter().zip(&opened) {
+            if let (Some(a), Some(b)) = (&first.crs, &ds.meta.crs)
+                && a != b
+            {
+                return Err(Error::Invalid(format!(
+                    "{n}: its coordinate system differs from {}'s (one set, one CRS)",
+                    names[0]
+                )));
+            }
+        }
+        let schema = first.schema.clone();
+        let mut bounds = Aabb::EMPTY;
+        let mut points = 0u64;
+        let mut sources = Vec::new();
+        let mut tiles = Vec::new();
+        for (name, (ds, root)) in names.into_iter().zip(opened) {
+            let b = match ds.meta.bounds.is_empty() {
+                true => ds.meta.root,
+                false => ds.meta.bounds,
+            };
+            bounds = bounds.union(&b);
+            points += ds.meta.points;
+            sources.push(json!({"path": name, "format": ds.foreign_format().unwrap_or(".myr"), "points": ds.meta.points}));
+            tiles.push(Tile {
+                name,
+                ds,
+                key: NodeKey::ROOT,
+                root,
+                bounds: b,
+                taken: 0,
+                head: Mutex::new(None),
+            });
+        }
+        let mut set = Tiles {
+            tiles,
+            virtuals: HashMap::new(),
+            by_key: HashMap::new(),
+            schema,
+            pages: Mutex::new(HashMap::new()),
+        };
+        let all: Vec<usize> = (0..set.tiles.len()).collect();
+        set.place(all, NodeKey::ROOT);
+        set.share();
+        let side = (0..3)
+            .map(|a| bounds.size()[a])
+            .fold(0.0, f64::max)
+            .max(1e-9);
+        let root = Aabb::new(bounds.min, bounds.min.map(|m| m + side));
+        let f = &set.tiles[0].ds.meta;
+        let meta = Metadata {
+            structure: "tiles".into(),
+            parameters: json!({"format": format, "read_in_place": true, "tiles": set.tiles.len()}),
+            points,
+            nodes: 0,
+            depth: 0,
+            bounds,
+            root,
+            quantization: f.quantization,
+            crs: f.crs.clone(),
+            schema: set.schema.clone(),
+            sources,
+            las_header: None,
+            software: String::new(),
+            levels: Vec::new(),
+            files: Vec::new(),
+        };
+        Ok((meta, set))
+    }
+
+    /// Gives the tiles `group` keys below `key`: a tile alone takes `key`; a group is a virtual
+    /// node whose children are its tiles split by the octant of their centres (by their order
+    /// where the centres coincide).
+    fn place(&mut self, group: Vec<usize>, key: NodeKey) {
+        if let [t] = group[..] {
+            self.tiles[t].key = key;
+            self.by_key.insert(key, t);
+            return;
+        }
+        let mut b = Aabb::EMPTY;
+        let mut centres = Aabb::EMPTY;
+        for &t in &group {
+            b = b.union(&self.tiles[t].bounds);
+            centres.extend(self.tiles[t].bounds.center());
+        }
+        self.virtuals.insert(
+            key,
+            Virtual {
+                bounds: b,
+                spacing: 0.0,
+                shares: Vec::new(),
+            },
+        );
+        let mid = centres.center();
+        let size = centres.size();
+        let mut parts: [Vec<usize>; 8] = Default::default();
+        let spread_out = (0..3).any(|a| size[a] > 1e-9 * (1.0 + mid[a].abs()));
+        if spread_out && key.level < 24 {
+            for &t in &group {
+                let c = self.tiles[t].bounds.center();
+                let o = (0..3).fold(0, |o, a| {
+                    o | (((size[a] > 0.0 && c[a] > mid[a]) as usize) << a)
+                });
+                parts[o].push(t);
+            }
+        }
+        if parts.iter().filter(|p| !p.is_empty()).count() < 2 {
+            let per = group.len().div_ceil(8);
+            parts = Default::default();
+            for (i, t) in group.into_iter().enumerate() {
+                parts[i / per].push(t);
+            }
+        }
+        for (o, p) in parts.into_iter().enumerate() {
+            if !p.is_empty() {
+                self.place(p, key.child(o));
+            }
+        }
+    }
+
+    /// Decides each tile's shares of its root for the virtual levels above it, level by level
+    /// from the top: a virtual node draws from at most [`SOURCES`] of its tiles, spread through
+    /// them (its tiles are in the order they were split by octant), each giving its footprint
+    /// over the node's (times the tiles each stands for, at most a quarter of its root); the
+    /// level that would pass [`VIRTUAL_POINTS`] is cut to fit and the levels below it draw
+    /// nothing.
+    fn share(&mut self) {
+        let n = self.tiles.len();
+        let mut below: HashMap<NodeKey, Vec<usize>> = HashMap::new();
+        for t in 0..n {
+            let mut k = self.tiles[t].key;
+            while k.level > 0 {
+                k = k.parent();
+                below.entry(k).or_default().push(t);
+            }
+        }
+        let mut keys: Vec<NodeKey> = self.virtuals.keys().copied().collect();
+        keys.sort_by_key(|k| (k.level, k.cell));
+        let mut at = vec![0usize; n];
+        let mut total = 0u64;
+        for level in keys.chunk_by(|a, b| a.level == b.level) {
+            let mut wants = Vec::new();
+            for key in level {
+                let tiles = &below[key];
+                let step = tiles.len().div_ceil(SOURCES);
+                let chosen: Vec<usize> = tiles.iter().copied().step_by(step).collect();
+                let stands_for = tiles.len() as f64 / chosen.len() as f64;
+                let area = footprint(&self.virtuals[key].bounds);
+                for t in chosen {
+                    let tile = &self.tiles[t];
+                    let points = tile.root.points as usize;
+                    let frac = (footprint(&tile.bounds) / area * stands_for).min(0.25);
+                    let want =
+                        ((points as f64 * frac) as usize).min((points / 2).saturating_sub(at[t]));
+                    wants.push((*key, t, want));
+                }
+            }
+            let sum: u64 = wants.iter().map(|w| w.2 as u64).sum();
+            let scale = match total + sum > VIRTUAL_POINTS {
+                true => (VIRTUAL_POINTS - total) as f64 / sum as f64,
+                false => 1.0,
+            };
+            for (key, t, want) in wants {
+                let w = (want as f64 * scale) as usize;
+                if w > 0 {
+                    let v = self.virtuals.get_mut(&key).expect("a virtual node");
+                    v.shares.push((t, at[t]..at[t] + w));
+                    at[t] += w;
+                    total += w as u64;
+                }
+            }
+            if scale < 1.0 {
+                break;
+            }
+        }
+        for (t, taken) in at.into_iter().enumerate() {
+            self.tiles[t].taken = taken;
+        }
+        // A virtual node's spacing: its footprint over its points (the tiles are surveys seen
+        // from above, their points spread over their ground).
+        for v in self.virtuals.values_mut() {
+            let points: usize = v.shares.iter().map(|(_, r)| r.len()).sum();
+            v.spacing = (footprint(&v.bounds) / points.max(1) as f64).sqrt();
+        }
+    }
+
+    /// The tile whose subtree holds `key`, and `key` in the tile's own keys.
+    fn tile_of(&self, key: NodeKey) -> Option<(usize, NodeKey)> {
+        let mut k = key;
+        loop {
+            if let Some(&t) = self.by_key.get(&k) {
+                let l = key.level - k.level;
+                let local = NodeKey {
+                    level: l,
+                    cell: std::array::from_fn(|a| key.cell[a] - (k.cell[a] << l)),
+                };
+                return Some((t, local));
+            }
+            if k.level == 0 {
+                return None;
+            }
+            k = k.parent();
+        }
+    }
+
+    /// Key `local` of tile `t` among the set's keys.
+    fn global(&self, t: usize, local: NodeKey) -> NodeKey {
+        let k = self.tiles[t].key;
+        NodeKey {
+            level: k.level + local.level,
+            cell: std::array::from_fn(|a| (k.cell[a] << local.level) + local.cell[a]),
+        }
+    }
+
+    /// Tile `t`'s hierarchy page holding its node `local` (read the first time).
+    fn tile_page(
+        &self,
+        t: usize,
+        local: NodeKey,
+    ) -> std::result::Result<Arc<HierarchyPage>, Damage> {
+        let mut root = local;
+        while !root.level.is_multiple_of(PAGE_LEVELS) {
+            root = root.parent();
+        }
+        if let Some(p) = self.pages.lock().expect("pages lock").get(&(t, root)) {
+            return Ok(p.clone());
+        }
+        let ds = &self.tiles[t].ds;
+        let page = ds
+            .hierarchy_page(&ChildPage {
+                key: root,
+                page: PageRef::default(),
+            })
+            .map_err(|d| self.tile_damage(t, d))?;
+        let page = Arc::new(page);
+        self.pages
+            .lock()
+            .expect("pages lock")
+            .insert((t, root), page.clone());
+        Ok(page)
+    }
+
+    /// A tile's damage report as the set's (its key among the set's, the tile named).
+    fn tile_damage(&self, t: usize, d: Damage) -> Damage {
+        let what = if d.subtree {
+            "hierarchy page of subtree"
+        } else {
+            "node"
+        };
+        damage(
+            self.global(t, d.key),
+            d.offset,
+            format!(
+                "tile {}, {what} {}: {}",
+                self.tiles[t].name, d.key, d.message
+            ),
+            d.subtree,
+        )
+    }
+
+    /// Tile `t`'s node `local` as its hierarchy lists it, and its children's keys.
+    fn tile_node(
+        &self,
+        t: usize,
+        local: NodeKey,
+    ) -> std::result::Result<Option<(NodeEntry, Vec<NodeKey>)>, Damage> {
+        let page = self.tile_page(t, local)?;
+        let Ok(i) = page.nodes.binary_search_by_key(&local, |n| n.key) else {
+            return Ok(None);
+        };
+        let mut children = Vec::new();
+        for o in 0..8 {
+            let c = local.child(o);
+            let listed = match c.level.is_multiple_of(PAGE_LEVELS) {
+                true => page.children.iter().any(|p| p.key == c),
+                false => page.nodes.binary_search_by_key(&c, |n| n.key).is_ok(),
+            };
+            if listed {
+                children.push(c);
+            }
+        }
+        Ok(Some((page.nodes[i].clone(), children)))
+    }
+
+    /// Node `key` of the set, with its children's keys.
+    fn node(&self, key: NodeKey) -> std::result::Result<Option<(NodeEntry, Vec<NodeKey>)>, Damage> {
+        if let Some(v) = self.virtuals.get(&key) {
+            let points: usize = v.shares.iter().map(|(_, r)| r.len()).sum();
+            let mut e = NodeEntry::new(
+                key,
+                PageRef::default(),
+                points as u32,
+                vec![points as u32],
+                vec![v.spacing],
+            );
+            e.bounds = Some(v.bounds);
+            let children = (0..8)
+                .map(|o| key.child(o))
+                .filter(|c| self.virtuals.contains_key(c) || self.by_key.contains_key(c))
+                .collect();
+            return Ok(Some((e, children)));
+        }
+        let Some((t, local)) = self.tile_of(key) else {
+            return Ok(None);
+        };
+        let Some((inner, children)) = self.tile_node(t, local)? else {
+            return Ok(None);
+        };
+        let tile = &self.tiles[t];
+        let mut e = inner.clone();
+        e.key = key;
+        if local == NodeKey::ROOT {
+            e.points = inner.points.saturating_sub(tile.taken as u32);
+            e.prefix = vec![e.points];
+            e.spacing = vec![inner.spacing.last().copied().unwrap_or(1.0)];
+        }
+        let cube = inner.bounds_in(&tile.ds.meta.root);
+        e.bounds = Some(intersect(&cube, &tile.bounds).unwrap_or(cube));
+        let children = children.into_iter().map(|c| self.global(t, c)).collect();
+        Ok(Some((e, children)))
+    }
+
+    /// The first `tile.taken` points of tile `t`'s spread root, decoded once.
+    fn head(&self, t: usize) -> std::result::Result<Arc<PointBatch>, Damage> {
+        let tile = &self.tiles[t];
+        let mut slot = tile.head.lock().expect("head lock");
+        if let Some(h) = &*slot {
+            return Ok(h.clone());
+        }
+        let b = tile
+            .ds
+            .read_node(&tile.root)
+            .map_err(|d| self.tile_damage(t, d))?;
+        let h = Arc::new(self.conformed(b.slice(0..tile.taken.min(b.len()))));
+        *slot = Some(h.clone());
+        Ok(h)
+    }
+
+    /// The heads of `tiles`, decoded on all cores (a virtual node near the top draws from
+    /// hundreds of tiles; each root is decoded once, whichever node asks first).
+    fn heads(&self, tiles: &[usize]) -> std::result::Result<(), Damage> {
+        let workers = std::thread::available_parallelism()
+            .map_or(2, |n| n.get())
+            .min(8)
+            .min(tiles.len());
+        if workers < 2 {
+            return tiles.iter().try_for_each(|&t| self.head(t).map(|_| ()));
+        }
+        let next = AtomicUsize::new(0);
+        let failed: Mutex<Option<Damage>> = Mutex::new(None);
+        std::thread::scope(|s| {
+            for _ in 0..workers {
+                s.spawn(|| {
+                    while let Some(&t) = tiles.get(next.fetch_add(1, Ordering::Relaxed)) {
+                        if let Err(d) = self.head(t) {
+                            failed.lock().expect("failed lock").get_or_insert(d);
+                            break;
+                        }
+                    }
+                });
+            }
+        });
+        match failed.into_inner().expect("failed lock") {
+            Some(d) => Err(d),
+            None => Ok(()),
+        }
+    }
+
+    fn conformed(&self, mut b: PointBatch) -> PointBatch {
+        b.conform(&self.schema);
+        b
+    }
+}
+
+/// Where two boxes meet, or `None`.
+fn intersect(a: &Aabb, b: &Aabb) -> Option<Aabb> {
+    let min: [f64; 3] = std::array::from_fn(|i| a.min[i].max(b.min[i]));
+    let max: [f64; 3] = std::array::from_fn(|i| a.max[i].min(b.max[i]));
+    (0..3)
+        .all(|i| min[i] <= max[i])
+        .then(|| Aabb::new(min, max))
+}
+
+impl Foreign for Tiles {
+    fn hierarchy_page(&self, root: NodeKey) -> std::result::Result<HierarchyPage, Damage> {
+        let mut out = HierarchyPage::default();
+        let mut todo = vec![root];
+        while let Some(k) = todo.pop() {
+            let Some((e, children)) = self.node(k)? else {
+                continue;
+            };
+            out.nodes.push(e);
+            for c in children {
+                match c.level == root.level + PAGE_LEVELS {
+                    true => out.children.push(ChildPage {
+                        key: c,
+                        page: PageRef::default(),
+                    }),
+                    false => todo.push(c),
+                }
+            }
+        }
+        out.nodes.sort_by_key(|n| n.key);
+        Ok(out)
+    }
+
+    fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
+        if let Some(v) = self.virtuals.get(&e.key) {
+            let tiles: Vec<usize> = v.shares.iter().map(|(t, _)| *t).collect();
+            self.heads(&tiles)?;
+            let mut out = PointBatch::with_schema(&self.schema, e.points as usize);
+            out.extra_stride = self.schema.extra_bytes;
+            for (t, r) in &v.shares {
+                let h = self.head(*t)?;
+                let r = r.start.min(h.len())..r.end.min(h.len());
+                out.append(&h.slice(r));
+            }
+            return Ok(out);
+        }
+        let Some((t, local)) = self.tile_of(e.key) else {
+            return Err(damage(e.key, 0, "not a node of the set", false));
+        };
+        let tile = &self.tiles[t];
+        let Some((inner, _)) = self.tile_node(t, local)? else {
+            return Err(damage(
+                e.key,
+                0,
+                format!("tile {}: no node {local}", tile.name),
+                false,
+            ));
+        };
+        let b = tile
+            .ds
+            .read_node(&inner)
+            .map_err(|d| self.tile_damage(t, d))?;
+        let b = match local == NodeKey::ROOT {
+            true => b.slice(tile.taken.min(b.len())..b.len()),
+            false => b,
+        };
+        Ok(self.conformed(b))
+    }
+
+    fn fetched(&self) -> Option<(u64, u64)> {
+        let mut total: Option<(u64, u64)> = None;
+        for t in &self.tiles {
+            if let Some((r, b)) = t.ds.fetched() {
+                let s = total.get_or_insert((0, 0));
+                *s = (s.0 + r, s.1 + b);
+            }
+        }
+        total
+    }
+
+    fn changed(&self) -> Option<String> {
+        self.tiles
+            .iter()
+            .find_map(|t| t.ds.check_unchanged().err().map(|e| e.to_string()))
+    }
+}

@@ -1,0 +1,190 @@
+//! The web viewer as a static site (issue 66): `myriad export --to web` writes the page, its
+//! scripts and WebAssembly and the dataset; Debian's nginx serves the folder as it is and the
+//! viewer opens and converges in Chromium with every point; a server that ignores ranges
+//! (Python's http.server) is named in one line; `--force` replaces only a site. Skipped (with a
+//! message) where Chromium or nginx is missing; `.ci/run` installs both.
+
+mod common;
+use common::{myriad, ok, s, tempdir};
+use myriad_serve::browser::{self, Browser};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Server(std::process::Child);
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap().port()
+}
+
+/// Waits until something listens on `port`.
+fn listening(port: u16) {
+    let t = Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t.elapsed() < Duration::from_secs(20),
+            "nothing listens on {port}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Debian's nginx serving `root` (its own files in `dir`), or `None` where it is missing.
+fn nginx(root: &Path, dir: &Path) -> Option<(Server, u16)> {
+    let exe = ["/usr/sbin/nginx", "/usr/bin/nginx"]
+        .iter()
+        .map(Path::new)
+        .find(|p| p.exists())?;
+    let port = free_port();
+    let conf = dir.join("nginx.conf");
+    let t = dir.display();
+    std::fs::write(
+        &conf,
+        format!(
+            "daemon off; master_process off; pid {t}/nginx.pid; error_log {t}/error.log warn;\n\
+             events {{}}\n\
+             http {{ access_log off; client_body_temp_path {t}; proxy_temp_path {t};\n\
+             fastcgi_temp_path {t}; uwsgi_temp_path {t}; scgi_temp_path {t};\n\
+             types {{ text/html html; text/javascript js; application/wasm wasm; }}\n\
+             default_type application/octet-stream;\n\
+             server {{ listen 127.0.0.1:{port}; root {}; }} }}\n",
+            root.display()
+        ),
+    )
+    .unwrap();
+    let child = Command::new(exe)
+        .args(["-c", s(&conf), "-p", s(dir)])
+        .stderr(Stdio::inherit())
+        .spawn()
+        .ok()?;
+    let server = Server(child);
+    listening(port);
+    Some((server, port))
+}
+
+#[test]
+fn the_web_viewer_runs_from_a_static_site() {
+    let d = tempdir("site");
+    let scan = d.join("scan.laz");
+    ok(&["synth", "-o", s(&scan), "--points", "100000"]);
+    let myr = d.join("town.myr");
+    ok(&["convert", s(&scan), "-o", s(&myr)]);
+    let site = d.join("site");
+    ok(&["export", s(&myr), "-o", s(&site), "--to", "web"]);
+    let page = std::fs::read_to_string(site.join("index.html")).unwrap();
+    assert!(
+        page.contains("window.MYRIAD_SITE = {\"datasets\":[\"data/town.myr\"]}"),
+        "{page}"
+    );
+    assert!(page.contains("src=\"viewer/viewer.js\"") && !page.contains("\"/viewer/"));
+    for f in [
+        "viewer.js",
+        "worker.js",
+        "webgl2.js",
+        "myriad_web.wasm",
+        "draw.wgsl",
+    ] {
+        assert!(site.join("viewer").join(f).is_file(), "{f}");
+    }
+    assert_eq!(
+        std::fs::read(site.join("data/town.myr")).unwrap(),
+        std::fs::read(&myr).unwrap()
+    );
+    // An existing output: kept without --force; with it, only a site is replaced.
+    let again = myriad(&["export", s(&myr), "-o", s(&site), "--to", "web"]);
+    assert_eq!(again.code, 1, "{}", again.stderr);
+    ok(&["export", s(&myr), "-o", s(&site), "--to", "web", "--force"]);
+    let other = d.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), b"mine").unwrap();
+    let r = myriad(&["export", s(&myr), "-o", s(&other), "--to", "web", "--force"]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert_eq!(std::fs::read(other.join("notes.txt")).unwrap(), b"mine");
+    // Selections have no meaning for the site: refused.
+    let r = myriad(&[
+        "export",
+        s(&myr),
+        "-o",
+        s(&d.join("s2")),
+        "--to",
+        "web",
+        "--box",
+        "0,0,0,1,1,1",
+    ]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let Some((_nginx, port)) = nginx(&site, &d) else {
+        eprintln!("SKIPPED: no nginx (apt-get install nginx-light; .ci/run installs it)");
+        return;
+    };
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!("http://127.0.0.1:{port}/index.html#renderer=webgl2"),
+        640,
+        480,
+    )
+    .unwrap();
+    let st = b
+        .wait_for(
+            "window.myriad && (myriad.state.converged || myriad.state.errors.length > 0) && myriad.state",
+            Duration::from_secs(240),
+        )
+        .unwrap();
+    eprintln!("the static site on nginx: {st}");
+    assert_eq!(st["errors"], serde_json::json!([]), "{st}");
+    assert_eq!(st["points"], 100_000, "{st}");
+
+    // A server that answers a range request with the whole file: one line, nothing drawn.
+    let port = free_port();
+    let py = Command::new("python3")
+        .args([
+            "-m",
+            "http.server",
+            &port.to_string(),
+            "--bind",
+            "127.0.0.1",
+            "--directory",
+            s(&site),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn();
+    let Ok(py) = py else {
+        eprintln!("SKIPPED (the no-range part): no python3");
+        return;
+    };
+    let _py = Server(py);
+    listening(port);
+    b.open(
+        &format!("http://127.0.0.1:{port}/index.html#renderer=webgl2"),
+        640,
+        480,
+    )
+    .unwrap();
+    let st = b
+        .wait_for(
+            "window.myriad && myriad.state.errors.length > 0 && myriad.state",
+            Duration::from_secs(60),
+        )
+        .unwrap();
+    let errors = st["errors"].as_array().unwrap();
+    assert_eq!(errors.len(), 1, "{st}");
+    let e = errors[0].as_str().unwrap();
+    eprintln!("the site on a server without ranges: {e}");
+    assert!(
+        e.contains("does not answer range requests") && !e.contains('\n'),
+        "{e}"
+    );
+}
