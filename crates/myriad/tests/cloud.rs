@@ -247,6 +247,15 @@ fn a_copc_export_reads_in_place_as_its_myr() {
     let p = psnr(&pixels(&d.join("b-myr.png")), &pixels(&bt));
     assert!(p > 18.0, "tiles: PSNR {p:.1} dB at the same budget");
     assert_eq!(names(&tiles), before);
+    // A tile that is not there: one line naming it.
+    let broken = d.join("broken.vpc");
+    let fc = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "id": "a", "assets": {"data": {"href": "tiles/t0.copc.laz", "roles": ["data"]}}},
+        {"type": "Feature", "id": "b", "assets": {"data": {"href": "tiles/gone.copc.laz", "roles": ["data"]}}}]});
+    std::fs::write(&broken, fc.to_string()).unwrap();
+    let r = myriad(&["info", s(&broken)]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("gone.copc.laz") && r.stderr.trim().lines().count() == 1, "{}", r.stderr);
 
     // Over HTTP through `myriad serve`: the same image.
     let server = serve(&[s(&copc)], Stdio::inherit());
