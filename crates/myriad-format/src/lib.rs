@@ -16,7 +16,6 @@ pub mod page;
 pub mod splat;
 
 mod codec;
-#[cfg(not(target_arch = "wasm32"))]
 pub mod foreign;
 pub mod metadata;
 #[cfg(not(target_arch = "wasm32"))]
@@ -317,8 +316,34 @@ impl Dataset {
         Dataset::from_source(Arc::new(FileBytes::open(path)?), path)
     }
 
+    /// A dataset of the cloud formats (COPC, EPT, Potree 2.0) at `url`, in the web viewer's
+    /// WebAssembly: its requests go through [`foreign::set_url_opener`].
+    #[cfg(target_arch = "wasm32")]
+    pub fn open_url(url: &Path) -> Result<Dataset> {
+        let text = url.to_string_lossy();
+        let (meta, reader): (Metadata, Arc<dyn Foreign>) = match foreign::kind_of(url) {
+            Some(foreign::Kind::Copc) => {
+                let bytes = foreign::open_url(&text, foreign::copc::HEAD)?;
+                return Dataset::copc(bytes, url);
+            }
+            Some(foreign::Kind::Ept) => {
+                let (m, r) = foreign::ept::Ept::open(url)?;
+                (m, Arc::new(r))
+            }
+            Some(foreign::Kind::Potree) => {
+                let (m, r) = foreign::potree::Potree::open(url)?;
+                (m, Arc::new(r))
+            }
+            _ => {
+                return Err(Error::Invalid(format!(
+                    "{text}: not a COPC file (.copc.laz), an EPT dataset (ept.json) or a Potree 2.0 one (metadata.json)"
+                )));
+            }
+        };
+        Ok(Dataset::of_foreign(Arc::new(NoBytes), url, meta, reader))
+    }
+
     /// A COPC file in `bytes`, read in place.
-    #[cfg(not(target_arch = "wasm32"))]
     fn copc(bytes: Arc<dyn ByteSource>, name: &Path) -> Result<Dataset> {
         let (meta, copc) = foreign::copc::Copc::open(bytes.clone(), name)?;
         Ok(Dataset::of_foreign(bytes, name, meta, Arc::new(copc)))
@@ -453,7 +478,6 @@ impl Dataset {
         let head = bytes
             .read_at(0, HEADER_LEN)
             .map_err(|e| Error::io(name, e))?;
-        #[cfg(not(target_arch = "wasm32"))]
         if head.starts_with(b"LASF") {
             // A COPC file at a URL not named .copc.laz.
             return Dataset::copc(bytes, name);
@@ -643,7 +667,6 @@ impl Dataset {
         e: &NodeEntry,
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
-        #[cfg(not(target_arch = "wasm32"))]
         if let Some(f) = &self.foreign {
             let mut b = foreign::spread(f.read_node(e)?);
             b.keep_columns(schema);

@@ -153,9 +153,16 @@ impl AtomicDir {
 }
 
 /// The same file by device and inode (however it is spelled: `a.las`, `dir/../a.las`, a link).
+#[cfg(unix)]
 fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
     use std::os::unix::fs::MetadataExt;
     a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+/// No files to compare where there are no inodes (the web viewer's WebAssembly writes none).
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata) -> bool {
+    false
 }
 
 /// Refuses an output that is one of the inputs, or a folder holding one (`--force` included):

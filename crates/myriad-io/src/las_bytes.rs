@@ -156,9 +156,10 @@ impl LasLayout {
             ));
         };
         let bad = |off: u64, m: String| Error::at_byte(name, at + off, m);
-        let out_len = (points as usize)
-            .checked_mul(self.record_len)
+        let out_len = points
+            .checked_mul(self.record_len as u64)
             .filter(|&n| points <= chunk.len() as u64 * 64 && n < 1 << 34)
+            .and_then(|n| usize::try_from(n).ok())
             .ok_or_else(|| {
                 bad(
                     0,

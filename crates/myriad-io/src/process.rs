@@ -8,6 +8,7 @@ pub fn peak_rss_bytes() -> Option<u64> {
 }
 
 /// CPU seconds (user and system, all threads) this process has used so far (`getrusage`).
+#[cfg(unix)]
 pub fn cpu_seconds() -> Option<f64> {
     // SAFETY: getrusage only fills `u`, which is plain data.
     let u = unsafe {
@@ -20,6 +21,7 @@ pub fn cpu_seconds() -> Option<f64> {
 
 /// Bytes that an unprivileged process may still write on the file system holding `dir`
 /// (`statvfs`); None where it cannot be read.
+#[cfg(unix)]
 pub fn free_bytes(dir: &std::path::Path) -> Option<u64> {
     use std::os::unix::ffi::OsStrExt;
     let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
@@ -29,6 +31,18 @@ pub fn free_bytes(dir: &std::path::Path) -> Option<u64> {
         (libc::statvfs(c.as_ptr(), &mut s) == 0).then_some(s)
     }?;
     Some(s.f_bavail as u64 * s.f_frsize as u64)
+}
+
+/// Not known outside Unix (the web viewer's WebAssembly).
+#[cfg(not(unix))]
+pub fn cpu_seconds() -> Option<f64> {
+    None
+}
+
+/// Not known outside Unix (the web viewer's WebAssembly).
+#[cfg(not(unix))]
+pub fn free_bytes(_: &std::path::Path) -> Option<u64> {
+    None
 }
 
 #[cfg(test)]

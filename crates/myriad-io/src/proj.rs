@@ -19,6 +19,7 @@ type Str = *const c_char;
 
 /// The functions of PROJ's C API used here (proj.h, PROJ 8 and later).
 struct Api {
+    #[cfg(not(target_arch = "wasm32"))]
     _lib: libloading::Library,
     context_create: unsafe extern "C" fn() -> *mut Ctx,
     context_destroy: unsafe extern "C" fn(*mut Ctx) -> *mut Ctx,
@@ -98,6 +99,13 @@ pub fn available() -> bool {
     api().is_ok()
 }
 
+/// No PROJ in the browser (the web viewer's WebAssembly reads points, never reprojects them).
+#[cfg(target_arch = "wasm32")]
+fn load() -> Result<Api, String> {
+    Err(MISSING.to_string())
+}
+
+#[cfg(not(target_arch = "wasm32"))]
 fn load() -> Result<Api, String> {
     let names: Vec<String> = match std::env::var("MYRIAD_LIBPROJ") {
         Ok(p) if !p.is_empty() => vec![p],

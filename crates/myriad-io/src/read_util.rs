@@ -7,22 +7,35 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
-/// The whole of a small file a user names (a token file, a certificate, an import), read with a
-/// bound: a device (such as `/dev/zero` or `/dev/urandom`), a folder or a socket is refused by
-/// what it is, and a file or pipe of more than `max` bytes by its size, after at most `max + 1`
-/// bytes were read.
-pub fn read_small(path: &Path, max: u64) -> Result<Vec<u8>> {
+/// What a file that is not one is (a device, a socket), by its type.
+#[cfg(unix)]
+fn special(kind: &std::fs::FileType) -> Option<&'static str> {
     use std::os::unix::fs::FileTypeExt;
-    let f = File::open(path).map_err(|e| Error::io(path, e))?;
-    let kind = f.metadata().map_err(|e| Error::io(path, e))?.file_type();
-    let what = if kind.is_dir() {
-        Some("a folder")
-    } else if kind.is_char_device() || kind.is_block_device() {
+    if kind.is_char_device() || kind.is_block_device() {
         Some("a device")
     } else if kind.is_socket() {
         Some("a socket")
     } else {
         None
+    }
+}
+
+#[cfg(not(unix))]
+fn special(_: &std::fs::FileType) -> Option<&'static str> {
+    None
+}
+
+/// The whole of a small file a user names (a token file, a certificate, an import), read with a
+/// bound: a device (such as `/dev/zero` or `/dev/urandom`), a folder or a socket is refused by
+/// what it is, and a file or pipe of more than `max` bytes by its size, after at most `max + 1`
+/// bytes were read.
+pub fn read_small(path: &Path, max: u64) -> Result<Vec<u8>> {
+    let f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let kind = f.metadata().map_err(|e| Error::io(path, e))?.file_type();
+    let what = if kind.is_dir() {
+        Some("a folder")
+    } else {
+        special(&kind)
     };
     if let Some(what) = what {
         return Err(Error::Invalid(format!(

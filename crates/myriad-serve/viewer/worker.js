@@ -44,6 +44,72 @@ function myr_read(file, offset, len, dst) {
   return 0;
 }
 
+// A cloud format's dataset (COPC, EPT, Potree 2.0) is read by the module itself: its files by
+// their URLs, each range by one synchronous request.
+let foreign = false;
+
+function urlAt(ptr, len) {
+  return new TextDecoder().decode(memory(ptr, len).slice());
+}
+
+// The length of the resource at a URL (HEAD), or -1.
+function myr_size(ptr, len) {
+  const url = urlAt(ptr, len);
+  const x = new XMLHttpRequest();
+  x.open("HEAD", url, false);
+  try {
+    x.send();
+  } catch (e) {
+    failure = `${url}: no answer this page may read (the server is down, or sends no CORS headers)`;
+    return -1;
+  }
+  stats.requests += 1;
+  const n = Number(x.getResponseHeader("content-length"));
+  if (x.status !== 200 || !(n >= 0)) {
+    failure = `${url}: HTTP ${x.status}`;
+    return -1;
+  }
+  return n;
+}
+
+// One range of the resource at a URL into memory at `dst`: 0 when it came whole.
+function myr_get(ptr, len, offset, n, dst) {
+  const url = urlAt(ptr, len);
+  const x = new XMLHttpRequest();
+  x.open("GET", url, false);
+  x.responseType = "arraybuffer";
+  x.setRequestHeader("Range", `bytes=${offset}-${offset + n - 1}`);
+  try {
+    x.send();
+  } catch (e) {
+    failure = `${url}: ${e}`;
+    return 1;
+  }
+  stats.requests += 1;
+  if (x.status !== 206 || !x.response || x.response.byteLength !== n) {
+    failure = `${url}: asked for ${n} bytes at ${offset}, got HTTP ${x.status}` +
+      (x.status === 200 ? " (the server ignores Range)" : "");
+    return 1;
+  }
+  stats.bytes += n;
+  memory(dst, n).set(new Uint8Array(x.response));
+  return 0;
+}
+
+// The module's imports: the reads above, and stubs that say so for the browser glue some
+// crates link in but the viewer never calls (chrono's clock, through wasm-bindgen).
+function imports(module) {
+  const all = { env: { myr_read, myr_size, myr_get } };
+  for (const i of WebAssembly.Module.imports(module)) {
+    if (i.kind !== "function" || (all[i.module] && all[i.module][i.name])) continue;
+    all[i.module] = all[i.module] || {};
+    all[i.module][i.name] = () => {
+      throw new Error(`${i.module}.${i.name}: not available in the viewer`);
+    };
+  }
+  return all;
+}
+
 function text(len) {
   return new TextDecoder().decode(memory(wasm.exports.myr_out(), len).slice());
 }
@@ -103,31 +169,45 @@ function nodeArgs(m) {
     m.origin[0], m.origin[1], m.origin[2], ...words];
 }
 
+// A node of a cloud format: read and decoded by the module (the range requests synchronous).
+function decodeRead(m) {
+  const n = withArgs(nodeArgs(m), (a) => wasm.exports.myr_decode_read(a, m.scheme, m.z[0], m.z[1]));
+  return decoded(memory(wasm.exports.myr_out(), n).slice());
+}
+
+function decoded(out) {
+  const count = new DataView(out.buffer).getUint32(0, true);
+  if (count === 0xffffffff) {
+    const m = new TextDecoder().decode(out.subarray(4)) + (failure ? ` (${failure})` : "");
+    failure = "";
+    throw new Error(m);
+  }
+  const positions = new Float32Array(out.buffer.slice(4, 4 + count * 12));
+  const colours = new Uint8Array(out.buffer.slice(4 + count * 12, 4 + count * 16));
+  // Then the node's points per class (hidden ones included).
+  const view = new DataView(out.buffer, 4 + count * 16);
+  const classes = [];
+  for (let i = 0; i < view.getUint32(0, true); i++) {
+    classes.push([view.getUint32(4 + 8 * i, true), view.getUint32(8 + 8 * i, true)]);
+  }
+  return { positions, colours, classes };
+}
+
 async function decode(m) {
+  if (foreign) return decodeRead(m);
   const page = await fetchPage(m.page);
   const p = put(page);
   try {
     const n = withArgs(nodeArgs(m), (a) =>
       wasm.exports.myr_decode(p, page.byteLength, a, m.scheme, m.z[0], m.z[1]));
-    const out = memory(wasm.exports.myr_out(), n).slice();
-    const count = new DataView(out.buffer).getUint32(0, true);
-    if (count === 0xffffffff) throw new Error(new TextDecoder().decode(out.subarray(4)));
-    const positions = new Float32Array(out.buffer.slice(4, 4 + count * 12));
-    const colours = new Uint8Array(out.buffer.slice(4 + count * 12, 4 + count * 16));
-    // Then the node's points per class (hidden ones included).
-    const view = new DataView(out.buffer, 4 + count * 16);
-    const classes = [];
-    for (let i = 0; i < view.getUint32(0, true); i++) {
-      classes.push([view.getUint32(4 + 8 * i, true), view.getUint32(8 + 8 * i, true)]);
-    }
-    return { positions, colours, classes };
+    return decoded(memory(wasm.exports.myr_out(), n).slice());
   } finally {
     wasm.exports.myr_free(p, page.byteLength);
   }
 }
 
 async function point(m) {
-  const page = await fetchPage(m.page);
+  const page = foreign ? new Uint8Array(0) : await fetchPage(m.page);
   const p = put(page);
   try {
     return json(withArgs(nodeArgs(m), (a) => wasm.exports.myr_point(p, page.byteLength, a, m.index)));
@@ -142,11 +222,13 @@ onmessage = async (e) => {
     if (m.type === "init") {
       const url = m.url;
       urls = [url];
-      wasm = await WebAssembly.instantiate(m.module, { env: { myr_read } });
+      wasm = await WebAssembly.instantiate(m.module, imports(m.module));
+      withName(new URL(url, self.location.href).href, (p, n) => wasm.exports.myr_base(p, n));
       const open = m.role === "select" ? wasm.exports.myr_open : wasm.exports.myr_open_pages;
       const info = withName(m.name, (p, n) => json(open(m.length, p, n)));
       const base = new URL(url, self.location.href);
       urls = [url, ...(info.files || []).map((f) => new URL(f, base).href)];
+      foreign = !!info.foreign;
       postMessage({ id: m.id, info, stats });
     } else if (m.type === "camera") {
       postMessage({ id: m.id, camera: json(wasm.exports.myr_camera(m.width, m.height, m.fov)) });

@@ -99,6 +99,9 @@ impl Viewer {
             "crs": m.crs,
             // The files besides the dataset's own that hold its pages, relative to it.
             "files": m.files.iter().map(|f| f.path.as_str()).collect::<Vec<_>>(),
+            // A cloud format read in place ("COPC 1.0", "EPT", "Potree 2.0"): its nodes are read by
+            // the decoders themselves, not fetched as pages.
+            "foreign": self.dataset.foreign_format(),
             // The ASPRS classes' names and colours (as `render` colours them), for the class list.
             "classes": (0..=255u8).map(|c| json!({
                 "class": c,
@@ -275,9 +278,22 @@ pub fn decode(
     z_range: (f64, f64),
     shown: &Bound,
 ) -> Result<Decoded, String> {
-    let mut b = ds
+    let b = ds
         .decode_node(e, bytes, &ds.meta.schema)
         .map_err(|d| ds.damage_error(&d).to_string())?;
+    Ok(decoded(b, e, origin, colour, z_range, shown))
+}
+
+/// A node's points (decoded from a page, or read in place from a cloud format) for the GPU, as
+/// [`decode`] makes them.
+pub fn decoded(
+    mut b: PointBatch,
+    e: &NodeEntry,
+    origin: [f64; 3],
+    colour: ColorBy,
+    z_range: (f64, f64),
+    shown: &Bound,
+) -> Decoded {
     let classes = keep_shown(&mut b, shown);
     let positions = b
         .positions
@@ -285,11 +301,11 @@ pub fn decode(
         .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
         .collect();
     let colours = colours(&b, b.len(), colour, z_range, e.key.level);
-    Ok(Decoded {
+    Decoded {
         positions,
         colours,
         classes,
-    })
+    }
 }
 
 /// Every attribute of point `i` of a decoded node, world coordinates in full.

@@ -18,6 +18,79 @@ unsafe extern "C" {
     /// Copies `len` bytes at `offset` of file `file` (0: the dataset's own, `i`: the `i`-th
     /// it links) into memory at `dst`; 0 when it did.
     fn myr_read(file: u32, offset: f64, len: u32, dst: *mut u8) -> i32;
+    /// The length of the resource at the URL (`url_len` bytes at `url`), by a HEAD request; -1
+    /// when there was no answer (the reason kept by the JavaScript).
+    fn myr_size(url: *const u8, url_len: u32) -> f64;
+    /// Copies `len` bytes at `offset` of the resource at the URL into memory at `dst`, by one
+    /// range request; 0 when it did.
+    fn myr_get(url: *const u8, url_len: u32, offset: f64, len: u32, dst: *mut u8) -> i32;
+}
+
+/// A resource of a cloud format's dataset (a COPC file, an EPT node or page, Potree's
+/// `octree.bin`) by its URL: its length from a HEAD request, its first `head` bytes read when
+/// opened and kept (a COPC header and VLRs, a JSON page read whole), any other range by one
+/// request.
+struct UrlBytes {
+    url: String,
+    len: u64,
+    head: Vec<u8>,
+}
+
+impl UrlBytes {
+    fn open(url: &str, head: usize) -> std::io::Result<Arc<dyn ByteSource>> {
+        // SAFETY: the import reads `url.len()` bytes at `url.as_ptr()`.
+        let len = unsafe { myr_size(url.as_ptr(), url.len() as u32) };
+        if !(len >= 0.0) {
+            return Err(std::io::Error::other(format!(
+                "{url}: no answer to a HEAD request"
+            )));
+        }
+        let mut u = UrlBytes {
+            url: url.to_string(),
+            len: len as u64,
+            head: Vec::new(),
+        };
+        let n = (head as u64).min(u.len) as usize;
+        u.head = u.get(0, n)?;
+        Ok(Arc::new(u))
+    }
+
+    fn get(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+        let mut b = vec![0u8; len];
+        if len == 0 {
+            return Ok(b);
+        }
+        // SAFETY: `b` holds `len` writable bytes; the import writes at most that many.
+        let r = unsafe {
+            myr_get(
+                self.url.as_ptr(),
+                self.url.len() as u32,
+                offset as f64,
+                len as u32,
+                b.as_mut_ptr(),
+            )
+        };
+        match r {
+            0 => Ok(b),
+            _ => Err(std::io::Error::other(format!(
+                "{}: range request for {len} bytes at {offset} failed",
+                self.url
+            ))),
+        }
+    }
+}
+
+impl ByteSource for UrlBytes {
+    fn len(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&self, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+        let end = offset.saturating_add(len as u64);
+        if end <= self.head.len() as u64 {
+            return Ok(self.head[offset as usize..end as usize].to_vec());
+        }
+        self.get(offset, len)
+    }
 }
 
 /// A file of the dataset over the viewer's range requests.
@@ -36,8 +109,16 @@ impl Remote {
     }
 }
 
-/// Opens a dataset whose linked files are read through the same import.
+/// Opens a dataset whose linked files are read through the same import; a cloud format's
+/// (named by the address [`myr_base`] gave) by its URL, its files read through [`UrlBytes`].
 fn open(len: f64, name: &str) -> myriad_core::Result<Dataset> {
+    let base = BASE.with(|b| b.borrow().clone());
+    // The kind by the address's path (a query, such as a version, left out).
+    let url = base.split(['?', '#']).next().unwrap_or("").to_string();
+    if myriad_format::foreign::kind_of(Path::new(&url)).is_some() {
+        myriad_format::foreign::set_url_opener(UrlBytes::open);
+        return Dataset::open_url(Path::new(&url));
+    }
     let opener: myriad_format::linked::Opener = Arc::new(|i, f| {
         Ok(Arc::new(Remote {
             file: i as u32 + 1,
@@ -69,6 +150,8 @@ impl ByteSource for Remote {
 }
 
 thread_local! {
+    /// The dataset's absolute address ([`myr_base`]).
+    static BASE: RefCell<String> = const { RefCell::new(String::new()) };
     static VIEWER: RefCell<Option<Viewer>> = const { RefCell::new(None) };
     static DATASET: RefCell<Option<Dataset>> = const { RefCell::new(None) };
     static OUT: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
@@ -189,6 +272,17 @@ fn name(p: *const u8, n: u32) -> String {
     String::from_utf8_lossy(unsafe { bytes(p, n) }).into_owned()
 }
 
+/// Gives the dataset's absolute address (before [`myr_open`] or [`myr_open_pages`]): a cloud
+/// format's dataset is opened by it, its other files relative to it.
+///
+/// # Safety
+/// `p..p + n` is memory the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_base(p: *const u8, n: u32) {
+    let url = name(p, n);
+    BASE.with(|b| *b.borrow_mut() = url);
+}
+
 /// Opens the dataset of `len` bytes for selecting (the selection worker): its information.
 #[unsafe(no_mangle)]
 pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
@@ -208,7 +302,7 @@ pub extern "C" fn myr_open_pages(len: f64, name_ptr: *const u8, name_len: u32) -
     match open(len, &name(name_ptr, name_len)) {
         Ok(d) => {
             let files: Vec<&str> = d.meta.files.iter().map(|f| f.path.as_str()).collect();
-            let info = json!({ "files": files });
+            let info = json!({ "files": files, "foreign": d.foreign_format() });
             DATASET.with(|s| *s.borrow_mut() = Some(d));
             answer_json(info)
         }
@@ -349,6 +443,11 @@ pub unsafe extern "C" fn myr_decode(
             &shown_by(ds, &hidden)?,
         )
     });
+    answer_decoded(r)
+}
+
+/// A decoded node as [`myr_decode`] answers it.
+fn answer_decoded(r: Option<Result<crate::Decoded, String>>) -> u32 {
     match r {
         Some(Ok(d)) => {
             let n = d.colours.len();
@@ -377,6 +476,41 @@ pub unsafe extern "C" fn myr_decode(
             answer(out)
         }
     }
+}
+
+/// [`myr_decode`] of a node of a cloud format read in place: its points read by the reader
+/// itself (a COPC chunk, an EPT node file, a Potree node's bytes, by range requests), then
+/// answered as [`myr_decode`] answers.
+///
+/// # Safety
+/// `args` holds 19 f64s as for [`myr_decode`].
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_decode_read(
+    args: *const f64,
+    scheme: u32,
+    z_lo: f64,
+    z_hi: f64,
+) -> u32 {
+    // SAFETY: the caller's promise.
+    let a = unsafe { std::slice::from_raw_parts(args, ARGS) };
+    let e = node_entry(a);
+    let colour = colour(scheme);
+    let hidden = hidden_classes(a);
+    let r = with_dataset(|ds| {
+        let b = ds
+            .read_node(&e)
+            .map_err(|d| ds.damage_error(&d).to_string())?;
+        let shown = shown_by(ds, &hidden)?;
+        Ok::<_, String>(crate::decoded(
+            b,
+            &e,
+            [a[8], a[9], a[10]],
+            colour,
+            (z_lo, z_hi),
+            &shown,
+        ))
+    });
+    answer_decoded(r)
 }
 
 /// f64s of a node's arguments: see [`myr_decode`].
@@ -426,8 +560,11 @@ pub unsafe extern "C" fn myr_point(
     let e = node_entry(a);
     // The index is into the points shown, as drawn.
     let r = with_dataset(|ds| -> Result<_, String> {
-        let mut batch = (ds.decode_node(&e, b, &ds.meta.schema))
-            .map_err(|d| ds.damage_error(&d).to_string())?;
+        let read = match ds.foreign_format() {
+            Some(_) => ds.read_node(&e),
+            None => ds.decode_node(&e, b, &ds.meta.schema),
+        };
+        let mut batch = read.map_err(|d| ds.damage_error(&d).to_string())?;
         keep_shown(&mut batch, &shown_by(ds, &hidden_classes(a))?);
         Ok(batch)
     });

@@ -6,7 +6,7 @@ use clap::Args;
 use myriad_build::export::{self, ExportOptions, Target};
 use myriad_core::Aabb;
 use myriad_format::Dataset;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::dataset::parse_box;
@@ -27,7 +27,7 @@ pub struct ExportArgs {
     #[arg(long = "to", value_parser = parse_to)]
     target: Option<To>,
     /// --to web: another dataset the site opens (a URL, on this host or another that sends
-    /// CORS headers; or a .myr, copied in); may be given again
+    /// CORS headers; or a .myr, COPC, EPT or Potree 2.0 here, linked in); may be given again
     #[arg(long, value_name = "DATASET")]
     add: Vec<PathBuf>,
     /// Replace an existing output (a folder only when it holds a Potree or 3D Tiles export)
@@ -168,19 +168,30 @@ fn web(a: &ExportArgs) -> Result<()> {
             continue;
         }
         let ds = Dataset::open(p)?;
-        if let Some(f) = ds.foreign_format() {
-            bail!(
-                "{text}: a {f} dataset: the web viewer reads .myr datasets (convert it first, or give the URL of one)"
-            );
-        }
         if !ds.files().is_empty() {
             bail!(
                 "{text}: a dataset of several files: merge it into one first (merge --single-file)"
             );
         }
-        let name = p
-            .file_name()
-            .map_or("dataset.myr".into(), |n| n.to_string_lossy().into_owned());
+        if ds.meta.structure == "tiles" {
+            bail!(
+                "{text}: a set of tiles: the web viewer opens one COPC, EPT, Potree 2.0 or .myr dataset at a time (--add each)"
+            );
+        }
+        // EPT and Potree 2.0 are folders (their document named, or the folder); the rest files.
+        let document = match ds.foreign_format() {
+            Some("EPT") => Some("ept.json"),
+            Some("Potree 2.0") => Some("metadata.json"),
+            _ => None,
+        };
+        let from = match document.is_some() && !p.is_dir() {
+            true => p.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            false => p.clone(),
+        };
+        let name = std::fs::canonicalize(&from)
+            .ok()
+            .and_then(|c| c.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "dataset".into());
         std::fs::create_dir_all(&data)?;
         let mut to = data.join(&name);
         let mut i = 1;
@@ -188,13 +199,14 @@ fn web(a: &ExportArgs) -> Result<()> {
             to = data.join(format!("{i}-{name}"));
             i += 1;
         }
-        // A hard link costs nothing and the original is never written through it (the site is
-        // read only); another file system gets a copy.
-        if std::fs::hard_link(p, &to).is_err() {
-            std::fs::copy(p, &to).map_err(|e| myriad_core::Error::io(p, e))?;
+        copied += link_or_copy(&from, &to)?;
+        let mut rel = to
+            .strip_prefix(dir.temp())
+            .expect("below the site")
+            .to_path_buf();
+        if let Some(d) = document {
+            rel = rel.join(d);
         }
-        copied += ds.file_length;
-        let rel = to.strip_prefix(dir.temp()).expect("below the site");
         urls.push(rel.to_string_lossy().replace('\\', "/"));
     }
     myriad_serve::viewer::write_site(dir.temp(), &urls)
@@ -208,6 +220,26 @@ fn web(a: &ExportArgs) -> Result<()> {
         copied as f64 / 1e6
     );
     Ok(())
+}
+
+/// `from` (a file, or a folder and everything below it) at `to`, each file hard-linked (costs
+/// nothing; the original is never written through it, the site is read only) or, on another
+/// file system, copied: the bytes it holds.
+fn link_or_copy(from: &Path, to: &Path) -> Result<u64> {
+    let meta = std::fs::metadata(from).map_err(|e| myriad_core::Error::io(from, e))?;
+    if meta.is_dir() {
+        std::fs::create_dir_all(to).map_err(|e| myriad_core::Error::io(to, e))?;
+        let mut total = 0;
+        for e in std::fs::read_dir(from).map_err(|e| myriad_core::Error::io(from, e))? {
+            let e = e.map_err(|e| myriad_core::Error::io(from, e))?;
+            total += link_or_copy(&e.path(), &to.join(e.file_name()))?;
+        }
+        return Ok(total);
+    }
+    if std::fs::hard_link(from, to).is_err() {
+        std::fs::copy(from, to).map_err(|e| myriad_core::Error::io(from, e))?;
+    }
+    Ok(meta.len())
 }
 
 /// The export's options from the command line.

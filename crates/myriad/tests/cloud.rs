@@ -255,7 +255,11 @@ fn a_copc_export_reads_in_place_as_its_myr() {
     std::fs::write(&broken, fc.to_string()).unwrap();
     let r = myriad(&["info", s(&broken)]);
     assert_eq!(r.code, 1, "{}", r.stderr);
-    assert!(r.stderr.contains("gone.copc.laz") && r.stderr.trim().lines().count() == 1, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("gone.copc.laz") && r.stderr.trim().lines().count() == 1,
+        "{}",
+        r.stderr
+    );
 
     // Over HTTP through `myriad serve`: the same image.
     let server = serve(&[s(&copc)], Stdio::inherit());

@@ -121,10 +121,45 @@ fn the_web_viewer_runs_from_a_static_site() {
     ]);
     assert_eq!(r.code, 1, "{}", r.stderr);
 
+    // The cloud formats beside it, read in place by the browser: a COPC file (Myriad's export)
+    // and, where the shared data is here, an EPT dataset Entwine wrote (its folder).
+    let copc = d.join("town.copc.laz");
+    ok(&["export", s(&myr), "-o", s(&copc), "--to", "copc"]);
+    let ept =
+        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/ept/lone-star-laszip"))
+            .filter(|p| p.join("ept.json").is_file());
+    if ept.is_none() {
+        eprintln!("SKIPPED (the EPT part): ../shared/ept/lone-star-laszip not found");
+    }
+    let cloud = d.join("cloud");
+    let mut args = vec![
+        "export",
+        s(&myr),
+        "-o",
+        s(&cloud),
+        "--to",
+        "web",
+        "--add",
+        s(&copc),
+    ];
+    if let Some(e) = &ept {
+        args.extend(["--add", s(e)]);
+    }
+    ok(&args);
+    let page = std::fs::read_to_string(cloud.join("index.html")).unwrap();
+    assert!(page.contains("\"data/town.copc.laz\""), "{page}");
+    if ept.is_some() {
+        assert!(
+            page.contains("\"data/lone-star-laszip/ept.json\""),
+            "{page}"
+        );
+    }
+
     let Some(exe) = browser::find() else {
         eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
         return;
     };
+    std::fs::create_dir_all(d.join("nginx-cloud")).unwrap();
     let Some((_nginx, port)) = nginx(&site, &d) else {
         eprintln!("SKIPPED: no nginx (apt-get install nginx-light; .ci/run installs it)");
         return;
@@ -145,6 +180,39 @@ fn the_web_viewer_runs_from_a_static_site() {
     eprintln!("the static site on nginx: {st}");
     assert_eq!(st["errors"], serde_json::json!([]), "{st}");
     assert_eq!(st["points"], 100_000, "{st}");
+
+    // COPC and EPT from a static server: every point, decoded in the viewer's workers.
+    let (_cloud_server, port) = nginx(&cloud, &d.join("nginx-cloud")).unwrap();
+    let mut sets = vec![("data/town.copc.laz", 100_000u64)];
+    if ept.is_some() {
+        sets.push(("data/lone-star-laszip/ept.json", 518_862));
+    }
+    for (set, points) in sets {
+        b.open(
+            &format!("http://127.0.0.1:{port}/index.html?d={set}#renderer=webgl2&budget=1000000"),
+            640,
+            480,
+        )
+        .unwrap();
+        let st = b
+            .wait_for(
+                "window.myriad && (myriad.state.converged || myriad.state.errors.length > 0) && myriad.state",
+                Duration::from_secs(240),
+            )
+            .unwrap();
+        eprintln!(
+            "{set} from nginx: points {}, first image {} ms, converged {} ms, requests {}, bytes {}",
+            st["points"], st["firstImageMs"], st["convergedMs"], st["requests"], st["bytes"]
+        );
+        assert_eq!(st["errors"], serde_json::json!([]), "{set}: {st}");
+        // Converged: every point of the small COPC; of the EPT, what is bigger than a pixel in
+        // this view (its deepest nodes are finer).
+        let drawn = st["points"].as_u64().unwrap();
+        assert!(drawn <= points && drawn * 2 > points, "{set}: {st}");
+        if set.ends_with(".copc.laz") {
+            assert_eq!(drawn, points, "{set}: {st}");
+        }
+    }
 
     // A server that answers a range request with the whole file: one line, nothing drawn.
     let port = free_port();

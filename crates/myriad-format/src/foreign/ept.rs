@@ -415,11 +415,11 @@ impl Foreign for Ept {
             }
             DataType::Binary => self.decode_binary(e.key, &rel, &b, e.points as u64)?,
             DataType::Zstandard => {
-                let raw =
-                    zstd::bulk::decompress(&b, (e.points as usize).saturating_mul(self.record_len))
-                        .map_err(|err| {
-                            damage(e.key, 0, format!("{file}: zstandard: {err}"), false)
-                        })?;
+                let raw = crate::codec::decompress(
+                    &b,
+                    (e.points as usize).saturating_mul(self.record_len),
+                )
+                .map_err(|err| damage(e.key, 0, format!("{file}: zstandard: {err}"), false))?;
                 self.decode_binary(e.key, &rel, &raw, e.points as u64)?
             }
         };

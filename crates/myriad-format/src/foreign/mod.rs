@@ -14,10 +14,11 @@
 pub mod copc;
 pub mod ept;
 pub mod potree;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod tiles;
 
 use crate::hierarchy::PAGE_LEVELS;
-use crate::{ByteSource, ChildPage, Damage, FileBytes, HierarchyPage, NodeEntry, PageRef};
+use crate::{ByteSource, ChildPage, Damage, HierarchyPage, NodeEntry, PageRef};
 use myriad_core::{Error, NodeKey, PointBatch, Result};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
@@ -68,7 +69,7 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
     if lower.ends_with(".vpc") {
         return Some(Kind::Tiles);
     }
-    if crate::remote::is_url(path) {
+    if is_url(path) {
         return None;
     }
     if path.is_dir() {
@@ -78,6 +79,7 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
         if path.join("metadata.json").is_file() && path.join("hierarchy.bin").is_file() {
             return Some(Kind::Potree);
         }
+        #[cfg(not(target_arch = "wasm32"))]
         if !tiles::folder_tiles(path).is_empty() {
             return Some(Kind::Tiles);
         }
@@ -93,7 +95,41 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
 /// Whether a `metadata.json` is Potree 2.0's: a URL by its name; a file by the
 /// `hierarchy.bin` beside it.
 fn potree_metadata(path: &Path) -> bool {
-    crate::remote::is_url(path) || path.with_file_name("hierarchy.bin").is_file()
+    is_url(path) || path.with_file_name("hierarchy.bin").is_file()
+}
+
+/// Whether `path` is a URL (`http(s)://`, `s3://`).
+pub(crate) fn is_url(path: &Path) -> bool {
+    path.to_str().is_some_and(|s| {
+        s.starts_with("http://") || s.starts_with("https://") || s.starts_with("s3://")
+    })
+}
+
+/// How the web viewer's WebAssembly opens a URL for range reads (its workers' synchronous
+/// requests), with the first `head` bytes in the opening request where it can.
+#[cfg(target_arch = "wasm32")]
+pub type UrlOpener = fn(&str, usize) -> std::io::Result<Arc<dyn ByteSource>>;
+
+#[cfg(target_arch = "wasm32")]
+static URL_OPENER: std::sync::OnceLock<UrlOpener> = std::sync::OnceLock::new();
+
+/// Sets how URLs are opened in WebAssembly (once, by the web viewer).
+#[cfg(target_arch = "wasm32")]
+pub fn set_url_opener(f: UrlOpener) {
+    let _ = URL_OPENER.set(f);
+}
+
+/// `url` opened for range reads: over HTTP natively, through the web viewer in WebAssembly.
+pub(crate) fn open_url(url: &str, head: usize) -> Result<Arc<dyn ByteSource>> {
+    #[cfg(not(target_arch = "wasm32"))]
+    return Ok(Arc::new(crate::remote::HttpBytes::open_with_head(
+        url, head,
+    )?));
+    #[cfg(target_arch = "wasm32")]
+    match URL_OPENER.get() {
+        Some(f) => f(url, head).map_err(|e| Error::io(Path::new(url), e)),
+        None => Err(Error::Invalid(format!("{url}: no way to open URLs here"))),
+    }
 }
 
 /// Where a dataset of several files lies (a folder, or a URL's folder), and the counts of what
@@ -119,7 +155,7 @@ impl Place {
     pub(crate) fn new(base: &Path) -> Place {
         let base = base.to_string_lossy().into_owned();
         Place {
-            url: crate::remote::is_url(Path::new(&base)),
+            url: is_url(Path::new(&base)),
             base,
             requests: AtomicU64::new(0),
             bytes: AtomicU64::new(0),
@@ -146,11 +182,12 @@ impl Place {
         let name = self.name(rel);
         if self.url {
             // Counted by the source itself ([`ByteSource::fetched`]).
-            return Ok(Arc::new(crate::remote::HttpBytes::open_with_head(
-                &name, head,
-            )?));
+            return open_url(&name, head);
         }
-        Ok(Arc::new(FileBytes::open(Path::new(&name))?))
+        #[cfg(not(target_arch = "wasm32"))]
+        return Ok(Arc::new(crate::FileBytes::open(Path::new(&name))?));
+        #[cfg(target_arch = "wasm32")]
+        Err(Error::Invalid(format!("{name}: no files here, only URLs")))
     }
 
     /// A file of the dataset read whole, refused past `most` bytes: one request over HTTP for
@@ -160,22 +197,21 @@ impl Place {
         if !self.url {
             return myriad_io::read_small(Path::new(&name), most).map_err(|e| e.to_string());
         }
-        let h = crate::remote::HttpBytes::open_with_head(&name, WHOLE_HEAD)
-            .map_err(|e| e.to_string())?;
+        let h = open_url(&name, WHOLE_HEAD).map_err(|e| e.to_string())?;
         if h.len() > most {
-            self.count(&h);
+            self.count(&*h);
             return Err(format!("{name}: {} bytes, more than {most}", h.len()));
         }
         let b = h
             .read_at(0, h.len() as usize)
             .map_err(|e| format!("{name}: {e}"));
-        self.count(&h);
+        self.count(&*h);
         b
     }
 
     /// Adds a source's requests and bytes to the place's (after its reads).
-    fn count(&self, h: &crate::remote::HttpBytes) {
-        let (r, b) = h.stats();
+    fn count(&self, h: &dyn ByteSource) {
+        let (r, b) = h.fetched().unwrap_or_default();
         self.requests.fetch_add(r, Ordering::Relaxed);
         self.bytes.fetch_add(b, Ordering::Relaxed);
         if let Some(c) = h.changed() {
@@ -384,7 +420,7 @@ pub(crate) fn as_damage(key: NodeKey, e: Error, at: u64) -> Damage {
 /// URL or as the folder holding it: where the dataset lies, the document's name, and the
 /// document (a syntax error named by its line).
 pub(crate) fn open_json(path: &Path, file: &str) -> Result<(Place, std::path::PathBuf, Value)> {
-    let name = match !crate::remote::is_url(path) && path.is_dir() {
+    let name = match !is_url(path) && path.is_dir() {
         true => path.join(file),
         false => path.to_path_buf(),
     };
