@@ -1,24 +1,26 @@
-//! `myriad bench web DATASET [--potree DIR]`: time to the first image and to convergence in
+//! `myriad bench web DATASET [--potree DATASET]`: time to the first image and to convergence in
 //! the browser (Debian's Chromium, headless, WebGL2 on SwiftShader), for Myriad's web viewer on
-//! the dataset and, with `--potree`, for the Potree 1.8 viewer on PotreeConverter's output of
-//! the same scan, both from one `myriad serve` over loopback, alternating, each run in a fresh
-//! browser (nothing cached). Both at the same point budget and window size, each from its own
+//! the dataset (a `.myr`, COPC, EPT or Potree 2.0) and, with `--potree`, for the Potree 1.8
+//! viewer on a Potree 2.0 or EPT dataset (its two loaders: the same data as Myriad's, or
+//! PotreeConverter's output of the same scan). Both are pages of one static site (Myriad's as
+//! `export --to web` writes it) served by Debian's nginx over loopback, alternating, each run in
+//! a fresh browser (nothing cached), at the same point budget and window size, each from its own
 //! overview (Myriad's default camera, Potree's `fitToScreen`). Reported: medians, requests and
 //! bytes read.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use myriad_serve::browser::{self, Browser};
-use myriad_serve::{Catalog, Options, Server};
 use serde_json::Value;
 use std::path::PathBuf;
 use std::time::Duration;
 
 #[derive(Args)]
 pub struct WebBenchArgs {
-    /// The dataset (.myr) for Myriad's viewer
+    /// The dataset for Myriad's viewer: .myr, COPC, EPT (ept.json or its folder) or Potree 2.0
     dataset: PathBuf,
-    /// PotreeConverter 2's output for the same scan (the folder of metadata.json), for Potree
+    /// The dataset for Potree 1.8: Potree 2.0 (metadata.json or its folder) or EPT (ept.json or
+    /// its folder)
     #[arg(long)]
     potree: Option<PathBuf>,
     /// The Potree 1.8 viewer (its folder of libs/)
@@ -50,6 +52,8 @@ const POTREE_PAGE: &str = r#"<!doctype html>
 <script src="LIBS/proj4/proj4.js"></script>
 <script src="LIBS/i18next/i18next.js"></script>
 <script src="LIBS/potree/potree.js"></script>
+<script src="LIBS/plasio/vendor/bluebird.js"></script>
+<script src="LIBS/plasio/js/laslaz.js"></script>
 <div id="area" style="position:absolute;width:100%;height:100%"></div>
 <script>
 const viewer = new Potree.Viewer(document.getElementById("area"));
@@ -89,58 +93,158 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// Where a dataset lies for a page of the site: the file or folder linked into `data/` and the
+/// file a viewer opens in it (a folder's `ept.json` or `metadata.json`).
+fn site_entry(path: &std::path::Path) -> Result<(PathBuf, Option<&'static str>)> {
+    let ds = myriad_format::Dataset::open(path)?;
+    let doc = match ds.foreign_format() {
+        Some("EPT") => Some("ept.json"),
+        Some("Potree 2.0") => Some("metadata.json"),
+        _ => None,
+    };
+    let at = match doc.is_some() && !path.is_dir() {
+        true => path
+            .parent()
+            .unwrap_or(std::path::Path::new("."))
+            .to_path_buf(),
+        false => path.to_path_buf(),
+    };
+    Ok((
+        std::fs::canonicalize(&at).with_context(|| at.display().to_string())?,
+        doc,
+    ))
+}
+
+/// Debian's nginx serving `root` on a free loopback port (its own files in `dir`); stopped when
+/// dropped.
+struct Nginx(std::process::Child);
+
+impl Drop for Nginx {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn nginx(root: &std::path::Path, dir: &std::path::Path) -> Result<(Nginx, u16)> {
+    let exe = ["/usr/sbin/nginx", "/usr/bin/nginx"]
+        .iter()
+        .map(std::path::Path::new)
+        .find(|p| p.exists())
+        .context("no nginx (apt-get install nginx-light)")?;
+    let port = std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port();
+    let t = dir.display();
+    let conf = dir.join("nginx.conf");
+    std::fs::write(
+        &conf,
+        format!(
+            "daemon off; master_process off; pid {t}/nginx.pid; error_log {t}/error.log warn;\n\
+             events {{}}\n\
+             http {{ access_log off; client_body_temp_path {t}; proxy_temp_path {t};\n\
+             fastcgi_temp_path {t}; uwsgi_temp_path {t}; scgi_temp_path {t};\n\
+             types {{ text/html html; text/javascript js; application/wasm wasm; application/json json; }}\n\
+             default_type application/octet-stream;\n\
+             server {{ listen 127.0.0.1:{port}; root {}; }} }}\n",
+            root.display()
+        ),
+    )?;
+    let child = std::process::Command::new(exe)
+        .arg("-c")
+        .arg(&conf)
+        .arg("-p")
+        .arg(dir)
+        .spawn()?;
+    let n = Nginx(child);
+    let t0 = std::time::Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        if t0.elapsed() > Duration::from_secs(20) {
+            bail!("nginx did not start (see {t}/error.log)");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Ok((n, port))
+}
+
 pub fn run(a: WebBenchArgs) -> Result<()> {
     let Some(exe) = browser::find() else {
         bail!("no Chromium on the PATH (apt-get install chromium)");
     };
-    let name = a
-        .dataset
-        .file_name()
-        .and_then(|n| n.to_str())
-        .context("the dataset's file name")?
-        .to_string();
-    let mut catalog = Catalog::default();
-    catalog.add_input(&a.dataset)?;
     let scratch = std::env::temp_dir().join(format!("myriad-bench-web-{}", std::process::id()));
+    let site = scratch.join("site");
+    std::fs::create_dir_all(site.join("data"))?;
+    let (mine, doc) = site_entry(&a.dataset)?;
+    let link = |from: &std::path::Path, name: &str| -> Result<String> {
+        let to = site.join("data").join(name);
+        if !to.exists() {
+            std::os::unix::fs::symlink(from, &to)?;
+        }
+        Ok(format!("data/{name}"))
+    };
+    let mine_name = mine
+        .file_name()
+        .context("the dataset's name")?
+        .to_string_lossy()
+        .into_owned();
+    let mut url = link(&mine, &mine_name)?;
+    if let Some(d) = doc {
+        url = format!("{url}/{d}");
+    }
+    myriad_serve::viewer::write_site(&site, std::slice::from_ref(&url))?;
     let potree = match &a.potree {
-        Some(dir) => {
+        Some(p) => {
             if !a.potree_viewer.join("libs/potree/potree.js").is_file() {
                 bail!(
                     "{}: not the Potree viewer (no libs/potree/potree.js)",
                     a.potree_viewer.display()
                 );
             }
-            catalog.add_input(&a.potree_viewer.join("libs"))?;
-            catalog.add_input(dir)?;
-            let cloud = dir
-                .file_name()
-                .and_then(|n| n.to_str())
-                .context("--potree's name")?;
-            let page = scratch.join("potree-page");
-            std::fs::create_dir_all(&page)?;
+            let (theirs, doc) = site_entry(p)?;
+            let Some(doc) = doc else {
+                bail!(
+                    "{}: Potree 1.8 reads Potree 2.0 and EPT, not this",
+                    p.display()
+                );
+            };
+            let name = format!(
+                "potree-{}",
+                theirs
+                    .file_name()
+                    .context("--potree's name")?
+                    .to_string_lossy()
+            );
+            let cloud = format!("{}/{doc}", link(&theirs, &name)?);
+            std::os::unix::fs::symlink(
+                std::fs::canonicalize(a.potree_viewer.join("libs"))?,
+                site.join("libs"),
+            )?;
             std::fs::write(
-                page.join("index.html"),
+                site.join("potree.html"),
                 POTREE_PAGE
-                    .replace("LIBS", "/d/libs")
-                    .replace("CLOUD", &format!("/d/{cloud}/metadata.json"))
+                    .replace("LIBS", "libs")
+                    .replace("CLOUD", &cloud)
                     .replace("BUDGET", &a.budget.to_string()),
             )?;
-            catalog.add_input(&page)?;
-            true
+            Some(doc)
         }
-        None => false,
+        None => None,
     };
-    let server = Server::start(catalog, "127.0.0.1:0".parse()?, Options::default())?;
-    let base = format!("http://{}", server.addr);
+    let (server, port) = nginx(&site, &scratch)?;
+    let base = format!("http://127.0.0.1:{port}");
     println!(
         "time to the first image in Chromium (headless, SwiftShader), {}x{}, budget {}, {} runs",
         a.width, a.height, a.budget, a.runs
     );
     let timeout = Duration::from_secs(300);
     let mut rows: Vec<Row> = vec![("Myriad web viewer", vec![], vec![], vec![])];
-    if potree {
+    if let Some(doc) = potree {
         rows.push((
-            "Potree 1.8 (PotreeConverter 2's output)",
+            if doc == "ept.json" {
+                "Potree 1.8 (its EPT loader)"
+            } else {
+                "Potree 1.8 (Potree 2.0)"
+            },
             vec![],
             vec![],
             vec![],
@@ -152,11 +256,7 @@ pub fn run(a: WebBenchArgs) -> Result<()> {
             let which = (k + run) % rows.len();
             let mut b = Browser::launch(&exe)?;
             let (first, converged, what) = if which == 0 {
-                let mut url = format!(
-                    "{base}/view/{}#budget={}",
-                    myriad_serve::href(&name),
-                    a.budget
-                );
+                let mut url = format!("{base}/index.html#budget={}", a.budget);
                 if let Some(r) = &a.renderer {
                     url.push_str(&format!("&renderer={r}"));
                 }
@@ -183,12 +283,8 @@ pub fn run(a: WebBenchArgs) -> Result<()> {
                     ),
                 )
             } else {
-                b.open(
-                    &format!("{base}/d/potree-page/index.html"),
-                    a.width,
-                    a.height,
-                )
-                .map_err(anyhow::Error::msg)?;
+                b.open(&format!("{base}/potree.html"), a.width, a.height)
+                    .map_err(anyhow::Error::msg)?;
                 let r: Value = b
                     .wait_for(
                         "window.result && window.result.converged !== null && window.result",
