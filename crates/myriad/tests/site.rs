@@ -155,11 +155,32 @@ fn the_web_viewer_runs_from_a_static_site() {
         );
     }
 
+    // The same files read by the command line from nginx (ranges over HTTP, native readers).
+    std::fs::create_dir_all(d.join("nginx-cloud")).unwrap();
+    let Some((_cloud_server, cloud_port)) = nginx(&cloud, &d.join("nginx-cloud")) else {
+        eprintln!("SKIPPED: no nginx (apt-get install nginx-light; .ci/run installs it)");
+        return;
+    };
+    let info = |url: &str| -> serde_json::Value {
+        serde_json::from_str(&ok(&["info", "--json", url])).unwrap()
+    };
+    let v = info(&format!("http://127.0.0.1:{cloud_port}/data/town.copc.laz"));
+    assert_eq!(
+        (v["points"].as_u64(), v["format"].as_str()),
+        (Some(100_000), Some("COPC 1.0")),
+        "{v}"
+    );
+    if ept.is_some() {
+        let url = format!("http://127.0.0.1:{cloud_port}/data/lone-star-laszip/ept.json");
+        assert_eq!(info(&url)["points"], 518_862);
+        let png = d.join("ept-nginx.png");
+        ok(&common::render_cpu(&url, s(&png), ("160", "120")));
+    }
+
     let Some(exe) = browser::find() else {
         eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
         return;
     };
-    std::fs::create_dir_all(d.join("nginx-cloud")).unwrap();
     let Some((_nginx, port)) = nginx(&site, &d) else {
         eprintln!("SKIPPED: no nginx (apt-get install nginx-light; .ci/run installs it)");
         return;
@@ -182,14 +203,13 @@ fn the_web_viewer_runs_from_a_static_site() {
     assert_eq!(st["points"], 100_000, "{st}");
 
     // COPC and EPT from a static server: every point, decoded in the viewer's workers.
-    let (_cloud_server, port) = nginx(&cloud, &d.join("nginx-cloud")).unwrap();
     let mut sets = vec![("data/town.copc.laz", 100_000u64)];
     if ept.is_some() {
         sets.push(("data/lone-star-laszip/ept.json", 518_862));
     }
     for (set, points) in sets {
         b.open(
-            &format!("http://127.0.0.1:{port}/index.html?d={set}#renderer=webgl2&budget=1000000"),
+            &format!("http://127.0.0.1:{cloud_port}/index.html?d={set}#renderer=webgl2&budget=1000000"),
             640,
             480,
         )
