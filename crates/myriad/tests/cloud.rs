@@ -1,5 +1,5 @@
 //! The field's cloud formats read in place by the commands (issue 66): Myriad's own COPC export
-//! renders as its `.myr` (the same pixels with every point drawn at one pixel, within a small
+//! (and copc_converter's, where it is installed) renders as its `.myr` (the same pixels with every point drawn at one pixel, within a small
 //! PSNR at the same budget), `profile`, `volume` and `extract --box` find the same points in it,
 //! nothing is written beside it, and `myriad serve` hands it to `render` over HTTP.
 
@@ -24,6 +24,17 @@ fn psnr(a: &[u8], b: &[u8]) -> f64 {
         .sum::<f64>()
         / a.len() as f64;
     10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+}
+
+/// copc_converter, a COPC writer of others' (MYRIAD_COPC_CONVERTER, else on the PATH).
+fn copc_converter() -> Option<std::path::PathBuf> {
+    if let Ok(p) = std::env::var("MYRIAD_COPC_CONVERTER") {
+        return Some(p.into()).filter(|p: &std::path::PathBuf| p.is_file());
+    }
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|d| d.join("copc_converter"))
+        .find(|p| p.is_file())
 }
 
 fn ok(args: &[&str]) -> String {
@@ -183,6 +194,45 @@ fn a_copc_export_reads_in_place_as_its_myr() {
 
     // Nothing was written beside the COPC file.
     assert_eq!(names(&sub), before);
+
+    // A second writer: copc_converter (crates.io; MYRIAD_COPC_CONVERTER or the PATH, as .ci/run
+    // installs it): every point in the same pixels, close at the same budget.
+    match copc_converter() {
+        Some(cc) => {
+            let theirs = d.join("cc.copc.laz");
+            let out = std::process::Command::new(&cc)
+                .args([s(&scan), s(&theirs), "--progress", "plain"])
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let c = d.join("full-cc.png");
+            render(
+                s(&theirs),
+                &c,
+                &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+            );
+            let (pa, pc) = (pixels(&d.join("full-myr.png")), pixels(&c));
+            let n = differ(&pa, &pc);
+            assert!(
+                n * 1000 <= pa.len() / 4,
+                "copc_converter's, every point drawn: {n} pixels differ"
+            );
+            let c = d.join("b-cc.png");
+            render(s(&theirs), &c, &[&fixed[..], &["--budget", "60k"]].concat());
+            let p = psnr(&pixels(&d.join("b-myr.png")), &pixels(&c));
+            assert!(
+                p > 20.0,
+                "copc_converter's: PSNR {p:.1} dB at the same budget"
+            );
+        }
+        None => eprintln!(
+            "SKIPPED (copc_converter's COPC): no copc_converter (cargo install copc_converter; .ci/run installs it)"
+        ),
+    }
 
     // The scan cut into four COPC tiles, read as one (a folder of them, and a `.vpc` naming
     // them): every point once, the same image with every point drawn, the same points found.

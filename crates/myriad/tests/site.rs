@@ -209,7 +209,9 @@ fn the_web_viewer_runs_from_a_static_site() {
     }
     for (set, points) in sets {
         b.open(
-            &format!("http://127.0.0.1:{cloud_port}/index.html?d={set}#renderer=webgl2&budget=1000000"),
+            &format!(
+                "http://127.0.0.1:{cloud_port}/index.html?d={set}#renderer=webgl2&budget=1000000"
+            ),
             640,
             480,
         )
