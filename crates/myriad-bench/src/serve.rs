@@ -61,7 +61,7 @@ fn hostile(
         threads.push(spawn(Box::new(move || {
             while !stop.load(Ordering::Relaxed) {
                 if let Ok(mut c) = std::net::TcpStream::connect(addr) {
-                    let _ = write!(c, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n");
+                    let _ = write!(c, "GET {path} HTTP/1.1\r\nHost: localhost\r\n\r\n");
                 }
                 std::thread::sleep(Duration::from_millis(10));
             }
@@ -101,7 +101,7 @@ fn hostile(
                 if let Ok(mut c) = std::net::TcpStream::connect(addr) {
                     let _ = write!(
                         c,
-                        "GET {path} HTTP/1.1\r\nHost: x\r\nRange: bytes={ranges}\r\n\r\n"
+                        "GET {path} HTTP/1.1\r\nHost: localhost\r\nRange: bytes={ranges}\r\n\r\n"
                     );
                     for _ in 0..20 {
                         if stop.load(Ordering::Relaxed) {
@@ -122,7 +122,7 @@ fn hostile(
                     let Ok(mut c) = std::net::TcpStream::connect(addr) else {
                         break;
                     };
-                    let _ = write!(c, "GET {bx} HTTP/1.1\r\nHost: x\r\n\r\n");
+                    let _ = write!(c, "GET {bx} HTTP/1.1\r\nHost: localhost\r\n\r\n");
                     let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
                     let mut b = [0u8; 4096];
                     while !stop.load(Ordering::Relaxed) {

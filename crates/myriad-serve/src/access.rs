@@ -20,8 +20,8 @@ use std::sync::Mutex;
 pub const SESSION_COOKIE: &str = "myriad_session";
 pub const LINK_COOKIE: &str = "myriad_link";
 
-/// What the session cookie's value signs.
-const SESSION: &[u8] = b"myriad session";
+/// How long a session from a one-time link lasts (seconds): 12 hours.
+pub const SESSION_SECONDS: u64 = 12 * 3600;
 
 /// Tokens, the signing key and the one-time codes not used yet.
 pub struct Access {
@@ -105,11 +105,37 @@ impl Access {
             .lock()
             .expect("codes lock")
             .remove(code)
-            .then(|| self.session())
+            .then(|| self.session(now() + SESSION_SECONDS))
     }
 
-    fn session(&self) -> String {
-        hex(hmac::sign(&self.key, SESSION).as_ref())
+    /// Whether `code` is a one-time code not used yet (a HEAD request asks without spending it).
+    pub fn is_code(&self, code: &str) -> bool {
+        self.codes.lock().expect("codes lock").contains(code)
+    }
+
+    /// A new session's cookie value, each login its own: 128 random bits, the time it ends,
+    /// and their signature (`NONCE.EXPIRES.SIG`).
+    fn session(&self, expires: u64) -> String {
+        let mut b = [0u8; 16];
+        ring::rand::SecureRandom::fill(&ring::rand::SystemRandom::new(), &mut b)
+            .expect("the system's random numbers");
+        let nonce = hex(&b);
+        let tag = hmac::sign(&self.key, format!("session\n{nonce}\n{expires}").as_bytes());
+        format!("{nonce}.{expires}.{}", hex(tag.as_ref()))
+    }
+
+    /// Whether a session cookie's value is one this server signed, and not expired.
+    fn session_holds(&self, v: &str, now: u64) -> bool {
+        let mut parts = v.splitn(3, '.');
+        let (Some(nonce), Some(expires), Some(sig)) = (parts.next(), parts.next(), parts.next())
+        else {
+            return false;
+        };
+        let (Some(e), Some(sig)) = (expires.parse::<u64>().ok(), unhex(sig)) else {
+            return false;
+        };
+        let data = format!("session\n{nonce}\n{e}");
+        hmac::verify(&self.key, data.as_bytes(), &sig).is_ok() && now < e
     }
 
     fn link_tag(&self, name: &str, expires: u64) -> hmac::Tag {
@@ -183,8 +209,7 @@ impl Access {
                 continue;
             };
             if k == SESSION_COOKIE {
-                let tag = unhex(v).unwrap_or_default();
-                if hmac::verify(&self.key, SESSION, &tag).is_ok() {
+                if self.session_holds(v, now) {
                     return Verdict::Allowed;
                 }
                 wrong = true;
@@ -297,6 +322,23 @@ mod tests {
         assert_eq!(check("/", None, None, Some(&cookie)), Verdict::Allowed);
         let forged = format!("{SESSION_COOKIE}={}", "0".repeat(64));
         assert_eq!(check("/", None, None, Some(&forged)), Verdict::Wrong);
+        // Each login its own session, which ends: after SESSION_SECONDS, or with its end
+        // changed, refused.
+        let code = a.one_time_code();
+        assert!(
+            a.is_code(&code) && a.is_code(&code),
+            "asking does not spend it"
+        );
+        let other = a.redeem(&code).unwrap();
+        assert_ne!(other, session);
+        let c = format!("{SESSION_COOKIE}={other}");
+        assert_eq!(check("/", None, None, Some(&c)), Verdict::Allowed);
+        let later = now() + SESSION_SECONDS + 1;
+        assert_eq!(a.check("/", None, None, Some(&c), later), Verdict::Wrong);
+        let (nonce, rest) = other.split_once('.').unwrap();
+        let (_, sig) = rest.split_once('.').unwrap();
+        let stretched = format!("{SESSION_COOKIE}={nonce}.{}.{sig}", u64::MAX);
+        assert_eq!(check("/", None, None, Some(&stretched)), Verdict::Wrong);
         // A signed link: its dataset only, until it expires; its cookie the same.
         let q = a.sign("a b.myr", 2_000);
         let v = check("/view/a%20b.myr", Some(&q), None, None);

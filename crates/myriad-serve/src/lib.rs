@@ -53,7 +53,7 @@ use tokio::sync::Semaphore;
 type Body = BoxBody<Bytes, io::Error>;
 
 /// Limits of the server.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Options {
     /// Connections served at once; when full, the connection idle the longest is closed for a
     /// new one (a new one that finds none idle waits up to `header_timeout`).
@@ -76,6 +76,13 @@ pub struct Options {
     pub log: bool,
     /// Clients may save a dataset's work (PUT `/work/NAME`), which replaces its sidecar.
     pub edit: bool,
+    /// Origins whose pages may read the answers (CORS: `https://host:port`, or `*` for any);
+    /// none by default: pages of other origins read nothing. No origin but the server's own
+    /// ever writes.
+    pub allow_origins: Vec<String>,
+    /// Names this server answers to besides loopback ones when bound to a loopback address (a
+    /// reverse proxy's public name, passed on in `Host`).
+    pub server_names: Vec<String>,
 }
 
 impl Default for Options {
@@ -90,6 +97,8 @@ impl Default for Options {
             stop_on_signals: false,
             log: false,
             edit: false,
+            allow_origins: Vec::new(),
+            server_names: Vec::new(),
         }
     }
 }
@@ -145,6 +154,9 @@ impl Counters {
 /// What every connection of a server shares.
 struct Shared {
     catalog: Catalog,
+    /// Bound to a loopback address: only requests naming a loopback host are answered (a page
+    /// whose name was rebound to 127.0.0.1 names its own).
+    loopback: bool,
     options: Options,
     memory: Arc<Semaphore>,
     registry: conn::Registry,
@@ -211,12 +223,12 @@ impl Server {
         let listener = runtime.block_on(tokio::net::TcpListener::bind(bind))?;
         let addr = listener.local_addr()?;
         let (stop, stopped) = tokio::sync::oneshot::channel();
+        let memory = options.max_memory.max(conn::PER_CONNECTION) >> 10;
         let shared = Arc::new(Shared {
             catalog,
+            loopback: addr.ip().is_loopback(),
             options,
-            memory: Arc::new(Semaphore::new(
-                options.max_memory.max(conn::PER_CONNECTION) >> 10,
-            )),
+            memory: Arc::new(Semaphore::new(memory)),
             registry: conn::Registry::default(),
             counters: Counters::default(),
             extracting: Arc::new(Semaphore::new(download::MAX_AT_ONCE)),
@@ -321,7 +333,7 @@ async fn accept(
     shared: Arc<Shared>,
     mut stop: tokio::sync::oneshot::Receiver<()>,
 ) {
-    let o = shared.options;
+    let o = shared.options.clone();
     let slots = Arc::new(Semaphore::new(o.max_connections.max(1)));
     let signals = signalled(o.stop_on_signals);
     tokio::pin!(signals);
@@ -426,13 +438,23 @@ fn status(code: StatusCode, text: &str) -> Response<Body> {
     r
 }
 
-/// CORS for every answer: any origin may read, and see the headers range readers need.
-fn cors(r: &mut Response<Body>) {
+/// CORS: a page of another origin reads an answer only where the user allowed its origin
+/// (`--allow-origin`), and then sees the headers range readers need.
+fn cors(r: &mut Response<Body>, origin: Option<&str>, allowed: &[String]) {
     let h = r.headers_mut();
-    h.insert(
-        header::ACCESS_CONTROL_ALLOW_ORIGIN,
-        HeaderValue::from_static("*"),
-    );
+    h.append(header::VARY, HeaderValue::from_static("Origin"));
+    let Some(origin) = origin else { return };
+    let value = if allowed.iter().any(|a| a == "*") {
+        HeaderValue::from_static("*")
+    } else if allowed.iter().any(|a| a.eq_ignore_ascii_case(origin)) {
+        match HeaderValue::from_str(origin) {
+            Ok(v) => v,
+            Err(_) => return,
+        }
+    } else {
+        return;
+    };
+    h.insert(header::ACCESS_CONTROL_ALLOW_ORIGIN, value);
     h.insert(
         header::ACCESS_CONTROL_EXPOSE_HEADERS,
         HeaderValue::from_static(
@@ -469,8 +491,13 @@ async fn handle(
     let range = req.headers().get(header::RANGE).cloned();
     let (method, uri) = (req.method().clone(), req.uri().clone());
     let put = method == Method::PUT && uri.path().starts_with("/work/");
+    let origin = (req.headers().get(header::ORIGIN))
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string);
     let mut cookie = None;
     let denied = match &shared.access {
+        _ if let Some(r) = misdirected(&shared, &req) => Some(r),
+        _ if put && let Some(r) = foreign_write(&req, origin.as_deref()) => Some(r),
         Some(a) => match admit(a, &req) {
             Ok(c) => {
                 cookie = c;
@@ -493,7 +520,7 @@ async fn handle(
     if let Some(c) = cookie.and_then(|c| HeaderValue::from_str(&c).ok()) {
         r.headers_mut().append(header::SET_COOKIE, c);
     }
-    cors(&mut r);
+    cors(&mut r, origin.as_deref(), &shared.options.allow_origins);
     if shared.options.log {
         let text =
             |v: Option<&HeaderValue>| v.and_then(|v| v.to_str().ok()).unwrap_or("-").to_string();
@@ -509,6 +536,69 @@ async fn handle(
     Ok(r)
 }
 
+/// The host a request names (`Host`, or HTTP/2's authority), without its port.
+fn host_of(req: &Request<Incoming>) -> Option<String> {
+    let h = (req.headers().get(header::HOST))
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string)
+        .or_else(|| req.uri().authority().map(|a| a.as_str().to_string()))?;
+    let h = h.trim().to_ascii_lowercase();
+    Some(match h.strip_prefix('[') {
+        // [::1]:8080
+        Some(v6) => v6.split(']').next().unwrap_or("").to_string(),
+        None => h
+            .rsplit_once(':')
+            .map_or(h.clone(), |(host, _)| host.to_string()),
+    })
+}
+
+/// A server bound to a loopback address answers only requests that name a loopback host: a
+/// page whose own name was rebound to 127.0.0.1 (DNS rebinding) names its own, and is refused
+/// (421). A request naming no host (HTTP/1.0) is answered.
+fn misdirected(shared: &Shared, req: &Request<Incoming>) -> Option<Response<Body>> {
+    if !shared.loopback {
+        return None;
+    }
+    let host = host_of(req)?;
+    let local = host == "localhost"
+        || host.ends_with(".localhost")
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback());
+    (!local).then(|| {
+        status(
+            StatusCode::MISDIRECTED_REQUEST,
+            &format!(
+                "this server on a loopback address answers localhost (and --server-name), not {host:?}"
+            ),
+        )
+    })
+}
+
+/// Saved work is written only by pages of the server's own origin: a PUT whose `Origin` is
+/// another (a page elsewhere, whatever CORS allows it to read) is refused (403). Browsers send
+/// `Origin` with every PUT; a client without one (curl, with the token where the server is
+/// private) is taken.
+fn foreign_write(req: &Request<Incoming>, origin: Option<&str>) -> Option<Response<Body>> {
+    let origin = origin?;
+    let host = (req.headers().get(header::HOST))
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string)
+        .or_else(|| req.uri().authority().map(|a| a.as_str().to_string()))
+        .unwrap_or_default();
+    let own = origin
+        .split_once("://")
+        .is_some_and(|(_, rest)| rest.eq_ignore_ascii_case(&host));
+    (!own).then(|| {
+        status(
+            StatusCode::FORBIDDEN,
+            &format!(
+                "a page of {origin} cannot write here: only this server's own pages save work"
+            ),
+        )
+    })
+}
+
 /// Whether a private server answers `req`: `Ok` with a cookie to set (a one-time link's
 /// session, a signed link's), or the answer that refuses it (401, 403; a one-time link's
 /// redirect).
@@ -522,13 +612,21 @@ fn admit(
         return Ok(None);
     }
     if let Some(code) = path.strip_prefix("/login/") {
+        // A HEAD (a link preview, a checker) asks without spending the link.
+        if req.method() == Method::HEAD {
+            return Err(Box::new(match a.is_code(code) {
+                true => status(StatusCode::OK, "a one-time link: open it to sign in"),
+                false => unauthorized("this one-time link was used already, or is not one"),
+            }));
+        }
         return Err(Box::new(match a.redeem(code) {
             Some(session) => {
                 let mut r = status(StatusCode::SEE_OTHER, "signed in");
                 let h = r.headers_mut();
                 h.insert(header::LOCATION, HeaderValue::from_static("/"));
+                let age = Some(access::SESSION_SECONDS);
                 if let Ok(c) =
-                    HeaderValue::from_str(&a.cookie(access::SESSION_COOKIE, &session, None))
+                    HeaderValue::from_str(&a.cookie(access::SESSION_COOKIE, &session, age))
                 {
                     h.insert(header::SET_COOKIE, c);
                 }
@@ -603,11 +701,8 @@ async fn route(
         let h = r.headers_mut();
         h.insert(
             header::ACCESS_CONTROL_ALLOW_METHODS,
-            HeaderValue::from_static(if shared.options.edit {
-                "GET, HEAD, OPTIONS, PUT"
-            } else {
-                "GET, HEAD, OPTIONS"
-            }),
+            // Never PUT: pages of other origins do not write (`foreign_write`).
+            HeaderValue::from_static("GET, HEAD, OPTIONS"),
         );
         h.insert(
             header::ACCESS_CONTROL_ALLOW_HEADERS,

@@ -54,7 +54,7 @@ fn send(server: &Server, request: &str) -> Answer {
 fn get(server: &Server, path: &str, extra: &str) -> Answer {
     send(
         server,
-        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{extra}\r\n"),
+        &format!("GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n{extra}\r\n"),
     )
 }
 
@@ -88,7 +88,7 @@ fn ranges_validators_cors_and_bad_requests() {
         let c = catalog
             .take()
             .unwrap_or_else(|| Catalog::new(&[file.clone(), potree.clone()]).unwrap());
-        if let Ok(s) = Server::start(c, "127.0.0.1:0".parse().unwrap(), options) {
+        if let Ok(s) = Server::start(c, "127.0.0.1:0".parse().unwrap(), options.clone()) {
             server = Some(s);
             break;
         }
@@ -101,9 +101,12 @@ fn ranges_validators_cors_and_bad_requests() {
     assert_eq!(a.status, 200);
     assert_eq!(a.body, data);
     assert_eq!(a.header("accept-ranges").as_deref(), Some("bytes"));
+    // No page of another origin reads it unless the user said so (--allow-origin).
+    assert_eq!(a.header("access-control-allow-origin"), None);
+    let a = get(&server, "/d/site.myr", "Origin: https://evil.example\r\n");
     assert_eq!(
-        a.header("access-control-allow-origin").as_deref(),
-        Some("*")
+        (a.status, a.header("access-control-allow-origin")),
+        (200, None)
     );
     let etag = a.header("etag").unwrap();
     // One range.
@@ -134,7 +137,7 @@ fn ranges_validators_cors_and_bad_requests() {
     // HEAD: the headers of GET, no body.
     let a = send(
         &server,
-        "HEAD /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nRange: bytes=0-99\r\n\r\n",
+        "HEAD /d/site.myr HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nRange: bytes=0-99\r\n\r\n",
     );
     assert_eq!((a.status, a.body.len()), (206, 0));
     assert_eq!(a.header("content-length").as_deref(), Some("100"));
@@ -160,12 +163,32 @@ fn ranges_validators_cors_and_bad_requests() {
     // The preflight a cross-origin Range request forces.
     let a = send(
         &server,
-        "OPTIONS /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nOrigin: http://elsewhere\r\n\
+        "OPTIONS /d/site.myr HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nOrigin: http://elsewhere\r\n\
          Access-Control-Request-Method: GET\r\nAccess-Control-Request-Headers: range, content-type\r\n\r\n",
     );
     assert_eq!(a.status, 204);
     let allowed = a.header("access-control-allow-headers").unwrap();
     assert!(allowed.contains("Range") && allowed.contains("Content-Type"));
+    assert_eq!(
+        a.header("access-control-allow-origin"),
+        None,
+        "not an allowed origin"
+    );
+    // A page whose name was rebound to this loopback server (DNS rebinding): refused.
+    let a = send(
+        &server,
+        "GET /d/site.myr HTTP/1.1\r\nHost: evil.example:80\r\nConnection: close\r\n\r\n",
+    );
+    assert_eq!(a.status, 421);
+    for host in ["127.0.0.1:9", "[::1]:9", "LOCALHOST"] {
+        let a = send(
+            &server,
+            &format!(
+                "GET /d/site.myr HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nRange: bytes=0-0\r\n\r\n"
+            ),
+        );
+        assert_eq!(a.status, 206, "{host}");
+    }
     // A folder's files under its name; hidden ones not at all.
     let a = get(&server, "/d/potree/sub/octree.bin", "Range: bytes=2-4\r\n");
     assert_eq!((a.status, &a.body[..]), (206, &b"234"[..]));
@@ -239,7 +262,7 @@ fn ranges_validators_cors_and_bad_requests() {
     // Writing methods: 405 with Allow.
     let a = send(
         &server,
-        "PUT /d/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 0\r\n\r\n",
+        "PUT /d/site.myr HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: 0\r\n\r\n",
     );
     assert_eq!(a.status, 405);
     assert_eq!(a.header("allow").as_deref(), Some("GET, HEAD, OPTIONS"));
@@ -255,7 +278,7 @@ fn ranges_validators_cors_and_bad_requests() {
     let slow: Vec<TcpStream> = (0..12)
         .map(|_| {
             let mut s = TcpStream::connect(server.addr).unwrap();
-            s.write_all(b"GET /d/site.myr HTTP/1.1\r\nHost: x\r\n")
+            s.write_all(b"GET /d/site.myr HTTP/1.1\r\nHost: localhost\r\n")
                 .unwrap();
             s
         })
@@ -275,7 +298,7 @@ fn put(server: &Server, path: &str, body: &str) -> Answer {
     send(
         server,
         &format!(
-            "PUT {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+            "PUT {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
             body.len()
         ),
     )
@@ -366,7 +389,7 @@ fn saved_work_is_shown_and_saved_only_with_edit() {
     assert!(String::from_utf8_lossy(&a.body).contains("measurements[0]"));
     let big = send(
         &rw,
-        "PUT /work/site.myr HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 99999999\r\n\r\n",
+        "PUT /work/site.myr HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: 99999999\r\n\r\n",
     );
     assert_eq!(big.status, 413);
     assert_eq!(
@@ -376,4 +399,50 @@ fn saved_work_is_shown_and_saved_only_with_edit() {
     );
     assert_eq!(std::fs::read(&sidecar).unwrap(), before);
     assert_eq!(get(&rw, "/d/site.myr", "").status, 200, "still serving");
+
+    // Only the server's own pages write: a PUT from a page of another origin is refused (a
+    // local server with --edit and a web page open elsewhere), and so is one naming another
+    // host (DNS rebinding); its own origin's goes through.
+    let port = rw.addr.port();
+    let from = |origin: &str, host: &str| {
+        send(
+            &rw,
+            &format!(
+                "PUT /work/site.myr HTTP/1.1\r\nHost: {host}\r\nOrigin: {origin}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+                body.len()
+            ),
+        )
+    };
+    let own = format!("localhost:{port}");
+    assert_eq!(from("https://evil.example", &own).status, 403);
+    assert_eq!(from("https://evil.example", "evil.example").status, 421);
+    assert_eq!(std::fs::read(&sidecar).unwrap(), before, "nothing written");
+    assert_eq!(from(&format!("http://{own}"), &own).status, 200);
+    // The preflight never offers PUT, even to an origin allowed to read.
+    drop(rw);
+    let open = Server::start(
+        Catalog::new(std::slice::from_ref(&file)).unwrap(),
+        "127.0.0.1:0".parse().unwrap(),
+        Options {
+            edit: true,
+            allow_origins: vec!["https://viewer.example".into()],
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let a = send(
+        &open,
+        "OPTIONS /work/site.myr HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nOrigin: https://viewer.example\r\nAccess-Control-Request-Method: PUT\r\n\r\n",
+    );
+    assert_eq!(
+        a.header("access-control-allow-methods").as_deref(),
+        Some("GET, HEAD, OPTIONS")
+    );
+    let a = get(&open, "/d/site.myr", "Origin: https://viewer.example\r\n");
+    assert_eq!(
+        a.header("access-control-allow-origin").as_deref(),
+        Some("https://viewer.example")
+    );
+    let a = get(&open, "/d/site.myr", "Origin: https://other.example\r\n");
+    assert_eq!(a.header("access-control-allow-origin"), None);
 }

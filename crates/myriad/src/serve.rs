@@ -42,6 +42,16 @@ pub struct ServeArgs {
     /// dataset's NAME.work.json); without it the work is shown, not changed
     #[arg(long)]
     edit: bool,
+    /// Let pages of this origin read what is served (CORS), as https://host:port, or * for any
+    /// page (a viewer or a static site on another host); may be given again. Without it pages
+    /// of other origins read nothing; none ever writes
+    #[arg(long, value_name = "ORIGIN", value_parser = parse_origin)]
+    allow_origin: Vec<String>,
+    /// A name this server answers to when bound to a loopback address (a reverse proxy's public
+    /// name, which it passes on in Host); requests naming another host are refused, so that a
+    /// page whose name was rebound to 127.0.0.1 cannot read or write; may be given again
+    #[arg(long, value_name = "NAME")]
+    server_name: Vec<String>,
     /// Serve privately: only requests with one of this file's tokens (one a line, 16
     /// characters or more) as "Authorization: Bearer TOKEN", the cookie of the one-time link
     /// printed at start, or a signed link (--sign)
@@ -262,6 +272,8 @@ pub fn run(a: ServeArgs) -> Result<()> {
             stop_on_signals: true,
             log: a.log,
             edit: a.edit,
+            allow_origins: a.allow_origin.clone(),
+            server_names: a.server_name.clone(),
             ..Options::default()
         },
         access,
@@ -278,4 +290,20 @@ pub fn run(a: ServeArgs) -> Result<()> {
     server.wait();
     drop(opener);
     Ok(())
+}
+
+/// An origin as browsers send it (`scheme://host[:port]`, no path), or `*`.
+fn parse_origin(s: &str) -> std::result::Result<String, String> {
+    let ok = s == "*"
+        || s.split_once("://").is_some_and(|(scheme, rest)| {
+            matches!(scheme, "http" | "https")
+                && !rest.is_empty()
+                && !rest.contains(['/', '?', '#'])
+        });
+    match ok {
+        true => Ok(s.trim_end_matches('/').to_string()),
+        false => Err(format!(
+            "{s:?}: an origin is scheme://host[:port] (https://example.org:8443), or *"
+        )),
+    }
 }

@@ -88,7 +88,7 @@ fn get(addr: SocketAddr, path: &str, extra: &str, within: Duration) -> (u16, Vec
     c.set_read_timeout(Some(within)).unwrap();
     write!(
         c,
-        "GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{extra}\r\n"
+        "GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n{extra}\r\n"
     )
     .unwrap();
     let mut out = Vec::new();
@@ -167,7 +167,7 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
     // die of SIGPIPE after a few of them.
     for _ in 0..300 {
         if let Ok(mut c) = TcpStream::connect(addr) {
-            let _ = c.write_all(b"GET /d/files/big.bin HTTP/1.1\r\nHost: x\r\n\r\n");
+            let _ = c.write_all(b"GET /d/files/big.bin HTTP/1.1\r\nHost: localhost\r\n\r\n");
             std::thread::sleep(Duration::from_millis(3));
         }
     }
@@ -209,7 +209,7 @@ fn clients_that_hang_up_or_idle_cannot_kill_or_starve_the_server() {
 
     // An idle keep-alive connection is closed after the idle timeout.
     let mut keep = TcpStream::connect(addr).unwrap();
-    keep.write_all(b"GET /d/files/a%20b%252e.json HTTP/1.1\r\nHost: x\r\n\r\n")
+    keep.write_all(b"GET /d/files/a%20b%252e.json HTTP/1.1\r\nHost: localhost\r\n\r\n")
         .unwrap();
     keep.set_read_timeout(Some(SECOND * 5)).unwrap();
     let t = Instant::now();
@@ -266,7 +266,7 @@ fn multi_range_floods_stream_within_a_memory_bound() {
             let mut c = TcpStream::connect(addr).unwrap();
             write!(
                 c,
-                "GET /d/files/big.bin HTTP/1.1\r\nHost: x\r\nRange: bytes={}\r\n\r\n",
+                "GET /d/files/big.bin HTTP/1.1\r\nHost: localhost\r\nRange: bytes={}\r\n\r\n",
                 ranges.join(",")
             )
             .unwrap();
@@ -353,7 +353,7 @@ fn box_downloads_are_capped_cancelled_and_leave_no_files() {
     // Ten clients that ask and hang up: the server goes on answering.
     for _ in 0..10 {
         let mut c = TcpStream::connect(addr).unwrap();
-        write!(c, "GET {small} HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+        write!(c, "GET {small} HTTP/1.1\r\nHost: localhost\r\n\r\n").unwrap();
     }
     std::thread::sleep(Duration::from_millis(500));
     assert_eq!(get(addr, &small, "", SECOND * 5).0, 200);
@@ -414,7 +414,7 @@ fn abandoned_box_downloads_stop_instead_of_running_on() {
             let mut c = TcpStream::connect(server.addr).unwrap();
             write!(
                 c,
-                "GET /x/big.myr?box=-1e300,-1e300,-1e300,1e300,1e300,1e300 HTTP/1.1\r\nHost: x\r\n\r\n"
+                "GET /x/big.myr?box=-1e300,-1e300,-1e300,1e300,1e300,1e300 HTTP/1.1\r\nHost: localhost\r\n\r\n"
             )
             .unwrap();
             c
@@ -443,7 +443,7 @@ fn abandoned_box_downloads_stop_instead_of_running_on() {
         let mut c = TcpStream::connect(server.addr).unwrap();
         write!(
             c,
-            "GET /x/big.myr?box=-1e300,-1e300,-1e300,1e300,1e300,1e300 HTTP/1.1\r\nHost: x\r\n\r\n"
+            "GET /x/big.myr?box=-1e300,-1e300,-1e300,1e300,1e300,1e300 HTTP/1.1\r\nHost: localhost\r\n\r\n"
         )
         .unwrap();
         std::thread::sleep(Duration::from_millis(100));

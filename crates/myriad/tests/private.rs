@@ -16,6 +16,8 @@ struct Answer {
     status: u16,
     body: Vec<u8>,
     cookie: Option<String>,
+    /// The whole Set-Cookie field ("" without one).
+    set_cookie: String,
 }
 
 fn get(url: &str, headers: &[(&str, &str)]) -> Answer {
@@ -29,8 +31,11 @@ fn get(url: &str, headers: &[(&str, &str)]) -> Answer {
         req = req.header(*k, *v);
     }
     let mut r = req.call().unwrap();
-    let cookie = (r.headers().get("set-cookie"))
-        .map(|v| v.to_str().unwrap().split(';').next().unwrap().to_string());
+    let set_cookie = (r.headers().get("set-cookie"))
+        .map(|v| v.to_str().unwrap().to_string())
+        .unwrap_or_default();
+    let cookie =
+        (!set_cookie.is_empty()).then(|| set_cookie.split(';').next().unwrap().to_string());
     Answer {
         status: r.status().as_u16(),
         body: r
@@ -40,6 +45,7 @@ fn get(url: &str, headers: &[(&str, &str)]) -> Answer {
             .read_to_vec()
             .unwrap(),
         cookie,
+        set_cookie,
     }
 }
 
@@ -176,11 +182,26 @@ fn a_private_server_answers_only_its_token_its_links_and_their_cookies() {
         eprintln!("note: no curl, HTTP/2 not tried");
     }
 
-    // The one-time link: a session cookie once, refused the second time.
+    // The one-time link: a HEAD (a link preview) does not spend it; a session cookie once,
+    // ending in 12 hours, refused the second time.
+    let head = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .max_redirects(0)
+        .build()
+        .new_agent()
+        .head(&login)
+        .call()
+        .unwrap();
+    assert_eq!(head.status().as_u16(), 200);
     let first = get(&login, &[]);
     assert_eq!(first.status, 303);
     let session = first.cookie.expect("a session cookie");
     assert!(session.starts_with("myriad_session="), "{session}");
+    assert!(
+        first.set_cookie.contains("Max-Age=43200"),
+        "{}",
+        first.set_cookie
+    );
     assert_eq!(get(&login, &[]).status, 401);
     assert_eq!(
         get(&format!("{base}/"), &[("Cookie", &session)]).status,

@@ -202,6 +202,21 @@ fn the_web_viewer_runs_from_a_static_site() {
     assert_eq!(st["errors"], serde_json::json!([]), "{st}");
     assert_eq!(st["points"], 100_000, "{st}");
 
+    // This page's origin is not `myriad serve --edit`'s (another port): it reads nothing there
+    // and writes nothing (issue 67: any page could write through a local server).
+    let served = common::serve(&[s(&myr), "--edit"], Stdio::null());
+    let js = format!(
+        "(async () => {{ let read, write;\n\
+         try {{ await fetch('{0}/d/town.myr', {{ headers: {{ Range: 'bytes=0-3' }} }}); read = 'read'; }} catch (e) {{ read = 'blocked'; }}\n\
+         try {{ const r = await fetch('{0}/work/town.myr', {{ method: 'PUT', headers: {{ 'Content-Type': 'application/json' }},\n\
+           body: JSON.stringify({{ myriad: 'work', version: 1, annotations: [] }}) }}); write = 'HTTP ' + r.status; }} catch (e) {{ write = 'blocked'; }}\n\
+         return read + '/' + write; }})()",
+        served.base
+    );
+    assert_eq!(b.eval(&js).unwrap(), "blocked/blocked");
+    assert!(!d.join("town.work.json").exists(), "nothing written");
+    drop(served);
+
     // COPC and EPT from a static server: every point, decoded in the viewer's workers.
     let mut sets = vec![("data/town.copc.laz", 100_000u64)];
     if ept.is_some() {

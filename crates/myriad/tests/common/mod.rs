@@ -187,7 +187,7 @@ pub fn wait_built(base: &str, name: &str) {
         let mut c = std::net::TcpStream::connect(addr).unwrap();
         write!(
             c,
-            "HEAD /d/{name} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+            "HEAD /d/{name} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"
         )
         .unwrap();
         let mut answer = String::new();
@@ -437,7 +437,7 @@ pub fn http_get(base: &str, path: &str, headers: &[&str]) -> String {
     let extra: String = headers.iter().map(|h| format!("{h}\r\n")).collect();
     write!(
         c,
-        "GET {path} HTTP/1.1\r\nHost: x\r\n{extra}Connection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\nHost: localhost\r\n{extra}Connection: close\r\n\r\n"
     )
     .unwrap();
     let mut answer = Vec::new();
