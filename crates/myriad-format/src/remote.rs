@@ -296,6 +296,20 @@ impl HttpBytes {
                     "bytes {offset}-{last} lie past the end of the resource (416)"
                 )));
             }
+            // A dataset whose build failed on `myriad serve`: said, not retried.
+            500 if r
+                .headers()
+                .get("x-myriad-building")
+                .is_some_and(|v| v == "failed") =>
+            {
+                let why = (r.headers().get("x-myriad-failed"))
+                    .and_then(|v| v.to_str().ok())
+                    .unwrap_or("no reason given")
+                    .to_string();
+                return Err(Failure::Fatal(format!(
+                    "HTTP 500: its build on the server failed: {why}"
+                )));
+            }
             429 | 500..=599 => return Err(Failure::Retry(format!("HTTP {status}"))),
             401 | 403 if self.s3.is_some() => {
                 let why = r.body_mut().read_to_string().unwrap_or_default();

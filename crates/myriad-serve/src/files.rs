@@ -365,6 +365,18 @@ pub(crate) async fn answer_dataset(
     budget: &Budget,
     req: &Request<Incoming>,
 ) -> Response<Body> {
+    if let Some(why) = live.failure() {
+        let mut r = status(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            &format!("its build failed: {why}"),
+        );
+        let h = r.headers_mut();
+        h.insert("x-myriad-building", HeaderValue::from_static("failed"));
+        if let Ok(v) = HeaderValue::from_str(&why) {
+            h.insert("x-myriad-failed", v);
+        }
+        return r;
+    }
     let asked = (req.uri().query().unwrap_or("").split('&'))
         .find_map(|p| p.strip_prefix("v="))
         .map(str::to_string);

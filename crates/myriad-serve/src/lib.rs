@@ -458,7 +458,7 @@ fn cors(r: &mut Response<Body>, origin: Option<&str>, allowed: &[String]) {
     h.insert(
         header::ACCESS_CONTROL_EXPOSE_HEADERS,
         HeaderValue::from_static(
-            "Content-Range, Content-Length, Accept-Ranges, ETag, X-Myriad-Version, X-Myriad-Building",
+            "Content-Range, Content-Length, Accept-Ranges, ETag, X-Myriad-Version, X-Myriad-Building, X-Myriad-Failed",
         ),
     );
 }

@@ -41,8 +41,10 @@ pub(crate) type NewNodes = Option<Arc<Vec<NodeKey>>>;
 pub struct Live {
     preview: PathBuf,
     growing: Mutex<Option<Arc<Growing>>>,
-    /// The build's end: the dataset, or `None` when it failed (what was served stays).
+    /// The build's end: the dataset, or `None` when it failed.
     ended: Mutex<Option<Option<PathBuf>>>,
+    /// Why the build failed (one line), once it did: every answer for the name says so.
+    failure: Mutex<Option<String>>,
     kept: Mutex<VecDeque<Shown>>,
     /// Answers of [`Live::changes`]: (since, version, new nodes).
     answers: Mutex<VecDeque<(String, String, NewNodes)>>,
@@ -118,6 +120,7 @@ impl Live {
             preview: preview.to_path_buf(),
             growing: Mutex::new(None),
             ended: Mutex::new(None),
+            failure: Mutex::new(None),
             kept: Mutex::new(VecDeque::new()),
             answers: Mutex::new(VecDeque::new()),
         })
@@ -128,10 +131,32 @@ impl Live {
         *self.growing.lock().expect("live lock") = Some(g);
     }
 
-    /// The build ended: its dataset (served from now on), or `None` (it failed: the last
-    /// version served stays).
+    /// The build ended with its dataset, served from now on.
     pub fn ended(&self, dataset: Option<PathBuf>) {
         *self.ended.lock().expect("live lock") = Some(dataset);
+    }
+
+    /// The build failed (`why`, one line): from now on the name answers 500 saying so
+    /// (`X-Myriad-Building: failed`, `X-Myriad-Failed`), `/build/` too; the preview it served is
+    /// never passed off as the dataset.
+    pub fn failed(&self, why: &str) {
+        let line: String = (why.lines().next().unwrap_or(why).chars())
+            .map(|c| {
+                if c.is_ascii_graphic() || c == ' ' {
+                    c
+                } else {
+                    '?'
+                }
+            })
+            .take(300)
+            .collect();
+        *self.failure.lock().expect("live lock") = Some(line);
+        self.ended(None);
+    }
+
+    /// Why the build failed, where it did.
+    pub fn failure(&self) -> Option<String> {
+        self.failure.lock().expect("live lock").clone()
     }
 
     /// Whether the build still runs.
@@ -248,6 +273,7 @@ pub(crate) async fn answer_changes(live: Arc<Live>, query: &str) -> Response<Bod
     let body = serde_json::json!({
         "version": version,
         "building": live.is_building(),
+        "failed": live.failure(),
         "length": len,
         "new": new,
     });

@@ -209,6 +209,8 @@ async function reachable(url) {
   } catch (e) {
     throw new Error(`${url}: no answer this page may read: the server is down${cors}`);
   }
+  const failed = head.headers.get("x-myriad-failed");
+  if (failed) throw new Error(`${url}: its build on the server failed: ${failed}`);
   if (!head.ok) throw new Error(`${url}: HTTP ${head.status}`);
   if (SITE) {
     const stop = new AbortController();
@@ -302,6 +304,12 @@ async function follow() {
     if (!r.ok) throw new Error(`HTTP ${r.status}: ${(await r.text()).trim()}`);
     const b = await r.json();
     state.building = b.building;
+    if (b.failed) {
+      // What is drawn was the preview or a snapshot, never the dataset: said, and no more asked.
+      state.failed = b.failed;
+      error(`${state.dataset}: its build on the server failed: ${b.failed} (what is shown is not the whole dataset)`);
+      return;
+    }
     if (b.version !== state.version) {
       const url = `/d/${name}?v=${encodeURIComponent(b.version)}`;
       const { sel, decs, opened, ready } = await startWorkers(url, state.dataset, b.length);

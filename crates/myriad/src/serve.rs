@@ -183,8 +183,11 @@ fn build_served(to_build: Vec<Building>) {
                 );
             }
             Err(e) => {
-                live.ended(None);
-                eprintln!("error: {e:#} (what is served stays)");
+                live.failed(&format!("{e:#}"));
+                eprintln!(
+                    "error: {e:#} ({}: answered as failed from now on)",
+                    pending.scan.display()
+                );
             }
         }
     }

@@ -104,3 +104,71 @@ fn a_raw_scan_is_served_at_once_and_refined_as_it_is_built() {
     assert!(head.is_ok());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A build that fails (a LAZ damaged past its preview: 50 bytes flipped in a chunk) is said
+/// everywhere the dataset is read, its preview never passed off as the dataset (issue 67 item
+/// 2): `/build/` names the failure, `/d/` answers 500 saying why, a command over HTTP fails in
+/// one line, the web viewer shows it.
+#[test]
+fn a_failed_build_is_said_everywhere() {
+    let d = tempdir("serve-failed");
+    let laz = d.join("bad.laz");
+    let r = myriad(&["synth", "-o", s(&laz), "--points", "200k"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let mut bytes = std::fs::read(&laz).unwrap();
+    let mid = bytes.len() / 2;
+    for b in &mut bytes[mid..mid + 50] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&laz, &bytes).unwrap();
+    let server = serve(&[s(&laz)], std::process::Stdio::null());
+    let t = std::time::Instant::now();
+    let answer = loop {
+        let a = common::http_get(&server.base, "/build/bad.myr?since=", &[]);
+        if a.contains("\"failed\":\"") {
+            break a;
+        }
+        assert!(t.elapsed() < Duration::from_secs(120), "never failed: {a}");
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert!(answer.contains("\"building\":false"), "{answer}");
+    let a = common::http_get(&server.base, "/d/bad.myr", &["Range: bytes=0-99"]);
+    assert!(a.starts_with("HTTP/1.1 500"), "{a}");
+    let lower = a.to_ascii_lowercase();
+    assert!(
+        lower.contains("x-myriad-building: failed") && lower.contains("x-myriad-failed: "),
+        "{a}"
+    );
+    let url = format!("{}/d/bad.myr", server.base);
+    let r = myriad(&["info", &url]);
+    assert_eq!(r.code, 1, "{}", r.stdout);
+    assert!(
+        r.stderr.contains("its build on the server failed") && r.stderr.trim().lines().count() == 1,
+        "{}",
+        r.stderr
+    );
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED (the browser part): no Chromium");
+        return;
+    };
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!("{}/view/bad.myr#renderer=webgl2", server.base),
+        W,
+        H,
+    )
+    .unwrap();
+    let st = b
+        .wait_for(
+            "window.myriad && myriad.state.errors.length > 0 && myriad.state",
+            Duration::from_secs(60),
+        )
+        .unwrap();
+    assert!(
+        st["errors"][0]
+            .as_str()
+            .unwrap()
+            .contains("build on the server failed"),
+        "{st}"
+    );
+}
