@@ -147,6 +147,57 @@ impl LasSource {
     }
 }
 
+/// LAZ scans of at most this many points are decoded whole for their preview.
+const DECODE_WHOLE: u64 = 2_000_000;
+
+impl LasSource {
+    /// The preview a viewer shows: [`LasSource::preview`], but a small LAZ scan (up to
+    /// [`DECODE_WHOLE`] points: few chunks, and one of 50,000 points would give one point)
+    /// decoded whole and taken at a stride, fast at that size and a real sample.
+    pub fn preview_shown(&self, path: &Path, most: usize) -> Result<Preview> {
+        let total = self.header.number_of_points();
+        match self.header.point_format().is_compressed && total <= DECODE_WHOLE {
+            true => self.decoded_whole(path, total, most),
+            false => self.preview(path, most),
+        }
+    }
+
+    /// The preview of a small LAZ scan: every point decoded, at most `most` kept at a stride.
+    fn decoded_whole(&self, path: &Path, total: u64, most: usize) -> Result<Preview> {
+        let mut src = LasSource::open(path)?;
+        let step = (total as usize).div_ceil(most.max(1)).max(1);
+        let mut points: Option<PointBatch> = None;
+        let mut indices = Vec::new();
+        let mut seen = 0u64;
+        while let Some(b) = src.read_batch(crate::MAX_BATCH)? {
+            let keep: Vec<u32> = (0..b.len())
+                .filter(|i| (seen as usize + i).is_multiple_of(step))
+                .map(|i| i as u32)
+                .collect();
+            indices.extend(keep.iter().map(|&i| seen + i as u64));
+            let part = b.gather(&keep);
+            match &mut points {
+                Some(p) => p.append(&part),
+                None => points = Some(part),
+            }
+            seen += b.len() as u64;
+        }
+        let bytes_read = std::fs::metadata(path).map_or(0, |m| m.len());
+        Ok(Preview {
+            points: points.unwrap_or_else(|| {
+                batch_for(
+                    &self.layout,
+                    self.record_len.saturating_sub(self.layout.base_len),
+                    0,
+                )
+            }),
+            indices,
+            bytes_read,
+            how: "a small LAZ scan decoded whole, taken at a stride",
+        })
+    }
+}
+
 /// The previews of several files (the tiles of one survey), and what the files disagree on.
 pub struct Tiles {
     /// Each file's sample, in the files' order.
@@ -168,7 +219,7 @@ pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles>
     let per_file = (most / files.len().max(1)).max(1);
     let one = |f: &std::path::PathBuf| -> Result<(LasSource, Preview)> {
         let src = LasSource::open(f)?;
-        let p = src.preview(f, per_file)?;
+        let p = src.preview_shown(f, per_file)?;
         Ok((src, p))
     };
     let per = files.len().div_ceil(AT_ONCE).max(1);

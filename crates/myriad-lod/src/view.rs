@@ -39,7 +39,10 @@ impl Camera {
     pub fn framing(bounds: &Aabb, width: u32, height: u32, fov_y: f64) -> Camera {
         let c = bounds.center();
         let s = bounds.size();
-        let radius = 0.5 * dot(s, s).sqrt().max(1e-9);
+        // A box of one point (a scan's preview of one chunk) is framed from a distance its
+        // coordinates' magnitude can still tell from its centre.
+        let magnitude = c.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        let radius = (0.5 * dot(s, s).sqrt()).max(1e-6 * magnitude);
         // Far enough that the bounding sphere fits the narrower field of view.
         let aspect = width as f64 / height.max(1) as f64;
         let half_v = (fov_y.to_radians() / 2.0).min(1.5);
@@ -457,6 +460,14 @@ mod tests {
             assert!(f.contains(p), "{p:?} outside");
         }
         assert!(c.position[2] > b.max[2]);
+    }
+
+    #[test]
+    fn one_point_is_framed_too() {
+        let p = [500000.25, 4400000.5, 12.0];
+        let c = Camera::framing(&Aabb::new(p, p), 640, 480, 60.0);
+        assert!(c.position != c.target, "{c:?}");
+        assert!(c.frustum().contains(p));
     }
 
     #[test]

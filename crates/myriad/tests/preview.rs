@@ -1,5 +1,6 @@
-//! `render --no-wait`: a scan without its dataset drawn at once from a preview read without
-//! decoding it, nothing converted; with its dataset, drawn as without `--no-wait`.
+//! `render --no-wait`: a scan without its dataset drawn at once from a preview (a large LAZ read
+//! without decoding it, a small one decoded whole; a scan of one point framed), nothing
+//! converted; with its dataset, drawn as without `--no-wait`.
 
 mod common;
 use common::*;
@@ -21,13 +22,25 @@ fn render_no_wait_draws_a_scans_preview_and_converts_nothing() {
     let mut args = vec!["render", s(&laz), "-o", s(&first), "--no-wait"];
     args.extend(size);
     let out = ok(&args);
-    // One point a LAZ chunk (the writer's chunks hold 50,000 points).
+    // A small scan (12 chunks of 50,000 points: 12 points from the chunks' starts) is decoded
+    // whole (issue 67: a scan of one chunk showed one point and failed to frame it).
     assert!(
-        out.contains("a preview of 12 of the scan's 600,000 points"),
+        out.contains(
+            "a preview of 600,000 of the scan's 600,000 points (a small LAZ scan decoded whole"
+        ),
         "{out}"
     );
     assert_eq!(datasets_in(&d).len(), 0, "nothing converted");
     assert_eq!(std::fs::read(&laz).unwrap(), before, "the scan as it was");
+    // A scan of one chunk (lidR's MixedConifer.laz is one): drawn, not "--up is parallel".
+    let one = synth(&d, "one.laz", 30_000);
+    let mut args = vec!["render", s(&one), "-o", s(&first), "--no-wait", "--force"];
+    args.extend(size);
+    let out = ok(&args);
+    assert!(
+        out.contains("a preview of 30,000 of the scan's 30,000 points"),
+        "{out}"
+    );
     let preview = lit(&first);
     assert!(
         preview.iter().filter(|&&l| l).count() > 50,
@@ -124,9 +137,9 @@ fn a_folder_of_tiles_is_one_scan() {
         "--height",
         "150",
     ]);
-    // 3 + 3 + 2 chunks of 50,000 points.
+    // Small tiles, each decoded whole.
     assert!(
-        out.contains("a preview of 8 of the 3 tiles' 370,000 points"),
+        out.contains("a preview of 370,000 of the 3 tiles' 370,000 points"),
         "{out}"
     );
     let made = |dir: &std::path::Path| -> Vec<std::path::PathBuf> {
