@@ -197,6 +197,23 @@ pub fn crs_of(input: &Path) -> Result<Option<String>> {
     Ok(src.info().crs.clone())
 }
 
+/// The bounds of what `input` names, converting nothing: its dataset's (itself, or made from it
+/// before), else its files' headers' (all of a folder's tiles); `None` where none are known.
+pub fn bounds_of(input: &Path) -> Result<Option<myriad_core::Aabb>> {
+    if let Some(ds) = cached::existing(input) {
+        let b = myriad_format::Dataset::open(&ds)?.meta.bounds;
+        return Ok((!b.is_empty()).then_some(b));
+    }
+    let mut all: Option<myriad_core::Aabb> = None;
+    for f in cached::inputs_of(input)? {
+        let src = myriad_io::open(&f, &myriad_io::OpenOptions::default())?;
+        if let Some(b) = src.info().bounds {
+            all = Some(all.map_or(b, |a| a.union(&b)));
+        }
+    }
+    Ok(all)
+}
+
 /// How often a scan shown is looked at for changes.
 pub const WATCH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 

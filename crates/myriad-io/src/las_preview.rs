@@ -156,8 +156,10 @@ impl LasSource {
     /// decoded whole and taken at a stride, fast at that size and a real sample.
     pub fn preview_shown(&self, path: &Path, most: usize) -> Result<Preview> {
         let total = self.header.number_of_points();
+        // A scan damaged past its chunks' first points still shows them (its build says what
+        // is wrong).
         match self.header.point_format().is_compressed && total <= DECODE_WHOLE {
-            true => self.decoded_whole(path, total, most),
+            true => (self.decoded_whole(path, total, most)).or_else(|_| self.preview(path, most)),
             false => self.preview(path, most),
         }
     }

@@ -130,6 +130,32 @@ fn list(w: &Work, sidecar: &Path) {
     }
 }
 
+/// Imported work lies where the dataset does (within its own size around it): a file in other
+/// coordinates (longitude and latitude, another projection, feet for metres) is refused even
+/// where the two CRSs cannot be compared by EPSG code.
+fn near_the_data(w: &myriad_measure::work::Work, b: &myriad_core::Aabb) -> Result<()> {
+    let s = b.size();
+    let margin = s[0].max(s[1]).max(s[2]).max(1.0);
+    let points = (w.annotations.iter().map(|a| a.position))
+        .chain(w.measurements.iter().flat_map(|m| m.points.iter().copied()));
+    for p in points {
+        let out = (0..2).any(|i| p[i] < b.min[i] - margin || p[i] > b.max[i] + margin);
+        if out {
+            bail!(
+                "its point {:.3}, {:.3} lies far outside the dataset ({:.3}, {:.3} to {:.3}, {:.3}): \
+                 another coordinate system? reproject it first",
+                p[0],
+                p[1],
+                b.min[0],
+                b.min[1],
+                b.max[0],
+                b.max[1]
+            );
+        }
+    }
+    Ok(())
+}
+
 pub fn run(a: AnnotateArgs) -> Result<()> {
     if myriad_format::remote::is_url(&a.path) {
         bail!(
@@ -155,8 +181,12 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
             bail!("--remove \"{t}\": no annotation of that title");
         }
     }
+    let bounds = myriad_build::open::bounds_of(&a.path)?;
     for f in &a.import {
         let other = import_work(f)?;
+        if let Some(b) = bounds {
+            near_the_data(&other, &b).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+        }
         w.merge(other)
             .map_err(|e| anyhow!("{}: {e}", f.display()))?;
     }

@@ -311,9 +311,11 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
     let start = Instant::now();
     let v = volume::volume(&ds, &polygon, base, a.cell, &bound).map_err(|e| anyhow!(e))?;
     let secs = start.elapsed().as_secs_f64();
+    // In the dataset's own unit (feet where its CRS says so), as every figure beside it.
+    let u = units_of(&ds);
     let base_text = match (&base, v.plane) {
         (Base::Rim, Some(p)) => format!(
-            "plane fitted to {} rim points, {:.3} m at the first vertex, slopes {:.4} east, {:.4} north",
+            "plane fitted to {} rim points, {:.3} {u} at the first vertex, slopes {:.4} east, {:.4} north",
             thousands(v.rim_points),
             p[0],
             p[1],

@@ -4,7 +4,7 @@
 //! ezdxf), the filters of `extract`, and the one-line errors of bad input.
 
 mod common;
-use common::{myriad, ok, python_with, s, tempdir};
+use common::{myriad, ok, python_with, s, shared_data, tempdir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -844,6 +844,18 @@ for e in m:
         &["annotate", s(&myr), "--import", s(&foreign)],
         "foreign.geojson: its CRS is EPSG:2992, the dataset's EPSG:32633",
     );
+    // Longitude and latitude without a CRS member (GeoJSON's default), into a dataset in
+    // metres: refused by where its points lie, whatever the CRSs' codes say (issue 67).
+    let lonlat = d.join("lonlat.geojson");
+    std::fs::write(
+        &lonlat,
+        r#"{"type":"FeatureCollection","features":[{"type":"Feature","geometry":{"type":"Point","coordinates":[15.0,39.7,20.0]},"properties":{"myriad":"annotation","title":"gate"}}]}"#,
+    )
+    .unwrap();
+    fails(
+        &["annotate", s(&myr), "--import", s(&lonlat)],
+        "lonlat.geojson: its point 15.000, 39.700 lies far outside the dataset",
+    );
     let broken = d.join("broken.geojson");
     std::fs::write(
         &broken,
@@ -870,4 +882,47 @@ for e in m:
     std::fs::write(&sidecar, &before).unwrap();
     let out = ok(&["annotate", s(&myr), "--remove", "gate"]);
     assert!(out.contains("0 annotations, 3 measurements"), "{out}");
+}
+
+/// Every figure of `volume` in the dataset's unit: autzen is in US feet, and the rim plane's
+/// height was printed in metres beside volumes in feet (issue 67).
+#[test]
+fn volume_speaks_the_datasets_unit() {
+    let Some(laz) = shared_data("PDAL__laz_autzen_trim.laz") else {
+        return;
+    };
+    let d = tempdir("volume-units");
+    let myr = d.join("autzen.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(&myr)])).unwrap();
+    let (min, max) = (&v["bounds"]["min"], &v["bounds"]["max"]);
+    let f = |v: &serde_json::Value, i: usize| v[i].as_f64().unwrap();
+    let (cx, cy) = ((f(min, 0) + f(max, 0)) / 2.0, (f(min, 1) + f(max, 1)) / 2.0);
+    let r = 60.0;
+    let polygon = format!(
+        "{},{},{},{},{},{},{},{}",
+        cx - r,
+        cy - r,
+        cx + r,
+        cy - r,
+        cx + r,
+        cy + r,
+        cx - r,
+        cy + r
+    );
+    let out = ok(&["volume", s(&myr), "--polygon", &polygon]);
+    let fill = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("fill"))
+        .unwrap();
+    let unit = fill
+        .split_whitespace()
+        .nth(2)
+        .unwrap()
+        .trim_end_matches('3');
+    assert_ne!(unit, "m", "autzen is in feet: {out}");
+    assert!(
+        out.contains(&format!("{unit} at the first vertex")),
+        "the rim plane in the dataset's unit: {out}"
+    );
 }
