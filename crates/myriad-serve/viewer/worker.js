@@ -15,15 +15,10 @@ function memory(ptr, len) {
   return new Uint8Array(wasm.exports.memory.buffer, ptr, len);
 }
 
-// The import the module reads the dataset through: one synchronous range request of file
-// `file` (0: the dataset's own).
-function myr_read(file, offset, len, dst) {
+// One synchronous range request of `url` into memory at `dst`: 0 when it came whole, else 1
+// with the reason in `failure`.
+function readRange(url, offset, len, dst) {
   const x = new XMLHttpRequest();
-  const url = urls[file];
-  if (url === undefined) {
-    failure = `file ${file} of the dataset is not known`;
-    return 1;
-  }
   x.open("GET", url, false);
   x.responseType = "arraybuffer";
   x.setRequestHeader("Range", `bytes=${offset}-${offset + len - 1}`);
@@ -42,6 +37,16 @@ function myr_read(file, offset, len, dst) {
   stats.bytes += len;
   memory(dst, len).set(new Uint8Array(x.response));
   return 0;
+}
+
+// The import the module reads the dataset through: file `file` (0: the dataset's own).
+function myr_read(file, offset, len, dst) {
+  const url = urls[file];
+  if (url === undefined) {
+    failure = `file ${file} of the dataset is not known`;
+    return 1;
+  }
+  return readRange(url, offset, len, dst);
 }
 
 // A cloud format's dataset (COPC, EPT, Potree 2.0) is read by the module itself: its files by
@@ -74,26 +79,7 @@ function myr_size(ptr, len) {
 
 // One range of the resource at a URL into memory at `dst`: 0 when it came whole.
 function myr_get(ptr, len, offset, n, dst) {
-  const url = urlAt(ptr, len);
-  const x = new XMLHttpRequest();
-  x.open("GET", url, false);
-  x.responseType = "arraybuffer";
-  x.setRequestHeader("Range", `bytes=${offset}-${offset + n - 1}`);
-  try {
-    x.send();
-  } catch (e) {
-    failure = `${url}: ${e}`;
-    return 1;
-  }
-  stats.requests += 1;
-  if (x.status !== 206 || !x.response || x.response.byteLength !== n) {
-    failure = `${url}: asked for ${n} bytes at ${offset}, got HTTP ${x.status}` +
-      (x.status === 200 ? " (the server ignores Range)" : "");
-    return 1;
-  }
-  stats.bytes += n;
-  memory(dst, n).set(new Uint8Array(x.response));
-  return 0;
+  return readRange(urlAt(ptr, len), offset, n, dst);
 }
 
 // The module's imports: the reads above, and stubs that say so for the browser glue some
