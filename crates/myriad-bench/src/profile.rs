@@ -11,7 +11,8 @@ use myriad_build::extract::{ExtractOptions, extract};
 use myriad_core::Aabb;
 use myriad_core::colour::ColorBy;
 use myriad_format::Dataset;
-use myriad_measure::corridor::parse_xy_list;
+use myriad_measure::files::xy_arg;
+use myriad_measure::shape::Want;
 use myriad_measure::{Bound, Corridor};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,9 +25,14 @@ pub struct ProfileBenchArgs {
     /// Datasets (.myr)
     #[arg(required = true)]
     datasets: Vec<PathBuf>,
-    /// The line: X1,Y1,X2,Y2[,...] [default: 1 km east-west through the data's centre]
+    /// The line: X1,Y1,X2,Y2[,...] or @FILE [default: 1 km east-west through the data's
+    /// centre]
     #[arg(long, allow_hyphen_values = true)]
     line: Option<String>,
+    /// Split the line's segments into this many vertices in all, each nudged off the line by
+    /// a millionth of its segment (a GIS line's vertex count over the same ground)
+    #[arg(long)]
+    vertices: Option<usize>,
     /// The corridor's width
     #[arg(long, default_value_t = 2.0)]
     width: f64,
@@ -40,6 +46,31 @@ pub(crate) fn default_line(b: &Aabb, length: f64) -> Vec<[f64; 2]> {
     let c = b.center();
     let half = (length.min(0.9 * (b.max[0] - b.min[0]))) / 2.0;
     vec![[c[0] - half, c[1]], [c[0] + half, c[1]]]
+}
+
+/// `pts` with its segments (and, `closed`, the last back to the first) split evenly into
+/// about `n` vertices in all, the new ones nudged across by a millionth of their segment, so
+/// that the shape covers the same ground with `n` real vertices.
+pub(crate) fn subdivide(pts: &[[f64; 2]], closed: bool, n: usize) -> Vec<[f64; 2]> {
+    let segs = if closed { pts.len() } else { pts.len() - 1 };
+    let per = (n.saturating_sub(pts.len()) / segs.max(1)) + 1;
+    let mut out = Vec::with_capacity(n + 1);
+    for i in 0..segs {
+        let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        for k in 0..per {
+            let t = k as f64 / per as f64;
+            let nudge = if k % 2 == 1 { 1e-6 } else { 0.0 };
+            out.push([
+                a[0] + t * d[0] - nudge * d[1],
+                a[1] + t * d[1] + nudge * d[0],
+            ]);
+        }
+    }
+    if !closed {
+        out.push(*pts.last().expect("a line"));
+    }
+    out
 }
 
 /// Seconds of `f`, after dropping `path`'s pages when `cold`.
@@ -106,11 +137,20 @@ pub(crate) fn cold_warm_and_box<T>(
 pub fn run(a: ProfileBenchArgs) -> Result<()> {
     for path in &a.datasets {
         let ds = Dataset::open(path)?;
-        let line = match &a.line {
-            Some(l) => parse_xy_list(l, "--line", 2).map_err(|e| anyhow!(e))?,
+        let mut line = match &a.line {
+            Some(l) => {
+                xy_arg(l, "--line", Want::Line)
+                    .map_err(|e| anyhow!(e))?
+                    .points
+            }
             None => default_line(&ds.meta.bounds, 1000.0),
         };
+        if let Some(n) = a.vertices {
+            line = subdivide(&line, false, n);
+        }
+        let t = Instant::now();
         let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
+        let index = t.elapsed().as_secs_f64();
         let t = cold_warm_and_box(path, a.runs, corridor.plan_bounds(), |ds| {
             myriad_measure::profile::profile(ds, &corridor, &Bound::all(), ColorBy::Rgb)
                 .map_err(|e| anyhow!(e))
@@ -123,9 +163,11 @@ pub fn run(a: ProfileBenchArgs) -> Result<()> {
             ds.meta.nodes
         );
         println!(
-            "  profile     {:.1} x {} {u}: {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
+            "  profile     {:.1} x {} {u}, {} vertices (indexed in {:.3} s): {} points from {} nodes; cold {:.3} s, warm {:.3} s (medians of {})",
             corridor.length(),
             a.width,
+            corridor.line().len(),
+            index,
             t.last.len(),
             t.last.nodes_read,
             t.cold,

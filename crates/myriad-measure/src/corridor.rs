@@ -3,6 +3,7 @@
 //! signed offset across it (left of the direction of travel positive).
 
 use crate::Region;
+use crate::edges::{Cells, Segment};
 use myriad_core::Aabb;
 
 /// Parses `X1,Y1,X2,Y2[,X3,Y3...]`.
@@ -33,12 +34,21 @@ pub fn parse_xy_list(s: &str, what: &str, at_least: usize) -> Result<Vec<[f64; 2
     Ok(v.chunks(2).map(|c| [c[0], c[1]]).collect())
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Corridor {
     line: Vec<[f64; 2]>,
     half: f64,
     /// Distance along the line at each vertex.
     along: Vec<f64>,
+    /// The segments by the cells they come within half the width of ([`crate::edges`]): a
+    /// point tries only its cell's, whatever the line's vertex count.
+    cells: Cells,
+}
+
+impl PartialEq for Corridor {
+    fn eq(&self, o: &Corridor) -> bool {
+        self.line == o.line && self.half == o.half
+    }
 }
 
 fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
@@ -53,7 +63,7 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 
 /// Distance from `p` to the segment `a`-`b`, the parameter of the foot (0..1) and the signed
 /// perpendicular distance (left positive).
-fn to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64, f64) {
+pub(crate) fn to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64, f64) {
     let d = sub(b, a);
     let len2 = dot(d, d);
     let t = (dot(sub(p, a), d) / len2).clamp(0.0, 1.0);
@@ -129,7 +139,9 @@ impl Corridor {
             let d = sub(w[1], w[0]);
             along.push(along.last().expect("one") + dot(d, d).sqrt());
         }
+        let segments: Vec<Segment> = v.windows(2).map(|w| (w[0], w[1])).collect();
         Ok(Corridor {
+            cells: Cells::new(&segments, width / 2.0),
             line: v,
             half: width / 2.0,
             along,
@@ -158,8 +170,9 @@ impl Corridor {
     pub fn station(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         let p = [x, y];
         let mut best: Option<(f64, f64, f64)> = None;
-        for (i, w) in self.line.windows(2).enumerate() {
-            let (dist, t, side) = to_segment(p, w[0], w[1]);
+        for &i in self.cells.near(x, y) {
+            let i = i as usize;
+            let (dist, t, side) = to_segment(p, self.line[i], self.line[i + 1]);
             if dist <= self.half && best.is_none_or(|b| dist < b.0) {
                 let len = self.along[i + 1] - self.along[i];
                 // Beyond a segment's end the point is off to one side of a joint: its offset is
@@ -192,9 +205,14 @@ impl Corridor {
 impl Region for Corridor {
     fn meets(&self, b: &Aabb) -> bool {
         let (lo, hi) = ([b.min[0], b.min[1]], [b.max[0], b.max[1]]);
-        self.line
-            .windows(2)
-            .any(|w| segment_to_rect(w[0], w[1], lo, hi) <= self.half)
+        let (plo, phi) = self.plan_bounds();
+        if lo[0] <= plo[0] && lo[1] <= plo[1] && hi[0] >= phi[0] && hi[1] >= phi[1] {
+            return true;
+        }
+        self.cells.any_in_box(lo, hi, |i| {
+            let i = i as usize;
+            segment_to_rect(self.line[i], self.line[i + 1], lo, hi) <= self.half
+        })
     }
     fn contains(&self, p: [f64; 3]) -> bool {
         self.station(p[0], p[1]).is_some()
@@ -243,5 +261,57 @@ mod tests {
                 .unwrap_err()
                 .contains("\"x\"")
         );
+    }
+
+    #[test]
+    fn a_long_line_answers_as_a_scan_of_every_segment() {
+        // A road of 6,000 vertices winding east.
+        let line: Vec<[f64; 2]> = (0..6000)
+            .map(|i| {
+                let x = i as f64 * 0.5;
+                [x, 20.0 * (x / 37.0).sin() + 3.0 * (x / 3.0).cos()]
+            })
+            .collect();
+        let c = Corridor::new(&line, 4.0).unwrap();
+        let scan = |x: f64, y: f64| {
+            let mut best: Option<(f64, f64, f64)> = None;
+            for (i, w) in line.windows(2).enumerate() {
+                let (dist, t, side) = to_segment([x, y], w[0], w[1]);
+                if dist <= 2.0 && best.is_none_or(|b| dist < b.0) {
+                    let across = if t <= 0.0 || t >= 1.0 {
+                        dist.copysign(side)
+                    } else {
+                        side
+                    };
+                    best = Some((
+                        dist,
+                        c.along_at(i) + t * (c.along_at(i + 1) - c.along_at(i)),
+                        across,
+                    ));
+                }
+            }
+            best.map(|(_, a, s)| (a, s))
+        };
+        let mut state = 3u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut inside = 0;
+        for _ in 0..5000 {
+            let x = next() * 3000.0;
+            let y = (x / 37.0).sin() * 20.0 + (next() - 0.5) * 14.0;
+            let s = scan(x, y);
+            assert_eq!(c.station(x, y), s, "{x},{y}");
+            inside += s.is_some() as usize;
+            let b = Aabb::new([x, y, 0.0], [x + next() * 5.0, y + next() * 5.0, 1.0]);
+            let meets = line.windows(2).any(|w| {
+                segment_to_rect(w[0], w[1], [b.min[0], b.min[1]], [b.max[0], b.max[1]]) <= 2.0
+            });
+            assert_eq!(c.meets(&b), meets, "{b:?}");
+        }
+        assert!(inside > 500, "{inside}");
     }
 }

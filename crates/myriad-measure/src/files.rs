@@ -4,6 +4,7 @@
 
 use crate::measurement::Kind;
 use crate::profile::Profile;
+use crate::shape;
 use crate::work::{self, Annotation, Work};
 use crate::{Corridor, Polygon};
 use dxf::entities::{Entity, EntityType, LwPolyline, MText, ModelPoint, Polyline, Text, Vertex};
@@ -326,6 +327,54 @@ pub fn import_work(path: &Path) -> Result<Work> {
         }
         _ => Err(bad("work comes from .geojson, .json or .dxf".into())),
     }
+}
+
+/// Files of vertices are read up to this size (a 10 M vertex CSV).
+pub const MAX_SHAPE_BYTES: u64 = 512 << 20;
+
+/// A `--polygon` or `--line` argument: `X1,Y1,X2,Y2,...`, or `@FILE` (GeoJSON, WKT or CSV;
+/// [`crate::shape`]), a regular file read with a bound. `what` names the option in errors.
+pub fn xy_arg(s: &str, what: &str, want: shape::Want) -> std::result::Result<shape::Shape, String> {
+    let least = if want == shape::Want::Polygon { 3 } else { 2 };
+    let Some(file) = s.strip_prefix('@') else {
+        return Ok(shape::Shape {
+            points: crate::corridor::parse_xy_list(s, what, least)?,
+            epsg: None,
+        });
+    };
+    let path = Path::new(file);
+    let bytes = myriad_io::read_small(path, MAX_SHAPE_BYTES).map_err(|e| format!("{what}: {e}"))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        format!(
+            "{what}: {file}: not UTF-8 text (byte {})",
+            e.utf8_error().valid_up_to()
+        )
+    })?;
+    shape::parse(&text, file, want).map_err(|e| format!("{what}: {e}"))
+}
+
+/// A shape from a file checked against the dataset it measures: the same EPSG code where both
+/// name one, and its vertices near the data whatever the codes say.
+pub fn check_shape(
+    s: &shape::Shape,
+    arg: &str,
+    what: &str,
+    crs: Option<&str>,
+    bounds: &myriad_core::Aabb,
+) -> std::result::Result<(), String> {
+    if !arg.starts_with('@') {
+        return Ok(());
+    }
+    let file = &arg[1..];
+    if let (Some(a), Some(b)) = (crs.and_then(crate::geojson::epsg_code), s.epsg)
+        && a != b
+    {
+        return Err(format!(
+            "{what}: {file}: its CRS is EPSG:{b}, the dataset's EPSG:{a}: reproject it first"
+        ));
+    }
+    shape::near_the_data(s.points.iter().copied(), bounds)
+        .map_err(|e| format!("{what}: {file}: {e}"))
 }
 
 fn extension(p: &Path) -> String {

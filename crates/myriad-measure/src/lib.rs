@@ -16,6 +16,7 @@
 
 pub mod corridor;
 pub mod crs;
+pub mod edges;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod files;
 pub mod filter;
@@ -23,6 +24,7 @@ pub mod geojson;
 pub mod measurement;
 pub mod polygon;
 pub mod profile;
+pub mod shape;
 pub mod volume;
 pub mod work;
 

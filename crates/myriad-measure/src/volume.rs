@@ -330,7 +330,7 @@ fn measure(
                 }
                 v.points += 1;
             }
-            if want_rim && polygon.to_boundary(p[0], p[1]) <= band {
+            if want_rim && region.near_edge(p[0], p[1]) {
                 let (x, y, z) = (p[0] - x0[0], p[1] - x0[1], p[2]);
                 for (s, t) in rim
                     .iter_mut()

@@ -6,8 +6,8 @@ use clap::Args;
 use myriad_build::extract::{self, ExtractOptions};
 use myriad_core::colour::{ColorBy, Gradient};
 use myriad_format::Dataset;
-use myriad_measure::corridor::parse_xy_list;
-use myriad_measure::files::{save_drawing, write_atomic};
+use myriad_measure::files::{check_shape, save_drawing, write_atomic, xy_arg};
+use myriad_measure::shape::Want;
 use myriad_measure::volume::{self, Base};
 use myriad_measure::{Corridor, Filter, Polygon};
 use std::path::{Path, PathBuf};
@@ -82,7 +82,8 @@ impl ColourArgs {
 pub struct ProfileArgs {
     /// The dataset (.myr, or its URL)
     dataset: PathBuf,
-    /// The section line in plan: X1,Y1,X2,Y2[,X3,Y3...] in the dataset's coordinates
+    /// The section line in plan: X1,Y1,X2,Y2[,X3,Y3...] in the dataset's coordinates, or
+    /// @FILE: a LineString in GeoJSON or WKT, or a CSV of x,y vertices
     #[arg(long, allow_hyphen_values = true)]
     line: String,
     /// The corridor's width: points within half of it on either side of the line
@@ -112,8 +113,8 @@ fn extension(p: &Path) -> String {
 }
 
 pub fn profile(a: ProfileArgs) -> Result<()> {
-    let line = parse_xy_list(&a.line, "--line", 2).map_err(|e| anyhow!(e))?;
-    let corridor = Corridor::new(&line, a.width).map_err(|e| anyhow!(e))?;
+    let line = xy_arg(&a.line, "--line", Want::Line).map_err(|e| anyhow!(e))?;
+    let corridor = Corridor::new(&line.points, a.width).map_err(|e| anyhow!(e))?;
     let filter = a.filter.filter()?;
     let ext = extension(&a.output);
     if !matches!(
@@ -130,6 +131,14 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     let ds = Dataset::open(&a.dataset)?;
+    check_shape(
+        &line,
+        &a.line,
+        "--line",
+        ds.meta.crs.as_deref(),
+        &ds.meta.bounds,
+    )
+    .map_err(|e| anyhow!(e))?;
     let u = units_of(&ds);
     let start = Instant::now();
     if matches!(ext.as_str(), "las" | "laz") {
@@ -258,7 +267,8 @@ fn units_of(ds: &Dataset) -> &'static str {
 pub struct VolumeArgs {
     /// The dataset (.myr, or its URL)
     dataset: PathBuf,
-    /// The polygon in plan: X1,Y1,X2,Y2,X3,Y3[,...] in the dataset's coordinates
+    /// The polygon in plan: X1,Y1,X2,Y2,X3,Y3[,...] in the dataset's coordinates, or @FILE: a
+    /// Polygon in GeoJSON or WKT, or a CSV of x,y vertices (checked against the dataset's CRS)
     #[arg(long, allow_hyphen_values = true)]
     polygon: String,
     /// The base: rim (a plane fitted to the points on the polygon's edge), an elevation, or
@@ -282,8 +292,8 @@ pub struct VolumeArgs {
 }
 
 pub fn volume(a: VolumeArgs) -> Result<()> {
-    let pts = parse_xy_list(&a.polygon, "--polygon", 3).map_err(|e| anyhow!(e))?;
-    let polygon = Polygon::new(&pts).map_err(|e| anyhow!(e))?;
+    let shape = xy_arg(&a.polygon, "--polygon", Want::Polygon).map_err(|e| anyhow!(e))?;
+    let polygon = Polygon::new(&shape.points).map_err(|e| anyhow!(e))?;
     if let Some(g) = &a.geojson {
         myriad_io::atomic::refuse_input_as_output(g, &[&a.dataset])?;
         if g.exists() && !a.force {
@@ -291,6 +301,14 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
         }
     }
     let ds = Dataset::open(&a.dataset)?;
+    check_shape(
+        &shape,
+        &a.polygon,
+        "--polygon",
+        ds.meta.crs.as_deref(),
+        &ds.meta.bounds,
+    )
+    .map_err(|e| anyhow!(e))?;
     let earlier;
     let base = match a.base.as_str() {
         "rim" => Base::Rim,

@@ -5,6 +5,7 @@ use clap::Args;
 use myriad_build::open::{Opened, Opener, Pending, Preview, Watched};
 use myriad_core::units::parse_floats;
 use myriad_format::Dataset;
+use myriad_measure::shape::Want;
 use myriad_render::args::{parse_point_size, parse_shape};
 use myriad_render::{Edl, Passes, PointSize, Shape, Style};
 use myriad_viewer::ViewOptions;
@@ -34,7 +35,8 @@ pub struct ViewArgs {
     /// Open in the parallel (orthographic) view (key 0)
     #[arg(help_heading = "Camera", long)]
     parallel: bool,
-    /// Open with the profile along this section line cut: X1,Y1,X2,Y2[,...] (key X draws one)
+    /// Open with the profile along this section line cut: X1,Y1,X2,Y2[,...] or @FILE (key X
+    /// draws one)
     #[arg(
         help_heading = "Tools",
         long,
@@ -45,8 +47,8 @@ pub struct ViewArgs {
     /// With --section: the corridor's width [default: four times the points' spacing]
     #[arg(help_heading = "Tools", long, requires = "section")]
     section_width: Option<f64>,
-    /// Open measuring the volume over this polygon: X1,Y1,X2,Y2,X3,Y3[,...] (key V draws
-    /// one); the result is printed too
+    /// Open measuring the volume over this polygon: X1,Y1,X2,Y2,X3,Y3[,...] or @FILE
+    /// (GeoJSON, WKT or CSV; key V draws one); the result is printed too
     #[arg(
         help_heading = "Tools",
         long,
@@ -193,7 +195,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         work,
         view: a.view,
         parallel: a.parallel,
-        volume: volume_asked(&a)?,
+        volume: volume_asked(&a, &datasets)?,
         section: section_asked(&a, &datasets)?,
         width: a.width,
         height: a.height,
@@ -392,13 +394,36 @@ fn print_vr(r: &myriad_viewer::vr::VrReport) {
     }
 }
 
+/// A polygon or line argument (inline or @FILE), a file's checked against the first dataset.
+fn shape_arg(
+    s: &str,
+    what: &str,
+    want: Want,
+    datasets: &[(String, Arc<Dataset>)],
+) -> Result<Vec<[f64; 2]>> {
+    let shape = myriad_measure::files::xy_arg(s, what, want).map_err(anyhow::Error::msg)?;
+    if let Some((_, ds)) = datasets.first() {
+        myriad_measure::files::check_shape(
+            &shape,
+            s,
+            what,
+            ds.meta.crs.as_deref(),
+            &ds.meta.bounds,
+        )
+        .map_err(anyhow::Error::msg)?;
+    }
+    Ok(shape.points)
+}
+
 /// `--volume` with `--volume-base` and `--volume-cell`, checked.
-fn volume_asked(a: &ViewArgs) -> Result<Option<myriad_viewer::VolumeAsked>> {
+fn volume_asked(
+    a: &ViewArgs,
+    datasets: &[(String, Arc<Dataset>)],
+) -> Result<Option<myriad_viewer::VolumeAsked>> {
     Ok(match &a.volume {
         None => None,
         Some(p) => {
-            let pts = myriad_measure::corridor::parse_xy_list(p, "--volume", 3)
-                .map_err(anyhow::Error::msg)?;
+            let pts = shape_arg(p, "--volume", Want::Polygon, datasets)?;
             myriad_measure::Polygon::new(&pts).map_err(anyhow::Error::msg)?;
             let base =
                 match a.volume_base.as_str() {
@@ -428,8 +453,7 @@ fn section_asked(
     Ok(match &a.section {
         None => None,
         Some(l) => {
-            let line = myriad_measure::corridor::parse_xy_list(l, "--section", 2)
-                .map_err(anyhow::Error::msg)?;
+            let line = shape_arg(l, "--section", Want::Line, datasets)?;
             let width = match a.section_width {
                 Some(w) => w,
                 None => {

@@ -192,6 +192,109 @@ print(round(p["fill"], 3))
         s(&other_myr),
     ];
     fails(&args, "the earlier survey does not cover");
+    polygons_from_files(&d, &myr, polygon);
+}
+
+/// `--polygon @FILE`: GeoJSON, WKT and CSV give the volume the inline polygon gives, a polygon
+/// of 100 k vertices over the same ground too; another CRS, far coordinates and what is not a
+/// file are one-line errors.
+fn polygons_from_files(d: &Path, myr: &Path, polygon: &str) {
+    let xy: Vec<f64> = polygon.split(',').map(|v| v.parse().unwrap()).collect();
+    let pts: Vec<[f64; 2]> = xy.chunks(2).map(|p| [p[0], p[1]]).collect();
+    let inline = json(&ok(&["volume", s(myr), "--polygon", polygon, "--json"]));
+    let fill = inline["fill"].as_f64().unwrap();
+    let ring = |p: &[[f64; 2]]| {
+        let mut v: Vec<String> = p.iter().map(|q| format!("[{},{}]", q[0], q[1])).collect();
+        v.push(v[0].clone());
+        v.join(",")
+    };
+    let geojson = |p: &[[f64; 2]], epsg: u32| {
+        format!(
+            r#"{{"type":"FeatureCollection","crs":{{"type":"name","properties":{{"name":"urn:ogc:def:crs:EPSG::{epsg}"}}}},
+            "features":[{{"type":"Feature","properties":{{"name":"pile"}},"geometry":{{"type":"Polygon","coordinates":[[{}]]}}}}]}}"#,
+            ring(p)
+        )
+    };
+    let wkt = format!(
+        "SRID=32633;POLYGON (({}, {} {}))",
+        pts.iter()
+            .map(|p| format!("{} {}", p[0], p[1]))
+            .collect::<Vec<_>>()
+            .join(", "),
+        pts[0][0],
+        pts[0][1]
+    );
+    let csv = format!(
+        "id,x,y\n{}",
+        pts.iter()
+            .enumerate()
+            .map(|(i, p)| format!("{i},{},{}\n", p[0], p[1]))
+            .collect::<String>()
+    );
+    // 100 k vertices along the same edges.
+    let per = 100_000 / pts.len();
+    let mut dense = Vec::new();
+    for i in 0..pts.len() {
+        let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+        for k in 0..per {
+            let t = k as f64 / per as f64;
+            dense.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+        }
+    }
+    for (name, text) in [
+        ("pile.geojson", geojson(&pts, 32633)),
+        ("pile.wkt", wkt),
+        ("pile.csv", csv),
+        ("dense.geojson", geojson(&dense, 32633)),
+    ] {
+        let f = d.join(name);
+        std::fs::write(&f, text).unwrap();
+        let arg = format!("@{}", f.display());
+        let v = json(&ok(&["volume", s(myr), "--polygon", &arg, "--json"]));
+        let got = v["fill"].as_f64().unwrap();
+        assert!(
+            (got - fill).abs() <= 1e-4 * fill,
+            "{name}: fill {got} vs {fill}"
+        );
+    }
+    let other = d.join("other-crs.geojson");
+    std::fs::write(&other, geojson(&pts, 4326)).unwrap();
+    fails(
+        &[
+            "volume",
+            s(myr),
+            "--polygon",
+            &format!("@{}", other.display()),
+        ],
+        "its CRS is EPSG:4326, the dataset's EPSG:32633",
+    );
+    let lonlat = d.join("lonlat.csv");
+    std::fs::write(&lonlat, "15.1,50.2\n15.2,50.2\n15.2,50.3\n").unwrap();
+    fails(
+        &[
+            "volume",
+            s(myr),
+            "--polygon",
+            &format!("@{}", lonlat.display()),
+        ],
+        "lies far outside the dataset",
+    );
+    let bad = d.join("bad.wkt");
+    std::fs::write(&bad, "POLYGON ((0 0, 1 0, 1 x, 0 0))").unwrap();
+    fails(
+        &[
+            "volume",
+            s(myr),
+            "--polygon",
+            &format!("@{}", bad.display()),
+        ],
+        "bad.wkt: byte 22: \"x\" is not a finite number",
+    );
+    fails(&["volume", s(myr), "--polygon", "@/dev/zero"], "not a file");
+    fails(
+        &["volume", s(myr), "--polygon", "@/nonexistent/area.geojson"],
+        "area.geojson",
+    );
 }
 
 /// Distance along and across a polyline, computed here on its own: the nearest segment.
@@ -291,6 +394,38 @@ fn profile_to_csv_las_dxf_png() {
     }
     got.sort();
     assert_eq!(got, expect, "the CSV holds exactly the corridor's points");
+    // The same line from a WKT file, and as a GeoJSON LineString: the same rows.
+    let wkt = d.join("road.wkt");
+    let pairs: Vec<String> = line.iter().map(|p| format!("{} {}", p[0], p[1])).collect();
+    std::fs::write(&wkt, format!("LINESTRING ({})", pairs.join(", "))).unwrap();
+    let gj = d.join("road.geojson");
+    let coords: Vec<String> = line
+        .iter()
+        .map(|p| format!("[{},{}]", p[0], p[1]))
+        .collect();
+    std::fs::write(
+        &gj,
+        format!(
+            r#"{{"type":"Feature","geometry":{{"type":"LineString","coordinates":[{}]}}}}"#,
+            coords.join(",")
+        ),
+    )
+    .unwrap();
+    for (file, out) in [(&wkt, "wkt.csv"), (&gj, "gj.csv")] {
+        let o = d.join(out);
+        let arg = format!("@{}", file.display());
+        ok(&[
+            "profile",
+            s(&myr),
+            "--line",
+            &arg,
+            "--width",
+            "3",
+            "-o",
+            s(&o),
+        ]);
+        assert_eq!(std::fs::read_to_string(&o).unwrap(), text, "{out}");
+    }
 
     let corridor = d.join("profile.laz");
     ok(&[
