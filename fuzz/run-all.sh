@@ -19,14 +19,14 @@ set -u
 cd "$(dirname "$0")"
 secs=${1:-600}
 crafted=../crates/myriad/tests/corpus
-for t in ${TARGETS:-las ply pcd e57 dataset}; do
+for t in ${TARGETS:-las ply pcd e57 dataset filter shape import query cloud}; do
   case $t in
     las) formats="las laz" ;;
     dataset) formats="myr" ;;
     *) formats=$t ;;
   esac
   dirs=""
-  for f in $formats; do dirs="$dirs $crafted/$f"; done
+  for f in $formats; do [ -d $crafted/$f ] && dirs="$dirs $crafted/$f"; done
   rm -rf seeds-work/$t
   mkdir -p corpus/$t seeds-work/$t
   [ -f seeds/$t.tar.zst ] && tar -x --zstd -f seeds/$t.tar.zst -C seeds-work/$t

@@ -40,6 +40,11 @@ pub struct OpenScanBenchArgs {
     /// black with black in rgb)
     #[arg(long, value_parser = myriad_render::args::parse_color, default_value = "rgb")]
     color: ColorBy,
+    /// Seconds the first image's preview may take, decoding whole chunks of large LAZ scans
+    /// after their chunks' first points (0: the chunk starts alone) [default: render
+    /// --no-wait's]
+    #[arg(long)]
+    preview_budget: Option<f64>,
     /// Where each scan's dataset is built (removed at the end)
     #[arg(short, long, default_value = "myriad-bench-open-scan.myr")]
     output: PathBuf,
@@ -50,6 +55,11 @@ const AT: [f64; 5] = [1.0, 2.0, 5.0, 10.0, 30.0];
 
 pub fn run(a: OpenScanBenchArgs) -> Result<()> {
     let runs = a.runs.max(1);
+    let budget = match a.preview_budget {
+        Some(s) if s.is_finite() && s >= 0.0 => std::time::Duration::from_secs_f64(s.min(60.0)),
+        Some(s) => bail!("--preview-budget {s}: seconds, 0 or more"),
+        None => myriad_io::las_preview::PREVIEW_BUDGET,
+    };
     let gpu = Gpu::cpu();
     let raster = Rasterizer::new(&gpu);
     let style = Style {
@@ -62,12 +72,13 @@ pub fn run(a: OpenScanBenchArgs) -> Result<()> {
         a.width, a.height, gpu.name
     );
     println!(
-        "{:<40} {:>13} {:>8} {:>10} {:>9} {:>9} {:>9} {:>7} {:>9}  PSNR at {}",
+        "{:<40} {:>13} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>7} {:>9}  PSNR at {}",
         "scan",
         "points",
         "sampled",
         "bytes read",
         "first s",
+        "first dB",
         "convert s",
         "drawn s",
         "ratio",
@@ -85,8 +96,8 @@ pub fn run(a: OpenScanBenchArgs) -> Result<()> {
                 whole_cache &= crate::open::drop_cache(f)?;
             }
             let t = Instant::now();
-            let tiles = myriad_io::las_preview::preview_files(&files, 1 << 20)?;
-            let sample = Sample::new(&tiles.samples, a.color);
+            let tiles = myriad_io::las_preview::preview_files(&files, 1 << 20, budget)?;
+            let sample = Sample::layered(&tiles.samples, &tiles.even, tiles.detail_share, a.color);
             let Some(cam) = Camera::view(None, &sample.view, &sample.all, a.width, a.height) else {
                 bail!("{}: no view", scan.display());
             };
@@ -171,12 +182,13 @@ pub fn run(a: OpenScanBenchArgs) -> Result<()> {
             |n| n.to_string_lossy().into_owned(),
         );
         println!(
-            "{:<40} {:>13} {:>8} {:>10} {:>9.3} {:>9.2} {:>9.2} {:>7.2} {:>9.2}  {}",
+            "{:<40} {:>13} {:>8} {:>10} {:>9.3} {:>8.1} {:>9.2} {:>9.2} {:>7.2} {:>9.2}  {}",
             name,
             myriad_core::units::thousands(tiles.total),
             myriad_core::units::thousands(sampled as u64),
             myriad_core::units::thousands(tiles.bytes_read),
             median(firsts),
+            psnr(&preview, &done),
             convert,
             drawn,
             drawn / convert,

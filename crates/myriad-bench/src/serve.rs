@@ -36,7 +36,8 @@ pub struct ServeBenchArgs {
     #[arg(long)]
     nginx: Option<PathBuf>,
     /// Also run each server with rude clients beside the normal ones (hang-ups, idle sockets,
-    /// multi-range floods, slow box downloads)
+    /// multi-range floods; for a dataset, slow box downloads, corridors along the longest line a
+    /// request holds, the whole extent under the longest filter)
     #[arg(long)]
     hostile: bool,
 }
@@ -44,7 +45,7 @@ pub struct ServeBenchArgs {
 /// Rude clients against `url` until `stop`: their threads (joined by the caller).
 fn hostile(
     url: &str,
-    box_url: Option<String>,
+    costly: Option<Costly>,
     len: u64,
     stop: &Arc<AtomicBool>,
 ) -> Vec<std::thread::JoinHandle<()>> {
@@ -113,8 +114,37 @@ fn hostile(
             }
         })));
     }
+    let Some(costly) = costly else {
+        return threads;
+    };
+    // The costliest downloads, read as fast as they come, again and again.
+    for p in [&costly.line, &costly.filtered] {
+        for _ in 0..4 {
+            let (stop, p) = (stop.clone(), p.clone());
+            threads.push(spawn(Box::new(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    let Ok(mut c) = std::net::TcpStream::connect(addr) else {
+                        break;
+                    };
+                    let _ = write!(
+                        c,
+                        "GET {p} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"
+                    );
+                    let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
+                    let mut b = [0u8; 65536];
+                    while !stop.load(Ordering::Relaxed) {
+                        match c.read(&mut b) {
+                            Ok(0) | Err(_) => break,
+                            Ok(_) => {}
+                        }
+                    }
+                }
+            })));
+        }
+    }
     // Slow readers of box downloads.
-    if let Some(bx) = box_url {
+    {
+        let bx = costly.bx;
         for _ in 0..4 {
             let (stop, bx) = (stop.clone(), bx.clone());
             threads.push(spawn(Box::new(move || {
@@ -138,22 +168,75 @@ fn hostile(
     threads
 }
 
-/// The path of a box download of the middle tenth of a dataset's extent (None: not a dataset).
-fn box_path(file: &Path) -> Option<String> {
+/// The downloads of a dataset that cost a server most.
+#[derive(Clone)]
+struct Costly {
+    /// A box of the middle tenth of its extent.
+    bx: String,
+    /// A corridor 0.1 % of its width wide along a zigzag over the whole extent with as many
+    /// vertices as a request head holds (14 KB of them).
+    line: String,
+    /// The whole extent at its finest, through 12 conditions on every attribute the filter
+    /// language knows that the dataset has (a 413 where it passes the server's point limit).
+    filtered: String,
+}
+
+/// [`Costly`] for `file` (None: not a dataset).
+fn costly_paths(file: &Path) -> Option<Costly> {
     let ds = myriad_format::Dataset::open(file).ok()?;
     let b = ds.meta.bounds;
     let c = |a: usize, f: f64| b.min[a] + (b.max[a] - b.min[a]) * f;
-    let name = file.file_name()?.to_string_lossy();
-    Some(format!(
-        "/x/{}?box={},{},{},{},{},{}",
-        myriad_serve::href(&name),
+    let name = myriad_serve::href(&file.file_name()?.to_string_lossy());
+    let bx = format!(
+        "/x/{name}?box={},{},{},{},{},{}",
         c(0, 0.45),
         c(1, 0.45),
         b.min[2],
         c(0, 0.55),
         c(1, 0.55),
         b.max[2]
-    ))
+    );
+    let mut line = String::new();
+    let mut i = 0usize;
+    while line.len() < 14_000 {
+        let t = (i as f64 * 0.618_034).fract();
+        let side = if i.is_multiple_of(2) { 0.02 } else { 0.98 };
+        line.push_str(&format!("{:.3},{:.3},", c(0, side), c(1, t)));
+        i += 1;
+    }
+    line.pop();
+    let width = 0.001 * (b.max[0] - b.min[0]);
+    let line = format!("/x/{name}?line={line}&width={width:.3}");
+    let schema = &ds.meta.schema;
+    let mut conds = Vec::new();
+    for (n, v) in [
+        ("intensity", ">=0"),
+        ("return_number", ">=0"),
+        ("number_of_returns", ">=0"),
+        ("gps_time", ">-1e12"),
+        ("point_source_id", ">=0"),
+        ("scan_angle", ">-1000"),
+        ("user_data", ">=0"),
+    ] {
+        if schema.attributes.iter().any(|a| a.name() == n) {
+            conds.push(format!("{n}{v}"));
+        }
+    }
+    while conds.len() < 12 {
+        let z = format!("z>{}", b.min[2] - 1.0 - conds.len() as f64);
+        conds.push(z);
+    }
+    let filtered = format!(
+        "/x/{name}?box={},{},{},{},{},{}&where={}",
+        b.min[0],
+        b.min[1],
+        b.min[2],
+        b.max[0],
+        b.max[1],
+        b.max[2],
+        myriad_serve::href(&conds.join(","))
+    );
+    Some(Costly { bx, line, filtered })
 }
 
 /// A server process (and, for nginx, its workers), stopped when dropped.
@@ -297,7 +380,7 @@ fn load(
     server: &Running,
     file: &Path,
     a: &ServeBenchArgs,
-    rude: Option<Option<String>>,
+    rude: Option<Option<Costly>>,
 ) -> Result<Load> {
     let len = std::fs::metadata(file)?.len();
     if len < 4096 {
@@ -399,6 +482,22 @@ fn load(
     Ok(out)
 }
 
+/// The ordinary clients' requests/s and p99 latency beside rude ones, as ratios of alone.
+fn ratio(alone: &Load, rude: &Load) -> (f64, f64) {
+    let p99 = |l: &Load| {
+        let mut v = l.latencies.clone();
+        v.sort_unstable();
+        v.get((v.len() as f64 * 0.99) as usize)
+            .copied()
+            .unwrap_or(0)
+            .max(1) as f64
+    };
+    (
+        (rude.requests as f64 / rude.seconds) / (alone.requests as f64 / alone.seconds).max(1e-9),
+        p99(rude) / p99(alone),
+    )
+}
+
 fn report(name: &str, l: &mut Load) {
     l.latencies.sort_unstable();
     let q = |f: f64| {
@@ -440,19 +539,26 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
         "{:<8} {:>9} {:>9} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8}",
         "server", "req/s", "MB/s", "p50 ms", "p99 ms", "errors", "RSS MB", "max MB", "end MB"
     );
-    let bx = box_path(&a.file);
+    let costly = costly_paths(&a.file);
     let s = start_myriad(&a.file)?;
-    report("myriad", &mut load(&s, &a.file, &a, None)?);
+    let mut ratios = Vec::new();
+    let mut alone = load(&s, &a.file, &a, None)?;
+    report("myriad", &mut alone);
     if a.hostile {
-        report("+hostile", &mut load(&s, &a.file, &a, Some(bx.clone()))?);
+        let mut rude = load(&s, &a.file, &a, Some(costly.clone()))?;
+        report("+hostile", &mut rude);
+        ratios.push(("myriad", ratio(&alone, &rude)));
     }
     drop(s);
     match nginx {
         Some(n) => {
             let s = start_nginx(&n, &a.file)?;
-            report("nginx", &mut load(&s, &a.file, &a, None)?);
+            let mut alone = load(&s, &a.file, &a, None)?;
+            report("nginx", &mut alone);
             if a.hostile {
-                report("+hostile", &mut load(&s, &a.file, &a, Some(None))?);
+                let mut rude = load(&s, &a.file, &a, Some(None))?;
+                report("+hostile", &mut rude);
+                ratios.push(("nginx", ratio(&alone, &rude)));
             }
         }
         None => println!("nginx: not found (apt-get install nginx-light), skipped"),
@@ -460,12 +566,19 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
     if a.hostile {
         println!(
             "+hostile: the same clients beside 100 hang-ups/s, 64 idle sockets, 16 floods of 32 overlapping 2 MB ranges{}",
-            if bx.is_some() {
-                ", 4 slow box downloads (Myriad only)"
+            if costly.is_some() {
+                "; for Myriad also 4 slow box downloads, 4 clients downloading a corridor along a \
+                 line of 14 KB of vertices, 4 downloading the whole extent through 12 conditions"
             } else {
                 ""
             }
         );
+        for (name, (rps, p99)) in ratios {
+            println!(
+                "{name}: the ordinary clients beside the hostile ones: {:.2} x the requests/s, {:.2} x the p99 latency, of alone",
+                rps, p99
+            );
+        }
     }
     Ok(())
 }

@@ -94,8 +94,53 @@ pub fn inputs_of(path: &Path) -> Result<Vec<PathBuf>> {
     Ok(tiles)
 }
 
-/// The places of the dataset of the scan at `path` as it is now: its files' paths, sizes and
-/// modification times, and the format version, make the key.
+/// Most bytes of a file's head, and of its chunk table or tail, in its fingerprint.
+const FINGERPRINT_BYTES: u64 = 64 << 10;
+
+/// What of a scan file's content its dataset's key holds, beside its size and time: its head
+/// (a LAS header with its VLRs, any other format's first 64 KiB) and, for LAZ, its chunk table
+/// (where every chunk starts and how many points it holds: a rewritten LAZ has another), else
+/// its last 64 KiB. A file changed at the same size with its modification time put back is
+/// then another scan (two small reads, whatever the file's size).
+fn fingerprint(f: &Path, len: u64) -> Result<Vec<u8>> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut file = std::fs::File::open(f).map_err(|e| Error::io(f, e))?;
+    let mut read_at = |at: u64, n: u64| -> Result<Vec<u8>> {
+        let n = n.min(len.saturating_sub(at));
+        let mut b = vec![0u8; n as usize];
+        file.seek(SeekFrom::Start(at))
+            .and_then(|_| file.read_exact(&mut b))
+            .map_err(|e| Error::io(f, e))?;
+        Ok(b)
+    };
+    let mut head = read_at(0, FINGERPRINT_BYTES)?;
+    let u32_at = |b: &[u8], i: usize| {
+        b.get(i..i + 4)
+            .map(|s| u32::from_le_bytes(s.try_into().unwrap()))
+    };
+    let mut tail = None;
+    if head.starts_with(b"LASF")
+        && let Some(data) = u32_at(&head, 96).map(u64::from)
+    {
+        head.truncate((data as usize).min(head.len()));
+        let compressed = head.get(104).is_some_and(|b| b & 0x80 != 0);
+        if compressed && data + 8 <= len {
+            let at = read_at(data, 8)?;
+            let table = i64::from_le_bytes(at.try_into().expect("8 bytes"));
+            if table > 0 && (table as u64) < len {
+                tail = Some(read_at(table as u64, FINGERPRINT_BYTES)?);
+            }
+        }
+    }
+    let tail = match tail {
+        Some(t) => t,
+        None => read_at(len.saturating_sub(FINGERPRINT_BYTES), FINGERPRINT_BYTES)?,
+    };
+    Ok([fnv(&[&head]).to_le_bytes(), fnv(&[&tail]).to_le_bytes()].concat())
+}
+
+/// The places of the dataset of the scan at `path` as it is now: its files' paths, sizes,
+/// modification times and fingerprints ([`fingerprint`]), and the format version, make the key.
 fn places(path: &Path) -> Result<Places> {
     let canonical = path.canonicalize().map_err(|e| Error::io(path, e))?;
     let dir = canonical.is_dir();
@@ -113,6 +158,7 @@ fn places(path: &Path) -> Result<Places> {
         parts.push(f.as_os_str().as_encoded_bytes().to_vec());
         parts.push(meta.len().to_le_bytes().to_vec());
         parts.push(mtime.to_le_bytes().to_vec());
+        parts.push(fingerprint(&f, meta.len())?);
     }
     parts.push(myriad_format::FORMAT_VERSION.to_le_bytes().to_vec());
     let key = fnv(&parts.iter().map(|p| p.as_slice()).collect::<Vec<_>>());
@@ -196,7 +242,7 @@ fn size(bytes: u64) -> String {
 pub fn preview_batch(path: &Path) -> Result<myriad_core::PointBatch> {
     use myriad_core::{Attribute, PointBatch, Schema};
     let files = inputs_of(path)?;
-    let tiles = myriad_io::las_preview::preview_files(&files, 1 << 18)?;
+    let tiles = myriad_io::las_preview::preview_files(&files, 1 << 18, std::time::Duration::ZERO)?;
     let rgb = tiles.samples.iter().any(|s| s.rgb.is_some());
     let mut attributes = vec![Attribute::Intensity, Attribute::Classification];
     if rgb {

@@ -24,6 +24,11 @@ pub struct Preview {
     pub bytes_read: u64,
     /// How the sample was taken, in a few words.
     pub how: &'static str,
+    /// The leading points that sample the whole file evenly (all of them but where whole
+    /// chunks were decoded after: those follow, dense where they are and nowhere else).
+    pub even: usize,
+    /// The share of an even sample's points that each later one stands for (1 when none).
+    pub detail_share: f64,
 }
 
 /// Counts the bytes read through it.
@@ -139,10 +144,12 @@ impl LasSource {
         let mut points = batch_for(&self.layout, extra, at.len());
         decode(&raw, len, &self.layout, &self.quant, &mut points);
         Ok(Preview {
+            even: points.len(),
             points,
             indices: at.iter().map(|a| a.0).collect(),
             bytes_read: f.read,
             how,
+            detail_share: 1.0,
         })
     }
 }
@@ -150,18 +157,174 @@ impl LasSource {
 /// LAZ scans of at most this many points are decoded whole for their preview.
 const DECODE_WHOLE: u64 = 2_000_000;
 
+/// How long the preview `render --no-wait` draws of large LAZ scans takes in all: their chunks'
+/// first points, then whole chunks spread over them decoded for what is left of it (tiles
+/// share it), so that the first image, drawn after, comes within 2 s.
+pub const PREVIEW_BUDGET: std::time::Duration = std::time::Duration::from_millis(1500);
+
 impl LasSource {
     /// The preview a viewer shows: [`LasSource::preview`], but a small LAZ scan (up to
     /// [`DECODE_WHOLE`] points: few chunks, and one of 50,000 points would give one point)
-    /// decoded whole and taken at a stride, fast at that size and a real sample.
-    pub fn preview_shown(&self, path: &Path, most: usize) -> Result<Preview> {
+    /// decoded whole and taken at a stride, fast at that size and a real sample; a large one's
+    /// chunks' first points, then until `deadline` whole chunks decoded in an order that spreads
+    /// them over the file ([`LasSource::spread_chunks`]).
+    pub fn preview_shown(
+        &self,
+        path: &Path,
+        most: usize,
+        deadline: std::time::Instant,
+    ) -> Result<Preview> {
         let total = self.header.number_of_points();
         // A scan damaged past its chunks' first points still shows them (its build says what
         // is wrong).
-        match self.header.point_format().is_compressed && total <= DECODE_WHOLE {
-            true => (self.decoded_whole(path, total, most)).or_else(|_| self.preview(path, most)),
-            false => self.preview(path, most),
+        match (
+            self.header.point_format().is_compressed,
+            total <= DECODE_WHOLE,
+        ) {
+            (true, true) => {
+                (self.decoded_whole(path, total, most)).or_else(|_| self.preview(path, most))
+            }
+            (true, false) => {
+                Ok(self.spread_chunks(path, self.preview(path, most)?, most, deadline))
+            }
+            (false, _) => self.preview(path, most),
         }
+    }
+
+    /// `starts` (the chunks' first points) with, until `deadline`, whole chunks decoded on all
+    /// cores, in an order whose every prefix is spread over the file (the golden ratio's
+    /// sequence), each taken at a stride: at most `most` points in all, the chunk starts kept.
+    fn spread_chunks(
+        &self,
+        path: &Path,
+        mut starts: Preview,
+        most: usize,
+        deadline: std::time::Instant,
+    ) -> Preview {
+        use std::sync::Mutex;
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let room = most.saturating_sub(starts.points.len());
+        let Ok(Some(chunks)) = self.chunks() else {
+            return starts;
+        };
+        if room == 0 || chunks.is_empty() || std::time::Instant::now() >= deadline {
+            return starts;
+        }
+        let mut first = Vec::with_capacity(chunks.len());
+        let mut at = 0u64;
+        for c in &chunks {
+            first.push(at);
+            at += c.points;
+        }
+        // Each chunk's share of the room (at least 1/64 of it), so that memory stays a few
+        // times `most` whatever the chunks decoded.
+        let per_chunk = (room / 64).max(1);
+        let most_chunks = (2 * room).div_ceil(per_chunk).min(chunks.len());
+        let n = chunks.len();
+        let mut order: Vec<usize> = Vec::with_capacity(n);
+        let mut seen = vec![false; n];
+        let phi = 0.618_033_988_749_894_9;
+        let mut k = 0usize;
+        while order.len() < most_chunks && k < 4 * n {
+            let c = ((k as f64 * phi).fract() * n as f64) as usize % n;
+            if !seen[c] {
+                seen[c] = true;
+                order.push(c);
+            }
+            k += 1;
+        }
+        let next = AtomicUsize::new(0);
+        let got: Mutex<Vec<(usize, PointBatch, Vec<u64>)>> = Mutex::new(Vec::new());
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |t| t.get())
+            .min(8);
+        std::thread::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|| {
+                    loop {
+                        if std::time::Instant::now() >= deadline {
+                            break;
+                        }
+                        let k = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(&c) = order.get(k) else { break };
+                        let Ok(mut src) = LasSource::open(path) else {
+                            break;
+                        };
+                        if src.keep_chunks(&[c as u32]).is_err() {
+                            break;
+                        }
+                        let step = (chunks[c].points as usize).div_ceil(per_chunk).max(1);
+                        let (mut pts, mut idx, mut seen): (Option<PointBatch>, Vec<u64>, u64) =
+                            (None, Vec::new(), 0);
+                        let mut failed = false;
+                        loop {
+                            match src.read_batch(crate::MAX_BATCH) {
+                                Ok(Some(b)) => {
+                                    // The chunk's first point is among the starts.
+                                    let keep: Vec<u32> = (0..b.len())
+                                        .map(|i| seen as usize + i)
+                                        .filter(|&j| j > 0 && j.is_multiple_of(step))
+                                        .map(|j| (j - seen as usize) as u32)
+                                        .collect();
+                                    idx.extend(keep.iter().map(|&i| first[c] + seen + i as u64));
+                                    let part = b.gather(&keep);
+                                    match &mut pts {
+                                        Some(p) => p.append(&part),
+                                        None => pts = Some(part),
+                                    }
+                                    seen += b.len() as u64;
+                                }
+                                Ok(None) => break,
+                                Err(_) => {
+                                    failed = true;
+                                    break;
+                                }
+                            }
+                        }
+                        // A chunk that does not decode is left to the build to name.
+                        if let (false, Some(p)) = (failed, pts) {
+                            got.lock()
+                                .expect("a preview thread panicked")
+                                .push((c, p, idx));
+                        }
+                    }
+                });
+            }
+        });
+        let mut got = got.into_inner().expect("a preview thread panicked");
+        if got.is_empty() {
+            return starts;
+        }
+        got.sort_by_key(|g| g.0);
+        starts.bytes_read += got.iter().map(|g| chunks[g.0].bytes).sum::<u64>();
+        let decoded: usize = got.iter().map(|g| g.1.len()).sum();
+        let stride = decoded.div_ceil(room).max(1);
+        // A chunk start stands for its chunk's points, a decoded sample for step x stride.
+        let mean_chunk = at as f64 / n as f64;
+        let step = (mean_chunk / per_chunk as f64).ceil().max(1.0);
+        starts.detail_share = (step * stride as f64 / mean_chunk).min(1.0);
+        // The starts of the chunks decoded go with their chunks' points (drawn fine there, not
+        // as one coarse square over them): the even ones first, then those.
+        let done: std::collections::HashSet<u64> = got.iter().map(|g| first[g.0]).collect();
+        let (coarse, fine): (Vec<u32>, Vec<u32>) = (0..starts.points.len() as u32)
+            .partition(|&k| !done.contains(&starts.indices[k as usize]));
+        let order: Vec<u32> = coarse.iter().chain(&fine).copied().collect();
+        starts.points = starts.points.gather(&order);
+        starts.indices = order.iter().map(|&k| starts.indices[k as usize]).collect();
+        starts.even = coarse.len();
+        let mut i = 0usize;
+        for (_, b, idx) in got {
+            let keep: Vec<u32> = (0..b.len())
+                .filter(|k| (i + k).is_multiple_of(stride))
+                .map(|k| k as u32)
+                .collect();
+            i += b.len();
+            starts.indices.extend(keep.iter().map(|&k| idx[k as usize]));
+            starts.points.append(&b.gather(&keep));
+        }
+        starts.how =
+            "the first point of each LAZ chunk, then whole chunks spread over the file, decoded";
+        starts
     }
 
     /// The preview of a small LAZ scan: every point decoded, at most `most` kept at a stride.
@@ -185,14 +348,17 @@ impl LasSource {
             seen += b.len() as u64;
         }
         let bytes_read = std::fs::metadata(path).map_or(0, |m| m.len());
+        let points = points.unwrap_or_else(|| {
+            batch_for(
+                &self.layout,
+                self.record_len.saturating_sub(self.layout.base_len),
+                0,
+            )
+        });
         Ok(Preview {
-            points: points.unwrap_or_else(|| {
-                batch_for(
-                    &self.layout,
-                    self.record_len.saturating_sub(self.layout.base_len),
-                    0,
-                )
-            }),
+            even: points.len(),
+            detail_share: 1.0,
+            points,
             indices,
             bytes_read,
             how: "a small LAZ scan decoded whole, taken at a stride",
@@ -211,17 +377,31 @@ pub struct Tiles {
     pub how: &'static str,
     /// What the files disagree on.
     pub differences: crate::Differences,
+    /// Each sample's leading points that sample its file evenly ([`Preview::even`]).
+    pub even: Vec<usize>,
+    /// The share of an even sample's points each later one stands for (the largest of the
+    /// files'; 1 when none).
+    pub detail_share: f64,
 }
 
 /// The previews of `files` (LAS or LAZ each), at most `most` points in all: several files
 /// opened and sampled at once (each open reads a header, VLRs and a chunk table, small reads
-/// that wait on the disk).
-pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles> {
+/// that wait on the disk); large LAZ files' chunk starts then whole chunks decoded until
+/// `budget` from the start has passed (none for [`Duration::ZERO`]: a viewer's first frame at
+/// once, its build filling in what the decoding would).
+///
+/// [`Duration::ZERO`]: std::time::Duration::ZERO
+pub fn preview_files(
+    files: &[std::path::PathBuf],
+    most: usize,
+    budget: std::time::Duration,
+) -> Result<Tiles> {
     const AT_ONCE: usize = 16;
     let per_file = (most / files.len().max(1)).max(1);
+    let deadline = std::time::Instant::now() + budget;
     let one = |f: &std::path::PathBuf| -> Result<(LasSource, Preview)> {
         let src = LasSource::open(f)?;
-        let p = src.preview_shown(f, per_file)?;
+        let p = src.preview_shown(f, per_file, deadline)?;
         Ok((src, p))
     };
     let per = files.len().div_ceil(AT_ONCE).max(1);
@@ -241,6 +421,8 @@ pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles>
         bytes_read: 0,
         how: "",
         differences: crate::Differences::of(done.iter().map(|(src, _)| src.info())),
+        even: Vec::with_capacity(files.len()),
+        detail_share: 0.0,
     };
     for (src, p) in done {
         t.total += src.header().number_of_points();
@@ -248,7 +430,14 @@ pub fn preview_files(files: &[std::path::PathBuf], most: usize) -> Result<Tiles>
         if t.how.is_empty() || src.header().point_format().is_compressed {
             t.how = p.how;
         }
+        t.even.push(p.even);
+        if p.even < p.points.len() {
+            t.detail_share = t.detail_share.max(p.detail_share);
+        }
         t.samples.push(p.points);
+    }
+    if t.detail_share == 0.0 {
+        t.detail_share = 1.0;
     }
     Ok(t)
 }

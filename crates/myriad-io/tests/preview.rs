@@ -203,3 +203,57 @@ fn previews_of_the_real_scans_are_their_points() {
     }
     assert!(laz >= 5, "the corpus has LAZ files ({laz})");
 }
+
+/// A large LAZ scan's preview (more than the 2 M points decoded whole): its chunks' first points,
+/// then whole chunks spread over the file decoded until the deadline, each sample the file's own
+/// point at its index; a deadline already past gives the chunk starts alone.
+#[test]
+fn a_large_laz_previews_its_chunk_starts_then_decoded_chunks_spread_over_it() {
+    let path = temp("large.laz");
+    let schema = Schema::new(vec![
+        Attribute::Intensity,
+        Attribute::Classification,
+        Attribute::GpsTime,
+    ]);
+    write_scan(&path, 2_100_000, &schema);
+    let src = LasSource::open(&path).unwrap();
+    let chunks = src.chunks().unwrap().unwrap().len();
+    let past = std::time::Instant::now();
+    let starts = src.preview_shown(&path, 200_000, past).unwrap();
+    assert_eq!(
+        starts.points.len(),
+        chunks,
+        "a deadline past: the chunk starts alone"
+    );
+    let later = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let p = src.preview_shown(&path, 200_000, later).unwrap();
+    assert!(p.how.contains("decoded"), "{}", p.how);
+    assert!(
+        p.points.len() > 20 * chunks && p.points.len() <= 200_000,
+        "{} points",
+        p.points.len()
+    );
+    assert_eq!(p.points.len(), p.indices.len());
+    let all = all_points(&path);
+    let mut seen = std::collections::HashSet::new();
+    for (k, &i) in p.indices.iter().enumerate() {
+        assert!(seen.insert(i), "point {i} twice");
+        assert_eq!(
+            p.points.positions[k], all.positions[i as usize],
+            "point {i}"
+        );
+        assert_eq!(
+            p.points.gps_time.as_ref().unwrap()[k],
+            all.gps_time.as_ref().unwrap()[i as usize]
+        );
+    }
+    // Spread: samples in every tenth of the file.
+    for tenth in 0..10u64 {
+        let n = p
+            .indices
+            .iter()
+            .filter(|&&i| i * 10 / 2_100_000 == tenth)
+            .count();
+        assert!(n > 1000, "tenth {tenth}: {n} samples");
+    }
+}

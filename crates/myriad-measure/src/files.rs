@@ -302,6 +302,27 @@ pub fn export_work(w: &Work, path: &Path, force: bool) -> Result<()> {
     }
 }
 
+/// A drawing from DXF bytes. The dxf crate panics on some values it reads (a header date
+/// beyond chrono's range, found by fuzzing): such a file is an error like any other, the panic
+/// caught and its message kept off the terminal.
+fn load_dxf(bytes: &[u8]) -> std::result::Result<Drawing, String> {
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let r = std::panic::catch_unwind(|| Drawing::load(&mut &bytes[..]));
+    std::panic::set_hook(hook);
+    match r {
+        Ok(Ok(d)) => Ok(d),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(p) => Err(format!(
+            "not a DXF this reads ({})",
+            p.downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a value out of range".into())
+        )),
+    }
+}
+
 /// Saved work from a `.geojson`/`.json` file (GeoJSON, or a work sidecar) or a `.dxf`.
 pub fn import_work(path: &Path) -> Result<Work> {
     let bad = |e: String| Error::Invalid(format!("{}: {e}", path.display()));
@@ -322,7 +343,7 @@ pub fn import_work(path: &Path) -> Result<Work> {
         }
         "dxf" => {
             let bytes = myriad_io::read_small(path, max)?;
-            let d = Drawing::load(&mut bytes.as_slice()).map_err(|e| bad(e.to_string()))?;
+            let d = load_dxf(&bytes).map_err(bad)?;
             work_from_drawing(&d).map_err(bad)
         }
         _ => Err(bad("work comes from .geojson, .json or .dxf".into())),

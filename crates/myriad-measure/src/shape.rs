@@ -293,13 +293,13 @@ fn wkt(text: &str, want: Want) -> Result<Shape, String> {
     };
     let mut epsg = None;
     let t = text.trim_start();
-    if t.len() > 5 && t[..5].eq_ignore_ascii_case("SRID=") {
+    if t.get(..5).is_some_and(|h| h.eq_ignore_ascii_case("SRID=")) {
         let semi = t.find(';').ok_or("SRID= without \";\"")?;
+        let code = t.get(5..semi).unwrap_or("");
         epsg = Some(
-            t[5..semi]
-                .trim()
+            code.trim()
                 .parse::<u32>()
-                .map_err(|_| format!("SRID \"{}\" is not a number", &t[5..semi]))?,
+                .map_err(|_| format!("SRID \"{code}\" is not a number"))?,
         );
         p.at = text.len() - t.len() + semi + 1;
     }

@@ -389,7 +389,11 @@ fn render_preview(
     style: &Style,
     t0: Instant,
 ) -> Result<()> {
-    let tiles = myriad_io::las_preview::preview_files(files, PREVIEW_POINTS)?;
+    let tiles = myriad_io::las_preview::preview_files(
+        files,
+        PREVIEW_POINTS,
+        myriad_io::las_preview::PREVIEW_BUDGET,
+    )?;
     if files.len() > 1 {
         let d = tiles.differences;
         for (k, what, then) in [
@@ -415,13 +419,17 @@ fn render_preview(
         }
     }
     let mut samples = tiles.samples;
-    for b in &mut samples {
+    let mut even = tiles.even;
+    for (b, e) in samples.iter_mut().zip(&mut even) {
         let bound = filter.bind(&b.schema()).map_err(anyhow::Error::msg)?;
-        bound.retain(b);
+        let keep = bound.mask(b);
+        *e = keep[..(*e).min(keep.len())].iter().filter(|&&k| k).count();
+        b.retain_mask(&keep);
     }
     let overview = samples.first().cloned().unwrap_or_default();
     let colour = a.colour.choose(&overview.schema(), || overview.clone())?;
-    let sample = myriad_render::preview::Sample::new(&samples, colour);
+    let sample =
+        myriad_render::preview::Sample::layered(&samples, &even, tiles.detail_share, colour);
     if sample.positions.is_empty() {
         bail!("{}: no points to preview", a.dataset.display());
     }

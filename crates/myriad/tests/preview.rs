@@ -181,6 +181,37 @@ fn a_folder_of_tiles_is_one_scan() {
     ]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stderr.contains("using"), "{}", r.stderr);
+    // A tile rewritten at the same size with its modification time put back (its header's
+    // generating software here): noticed by its content, made again.
+    let t0 = tiles.join("tile0.laz");
+    let when = std::fs::metadata(&t0).unwrap().modified().unwrap();
+    let mut bytes = std::fs::read(&t0).unwrap();
+    bytes[58..66].copy_from_slice(b"rewrite!");
+    std::fs::write(&t0, &bytes).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&t0)
+        .unwrap()
+        .set_modified(when)
+        .unwrap();
+    let r = myriad(&[
+        "render",
+        s(&tiles),
+        "-o",
+        s(&full),
+        "--force",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("converting into"), "{}", r.stderr);
+    assert_eq!(
+        made(&tiles).len(),
+        1,
+        "the earlier version's dataset is gone"
+    );
     // A tile more: made again, the old one gone.
     let extra = tiles.join("tile3.las");
     let r = myriad(&[
