@@ -117,8 +117,14 @@ fn hostile(
     let Some(costly) = costly else {
         return threads;
     };
-    // The costliest downloads, read as fast as they come, again and again.
-    for p in [&costly.line, &costly.filtered] {
+    // The costliest downloads read as fast as they come, and box downloads read slowly (4 KiB
+    // every 100 ms), again and again.
+    let downloads = [
+        (&costly.line, 65536, 0),
+        (&costly.filtered, 65536, 0),
+        (&costly.bx, 4096, 100),
+    ];
+    for (p, buffer, pause) in downloads {
         for _ in 0..4 {
             let (stop, p) = (stop.clone(), p.clone());
             threads.push(spawn(Box::new(move || {
@@ -131,34 +137,11 @@ fn hostile(
                         "GET {p} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"
                     );
                     let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
-                    let mut b = [0u8; 65536];
+                    let mut b = vec![0u8; buffer];
                     while !stop.load(Ordering::Relaxed) {
                         match c.read(&mut b) {
                             Ok(0) | Err(_) => break,
-                            Ok(_) => {}
-                        }
-                    }
-                }
-            })));
-        }
-    }
-    // Slow readers of box downloads.
-    {
-        let bx = costly.bx;
-        for _ in 0..4 {
-            let (stop, bx) = (stop.clone(), bx.clone());
-            threads.push(spawn(Box::new(move || {
-                while !stop.load(Ordering::Relaxed) {
-                    let Ok(mut c) = std::net::TcpStream::connect(addr) else {
-                        break;
-                    };
-                    let _ = write!(c, "GET {bx} HTTP/1.1\r\nHost: localhost\r\n\r\n");
-                    let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
-                    let mut b = [0u8; 4096];
-                    while !stop.load(Ordering::Relaxed) {
-                        match c.read(&mut b) {
-                            Ok(0) | Err(_) => break,
-                            Ok(_) => std::thread::sleep(Duration::from_millis(100)),
+                            Ok(_) => std::thread::sleep(Duration::from_millis(pause)),
                         }
                     }
                 }

@@ -168,17 +168,20 @@ fn a_folder_of_tiles_is_one_scan() {
     assert_eq!(ds.len(), 1, "one dataset, in the folder");
     holds(&ds[0], &want);
     // Unchanged tiles: the same dataset again, no conversion.
-    let r = myriad(&[
-        "render",
-        s(&tiles),
-        "-o",
-        s(&full),
-        "--force",
-        "--width",
-        "200",
-        "--height",
-        "150",
-    ]);
+    let render_again = || {
+        myriad(&[
+            "render",
+            s(&tiles),
+            "-o",
+            s(&full),
+            "--force",
+            "--width",
+            "200",
+            "--height",
+            "150",
+        ])
+    };
+    let r = render_again();
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stderr.contains("using"), "{}", r.stderr);
     // A tile rewritten at the same size with its modification time put back (its header's
@@ -194,17 +197,7 @@ fn a_folder_of_tiles_is_one_scan() {
         .unwrap()
         .set_modified(when)
         .unwrap();
-    let r = myriad(&[
-        "render",
-        s(&tiles),
-        "-o",
-        s(&full),
-        "--force",
-        "--width",
-        "200",
-        "--height",
-        "150",
-    ]);
+    let r = render_again();
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stderr.contains("converting into"), "{}", r.stderr);
     assert_eq!(
@@ -226,17 +219,7 @@ fn a_folder_of_tiles_is_one_scan() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     want.extend(records(&extra));
     want.sort();
-    let r = myriad(&[
-        "render",
-        s(&tiles),
-        "-o",
-        s(&full),
-        "--force",
-        "--width",
-        "200",
-        "--height",
-        "150",
-    ]);
+    let r = render_again();
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stderr.contains("converting into"), "{}", r.stderr);
     let ds = made(&tiles);
