@@ -391,13 +391,13 @@ pub(crate) async fn answer_dataset(
         );
     };
     let mut r = match &version {
-        Version::Preview(p) | Version::Final(p) => {
+        Version::Preview(p, _) | Version::Final(p, _) => {
             match file(&f.at(p.clone()), budget, req).await {
                 Ok(r) => r,
                 Err(e) => status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
             }
         }
-        Version::Snapshot(s) => snapshot(s, f.content_type, budget, req).await,
+        Version::Snapshot(s, _) => snapshot(s, f.content_type, budget, req).await,
     };
     let h = r.headers_mut();
     if let Ok(v) = HeaderValue::from_str(&version.name()) {

@@ -827,7 +827,7 @@ fn settled(f: &catalog::File) -> Option<catalog::File> {
     match &f.live {
         None => Some(f.clone()),
         Some(l) => match l.current() {
-            live::Version::Final(p) => Some(f.at(p)),
+            live::Version::Final(p, _) => Some(f.at(p)),
             _ => None,
         },
     }

@@ -39,7 +39,9 @@ pub(crate) type NewNodes = Option<Arc<Vec<NodeKey>>>;
 
 /// What a name being built serves.
 pub struct Live {
-    preview: PathBuf,
+    /// The preview, and the build's generation: 0, then one more each time the scan changed
+    /// after its dataset was built and is built again ([`Live::restart`]).
+    preview: Mutex<(PathBuf, u32)>,
     growing: Mutex<Option<Arc<Growing>>>,
     /// The build's end: the dataset, or `None` when it failed.
     ended: Mutex<Option<Option<PathBuf>>>,
@@ -50,28 +52,32 @@ pub struct Live {
     answers: Mutex<VecDeque<(String, String, NewNodes)>>,
 }
 
-/// One version of a name being built.
+/// One version of a name being built, of the build's generation.
 pub(crate) enum Version {
-    Preview(PathBuf),
-    Snapshot(Shown),
-    Final(PathBuf),
+    Preview(PathBuf, u32),
+    Snapshot(Shown, u32),
+    Final(PathBuf, u32),
 }
 
 impl Version {
-    /// Its name in `X-Myriad-Version` and `?v=`.
+    /// Its name in `X-Myriad-Version` and `?v=`: `preview`, the snapshot's number, `final`;
+    /// after a rebuild, `~G` after it (a name of an earlier generation is then gone).
     pub(crate) fn name(&self) -> String {
-        match self {
-            Version::Preview(_) => "preview".into(),
-            Version::Snapshot(s) => s.version.to_string(),
-            Version::Final(_) => "final".into(),
-        }
+        let (base, g) = match self {
+            Version::Preview(_, g) => ("preview".to_string(), *g),
+            Version::Snapshot(s, g) => (s.version.to_string(), *g),
+            Version::Final(_, g) => ("final".to_string(), *g),
+        };
+        if g == 0 { base } else { format!("{base}~{g}") }
     }
 
     /// Its length in bytes.
     pub(crate) fn len(&self) -> u64 {
         match self {
-            Version::Preview(p) | Version::Final(p) => std::fs::metadata(p).map_or(0, |m| m.len()),
-            Version::Snapshot(s) => s.bytes.len(),
+            Version::Preview(p, _) | Version::Final(p, _) => {
+                std::fs::metadata(p).map_or(0, |m| m.len())
+            }
+            Version::Snapshot(s, _) => s.bytes.len(),
         }
     }
 }
@@ -81,15 +87,15 @@ impl Version {
 /// when its page lies in the part of the build's file written before `old` was taken and `now`
 /// has the same page for it.
 fn new_nodes(old: &Version, now: &Version) -> Option<Vec<NodeKey>> {
-    let Version::Snapshot(o) = old else {
+    let Version::Snapshot(o, _) = old else {
         return None;
     };
     let written = o.bytes.prefix();
     let then = o.dataset.clone();
     let later = match now {
-        Version::Snapshot(s) => s.dataset.clone(),
-        Version::Final(p) => Arc::new(Dataset::open(p).ok()?),
-        Version::Preview(_) => return None,
+        Version::Snapshot(s, _) => s.dataset.clone(),
+        Version::Final(p, _) => Arc::new(Dataset::open(p).ok()?),
+        Version::Preview(..) => return None,
     };
     if then.meta.root != later.meta.root {
         return None;
@@ -117,13 +123,38 @@ impl Live {
     /// A name that serves the dataset at `preview` until its build shows more.
     pub fn new(preview: &Path) -> Arc<Live> {
         Arc::new(Live {
-            preview: preview.to_path_buf(),
+            preview: Mutex::new((preview.to_path_buf(), 0)),
             growing: Mutex::new(None),
             ended: Mutex::new(None),
             failure: Mutex::new(None),
             kept: Mutex::new(VecDeque::new()),
             answers: Mutex::new(VecDeque::new()),
         })
+    }
+
+    /// A name whose dataset is built already: `dataset`, final, until [`Live::restart`].
+    pub fn built(dataset: &Path) -> Arc<Live> {
+        let live = Live::new(dataset);
+        live.ended(Some(dataset.to_path_buf()));
+        live
+    }
+
+    /// The scan changed after its dataset was built: from now on `preview` (of the scan as it
+    /// is now) is served until a new build, of a new generation, shows more; every version of
+    /// the earlier one is gone (410), so no reader mixes the two.
+    pub fn restart(&self, preview: &Path) {
+        let mut p = self.preview.lock().expect("live lock");
+        *p = (preview.to_path_buf(), p.1 + 1);
+        *self.growing.lock().expect("live lock") = None;
+        *self.ended.lock().expect("live lock") = None;
+        *self.failure.lock().expect("live lock") = None;
+        self.kept.lock().expect("live lock").clear();
+        self.answers.lock().expect("live lock").clear();
+    }
+
+    /// The dataset a finished build serves (`None` while building, or failed).
+    pub fn dataset(&self) -> Option<PathBuf> {
+        self.ended.lock().expect("live lock").clone().flatten()
     }
 
     /// The build, whose snapshots are served from now on.
@@ -166,8 +197,9 @@ impl Live {
 
     /// The newest version.
     pub(crate) fn current(&self) -> Version {
+        let (preview, g) = self.preview.lock().expect("live lock").clone();
         if let Some(Some(p)) = &*self.ended.lock().expect("live lock") {
-            return Version::Final(p.clone());
+            return Version::Final(p.clone(), g);
         }
         let latest = (self.growing.lock().expect("live lock").as_ref()).and_then(|g| g.latest());
         let mut kept = self.kept.lock().expect("live lock");
@@ -180,8 +212,8 @@ impl Live {
             }
         }
         match kept.back() {
-            Some(s) => Version::Snapshot(s.clone()),
-            None => Version::Preview(self.preview.clone()),
+            Some(s) => Version::Snapshot(s.clone(), g),
+            None => Version::Preview(preview, g),
         }
     }
 
@@ -220,10 +252,18 @@ impl Live {
 
     /// The version named `v`, while it is answerable.
     pub(crate) fn version(&self, v: &str) -> Option<Version> {
-        match v {
-            "preview" => Some(Version::Preview(self.preview.clone())),
+        let (base, asked) = match v.split_once('~') {
+            Some((b, g)) => (b, g.parse::<u32>().ok().filter(|&g| g > 0)?),
+            None => (v, 0),
+        };
+        let (preview, g) = self.preview.lock().expect("live lock").clone();
+        if asked != g {
+            return None;
+        }
+        match base {
+            "preview" => Some(Version::Preview(preview, g)),
             "final" => match &*self.ended.lock().expect("live lock") {
-                Some(Some(p)) => Some(Version::Final(p.clone())),
+                Some(Some(p)) => Some(Version::Final(p.clone(), g)),
                 _ => None,
             },
             n => {
@@ -232,7 +272,7 @@ impl Live {
                 let kept = self.kept.lock().expect("live lock");
                 kept.iter()
                     .find(|s| s.version == n)
-                    .map(|s| Version::Snapshot(s.clone()))
+                    .map(|s| Version::Snapshot(s.clone(), g))
             }
         }
     }

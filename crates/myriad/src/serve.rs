@@ -135,9 +135,9 @@ fn signed(access: &myriad_serve::access::Access, url: &str, expires: &str) -> Re
 /// time), named after it (a folder of tiles after the folder: `tiles/` -> tiles.myr). A LAS/LAZ
 /// scan (or folder of tiles) without its dataset is served at once: its preview, then its build
 /// as it goes, then its dataset.
-fn catalog_of(inputs: &[PathBuf], opener: &mut Opener) -> Result<(Catalog, Vec<Building>)> {
+fn catalog_of(inputs: &[PathBuf], opener: &mut Opener) -> Result<(Catalog, Vec<Served>)> {
     let mut catalog = Catalog::default();
-    let mut to_build = Vec::new();
+    let mut scans = Vec::new();
     for input in inputs {
         if myriad_build::open::served_as_is(input) {
             catalog.add_input(input)?;
@@ -150,7 +150,15 @@ fn catalog_of(inputs: &[PathBuf], opener: &mut Opener) -> Result<(Catalog, Vec<B
         };
         let name = format!("{}.myr", stem.unwrap_or_default().to_string_lossy());
         match crate::cached::open(opener, input)? {
-            Opened::Dataset(ds) => catalog.add_file_as(&name, &ds, input)?,
+            Opened::Dataset(ds) => {
+                let live = myriad_serve::live::Live::built(&ds);
+                catalog.add_live(&name, live.clone(), &ds, input)?;
+                scans.push(Served {
+                    scan: input.clone(),
+                    live,
+                    pending: None,
+                });
+            }
             Opened::Preview(pending) => {
                 let preview = (pending.preview.as_ref()).context("a preview without a dataset")?;
                 let live = myriad_serve::live::Live::new(preview);
@@ -159,18 +167,27 @@ fn catalog_of(inputs: &[PathBuf], opener: &mut Opener) -> Result<(Catalog, Vec<B
                     "{}: serving its preview while its dataset is built",
                     input.display()
                 );
-                to_build.push((pending, live));
+                scans.push(Served {
+                    scan: input.clone(),
+                    live,
+                    pending: Some(pending),
+                });
             }
         }
     }
-    Ok((catalog, to_build))
+    Ok((catalog, scans))
 }
 
-/// A scan served before its dataset, and what serves it meanwhile.
-type Building = (Pending, Arc<myriad_serve::live::Live>);
+/// A scan served under a name, what serves it, and its build while one is to run.
+struct Served {
+    scan: PathBuf,
+    live: Arc<myriad_serve::live::Live>,
+    pending: Option<Pending>,
+}
 
-/// Builds the scans served before their datasets, one after another, each served as it goes.
-fn build_served(to_build: Vec<Building>) {
+/// Builds the scans served before their datasets, one after another as they come, each served
+/// as it goes.
+fn build_served(to_build: std::sync::mpsc::Receiver<(Pending, Arc<myriad_serve::live::Live>)>) {
     for (pending, live) in to_build {
         let g = myriad_build::growing::Growing::new(myriad_build::growing::DEFAULT_EVERY);
         live.building(g.clone());
@@ -188,6 +205,56 @@ fn build_served(to_build: Vec<Building>) {
                     "error: {e:#} ({}: answered as failed from now on)",
                     pending.scan.display()
                 );
+            }
+        }
+    }
+}
+
+/// How often served scans are looked at for a change since their dataset was built.
+const WATCH_EVERY: std::time::Duration = std::time::Duration::from_secs(3);
+
+/// Looks at the served scans every [`WATCH_EVERY`]: one whose built dataset is no longer its
+/// own (its files' sizes, times or content changed: `myriad_build::cached`) is served from its
+/// new preview, of a new generation ([`myriad_serve::live::Live::restart`]), and built again.
+fn watch_served(
+    scans: Vec<(PathBuf, Arc<myriad_serve::live::Live>)>,
+    opener: Arc<std::sync::Mutex<Option<Opener>>>,
+    to_build: std::sync::mpsc::Sender<(Pending, Arc<myriad_serve::live::Live>)>,
+) {
+    loop {
+        std::thread::sleep(WATCH_EVERY);
+        for (scan, live) in &scans {
+            let Some(built) = live.dataset() else {
+                continue;
+            };
+            if myriad_build::cached::existing(scan).as_ref() == Some(&built) || !scan.exists() {
+                continue;
+            }
+            let opened = {
+                let mut o = opener.lock().expect("opener lock");
+                // The server is stopping: its previews' folder is gone.
+                let Some(o) = o.as_mut() else { return };
+                crate::cached::open(o, scan)
+            };
+            match opened {
+                Ok(Opened::Preview(pending)) => {
+                    let Some(preview) = pending.preview.clone() else {
+                        continue;
+                    };
+                    eprintln!(
+                        "{}: changed since its dataset was built: serving its preview while it is built again",
+                        scan.display()
+                    );
+                    live.restart(&preview);
+                    if to_build.send((pending, live.clone())).is_err() {
+                        return;
+                    }
+                }
+                Ok(Opened::Dataset(d)) => {
+                    live.restart(&d);
+                    live.ended(Some(d));
+                }
+                Err(e) => eprintln!("warning: {e:#} (still serving what was built)"),
             }
         }
     }
@@ -259,7 +326,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
         );
     }
     let mut opener = Opener::new(Preview::Dataset);
-    let (catalog, to_build) = catalog_of(&a.inputs, &mut opener)?;
+    let (catalog, scans) = catalog_of(&a.inputs, &mut opener)?;
     let names: Vec<(String, Kind, u64)> = catalog
         .names()
         .map(|(n, kind, len)| (n.to_string(), kind, len))
@@ -285,13 +352,26 @@ pub fn run(a: ServeArgs) -> Result<()> {
     .with_context(|| format!("cannot listen on {}", a.bind))?;
     let base = format!("{scheme}://{}", server.addr);
     print_addresses(&server, &names, &base)?;
-    std::thread::spawn(move || build_served(to_build));
+    let (send, receive) = std::sync::mpsc::channel();
+    let mut watched = Vec::new();
+    for s in scans {
+        if let Some(p) = s.pending {
+            send.send((p, s.live.clone()))?;
+        }
+        watched.push((s.scan, s.live));
+    }
+    std::thread::spawn(move || build_served(receive));
+    let opener = Arc::new(std::sync::Mutex::new(Some(opener)));
+    if !watched.is_empty() {
+        let o = opener.clone();
+        std::thread::spawn(move || watch_served(watched, o, send));
+    }
     if a.open {
         open_browser(&names, &base);
     }
     // Until Ctrl-C or SIGTERM; the server's temporary files (and the previews') go with it.
     server.wait();
-    drop(opener);
+    drop(opener.lock().expect("opener lock").take());
     Ok(())
 }
 

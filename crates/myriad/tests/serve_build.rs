@@ -172,3 +172,62 @@ fn a_failed_build_is_said_everywhere() {
         "{st}"
     );
 }
+
+/// A scan changed after its dataset was built, while the server runs (issue 67 item 11): noticed
+/// (its size, time or content), served from its new preview and built again, of a new
+/// generation: commands over HTTP read the new points, and a version of the old one is gone.
+#[test]
+fn a_scan_changed_after_its_build_is_built_again() {
+    let d = tempdir("serve-changed");
+    let laz = d.join("site.laz");
+    let r = myriad(&["synth", "-o", s(&laz), "--points", "100k"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let server = serve(&[s(&laz)], std::process::Stdio::null());
+    let url = format!("{}/d/site.myr", server.base);
+    let points = || {
+        let r = myriad(&["info", &url]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        let l = (r.stdout.lines())
+            .find(|l| l.trim_start().starts_with("points"))
+            .unwrap()
+            .to_string();
+        l.split_whitespace().nth(1).unwrap().replace(',', "")
+    };
+    let built = |version: &str| {
+        let t = std::time::Instant::now();
+        loop {
+            let a = common::http_get(&server.base, "/build/site.myr?since=", &[]);
+            if a.contains(&format!("\"version\":\"{version}\"")) {
+                break;
+            }
+            assert!(t.elapsed() < Duration::from_secs(90), "never {version}: {a}");
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    };
+    built("final");
+    assert_eq!(points(), "100000");
+    let head = common::http_get(&server.base, "/d/site.myr?v=final", &["Range: bytes=0-9"]);
+    assert!(head.starts_with("HTTP/1.1 206"), "{head}");
+    // Another scan in its place.
+    let r = myriad(&[
+        "synth",
+        "-o",
+        s(&laz),
+        "--points",
+        "150k",
+        "--seed",
+        "9",
+        "--force",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    built("final~1");
+    assert_eq!(points(), "150000");
+    let gone = common::http_get(&server.base, "/d/site.myr?v=final", &["Range: bytes=0-9"]);
+    assert!(gone.starts_with("HTTP/1.1 410"), "{gone}");
+    // A server started again serves the built dataset at once, as final.
+    drop(server);
+    let again = serve(&[s(&laz)], std::process::Stdio::null());
+    let a = common::http_get(&again.base, "/build/site.myr?since=", &[]);
+    assert!(a.contains("\"version\":\"final\"") && a.contains("\"building\":false"), "{a}");
+    let _ = std::fs::remove_dir_all(&d);
+}
