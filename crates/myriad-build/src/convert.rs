@@ -431,7 +431,13 @@ fn check_request(inputs: &[PathBuf], options: &ConvertOptions) -> Result<()> {
     }
     check_output(out, inputs)?;
     check_memory(options.memory)?;
-    if !(options.precision.is_finite() && options.precision > 0.0) {
+    check_precision(options.precision)
+}
+
+/// `--precision`: a positive length (`plan` checks it as `convert` does: a NaN saved in a plan
+/// failed every part after).
+pub(crate) fn check_precision(precision: f64) -> Result<()> {
+    if !(precision.is_finite() && precision > 0.0) {
         return Err(Error::Invalid(
             "--precision must be a positive length".into(),
         ));
@@ -641,8 +647,20 @@ pub(crate) fn check_memory(memory: u64) -> Result<()> {
             MIN_MEMORY >> 20
         )));
     }
+    // Sums of a few times the budget stay within u64 (a value beyond it was taken as u64's
+    // largest and overflowed the plan: found by an audit).
+    if memory > MAX_MEMORY {
+        return Err(Error::Invalid(format!(
+            "--memory {} TB is more than the {} TB a build plans for",
+            memory >> 40,
+            MAX_MEMORY >> 40
+        )));
+    }
     Ok(())
 }
+
+/// The largest `--memory` taken: 1 PiB.
+pub const MAX_MEMORY: u64 = 1 << 50;
 
 /// The parameters a dataset records: its structure's, and which plan and part it was built
 /// from.

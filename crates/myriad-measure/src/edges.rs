@@ -134,17 +134,19 @@ impl Cells {
         // and no more than PER_SEGMENT per segment in all.
         let cap = (segments.len() * PER_SEGMENT).max(16) as f64;
         let mean = length / segments.len().max(1) as f64;
-        let mut size = mean.max(reach).max((w[0] * w[1] / cap).sqrt());
+        // sqrt(w0) sqrt(w1), not sqrt(w0 w1): extents of 1e300 must not overflow to a cell of
+        // any size (a client's corridor reaches this: found by an audit).
+        let mut size = mean.max(reach).max(w[0].sqrt() * w[1].sqrt() / cap.sqrt());
         for k in 0..2 {
             size = size.max(w[k] / cap);
         }
-        if !(size > 0.0 && size.is_finite()) {
-            size = 1.0;
-        }
-        let n = [
-            ((w[0] / size) as usize + 1).max(1),
-            ((w[1] / size) as usize + 1).max(1),
-        ];
+        let n = if size > 0.0 && size.is_finite() {
+            [0, 1].map(|k| ((w[k] / size).min(cap) as usize + 1).max(1))
+        } else {
+            // Extents beyond f64 (or none): one cell.
+            size = f64::MAX;
+            [1, 1]
+        };
         let mut c = Cells {
             lo,
             size,
@@ -332,6 +334,16 @@ mod tests {
         s.push(([0.0, 0.0], [1e6, 1.0]));
         let c = Cells::new(&s, 0.0);
         assert!(c.buckets.start.len() <= 4 * PER_SEGMENT * s.len());
+        // Extents near f64's end: a few cells, not terabytes.
+        for (seg, reach) in [
+            (([0.0, 0.0], [1e300, 0.0]), 1e12),
+            (([-1e308, -1e308], [1e308, 1e308]), 0.0),
+            (([0.0, 0.0], [1e-300, 0.0]), 0.0),
+        ] {
+            let c = Cells::new(&[seg], reach);
+            assert!(c.buckets.start.len() <= 4 * PER_SEGMENT + 1, "{seg:?}");
+            assert_eq!(c.near(seg.0[0], seg.0[1]), &[0]);
+        }
         assert!(c.buckets.items.len() <= 8 * PER_SEGMENT * s.len());
     }
 }

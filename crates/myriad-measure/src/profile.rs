@@ -121,23 +121,29 @@ impl Profile {
         };
         let to_px = |along: f64, z: f64| frame.to_px(along, z);
         // Grid lines every round step of about a tenth of the length.
-        let step = nice_step(self.length / 10.0);
-        let mut g = 0.0;
-        while g <= self.length + 1e-9 {
+        // Counted, not stepped until past the end: at elevations of 1e13 with millimetres of
+        // rise, adding the step left the value where it was (found by an audit).
+        let lines = |from: f64, to: f64, step: f64| {
+            let n = ((to + 1e-9 - from) / step).floor();
+            let n = if n.is_finite() {
+                n.clamp(-1.0, 100.0) as i64
+            } else {
+                -1
+            };
+            (0..=n).map(move |k| from + k as f64 * step)
+        };
+        for g in lines(0.0, self.length, nice_step(self.length / 10.0)) {
             let (x, _) = to_px(g, z0);
             for y in margin as i64..(margin + inner_h) as i64 {
                 put(x.round() as i64, y, [215, 215, 215]);
             }
-            g += step;
         }
         let zstep = nice_step(rise / 5.0);
-        let mut gz = (z0 / zstep).ceil() * zstep;
-        while gz <= z1 + 1e-9 {
+        for gz in lines((z0 / zstep).ceil() * zstep, z1, zstep) {
             let (_, y) = to_px(0.0, gz);
             for x in margin as i64..(margin + inner_w) as i64 {
                 put(x, y.round() as i64, [215, 215, 215]);
             }
-            gz += zstep;
         }
         // The points nearest the line last, on top.
         let mut order: Vec<usize> = (0..self.len()).collect();

@@ -164,7 +164,7 @@ fn one_range_bytes(range: Option<&str>) -> u64 {
         Some(("", n)) => n.trim().parse().unwrap_or(0),
         Some((a, b)) if !b.trim().is_empty() => {
             match (a.trim().parse::<u64>(), b.trim().parse::<u64>()) {
-                (Ok(a), Ok(b)) if b >= a => b - a + 1,
+                (Ok(a), Ok(b)) if b >= a => (b - a).saturating_add(1),
                 _ => 0,
             }
         }

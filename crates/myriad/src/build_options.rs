@@ -16,7 +16,7 @@ pub struct BuildArgs {
     #[arg(long, value_parser = convert::parse_size)]
     pub(crate) memory: Option<u64>,
     /// Worker threads [default: all cores]
-    #[arg(long)]
+    #[arg(long, value_parser = parse_threads)]
     pub(crate) threads: Option<usize>,
     /// Most points per node
     #[arg(help_heading = "Hierarchy", long, default_value_t = convert::DEFAULT_CAPACITY)]
@@ -59,6 +59,15 @@ impl BuildArgs {
         if self.capacity < 64 {
             bail!("--capacity {} is too small (at least 64)", self.capacity);
         }
+        // A node's points are counted in u32s, and budgets of a few times capacity x record
+        // size must stay within u64.
+        if self.capacity > 1 << 24 {
+            bail!(
+                "--capacity {} is too large (at most {})",
+                self.capacity,
+                1u64 << 24
+            );
+        }
         let s = match self.structure.as_str() {
             "nested-octree" => convert::Structure::Octree,
             s => convert::Structure::parse(s).map_err(|e| anyhow::anyhow!("--structure: {e}"))?,
@@ -83,5 +92,13 @@ impl BuildArgs {
                 }),
             ..Default::default()
         }
+    }
+}
+
+/// `--threads`: 1 to 1024 (more asked thread pools for tens of thousands of threads).
+pub(crate) fn parse_threads(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if (1..=1024).contains(&n) => Ok(n),
+        _ => Err(format!("\"{s}\": a number of threads from 1 to 1024")),
     }
 }

@@ -284,6 +284,9 @@ pub(crate) fn parse_box(s: &str) -> Result<Aabb, String> {
     if v.len() != 6 {
         return Err(format!("\"{s}\": expected 6 numbers, got {}", v.len()));
     }
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(format!("\"{s}\": expected 6 finite numbers"));
+    }
     if (0..3).any(|a| v[a] > v[a + 3]) {
         return Err(format!("\"{s}\": a minimum is above its maximum"));
     }

@@ -349,7 +349,7 @@ pub struct MergeArgs {
     #[arg(long)]
     single_file: bool,
     /// Worker threads [default: all cores]
-    #[arg(long)]
+    #[arg(long, value_parser = crate::build_options::parse_threads)]
     threads: Option<usize>,
     /// Print the summary as one JSON object
     #[arg(long)]

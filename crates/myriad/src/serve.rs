@@ -24,8 +24,9 @@ pub struct ServeArgs {
     #[arg(long)]
     open: bool,
     /// Connections served at once (when full, the one idle the longest is closed for a new one)
-    #[arg(help_heading = "Limits", long, default_value_t = 512)]
-    max_connections: usize,
+    #[arg(help_heading = "Limits", long, default_value_t = 512,
+          value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    max_connections: u32,
     /// Seconds a client has from connecting to send its first request
     #[arg(help_heading = "Limits", long, default_value_t = 10.0)]
     header_timeout: f64,
@@ -335,7 +336,7 @@ pub fn run(a: ServeArgs) -> Result<()> {
         catalog,
         a.bind,
         Options {
-            max_connections: a.max_connections,
+            max_connections: a.max_connections as usize,
             header_timeout: seconds(a.header_timeout, "--header-timeout")?,
             idle_timeout: seconds(a.idle_timeout, "--idle-timeout")?,
             max_box_points: a.max_box_points,

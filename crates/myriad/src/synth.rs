@@ -45,6 +45,10 @@ pub fn run(a: SynthArgs) -> Result<()> {
     if a.points == 0 {
         bail!("--points must be at least 1");
     }
+    // The site's piles are planned before a point is written (one per 25,600 points).
+    if matches!(a.scene, Scene::Stockpiles) && a.points > 10_000_000_000 {
+        bail!("--points: a stockpile site has at most 10G points");
+    }
     let options = SynthOptions {
         points: a.points,
         scene: match a.scene {

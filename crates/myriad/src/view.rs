@@ -231,7 +231,12 @@ pub fn run(a: ViewArgs) -> Result<()> {
             .map(|k| a.surface_options.surface(k))
             .transpose()
             .map_err(anyhow::Error::msg)?,
-        stereo: a.stereo.then_some(a.ipd),
+        stereo: match a.stereo {
+            true if !(a.ipd >= 0.0 && a.ipd.is_finite()) => {
+                bail!("--ipd must be a distance of 0 or more")
+            }
+            stereo => stereo.then_some(a.ipd),
+        },
         builds: (!watched.is_empty()).then(|| {
             // One build at a time, on a thread of its own: builds in one process share its
             // scratch names, and the cores are the viewer's too. Then every scan shown is

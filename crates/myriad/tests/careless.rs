@@ -217,3 +217,109 @@ fn render_full_of_a_damaged_dataset_names_the_damage_and_fails() {
     }
     assert!(r.stderr.contains("error: 3 damaged pages"), "{}", r.stderr);
 }
+
+/// Numbers a user gives that reached allocations, loop bounds, casts and saved plans unchecked
+/// (issue 67 item 3, found by a search of the code): each a one-line error now, or a result,
+/// never a panic, an abort or terabytes asked for.
+#[test]
+fn numbers_out_of_range_are_refused_in_one_line() {
+    let d = tempdir("careless-numbers");
+    let las = synth(&d, "n.las", 20_000);
+    let myr = d.join("n.myr");
+    let r = myriad(&["convert", s(&las), "-o", s(&myr)]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let out = |n: &str| d.join(n).to_string_lossy().to_string();
+    let (plan, csv, x, y) = (out("p.json"), out("a.csv"), out("x.las"), out("y.myr"));
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        // A corridor and a polygon of 1e300 (their edge index asked for terabytes).
+        (
+            vec![
+                "profile",
+                s(&myr),
+                "--line",
+                "0,0,1e300,0",
+                "--width",
+                "2e12",
+                "-o",
+                &csv,
+            ],
+            "",
+        ),
+        (
+            vec!["volume", s(&myr), "--polygon", "0,0,1e300,0,0,2e12"],
+            "",
+        ),
+        (
+            vec!["plan", s(&las), "-o", &plan, "--parts", "10000000000"],
+            "--parts 10000000000",
+        ),
+        (
+            vec!["plan", s(&las), "-o", &plan, "--precision", "nan"],
+            "--precision",
+        ),
+        (
+            vec![
+                "convert",
+                s(&las),
+                "-o",
+                &y,
+                "--capacity",
+                "10000000000000000",
+            ],
+            "--capacity",
+        ),
+        (
+            vec!["convert", s(&las), "-o", &y, "--memory", "6000000TB"],
+            "--memory",
+        ),
+        (
+            vec!["convert", s(&las), "-o", &y, "--threads", "1000000"],
+            "threads",
+        ),
+        (
+            vec!["extract", s(&myr), "-o", &x, "--box", "nan,0,0,1,1,1"],
+            "finite",
+        ),
+        (
+            vec![
+                "synth",
+                "--scene",
+                "stockpiles",
+                "--points",
+                "1e15",
+                "-o",
+                &x,
+            ],
+            "at most 10G",
+        ),
+        (
+            vec!["serve", s(&myr), "--max-connections", "3000000000000000000"],
+            "max-connections",
+        ),
+    ];
+    for (args, says) in cases {
+        let r = myriad(&args);
+        assert!(!r.stderr.contains("panicked"), "{args:?}: {}", r.stderr);
+        if says.is_empty() {
+            // A result, or an error of one line.
+            assert!(
+                r.code == 0 || r.code == 1,
+                "{args:?}: {} {}",
+                r.code,
+                r.stderr
+            );
+            if r.code == 1 {
+                assert_eq!(r.stderr.trim().lines().count(), 1, "{args:?}: {}", r.stderr);
+            }
+        } else {
+            assert_ne!(r.code, 0, "{args:?} should fail: {}", r.stdout);
+            assert!(
+                r.stderr.contains(says),
+                "{args:?}: {says:?} not in {}",
+                r.stderr
+            );
+        }
+    }
+    assert!(!Path::new(&x).exists() && !Path::new(&y).exists() && !Path::new(&plan).exists());
+    let _ = std::fs::remove_dir_all(&d);
+}

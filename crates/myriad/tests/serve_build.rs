@@ -200,7 +200,10 @@ fn a_scan_changed_after_its_build_is_built_again() {
             if a.contains(&format!("\"version\":\"{version}\"")) {
                 break;
             }
-            assert!(t.elapsed() < Duration::from_secs(90), "never {version}: {a}");
+            assert!(
+                t.elapsed() < Duration::from_secs(90),
+                "never {version}: {a}"
+            );
             std::thread::sleep(Duration::from_millis(200));
         }
     };
@@ -228,6 +231,9 @@ fn a_scan_changed_after_its_build_is_built_again() {
     drop(server);
     let again = serve(&[s(&laz)], std::process::Stdio::null());
     let a = common::http_get(&again.base, "/build/site.myr?since=", &[]);
-    assert!(a.contains("\"version\":\"final\"") && a.contains("\"building\":false"), "{a}");
+    assert!(
+        a.contains("\"version\":\"final\"") && a.contains("\"building\":false"),
+        "{a}"
+    );
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -47,6 +47,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 const PLAN_FORMAT: u64 = 1;
+
+/// The most parts a plan makes.
+pub const MAX_PARTS: usize = 1 << 20;
 /// Deepest partition level (8^8 cells).
 const MAX_PARTITION_LEVEL: u32 = 8;
 
@@ -264,10 +267,15 @@ pub fn plan(inputs: &[PathBuf], o: &PlanOptions) -> Result<BuildPlan> {
             o.structure.name()
         )));
     }
-    if o.parts == 0 {
-        return Err(Error::Invalid("--parts must be at least 1".into()));
+    // A part is at least one cell of 8^8 (and, past a million parts, each a few points).
+    if o.parts == 0 || o.parts > MAX_PARTS {
+        return Err(Error::Invalid(format!(
+            "--parts {}: between 1 and {MAX_PARTS}",
+            o.parts
+        )));
     }
     convert::check_memory(o.memory)?;
+    convert::check_precision(o.precision)?;
     myriad_io::atomic::refuse_repeated_inputs(inputs)?;
     let mut infos = Vec::new();
     let mut planned = Vec::new();

@@ -222,10 +222,18 @@ impl Foreign for Copc {
 
     fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
         let hurt = |at: u64, m: String| damage(e.key, at, m, false);
-        if e.points == 0 || e.page.length == 0 {
+        if e.points == 0 {
             let mut b = PointBatch::with_schema(&self.las.schema, 0);
             b.extra_stride = self.las.schema.extra_bytes;
             return Ok(b);
+        }
+        // Points in no bytes: the hierarchy is wrong (found by fuzzing: read as none, a
+        // command over the node said 0 points and succeeded).
+        if e.page.length == 0 {
+            return Err(hurt(
+                e.page.offset,
+                format!("the hierarchy gives {} points in 0 bytes", e.points),
+            ));
         }
         let chunk = self
             .bytes

@@ -443,11 +443,14 @@ impl Foreign for Potree {
 
     fn read_node(&self, e: &NodeEntry) -> std::result::Result<PointBatch, Damage> {
         let n = e.points as usize;
-        if n == 0 || e.page.length == 0 {
+        if n == 0 {
             return Ok(PointBatch::with_schema(&self.schema, 0));
         }
         let file = self.place.name("octree.bin");
         let hurt = |m: String| damage(e.key, e.page.offset, format!("{file}: {m}"), false);
+        if e.page.length == 0 {
+            return Err(hurt(format!("the hierarchy gives {n} points in 0 bytes")));
+        }
         if e.page.length as u64 > MAX_NODE {
             return Err(hurt(format!("{} bytes", e.page.length)));
         }
