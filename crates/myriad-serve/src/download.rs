@@ -17,6 +17,16 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 pub const MAX_AT_ONCE: usize = 2;
 
+/// Lowers the calling thread's priority (nice 19, on Linux a thread's own), for work a client
+/// asks for that may take seconds of a core.
+pub fn background_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority reads no memory of ours; on Linux `who` 0 is the calling thread.
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+    }
+}
+
 /// What a download asks for, from the query string.
 #[derive(Debug, Clone)]
 pub struct Query {
