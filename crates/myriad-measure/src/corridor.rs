@@ -139,6 +139,11 @@ impl Corridor {
             let d = sub(w[1], w[0]);
             along.push(along.last().expect("one") + dot(d, d).sqrt());
         }
+        // Coordinates so large that a segment's squared length overflows (found by fuzzing:
+        // stations of NaN).
+        if !along.last().is_some_and(|l| l.is_finite()) {
+            return Err("--line: coordinates too large (a length beyond 1e150)".into());
+        }
         let segments: Vec<Segment> = v.windows(2).map(|w| (w[0], w[1])).collect();
         Ok(Corridor {
             cells: Cells::new(&segments, width / 2.0),
@@ -236,6 +241,7 @@ mod tests {
         assert!(c.meets(&Aabb::new([-5.0, -5.0, 0.0], [50.0, 50.0, 1.0])));
         assert!(Corridor::new(&[[1.0, 1.0], [1.0, 1.0]], 2.0).is_err());
         assert!(Corridor::new(&[[0.0, 0.0], [1.0, 1.0]], 0.0).is_err());
+        assert!(Corridor::new(&[[0.0, 0.0], [11.0, 1e160], [0.0, 10.0]], 2.0).is_err());
     }
 
     #[test]

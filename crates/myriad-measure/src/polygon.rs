@@ -87,7 +87,11 @@ impl Polygon {
                 c[1]
             ));
         }
-        if p.area() <= 0.0 {
+        let area = p.area();
+        if !area.is_finite() {
+            return Err("--polygon: coordinates too large (an area beyond f64's range)".into());
+        }
+        if area <= 0.0 {
             return Err("--polygon: its points are on one line (no area)".into());
         }
         Ok(p)
@@ -233,6 +237,7 @@ mod tests {
         assert!(e.contains("crosses itself"), "{e}");
         assert!(Polygon::new(&[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]).is_err());
         assert!(Polygon::new(&[[0.0, 0.0], [1.0, 1.0]]).is_err());
+        assert!(Polygon::new(&[[0.0, 0.0], [1e300, 0.0], [0.0, 1e300]]).is_err());
     }
 
     /// A wavy ring of `n` vertices about the origin.
