@@ -225,11 +225,17 @@ impl LasLayout {
             t => {
                 let count =
                     u32::from_le_bytes(bytes[t as usize + 4..t as usize + 8].try_into().unwrap());
-                if count as u64 > l.points.max(1) {
+                // Each chunk holds a point and a byte at least (the laz crate sizes the table
+                // from the count: 5 GB for a count of 2^28, found by fuzzing).
+                let data = (t as u64).saturating_sub(l.data_at + 8);
+                if count as u64 > l.points.max(1) || count as u64 > data.max(1) {
                     return Err(Error::at_byte(
                         name,
                         t as u64 + 4,
-                        format!("{count} LAZ chunks for {} points", l.points),
+                        format!(
+                            "{count} LAZ chunks for {} points in {data} bytes",
+                            l.points
+                        ),
                     ));
                 }
                 let mut cur = std::io::Cursor::new(bytes);
