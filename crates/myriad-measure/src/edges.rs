@@ -62,6 +62,7 @@ const PER_SEGMENT: usize = 16;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Strips {
     y0: f64,
+    y1: f64,
     /// Bands per unit of y.
     inv: f64,
     buckets: Buckets,
@@ -86,6 +87,7 @@ impl Strips {
         });
         Strips {
             y0: lo,
+            y1: hi,
             inv,
             buckets,
         }
@@ -93,12 +95,14 @@ impl Strips {
 
     /// The segments whose y-span may hold `y` (none where `y` is outside them all).
     pub fn at(&self, y: f64) -> &[u32] {
-        let n = self.buckets.start.len() - 1;
-        let f = (y - self.y0) * self.inv;
-        if !(f >= 0.0) || f > n as f64 {
+        // Outside the span by y itself, not by the band number: rounding put y = max a hair
+        // past the last band, which the build had clamped into it (found by fuzzing).
+        if !(y >= self.y0 && y <= self.y1) {
             return &[];
         }
-        self.buckets.get((f as usize).min(n - 1))
+        let n = self.buckets.start.len() - 1;
+        let f = (y - self.y0) * self.inv;
+        self.buckets.get((f.max(0.0) as usize).min(n - 1))
     }
 }
 

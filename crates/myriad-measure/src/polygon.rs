@@ -238,6 +238,9 @@ mod tests {
         assert!(Polygon::new(&[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]).is_err());
         assert!(Polygon::new(&[[0.0, 0.0], [1.0, 1.0]]).is_err());
         assert!(Polygon::new(&[[0.0, 0.0], [1e300, 0.0], [0.0, 1e300]]).is_err());
+        // A vertex at the top of the polygon's span of y, which rounding put past its band.
+        let tall = Polygon::new(&[[21.0, 0.0], [0.0, -8.8888208288e22], [30010.0, 11.0]]).unwrap();
+        assert!(tall.contains_xy(21.0, 0.0));
     }
 
     /// A wavy ring of `n` vertices about the origin.
