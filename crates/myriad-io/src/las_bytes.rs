@@ -232,10 +232,7 @@ impl LasLayout {
                     return Err(Error::at_byte(
                         name,
                         t as u64 + 4,
-                        format!(
-                            "{count} LAZ chunks for {} points in {data} bytes",
-                            l.points
-                        ),
+                        format!("{count} LAZ chunks for {} points in {data} bytes", l.points),
                     ));
                 }
                 let mut cur = std::io::Cursor::new(bytes);
