@@ -30,6 +30,10 @@ pub const MAX_POINTS: usize = 10_000;
 /// Most characters of a title, and of a text.
 pub const MAX_TITLE: usize = 200;
 pub const MAX_TEXT: usize = 10_000;
+/// The largest coordinate saved work holds (a billion kilometres, or feet): past any projected or
+/// geocentric system, and small enough that distances, areas and a camera's direction between
+/// two such points stay finite.
+pub const MAX_COORD: f64 = 1e12;
 
 /// Where a dataset's camera was when an annotation was made.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,8 +91,20 @@ fn xyz(p: [f64; 3]) -> Value {
 
 fn finite(v: &Value, at: &str) -> Result<f64, String> {
     match v.as_f64() {
-        Some(x) if x.is_finite() => Ok(x),
+        Some(x) if x.abs() <= MAX_COORD => Ok(x),
+        Some(x) if x.is_finite() => Err(format!("{at}: {x:e} is beyond ±{MAX_COORD:e}")),
         _ => Err(format!("{at}: not a finite number: {}", short(v))),
+    }
+}
+
+/// Why a saved point cannot be kept: a number that is not finite, or one beyond [`MAX_COORD`].
+fn out_of_range(p: &[f64; 3]) -> Option<&'static str> {
+    if p.iter().any(|x| !x.is_finite()) {
+        Some("not a finite number")
+    } else if p.iter().any(|x| x.abs() > MAX_COORD) {
+        Some("a coordinate beyond ±1e12")
+    } else {
+        None
     }
 }
 
@@ -177,10 +193,16 @@ impl Annotation {
         )?;
         let camera = match o.get("camera") {
             None | Some(Value::Null) => None,
-            Some(c) => Some(View {
-                position: point(&c["position"], &format!("{at}.camera.position"))?,
-                target: point(&c["target"], &format!("{at}.camera.target"))?,
-            }),
+            Some(c) => {
+                let view = View {
+                    position: point(&c["position"], &format!("{at}.camera.position"))?,
+                    target: point(&c["target"], &format!("{at}.camera.target"))?,
+                };
+                if view.position == view.target {
+                    return Err(format!("{at}.camera: its target is its position"));
+                }
+                Some(view)
+            }
         };
         Ok(Annotation {
             position,
@@ -317,11 +339,12 @@ impl Work {
         })
     }
 
-    /// The first number of the work that is not finite (NaN, an infinity), named as the
-    /// sidecar names it (`annotations[2].position`): JSON has no such number, so work holding
-    /// one would be saved as `null` and read back nowhere.
+    /// The first number of the work that is not finite (NaN, an infinity) or beyond
+    /// [`MAX_COORD`], or a camera looking nowhere (its target its position), named as the
+    /// sidecar names it (`annotations[2].position`): JSON has no NaN, so work holding one would
+    /// be saved as `null` and read back nowhere, and a camera between coordinates of 1e308 has a
+    /// direction of infinities.
     pub fn finite(&self) -> Result<(), String> {
-        let bad = |p: &[f64; 3]| p.iter().any(|x| !x.is_finite());
         for (i, a) in self.annotations.iter().enumerate() {
             let views = a.camera.iter().flat_map(|c| {
                 [
@@ -330,18 +353,23 @@ impl Work {
                 ]
             });
             for (what, p) in std::iter::once(("position", &a.position)).chain(views) {
-                if bad(p) {
-                    return Err(format!(
-                        "annotations[{i}].{what}: not a finite number: {p:?}"
-                    ));
+                if let Some(why) = out_of_range(p) {
+                    return Err(format!("annotations[{i}].{what}: {why}: {p:?}"));
                 }
+            }
+            if let Some(c) = a.camera
+                && c.position == c.target
+            {
+                return Err(format!(
+                    "annotations[{i}].camera: its target is its position"
+                ));
             }
         }
         for (i, m) in self.measurements.iter().enumerate() {
-            if let Some((j, p)) = m.points.iter().enumerate().find(|(_, p)| bad(p)) {
-                return Err(format!(
-                    "measurements[{i}].points[{j}]: not a finite number: {p:?}"
-                ));
+            for (j, p) in m.points.iter().enumerate() {
+                if let Some(why) = out_of_range(p) {
+                    return Err(format!("measurements[{i}].points[{j}]: {why}: {p:?}"));
+                }
             }
         }
         Ok(())
@@ -572,6 +600,32 @@ mod tests {
                 .unwrap_err()
                 .starts_with("measurements[0].points[1]")
         );
+        // Finite but far: a camera between ±1e308 would look along infinities, a distance
+        // between them would be saved as null.
+        m.measurements[0].points[1] = [1e308, 0.0, 0.0];
+        let e = m.finite().unwrap_err();
+        assert!(e.contains("beyond ±1e12"), "{e}");
+        bad.annotations[0].camera = Some(View {
+            position: [-1e308, 0.0, 0.0],
+            target: [1e308, 0.0, 0.0],
+        });
+        assert!(bad.finite().unwrap_err().contains("beyond"));
+        bad.annotations[0].camera = Some(View {
+            position: [1.0; 3],
+            target: [1.0; 3],
+        });
+        assert!(
+            bad.finite()
+                .unwrap_err()
+                .contains("its target is its position")
+        );
+        let text = r#"{"myriad":"work","version":1,"annotations":[{"position":[1e300,0,0]}]}"#;
+        let e = Work::parse(text).unwrap_err();
+        assert!(
+            e.starts_with("annotations[0].position: 1e300 is beyond"),
+            "{e}"
+        );
+        assert!(Work::parse(&text.replace("1e300", "999999999999")).is_ok());
     }
 
     #[test]

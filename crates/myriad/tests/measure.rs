@@ -859,6 +859,23 @@ fn annotations_are_kept_exported_and_imported() {
         "not a number",
     );
     assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
+    // Finite but far: a camera between ±1e308 looked along infinities, a distance between such
+    // points was saved as null.
+    for bad in [
+        &["--add", "1,2,3", "--camera", "-1e308,0,0,1e308,0,0"][..],
+        &["--measure", "distance:-1e308,0,0,1e308,0,0"],
+        &["--add", "1,2,3", "--camera", "5,5,5,5,5,5"],
+    ] {
+        let r = myriad(&[&["annotate", s(&myr)][..], bad].concat());
+        assert_eq!(r.code, 1, "{bad:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("beyond ±1e12") || r.stderr.contains("its target is its position"),
+            "{bad:?}: {}",
+            r.stderr
+        );
+        assert!(r.stderr.contains("not saved"), "{bad:?}: {}", r.stderr);
+    }
+    assert_eq!(std::fs::read(&sidecar).unwrap(), kept);
     // An import read with a bound: a GeoJSON name for /dev/zero grew to gigabytes.
     let zero = d.join("zero.geojson");
     std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
