@@ -17,7 +17,7 @@ use clap::Args;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -40,15 +40,25 @@ pub struct ServeBenchArgs {
     /// request holds, the whole extent under the longest filter)
     #[arg(long)]
     hostile: bool,
+    /// Which rude clients `--hostile` runs, to tell their costs apart: any of hangups, idle,
+    /// floods, slow (box downloads read slowly), corridor, filtered [default: all]
+    #[arg(long, value_delimiter = ',', value_parser = RUDE)]
+    rude: Vec<String>,
 }
+
+/// The kinds of rude client, as `--rude` names them.
+const RUDE: [&str; 6] = ["hangups", "idle", "floods", "slow", "corridor", "filtered"];
 
 /// Rude clients against `url` until `stop`: their threads (joined by the caller).
 fn hostile(
     url: &str,
     costly: Option<Costly>,
     len: u64,
+    rude: &[String],
+    downloaded: &Arc<AtomicU64>,
     stop: &Arc<AtomicBool>,
 ) -> Vec<std::thread::JoinHandle<()>> {
+    let runs = |kind: &str| rude.is_empty() || rude.iter().any(|r| r == kind);
     use std::io::{Read, Write};
     let rest = url.trim_start_matches("http://");
     let (host, path) = rest.split_once('/').expect("a URL with a path");
@@ -57,7 +67,7 @@ fn hostile(
     let mut threads = Vec::new();
     let spawn = |f: Box<dyn FnOnce() + Send>| std::thread::spawn(f);
     // Hang-ups: a request for everything, then closed unread.
-    {
+    if runs("hangups") {
         let (stop, path) = (stop.clone(), path.clone());
         threads.push(spawn(Box::new(move || {
             while !stop.load(Ordering::Relaxed) {
@@ -69,7 +79,7 @@ fn hostile(
         })));
     }
     // Silent sockets, reopened when the server closes them.
-    {
+    if runs("idle") {
         let stop = stop.clone();
         threads.push(spawn(Box::new(move || {
             let mut socks: Vec<Option<std::net::TcpStream>> = (0..64).map(|_| None).collect();
@@ -95,7 +105,7 @@ fn hostile(
     let last = len.min(2 << 20) - 1;
     let ranges: Vec<String> = (0..32).map(|_| format!("0-{last}")).collect();
     let ranges = ranges.join(",");
-    for _ in 0..16 {
+    for _ in 0..if runs("floods") { 16 } else { 0 } {
         let (stop, path, ranges) = (stop.clone(), path.clone(), ranges.clone());
         threads.push(spawn(Box::new(move || {
             while !stop.load(Ordering::Relaxed) {
@@ -120,13 +130,13 @@ fn hostile(
     // The costliest downloads read as fast as they come, and box downloads read slowly (4 KiB
     // every 100 ms), again and again.
     let downloads = [
-        (&costly.line, 65536, 0),
-        (&costly.filtered, 65536, 0),
-        (&costly.bx, 4096, 100),
+        ("corridor", &costly.line, 65536, 0),
+        ("filtered", &costly.filtered, 65536, 0),
+        ("slow", &costly.bx, 4096, 100),
     ];
-    for (p, buffer, pause) in downloads {
+    for (_, p, buffer, pause) in downloads.into_iter().filter(|d| runs(d.0)) {
         for _ in 0..4 {
-            let (stop, p) = (stop.clone(), p.clone());
+            let (stop, p, got) = (stop.clone(), p.clone(), downloaded.clone());
             threads.push(spawn(Box::new(move || {
                 while !stop.load(Ordering::Relaxed) {
                     let Ok(mut c) = std::net::TcpStream::connect(addr) else {
@@ -141,7 +151,10 @@ fn hostile(
                     while !stop.load(Ordering::Relaxed) {
                         match c.read(&mut b) {
                             Ok(0) | Err(_) => break,
-                            Ok(_) => std::thread::sleep(Duration::from_millis(pause)),
+                            Ok(n) => {
+                                got.fetch_add(n as u64, Ordering::Relaxed);
+                                std::thread::sleep(Duration::from_millis(pause))
+                            }
                         }
                     }
                 }
@@ -370,6 +383,8 @@ struct Load {
     latencies: Vec<u32>,
     rss: Vec<u64>,
     seconds: f64,
+    /// Bytes the rude clients' downloads received.
+    downloaded: u64,
 }
 
 fn load(
@@ -394,7 +409,8 @@ fn load(
             }
         })
     };
-    let rude = rude.map(|bx| hostile(&server.url, bx, len, &stop));
+    let downloaded = Arc::new(AtomicU64::new(0));
+    let rude = rude.map(|bx| hostile(&server.url, bx, len, &a.rude, &downloaded, &stop));
     let t0 = Instant::now();
     let clients: Vec<_> = (0..a.clients)
         .map(|i| {
@@ -461,6 +477,7 @@ fn load(
         latencies: Vec::new(),
         rss: Vec::new(),
         seconds: 0.0,
+        downloaded: 0,
     };
     for c in clients {
         let (n, b, e, l) = c.join().expect("a client thread");
@@ -475,6 +492,7 @@ fn load(
         let _ = t.join();
     }
     out.rss = std::mem::take(&mut *rss.lock().unwrap());
+    out.downloaded = downloaded.load(Ordering::Relaxed);
     Ok(out)
 }
 
@@ -544,6 +562,13 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
         let mut rude = load(&s, &a.file, &a, Some(costly.clone()))?;
         report("+hostile", &mut rude);
         ratios.push(("myriad", ratio(&alone, &rude)));
+        if costly.is_some() {
+            println!(
+                "+hostile: the downloads received {:.1} MB in {:.0} s",
+                rude.downloaded as f64 / 1e6,
+                rude.seconds
+            );
+        }
     }
     drop(s);
     match nginx {
@@ -569,6 +594,9 @@ pub fn run(a: ServeBenchArgs) -> Result<()> {
                 ""
             }
         );
+        if !a.rude.is_empty() {
+            println!("+hostile: only {} (--rude)", a.rude.join(", "));
+        }
         for (name, (rps, p99)) in ratios {
             println!(
                 "{name}: the ordinary clients beside the hostile ones: {:.2} x the requests/s, {:.2} x the p99 latency, of alone",

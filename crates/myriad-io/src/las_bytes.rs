@@ -257,11 +257,12 @@ impl LasLayout {
                     .collect()
             }
         };
-        let mut batch = las_records::batch_for(
-            &l.layout,
-            l.record_len - l.layout.base_len,
-            l.points as usize,
-        );
+        // Room for the points the bytes can plausibly hold, not the header's count: a header
+        // claiming 2^40 points over a few kilobytes asked for 16 GB (found by fuzzing); a scan
+        // that compresses better than this only grows the batch.
+        let room = l.points.min(bytes.len() as u64 * 16);
+        let mut batch =
+            las_records::batch_for(&l.layout, l.record_len - l.layout.base_len, room as usize);
         let mut at = l.data_at + 8;
         for (bytes_n, n) in chunks {
             let end = at.saturating_add(bytes_n);

@@ -937,7 +937,14 @@ async fn box_download(
         .spawn(move || {
             download::background_priority();
             let _turn = turn;
-            let r = download::run(&path, &q, &limits, &|| cancelled.load(Ordering::Relaxed));
+            // Between nodes: gone, or wait (a second at most) while the server's other threads
+            // are at work.
+            let gone = || cancelled.load(Ordering::Relaxed);
+            let between = || {
+                download::yield_while_busy(Duration::from_secs(1), &gone);
+                gone()
+            };
+            let r = download::run(&path, &q, &limits, &between);
             if matches!(r, Err(download::Failed::Cancelled)) {
                 s.counters.add(2);
             }
