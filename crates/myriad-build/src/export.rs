@@ -93,6 +93,9 @@ pub struct ExportOptions {
     /// COPC: leaves join their parent's chunk up to this many points together (0: node for
     /// node; `None`: [`COPC_JOIN`] times the dataset's node capacity).
     pub copc_node_points: Option<u64>,
+    /// COPC: the join limit as times the dataset's node capacity (`None`: [`COPC_JOIN`]);
+    /// `copc_node_points`, where given, wins.
+    pub copc_join: Option<f64>,
     /// Move the points into another CRS (`--to-crs`): they are re-placed into an octree of
     /// the target's coordinates, as kd and mwkd datasets are.
     pub reproject: Option<myriad_io::reproject::Reproject>,
@@ -114,6 +117,7 @@ impl ExportOptions {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             copc_page_levels: myriad_io::copc::PAGE_LEVELS,
             copc_node_points: None,
+            copc_join: None,
             reproject: None,
             from_crs: None,
             tiles_version: tiles3d::Version::V1_1,
@@ -498,7 +502,8 @@ fn export_octree(
     let (wanted, mut joined) = if copc {
         let capacity = (m.parameters.get("capacity").and_then(|v| v.as_u64()))
             .unwrap_or(convert::DEFAULT_CAPACITY as u64);
-        let limit = o.copc_node_points.unwrap_or(COPC_JOIN * capacity);
+        let times = o.copc_join.unwrap_or(COPC_JOIN as f64);
+        let limit = (o.copc_node_points).unwrap_or((times * capacity as f64).round() as u64);
         join_leaves(wanted, limit, o.spacing)
     } else {
         (wanted, HashMap::new())

@@ -663,7 +663,12 @@ fn locate_laz_damage(
                     point_count: n,
                     byte_count: chunk.byte_count,
                 };
-                laz::par_decompress(&bytes, &mut out, &vlr, &[entry]).ok()
+                // The laz crate panics on some damaged chunks: a damaged chunk like any other.
+                myriad_core::guard::catching(|| {
+                    laz::par_decompress(&bytes, &mut out, &vlr, &[entry])
+                })
+                .ok()?
+                .ok()
             })();
             if ok.is_none() {
                 let what = if last {
@@ -750,7 +755,18 @@ fn produce_records(
         } else {
             reader.seek(read)
         };
-        let result = match sought.and_then(|()| reader.fill_points(want, &mut data)) {
+        // The laz crate panics on some damaged chunks (found by fuzzing): an error here.
+        let filled = sought.and_then(|()| {
+            myriad_core::guard::catching(|| reader.fill_points(want, &mut data)).unwrap_or_else(
+                |m| {
+                    Err(las::Error::Io(std::io::Error::new(
+                        std::io::ErrorKind::InvalidData,
+                        m,
+                    )))
+                },
+            )
+        });
+        let result = match filled {
             Ok(got) if got == want => Ok(data),
             Ok(got) => Err(Error::at_byte(
                 &path,

@@ -172,13 +172,22 @@ impl LasLayout {
             point_count: points,
             byte_count: chunk.len() as u64,
         };
-        laz::par_decompress_selective(
-            chunk,
-            &mut out,
-            vlr,
-            std::slice::from_ref(&entry),
-            laz::DecompressionSelection::all(),
-        )
+        // The laz crate panics on some damaged chunks (its decoder's tables indexed by what it
+        // read: found by fuzzing): an error like any other.
+        let decoded = myriad_core::guard::catching(|| {
+            laz::par_decompress_selective(
+                chunk,
+                &mut out,
+                vlr,
+                std::slice::from_ref(&entry),
+                laz::DecompressionSelection::all(),
+            )
+        });
+        match decoded {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(e.to_string()),
+            Err(m) => Err(m),
+        }
         .map_err(|e| {
             bad(
                 0,

@@ -125,7 +125,16 @@ pub(crate) fn decompress(
             byte_count: c.bytes,
         });
     }
-    if laz::par_decompress_selective(compressed, out, vlr, &entries, selection).is_ok() {
+    // The laz crate panics on some damaged chunks (found by fuzzing): an error like any other.
+    let decode = |from: &[u8], to: &mut [u8], e: &[laz::laszip::ChunkTableEntry]| {
+        match myriad_core::guard::catching(|| {
+            laz::par_decompress_selective(from, to, vlr, e, selection)
+        }) {
+            Ok(r) => r.map_err(|e| e.to_string()),
+            Err(m) => Err(m),
+        }
+    };
+    if decode(compressed, out, &entries).is_ok() {
         return Ok(());
     }
     // Which chunk: each alone.
@@ -133,12 +142,10 @@ pub(crate) fn decompress(
     let (mut at, mut rec) = (0usize, 0usize);
     for (c, e) in chunks.iter().zip(&entries) {
         let (len, n) = (c.bytes as usize, c.points as usize * record);
-        if let Err(err) = laz::par_decompress_selective(
+        if let Err(err) = decode(
             &compressed[at..at + len],
             &mut out[rec..rec + n],
-            vlr,
             std::slice::from_ref(e),
-            selection,
         ) {
             return Err(Error::at_byte(
                 path,

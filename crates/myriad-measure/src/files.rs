@@ -303,23 +303,12 @@ pub fn export_work(w: &Work, path: &Path, force: bool) -> Result<()> {
 }
 
 /// A drawing from DXF bytes. The dxf crate panics on some values it reads (a header date
-/// beyond chrono's range, found by fuzzing): such a file is an error like any other, the panic
-/// caught and its message kept off the terminal.
+/// beyond chrono's range, found by fuzzing): such a file is an error like any other.
 fn load_dxf(bytes: &[u8]) -> std::result::Result<Drawing, String> {
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
-    let r = std::panic::catch_unwind(|| Drawing::load(&mut &bytes[..]));
-    std::panic::set_hook(hook);
-    match r {
+    match myriad_core::guard::catching(|| Drawing::load(&mut &bytes[..])) {
         Ok(Ok(d)) => Ok(d),
         Ok(Err(e)) => Err(e.to_string()),
-        Err(p) => Err(format!(
-            "not a DXF this reads ({})",
-            p.downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| p.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "a value out of range".into())
-        )),
+        Err(m) => Err(format!("not a DXF this reads ({m})")),
     }
 }
 

@@ -54,6 +54,18 @@ pub struct ExportArgs {
     /// 3D Tiles version: 1.1 (glTF tiles) or 1.0 (.pnts tiles, for older clients)
     #[arg(help_heading = "3D Tiles", long, value_name = "VERSION", default_value = "1.1", value_parser = myriad_io::tiles3d::Version::parse)]
     tiles_version: myriad_io::tiles3d::Version,
+    /// COPC: a leaf joins its parent's chunk where the two hold at most this many times the
+    /// dataset's node capacity (0: node for node; larger: a smaller file, slower to settle in a
+    /// viewer) [default: 3]
+    #[arg(help_heading = "COPC", long, value_name = "TIMES", value_parser = parse_join)]
+    copc_join: Option<f64>,
+}
+
+fn parse_join(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.0..=64.0).contains(&x) => Ok(x),
+        _ => Err(format!("\"{s}\": expected a number from 0 to 64")),
+    }
 }
 
 /// What `--to` names: a format the points are written in, or the web viewer's static site.
@@ -255,6 +267,7 @@ fn export_options(a: &ExportArgs, target: Target) -> Result<ExportOptions> {
     });
     o.from_crs = a.from_crs.clone();
     o.tiles_version = a.tiles_version;
+    o.copc_join = a.copc_join;
     if let Some(m) = a.memory {
         o.memory = m;
     }
