@@ -8,11 +8,13 @@
 //! with `convert`'s out-of-core pipeline, and that is exported. Memory is bounded by the group of
 //! nodes in flight ([`GROUP_POINTS`]) and, when re-placing, by `convert`'s budget.
 //!
-//! COPC: a leaf's points join its parent's chunk where the two together hold at most
-//! [`COPC_JOIN`] times the dataset's node capacity (deepest first, so a parent whose leaves all
-//! joined it may join its own):
-//! each LAZ chunk starts its models afresh, and the dataset's small leaves compressed alone made
-//! the file larger than other builders' (a COPC node may hold any points of its cube).
+//! COPC: a parent all of whose children are leaves takes their points into its chunk where it
+//! and they together hold at most [`COPC_JOIN`] times the dataset's node capacity (deepest
+//! first, so it may join its own parent's family): each LAZ chunk starts its models afresh, and
+//! the dataset's small leaves compressed alone made the file larger than other builders' (a
+//! COPC node may hold any points of its cube). Only whole families: a leaf joined into an
+//! interior node (the rule until December 7) was drawn by every viewer that stopped there,
+//! and Myriad's COPC settled in twice the `.myr`'s time.
 
 use crate::convert::{self, ConvertOptions, Report};
 use crate::extract::{self, ExtractOptions};
@@ -29,8 +31,9 @@ use std::path::{Path, PathBuf};
 /// Points decoded at once (the nodes of one group are read and encoded in parallel).
 pub const GROUP_POINTS: u64 = 4_000_000;
 
-/// COPC: a leaf joins its parent's chunk where the two hold at most this many times the
-/// dataset's node capacity together (measured on KY and the 50 M point city: the guide).
+/// COPC: a family of leaves joins its parent's chunk where they hold at most this many times
+/// the dataset's node capacity together (measured on KY, the 50 M point city and a 40 M point
+/// tile: the guide).
 pub const COPC_JOIN: u64 = 3;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,7 +93,7 @@ pub struct ExportOptions {
     pub threads: usize,
     /// Levels per COPC hierarchy page (tests use few, to make many pages).
     pub copc_page_levels: u32,
-    /// COPC: leaves join their parent's chunk up to this many points together (0: node for
+    /// COPC: families of leaves join their parent's chunk up to this many points together (0: node for
     /// node; `None`: [`COPC_JOIN`] times the dataset's node capacity).
     pub copc_node_points: Option<u64>,
     /// COPC: the join limit as times the dataset's node capacity (`None`: [`COPC_JOIN`]);
@@ -376,10 +379,11 @@ fn normals_as_extra(b: &mut PointBatch) {
     b.extra_stride = stride;
 }
 
-/// COPC's chunks: `nodes` less the leaves that join their parent's chunk (deepest first, where
-/// the parent's chunk and the leaf hold at most `limit` points together; a parent all of whose
-/// children joined it is a leaf from then on), and for each parent the leaves that joined it.
-fn join_leaves(
+/// COPC's chunks, joining whole families only: a parent all of whose children are leaves
+/// takes their points where it and they hold at most `limit` points together, and is a leaf
+/// from then on (deepest first, so it may join its own parent's family). No interior node
+/// holds a leaf's points: a viewer that stops at an interior node draws only its own.
+fn join_families(
     nodes: Vec<NodeEntry>,
     limit: u64,
     spacing: Option<f64>,
@@ -391,33 +395,32 @@ fn join_leaves(
     let mut load: HashMap<NodeKey, u64> = (nodes.iter())
         .map(|n| (n.key, extract::prefix_for(n, spacing) as u64))
         .collect();
-    let mut children: HashMap<NodeKey, usize> = HashMap::new();
-    for n in nodes.iter().filter(|n| n.key.level > 0) {
-        *children.entry(n.key.parent()).or_default() += 1;
+    let mut children: HashMap<NodeKey, Vec<usize>> = HashMap::new();
+    for (i, n) in nodes.iter().enumerate().filter(|(_, n)| n.key.level > 0) {
+        children.entry(n.key.parent()).or_default().push(i);
     }
-    let mut order: Vec<usize> = (0..nodes.len()).collect();
-    order.sort_by_key(|&i| std::cmp::Reverse(nodes[i].key.level));
+    let mut parents: Vec<NodeKey> = children.keys().copied().collect();
+    parents.sort_by_key(|k| std::cmp::Reverse(k.level));
     let mut gone = vec![false; nodes.len()];
-    for i in order {
-        let key = nodes[i].key;
-        if key.level == 0 || children.get(&key).is_some_and(|&c| c > 0) {
+    for p in parents {
+        let Some(&own) = load.get(&p) else { continue };
+        let kids = &children[&p];
+        if kids.iter().any(|&i| children.contains_key(&nodes[i].key)) {
             continue;
         }
-        let parent = key.parent();
-        let (Some(&mine), Some(&theirs)) = (load.get(&key), load.get(&parent)) else {
-            continue;
-        };
-        if mine + theirs > limit {
+        let theirs: u64 = kids.iter().map(|&i| load[&nodes[i].key]).sum();
+        if own + theirs > limit {
             continue;
         }
-        load.insert(parent, mine + theirs);
-        let mut moved = joined.remove(&key).unwrap_or_default();
-        moved.push(nodes[i].clone());
-        joined.entry(parent).or_default().extend(moved);
-        if let Some(c) = children.get_mut(&parent) {
-            *c -= 1;
+        load.insert(p, own + theirs);
+        let mut moved = Vec::new();
+        for &i in kids {
+            moved.extend(joined.remove(&nodes[i].key).unwrap_or_default());
+            moved.push(nodes[i].clone());
+            gone[i] = true;
         }
-        gone[i] = true;
+        joined.entry(p).or_default().extend(moved);
+        children.remove(&p);
     }
     let kept = (nodes.into_iter().zip(gone))
         .filter_map(|(n, g)| (!g).then_some(n))
@@ -504,7 +507,7 @@ fn export_octree(
             .unwrap_or(convert::DEFAULT_CAPACITY as u64);
         let times = o.copc_join.unwrap_or(COPC_JOIN as f64);
         let limit = (o.copc_node_points).unwrap_or((times * capacity as f64).round() as u64);
-        join_leaves(wanted, limit, o.spacing)
+        join_families(wanted, limit, o.spacing)
     } else {
         (wanted, HashMap::new())
     };
@@ -601,39 +604,37 @@ mod tests {
     }
 
     #[test]
-    fn small_leaves_join_their_parents_chunk_deepest_first_within_the_limit() {
+    fn whole_families_join_their_parent_deepest_first_within_the_limit() {
         let root = NodeKey::ROOT;
         let (a, b) = (root.child(0), root.child(1));
-        let (a0, a1, b0) = (a.child(0), a.child(1), b.child(0));
+        let (a0, a1, b0, b1) = (a.child(0), a.child(1), b.child(0), b.child(1));
         let nodes = vec![
             node(root, 100),
             node(a, 100),
             node(b, 100),
             node(a0, 30),
             node(a1, 30),
-            node(b0, 500),
+            node(b0, 30),
+            node(b1, 500),
         ];
-        // a's two leaves join it (160), and a, a leaf now, joins the root (260); b0 is too
-        // big for b, so b keeps a child and stays.
-        let (kept, joined) = join_leaves(nodes.clone(), 300, None);
+        // a's family joins a (160); b's cannot (b1 is too big, and b0 never joins alone); the
+        // root keeps b, an interior node, so its family stays apart: no interior node holds
+        // a leaf's points.
+        let (kept, joined) = join_families(nodes.clone(), 300, None);
         let keys: Vec<NodeKey> = kept.iter().map(|n| n.key).collect();
-        assert_eq!(keys, vec![root, b, b0]);
-        let mut into_root: Vec<NodeKey> = joined[&root].iter().map(|n| n.key).collect();
-        into_root.sort();
-        let mut want = vec![a, a0, a1];
-        want.sort();
-        assert_eq!(into_root, want);
+        assert_eq!(keys, vec![root, a, b, b0, b1]);
+        let mut into_a: Vec<NodeKey> = joined[&a].iter().map(|n| n.key).collect();
+        into_a.sort();
+        assert_eq!(into_a, vec![a0, a1]);
         assert_eq!(joined.len(), 1);
-        // Every point goes somewhere, once.
+        // A larger limit: b's family joins b (630), then the root's, all leaves now (890).
+        let (kept, joined) = join_families(nodes.clone(), 1000, None);
+        assert_eq!(kept.iter().map(|n| n.key).collect::<Vec<_>>(), vec![root]);
+        assert_eq!(joined[&root].len(), 6);
         let total: u32 = kept.iter().map(|n| n.points).sum::<u32>()
             + joined.values().flatten().map(|n| n.points).sum::<u32>();
-        assert_eq!(total, 860);
-        // A tighter limit: the leaves join a (160), a stays under the root.
-        let (kept, joined) = join_leaves(nodes.clone(), 200, None);
-        assert_eq!(kept.len(), 4);
-        assert_eq!(joined[&a].len(), 2);
-        // 0: node for node.
-        let (kept, joined) = join_leaves(nodes, 0, None);
-        assert_eq!((kept.len(), joined.len()), (6, 0));
+        assert_eq!(total, 890);
+        let (kept, joined) = join_families(nodes, 0, None);
+        assert_eq!((kept.len(), joined.len()), (7, 0));
     }
 }

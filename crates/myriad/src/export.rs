@@ -54,9 +54,9 @@ pub struct ExportArgs {
     /// 3D Tiles version: 1.1 (glTF tiles) or 1.0 (.pnts tiles, for older clients)
     #[arg(help_heading = "3D Tiles", long, value_name = "VERSION", default_value = "1.1", value_parser = myriad_io::tiles3d::Version::parse)]
     tiles_version: myriad_io::tiles3d::Version,
-    /// COPC: a leaf joins its parent's chunk where the two hold at most this many times the
-    /// dataset's node capacity (0: node for node; larger: a smaller file, slower to settle in a
-    /// viewer) [default: 3]
+    /// COPC: a parent whose children are all leaves takes their points where they hold at most
+    /// this many times the dataset's node capacity together (0: node for node, the largest
+    /// file) [default: 3]
     #[arg(help_heading = "COPC", long, value_name = "TIMES", value_parser = parse_join)]
     copc_join: Option<f64>,
 }
