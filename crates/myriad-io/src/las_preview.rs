@@ -254,35 +254,9 @@ impl LasSource {
                             break;
                         }
                         let step = (chunks[c].points as usize).div_ceil(per_chunk).max(1);
-                        let (mut pts, mut idx, mut seen): (Option<PointBatch>, Vec<u64>, u64) =
-                            (None, Vec::new(), 0);
-                        let mut failed = false;
-                        loop {
-                            match src.read_batch(crate::MAX_BATCH) {
-                                Ok(Some(b)) => {
-                                    // The chunk's first point is among the starts.
-                                    let keep: Vec<u32> = (0..b.len())
-                                        .map(|i| seen as usize + i)
-                                        .filter(|&j| j > 0 && j.is_multiple_of(step))
-                                        .map(|j| (j - seen as usize) as u32)
-                                        .collect();
-                                    idx.extend(keep.iter().map(|&i| first[c] + seen + i as u64));
-                                    let part = b.gather(&keep);
-                                    match &mut pts {
-                                        Some(p) => p.append(&part),
-                                        None => pts = Some(part),
-                                    }
-                                    seen += b.len() as u64;
-                                }
-                                Ok(None) => break,
-                                Err(_) => {
-                                    failed = true;
-                                    break;
-                                }
-                            }
-                        }
-                        // A chunk that does not decode is left to the build to name.
-                        if let (false, Some(p)) = (failed, pts) {
+                        // The chunk's first point is among the starts. A chunk that does not
+                        // decode is left to the build to name.
+                        if let Ok((Some(p), idx)) = at_stride(&mut src, step, true, first[c]) {
                             got.lock()
                                 .expect("a preview thread panicked")
                                 .push((c, p, idx));
@@ -331,22 +305,7 @@ impl LasSource {
     fn decoded_whole(&self, path: &Path, total: u64, most: usize) -> Result<Preview> {
         let mut src = LasSource::open(path)?;
         let step = (total as usize).div_ceil(most.max(1)).max(1);
-        let mut points: Option<PointBatch> = None;
-        let mut indices = Vec::new();
-        let mut seen = 0u64;
-        while let Some(b) = src.read_batch(crate::MAX_BATCH)? {
-            let keep: Vec<u32> = (0..b.len())
-                .filter(|i| (seen as usize + i).is_multiple_of(step))
-                .map(|i| i as u32)
-                .collect();
-            indices.extend(keep.iter().map(|&i| seen + i as u64));
-            let part = b.gather(&keep);
-            match &mut points {
-                Some(p) => p.append(&part),
-                None => points = Some(part),
-            }
-            seen += b.len() as u64;
-        }
+        let (points, indices) = at_stride(&mut src, step, false, 0)?;
         let bytes_read = std::fs::metadata(path).map_or(0, |m| m.len());
         let points = points.unwrap_or_else(|| {
             batch_for(
@@ -364,6 +323,35 @@ impl LasSource {
             how: "a small LAZ scan decoded whole, taken at a stride",
         })
     }
+}
+
+/// Every `step`-th point `src` reads to its end (its first too unless `skip_first`), and each
+/// one's index in the file (`base` plus its place in what `src` reads).
+fn at_stride(
+    src: &mut LasSource,
+    step: usize,
+    skip_first: bool,
+    base: u64,
+) -> Result<(Option<PointBatch>, Vec<u64>)> {
+    let (mut points, mut indices, mut seen): (Option<PointBatch>, Vec<u64>, usize) =
+        (None, Vec::new(), 0);
+    while let Some(b) = src.read_batch(crate::MAX_BATCH)? {
+        let keep: Vec<u32> = (0..b.len())
+            .filter(|i| {
+                let j = seen + i;
+                j.is_multiple_of(step) && !(skip_first && j == 0)
+            })
+            .map(|i| i as u32)
+            .collect();
+        indices.extend(keep.iter().map(|&i| base + (seen + i as usize) as u64));
+        let part = b.gather(&keep);
+        match &mut points {
+            Some(p) => p.append(&part),
+            None => points = Some(part),
+        }
+        seen += b.len();
+    }
+    Ok((points, indices))
 }
 
 /// The previews of several files (the tiles of one survey), and what the files disagree on.
