@@ -334,9 +334,13 @@ impl Dataset {
                 let (m, r) = foreign::potree::Potree::open(url)?;
                 (m, Arc::new(r))
             }
+            Some(foreign::Kind::Tiles) => {
+                let (m, r) = foreign::tiles::Tiles::open(url)?;
+                (m, Arc::new(r))
+            }
             _ => {
                 return Err(Error::Invalid(format!(
-                    "{text}: not a COPC file (.copc.laz), an EPT dataset (ept.json) or a Potree 2.0 one (metadata.json)"
+                    "{text}: not a COPC file (.copc.laz), an EPT dataset (ept.json), a Potree 2.0 one (metadata.json) or a virtual point cloud (.vpc)"
                 )));
             }
         };

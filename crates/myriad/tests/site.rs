@@ -155,6 +155,15 @@ fn the_web_viewer_runs_from_a_static_site() {
         );
     }
 
+    // A virtual point cloud beside them: the COPC file as two tiles (a set repeating one file
+    // under two items, as big sets are tried here), every point of each.
+    let item = |id: &str| {
+        serde_json::json!({"type": "Feature", "stac_version": "1.0.0", "id": id, "properties": {},
+            "assets": {"data": {"href": "./town.copc.laz", "roles": ["data"]}}})
+    };
+    let vpc = serde_json::json!({"type": "FeatureCollection", "features": [item("a"), item("b")]});
+    std::fs::write(cloud.join("data/twice.vpc"), vpc.to_string()).unwrap();
+
     // The same files read by the command line from nginx (ranges over HTTP, native readers).
     std::fs::create_dir_all(d.join("nginx-cloud")).unwrap();
     let Some((_cloud_server, cloud_port)) = nginx(&cloud, &d.join("nginx-cloud")) else {
@@ -170,6 +179,8 @@ fn the_web_viewer_runs_from_a_static_site() {
         (Some(100_000), Some("COPC 1.0")),
         "{v}"
     );
+    let v = info(&format!("http://127.0.0.1:{cloud_port}/data/twice.vpc"));
+    assert_eq!(v["points"], 200_000, "{v}");
     if ept.is_some() {
         let url = format!("http://127.0.0.1:{cloud_port}/data/lone-star-laszip/ept.json");
         assert_eq!(info(&url)["points"], 518_862);
@@ -218,7 +229,10 @@ fn the_web_viewer_runs_from_a_static_site() {
     drop(served);
 
     // COPC and EPT from a static server: every point, decoded in the viewer's workers.
-    let mut sets = vec![("data/town.copc.laz", 100_000u64)];
+    let mut sets = vec![
+        ("data/town.copc.laz", 100_000u64),
+        ("data/twice.vpc", 200_000),
+    ];
     if ept.is_some() {
         sets.push(("data/lone-star-laszip/ept.json", 518_862));
     }
@@ -246,7 +260,7 @@ fn the_web_viewer_runs_from_a_static_site() {
         // this view (its deepest nodes are finer).
         let drawn = st["points"].as_u64().unwrap();
         assert!(drawn <= points && drawn * 2 > points, "{set}: {st}");
-        if set.ends_with(".copc.laz") {
+        if set.ends_with(".copc.laz") || set.ends_with(".vpc") {
             assert_eq!(drawn, points, "{set}: {st}");
         }
     }

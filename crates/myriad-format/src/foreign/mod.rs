@@ -14,7 +14,6 @@
 pub mod copc;
 pub mod ept;
 pub mod potree;
-#[cfg(not(target_arch = "wasm32"))]
 pub mod tiles;
 
 use crate::hierarchy::PAGE_LEVELS;

@@ -121,7 +121,7 @@ fn vpc_tiles(path: &Path) -> Result<Vec<String>> {
             .and_then(|a| a["href"].as_str())
             .ok_or_else(|| bad(format!("item {i}: no asset with an \"href\"")))?;
         out.push(
-            match crate::remote::is_url(Path::new(href)) || Path::new(href).is_absolute() {
+            match super::is_url(Path::new(href)) || Path::new(href).is_absolute() {
                 true => href.to_string(),
                 false => place.name(href.strip_prefix("./").unwrap_or(href)),
             },
@@ -133,8 +133,12 @@ fn vpc_tiles(path: &Path) -> Result<Vec<String>> {
 /// A tile opened: its dataset and its root node.
 type Opened = (Dataset, NodeEntry);
 
-/// Opens every tile (header and root page), `OPENING` at a time, in the given order.
+/// Opens every tile (header and root page), `OPENING` at a time, in the given order (in the
+/// web viewer's WebAssembly, which has no threads, one after another).
 fn open_all(names: &[String]) -> Result<Vec<Opened>> {
+    if cfg!(target_arch = "wasm32") {
+        return names.iter().map(|n| open_tile(n)).collect();
+    }
     let next = AtomicUsize::new(0);
     let out: Vec<Mutex<Option<Result<Opened>>>> = names.iter().map(|_| Mutex::new(None)).collect();
     std::thread::scope(|s| {
@@ -157,14 +161,25 @@ fn open_all(names: &[String]) -> Result<Vec<Opened>> {
         .collect()
 }
 
-fn open_tile(name: &str) -> Result<Opened> {
+#[cfg(not(target_arch = "wasm32"))]
+fn open_dataset(name: &str) -> Result<Dataset> {
     let path = Path::new(name);
     if !crate::remote::is_url(path) && super::kind_of(path).is_none() && !crate::is_dataset(path) {
         return Err(Error::Invalid(format!(
             "{name}: a tile must be COPC, EPT, Potree 2.0 or .myr (a LAS/LAZ file without an index is converted first)"
         )));
     }
-    let ds = Dataset::open(path)?;
+    Dataset::open(path)
+}
+
+/// The web viewer's: a tile by its URL, of the cloud formats.
+#[cfg(target_arch = "wasm32")]
+fn open_dataset(name: &str) -> Result<Dataset> {
+    Dataset::open_url(Path::new(name))
+}
+
+fn open_tile(name: &str) -> Result<Opened> {
+    let ds = open_dataset(name)?;
     let page = (ds.hierarchy_page(&ds.root_page())).map_err(|d| ds.damage_error(&d))?;
     let root = (page.nodes.iter().find(|n| n.key == NodeKey::ROOT).cloned())
         .ok_or_else(|| Error::Invalid(format!("{name}: no root node")))?;
@@ -543,10 +558,12 @@ impl Tiles {
     /// The heads of `tiles`, decoded on all cores (a virtual node near the top draws from
     /// hundreds of tiles; each root is decoded once, whichever node asks first).
     fn heads(&self, tiles: &[usize]) -> std::result::Result<(), Damage> {
-        let workers = std::thread::available_parallelism()
-            .map_or(2, |n| n.get())
-            .min(8)
-            .min(tiles.len());
+        let workers = match cfg!(target_arch = "wasm32") {
+            true => 1,
+            false => std::thread::available_parallelism().map_or(2, |n| n.get()),
+        }
+        .min(8)
+        .min(tiles.len());
         if workers < 2 {
             return tiles.iter().try_for_each(|&t| self.head(t).map(|_| ()));
         }
