@@ -311,6 +311,61 @@ fn a_copc_export_reads_in_place_as_its_myr() {
         r.stderr
     );
 
+    // A large `.vpc` whose items tell each tile's bounds and count (`proj:bbox`, `pc:count`,
+    // as PDAL wrench writes them): 100 items over the four tiles. Every other one is opened up
+    // front (64 at most), the others when a view reaches them: the same image with every
+    // point drawn (each 25 times, in place), and a missing tile among those opened late is a
+    // hole named when reached, not a set that cannot open.
+    let told: Vec<serde_json::Value> = (0..4)
+        .map(|i| {
+            let t = tiles.join(format!("t{i}.copc.laz"));
+            let v: serde_json::Value =
+                serde_json::from_str(&ok(&["info", "--json", s(&t)])).unwrap();
+            let (a, b) = (&v["bounds"]["min"], &v["bounds"]["max"]);
+            serde_json::json!({"pc:count": v["points"], "proj:bbox": [a[0], a[1], a[2], b[0], b[1], b[2]]})
+        })
+        .collect();
+    let large = |gone: bool| {
+        let features: Vec<serde_json::Value> = (0..100)
+            .map(|i| {
+                let href = match gone && i % 2 == 1 && i > 50 {
+                    true => "./tiles/gone.copc.laz".to_string(),
+                    false => format!("./tiles/t{}.copc.laz", i % 4),
+                };
+                serde_json::json!({"type": "Feature", "stac_version": "1.0.0", "id": format!("i{i}"),
+                    "properties": told[i % 4], "assets": {"data": {"href": href, "roles": ["data"]}}})
+            })
+            .collect();
+        serde_json::json!({"type": "FeatureCollection", "features": features}).to_string()
+    };
+    let lazy = d.join("large.vpc");
+    std::fs::write(&lazy, large(false)).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", "--json", s(&lazy)])).unwrap();
+    assert_eq!(v["points"], 5_000_000, "{v}");
+    let lt = d.join("full-large.png");
+    render(
+        s(&lazy),
+        &lt,
+        &[&fixed[..], &["--full", "--point-size", "fixed:1"]].concat(),
+    );
+    let n = differ(&pixels(&t), &pixels(&lt));
+    assert!(
+        n * 1000 <= pa.len() / 4,
+        "a large .vpc, every point drawn: {n} pixels differ"
+    );
+    let holes = d.join("holes.vpc");
+    std::fs::write(&holes, large(true)).unwrap();
+    let hp = d.join("holes.png");
+    let mut args = common::render_cpu(s(&holes), s(&hp), ("320", "240"));
+    args.extend(["--full", "--force"]);
+    let r = myriad(&args);
+    eprintln!(
+        "a large .vpc with missing tiles: exit {}, {}",
+        r.code, r.stderr
+    );
+    assert!(r.stderr.contains("gone.copc.laz"), "{}", r.stderr);
+    assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+
     // Over HTTP through `myriad serve`: the same image.
     let server = serve(&[s(&copc)], Stdio::inherit());
     let url = format!("{}/d/site.copc.laz", server.base);

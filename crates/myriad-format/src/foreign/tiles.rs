@@ -2,7 +2,11 @@
 //! (`.vpc`: QGIS's and PDAL wrench's STAC ItemCollection, each item's `data` asset a COPC, EPT,
 //! Potree 2.0 or `.myr` tile, on disk or by URL relative to the `.vpc`).
 //!
-//! Opening reads each tile's header and root hierarchy page (in parallel), never its points.
+//! Opening reads each tile's header and root hierarchy page (in parallel), never its points;
+//! a `.vpc` of more than [`OPENED_FIRST`] tiles whose items all give their bounds and count
+//! (`proj:bbox`, `pc:count`, as PDAL wrench writes them) opens only that many, spread through
+//! it, and each other tile the first time the selection asks for the hierarchy page its root
+//! heads (nodes of no points, *stubs*, lead from its place down to the next page's level).
 //! The tiles then hang under a few *virtual* levels: the set is split in up to eight groups by
 //! the octant of their centres (by their order where centres coincide), again and again until
 //! each group is one tile, whose root takes the group's key; a tile's own nodes take the keys
@@ -28,7 +32,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// The most points all virtual nodes together hold (what their shares keep in memory).
 pub const VIRTUAL_POINTS: u64 = 2_000_000;
@@ -38,16 +42,21 @@ const SOURCES: usize = 64;
 const MAX_TILES: usize = 100_000;
 /// Tiles opened at once (their header and root page; over HTTP, requests in flight).
 const OPENING: usize = 8;
+/// A `.vpc` of more tiles than this that gives each tile's bounds and count opens only this
+/// many, spread over it, up front (their roots are what the virtual levels draw); the others
+/// when a view reaches them.
+const OPENED_FIRST: usize = SOURCES;
 
-/// One tile: its dataset, its root node and the shares of its root the virtual levels draw.
+/// One tile: its dataset and root node (opened on opening the set, or, in a large `.vpc` that
+/// gives each tile's bounds and count, the first time a view reaches it), and the shares of its
+/// root the virtual levels draw.
 struct Tile {
     name: String,
-    ds: Dataset,
+    /// Its dataset and its root node as its own hierarchy gives it, or why not.
+    opened: OnceLock<std::result::Result<Opened, String>>,
     /// The key of its root among the set's nodes.
     key: NodeKey,
-    /// Its root node, as its own hierarchy gives it.
-    root: NodeEntry,
-    /// Its points' bounds.
+    /// Its points' bounds (a tile not opened yet: as the `.vpc` gives them).
     bounds: Aabb,
     /// The first points of its spread root the virtual levels draw (from `shares` in order).
     taken: usize,
@@ -66,6 +75,12 @@ struct Virtual {
 pub(crate) struct Tiles {
     tiles: Vec<Tile>,
     virtuals: HashMap<NodeKey, Virtual>,
+    /// Nodes of no points between a tile opened only when a view reaches it and its place:
+    /// its root then lies at the top of a hierarchy page of its own, read (and the tile
+    /// opened) only when the selection asks for that page.
+    stubs: HashMap<NodeKey, usize>,
+    /// The set's CRS (its first tile's), which every tile must share.
+    crs: Option<String>,
     /// Tiles by their root's key.
     by_key: HashMap<NodeKey, usize>,
     schema: Schema,
@@ -93,9 +108,31 @@ pub fn folder_tiles(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
+/// What a `.vpc` item says of its tile before it is opened: its points (`pc:count`) and
+/// bounds (`proj:bbox`, in the tiles' CRS: 3D, or 2D with the heights left open).
+#[derive(Clone, Copy)]
+struct Told {
+    points: u64,
+    bounds: Aabb,
+}
+
+fn told(properties: &serde_json::Value) -> Option<Told> {
+    let points = properties["pc:count"].as_u64()?;
+    let b: Vec<f64> = (properties["proj:bbox"].as_array()?.iter())
+        .map(|v| v.as_f64().filter(|x| x.is_finite()))
+        .collect::<Option<_>>()?;
+    let bounds = match b[..] {
+        [x0, y0, z0, x1, y1, z1] => Aabb::new([x0, y0, z0], [x1, y1, z1]),
+        [x0, y0, x1, y1] => Aabb::new([x0, y0, f64::NAN], [x1, y1, f64::NAN]),
+        _ => return None,
+    };
+    let ordered = (0..2).all(|a| bounds.min[a] <= bounds.max[a]);
+    ordered.then_some(Told { points, bounds })
+}
+
 /// The tiles a `.vpc` names: each item's `data` asset (else its first), relative to the
-/// `.vpc`'s folder or URL.
-fn vpc_tiles(path: &Path) -> Result<Vec<String>> {
+/// `.vpc`'s folder or URL, with what the item tells of it.
+fn vpc_tiles(path: &Path) -> Result<Vec<(String, Option<Told>)>> {
     let file = path
         .file_name()
         .map_or("set.vpc".into(), |f| f.to_string_lossy().into_owned());
@@ -120,12 +157,11 @@ fn vpc_tiles(path: &Path) -> Result<Vec<String>> {
         let href = data
             .and_then(|a| a["href"].as_str())
             .ok_or_else(|| bad(format!("item {i}: no asset with an \"href\"")))?;
-        out.push(
-            match super::is_url(Path::new(href)) || Path::new(href).is_absolute() {
-                true => href.to_string(),
-                false => place.name(href.strip_prefix("./").unwrap_or(href)),
-            },
-        );
+        let name = match super::is_url(Path::new(href)) || Path::new(href).is_absolute() {
+            true => href.to_string(),
+            false => place.name(href.strip_prefix("./").unwrap_or(href)),
+        };
+        out.push((name, told(&f["properties"])));
     }
     Ok(out)
 }
@@ -195,57 +231,91 @@ fn footprint(b: &Aabb) -> f64 {
 impl Tiles {
     /// Opens the set `path` names (a `.vpc`, or a folder of COPC files).
     pub(crate) fn open(path: &Path) -> Result<(Metadata, Tiles)> {
-        let (names, format) = match path
+        let (items, format) = match path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("vpc"))
         {
             true => (vpc_tiles(path)?, "VPC"),
             false => {
                 let files = folder_tiles(path);
-                let names = files.iter().map(|p| p.display().to_string()).collect();
-                (names, "COPC tiles")
+                let items = (files.iter()).map(|p| (p.display().to_string(), None));
+                (items.collect(), "COPC tiles")
             }
         };
-        if names.is_empty() {
+        if items.is_empty() {
             return Err(Error::Invalid(format!("{}: no tiles", path.display())));
         }
-        if names.len() > MAX_TILES {
+        if items.len() > MAX_TILES {
             return Err(Error::Invalid(format!(
                 "{}: {} tiles, more than {MAX_TILES}",
                 path.display(),
-                names.len()
+                items.len()
             )));
         }
-        let opened = open_all(&names)?;
-        let first = &opened[0].0.meta;
-        for (n, (ds, _)) in names.iter().zip(&opened) {
+        // Which tiles open now: all, but for a large `.vpc` that tells every tile's bounds
+        // and count: the first and others spread through it, the rest when a view reaches
+        // them.
+        let lazy = items.len() > OPENED_FIRST && items.iter().all(|(_, t)| t.is_some());
+        let first_ones: Vec<usize> = match lazy {
+            true => (0..items.len())
+                .step_by(items.len().div_ceil(OPENED_FIRST))
+                .collect(),
+            false => (0..items.len()).collect(),
+        };
+        let names: Vec<String> = first_ones.iter().map(|&i| items[i].0.clone()).collect();
+        let mut opened: HashMap<usize, Opened> =
+            first_ones.into_iter().zip(open_all(&names)?).collect();
+        let first = &opened[&0].0.meta;
+        for (i, (ds, _)) in &opened {
             if let (Some(a), Some(b)) = (&first.crs, &ds.meta.crs)
                 && a != b
             {
                 return Err(Error::Invalid(format!(
-                    "{n}: its coordinate system differs from {}'s (one set, one CRS)",
-                    names[0]
+                    "{}: its coordinate system differs from {}'s (one set, one CRS)",
+                    items[*i].0, items[0].0
                 )));
             }
         }
         let schema = first.schema.clone();
+        let (crs, quantization) = (first.crs.clone(), first.quantization);
+        // Heights a 2D `proj:bbox` leaves open: those of the tiles opened.
+        let mut heights = Aabb::EMPTY;
+        for (ds, _) in opened.values() {
+            heights = heights.union(&ds.meta.bounds);
+        }
         let mut bounds = Aabb::EMPTY;
         let mut points = 0u64;
         let mut sources = Vec::new();
         let mut tiles = Vec::new();
-        for (name, (ds, root)) in names.into_iter().zip(opened) {
-            let b = match ds.meta.bounds.is_empty() {
-                true => ds.meta.root,
-                false => ds.meta.bounds,
+        for (i, (name, told)) in items.into_iter().enumerate() {
+            let slot = OnceLock::new();
+            let (b, n, kind) = match opened.remove(&i) {
+                Some((ds, root)) => {
+                    let b = match ds.meta.bounds.is_empty() {
+                        true => ds.meta.root,
+                        false => ds.meta.bounds,
+                    };
+                    let kind = ds.foreign_format().unwrap_or(".myr").to_string();
+                    let n = ds.meta.points;
+                    let _ = slot.set(Ok((ds, root)));
+                    (b, n, kind)
+                }
+                None => {
+                    let t = told.expect("a lazy set's items each tell their bounds");
+                    let mut b = t.bounds;
+                    if b.min[2].is_nan() || b.max[2].is_nan() {
+                        (b.min[2], b.max[2]) = (heights.min[2], heights.max[2]);
+                    }
+                    (b, t.points, "not opened yet".to_string())
+                }
             };
             bounds = bounds.union(&b);
-            points += ds.meta.points;
-            sources.push(json!({"path": name, "format": ds.foreign_format().unwrap_or(".myr"), "points": ds.meta.points}));
+            points += n;
+            sources.push(json!({"path": name, "format": kind, "points": n}));
             tiles.push(Tile {
                 name,
-                ds,
+                opened: slot,
                 key: NodeKey::ROOT,
-                root,
                 bounds: b,
                 taken: 0,
                 head: Mutex::new(None),
@@ -254,6 +324,8 @@ impl Tiles {
         let mut set = Tiles {
             tiles,
             virtuals: HashMap::new(),
+            stubs: HashMap::new(),
+            crs: crs.clone(),
             by_key: HashMap::new(),
             schema,
             pages: Mutex::new(HashMap::new()),
@@ -266,7 +338,6 @@ impl Tiles {
             .fold(0.0, f64::max)
             .max(1e-9);
         let root = Aabb::new(bounds.min, bounds.min.map(|m| m + side));
-        let f = &set.tiles[0].ds.meta;
         let meta = Metadata {
             structure: "tiles".into(),
             parameters: json!({"format": format, "read_in_place": true, "tiles": set.tiles.len()}),
@@ -275,8 +346,8 @@ impl Tiles {
             depth: 0,
             bounds,
             root,
-            quantization: f.quantization,
-            crs: f.crs.clone(),
+            quantization,
+            crs,
             schema: set.schema.clone(),
             sources,
             las_header: None,
@@ -287,11 +358,40 @@ impl Tiles {
         Ok((meta, set))
     }
 
+    /// Tile `t`'s dataset and root node, opened the first time it is asked for (a tile that
+    /// cannot be opened, or of another CRS, is a hole named as its subtree's damage).
+    fn opened(&self, t: usize) -> std::result::Result<&Opened, Damage> {
+        let tile = &self.tiles[t];
+        let r = tile.opened.get_or_init(|| {
+            let (ds, root) = open_tile(&tile.name).map_err(|e| e.to_string())?;
+            if let (Some(a), Some(b)) = (&self.crs, &ds.meta.crs)
+                && a != b
+            {
+                return Err(format!(
+                    "{}: its coordinate system differs from the set's (one set, one CRS)",
+                    tile.name
+                ));
+            }
+            Ok((ds, root))
+        });
+        r.as_ref()
+            .map_err(|m| damage(tile.key, 0, format!("a tile not opened: {m}"), true))
+    }
+
     /// Gives the tiles `group` keys below `key`: a tile alone takes `key`; a group is a virtual
     /// node whose children are its tiles split by the octant of their centres (by their order
     /// where the centres coincide).
     fn place(&mut self, group: Vec<usize>, key: NodeKey) {
         if let [t] = group[..] {
+            // A tile not opened yet: its root at the top of a page of its own, below nodes
+            // of no points.
+            let mut key = key;
+            if self.tiles[t].opened.get().is_none() {
+                while !key.level.is_multiple_of(PAGE_LEVELS) {
+                    self.stubs.insert(key, t);
+                    key = key.child(0);
+                }
+            }
             self.tiles[t].key = key;
             self.by_key.insert(key, t);
             return;
@@ -360,14 +460,24 @@ impl Tiles {
         for level in keys.chunk_by(|a, b| a.level == b.level) {
             let mut wants = Vec::new();
             for key in level {
-                let tiles = &below[key];
-                let step = tiles.len().div_ceil(SOURCES);
-                let chosen: Vec<usize> = tiles.iter().copied().step_by(step).collect();
-                let stands_for = tiles.len() as f64 / chosen.len() as f64;
+                // The tiles opened (all but in a large `.vpc`, where those opened first stand
+                // for the others).
+                let open: Vec<usize> = (below[key].iter().copied())
+                    .filter(|&t| self.tiles[t].opened.get().is_some_and(|o| o.is_ok()))
+                    .collect();
+                if open.is_empty() {
+                    continue;
+                }
+                let step = open.len().div_ceil(SOURCES);
+                let chosen: Vec<usize> = open.iter().copied().step_by(step).collect();
+                let stands_for = below[key].len() as f64 / chosen.len() as f64;
                 let area = footprint(&self.virtuals[key].bounds);
                 for t in chosen {
                     let tile = &self.tiles[t];
-                    let points = tile.root.points as usize;
+                    let Some(Ok((_, root))) = tile.opened.get() else {
+                        continue;
+                    };
+                    let points = root.points as usize;
                     let frac = (footprint(&tile.bounds) / area * stands_for).min(0.25);
                     let want =
                         ((points as f64 * frac) as usize).min((points / 2).saturating_sub(at[t]));
@@ -444,7 +554,7 @@ impl Tiles {
         if let Some(p) = self.pages.lock().expect("pages lock").get(&(t, root)) {
             return Ok(p.clone());
         }
-        let ds = &self.tiles[t].ds;
+        let (ds, _) = self.opened(t)?;
         let page = ds
             .hierarchy_page(&ChildPage {
                 key: root,
@@ -515,9 +625,20 @@ impl Tiles {
             e.bounds = Some(v.bounds);
             let children = (0..8)
                 .map(|o| key.child(o))
-                .filter(|c| self.virtuals.contains_key(c) || self.by_key.contains_key(c))
+                .filter(|c| {
+                    self.virtuals.contains_key(c)
+                        || self.by_key.contains_key(c)
+                        || self.stubs.contains_key(c)
+                })
                 .collect();
             return Ok(Some((e, children)));
+        }
+        if let Some(&t) = self.stubs.get(&key) {
+            let b = self.tiles[t].bounds;
+            let spacing = footprint(&b).sqrt();
+            let mut e = NodeEntry::new(key, PageRef::default(), 0, vec![0], vec![spacing]);
+            e.bounds = Some(b);
+            return Ok(Some((e, vec![key.child(0)])));
         }
         let Some((t, local)) = self.tile_of(key) else {
             return Ok(None);
@@ -533,7 +654,7 @@ impl Tiles {
             e.prefix = vec![e.points];
             e.spacing = vec![inner.spacing.last().copied().unwrap_or(1.0)];
         }
-        let cube = inner.bounds_in(&tile.ds.meta.root);
+        let cube = inner.bounds_in(&self.opened(t)?.0.meta.root);
         e.bounds = Some(intersect(&cube, &tile.bounds).unwrap_or(cube));
         let children = children.into_iter().map(|c| self.global(t, c)).collect();
         Ok(Some((e, children)))
@@ -546,10 +667,8 @@ impl Tiles {
         if let Some(h) = &*slot {
             return Ok(h.clone());
         }
-        let b = tile
-            .ds
-            .read_node(&tile.root)
-            .map_err(|d| self.tile_damage(t, d))?;
+        let (ds, root) = self.opened(t)?;
+        let b = ds.read_node(root).map_err(|d| self.tile_damage(t, d))?;
         let h = Arc::new(self.conformed(b.slice(0..tile.taken.min(b.len()))));
         *slot = Some(h.clone());
         Ok(h)
@@ -638,6 +757,11 @@ impl Foreign for Tiles {
             }
             return Ok(out);
         }
+        if self.stubs.contains_key(&e.key) {
+            let mut out = PointBatch::with_schema(&self.schema, 0);
+            out.extra_stride = self.schema.extra_bytes;
+            return Ok(out);
+        }
         let Some((t, local)) = self.tile_of(e.key) else {
             return Err(damage(e.key, 0, "not a node of the set", false));
         };
@@ -650,8 +774,7 @@ impl Foreign for Tiles {
                 false,
             ));
         };
-        let b = tile
-            .ds
+        let b = (self.opened(t)?.0)
             .read_node(&inner)
             .map_err(|d| self.tile_damage(t, d))?;
         let b = match local == NodeKey::ROOT {
@@ -664,7 +787,10 @@ impl Foreign for Tiles {
     fn fetched(&self) -> Option<(u64, u64)> {
         let mut total: Option<(u64, u64)> = None;
         for t in &self.tiles {
-            if let Some((r, b)) = t.ds.fetched() {
+            let Some(Ok((ds, _))) = t.opened.get() else {
+                continue;
+            };
+            if let Some((r, b)) = ds.fetched() {
                 let s = total.get_or_insert((0, 0));
                 *s = (s.0 + r, s.1 + b);
             }
@@ -673,8 +799,9 @@ impl Foreign for Tiles {
     }
 
     fn changed(&self) -> Option<String> {
-        self.tiles
-            .iter()
-            .find_map(|t| t.ds.check_unchanged().err().map(|e| e.to_string()))
+        self.tiles.iter().find_map(|t| match t.opened.get() {
+            Some(Ok((ds, _))) => ds.check_unchanged().err().map(|e| e.to_string()),
+            _ => None,
+        })
     }
 }
