@@ -72,9 +72,20 @@ fn is_tile(path: &Path) -> bool {
             .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
 }
 
-/// The scan files at `path`: the file itself, or a folder's LAS and LAZ files (not its
-/// subfolders), sorted by name.
+/// The scan files at `path`: the file itself, the LAS and LAZ files a `.vpc` names (in its
+/// order), or a folder's LAS and LAZ files (not its subfolders), sorted by name.
 pub fn inputs_of(path: &Path) -> Result<Vec<PathBuf>> {
+    let vpc = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vpc"));
+    if vpc && !path.is_dir() {
+        return myriad_format::foreign::tiles::vpc_scans(path).ok_or_else(|| {
+            Error::Invalid(format!(
+                "{}: not a virtual point cloud of LAS/LAZ files",
+                path.display()
+            ))
+        });
+    }
     if !path.is_dir() {
         return Ok(vec![path.to_path_buf()]);
     }

@@ -225,6 +225,51 @@ fn a_folder_of_tiles_is_one_scan() {
     let ds = made(&tiles);
     assert_eq!(ds.len(), 1, "the earlier dataset removed: {ds:?}");
     holds(&ds[0], &want);
+    // A virtual point cloud naming plain LAS/LAZ tiles (QGIS's `.vpc`, here three of the four)
+    // is such a scan too: previewed from its tiles, made into one dataset beside it.
+    let features: Vec<serde_json::Value> = (0..3)
+        .map(|i| {
+            serde_json::json!({"type": "Feature", "stac_version": "1.0.0", "id": format!("t{i}"),
+                "properties": {}, "assets": {"data": {"href": format!("./tiles/tile{i}.laz"), "roles": ["data"]}}})
+        })
+        .collect();
+    let vpc = d.join("three.vpc");
+    let fc = serde_json::json!({"type": "FeatureCollection", "features": features});
+    std::fs::write(&vpc, fc.to_string()).unwrap();
+    let mut three: Vec<_> = (0..3)
+        .flat_map(|i| records(&tiles.join(format!("tile{i}.laz"))))
+        .collect();
+    three.sort();
+    let vp = d.join("vpc.png");
+    let out = ok(&[
+        "render",
+        s(&vpc),
+        "-o",
+        s(&vp),
+        "--no-wait",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert!(out.contains("of the 3 tiles' 370,000 points"), "{out}");
+    assert!(made(&d).is_empty(), "--no-wait converts nothing");
+    let r = myriad(&[
+        "render",
+        s(&vpc),
+        "-o",
+        s(&vp),
+        "--force",
+        "--width",
+        "200",
+        "--height",
+        "150",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("converting into"), "{}", r.stderr);
+    let ds = made(&d);
+    assert_eq!(ds.len(), 1, "one dataset, beside the .vpc: {ds:?}");
+    holds(&ds[0], &three);
     // A folder without a tile: one line, exit 1.
     let empty = d.join("empty");
     std::fs::create_dir_all(&empty).unwrap();

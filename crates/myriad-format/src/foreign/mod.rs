@@ -66,6 +66,11 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
         return Some(Kind::Potree);
     }
     if lower.ends_with(".vpc") {
+        // A local set of plain LAS/LAZ tiles is a scan, built as a folder of them is.
+        #[cfg(not(target_arch = "wasm32"))]
+        if tiles::vpc_scans(path).is_some() {
+            return None;
+        }
         return Some(Kind::Tiles);
     }
     if is_url(path) {

@@ -166,6 +166,24 @@ fn vpc_tiles(path: &Path) -> Result<Vec<(String, Option<Told>)>> {
     Ok(out)
 }
 
+/// The files of a local `.vpc` whose tiles are all plain LAS/LAZ (no COPC among them): a scan
+/// cut into tiles, built into a dataset as a folder of them is, not read in place. `None` for
+/// any other `.vpc` (or one that cannot be read: opening it as a set says why).
+pub fn vpc_scans(path: &Path) -> Option<Vec<PathBuf>> {
+    if super::is_url(path) {
+        return None;
+    }
+    let items = vpc_tiles(path).ok()?;
+    let files: Vec<PathBuf> = items.into_iter().map(|(n, _)| PathBuf::from(n)).collect();
+    let plain = |f: &PathBuf| {
+        let ext = f.extension().map(|e| e.to_ascii_lowercase());
+        matches!(ext.as_deref().and_then(|e| e.to_str()), Some("las" | "laz"))
+            && !super::is_url(f)
+            && !super::copc::has_info(f)
+    };
+    (!files.is_empty() && files.iter().all(plain)).then_some(files)
+}
+
 /// A tile opened: its dataset and its root node.
 type Opened = (Dataset, NodeEntry);
 
