@@ -33,8 +33,8 @@ pub fn background_priority() {
     }
 }
 
-/// Waits while another thread of this server is running or ready to run (serving the ranges
-/// viewers read), checked every 5 ms, until `given_up` or for `most` in all: the idle policy
+/// Waits while another thread of this server, not a download's, is running or ready to run
+/// (serving the ranges viewers read), checked every 5 ms, until `given_up` or for `most` in all: the idle policy
 /// alone still cost range readers 5 % of their requests and a third more p99 on 2 cores (as much
 /// as two idle-class busy loops do); a node not started while they work costs them nothing. Not
 /// on Linux: returns at once.
@@ -45,7 +45,8 @@ pub fn yield_while_busy(most: std::time::Duration, given_up: &dyn Fn() -> bool) 
     }
 }
 
-/// Whether a thread of this process other than the caller is running or ready to run.
+/// Whether a thread of this process other than the caller and the downloads' (named
+/// `myriad-extract`) is running or ready to run.
 fn others_running() -> bool {
     #[cfg(target_os = "linux")]
     {
@@ -54,11 +55,15 @@ fn others_running() -> bool {
         let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
             return false;
         };
+        // Another download's thread is not the server's work: two would hold each other back.
         tasks.flatten().any(|t| {
             t.file_name().to_str() != Some(me.as_str())
                 && std::fs::read_to_string(t.path().join("stat"))
                     .ok()
-                    .and_then(|st| st.rsplit_once(") ").map(|(_, rest)| rest.starts_with('R')))
+                    .and_then(|st| {
+                        let (name, rest) = st.rsplit_once(") ")?;
+                        Some(rest.starts_with('R') && !name.ends_with("(myriad-extract"))
+                    })
                     .unwrap_or(false)
         })
     }

@@ -117,7 +117,8 @@ struct Told {
 }
 
 fn told(properties: &serde_json::Value) -> Option<Told> {
-    let points = properties["pc:count"].as_u64()?;
+    // At most what a 100,000-tile set of them may add up to without overflowing.
+    let points = properties["pc:count"].as_u64().filter(|&n| n <= 1 << 44)?;
     let b: Vec<f64> = (properties["proj:bbox"].as_array()?.iter())
         .map(|v| v.as_f64().filter(|x| x.is_finite()))
         .collect::<Option<_>>()?;
@@ -126,7 +127,7 @@ fn told(properties: &serde_json::Value) -> Option<Told> {
         [x0, y0, x1, y1] => Aabb::new([x0, y0, f64::NAN], [x1, y1, f64::NAN]),
         _ => return None,
     };
-    let ordered = (0..2).all(|a| bounds.min[a] <= bounds.max[a]);
+    let ordered = (0..3).all(|a| !(bounds.min[a] > bounds.max[a]));
     ordered.then_some(Told { points, bounds })
 }
 
@@ -173,6 +174,29 @@ pub fn vpc_scans(path: &Path) -> Option<Vec<PathBuf>> {
     if super::is_url(path) {
         return None;
     }
+    // Asked often (every open, a server's watch every few seconds): kept per path while the
+    // `.vpc`'s size and time stay.
+    type Seen = HashMap<PathBuf, ((u64, std::time::SystemTime), Option<Vec<PathBuf>>)>;
+    static SEEN: Mutex<Option<Seen>> = Mutex::new(None);
+    let meta = std::fs::metadata(path).ok()?;
+    let stamp = (meta.len(), meta.modified().ok()?);
+    if let Some((s, files)) = SEEN.lock().ok()?.get_or_insert_default().get(path)
+        && *s == stamp
+    {
+        return files.clone();
+    }
+    let files = plain_tiles(path);
+    if let Ok(mut seen) = SEEN.lock() {
+        let seen = seen.get_or_insert_default();
+        if seen.len() > 64 {
+            seen.clear();
+        }
+        seen.insert(path.to_path_buf(), (stamp, files.clone()));
+    }
+    files
+}
+
+fn plain_tiles(path: &Path) -> Option<Vec<PathBuf>> {
     let items = vpc_tiles(path).ok()?;
     let files: Vec<PathBuf> = items.into_iter().map(|(n, _)| PathBuf::from(n)).collect();
     let plain = |f: &PathBuf| {
@@ -189,7 +213,7 @@ type Opened = (Dataset, NodeEntry);
 
 /// Opens every tile (header and root page), `OPENING` at a time, in the given order (in the
 /// web viewer's WebAssembly, which has no threads, one after another).
-fn open_all(names: &[String]) -> Result<Vec<Opened>> {
+fn open_all(names: &[String]) -> Vec<Result<Opened>> {
     if cfg!(target_arch = "wasm32") {
         return names.iter().map(|n| open_tile(n)).collect();
     }
@@ -281,16 +305,38 @@ impl Tiles {
             false => (0..items.len()).collect(),
         };
         let names: Vec<String> = first_ones.iter().map(|&i| items[i].0.clone()).collect();
-        let mut opened: HashMap<usize, Opened> =
-            first_ones.into_iter().zip(open_all(&names)?).collect();
-        let first = &opened[&0].0.meta;
-        for (i, (ds, _)) in &opened {
-            if let (Some(a), Some(b)) = (&first.crs, &ds.meta.crs)
+        // A set opened whole fails on its first tile that cannot be opened; a lazy one keeps
+        // such a tile as a hole (named when reached), as it would one opened later.
+        let mut opened: HashMap<usize, Opened> = HashMap::new();
+        let mut failed: HashMap<usize, String> = HashMap::new();
+        for (i, r) in first_ones.into_iter().zip(open_all(&names)) {
+            match r {
+                Ok(o) => {
+                    opened.insert(i, o);
+                }
+                Err(e) if lazy => {
+                    failed.insert(i, e.to_string());
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let mut order: Vec<usize> = opened.keys().copied().collect();
+        order.sort_unstable();
+        let Some(&one) = order.first() else {
+            return Err(Error::Invalid(format!(
+                "{}: none of the tiles opened first could be opened ({})",
+                path.display(),
+                failed.values().next().map_or("", |m| m.as_str())
+            )));
+        };
+        let first = &opened[&one].0.meta;
+        for i in &order {
+            if let (Some(a), Some(b)) = (&first.crs, &opened[i].0.meta.crs)
                 && a != b
             {
                 return Err(Error::Invalid(format!(
                     "{}: its coordinate system differs from {}'s (one set, one CRS)",
-                    items[*i].0, items[0].0
+                    items[*i].0, items[one].0
                 )));
             }
         }
@@ -299,8 +345,18 @@ impl Tiles {
         // Heights a 2D `proj:bbox` leaves open: those of the tiles opened.
         let mut heights = Aabb::EMPTY;
         for (ds, _) in opened.values() {
-            heights = heights.union(&ds.meta.bounds);
+            heights = heights.union(&match ds.meta.bounds.is_empty() {
+                true => ds.meta.root,
+                false => ds.meta.bounds,
+            });
         }
+        let told_bounds = |t: &Told| {
+            let mut b = t.bounds;
+            if b.min[2].is_nan() || b.max[2].is_nan() {
+                (b.min[2], b.max[2]) = (heights.min[2], heights.max[2]);
+            }
+            b
+        };
         let mut bounds = Aabb::EMPTY;
         let mut points = 0u64;
         let mut sources = Vec::new();
@@ -318,17 +374,18 @@ impl Tiles {
                     let _ = slot.set(Ok((ds, root)));
                     (b, n, kind)
                 }
+                None if failed.contains_key(&i) => {
+                    let t = told.expect("a lazy set's items each tell their bounds");
+                    let _ = slot.set(Err(failed.remove(&i).unwrap_or_default()));
+                    (told_bounds(&t), t.points, "could not be opened".to_string())
+                }
                 None => {
                     let t = told.expect("a lazy set's items each tell their bounds");
-                    let mut b = t.bounds;
-                    if b.min[2].is_nan() || b.max[2].is_nan() {
-                        (b.min[2], b.max[2]) = (heights.min[2], heights.max[2]);
-                    }
-                    (b, t.points, "not opened yet".to_string())
+                    (told_bounds(&t), t.points, "not opened yet".to_string())
                 }
             };
             bounds = bounds.union(&b);
-            points += n;
+            points = points.saturating_add(n);
             sources.push(json!({"path": name, "format": kind, "points": n}));
             tiles.push(Tile {
                 name,
@@ -401,10 +458,10 @@ impl Tiles {
     /// where the centres coincide).
     fn place(&mut self, group: Vec<usize>, key: NodeKey) {
         if let [t] = group[..] {
-            // A tile not opened yet: its root at the top of a page of its own, below nodes
-            // of no points.
+            // A tile not opened yet (or that could not be: a hole of its own, not of the
+            // page above): its root at the top of a page of its own, below nodes of no points.
             let mut key = key;
-            if self.tiles[t].opened.get().is_none() {
+            if !matches!(self.tiles[t].opened.get(), Some(Ok(_))) {
                 while !key.level.is_multiple_of(PAGE_LEVELS) {
                     self.stubs.insert(key, t);
                     key = key.child(0);
@@ -672,8 +729,14 @@ impl Tiles {
             e.prefix = vec![e.points];
             e.spacing = vec![inner.spacing.last().copied().unwrap_or(1.0)];
         }
-        let cube = inner.bounds_in(&self.opened(t)?.0.meta.root);
-        e.bounds = Some(intersect(&cube, &tile.bounds).unwrap_or(cube));
+        let ds = &self.opened(t)?.0;
+        let cube = inner.bounds_in(&ds.meta.root);
+        // The tile's own bounds (those a `.vpc` told of a tile opened late may be off).
+        let own = match ds.meta.bounds.is_empty() {
+            true => tile.bounds,
+            false => ds.meta.bounds,
+        };
+        e.bounds = Some(intersect(&cube, &own).unwrap_or(cube));
         let children = children.into_iter().map(|c| self.global(t, c)).collect();
         Ok(Some((e, children)))
     }
@@ -821,5 +884,33 @@ impl Foreign for Tiles {
             Some(Ok((ds, _))) => ds.check_unchanged().err().map(|e| e.to_string()),
             _ => None,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What an item tells of its tile is taken only when it is whole and sound: a count a set
+    /// may add up, a box whose corners are in order (a 2D one leaves the heights open).
+    #[test]
+    fn an_item_tells_its_bounds_and_count_or_nothing() {
+        let t = told(&json!({"pc:count": 7, "proj:bbox": [0, 1, 2, 3, 4, 5]})).unwrap();
+        assert_eq!(
+            (t.points, t.bounds.min, t.bounds.max),
+            (7, [0.0, 1.0, 2.0], [3.0, 4.0, 5.0])
+        );
+        let flat = told(&json!({"pc:count": 7, "proj:bbox": [0, 1, 3, 4]})).unwrap();
+        assert!(flat.bounds.min[2].is_nan() && flat.bounds.max[0] == 3.0);
+        for bad in [
+            json!({"pc:count": 7, "proj:bbox": [0, 1, 5, 3, 4, 2]}),
+            json!({"pc:count": 7, "proj:bbox": [3, 1, 0, 4]}),
+            json!({"pc:count": u64::MAX, "proj:bbox": [0, 1, 2, 3, 4, 5]}),
+            json!({"pc:count": 7, "proj:bbox": [0, 1, 2, 3, 4]}),
+            json!({"proj:bbox": [0, 1, 2, 3, 4, 5]}),
+            json!({"pc:count": 7}),
+        ] {
+            assert!(told(&bad).is_none(), "{bad}");
+        }
     }
 }
