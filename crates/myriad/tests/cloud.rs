@@ -370,6 +370,19 @@ fn a_copc_export_reads_in_place_as_its_myr() {
     assert!(!r.stderr.contains("nothing left to draw"), "{}", r.stderr);
     assert!(hp.exists(), "{}", r.stderr);
 
+    // A `.vpc` naming itself: one line, not a stack overflow.
+    let me = d.join("me.vpc");
+    let fc = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "id": "a", "assets": {"data": {"href": "me.vpc", "roles": ["data"]}}}]});
+    std::fs::write(&me, fc.to_string()).unwrap();
+    let r = myriad(&["info", s(&me)]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("cannot be a tile") && r.stderr.trim().lines().count() == 1,
+        "{}",
+        r.stderr
+    );
+
     // Over HTTP through `myriad serve`: the same image.
     let server = serve(&[s(&copc)], Stdio::inherit());
     let url = format!("{}/d/site.copc.laz", server.base);

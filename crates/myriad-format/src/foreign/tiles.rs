@@ -257,6 +257,12 @@ fn open_dataset(name: &str) -> Result<Dataset> {
 }
 
 fn open_tile(name: &str) -> Result<Opened> {
+    // A set is no tile (a `.vpc` naming itself, or two naming each other, opened without end).
+    if super::kind_of(Path::new(name)) == Some(super::Kind::Tiles) {
+        return Err(Error::Invalid(format!(
+            "{name}: a set of tiles cannot be a tile of a set"
+        )));
+    }
     let ds = open_dataset(name)?;
     let page = (ds.hierarchy_page(&ds.root_page())).map_err(|d| ds.damage_error(&d))?;
     let root = (page.nodes.iter().find(|n| n.key == NodeKey::ROOT).cloned())
