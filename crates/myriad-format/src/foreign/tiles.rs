@@ -270,6 +270,14 @@ fn open_tile(name: &str) -> Result<Opened> {
     Ok((ds, root))
 }
 
+/// A tile's points' bounds, or its cube where it does not know them.
+fn points_box(ds: &Dataset) -> Aabb {
+    match ds.meta.bounds.is_empty() {
+        true => ds.meta.root,
+        false => ds.meta.bounds,
+    }
+}
+
 /// Area of a box's footprint, never zero.
 fn footprint(b: &Aabb) -> f64 {
     let s = b.size();
@@ -351,10 +359,7 @@ impl Tiles {
         // Heights a 2D `proj:bbox` leaves open: those of the tiles opened.
         let mut heights = Aabb::EMPTY;
         for (ds, _) in opened.values() {
-            heights = heights.union(&match ds.meta.bounds.is_empty() {
-                true => ds.meta.root,
-                false => ds.meta.bounds,
-            });
+            heights = heights.union(&points_box(ds));
         }
         let told_bounds = |t: &Told| {
             let mut b = t.bounds;
@@ -371,23 +376,22 @@ impl Tiles {
             let slot = OnceLock::new();
             let (b, n, kind) = match opened.remove(&i) {
                 Some((ds, root)) => {
-                    let b = match ds.meta.bounds.is_empty() {
-                        true => ds.meta.root,
-                        false => ds.meta.bounds,
-                    };
+                    let b = points_box(&ds);
                     let kind = ds.foreign_format().unwrap_or(".myr").to_string();
                     let n = ds.meta.points;
                     let _ = slot.set(Ok((ds, root)));
                     (b, n, kind)
                 }
-                None if failed.contains_key(&i) => {
-                    let t = told.expect("a lazy set's items each tell their bounds");
-                    let _ = slot.set(Err(failed.remove(&i).unwrap_or_default()));
-                    (told_bounds(&t), t.points, "could not be opened".to_string())
-                }
                 None => {
                     let t = told.expect("a lazy set's items each tell their bounds");
-                    (told_bounds(&t), t.points, "not opened yet".to_string())
+                    let kind = match failed.remove(&i) {
+                        Some(why) => {
+                            let _ = slot.set(Err(why));
+                            "could not be opened"
+                        }
+                        None => "not opened yet",
+                    };
+                    (told_bounds(&t), t.points, kind.to_string())
                 }
             };
             bounds = bounds.union(&b);
@@ -738,11 +742,7 @@ impl Tiles {
         let ds = &self.opened(t)?.0;
         let cube = inner.bounds_in(&ds.meta.root);
         // The tile's own bounds (those a `.vpc` told of a tile opened late may be off).
-        let own = match ds.meta.bounds.is_empty() {
-            true => tile.bounds,
-            false => ds.meta.bounds,
-        };
-        e.bounds = Some(intersect(&cube, &own).unwrap_or(cube));
+        e.bounds = Some(intersect(&cube, &points_box(ds)).unwrap_or(cube));
         let children = children.into_iter().map(|c| self.global(t, c)).collect();
         Ok(Some((e, children)))
     }
