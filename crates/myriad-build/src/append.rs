@@ -217,7 +217,8 @@ fn open_dataset(
     myriad_io::atomic::refuse_input_as_output(dataset, inputs)?;
     myriad_io::atomic::refuse_repeated_inputs(inputs)?;
     convert::remove_stale(dataset);
-    let ds = Dataset::open(dataset)?;
+    // The points as stored: edits kept beside the dataset stay beside it.
+    let ds = Dataset::open_stored(dataset)?;
     let meta = &ds.meta;
     let ntree = match meta.structure.as_str() {
         "nested-octree" | "octree" => false,

@@ -55,7 +55,7 @@ impl Places {
     fn made(&self) -> Option<PathBuf> {
         std::iter::once(&self.beside)
             .chain(self.cached.as_ref())
-            .find(|c| c.is_file() && Dataset::open(c).is_ok())
+            .find(|c| c.is_file() && Dataset::open_stored(c).is_ok())
             .cloned()
     }
 }

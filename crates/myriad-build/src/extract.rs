@@ -261,7 +261,8 @@ pub fn verify(ds: &Dataset, mut on_node: impl FnMut(u64)) -> VerifyReport {
                 "inconsistent level-of-detail prefixes".into(),
             ));
         }
-        let batch = match ds.read_node(n) {
+        // The pages as stored, whatever edits are kept beside them.
+        let batch = match ds.read_node_stored(n, &ds.meta.schema) {
             Ok(b) => b,
             Err(d) => {
                 damage.push(d);

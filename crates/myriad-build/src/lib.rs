@@ -10,6 +10,7 @@ pub mod append;
 pub mod cached;
 pub mod convert;
 pub mod distribute;
+pub mod edited;
 pub mod export;
 pub mod extract;
 pub mod growing;

@@ -16,6 +16,7 @@ pub mod page;
 pub mod splat;
 
 mod codec;
+pub mod edits;
 pub mod foreign;
 pub mod metadata;
 #[cfg(not(target_arch = "wasm32"))]
@@ -264,13 +265,26 @@ pub struct Dataset {
     pub header_crc: u32,
     /// The reader of a COPC, EPT or Potree 2.0 dataset read in place (`None`: a `.myr`).
     foreign: Option<Arc<dyn Foreign>>,
+    /// The edits kept beside it, applied to every node read ([`edits`]).
+    edits: Option<Arc<dyn edits::Edits>>,
 }
 
 impl Dataset {
     /// Opens a dataset file, or a dataset on a web server (`http://`, `https://`: read by
     /// range requests, [`remote::HttpBytes`]).
+    /// On disk, the edits kept beside it come with it ([`edits::set_loader`]).
     #[cfg(not(target_arch = "wasm32"))]
     pub fn open(path: &Path) -> Result<Dataset> {
+        let mut ds = Dataset::open_stored(path)?;
+        if !remote::is_url(path) {
+            ds.edits = edits::load(path, &ds.meta)?;
+        }
+        Ok(ds)
+    }
+
+    /// [`Dataset::open`] without the edits kept beside it: the points as stored.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn open_stored(path: &Path) -> Result<Dataset> {
         match foreign::kind_of(path) {
             Some(foreign::Kind::Copc) if remote::is_url(path) => {
                 let url = path.to_str().expect("a URL is text");
@@ -369,6 +383,7 @@ impl Dataset {
             root: PageRef::default(),
             header_crc: 0,
             foreign: Some(reader),
+            edits: None,
         }
     }
 
@@ -532,11 +547,22 @@ impl Dataset {
             file_length: len,
             header_crc: u32::from_le_bytes(head[12..16].try_into().unwrap()),
             foreign: None,
+            edits: None,
         })
     }
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The edits applied to the nodes read (`None`: the points as stored).
+    pub fn edits(&self) -> Option<&Arc<dyn edits::Edits>> {
+        self.edits.as_ref()
+    }
+
+    /// Sets the edits applied to the nodes read (`None`: the points as stored).
+    pub fn set_edits(&mut self, edits: Option<Arc<dyn edits::Edits>>) {
+        self.edits = edits;
     }
 
     fn read_range(&self, r: PageRef) -> std::result::Result<Vec<u8>, String> {
@@ -665,8 +691,26 @@ impl Dataset {
             .map_err(|m| damage(info.page.offset, m))
     }
 
-    /// Reads and decodes a node's points with the columns of `schema` only.
+    /// Reads and decodes a node's points with the columns of `schema` only, the edits kept
+    /// beside the dataset applied.
     pub fn read_node_columns(
+        &self,
+        e: &NodeEntry,
+        schema: &Schema,
+    ) -> std::result::Result<PointBatch, Damage> {
+        let cube = e.bounds_in(&self.meta.root);
+        let Some(edits) = (self.edits.as_ref()).filter(|d| e.points > 0 && d.meets(&cube)) else {
+            return self.read_node_stored(e, schema);
+        };
+        // An edit may test any column (`--where`): all are read, those not asked for dropped.
+        let mut b = self.read_node_stored(e, &self.meta.schema)?;
+        edits.apply(&cube, &mut b);
+        b.keep_columns(schema);
+        Ok(b)
+    }
+
+    /// Reads and decodes a node's points as stored, with the columns of `schema` only.
+    pub fn read_node_stored(
         &self,
         e: &NodeEntry,
         schema: &Schema,

@@ -8,6 +8,8 @@
 //!   an elevation, or an earlier dataset), cut and fill apart.
 //!
 //! - [`geojson`]: the results for GIS programs, with the CRS named;
+//! - [`edits`]: classes set and points removed, kept beside the dataset as a layer that every
+//!   reader applies;
 //! - [`work`]: saved work, annotations and measurements in a sidecar next to the dataset
 //!   (GeoJSON and DXF through [`files`]).
 //!
@@ -17,6 +19,7 @@
 pub mod corridor;
 pub mod crs;
 pub mod edges;
+pub mod edits;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod files;
 pub mod filter;

@@ -89,7 +89,7 @@ fn xyz(p: [f64; 3]) -> Value {
     json!([p[0], p[1], p[2]])
 }
 
-fn finite(v: &Value, at: &str) -> Result<f64, String> {
+pub(crate) fn finite(v: &Value, at: &str) -> Result<f64, String> {
     match v.as_f64() {
         Some(x) if x.abs() <= MAX_COORD => Ok(x),
         Some(x) if x.is_finite() => Err(format!("{at}: {x:e} is beyond ±{MAX_COORD:e}")),
@@ -109,7 +109,7 @@ fn out_of_range(p: &[f64; 3]) -> Option<&'static str> {
 }
 
 /// At most 60 characters of a value, for an error.
-fn short(v: &Value) -> String {
+pub(crate) fn short(v: &Value) -> String {
     let s = v.to_string();
     if s.chars().count() > 60 {
         format!("{}…", s.chars().take(60).collect::<String>())
@@ -244,7 +244,7 @@ fn measurement_from_json(v: &Value, at: &str) -> Result<Measurement, String> {
     measurement(kind, points, at)
 }
 
-fn list<'a>(o: &'a Map<String, Value>, key: &str) -> Result<&'a [Value], String> {
+pub(crate) fn list<'a>(o: &'a Map<String, Value>, key: &str) -> Result<&'a [Value], String> {
     match o.get(key) {
         None | Some(Value::Null) => Ok(&[]),
         Some(Value::Array(a)) if a.len() <= MAX_ITEMS => Ok(a),

@@ -5,6 +5,7 @@ mod annotate;
 mod bench;
 mod build_options;
 mod cached;
+mod classify;
 mod dataset;
 mod export;
 mod info;
@@ -56,6 +57,9 @@ enum Command {
     Profile(measure::ProfileArgs),
     /// Measure the volume over a polygon above a base (the rim's plane, an elevation, an earlier survey)
     Volume(measure::VolumeArgs),
+    /// Reclassify or remove points in a region, kept as edits beside the dataset (never written
+    /// into it) and applied by every command; list, undo, redo, or write a dataset with them
+    Classify(classify::ClassifyArgs),
     /// Keep annotations and measurements with a dataset (as view and serve do), and export
     /// them to GeoJSON or DXF, or import them
     Annotate(annotate::AnnotateArgs),
@@ -108,6 +112,8 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     quiet_mesa();
+    // Every dataset opened from disk carries the edits kept beside it.
+    myriad_measure::edits::install();
     let cli = Cli::parse();
     if !cli.headers.is_empty() {
         match (cli.headers.iter())
@@ -131,6 +137,7 @@ fn main() -> ExitCode {
         Command::Export(a) => export::run(a),
         Command::Profile(a) => measure::profile(a),
         Command::Volume(a) => measure::volume(a),
+        Command::Classify(a) => classify::run(a),
         Command::Annotate(a) => annotate::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),

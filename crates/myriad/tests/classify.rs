@@ -1,0 +1,277 @@
+//! Edits as a layer (issue 70): `classify` reclassifies and removes the points in a region as
+//! edits kept beside the dataset; `extract`, `render` and the tools read the points edited; undo
+//! and redo; `--apply` writes a dataset equal to extracting the edited points; the scan and the
+//! dataset are never touched; bad edits are one line.
+
+mod common;
+use common::{decode_png, myriad, ok, records, s, synth, tempdir};
+use std::path::Path;
+
+fn fails(args: &[&str], says: &str) {
+    let r = myriad(args);
+    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
+    let line = r.stderr.trim();
+    assert!(line.contains(says), "{args:?}: {line}");
+    assert_eq!(line.lines().count(), 1, "one line: {line}");
+}
+
+fn digest(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap()
+}
+
+fn extracted(ds: &Path, out: &Path) -> Vec<Vec<i64>> {
+    ok(&["extract", s(ds), "-o", s(out), "--force"]);
+    records(out)
+}
+
+/// Ray casting, independent of Myriad's polygon.
+fn inside(poly: &[[f64; 2]], x: f64, y: f64) -> bool {
+    let mut c = false;
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        if (a[1] > y) != (b[1] > y) && x < a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1]) {
+            c = !c;
+        }
+    }
+    c
+}
+
+fn number_after(out: &str, before: &str) -> u64 {
+    let t = out.split(before).next().unwrap();
+    let n = t.rsplit(' ').next().unwrap().replace(',', "");
+    n.parse().unwrap_or_else(|_| panic!("{before:?} in {out}"))
+}
+
+#[test]
+fn edits_are_a_layer_every_reader_applies() {
+    let d = tempdir("classify");
+    let scan = synth(&d, "city.las", 200_000);
+    let ds = d.join("city.myr");
+    ok(&["convert", s(&scan), "-o", s(&ds)]);
+    let (scan0, ds0) = (digest(&scan), digest(&ds));
+    let out = d.join("x.las");
+    let r0 = extracted(&ds, &out);
+    assert_eq!(r0.len(), 200_000);
+
+    // The bounds, in thousandths, give a polygon over a part and a box over another.
+    let (lo, hi) = r0
+        .iter()
+        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), r| {
+            (
+                std::array::from_fn(|a| lo[a].min(r[a])),
+                std::array::from_fn(|a| hi[a].max(r[a])),
+            )
+        });
+    let at = |a: usize, f: f64| (lo[a] as f64 + f * (hi[a] - lo[a]) as f64) / 1000.0;
+    let poly = [
+        [at(0, 0.1), at(1, 0.1)],
+        [at(0, 0.5), at(1, 0.2)],
+        [at(0, 0.4), at(1, 0.6)],
+        [at(0, 0.15), at(1, 0.5)],
+    ];
+    let poly_arg = poly
+        .iter()
+        .map(|p| format!("{},{}", p[0], p[1]))
+        .collect::<Vec<_>>()
+        .join(",");
+    let printed = ok(&["classify", s(&ds), "--polygon", &poly_arg, "--to", "noise"]);
+    assert!(printed.contains("edit 1 kept in"), "{printed}");
+    let selected = number_after(&printed, " points selected");
+    let xy = |r: &Vec<i64>| (r[0] as f64 / 1000.0, r[1] as f64 / 1000.0);
+    let mut want: Vec<Vec<i64>> = r0
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            let (x, y) = xy(&r);
+            if inside(&poly, x, y) {
+                r[5] = 7;
+            }
+            r
+        })
+        .collect();
+    let n_in = r0
+        .iter()
+        .filter(|r| inside(&poly, xy(r).0, xy(r).1))
+        .count() as u64;
+    assert!(n_in > 10_000, "{n_in} points in the polygon");
+    assert_eq!(selected, n_in);
+    want.sort();
+    let r1 = extracted(&ds, &out);
+    assert_eq!(r1, want, "extract gives the points reclassified");
+
+    // Remove the points in a box that overlaps the polygon, of class 7 only: what is left of
+    // the polygon's points in the box goes.
+    let b = [
+        at(0, 0.3),
+        at(1, 0.0),
+        at(2, 0.0) - 1.0,
+        at(0, 0.9),
+        at(1, 0.4),
+        at(2, 1.0) + 1.0,
+    ];
+    let in_box = |r: &Vec<i64>| {
+        (0..3).all(|a| {
+            let v = r[a] as f64 / 1000.0;
+            v >= b[a] && v <= b[a + 3]
+        })
+    };
+    let box_arg = b.map(|v| v.to_string()).join(",");
+    let printed = ok(&[
+        "classify",
+        s(&ds),
+        "--box",
+        &box_arg,
+        "--classes",
+        "7",
+        "--remove",
+    ]);
+    let removed = number_after(&printed, " points removed");
+    let want2: Vec<Vec<i64>> = want
+        .iter()
+        .filter(|r| !(in_box(r) && r[5] == 7))
+        .cloned()
+        .collect();
+    assert!(
+        removed > 1000 && removed as usize == want.len() - want2.len(),
+        "{printed}"
+    );
+    let r2 = extracted(&ds, &out);
+    assert_eq!(r2, want2, "extract leaves the removed points out");
+    let list = ok(&["classify", s(&ds), "--list"]);
+    assert_eq!(list.lines().count(), 2, "{list}");
+    assert!(
+        list.contains("→ removed") && list.contains("→ class 7"),
+        "{list}"
+    );
+
+    // --apply writes a dataset whose points are the edited ones, and which verifies.
+    let applied = d.join("applied.myr");
+    let said = ok(&["classify", s(&ds), "--apply", "-o", s(&applied)]);
+    assert_eq!(number_after(&said, " points removed"), removed, "{said}");
+    assert_eq!(extracted(&applied, &d.join("y.las")), want2);
+    ok(&["verify", s(&applied)]);
+    fails(
+        &["classify", s(&ds), "--apply", "-o", s(&applied)],
+        "exists",
+    );
+
+    // Rendered: removing every point leaves the background alone.
+    let png = d.join("a.png");
+    let render = |p: &Path| {
+        ok(&[
+            "render",
+            s(&ds),
+            "-o",
+            s(p),
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--force",
+            "--raster",
+            "cpu",
+        ]);
+        let (_, _, px) = decode_png(p);
+        px.chunks(4).filter(|c| c[..3] != px[..3]).count()
+    };
+    assert!(render(&png) > 500);
+    ok(&[
+        "classify",
+        s(&ds),
+        "--where",
+        "z>-1e9",
+        "--remove",
+        "--no-count",
+    ]);
+    assert_eq!(render(&png), 0, "no point drawn once all are removed");
+
+    // Undo all three; redo gives them back; the scan and the dataset were never touched.
+    for _ in 0..3 {
+        assert!(ok(&["classify", s(&ds), "--undo"]).starts_with("undone: "));
+    }
+    fails(&["classify", s(&ds), "--undo"], "no edit to undo");
+    assert_eq!(extracted(&ds, &out), r0);
+    ok(&["classify", s(&ds), "--redo"]);
+    ok(&["classify", s(&ds), "--redo"]);
+    assert_eq!(extracted(&ds, &out), want2);
+    assert_eq!(digest(&scan), scan0);
+    assert_eq!(digest(&ds), ds0);
+    // verify reads the pages as stored, whatever the edits.
+    ok(&["verify", s(&ds)]);
+
+    // Bad edits are one line: a polygon that crosses itself, one of two points, a class past
+    // 255, a damaged edits file (named, with its line) for every command that reads points.
+    fails(
+        &[
+            "classify",
+            s(&ds),
+            "--polygon",
+            &format!(
+                "{},{},{},{},{},{},{},{}",
+                poly[0][0],
+                poly[0][1],
+                poly[2][0],
+                poly[2][1],
+                poly[1][0],
+                poly[1][1],
+                poly[3][0],
+                poly[3][1]
+            ),
+            "--to",
+            "2",
+        ],
+        "crosses itself",
+    );
+    fails(
+        &[
+            "classify",
+            s(&ds),
+            "--polygon",
+            &format!(
+                "{},{},{},{}",
+                poly[0][0], poly[0][1], poly[1][0], poly[1][1]
+            ),
+            "--to",
+            "2",
+        ],
+        "at least 3",
+    );
+    fails(&["classify", s(&ds), "--to", "256"], "0 to 255");
+    fails(
+        &["classify", s(&ds), "--where", "nosuch>1", "--remove"],
+        "nosuch",
+    );
+    let r = myriad(&["classify", s(&ds)]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    let sidecar = d.join("city.edits.json");
+    std::fs::write(
+        &sidecar,
+        "{\"myriad\": \"edits\",\n \"version\": 1, \"edits\": [ {\"to\": 2} ",
+    )
+    .unwrap();
+    fails(
+        &["extract", s(&ds), "-o", s(&out), "--force"],
+        "city.edits.json: line 2",
+    );
+    fails(
+        &[
+            "render",
+            s(&ds),
+            "-o",
+            s(&png),
+            "--force",
+            "--raster",
+            "cpu",
+        ],
+        "city.edits.json",
+    );
+    std::fs::write(
+        &sidecar,
+        r#"{"myriad":"edits","version":1,"edits":[{"to":2},{"box":[[0,0,0],[1,1,1]]}]}"#,
+    )
+    .unwrap();
+    fails(
+        &["extract", s(&ds), "-o", s(&out), "--force"],
+        "edits[1]: neither",
+    );
+}
