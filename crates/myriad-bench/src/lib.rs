@@ -10,6 +10,7 @@ pub mod contours;
 pub mod convert;
 pub mod culling;
 pub mod export;
+pub mod ground;
 pub mod open;
 pub mod open_scan;
 pub mod partition;

@@ -64,7 +64,14 @@ pub fn apply(ds: &Dataset, out: &Path, force: bool, report: &dyn Report) -> Resu
             let mut b = ds
                 .read_node_stored(e, &ds.meta.schema)
                 .map_err(|d| ds.damage_error(&d))?;
-            let prefix: Vec<u64> = match edits.apply(&cube, &mut b) {
+            let keep = edits.apply(&cube, &mut b).map_err(|m| {
+                Error::Invalid(format!(
+                    "{}: node {}: its edits: {m}",
+                    path.display(),
+                    e.key
+                ))
+            })?;
+            let prefix: Vec<u64> = match keep {
                 None => e.prefix.iter().map(|&p| p as u64).collect(),
                 Some(keep) => {
                     removed.fetch_add(

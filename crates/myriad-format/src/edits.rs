@@ -19,7 +19,12 @@ pub trait Edits: Send + Sync + std::fmt::Debug {
     /// Applies the edits to the points of a node (its cube, every column of the dataset):
     /// classes set, points removed. Where points were removed, the flags of those kept, one per
     /// point given (so that a writer can count a node's levels again); `None` where none was.
-    fn apply(&self, cube: &Aabb, batch: &mut PointBatch) -> Option<Vec<bool>>;
+    /// An error (a damaged file the edits read) makes the node unreadable.
+    fn apply(
+        &self,
+        cube: &Aabb,
+        batch: &mut PointBatch,
+    ) -> std::result::Result<Option<Vec<bool>>, String>;
 }
 
 /// Finds the edits of the dataset at a path (`None`: it has none); an error names their file.

@@ -704,7 +704,12 @@ impl Dataset {
         };
         // An edit may test any column (`--where`): all are read, those not asked for dropped.
         let mut b = self.read_node_stored(e, &self.meta.schema)?;
-        edits.apply(&cube, &mut b);
+        edits.apply(&cube, &mut b).map_err(|m| Damage {
+            key: e.key,
+            offset: 0,
+            message: format!("its edits: {m}"),
+            subtree: false,
+        })?;
         b.keep_columns(schema);
         Ok(b)
     }

@@ -22,6 +22,7 @@
 //! ```
 
 use crate::filter::{Bound, Filter};
+use crate::ground::{Rule, is_noise};
 use crate::work::{MAX_COORD, finite, list, short};
 use crate::{Corridor, Polygon, Region};
 use myriad_core::{Aabb, PointBatch, Schema};
@@ -54,10 +55,17 @@ pub enum Area {
 }
 
 /// What an edit does to the points it selects.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Action {
     Class(u8),
     Remove,
+    /// Ground against a terrain surface (`myriad ground`): class 2 near it, 7 far below it, 1
+    /// for points labelled 2 that are neither; noise (7, 18) left as it is.
+    Ground {
+        /// The surface's file, beside the edits file.
+        surface: String,
+        rule: Rule,
+    },
 }
 
 /// One edit: a region, a filter (as the user wrote it) and a rule.
@@ -136,9 +144,15 @@ impl Edit {
         for w in &self.wheres {
             s += &format!(", where {w}");
         }
-        match self.action {
+        match &self.action {
             Action::Class(c) => s + &format!(" → class {c}"),
             Action::Remove => s + " → removed",
+            Action::Ground { surface, rule } => {
+                s + &format!(
+                    " → ground within {} + {} x slope of {surface}, low noise {} below",
+                    rule.threshold, rule.scalar, rule.low
+                )
+            }
         }
     }
 
@@ -169,9 +183,14 @@ impl Edit {
         if !self.wheres.is_empty() {
             o.insert("where".into(), json!(self.wheres));
         }
-        match self.action {
+        match &self.action {
             Action::Class(c) => o.insert("to".into(), json!(c)),
             Action::Remove => o.insert("remove".into(), json!(true)),
+            Action::Ground { surface, rule } => o.insert(
+                "ground".into(),
+                json!({"surface": surface, "threshold": rule.threshold, "scalar": rule.scalar,
+                       "low": rule.low}),
+            ),
         };
         Value::Object(o)
     }
@@ -269,6 +288,10 @@ impl Edit {
             Some(v) => return Err(format!("{at}.where: not a list of texts: {}", short(v))),
         };
         let action = match (o.get("to"), o.get("remove")) {
+            (None, None) if o.contains_key("ground") => ground_from_json(&o["ground"], at)?,
+            _ if o.contains_key("ground") => {
+                return Err(format!("{at}: \"ground\" with \"to\" or \"remove\""));
+            }
             (Some(c), None) => match c.as_u64() {
                 Some(c) if c <= 255 => Action::Class(c as u8),
                 _ => return Err(format!("{at}.to: not a class from 0 to 255: {}", short(c))),
@@ -288,6 +311,31 @@ impl Edit {
         e.region().map_err(|m| format!("{at}: {m}"))?;
         Ok(e)
     }
+}
+
+fn ground_from_json(v: &Value, at: &str) -> Result<Action, String> {
+    let surface = v["surface"]
+        .as_str()
+        .filter(|s| {
+            !s.is_empty()
+                && Path::new(s)
+                    .file_name()
+                    .is_some_and(|n| n == std::ffi::OsStr::new(s))
+        })
+        .ok_or_else(|| format!("{at}.ground.surface: not the name of a file beside the edits"))?;
+    let num = |k: &str| {
+        v[k].as_f64()
+            .filter(|x| x.is_finite() && *x >= 0.0 && *x <= MAX_COORD)
+            .ok_or_else(|| format!("{at}.ground.{k}: not a number 0 or more"))
+    };
+    Ok(Action::Ground {
+        surface: surface.to_string(),
+        rule: Rule {
+            threshold: num("threshold")?,
+            scalar: num("scalar")?,
+            low: num("low")?,
+        },
+    })
 }
 
 impl Layer {
@@ -356,26 +404,51 @@ impl Layer {
         })
     }
 
-    /// The edits bound to a dataset's columns, ready to apply; an error names the edit whose
-    /// filter asks for a column the dataset lacks, or which sets classes it has none of.
-    pub fn compile(&self, schema: &Schema) -> Result<Compiled, String> {
+    /// The edits bound to a dataset's columns, ready to apply (`dir`: the folder of the edits
+    /// file, where the surfaces they name are); an error names the edit whose filter asks for a
+    /// column the dataset lacks, which sets classes it has none of, or whose surface is missing.
+    pub fn compile(&self, schema: &Schema, dir: &Path) -> Result<Compiled, String> {
         let edits = (self.edits.iter().enumerate())
-            .map(|(i, e)| compile(e, schema).map_err(|m| format!("edits[{i}]: {m}")))
+            .map(|(i, e)| compile(e, schema, dir).map_err(|m| format!("edits[{i}]: {m}")))
             .collect::<Result<_, _>>()?;
         Ok(Compiled { edits })
     }
 }
 
-fn compile(e: &Edit, schema: &Schema) -> Result<CompiledEdit, String> {
-    if matches!(e.action, Action::Class(_)) && !schema.has(&myriad_core::Attribute::Classification)
-    {
+fn compile(e: &Edit, schema: &Schema, dir: &Path) -> Result<CompiledEdit, String> {
+    let classes = schema.has(&myriad_core::Attribute::Classification);
+    if !matches!(e.action, Action::Remove) && !classes {
         return Err("the dataset has no classes to set (remove points instead)".into());
     }
     Ok(CompiledEdit {
         region: e.region()?,
         bound: e.filter()?.bind(schema)?,
-        action: e.action,
+        surface: match &e.action {
+            Action::Ground { surface, .. } => Some(open_surface(&dir.join(surface))?),
+            _ => None,
+        },
+        action: e.action.clone(),
     })
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+type Surface = crate::ground::surface::Surface;
+#[cfg(target_arch = "wasm32")]
+type Surface = ();
+
+#[cfg(not(target_arch = "wasm32"))]
+fn open_surface(path: &Path) -> Result<std::sync::Arc<Surface>, String> {
+    Surface::open(path)
+        .map(std::sync::Arc::new)
+        .map_err(|e| e.to_string())
+}
+
+#[cfg(target_arch = "wasm32")]
+fn open_surface(path: &Path) -> Result<std::sync::Arc<Surface>, String> {
+    Err(format!(
+        "{}: ground surfaces are read by the native program only",
+        path.display()
+    ))
 }
 
 /// One edit bound to a dataset's columns.
@@ -383,6 +456,8 @@ fn compile(e: &Edit, schema: &Schema) -> Result<CompiledEdit, String> {
 struct CompiledEdit {
     region: Option<Box<dyn Region>>,
     bound: Bound,
+    /// The surface a ground edit reads.
+    surface: Option<std::sync::Arc<Surface>>,
     action: Action,
 }
 
@@ -414,32 +489,80 @@ impl myriad_format::edits::Edits for Compiled {
             .any(|e| e.region.as_ref().is_none_or(|r| r.meets(cube)))
     }
 
-    fn apply(&self, cube: &Aabb, b: &mut PointBatch) -> Option<Vec<bool>> {
+    fn apply(&self, cube: &Aabb, b: &mut PointBatch) -> Result<Option<Vec<bool>>, String> {
         let n = b.len();
         let mut keep: Option<Vec<bool>> = None;
         for e in &self.edits {
             if !e.region.as_ref().is_none_or(|r| r.meets(cube)) {
                 continue;
             }
-            for i in 0..n {
-                if keep.as_ref().is_some_and(|k| !k[i]) || !e.selects(b, i) {
-                    continue;
-                }
-                match e.action {
-                    Action::Class(c) => {
-                        if let Some(cl) = b.classification.as_mut() {
-                            cl[i] = c;
+            let chosen: Vec<usize> = (0..n)
+                .filter(|&i| keep.as_ref().is_none_or(|k| k[i]) && e.selects(b, i))
+                .collect();
+            match &e.action {
+                Action::Class(c) => {
+                    if let Some(cl) = b.classification.as_mut() {
+                        for i in chosen {
+                            cl[i] = *c;
                         }
                     }
-                    Action::Remove => keep.get_or_insert_with(|| vec![true; n])[i] = false,
+                }
+                Action::Remove => {
+                    let k = keep.get_or_insert_with(|| vec![true; n]);
+                    for i in chosen {
+                        k[i] = false;
+                    }
+                }
+                Action::Ground { rule, .. } => {
+                    let surface = e.surface.as_ref().expect("compiled with its surface");
+                    ground(surface, rule, b, chosen)?;
                 }
             }
         }
         if let Some(k) = &keep {
             b.retain_mask(k);
         }
-        keep
+        Ok(keep)
     }
+}
+
+/// A ground edit on the points `chosen` of `b`, tile by tile of the surface.
+#[cfg(not(target_arch = "wasm32"))]
+fn ground(
+    surface: &Surface,
+    rule: &Rule,
+    b: &mut PointBatch,
+    chosen: Vec<usize>,
+) -> Result<(), String> {
+    let Some(classes) = b.classification.as_mut() else {
+        return Ok(());
+    };
+    let mut by_tile: Vec<(usize, usize)> = chosen
+        .into_iter()
+        .filter(|&i| !is_noise(classes[i]))
+        .filter_map(|i| Some((surface.tile_of(b.positions[i][0], b.positions[i][1])?, i)))
+        .collect();
+    by_tile.sort_unstable();
+    for run in by_tile.chunk_by(|a, c| a.0 == c.0) {
+        let t = run[0].0;
+        let Some(cells) = surface.tile(t)? else {
+            continue;
+        };
+        for &(_, i) in run {
+            let [x, y, z] = b.positions[i];
+            if let Some(h) = surface.height(t, &cells, x, y)
+                && let Some(c) = rule.class(classes[i], z - h.z, h.slope)
+            {
+                classes[i] = c;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(target_arch = "wasm32")]
+fn ground(_: &Surface, _: &Rule, _: &mut PointBatch, _: Vec<usize>) -> Result<(), String> {
+    Err("ground surfaces are read by the native program only".into())
 }
 
 /// A polygon in plan between two elevations.
@@ -512,8 +635,9 @@ pub fn load(dataset: &Path, schema: &Schema) -> myriad_core::Result<Option<Compi
     if layer.edits.is_empty() {
         return Ok(None);
     }
+    let dir = file.parent().unwrap_or(Path::new("."));
     let c = layer
-        .compile(schema)
+        .compile(schema, dir)
         .map_err(|m| myriad_core::Error::Invalid(format!("{}: {m}", file.display())))?;
     Ok(Some(c))
 }
@@ -609,22 +733,23 @@ mod tests {
         let back = Layer::parse(&layer.to_json()).unwrap();
         assert_eq!(back, layer);
         let b0 = batch();
-        let c = back.compile(&b0.schema()).unwrap();
+        let c = back.compile(&b0.schema(), Path::new(".")).unwrap();
         let mut b = b0.clone();
         let cube = Aabb::new([0.0; 3], [32.0; 3]);
-        let keep = c.apply(&cube, &mut b).unwrap();
+        let keep = c.apply(&cube, &mut b).unwrap().unwrap();
         assert_eq!(keep, vec![true, false, true, true]);
         assert_eq!(b.classification.as_deref(), Some(&[7, 1, 2][..]));
         assert_eq!(b.positions[1], [5.0, 5.0, 10.0]);
         // Undo the brush and the removal: nothing removed, two points in class 7.
         let mut l = back.clone();
         l.undo();
-        assert_eq!(l.undo().map(|e| e.action), Some(Action::Remove));
+        assert_eq!(l.undo().map(|e| e.action.clone()), Some(Action::Remove));
         let mut b = b0.clone();
         assert!(
-            l.compile(&b0.schema())
+            l.compile(&b0.schema(), Path::new("."))
                 .unwrap()
                 .apply(&cube, &mut b)
+                .unwrap()
                 .is_none()
         );
         assert_eq!(b.classification.as_deref(), Some(&[7, 7, 1, 1][..]));
@@ -641,7 +766,11 @@ mod tests {
             wheres: vec![],
             action: Action::Remove,
         });
-        assert!(!far.compile(&b0.schema()).unwrap().meets(&cube));
+        assert!(
+            !far.compile(&b0.schema(), Path::new("."))
+                .unwrap()
+                .meets(&cube)
+        );
     }
 
     #[test]
@@ -668,7 +797,7 @@ mod tests {
         )
         .unwrap();
         assert!(
-            l.compile(&batch().schema())
+            l.compile(&batch().schema(), Path::new("."))
                 .unwrap_err()
                 .starts_with("edits[0]:")
         );

@@ -24,6 +24,7 @@ pub mod edits;
 pub mod files;
 pub mod filter;
 pub mod geojson;
+pub mod ground;
 pub mod measurement;
 pub mod polygon;
 pub mod profile;

@@ -33,6 +33,9 @@ pub enum BenchCommand {
     /// through an overview, a close and a detail view with occlusion culling and without: nodes,
     /// points, frame time and the time to load each view
     Capacity(myriad_bench::capacity::CapacityBenchArgs),
+    /// The ground `myriad ground` finds against labelled scans: type I, type II and total
+    /// error, time and peak memory
+    Ground(myriad_bench::ground::GroundBenchArgs),
     /// Layered datasets' contours (the subtree's oriented box, as stored) against the contours
     /// of each node's own points (Kanzok et al. 2015): their areas and thicknesses, per level
     Contours(myriad_bench::contours::ContoursBenchArgs),
@@ -83,6 +86,7 @@ pub fn run(c: BenchCommand) -> Result<()> {
         BenchCommand::Culling(a) => myriad_bench::culling::run(a),
         BenchCommand::Capacity(a) => myriad_bench::capacity::run(a),
         BenchCommand::Contours(a) => myriad_bench::contours::run(a),
+        BenchCommand::Ground(a) => myriad_bench::ground::run(a),
         BenchCommand::Surface(a) => myriad_bench::surface::run(a),
         BenchCommand::Stereo(a) => myriad_bench::stereo::run(a),
         BenchCommand::Export(a) => myriad_bench::export::run(a),

@@ -161,7 +161,8 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
         edits: vec![edit.clone()],
         ..Layer::default()
     };
-    single.compile(&ds.meta.schema).map_err(|m| {
+    let dir = sidecar.parent().unwrap_or(Path::new("."));
+    single.compile(&ds.meta.schema, dir).map_err(|m| {
         anyhow!(
             "{}: {}",
             dataset.display(),
@@ -178,8 +179,8 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
     save(&sidecar, &layer)?;
     let what = match counted {
         None => String::new(),
-        Some((n, changed)) => match action {
-            Action::Remove => format!(": {} points removed", thousands(n)),
+        Some((n, changed)) => match edit.action {
+            Action::Remove | Action::Ground { .. } => format!(": {} points removed", thousands(n)),
             Action::Class(c) => format!(
                 ": {} points selected, {} of them given class {c}",
                 thousands(n),
@@ -255,8 +256,8 @@ fn count(ds: &Dataset, e: &Edit) -> Result<(u64, u64)> {
     let (mut n, mut changed) = (0u64, 0u64);
     myriad_measure::read_region(ds, region.as_ref(), &bound, |b| {
         n += b.len() as u64;
-        changed += match (e.action, &b.classification) {
-            (Action::Class(c), Some(cl)) => cl.iter().filter(|&&x| x != c).count() as u64,
+        changed += match (&e.action, &b.classification) {
+            (Action::Class(c), Some(cl)) => cl.iter().filter(|&&x| x != *c).count() as u64,
             _ => b.len() as u64,
         };
     })
@@ -265,7 +266,7 @@ fn count(ds: &Dataset, e: &Edit) -> Result<(u64, u64)> {
 }
 
 /// The layer written over its file, atomically; a folder that takes no files is named.
-fn save(sidecar: &Path, layer: &Layer) -> Result<()> {
+pub(crate) fn save(sidecar: &Path, layer: &Layer) -> Result<()> {
     write_atomic(sidecar, true, |w| w.write_all(layer.to_json().as_bytes())).map_err(|e| {
         anyhow!(
             "{e} (edits are kept beside the dataset: copy it to a folder you can write to edit it)"

@@ -8,6 +8,7 @@ mod cached;
 mod classify;
 mod dataset;
 mod export;
+mod ground;
 mod info;
 mod measure;
 mod mesh;
@@ -60,6 +61,9 @@ enum Command {
     /// Reclassify or remove points in a region, kept as edits beside the dataset (never written
     /// into it) and applied by every command; list, undo, redo, or write a dataset with them
     Classify(classify::ClassifyArgs),
+    /// Find the ground (SMRF in tiles with overlap, out of core): a terrain kept beside the
+    /// dataset and an edit that classifies its points against it
+    Ground(ground::GroundArgs),
     /// Keep annotations and measurements with a dataset (as view and serve do), and export
     /// them to GeoJSON or DXF, or import them
     Annotate(annotate::AnnotateArgs),
@@ -138,6 +142,7 @@ fn main() -> ExitCode {
         Command::Profile(a) => measure::profile(a),
         Command::Volume(a) => measure::volume(a),
         Command::Classify(a) => classify::run(a),
+        Command::Ground(a) => ground::run(a),
         Command::Annotate(a) => annotate::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
