@@ -189,6 +189,9 @@ pub fn run(a: GroundBenchArgs) -> Result<()> {
         };
         let ds = Dataset::open_stored(&dataset)?;
         let (p, rule) = o.resolve(ds.meta.points, &ds.meta.bounds, ds.meta.crs.as_deref());
+        if p.window > 4096 || p.fill > 4096 {
+            return Err(anyhow!("--window and --fill: at most 4,096 cells"));
+        }
         let out = scratch.join(format!(
             "{}.surface",
             scan.file_name().unwrap_or_default().to_string_lossy()

@@ -56,7 +56,7 @@ pub fn apply(ds: &Dataset, out: &Path, force: bool, report: &dyn Report) -> Resu
     let (edited, removed) = (AtomicU64::new(0), AtomicU64::new(0));
     report.phase("applying edits", nodes.len() as u64);
     nodes.par_iter().try_for_each(|e| -> Result<()> {
-        let cube = e.bounds_in(&ds.meta.root);
+        let cube = ds.edit_cube(e);
         if e.points == 0 || !edits.meets(&cube) {
             let page = ds.node_page(e).map_err(|d| ds.damage_error(&d))?;
             writer.copy_node(e, &page)?;

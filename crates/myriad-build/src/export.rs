@@ -517,8 +517,8 @@ fn export_octree(
     let mut group: Vec<(NodeEntry, Vec<NodeEntry>, u64)> = Vec::new();
     let mut in_group = 0u64;
     let read_one = |n: &NodeEntry| {
-        ds.read_node(n).map(|mut b| {
-            b.truncate(extract::prefix_for(n, o.spacing));
+        let count = extract::prefix_for(n, o.spacing);
+        ds.read_node_prefix(n, &ds.meta.schema, count).map(|mut b| {
             if let Some(bx) = &o.bbox {
                 let keep: Vec<bool> = b.positions.iter().map(|&p| bx.contains(p)).collect();
                 b.retain_mask(&keep);

@@ -179,7 +179,8 @@ pub fn extract_within(
         if cancelled() {
             return Err(Error::Invalid(CANCELLED.into()));
         }
-        let mut batch = match ds.read_node(&n) {
+        // The levels asked for as stored, then the edits.
+        let mut batch = match ds.read_node_prefix(&n, &ds.meta.schema, prefix_for(&n, o.spacing)) {
             Ok(b) => b,
             Err(d) => {
                 damage.push(d);
@@ -187,7 +188,6 @@ pub fn extract_within(
             }
         };
         summary.nodes_read += 1;
-        batch.truncate(prefix_for(&n, o.spacing));
         if o.bbox.is_some() || o.region.is_some() || !filter.is_all() {
             let keep: Vec<bool> = (0..batch.len())
                 .map(|i| {

@@ -184,7 +184,7 @@ pub fn is_tile_folder(dir: &Path) -> bool {
 /// made from it before), else its (first) file's header's.
 pub fn crs_of(input: &Path) -> Result<Option<String>> {
     if let Some(ds) = cached::existing(input) {
-        return Ok(myriad_format::Dataset::open(&ds)?.meta.crs.clone());
+        return Ok(myriad_format::Dataset::open_stored(&ds)?.meta.crs.clone());
     }
     let inputs = cached::inputs_of(input)?;
     let Some(first) = inputs.first() else {
@@ -201,7 +201,7 @@ pub fn crs_of(input: &Path) -> Result<Option<String>> {
 /// before), else its files' headers' (all of a folder's tiles); `None` where none are known.
 pub fn bounds_of(input: &Path) -> Result<Option<myriad_core::Aabb>> {
     if let Some(ds) = cached::existing(input) {
-        let b = myriad_format::Dataset::open(&ds)?.meta.bounds;
+        let b = myriad_format::Dataset::open_stored(&ds)?.meta.bounds;
         return Ok((!b.is_empty()).then_some(b));
     }
     let mut all: Option<myriad_core::Aabb> = None;

@@ -698,12 +698,37 @@ impl Dataset {
         e: &NodeEntry,
         schema: &Schema,
     ) -> std::result::Result<PointBatch, Damage> {
-        let cube = e.bounds_in(&self.meta.root);
+        self.read_node_prefix(e, schema, e.points as usize)
+    }
+
+    /// The cube of node `e` grown by a quantization step (where its points may lie): what
+    /// edits are tested against.
+    pub fn edit_cube(&self, e: &NodeEntry) -> Aabb {
+        let c = e.bounds_in(&self.meta.root);
+        let s = self.meta.quantization.scale;
+        Aabb::new(
+            std::array::from_fn(|a| c.min[a] - s[a]),
+            std::array::from_fn(|a| c.max[a] + s[a]),
+        )
+    }
+
+    /// Node `e`'s first `count` points as stored (its coarser levels of detail), the edits
+    /// kept beside the dataset then applied to them, with the columns of `schema` only.
+    pub fn read_node_prefix(
+        &self,
+        e: &NodeEntry,
+        schema: &Schema,
+        count: usize,
+    ) -> std::result::Result<PointBatch, Damage> {
+        let cube = self.edit_cube(e);
         let Some(edits) = (self.edits.as_ref()).filter(|d| e.points > 0 && d.meets(&cube)) else {
-            return self.read_node_stored(e, schema);
+            let mut b = self.read_node_stored(e, schema)?;
+            b.truncate(count);
+            return Ok(b);
         };
         // An edit may test any column (`--where`): all are read, those not asked for dropped.
         let mut b = self.read_node_stored(e, &self.meta.schema)?;
+        b.truncate(count);
         edits.apply(&cube, &mut b).map_err(|m| Damage {
             key: e.key,
             offset: 0,

@@ -92,7 +92,14 @@ pub struct Layer {
 /// The edits file of the dataset at `dataset`: `city.myr` → `city.edits.json` (a folder
 /// dataset's next to the folder).
 pub fn sidecar_for(dataset: &Path) -> PathBuf {
-    let name = if dataset.is_dir() {
+    // An EPT or Potree 2.0 dataset given by its metadata file is its folder.
+    let folder = dataset.parent().filter(|_| {
+        dataset
+            .file_name()
+            .is_some_and(|n| n == "ept.json" || n == "metadata.json")
+    });
+    let dataset = folder.unwrap_or(dataset);
+    let name = if folder.is_some() || dataset.is_dir() {
         dataset.file_name()
     } else {
         dataset.file_stem()
@@ -627,7 +634,11 @@ impl Region for Spheres {
 
 /// The edits of the dataset at `dataset`, read from [`sidecar_for`] it (`None`: no file, or no
 /// edit in it); an error names the file. What [`install`] gives the dataset reader.
-pub fn load(dataset: &Path, schema: &Schema) -> myriad_core::Result<Option<Compiled>> {
+pub fn load(
+    dataset: &Path,
+    meta: &myriad_format::Metadata,
+) -> myriad_core::Result<Option<Compiled>> {
+    let schema = &meta.schema;
     let file = sidecar_for(dataset);
     let Some(layer) = read(&file)? else {
         return Ok(None);
@@ -635,11 +646,30 @@ pub fn load(dataset: &Path, schema: &Schema) -> myriad_core::Result<Option<Compi
     if layer.edits.is_empty() {
         return Ok(None);
     }
+    if let Some(i) = refused_removal(&layer, meta) {
+        return Err(myriad_core::Error::Invalid(format!(
+            "{}: edits[{i}]: {}",
+            file.display(),
+            NO_REMOVAL
+        )));
+    }
     let dir = file.parent().unwrap_or(Path::new("."));
     let c = layer
         .compile(schema, dir)
         .map_err(|m| myriad_core::Error::Invalid(format!("{}: {m}", file.display())))?;
     Ok(Some(c))
+}
+
+/// Why an mwkd dataset's points cannot be removed.
+pub const NO_REMOVAL: &str = "an mwkd dataset's points cannot be removed (its splats are made \
+    of them): reclassify them, or extract and convert";
+
+/// The first edit that removes points where the dataset cannot lose any (mwkd: its splat pages
+/// hold a splat per stored point).
+pub fn refused_removal(layer: &Layer, meta: &myriad_format::Metadata) -> Option<usize> {
+    (meta.structure == "mwkd")
+        .then(|| layer.edits.iter().position(|e| e.action == Action::Remove))
+        .flatten()
 }
 
 /// The layer in `file` (`None`: no such file); an error names the file and the line or edit.
@@ -671,7 +701,7 @@ pub fn read(file: &Path) -> myriad_core::Result<Option<Layer>> {
 #[cfg(not(target_arch = "wasm32"))]
 pub fn install() {
     myriad_format::edits::set_loader(|path, meta| {
-        Ok(load(path, &meta.schema)?
+        Ok(load(path, meta)?
             .map(|c| std::sync::Arc::new(c) as std::sync::Arc<dyn myriad_format::edits::Edits>))
     });
 }

@@ -105,6 +105,26 @@ pub fn write_atomic(
     f.commit()
 }
 
+/// Layers of a contour drawing: every contour, and every fifth (index contours) apart.
+pub const CONTOURS_LAYER: &str = "CONTOURS";
+pub const INDEX_CONTOURS_LAYER: &str = "CONTOURS_INDEX";
+
+/// Contours as a drawing: each a 2D polyline at its elevation (closed where it closes), those at
+/// multiples of five intervals on their own layer.
+pub fn contours_drawing(lines: &[crate::contours::Contour], interval: f64) -> Drawing {
+    let mut d = drawing(&[(CONTOURS_LAYER, 8), (INDEX_CONTOURS_LAYER, 1)]);
+    for c in lines {
+        let k = (c.elevation / interval).round() as i64;
+        let layer = if k % 5 == 0 {
+            INDEX_CONTOURS_LAYER
+        } else {
+            CONTOURS_LAYER
+        };
+        d.add_entity(polyline(layer, &c.points, c.closed, c.elevation));
+    }
+    d
+}
+
 /// Writes a drawing to `path` atomically.
 pub fn save_drawing(d: &Drawing, path: &Path, force: bool) -> Result<()> {
     write_atomic(path, force, |w| {

@@ -16,6 +16,7 @@
 //! Every tool reads the original points, at full resolution, from the pages whose nodes meet
 //! its region ([`read_region`]), whatever a view draws.
 
+pub mod contours;
 pub mod corridor;
 pub mod crs;
 pub mod edges;
@@ -28,6 +29,8 @@ pub mod ground;
 pub mod measurement;
 pub mod polygon;
 pub mod profile;
+#[cfg(not(target_arch = "wasm32"))]
+pub mod raster;
 pub mod shape;
 pub mod volume;
 pub mod work;

@@ -169,11 +169,16 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
             m.trim_start_matches("edits[0]: ")
         )
     })?;
+    if edit.action == Action::Remove && ds.meta.structure == "mwkd" {
+        bail!("{}: {}", dataset.display(), edits::NO_REMOVAL);
+    }
     let counted = if a.no_count {
         None
     } else {
         Some(count(&ds, &edit)?)
     };
+    // The file as it is now (another command may have changed it since it was read).
+    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
     layer.crs = ds.meta.crs.clone();
     layer.push(edit.clone());
     save(&sidecar, &layer)?;
@@ -265,9 +270,15 @@ fn count(ds: &Dataset, e: &Edit) -> Result<(u64, u64)> {
     Ok((n, changed))
 }
 
-/// The layer written over its file, atomically; a folder that takes no files is named.
+/// The layer written over its file, atomically, if it reads back (an edit too large for the
+/// file, or beyond what it holds, is refused: nothing kept); a folder that takes no files is
+/// named.
 pub(crate) fn save(sidecar: &Path, layer: &Layer) -> Result<()> {
-    write_atomic(sidecar, true, |w| w.write_all(layer.to_json().as_bytes())).map_err(|e| {
+    let text = layer.to_json();
+    if let Err(m) = Layer::parse(&text) {
+        bail!("{}: the edit cannot be kept: {m}", sidecar.display());
+    }
+    write_atomic(sidecar, true, |w| w.write_all(text.as_bytes())).map_err(|e| {
         anyhow!(
             "{e} (edits are kept beside the dataset: copy it to a folder you can write to edit it)"
         )

@@ -364,7 +364,8 @@ pub fn verify(a: VerifyArgs) -> Result<()> {
     let mut bad = 0;
     let mut first = None;
     for path in &a.datasets {
-        let ds = Dataset::open(path)?;
+        // The pages as stored, whatever edits are kept beside them.
+        let ds = Dataset::open_stored(path)?;
         // A file of its missing or replaced is one line, not a line per page in it.
         ds.check_files()?;
         let bar = ProgressBar::new(ds.meta.points);

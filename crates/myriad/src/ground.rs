@@ -93,7 +93,6 @@ pub fn run(a: GroundArgs) -> Result<()> {
     };
     let dataset = crate::cached::dataset_for(&a.dataset)?;
     let sidecar = edits::sidecar_for(&dataset);
-    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
     let ds = Dataset::open(&dataset)?;
     if !ds.meta.schema.has(&myriad_core::Attribute::Classification) {
         bail!("{}: the dataset has no classes to set", dataset.display());
@@ -109,8 +108,11 @@ pub fn run(a: GroundArgs) -> Result<()> {
     let tile = a
         .tile
         .unwrap_or_else(|| ground::tile_for(a.memory, threads, &p));
-    if tile == 0 {
-        bail!("--tile 0: a tile of at least one cell");
+    if tile == 0 || tile > ground::surface::MAX_TILE {
+        bail!(
+            "--tile {tile}: from 1 to {} cells",
+            ground::surface::MAX_TILE
+        );
     }
     let surface = free_name(&dataset);
     let t = std::time::Instant::now();
@@ -124,8 +126,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
         .expect("a file")
         .to_string_lossy()
         .into_owned();
-    layer.crs = ds.meta.crs.clone();
-    layer.push(Edit {
+    let edit = Edit {
         area: Area::All,
         classes: None,
         wheres: Vec::new(),
@@ -133,7 +134,11 @@ pub fn run(a: GroundArgs) -> Result<()> {
             surface: name.clone(),
             rule,
         },
-    });
+    };
+    // The file as it is now: edits made while the terrain was being made are kept.
+    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
+    layer.crs = ds.meta.crs.clone();
+    layer.push(edit);
     crate::classify::save(&sidecar, &layer)?;
     let pl = made.placement;
     println!(

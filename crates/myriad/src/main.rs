@@ -14,6 +14,7 @@ mod measure;
 mod mesh;
 mod partition;
 mod progress;
+mod raster;
 mod render;
 mod serve;
 mod synth;
@@ -64,6 +65,11 @@ enum Command {
     /// Find the ground (SMRF in tiles with overlap, out of core): a terrain kept beside the
     /// dataset and an edit that classifies its points against it
     Ground(ground::GroundArgs),
+    /// Write a terrain model, surface model, canopy heights, intensity or density as a
+    /// Cloud-Optimized GeoTIFF
+    Raster(raster::RasterArgs),
+    /// Write contour lines of the terrain (the ground points) as DXF or GeoJSON
+    Contours(raster::ContoursArgs),
     /// Keep annotations and measurements with a dataset (as view and serve do), and export
     /// them to GeoJSON or DXF, or import them
     Annotate(annotate::AnnotateArgs),
@@ -143,6 +149,8 @@ fn main() -> ExitCode {
         Command::Volume(a) => measure::volume(a),
         Command::Classify(a) => classify::run(a),
         Command::Ground(a) => ground::run(a),
+        Command::Raster(a) => raster::run(a),
+        Command::Contours(a) => raster::contours(a),
         Command::Annotate(a) => annotate::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),

@@ -58,7 +58,7 @@ pub fn merge(
         let (head, nodes) = tops::read(&tops_path, plan, i)?;
         let points = head["points"].as_u64().unwrap_or(0);
         if points > 0 {
-            let ds = Dataset::open(&myr)?;
+            let ds = Dataset::open_stored(&myr)?;
             let param = &ds.meta.parameters;
             if param["plan"].as_str() != Some(plan.id.as_str())
                 || param["part"].as_u64() != Some(i as u64)

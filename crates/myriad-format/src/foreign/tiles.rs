@@ -247,7 +247,8 @@ fn open_dataset(name: &str) -> Result<Dataset> {
             "{name}: a tile must be COPC, EPT, Potree 2.0 or .myr (a LAS/LAZ file without an index is converted first)"
         )));
     }
-    Dataset::open(path)
+    // A set's tiles are read as stored: the set's own edits apply to what they give.
+    Dataset::open_stored(path)
 }
 
 /// The web viewer's: a tile by its URL, of the cloud formats.

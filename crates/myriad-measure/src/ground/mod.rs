@@ -140,6 +140,8 @@ mod build {
 
     /// The most cells a grid may have (a side of 2^24 cells).
     const MAX_SIDE: f64 = (1u64 << 24) as f64;
+    /// Most tiles of a surface (its index stays a few megabytes).
+    const MAX_TILES: usize = 100_000;
     /// Bytes of memory a cell of a tile in flight takes (the filter's grids).
     pub const BYTES_PER_CELL: u64 = 40;
 
@@ -202,6 +204,19 @@ mod build {
         } else {
             Bound::all()
         };
+        if tile == 0 || tile > super::surface::MAX_TILE {
+            return Err(Error::Invalid(format!(
+                "a tile of {tile} cells: from 1 to {}",
+                super::surface::MAX_TILE
+            )));
+        }
+        if placement.tiles().0 * placement.tiles().1 > MAX_TILES {
+            return Err(Error::Invalid(format!(
+                "{name}: {} x {} tiles of {tile} cells: more than {MAX_TILES} (a larger tile or cell)",
+                placement.tiles().0,
+                placement.tiles().1
+            )));
+        }
         let writer = SurfaceWriter::create(out, placement)?;
         let (tx, ty) = placement.tiles();
         let m = smrf::margin(p);

@@ -18,7 +18,7 @@ const MAGIC: &[u8; 8] = b"MYRSURF1";
 const CACHED: usize = 16;
 /// The largest grid side (in cells) and tile side a file may claim.
 const MAX_CELLS: u64 = 1 << 24;
-const MAX_TILE: usize = 4096;
+pub const MAX_TILE: usize = 4096;
 /// Surfaces up to this size have every tile's checksum checked when they are opened.
 const CHECK_WHOLE: u64 = 256 << 20;
 
