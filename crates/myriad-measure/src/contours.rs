@@ -140,10 +140,20 @@ fn level_lines(
         if closed {
             chain.pop();
         }
+        // A crossing on a node (a value exactly at the level) repeats a vertex; a line of one
+        // place (a peak exactly at the level) is no line.
+        let mut points: Vec<[f64; 2]> = chain.into_iter().map(point).collect();
+        points.dedup();
+        if closed && points.len() > 1 && points.first() == points.last() {
+            points.pop();
+        }
+        if points.len() < 2 {
+            continue;
+        }
         lines.push(Contour {
             elevation: level,
-            points: chain.into_iter().map(point).collect(),
-            closed,
+            closed: closed && points.len() > 2,
+            points,
         });
     }
     lines
@@ -174,6 +184,9 @@ mod tests {
             }
         }
         assert_eq!(c.iter().filter(|l| l.elevation == 5.0).count(), 1);
+        // A peak exactly at a level is a place, not a line.
+        let peak = [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+        assert!(contours(&peak, 3, 3, 1.0, |x, y| [x, y]).is_empty());
         let slope: Vec<f32> = (0..n * n).map(|i| (i % n) as f32 * 0.5).collect();
         let c = contours(&slope, n, n, 5.0, |x, y| [x, y]);
         let levels: Vec<f64> = c.iter().map(|l| l.elevation).collect();

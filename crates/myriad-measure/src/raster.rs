@@ -63,8 +63,15 @@ pub struct Layout {
 impl Layout {
     /// The grid of `cell` over `b`, its corners on multiples of the cell.
     pub fn over(b: &Aabb, cell: f64) -> std::result::Result<Layout, String> {
-        let x0 = (b.min[0] / cell).floor() * cell;
-        let y_top = (b.max[1] / cell).floor() * cell + cell;
+        let mut x0 = (b.min[0] / cell).floor() * cell;
+        let mut y_top = (b.max[1] / cell).floor() * cell + cell;
+        // Rounding must not leave the lowest x or the highest y outside the grid.
+        if ((b.min[0] - x0) / cell).floor() < 0.0 {
+            x0 -= cell;
+        }
+        if ((y_top - b.max[1]) / cell).floor() < 0.0 {
+            y_top += cell;
+        }
         let nx = ((b.max[0] - x0) / cell).floor() + 1.0;
         let ny = ((y_top - b.min[1]) / cell).floor() + 1.0;
         if !(nx.is_finite() && ny.is_finite() && nx >= 1.0 && ny >= 1.0) {
@@ -107,15 +114,17 @@ pub fn block(
     let (e0, f0) = (c0.saturating_sub(m), r0.saturating_sub(m));
     let (gw, gh) = ((c0 + w + m).min(l.nx) - e0, (r0 + h + m).min(l.ny) - f0);
     let b = &ds.meta.bounds;
+    // Read a cell wider on every side: which cell a point is in is decided by `cell_of` alone
+    // (the area's edges, computed otherwise, may round the other way).
     let area = Aabb::new(
         [
-            l.x0 + e0 as f64 * l.cell,
-            l.y_top - (f0 + gh) as f64 * l.cell,
+            l.x0 + (e0 as f64 - 1.0) * l.cell,
+            l.y_top - (f0 + gh + 1) as f64 * l.cell,
             b.min[2],
         ],
         [
-            l.x0 + (e0 + gw) as f64 * l.cell,
-            l.y_top - f0 as f64 * l.cell,
+            l.x0 + (e0 + gw + 1) as f64 * l.cell,
+            l.y_top - (f0 as f64 - 1.0) * l.cell,
             b.max[2],
         ],
     );
@@ -127,9 +136,12 @@ pub fn block(
         Bound::all()
     };
     let n = gw * gh;
-    let (mut top, mut sum, mut count) = (vec![f32::NAN; n], vec![0f64; n], vec![0u32; n]);
+    let (mut top, mut sum, mut count) = (vec![f32::NAN; n], vec![0f64; n], vec![0u64; n]);
     let mut ground_sum = vec![0f64; n];
-    let mut ground_n = vec![0u32; n];
+    let mut ground_n = vec![0u64; n];
+    let in_core = |c: usize, r: usize| {
+        (c0 - e0..c0 - e0 + w).contains(&c) && (r0 - f0..r0 - f0 + h).contains(&r)
+    };
     let mut ground = 0u64;
     crate::read_region(ds, &area, &not_noise, |batch| {
         for i in 0..batch.len() {
@@ -153,7 +165,7 @@ pub fn block(
             {
                 ground_sum[k] += z;
                 ground_n[k] += 1;
-                ground += 1;
+                ground += in_core(c as usize, r as usize) as u64;
             }
         }
     })
@@ -209,6 +221,25 @@ pub fn block(
     Ok((core, ground))
 }
 
+/// The EPSG code a GeoTIFF names a CRS by, and whether it is geographic: a projected or
+/// geographic CRS only (a compound one's code is not its horizontal part's; a geocentric one has
+/// no place in a raster's keys). A bare code without PROJ to say what it is: geographic in EPSG's
+/// 4000s.
+pub fn geokeys(crs: &str) -> Option<(u32, bool)> {
+    let d = crate::crs::describe(crs);
+    let code = d.epsg?;
+    let bare = crs.trim_start().starts_with("EPSG:");
+    if d.vertical.is_some() && !bare {
+        return None;
+    }
+    match d.kind {
+        "projected" => Some((code, false)),
+        "geographic" => Some((code, true)),
+        "unknown" if bare => Some((code, (4000..5000).contains(&code))),
+        _ => None,
+    }
+}
+
 /// What [`write`] made.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Made {
@@ -256,11 +287,16 @@ pub fn write(
             l.ny
         )));
     }
-    let epsg = ds.meta.crs.as_deref().and_then(|c| {
-        let code = crate::geojson::epsg_code(c)?;
-        let geographic = c.trim_start().starts_with("GEOG") || (4000..5000).contains(&code);
-        Some((code, geographic))
-    });
+    if most + (1 << 24) > u32::MAX as u64 {
+        return Err(Error::Invalid(format!(
+            "{}: a raster of {} x {} cells could pass the 4 GB a classic TIFF holds (BigTIFF is not \
+             written yet): a larger --cell",
+            out.display(),
+            l.nx,
+            l.ny
+        )));
+    }
+    let epsg = ds.meta.crs.as_deref().and_then(geokeys);
     let writer = myriad_io::geotiff::GeoTiffWriter::create(
         out,
         force,

@@ -15,6 +15,9 @@ pub enum Base<'a> {
     Elevation(f64),
     /// Another dataset's surface (an earlier survey of the same ground).
     Surface(&'a Dataset),
+    /// The dataset's own ground: its points of classes 2 and 11 (as its edits leave them, so
+    /// after `myriad ground`), the cells without one filled from around them.
+    Ground,
 }
 
 /// At most this many grid cells (about 1.2 GB of sums per surface).
@@ -368,9 +371,20 @@ fn measure(
                 Some(plane[0] + plane[1] * (x - x0[0]) + plane[2] * (y - x0[1]))
             })
         }
-        Base::Surface(earlier) => {
+        Base::Surface(_) | Base::Ground => {
+            let (source, ground);
+            let (from, which) = match base {
+                Base::Surface(earlier) => (earlier, filter),
+                _ => {
+                    ground = crate::Filter::parse(Some("2,11"), &[])
+                        .and_then(|f| f.bind(&ds.meta.schema))
+                        .map_err(|m| format!("--base ground: {m}"))?;
+                    source = ds;
+                    (source, &ground)
+                }
+            };
             let mut g2 = Grid::new(polygon, cell)?;
-            read_region(earlier, polygon, filter, |b| {
+            read_region(from, polygon, which, |b| {
                 for p in &b.positions {
                     if let Some(k) = g2.index(p[0], p[1]) {
                         g2.sum[k] += p[2];
@@ -380,7 +394,13 @@ fn measure(
             })?;
             let (h, empty) = g2.heights(&inside);
             v.base_empty_cells = empty;
-            uncovered_base(&h, &inside, v.cells)?;
+            let what = match base {
+                Base::Ground => {
+                    "the ground points (classes 2 and 11; `myriad ground` finds them) do"
+                }
+                _ => "the earlier survey does",
+            };
+            uncovered_base(&h, &inside, v.cells, what)?;
             Box::new(move |k| h[k])
         }
     };
@@ -412,7 +432,12 @@ fn measure(
 /// An earlier survey that leaves cells of the polygon without a height even from their
 /// neighbours is no base for them: an error naming the share it does not cover, rather than a
 /// volume that leaves those cells out (0 where it covers nothing).
-fn uncovered_base(base: &[Option<f64>], inside: &[bool], cells: u64) -> Result<(), String> {
+fn uncovered_base(
+    base: &[Option<f64>],
+    inside: &[bool],
+    cells: u64,
+    what: &str,
+) -> Result<(), String> {
     let uncovered = (base.iter().zip(inside))
         .filter(|(h, inside)| **inside && h.is_none())
         .count() as u64;
@@ -420,7 +445,7 @@ fn uncovered_base(base: &[Option<f64>], inside: &[bool], cells: u64) -> Result<(
         return Ok(());
     }
     Err(format!(
-        "--base: the earlier survey does not cover {:.1} % of the polygon ({uncovered} of its {cells} cells have no height there, even from their neighbours): a polygon within both surveys",
+        "--base: {what} not cover {:.1} % of the polygon ({uncovered} of its {cells} cells have no height there, even from their neighbours): a polygon within both surveys",
         100.0 * uncovered as f64 / cells.max(1) as f64
     ))
 }
@@ -505,15 +530,18 @@ mod tests {
     fn a_base_that_does_not_cover_the_polygon_is_an_error() {
         let inside = [true, true, true, true, false];
         let all = [Some(1.0), Some(2.0), Some(3.0), Some(4.0), None];
-        assert_eq!(uncovered_base(&all, &inside, 4), Ok(()));
+        assert_eq!(
+            uncovered_base(&all, &inside, 4, "the earlier survey does"),
+            Ok(())
+        );
         let none = [None; 5];
-        let e = uncovered_base(&none, &inside, 4).unwrap_err();
+        let e = uncovered_base(&none, &inside, 4, "the earlier survey does").unwrap_err();
         assert!(
             e.contains("100.0 %") && e.contains("4 of its 4 cells"),
             "{e}"
         );
         let half = [Some(1.0), None, Some(3.0), None, None];
-        let e = uncovered_base(&half, &inside, 4).unwrap_err();
+        let e = uncovered_base(&half, &inside, 4, "the earlier survey does").unwrap_err();
         assert!(
             e.contains("50.0 %") && e.contains("2 of its 4 cells"),
             "{e}"

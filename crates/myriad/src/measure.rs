@@ -271,8 +271,9 @@ pub struct VolumeArgs {
     /// Polygon in GeoJSON or WKT, or a CSV of x,y vertices (checked against the dataset's CRS)
     #[arg(long, allow_hyphen_values = true)]
     polygon: String,
-    /// The base: rim (a plane fitted to the points on the polygon's edge), an elevation, or
-    /// an earlier dataset of the same ground (.myr)
+    /// The base: rim (a plane fitted to the points on the polygon's edge), an elevation, ground
+    /// (the dataset's ground points, classes 2 and 11: `myriad ground` first where it has none),
+    /// or an earlier dataset of the same ground (.myr)
     #[arg(long, default_value = "rim", allow_hyphen_values = true)]
     base: String,
     /// The grid's cell size [default: about twice the points' spacing]
@@ -312,13 +313,14 @@ pub fn volume(a: VolumeArgs) -> Result<()> {
     let earlier;
     let base = match a.base.as_str() {
         "rim" => Base::Rim,
+        "ground" => Base::Ground,
         b => match b.parse::<f64>() {
             Ok(z) if z.is_finite() => Base::Elevation(z),
             _ if myriad_format::is_dataset(Path::new(b)) || b.starts_with("http") => {
                 earlier = Dataset::open(Path::new(b))?;
                 Base::Surface(&earlier)
             }
-            _ => bail!("--base \"{b}\": expected rim, an elevation or a dataset (.myr)"),
+            _ => bail!("--base \"{b}\": expected rim, ground, an elevation or a dataset (.myr)"),
         },
     };
     let bound = a

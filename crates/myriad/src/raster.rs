@@ -54,7 +54,7 @@ pub struct ContoursArgs {
 }
 
 /// The cell and the filling in cells for a dataset.
-fn grid(ds: &Dataset, cell: Option<f64>, fill: f64) -> Result<(f64, usize)> {
+fn grid(ds: &Dataset, cell: Option<f64>, fill: f64, fills: bool) -> Result<(f64, usize)> {
     if let Some(c) = cell
         && !(c.is_finite() && c > 0.0)
     {
@@ -71,8 +71,12 @@ fn grid(ds: &Dataset, cell: Option<f64>, fill: f64) -> Result<(f64, usize)> {
         ..Default::default()
     };
     let (p, _) = o.resolve(ds.meta.points, &ds.meta.bounds, ds.meta.crs.as_deref());
-    if p.fill > 4096 {
-        bail!("--fill: at most 4,096 cells of {}", p.cell);
+    // The margin a tile is read with: a few tiles' worth at most.
+    if fills && p.fill > 1024 {
+        bail!(
+            "--fill: at most 1,024 cells of {} (a larger --cell)",
+            p.cell
+        );
     }
     Ok((p.cell, if fill == 0.0 { 0 } else { p.fill }))
 }
@@ -86,7 +90,8 @@ pub fn run(a: RasterArgs) -> Result<()> {
         );
     }
     let ds = Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?;
-    let (cell, fill) = grid(&ds, a.cell, a.fill)?;
+    let fills = matches!(a.what, What::Dtm | What::Chm);
+    let (cell, fill) = grid(&ds, a.cell, a.fill, fills)?;
     let t = std::time::Instant::now();
     let made = raster::write(&ds, a.what, cell, fill, &a.output, a.force)?;
     let l = made.layout;
@@ -101,14 +106,10 @@ pub fn run(a: RasterArgs) -> Result<()> {
         thousands(made.bytes),
         t.elapsed().as_secs_f64()
     );
-    if ds
-        .meta
-        .crs
-        .as_deref()
-        .and_then(myriad_measure::geojson::epsg_code)
-        .is_none()
-    {
-        println!("the dataset's CRS has no EPSG code: the GeoTIFF is placed without a CRS");
+    if ds.meta.crs.as_deref().and_then(raster::geokeys).is_none() {
+        println!(
+            "the dataset has no projected or geographic CRS with an EPSG code: the GeoTIFF is placed without one"
+        );
     }
     Ok(())
 }
@@ -128,7 +129,7 @@ pub fn contours(a: ContoursArgs) -> Result<()> {
         bail!("--interval {}: a positive number", a.interval);
     }
     let ds = Dataset::open(&crate::cached::dataset_for(&a.dataset)?)?;
-    let (cell, fill) = grid(&ds, a.cell, a.fill)?;
+    let (cell, fill) = grid(&ds, a.cell, a.fill, true)?;
     let l = Layout::over(&ds.meta.bounds, cell).map_err(anyhow::Error::msg)?;
     if l.nx as u64 * l.ny as u64 > MAX_CONTOUR_CELLS {
         bail!(

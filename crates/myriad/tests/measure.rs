@@ -67,6 +67,24 @@ fn stockpile_volumes_within_one_percent() {
         assert!(v["cut"].as_f64().unwrap() < 0.005 * analytic, "{v}");
         assert!(v["rim_points"].as_u64().unwrap() > 100, "{v}");
     }
+    // The ground under each pile, from the scene's ground points around it (class 2; the
+    // material is 1): the pile's volume within 2 %.
+    for (analytic, polygon) in piles.iter().take(4) {
+        let v = json(&ok(&[
+            "volume",
+            s(&myr),
+            "--polygon",
+            polygon,
+            "--base",
+            "ground",
+            "--json",
+        ]));
+        let fill = v["fill"].as_f64().unwrap();
+        assert!(
+            (fill - analytic).abs() < 0.02 * analytic,
+            "--base ground: fill {fill} vs {analytic}"
+        );
+    }
     // A given elevation: the plane's slope under the pile counts too, so only sanity here.
     let (analytic, polygon) = &piles[0];
     let v = json(&ok(&[
