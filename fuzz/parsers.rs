@@ -246,3 +246,56 @@ pub fn cloud(data: &[u8]) {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// An edits file (`NAME.edits.json`, first byte even) or a ground surface (odd): parsed, bound to
+/// a schema with classes and intensity and applied to a few points (an edits file), or opened
+/// and read at points across its grid (a surface); an edits file that parses writes back to
+/// the same layer.
+pub fn edits(data: &[u8]) {
+    use myriad_core::{Aabb, Attribute, PointBatch, Schema};
+    use myriad_format::edits::Edits;
+    let Some((&mode, rest)) = data.split_first() else { return };
+    if mode % 2 == 1 {
+        let d = scratch_dir("surface");
+        let path = d.join("s.surface");
+        std::fs::write(&path, rest).unwrap();
+        if let Ok(s) = myriad_measure::ground::surface::Surface::open(&path) {
+            let p = s.placement;
+            for i in 0..16u32 {
+                let (x, y) = (
+                    p.x0 + (i as f64 / 15.0) * p.nx as f64 * p.cell,
+                    p.y0 + ((15 - i) as f64 / 15.0) * p.ny as f64 * p.cell,
+                );
+                if let Some(t) = s.tile_of(x, y)
+                    && let Ok(Some(cells)) = s.tile(t)
+                    && let Some(h) = s.height(t, &cells, x, y)
+                {
+                    assert!(!h.z.is_nan() && h.slope >= 0.0);
+                }
+            }
+        }
+        let _ = std::fs::remove_dir_all(&d);
+        return;
+    }
+    let Ok(text) = std::str::from_utf8(rest) else { return };
+    let Ok(layer) = myriad_measure::edits::Layer::parse(text) else { return };
+    assert_eq!(
+        myriad_measure::edits::Layer::parse(&layer.to_json()).as_ref(),
+        Ok(&layer),
+        "an edits file writes back to itself"
+    );
+    let schema = Schema::new(vec![Attribute::Classification, Attribute::Intensity]);
+    // Ground edits name surfaces that are not there: an error, as when a dataset opens.
+    let Ok(c) = layer.compile(&schema, std::path::Path::new("/nonexistent")) else { return };
+    let n = 64;
+    let mut b = PointBatch::with_schema(&schema, n);
+    for i in 0..n {
+        b.positions.push([i as f64 * 3.0 - 50.0, i as f64 * -7.0 + 100.0, (i % 9) as f64]);
+        b.classification.as_mut().unwrap().push((i * 5 % 256) as u8);
+        b.intensity.as_mut().unwrap().push((i * 1009) as u16);
+    }
+    let cube = Aabb::new([-1e3; 3], [1e3; 3]);
+    if let Ok(Some(keep)) = c.apply(&cube, &mut b) {
+        assert_eq!(keep.iter().filter(|k| **k).count(), b.len());
+    }
+}

@@ -19,7 +19,7 @@ set -u
 cd "$(dirname "$0")"
 secs=${1:-600}
 crafted=../crates/myriad/tests/corpus
-for t in ${TARGETS:-las ply pcd e57 dataset filter shape import query cloud}; do
+for t in ${TARGETS:-las ply pcd e57 dataset filter shape import query cloud edits}; do
   case $t in
     las) formats="las laz" ;;
     dataset) formats="myr" ;;

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct ClassifyArgs {
-    /// The dataset (a .myr, COPC, EPT or Potree 2.0 dataset; a scan is converted first)
+    /// The dataset (a .myr, COPC, EPT or Potree 2.0 dataset; convert a scan first)
     pub dataset: PathBuf,
     /// The points in a polygon in plan: X1,Y1,X2,Y2,X3,Y3[,...] in the dataset's coordinates,
     /// or @FILE (GeoJSON, WKT, CSV)
@@ -94,7 +94,7 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
             a.dataset.display()
         );
     }
-    let dataset = crate::cached::dataset_for(&a.dataset)?;
+    let dataset = edited_dataset(&a.dataset)?;
     let sidecar = edits::sidecar_for(&dataset);
     if a.apply {
         return apply(&a, &dataset);
@@ -200,6 +200,20 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
         edit.describe()
     );
     Ok(())
+}
+
+/// The dataset edits are kept beside: a dataset, not a scan (a scan's dataset is rebuilt, under
+/// another name, when the scan changes: edits kept beside it would be left behind).
+pub(crate) fn edited_dataset(input: &Path) -> Result<PathBuf> {
+    if !myriad_format::is_dataset(input) {
+        bail!(
+            "{}: not a dataset: convert it first (`myriad convert {} -o NAME.myr`) so that its \
+             edits have a dataset to stay beside",
+            input.display(),
+            input.display()
+        );
+    }
+    Ok(input.to_path_buf())
 }
 
 /// The region the options give (everywhere when none).

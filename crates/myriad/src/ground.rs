@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct GroundArgs {
-    /// The dataset (a .myr, COPC, EPT or Potree 2.0 dataset; a scan is converted first)
+    /// The dataset (a .myr, COPC, EPT or Potree 2.0 dataset; convert a scan first)
     pub dataset: PathBuf,
     /// The terrain grid's cell, in the dataset's units [default: --spacings times the points'
     /// mean spacing in plan]
@@ -91,7 +91,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
         scalar: a.scalar,
         low: a.low,
     };
-    let dataset = crate::cached::dataset_for(&a.dataset)?;
+    let dataset = crate::classify::edited_dataset(&a.dataset)?;
     let sidecar = edits::sidecar_for(&dataset);
     let ds = Dataset::open(&dataset)?;
     if !ds.meta.schema.has(&myriad_core::Attribute::Classification) {

@@ -241,6 +241,8 @@ fn edits_are_a_layer_every_reader_applies() {
         &["classify", s(&ds), "--where", "nosuch>1", "--remove"],
         "nosuch",
     );
+    // A scan has no dataset of its own to keep edits beside.
+    fails(&["classify", s(&scan), "--to", "2"], "convert it first");
     let r = myriad(&["classify", s(&ds)]);
     assert_eq!(r.code, 1, "{}", r.stderr);
     let sidecar = d.join("city.edits.json");

@@ -28,6 +28,7 @@ const TARGETS: &[(&str, &[&str])] = &[
     ("import", &[]),
     ("query", &[]),
     ("cloud", &[]),
+    ("edits", &[]),
 ];
 
 /// The inputs packed in `fuzz/seeds/TARGET.tar.zst` (none when the target has no packed corpus).
@@ -90,6 +91,7 @@ fn fuzz_corpora_replay_without_a_panic() {
                 "filter" => parsers::filter(data),
                 "shape" => parsers::shape(data),
                 "import" => parsers::import(data),
+                "edits" => parsers::edits(data),
                 "query" => parsers::query(data),
                 "cloud" => parsers::cloud(data),
                 ext => support::read_all(data, ext),
