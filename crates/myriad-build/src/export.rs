@@ -308,7 +308,7 @@ fn replace(
         });
     let built = convert::convert(std::slice::from_ref(&las), &co, report)?;
     let _ = std::fs::remove_file(&las);
-    let octree = Dataset::open(&myr)?;
+    let octree = Dataset::open_stored(&myr)?;
     let (nodes, more) = octree.nodes();
     damage.extend(more);
     let inner = ExportOptions {

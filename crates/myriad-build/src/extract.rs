@@ -160,7 +160,8 @@ pub fn extract_within(
     let mut summary = ExtractSummary::default();
     let nodes = wanted(ds, nodes, o);
     // Nodes wholly in the box hold that many points surely, when nothing else filters them.
-    if max_points < u64::MAX && o.region.is_none() && filter.is_all() {
+    // (Edits that remove points make stored counts no promise.)
+    if max_points < u64::MAX && o.region.is_none() && filter.is_all() && ds.edits().is_none() {
         let surely: u64 = nodes
             .iter()
             .filter(|n| {

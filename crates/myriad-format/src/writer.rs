@@ -260,7 +260,7 @@ impl DatasetWriter {
         f.sync_all().map_err(io)?;
         drop(f);
         // What is renamed into place opens, with this metadata and every hierarchy page intact.
-        let reopened = Dataset::open(self.file.temp_path()).and_then(|ds| {
+        let reopened = Dataset::open_stored(self.file.temp_path()).and_then(|ds| {
             if ds.meta != meta {
                 return Err(Error::Invalid(
                     "its metadata differs from what was written".into(),

@@ -22,7 +22,7 @@
 //! ```
 
 use crate::filter::{Bound, Filter};
-use crate::ground::{Rule, is_noise};
+use crate::ground::Rule;
 use crate::work::{MAX_COORD, finite, list, short};
 use crate::{Corridor, Polygon, Region};
 use myriad_core::{Aabb, PointBatch, Schema};
@@ -546,7 +546,7 @@ fn ground(
     };
     let mut by_tile: Vec<(usize, usize)> = chosen
         .into_iter()
-        .filter(|&i| !is_noise(classes[i]))
+        .filter(|&i| !crate::ground::is_noise(classes[i]))
         .filter_map(|i| Some((surface.tile_of(b.positions[i][0], b.positions[i][1])?, i)))
         .collect();
     by_tile.sort_unstable();

@@ -224,7 +224,7 @@ impl Catalog {
     /// relative paths give them beside `name`, so that a browser or `HttpBytes` resolving
     /// them against the dataset's URL finds them here.
     fn add_linked(&mut self, name: &str, path: &Path) -> Result<()> {
-        let Ok(ds) = myriad_format::Dataset::open(path) else {
+        let Ok(ds) = myriad_format::Dataset::open_stored(path) else {
             // Not a dataset (or a damaged one): served as given, its readers say what is wrong.
             return Ok(());
         };

@@ -40,7 +40,7 @@ impl Geo {
         if let Some(c) = m.get(dataset) {
             return c.clone();
         }
-        let made = match myriad_format::Dataset::open(dataset) {
+        let made = match myriad_format::Dataset::open_stored(dataset) {
             Err(e) => Err((500, e.to_string())),
             Ok(ds) => match ds.meta.crs.clone() {
                 None => Err((422, "the dataset names no coordinate system".into())),

@@ -218,7 +218,7 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
         let want = myriad_io::proj::Crs::new(to)
             .and_then(|c| c.wkt())
             .map_err(|e| anyhow::anyhow!("--to-crs {e}"))?;
-        let has = Dataset::open(dataset)?.meta.crs.clone();
+        let has = Dataset::open_stored(dataset)?.meta.crs.clone();
         if has.as_deref() != Some(want.as_str()) {
             bail!(
                 "--to-crs {to}: {} is in another coordinate system ({}); scans added to it are \

@@ -187,7 +187,8 @@ pub fn print_crs(crs: Option<&str>) {
 
 /// `info` on a dataset: its metadata and the table of its levels.
 fn dataset_info(path: &std::path::Path, as_json: bool) -> Result<()> {
-    let ds = Dataset::open(path)?;
+    // What is stored: a damaged edits file beside it does not hide the dataset.
+    let ds = Dataset::open_stored(path)?;
     let m = &ds.meta;
     // Per level: nodes, points, and the finest spacing; from the metadata (one read however
     // large the dataset), or by walking every hierarchy page where a dataset written before
