@@ -99,7 +99,7 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
     if a.apply {
         return apply(&a, &dataset);
     }
-    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
+    let layer = edits::read(&sidecar)?.unwrap_or_default();
     if a.list {
         if layer.edits.is_empty() {
             println!("{}: no edits", dataset.display());
@@ -116,6 +116,8 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
         return Ok(());
     }
     if a.undo || a.redo {
+        let _held = hold(&sidecar)?;
+        let mut layer = edits::read(&sidecar)?.unwrap_or_default();
         let (what, done) = if a.undo {
             ("undone", layer.undo().map(Edit::describe))
         } else {
@@ -177,7 +179,9 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
     } else {
         Some(count(&ds, &edit)?)
     };
-    // The file as it is now (another command may have changed it since it was read).
+    // The file as it is now, held while it changes (another command may have changed it
+    // since it was read, or be about to).
+    let _held = hold(&sidecar)?;
     let mut layer = edits::read(&sidecar)?.unwrap_or_default();
     layer.crs = ds.meta.crs.clone();
     layer.push(edit.clone());
@@ -282,6 +286,31 @@ fn count(ds: &Dataset, e: &Edit) -> Result<(u64, u64)> {
     })
     .map_err(|m| anyhow!(m))?;
     Ok((n, changed))
+}
+
+/// The edits file held against other commands changing it (an exclusive `flock` on a lock file
+/// beside it, `.NAME.edits.json.lock`, dropped with the value): read, change and write it under
+/// it, and no two commands lose each other's edits.
+pub(crate) fn hold(sidecar: &Path) -> Result<std::fs::File> {
+    use std::os::fd::AsRawFd;
+    let name = sidecar.file_name().unwrap_or_default().to_string_lossy();
+    let lock = sidecar.with_file_name(format!(".{name}.lock"));
+    let f = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock)
+        .map_err(|e| {
+            anyhow!(
+                "{}: {e} (edits are kept beside the dataset: copy it to a folder you can write to edit it)",
+                lock.display()
+            )
+        })?;
+    // SAFETY: flock on a descriptor this function owns; it blocks until the lock is free.
+    if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) } != 0 {
+        bail!("{}: {}", lock.display(), std::io::Error::last_os_error());
+    }
+    Ok(f)
 }
 
 /// The layer written over its file, atomically, if it reads back (an edit too large for the

@@ -105,9 +105,10 @@ pub fn run(a: GroundArgs) -> Result<()> {
         );
     }
     let threads = rayon::current_num_threads();
-    let tile = a
-        .tile
-        .unwrap_or_else(|| ground::tile_for(a.memory, threads, &p));
+    let tile = match a.tile {
+        Some(t) => t,
+        None => ground::tile_for(a.memory, threads, &p)?,
+    };
     if tile == 0 || tile > ground::surface::MAX_TILE {
         bail!(
             "--tile {tile}: from 1 to {} cells",
@@ -136,6 +137,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
         },
     };
     // The file as it is now: edits made while the terrain was being made are kept.
+    let _held = crate::classify::hold(&sidecar)?;
     let mut layer = edits::read(&sidecar)?.unwrap_or_default();
     layer.crs = ds.meta.crs.clone();
     layer.push(edit);

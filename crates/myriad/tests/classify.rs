@@ -197,6 +197,34 @@ fn edits_are_a_layer_every_reader_applies() {
     assert_eq!(digest(&scan), scan0);
     assert_eq!(digest(&ds), ds0);
 
+    // Eight editors at once: none loses another's edit (the file is held while it changes).
+    let edits = |list: &str| list.lines().filter(|l| l.contains(" → ")).count();
+    let before = edits(&ok(&["classify", s(&ds), "--list"]));
+    let editors: Vec<_> = (0..8)
+        .map(|i| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_myriad"))
+                .args([
+                    "classify",
+                    s(&ds),
+                    "--where",
+                    &format!("intensity=={}", 60_000 + i),
+                ])
+                .args(["--to", "3", "--no-count"])
+                .stdout(std::process::Stdio::null())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for mut e in editors {
+        assert!(e.wait().unwrap().success());
+    }
+    let list = ok(&["classify", s(&ds), "--list"]);
+    assert_eq!(edits(&list), before + 8, "{list}");
+    assert_eq!(list.matches("→ class 3").count(), 8, "{list}");
+    for _ in 0..8 {
+        ok(&["classify", s(&ds), "--undo"]);
+    }
+
     // Bad edits are one line: a polygon that crosses itself, one of two points, a class past
     // 255, a damaged edits file (named, with its line) for every command that reads points.
     fails(

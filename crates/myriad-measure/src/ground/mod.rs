@@ -156,10 +156,21 @@ mod build {
     }
 
     /// The side of a tile's core for a memory budget and a number of threads.
-    pub fn tile_for(memory: u64, threads: usize, p: &Params) -> usize {
+    /// An error where even a tile of 64 cells and its margin do not fit in `memory`.
+    pub fn tile_for(memory: u64, threads: usize, p: &Params) -> Result<usize> {
         let cells = memory / BYTES_PER_CELL / threads.max(1) as u64;
         let side = (cells as f64).sqrt() as usize;
-        side.saturating_sub(2 * smrf::margin(p)).clamp(64, 2048)
+        let m = 2 * smrf::margin(p);
+        if side < 64 + m {
+            let least = ((64 + m) as u64).pow(2) * BYTES_PER_CELL * threads.max(1) as u64;
+            return Err(Error::Invalid(format!(
+                "--memory {memory}: a tile of 64 cells and its margin of {} need {least} bytes on \
+                 each of {threads} threads together (more --memory, a larger --cell, or a smaller \
+                 --window or --fill)",
+                m / 2
+            )));
+        }
+        Ok((side - m).min(2048))
     }
 
     /// Makes the terrain under `ds` with `p` in tiles of `tile` cells (a side) and writes it to
