@@ -483,12 +483,6 @@ pub struct Compiled {
     edits: Vec<CompiledEdit>,
 }
 
-impl Compiled {
-    pub fn is_empty(&self) -> bool {
-        self.edits.is_empty()
-    }
-}
-
 impl myriad_format::edits::Edits for Compiled {
     fn meets(&self, cube: &Aabb) -> bool {
         self.edits

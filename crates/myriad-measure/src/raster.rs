@@ -6,7 +6,6 @@
 //! The terrain is made of the points classified ground (2) and road (11), as the dataset's
 //! edits leave them (`myriad ground` first where the dataset has no ground classes).
 
-use crate::filter::{Bound, Filter};
 use crate::ground::smrf::{self, Grid};
 use myriad_core::{Aabb, Attribute, Error, Result};
 use myriad_format::Dataset;
@@ -128,13 +127,7 @@ pub fn block(
             b.max[2],
         ],
     );
-    let not_noise = if ds.meta.schema.has(&Attribute::Classification) {
-        Filter::parse(Some("0-6,8-17,19-255"), &[])
-            .and_then(|f| f.bind(&ds.meta.schema))
-            .map_err(Error::Invalid)?
-    } else {
-        Bound::all()
-    };
+    let not_noise = crate::ground::not_noise(&ds.meta.schema).map_err(Error::Invalid)?;
     let n = gw * gh;
     let (mut top, mut sum, mut count) = (vec![f32::NAN; n], vec![0f64; n], vec![0u64; n]);
     let mut ground_sum = vec![0f64; n];
@@ -174,15 +167,7 @@ pub fn block(
         let mut g = Grid {
             nx: gw,
             ny: gh,
-            z: (ground_sum.iter().zip(&ground_n))
-                .map(|(&s, &n)| {
-                    if n > 0 {
-                        (s / n as f64) as f32
-                    } else {
-                        f32::NAN
-                    }
-                })
-                .collect(),
+            z: means(&ground_sum, &ground_n),
         };
         smrf::fill(&mut g, fill);
         g.z
@@ -199,15 +184,7 @@ pub fn block(
                 }
             })
             .collect(),
-        What::Intensity => (sum.iter().zip(&count))
-            .map(|(&s, &n)| {
-                if n > 0 {
-                    (s / n as f64) as f32
-                } else {
-                    f32::NAN
-                }
-            })
-            .collect(),
+        What::Intensity => means(&sum, &count),
         What::Density => count
             .iter()
             .map(|&n| (n as f64 / (l.cell * l.cell)) as f32)
@@ -238,6 +215,19 @@ pub fn geokeys(crs: &str) -> Option<(u32, bool)> {
         "unknown" if bare => Some((code, (4000..5000).contains(&code))),
         _ => None,
     }
+}
+
+/// Each cell's sum over its count (NaN where it has none).
+fn means(sum: &[f64], count: &[u64]) -> Vec<f32> {
+    (sum.iter().zip(count))
+        .map(|(&s, &n)| {
+            if n > 0 {
+                (s / n as f64) as f32
+            } else {
+                f32::NAN
+            }
+        })
+        .collect()
 }
 
 /// What [`write`] made.

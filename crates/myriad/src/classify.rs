@@ -99,8 +99,8 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
     if a.apply {
         return apply(&a, &dataset);
     }
-    let layer = edits::read(&sidecar)?.unwrap_or_default();
     if a.list {
+        let layer = edits::read(&sidecar)?.unwrap_or_default();
         if layer.edits.is_empty() {
             println!("{}: no edits", dataset.display());
         }

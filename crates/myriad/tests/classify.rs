@@ -4,16 +4,8 @@
 //! dataset are never touched; bad edits are one line.
 
 mod common;
-use common::{decode_png, myriad, ok, records, s, synth, tempdir};
+use common::{decode_png, fails, myriad, ok, records, s, synth, tempdir};
 use std::path::Path;
-
-fn fails(args: &[&str], says: &str) {
-    let r = myriad(args);
-    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
-    let line = r.stderr.trim();
-    assert!(line.contains(says), "{args:?}: {line}");
-    assert_eq!(line.lines().count(), 1, "one line: {line}");
-}
 
 fn digest(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap()

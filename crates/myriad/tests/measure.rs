@@ -4,17 +4,9 @@
 //! ezdxf), the filters of `extract`, and the one-line errors of bad input.
 
 mod common;
-use common::{myriad, ok, python_with, s, shared_data, tempdir};
+use common::{fails, myriad, ok, python_with, s, shared_data, tempdir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn fails(args: &[&str], says: &str) {
-    let r = myriad(args);
-    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
-    let line = r.stderr.trim();
-    assert!(line.contains(says), "{args:?}: {line}");
-    assert_eq!(line.lines().count(), 1, "one line: {line}");
-}
 
 /// A pile line of `synth --scene stockpiles`: (volume, polygon).
 fn piles(out: &str) -> Vec<(f64, String)> {

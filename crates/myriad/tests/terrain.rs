@@ -5,17 +5,9 @@
 //! written.
 
 mod common;
-use common::{myriad, ok, python_with, records, s, shared_data, synth, tempdir};
+use common::{fails, ok, python_with, records, s, shared_data, synth, tempdir};
 use std::path::Path;
 use std::process::Command;
-
-fn fails(args: &[&str], says: &str) {
-    let r = myriad(args);
-    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
-    let line = r.stderr.trim();
-    assert!(line.contains(says), "{args:?}: {line}");
-    assert_eq!(line.lines().count(), 1, "one line: {line}");
-}
 
 /// Runs a Python script with `args`; its standard output.
 fn python(py: &str, script: &str, args: &[&str]) -> String {

@@ -127,12 +127,20 @@ pub fn is_noise(class: u8) -> bool {
     class == 7 || class == 18
 }
 
+/// A filter keeping every point but noise ([`is_noise`]), for a dataset's columns (all points
+/// where it has no classes).
+pub fn not_noise(schema: &myriad_core::Schema) -> Result<crate::Bound, String> {
+    if !schema.has(&myriad_core::Attribute::Classification) {
+        return Ok(crate::Bound::all());
+    }
+    crate::Filter::parse(Some("0-6,8-17,19-255"), &[])?.bind(schema)
+}
+
 #[cfg(not(target_arch = "wasm32"))]
 mod build {
     use super::smrf::{self, Grid, Params};
     use super::surface::{Placement, SurfaceWriter};
-    use crate::filter::{Bound, Filter};
-    use myriad_core::{Aabb, Attribute, Error, Result};
+    use myriad_core::{Aabb, Error, Result};
     use myriad_format::Dataset;
     use rayon::prelude::*;
     use std::path::Path;
@@ -208,13 +216,7 @@ mod build {
             tile,
         };
         // The terrain is made from every point but noise.
-        let bound = if ds.meta.schema.has(&Attribute::Classification) {
-            Filter::parse(Some("0-6,8-17,19-255"), &[])
-                .and_then(|f| f.bind(&ds.meta.schema))
-                .map_err(Error::Invalid)?
-        } else {
-            Bound::all()
-        };
+        let bound = super::not_noise(&ds.meta.schema).map_err(Error::Invalid)?;
         if tile == 0 || tile > super::surface::MAX_TILE {
             return Err(Error::Invalid(format!(
                 "a tile of {tile} cells: from 1 to {}",

@@ -51,6 +51,15 @@ pub fn records(path: &Path) -> Vec<Vec<i64>> {
     out
 }
 
+/// Runs the binary, which must fail with exit code 1 and one line on stderr that says `says`.
+pub fn fails(args: &[&str], says: &str) {
+    let r = myriad(args);
+    assert_eq!(r.code, 1, "{args:?} should fail: {}", r.stdout);
+    let line = r.stderr.trim();
+    assert!(line.contains(says), "{args:?}: {line}");
+    assert_eq!(line.lines().count(), 1, "one line: {line}");
+}
+
 /// Runs the binary, which must succeed; its output.
 pub fn ok(args: &[&str]) -> String {
     let r = myriad(args);
