@@ -147,6 +147,12 @@ pub trait ByteSource: Send + Sync {
     }
 }
 
+/// zstd's decompression of `b` into at most `limit` bytes (in both builds: the C library
+/// natively, ruzstd in WebAssembly), for the other files datasets keep beside them.
+pub fn decompress_zstd(b: &[u8], limit: usize) -> std::result::Result<Vec<u8>, String> {
+    codec::decompress(b, limit)
+}
+
 /// A local file, read with positioned reads (no shared cursor).
 #[cfg(not(target_arch = "wasm32"))]
 pub struct FileBytes {
@@ -729,7 +735,36 @@ impl Dataset {
         // An edit may test any column (`--where`): all are read, those not asked for dropped.
         let mut b = self.read_node_stored(e, &self.meta.schema)?;
         b.truncate(count);
-        edits.apply(&cube, &mut b).map_err(|m| Damage {
+        Self::edited(e, edits.as_ref(), &cube, b, schema)
+    }
+
+    /// [`Dataset::decode_node`] with the dataset's edits applied (the web viewer decodes the
+    /// pages it fetched).
+    pub fn decode_node_edited(
+        &self,
+        e: &NodeEntry,
+        page: &[u8],
+        schema: &Schema,
+    ) -> std::result::Result<PointBatch, Damage> {
+        let cube = self.edit_cube(e);
+        match (self.edits.as_ref()).filter(|d| e.points > 0 && d.meets(&cube)) {
+            None => self.decode_node(e, page, schema),
+            Some(edits) => {
+                let b = self.decode_node(e, page, &self.meta.schema)?;
+                Self::edited(e, edits.as_ref(), &cube, b, schema)
+            }
+        }
+    }
+
+    /// `b` (node `e`'s points, every column) with `edits` applied, then `schema`'s columns.
+    fn edited(
+        e: &NodeEntry,
+        edits: &dyn edits::Edits,
+        cube: &Aabb,
+        mut b: PointBatch,
+        schema: &Schema,
+    ) -> std::result::Result<PointBatch, Damage> {
+        edits.apply(cube, &mut b).map_err(|m| Damage {
             key: e.key,
             offset: 0,
             message: format!("its edits: {m}"),

@@ -24,6 +24,7 @@ pub mod browser;
 mod catalog;
 mod conn;
 pub mod download;
+mod edits;
 mod files;
 mod geo;
 pub mod live;
@@ -424,11 +425,11 @@ async fn accept(
     }
 }
 
-fn full(b: impl Into<Bytes>) -> Body {
+pub(crate) fn full(b: impl Into<Bytes>) -> Body {
     Full::new(b.into()).map_err(|e| match e {}).boxed()
 }
 
-fn status(code: StatusCode, text: &str) -> Response<Body> {
+pub(crate) fn status(code: StatusCode, text: &str) -> Response<Body> {
     let mut r = Response::new(full(format!("{text}\n")));
     *r.status_mut() = code;
     r.headers_mut().insert(
@@ -491,13 +492,18 @@ async fn handle(
     let range = req.headers().get(header::RANGE).cloned();
     let (method, uri) = (req.method().clone(), req.uri().clone());
     let put = method == Method::PUT && uri.path().starts_with("/work/");
+    let post = method == Method::POST && uri.path().starts_with("/edits/");
     let origin = (req.headers().get(header::ORIGIN))
         .and_then(|v| v.to_str().ok())
         .map(str::to_string);
     let mut cookie = None;
     let denied = match &shared.access {
         _ if let Some(r) = misdirected(&shared, &req) => Some(r),
-        _ if put && let Some(r) = foreign_write(&req, origin.as_deref()) => Some(r),
+        _ if (put || post)
+            && let Some(r) = foreign_write(&req, origin.as_deref()) =>
+        {
+            Some(r)
+        }
         Some(a) => match admit(a, &req) {
             Ok(c) => {
                 cookie = c;
@@ -512,6 +518,11 @@ async fn handle(
     } else if put {
         match percent_decode(&uri.path()["/work/".len()..]) {
             Some(name) => work::put(&shared, &name, req).await,
+            None => status(StatusCode::BAD_REQUEST, "malformed path"),
+        }
+    } else if post {
+        match percent_decode(&uri.path()["/edits/".len()..]) {
+            Some(name) => edits::post(&shared, &name, req).await,
             None => status(StatusCode::BAD_REQUEST, "malformed path"),
         }
     } else {
@@ -723,6 +734,12 @@ async fn route(
             req,
         );
     }
+    if let Some(name) = path.strip_prefix("/edits/") {
+        return match percent_decode(name) {
+            Some(name) => edits::get(shared, budget, &name, req).await,
+            None => status(StatusCode::BAD_REQUEST, "malformed path"),
+        };
+    }
     if let Some(name) = path.strip_prefix("/work/") {
         return match percent_decode(name) {
             Some(name) => work::get(shared, &name, method == Method::HEAD).await,
@@ -823,7 +840,7 @@ async fn route(
 
 /// A served dataset as it is for good: itself, or a built one's finished dataset; `None` while
 /// it is being built.
-fn settled(f: &catalog::File) -> Option<catalog::File> {
+pub(crate) fn settled(f: &catalog::File) -> Option<catalog::File> {
     match &f.live {
         None => Some(f.clone()),
         Some(l) => match l.current() {
@@ -833,7 +850,7 @@ fn settled(f: &catalog::File) -> Option<catalog::File> {
     }
 }
 
-fn being_built() -> Response<Body> {
+pub(crate) fn being_built() -> Response<Body> {
     let mut r = status(
         StatusCode::SERVICE_UNAVAILABLE,
         "this dataset is being built: ask again when it is done",

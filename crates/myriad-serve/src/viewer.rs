@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 9] = [
+static FILES: [(&str, Asset); 10] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -72,6 +72,10 @@ static FILES: [(&str, Asset); 9] = [
     (
         "volume.js",
         Asset::new(include_bytes!("../viewer/volume.js"), "text/javascript"),
+    ),
+    (
+        "edit.js",
+        Asset::new(include_bytes!("../viewer/edit.js"), "text/javascript"),
     ),
     (
         "myriad_web.wasm",

@@ -285,6 +285,9 @@ async function open() {
   for (const r of await Promise.all(ready)) if (r.info && r.info.error) throw new Error(r.info.error);
   ui();
   if (settings.ramp || settings.where) await applyStyle();
+  // The dataset's edits (classes set, points removed) apply to every node decoded, from the
+  // first; a static site has none.
+  if (!SITE) await loadEdits();
   requestSelection();
   // Saved work lives on `myriad serve --edit`; a static site has none.
   if (!SITE) loadWork().catch((e) => error(`saved work: ${e.message || e}`));
@@ -722,6 +725,7 @@ function ui() {
   parallel.onchange = () => setParallel(parallel.checked);
   profileUi();
   volumeUi();
+  editUi();
   navigation();
 }
 
@@ -823,6 +827,8 @@ function setMode(m) {
     if (b) b.classList.toggle("on", mode === id);
   }
   if (state.volume) state.volume.drawing = mode === "volume";
+  const e = document.getElementById("edit-start");
+  if (e) e.classList.toggle("on", mode === "edit");
 }
 
 function navigation() {
@@ -851,6 +857,7 @@ function navigation() {
       if (p && mode === "annotate") { setMode("pick"); addAnnotation(p); }
       if (p && mode === "section") sectionPoint([p.x, p.y, p.z]);
       if (p && mode === "volume") volumePoint([p.x, p.y, p.z]);
+      if (p && mode === "edit") editPoint([p.x, p.y, p.z]);
     } catch (err) {
       error(String(err.message || err));
     }
@@ -958,6 +965,10 @@ window.myriad = {
     return [lo, hi];
   },
   volume: (polygon, base, cell) => measureVolume(polygon, base === undefined ? null : base, cell),
+  // Edits (`serve --edit`): a polygon in plan given a class (or "remove"), undo, redo.
+  edit: (polygon, to) => applyEdit(polygon, to),
+  undoEdit: () => changeEdits({ undo: true }),
+  redoEdit: () => changeEdits({ redo: true }),
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

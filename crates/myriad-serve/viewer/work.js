@@ -186,5 +186,6 @@ function placeLabels() {
     lines += `<polyline class="section" points="${cut.map((q) => q.join(",")).join(" ")}" />`;
   }
   if (typeof volumeShapes === "function") lines += volumeShapes();
+  if (typeof editShapes === "function") lines += editShapes();
   svg.innerHTML = lines;
 }

@@ -256,6 +256,10 @@ onmessage = async (e) => {
         json(wasm.exports.myr_volume(a, m.polygon.length, m.base, m.z, m.cell)));
       if (v.error) throw new Error(v.error);
       postMessage({ id: m.id, volume: v, stats });
+    } else if (m.type === "edits") {
+      const n = withName(m.text, (p, len) =>
+        withName(m.surfaces, (q, k) => wasm.exports.myr_edits(p, len, q, k)));
+      postMessage({ id: m.id, edits: json(n), stats });
     } else if (m.type === "between") {
       postMessage({ id: m.id, text: json(wasm.exports.myr_between(...m.a, ...m.b)), stats });
     } else if (m.type === "point") {

@@ -279,7 +279,7 @@ pub fn decode(
     shown: &Bound,
 ) -> Result<Decoded, String> {
     let b = ds
-        .decode_node(e, bytes, &ds.meta.schema)
+        .decode_node_edited(e, bytes, &ds.meta.schema)
         .map_err(|d| ds.damage_error(&d).to_string())?;
     Ok(decoded(b, e, origin, colour, z_range, shown))
 }

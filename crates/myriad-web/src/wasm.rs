@@ -283,6 +283,60 @@ pub unsafe extern "C" fn myr_base(p: *const u8, n: u32) {
     BASE.with(|b| *b.borrow_mut() = url);
 }
 
+/// Applies a dataset's edits (`text`: the layer as `/edits/NAME` answers it) to every node
+/// this worker decodes from now on, replacing those applied before; the surfaces ground edits
+/// name are read by range requests from `surfaces` followed by their (percent-encoded) name.
+/// The answer: `{"edits": N}`, or an error naming the edit at fault.
+///
+/// # Safety
+/// `text..text + text_len` and `surfaces..surfaces + surfaces_len` are memory the JavaScript
+/// wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_edits(
+    text: *const u8,
+    text_len: u32,
+    surfaces: *const u8,
+    surfaces_len: u32,
+) -> u32 {
+    let (text, base) = (name(text, text_len), name(surfaces, surfaces_len));
+    let layer = match myriad_measure::edits::Layer::parse(&text) {
+        Ok(l) => l,
+        Err(m) => return error(format!("edits: {m}")),
+    };
+    let open = |n: &str| -> Result<Arc<myriad_measure::ground::surface::Surface>, String> {
+        let encoded: String = (n.bytes())
+            .map(|b| match b {
+                b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'.' | b'-' | b'_' => {
+                    (b as char).to_string()
+                }
+                _ => format!("%{b:02X}"),
+            })
+            .collect();
+        let source = UrlBytes::open(&format!("{base}{encoded}"), 0).map_err(|e| e.to_string())?;
+        myriad_measure::ground::surface::Surface::from_source(source, n, false)
+            .map(Arc::new)
+            .map_err(|e| e.to_string())
+    };
+    let set = |ds: &mut Dataset| -> Result<usize, String> {
+        if layer.edits.is_empty() {
+            ds.set_edits(None);
+            return Ok(0);
+        }
+        let c = layer.compile_with(&ds.meta.schema, &open)?;
+        ds.set_edits(Some(Arc::new(c)));
+        Ok(layer.edits.len())
+    };
+    let mut done = DATASET.with(|s| s.borrow_mut().as_mut().map(set));
+    if done.is_none() {
+        done = VIEWER.with(|s| s.borrow_mut().as_mut().map(|v| set(&mut v.dataset)));
+    }
+    match done {
+        Some(Ok(n)) => answer_json(json!({ "edits": n })),
+        Some(Err(m)) => error(format!("edits: {m}")),
+        None => error("no dataset open"),
+    }
+}
+
 /// Opens the dataset of `len` bytes for selecting (the selection worker): its information.
 #[unsafe(no_mangle)]
 pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {
@@ -562,7 +616,7 @@ pub unsafe extern "C" fn myr_point(
     let r = with_dataset(|ds| -> Result<_, String> {
         let read = match ds.foreign_format() {
             Some(_) => ds.read_node(&e),
-            None => ds.decode_node(&e, b, &ds.meta.schema),
+            None => ds.decode_node_edited(&e, b, &ds.meta.schema),
         };
         let mut batch = read.map_err(|d| ds.damage_error(&d).to_string())?;
         keep_shown(&mut batch, &shown_by(ds, &hidden_classes(a))?);

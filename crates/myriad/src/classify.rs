@@ -6,8 +6,8 @@ use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use myriad_core::units::thousands;
 use myriad_format::Dataset;
-use myriad_measure::edits::{self, Action, Area, Edit, Layer};
-use myriad_measure::files::{check_shape, write_atomic, xy_arg};
+use myriad_measure::edits::{self, Action, Area, Change, Edit};
+use myriad_measure::files::{check_shape, xy_arg};
 use myriad_measure::filter::Filter;
 use myriad_measure::shape::Want;
 use std::path::{Path, PathBuf};
@@ -116,23 +116,13 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
         return Ok(());
     }
     if a.undo || a.redo {
-        let _held = hold(&sidecar)?;
-        let mut layer = edits::read(&sidecar)?.unwrap_or_default();
-        let (what, done) = if a.undo {
-            ("undone", layer.undo().map(Edit::describe))
-        } else {
-            ("redone", layer.redo().map(Edit::describe))
-        };
-        let Some(done) = done else {
-            bail!(
-                "{}: no edit to {}",
-                sidecar.display(),
-                if a.undo { "undo" } else { "redo" }
-            );
-        };
-        save(&sidecar, &layer)?;
+        let ds = Dataset::open_stored(&dataset)?;
+        let asked = if a.undo { Change::Undo } else { Change::Redo };
+        let (layer, done) = asked
+            .apply(&dataset, &ds.meta)
+            .map_err(|r| anyhow!(r.to_string()))?;
         println!(
-            "{what}: {done} ({} edits in {})",
+            "{done} ({} edits in {})",
             layer.edits.len(),
             sidecar.display()
         );
@@ -159,21 +149,7 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
         action,
     };
     // What it would fail on when read, it fails on now.
-    let single = Layer {
-        edits: vec![edit.clone()],
-        ..Layer::default()
-    };
-    let dir = sidecar.parent().unwrap_or(Path::new("."));
-    single.compile(&ds.meta.schema, dir).map_err(|m| {
-        anyhow!(
-            "{}: {}",
-            dataset.display(),
-            m.trim_start_matches("edits[0]: ")
-        )
-    })?;
-    if edit.action == Action::Remove && ds.meta.structure == "mwkd" {
-        bail!("{}: {}", dataset.display(), edits::NO_REMOVAL);
-    }
+    edits::admit(&edit, &ds.meta, &sidecar).map_err(|m| anyhow!("{}: {m}", dataset.display()))?;
     let counted = if a.no_count {
         None
     } else {
@@ -181,11 +157,9 @@ pub fn run(a: ClassifyArgs) -> Result<()> {
     };
     // The file as it is now, held while it changes (another command may have changed it
     // since it was read, or be about to).
-    let _held = hold(&sidecar)?;
-    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
-    layer.crs = ds.meta.crs.clone();
-    layer.push(edit.clone());
-    save(&sidecar, &layer)?;
+    let (layer, _) = Change::Add(edit.clone())
+        .apply(&dataset, &ds.meta)
+        .map_err(|r| anyhow!(r.to_string()))?;
     let what = match counted {
         None => String::new(),
         Some((n, changed)) => match edit.action {
@@ -286,47 +260,6 @@ fn count(ds: &Dataset, e: &Edit) -> Result<(u64, u64)> {
     })
     .map_err(|m| anyhow!(m))?;
     Ok((n, changed))
-}
-
-/// The edits file held against other commands changing it (an exclusive `flock` on a lock file
-/// beside it, `.NAME.edits.json.lock`, dropped with the value): read, change and write it under
-/// it, and no two commands lose each other's edits.
-pub(crate) fn hold(sidecar: &Path) -> Result<std::fs::File> {
-    use std::os::fd::AsRawFd;
-    let name = sidecar.file_name().unwrap_or_default().to_string_lossy();
-    let lock = sidecar.with_file_name(format!(".{name}.lock"));
-    let f = std::fs::OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&lock)
-        .map_err(|e| {
-            anyhow!(
-                "{}: {e} (edits are kept beside the dataset: copy it to a folder you can write to edit it)",
-                lock.display()
-            )
-        })?;
-    // SAFETY: flock on a descriptor this function owns; it blocks until the lock is free.
-    if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) } != 0 {
-        bail!("{}: {}", lock.display(), std::io::Error::last_os_error());
-    }
-    Ok(f)
-}
-
-/// The layer written over its file, atomically, if it reads back (an edit too large for the
-/// file, or beyond what it holds, is refused: nothing kept); a folder that takes no files is
-/// named.
-pub(crate) fn save(sidecar: &Path, layer: &Layer) -> Result<()> {
-    let text = layer.to_json();
-    if let Err(m) = Layer::parse(&text) {
-        bail!("{}: the edit cannot be kept: {m}", sidecar.display());
-    }
-    write_atomic(sidecar, true, |w| w.write_all(text.as_bytes())).map_err(|e| {
-        anyhow!(
-            "{e} (edits are kept beside the dataset: copy it to a folder you can write to edit it)"
-        )
-    })?;
-    Ok(())
 }
 
 fn apply(a: &ClassifyArgs, dataset: &Path) -> Result<()> {

@@ -2,7 +2,7 @@
 //! overlap, `myriad_measure::ground`), kept beside it as a surface and an edit that classifies
 //! its points against it: ground (2), low noise (7), and not ground (1) for points labelled 2.
 
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use myriad_core::units::thousands;
 use myriad_format::Dataset;
@@ -137,11 +137,13 @@ pub fn run(a: GroundArgs) -> Result<()> {
         },
     };
     // The file as it is now: edits made while the terrain was being made are kept.
-    let _held = crate::classify::hold(&sidecar)?;
-    let mut layer = edits::read(&sidecar)?.unwrap_or_default();
-    layer.crs = ds.meta.crs.clone();
-    layer.push(edit);
-    crate::classify::save(&sidecar, &layer)?;
+    let crs = ds.meta.crs.clone();
+    let (layer, _) = edits::change(&sidecar, |layer| {
+        layer.crs = crs;
+        layer.push(edit);
+        Ok(())
+    })
+    .map_err(|m| anyhow!(m))?;
     let pl = made.placement;
     println!(
         "terrain: {} x {} cells of {} in {} tiles of {tile}, {} points read, {} bytes in {name}, {seconds:.2} s",

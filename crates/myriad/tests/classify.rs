@@ -362,3 +362,218 @@ fn ground_is_found_in_tiles_without_a_seam() {
         "a.ground-1.surface",
     );
 }
+
+/// Edits from the viewers' server (`serve --edit`, as the web viewer sends them): kept beside
+/// the dataset like the CLI's, the same points changed; eight clients and a `classify` at once
+/// lose nothing; undo and redo; read-only without `--edit`; bad changes refused with their
+/// status, the file as it was; a ground edit's surface served to the viewer, nothing else beside
+/// the dataset.
+#[test]
+fn edits_from_the_server_are_kept_and_lose_nothing() {
+    use common::{http_send, serve};
+    use std::process::Stdio;
+    let d = tempdir("classify-serve");
+    let scan = synth(&d, "site.las", 60_000);
+    let served = d.join("site.myr");
+    ok(&["convert", s(&scan), "-o", s(&served)]);
+    std::fs::create_dir_all(d.join("cli")).unwrap();
+    let cli = d.join("cli/site.myr");
+    std::fs::copy(&served, &cli).unwrap();
+    let (scan0, ds0) = (digest(&scan), digest(&served));
+    let r0 = records(&scan);
+    let (lo, hi) = r0
+        .iter()
+        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), r| {
+            (
+                std::array::from_fn(|a| lo[a].min(r[a])),
+                std::array::from_fn(|a| hi[a].max(r[a])),
+            )
+        });
+    let at = |a: usize, f: f64| (lo[a] as f64 + f * (hi[a] - lo[a]) as f64) / 1000.0;
+    // Nine slabs across x, each a box given its own class.
+    let slab = |i: usize| {
+        let (x0, x1) = (at(0, i as f64 / 9.0), at(0, (i as f64 + 0.7) / 9.0));
+        [
+            x0,
+            at(1, 0.0) - 1.0,
+            at(2, 0.0) - 1.0,
+            x1,
+            at(1, 1.0) + 1.0,
+            at(2, 1.0) + 1.0,
+        ]
+    };
+    let json_box = |i: usize| {
+        let b = slab(i);
+        format!(
+            r#"{{"add": {{"box": [[{},{},{}],[{},{},{}]], "to": {}}}}}"#,
+            b[0],
+            b[1],
+            b[2],
+            b[3],
+            b[4],
+            b[5],
+            20 + i
+        )
+    };
+    let path = "/edits/site.myr";
+    let json_headers = ["Content-Type: application/json"];
+
+    // Read-only: the (empty) layer shown, no change taken.
+    let ro = serve(&[s(&served)], Stdio::null());
+    let (code, body) = http_send(&ro.base, "GET", path, &[], "");
+    assert_eq!(code, 200, "{body}");
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(
+        (v["editable"].clone(), v["edits"].clone()),
+        (false.into(), serde_json::json!([]))
+    );
+    let (code, _) = http_send(&ro.base, "POST", path, &json_headers, &json_box(0));
+    assert_eq!(code, 403);
+    drop(ro);
+    let sidecar = d.join("site.edits.json");
+    assert!(!sidecar.exists());
+
+    // Eight clients of the server and one classify, at once: nine edits kept.
+    let rw = serve(&[s(&served), "--edit"], Stdio::null());
+    std::thread::scope(|scope| {
+        for i in 0..8 {
+            let (base, body) = (rw.base.clone(), json_box(i));
+            scope.spawn(move || {
+                let (code, answer) = http_send(&base, "POST", path, &json_headers, &body);
+                assert_eq!(code, 200, "{answer}");
+            });
+        }
+        let b = slab(8);
+        let arg = b.map(|v| v.to_string()).join(",");
+        ok(&[
+            "classify",
+            s(&served),
+            "--box",
+            &arg,
+            "--to",
+            "28",
+            "--no-count",
+        ]);
+    });
+    let (_, body) = http_send(&rw.base, "GET", path, &[], "");
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(v["editable"], true);
+    let mut kept: Vec<u64> = (v["edits"].as_array().unwrap().iter())
+        .map(|e| e["to"].as_u64().unwrap())
+        .collect();
+    kept.sort();
+    assert_eq!(kept, (20..29).collect::<Vec<u64>>(), "no edit lost");
+    // The same points as the CLI's edits give.
+    for i in 0..9 {
+        let arg = slab(i).map(|v| v.to_string()).join(",");
+        ok(&[
+            "classify",
+            s(&cli),
+            "--box",
+            &arg,
+            "--to",
+            &(20 + i).to_string(),
+            "--no-count",
+        ]);
+    }
+    let (a, b) = (d.join("a.las"), d.join("b.las"));
+    let served_records = extracted(&served, &a);
+    assert_eq!(served_records, extracted(&cli, &b));
+    let changed = (served_records.iter().zip(&r0))
+        .filter(|(x, y)| x != y)
+        .count();
+    assert!(
+        changed > 30_000,
+        "{changed} points given the slabs' classes"
+    );
+
+    // Undo and redo, as the CLI's; nothing to redo is 409.
+    let (code, body) = http_send(&rw.base, "POST", path, &json_headers, r#"{"undo": true}"#);
+    assert_eq!(code, 200, "{body}");
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(v["edits"].as_array().unwrap().len(), 8);
+    assert!(v["done"].as_str().unwrap().starts_with("undone: "), "{v}");
+    ok(&["classify", s(&cli), "--undo"]);
+    let undone_cli = extracted(&cli, &b);
+    // (Undone on each side: the last edit of each, which may differ; redo gives both back.)
+    let (code, _) = http_send(&rw.base, "POST", path, &json_headers, r#"{"redo": true}"#);
+    assert_eq!(code, 200);
+    assert_eq!(extracted(&served, &a), served_records);
+    let (code, body) = http_send(&rw.base, "POST", path, &json_headers, r#"{"redo": true}"#);
+    assert_eq!(code, 409, "{body}");
+    assert_ne!(undone_cli, served_records);
+
+    // Bad changes: their status, one line, the file as it was.
+    let before = digest(&sidecar);
+    for (body, code, says) in [
+        (
+            r#"{"add": {"polygon": [[0,0],[1,0]], "to": 7}}"#,
+            400,
+            "polygon",
+        ),
+        (
+            r#"{"add": {"where": ["nothing>1"], "to": 7}}"#,
+            400,
+            "nothing",
+        ),
+        (r#"{"add": {"to": 300}}"#, 400, "300"),
+        (r#"{"delete": true}"#, 400, "one of"),
+        ("{\n\"add\": ", 400, "line 2"),
+    ] {
+        let (got, answer) = http_send(&rw.base, "POST", path, &json_headers, body);
+        assert_eq!(got, code, "{body}: {answer}");
+        assert!(answer.contains(says), "{body}: {answer}");
+        assert_eq!(answer.trim().lines().count(), 1, "{answer}");
+    }
+    let big = format!(
+        r#"{{"add": {{"brush": [{}], "to": 7}}}}"#,
+        "[1,2,3,4],".repeat(120_000)
+    );
+    let (code, _) = http_send(&rw.base, "POST", path, &json_headers, &big);
+    assert_eq!(code, 413);
+    let foreign = [
+        "Content-Type: application/json",
+        "Origin: https://elsewhere.example",
+    ];
+    let (code, _) = http_send(&rw.base, "POST", path, &foreign, &json_box(0));
+    assert_eq!(code, 403, "a page of another origin does not edit");
+    let (code, _) = http_send(
+        &rw.base,
+        "POST",
+        "/edits/nothing.myr",
+        &json_headers,
+        &json_box(0),
+    );
+    assert_eq!(code, 404);
+    assert_eq!(digest(&sidecar), before);
+
+    // A ground edit's surface is served to the viewer; nothing else beside the dataset is.
+    ok(&["ground", s(&served), "--no-count"]);
+    let (_, body) = http_send(&rw.base, "GET", path, &[], "");
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    let name = v["edits"][9]["ground"]["surface"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let answer = common::http_get(&rw.base, &format!("{path}?surface={name}"), &[]).to_lowercase();
+    let len = std::fs::metadata(d.join(&name)).unwrap().len();
+    assert!(answer.starts_with("http/1.1 200"), "{}", &answer[..40]);
+    assert!(
+        answer.contains(&format!("content-length: {len}\r\n")),
+        "{len}"
+    );
+    for other in [
+        "site.edits.json",
+        "site.myr",
+        "..%2Fsite.las",
+        ".site.edits.json.lock",
+    ] {
+        let (code, _) = http_send(&rw.base, "GET", &format!("{path}?surface={other}"), &[], "");
+        assert_eq!(code, 404, "{other}");
+    }
+    assert_eq!(
+        (digest(&scan), digest(&served)),
+        (scan0, ds0),
+        "the scan and dataset untouched"
+    );
+}

@@ -1166,3 +1166,140 @@ fn the_web_viewer_colours_filters_and_measures_volumes() {
     drop(b);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Edits in the web viewer (`serve --edit`, issue 70): the dataset's edits (a ground edit, its
+/// surface read by range requests) shown as the CLI reads them; a polygon given a class and
+/// another's points removed from the page, undo and redo, each giving the same points in
+/// `extract`'s output as the same edits made by `classify` on a copy; the points drawn counted
+/// after each; the scan and the dataset untouched.
+#[test]
+fn the_web_viewer_edits_classes_as_the_cli_does() {
+    use common::records;
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-edit");
+    let laz = d.join("e.laz");
+    let r = myriad(&["synth", "-o", s(&laz), "--points", "80k", "--scene", "city"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let myr = d.join("e.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let (laz0, myr0) = (std::fs::read(&laz).unwrap(), std::fs::read(&myr).unwrap());
+    ok(&["ground", s(&myr), "--no-count"]);
+    // The CLI's copy: the dataset, its edits and the surface they name.
+    let cli = d.join("cli");
+    std::fs::create_dir_all(&cli).unwrap();
+    for f in std::fs::read_dir(&*d).unwrap() {
+        let p = f.unwrap().path();
+        let n = p.file_name().unwrap().to_string_lossy().to_string();
+        if n.starts_with("e.") && !n.ends_with(".laz") {
+            std::fs::copy(&p, cli.join(&n)).unwrap();
+        }
+    }
+    let cli_myr = cli.join("e.myr");
+    let histogram = |ds: &std::path::Path| {
+        let out = d.join("h.las");
+        ok(&["extract", s(ds), "-o", s(&out), "--force"]);
+        let recs = records(&out);
+        let mut h = std::collections::BTreeMap::new();
+        for r in &recs {
+            *h.entry(r[5].to_string()).or_insert(0u64) += 1;
+        }
+        (recs, h)
+    };
+    let server = serve(&[s(&myr), "--edit"], std::process::Stdio::null());
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(&format!("{}/view/e.myr#renderer=webgl2", server.base), W, H)
+        .unwrap();
+    // Every point loaded (80 k under the budget): the classes drawn, counted.
+    let drawn = |b: &mut Browser| -> std::collections::BTreeMap<String, u64> {
+        converge(b);
+        let v = b
+            .eval(
+                "(() => { const c = {}; for (const n of nodes.values()) for (const [k, v] of \
+                 n.classes || []) c[k] = (c[k] || 0) + v; return c; })()",
+            )
+            .unwrap();
+        (v.as_object().unwrap().iter())
+            .map(|(k, v)| (k.clone(), v.as_u64().unwrap()))
+            .collect()
+    };
+    let st = b
+        .wait_for(
+            "window.myriad && myriad.state.editing && myriad.state.editing.loaded && myriad.state.editing",
+            Duration::from_secs(60),
+        )
+        .unwrap();
+    assert_eq!(st["editable"], true, "{st}");
+    let (_, want) = histogram(&myr);
+    assert!(want.get("2").copied().unwrap_or(0) > 10_000, "{want:?}");
+    assert_eq!(
+        drawn(&mut b),
+        want,
+        "the ground edit drawn as extract reads it"
+    );
+
+    // A polygon given class 6 and another's points removed, from the page and by the CLI.
+    let bounds = Dataset::open(&myr).unwrap().meta.bounds;
+    let at = |fx: f64, fy: f64| {
+        [
+            bounds.min[0] + fx * (bounds.max[0] - bounds.min[0]),
+            bounds.min[1] + fy * (bounds.max[1] - bounds.min[1]),
+        ]
+    };
+    let p1 = [at(0.1, 0.1), at(0.6, 0.2), at(0.4, 0.7), at(0.15, 0.5)];
+    let p2 = [at(0.6, 0.6), at(0.9, 0.6), at(0.9, 0.95), at(0.6, 0.9)];
+    let js = |p: &[[f64; 2]; 4]| serde_json::to_string(&p.to_vec()).unwrap();
+    let arg = |p: &[[f64; 2]; 4]| {
+        p.iter()
+            .map(|q| format!("{},{}", q[0], q[1]))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let done = b.eval(&format!("myriad.edit({}, 6)", js(&p1))).unwrap();
+    assert!(done.as_str().unwrap().starts_with("edit 2: "), "{done}");
+    ok(&[
+        "classify",
+        s(&cli_myr),
+        "--polygon",
+        &arg(&p1),
+        "--to",
+        "6",
+        "--no-count",
+    ]);
+    b.eval(&format!("myriad.edit({}, 'remove')", js(&p2)))
+        .unwrap();
+    ok(&[
+        "classify",
+        s(&cli_myr),
+        "--polygon",
+        &arg(&p2),
+        "--remove",
+        "--no-count",
+    ]);
+    let (served, h) = histogram(&myr);
+    let (by_cli, _) = histogram(&cli_myr);
+    assert_eq!(served, by_cli, "the page's edits are the CLI's");
+    assert!(served.len() < 75_000, "{} points left", served.len());
+    assert_eq!(drawn(&mut b), h, "the edited points drawn");
+    let st = b.eval("myriad.state").unwrap();
+    assert_eq!(st["points"].as_u64(), Some(served.len() as u64), "{st}");
+
+    // Undo (the page) and the CLI's undo: the removal gone; redo brings it back.
+    b.eval("myriad.undoEdit()").unwrap();
+    ok(&["classify", s(&cli_myr), "--undo"]);
+    let (served, h) = histogram(&myr);
+    assert_eq!(served, histogram(&cli_myr).0);
+    assert_eq!(served.len(), 80_000);
+    assert_eq!(drawn(&mut b), h);
+    b.eval("myriad.redoEdit()").unwrap();
+    assert_eq!(histogram(&myr).0.len(), by_cli.len());
+    let st = b.eval("myriad.state.editing").unwrap();
+    assert_eq!(st["layer"]["edits"].as_array().unwrap().len(), 3, "{st}");
+    assert_eq!(
+        (std::fs::read(&laz).unwrap(), std::fs::read(&myr).unwrap()),
+        (laz0, myr0),
+        "the scan and the dataset untouched"
+    );
+}

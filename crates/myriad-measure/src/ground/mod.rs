@@ -8,7 +8,6 @@
 //! values a cell; the points are read node by node from the pages each tile's area meets.
 
 pub mod smrf;
-#[cfg(not(target_arch = "wasm32"))]
 pub mod surface;
 
 #[cfg(not(target_arch = "wasm32"))]

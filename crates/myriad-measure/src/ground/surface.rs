@@ -7,10 +7,17 @@
 //! `MYRSURF1` again.
 
 use myriad_core::{Error, Result};
-use serde_json::{Value, json};
+use myriad_format::ByteSource;
+use serde_json::Value;
+#[cfg(not(target_arch = "wasm32"))]
+use serde_json::json;
+#[cfg(not(target_arch = "wasm32"))]
 use std::fs::File;
+#[cfg(not(target_arch = "wasm32"))]
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+#[cfg(not(target_arch = "wasm32"))]
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 const MAGIC: &[u8; 8] = b"MYRSURF1";
@@ -46,6 +53,7 @@ impl Placement {
 }
 
 /// Writes a surface tile by tile (any order, from any thread), then its index.
+#[cfg(not(target_arch = "wasm32"))]
 pub struct SurfaceWriter {
     file: myriad_io::atomic::AtomicFile,
     path: PathBuf,
@@ -54,6 +62,7 @@ pub struct SurfaceWriter {
     pub placement: Placement,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl SurfaceWriter {
     pub fn create(path: &Path, placement: Placement) -> Result<SurfaceWriter> {
         let file = myriad_io::atomic::AtomicFile::create(path, false)?;
@@ -128,10 +137,10 @@ impl SurfaceWriter {
     }
 }
 
-/// A surface opened for reading.
+/// A surface opened for reading: a file, or (in the web viewer) a URL read by ranges.
 pub struct Surface {
-    path: PathBuf,
-    file: File,
+    name: String,
+    source: Arc<dyn ByteSource>,
     pub placement: Placement,
     tiles: Vec<Option<(u64, u32, u32)>>,
     cache: Mutex<Vec<(usize, Arc<Vec<f32>>)>>,
@@ -139,7 +148,7 @@ pub struct Surface {
 
 impl std::fmt::Debug for Surface {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Surface({})", self.path.display())
+        write!(f, "Surface({})", self.name)
     }
 }
 
@@ -152,17 +161,28 @@ pub struct Height {
 
 impl Surface {
     /// Opens a surface; an error names the file and the byte at fault.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn open(path: &Path) -> Result<Surface> {
-        use std::os::unix::fs::FileExt;
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let source = Arc::new(myriad_format::FileBytes::open(path)?);
+        Surface::from_source(source, &path.display().to_string(), true)
+    }
+
+    /// A surface read from `source` (called `name` in errors); `check_whole`: every tile's
+    /// checksum checked now where the surface is of ordinary size (a file on disk), else each
+    /// tile's as it is read (a URL).
+    pub fn from_source(
+        source: Arc<dyn ByteSource>,
+        name: &str,
+        check_whole: bool,
+    ) -> Result<Surface> {
+        let path = Path::new(name);
+        let len = source.len();
+        let read = |at: u64, n: usize| source.read_at(at, n).map_err(|e| Error::io(path, e));
         let bad = |at: u64, m: &str| Error::at_byte(path, at, m);
         if len < 28 {
             return Err(bad(0, "not a Myriad surface (too short)"));
         }
-        let mut tail = [0u8; 20];
-        file.read_exact_at(&mut tail, len - 20)
-            .map_err(|e| Error::io(path, e))?;
+        let tail = read(len - 20, 20)?;
         if &tail[12..] != MAGIC {
             return Err(bad(
                 len - 8,
@@ -174,9 +194,7 @@ impl Surface {
         if at < 8 || at.checked_add(n) != Some(len - 20) || n > 64 << 20 {
             return Err(bad(len - 20, "its index does not lie before its end"));
         }
-        let mut text = vec![0u8; n as usize];
-        file.read_exact_at(&mut text, at)
-            .map_err(|e| Error::io(path, e))?;
+        let text = read(at, n as usize)?;
         let v: Value =
             serde_json::from_slice(&text).map_err(|e| bad(at, &format!("its index: {e}")))?;
         let num = |k: &str| v[k].as_f64().filter(|x| x.is_finite());
@@ -220,10 +238,8 @@ impl Surface {
             .collect::<Result<Vec<_>>>()?;
         // A surface of ordinary size is checked whole now (one line at opening, rather than
         // one damaged node after another later); a larger one tile by tile as it is read.
-        if len <= CHECK_WHOLE {
-            let mut all = vec![0u8; at as usize];
-            file.read_exact_at(&mut all, 0)
-                .map_err(|e| Error::io(path, e))?;
+        if check_whole && len <= CHECK_WHOLE {
+            let all = read(0, at as usize)?;
             for (t, &(o, l, c)) in tiles
                 .iter()
                 .enumerate()
@@ -235,8 +251,8 @@ impl Surface {
             }
         }
         Ok(Surface {
-            path: path.to_path_buf(),
-            file,
+            name: name.to_string(),
+            source,
             placement,
             tiles,
             cache: Mutex::new(Vec::new()),
@@ -256,16 +272,14 @@ impl Surface {
 
     /// Tile `t`'s cells with their apron (`None`: a tile without a surface).
     pub fn tile(&self, t: usize) -> std::result::Result<Option<Arc<Vec<f32>>>, String> {
-        use std::os::unix::fs::FileExt;
         let Some((at, len, crc)) = self.tiles[t] else {
             return Ok(None);
         };
         if let Some((_, c)) = (self.cache.lock().expect("cache").iter()).find(|(i, _)| *i == t) {
             return Ok(Some(c.clone()));
         }
-        let name = self.path.display();
-        let mut packed = vec![0u8; len as usize];
-        (self.file.read_exact_at(&mut packed, at)).map_err(|e| format!("{name}: {e}"))?;
+        let name = &self.name;
+        let packed = (self.source.read_at(at, len as usize)).map_err(|e| format!("{name}: {e}"))?;
         if crc32fast::hash(&packed) != crc {
             return Err(format!("{name}: byte {at}: tile {t}: checksum mismatch"));
         }
@@ -273,7 +287,7 @@ impl Surface {
         let (tx, _) = p.tiles();
         let (_, _, w, h) = p.core(t % tx, t / tx);
         let n = (w + 2) * (h + 2);
-        let raw = zstd::bulk::decompress(&packed, n * 4)
+        let raw = myriad_format::decompress_zstd(&packed, n * 4)
             .map_err(|e| format!("{name}: byte {at}: tile {t}: {e}"))?;
         if raw.len() != n * 4 {
             return Err(format!(

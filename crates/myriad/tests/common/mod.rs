@@ -461,3 +461,33 @@ pub fn render_cpu<'a>(input: &'a str, out: &'a str, (w, h): (&'a str, &'a str)) 
         "render", input, "-o", out, "--raster", "cpu", "--width", w, "--height", h,
     ]
 }
+
+/// `METHOD PATH` with `headers` and `body` to the server at `base`: the status and the body.
+pub fn http_send(
+    base: &str,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &str,
+) -> (u16, String) {
+    use std::io::{Read, Write};
+    let addr = base.trim_start_matches("http://");
+    let mut c = std::net::TcpStream::connect(addr).unwrap();
+    let extra: String = headers.iter().map(|h| format!("{h}\r\n")).collect();
+    // (A server may answer before the body is sent, and close: what it said is read.)
+    let _ = write!(
+        c,
+        "{method} {path} HTTP/1.1\r\nHost: localhost\r\n{extra}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    let mut answer = Vec::new();
+    let _ = c.read_to_end(&mut answer);
+    let text = String::from_utf8_lossy(&answer).into_owned();
+    let status = text
+        .split(' ')
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    let body = text.split_once("\r\n\r\n").map_or("", |b| b.1).to_string();
+    (status, body)
+}

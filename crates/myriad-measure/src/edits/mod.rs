@@ -23,11 +23,18 @@
 
 use crate::filter::{Bound, Filter};
 use crate::ground::Rule;
+use crate::ground::surface::Surface;
 use crate::work::{MAX_COORD, finite, list, short};
 use crate::{Corridor, Polygon, Region};
 use myriad_core::{Aabb, PointBatch, Schema};
 use serde_json::{Map, Value, json};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+#[cfg(not(target_arch = "wasm32"))]
+mod kept;
+#[cfg(not(target_arch = "wasm32"))]
+pub use kept::{Change, Refused, admit, change};
 
 /// An edits file larger than this is refused (brush strokes are the largest edits).
 pub const MAX_BYTES: usize = 16 << 20;
@@ -163,7 +170,8 @@ impl Edit {
         }
     }
 
-    fn to_json(&self) -> Value {
+    /// The edit as the file keeps it.
+    pub fn to_json(&self) -> Value {
         let mut o = Map::new();
         match &self.area {
             Area::All => {}
@@ -202,7 +210,8 @@ impl Edit {
         Value::Object(o)
     }
 
-    fn from_json(v: &Value, at: &str) -> Result<Edit, String> {
+    /// An edit from its JSON (`at`: where it is, for errors).
+    pub fn from_json(v: &Value, at: &str) -> Result<Edit, String> {
         let o = v
             .as_object()
             .ok_or_else(|| format!("{at}: not an object: {}", short(v)))?;
@@ -414,15 +423,34 @@ impl Layer {
     /// The edits bound to a dataset's columns, ready to apply (`dir`: the folder of the edits
     /// file, where the surfaces they name are); an error names the edit whose filter asks for a
     /// column the dataset lacks, which sets classes it has none of, or whose surface is missing.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn compile(&self, schema: &Schema, dir: &Path) -> Result<Compiled, String> {
+        self.compile_with(schema, &|name| {
+            Surface::open(&dir.join(name))
+                .map(Arc::new)
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    /// [`Layer::compile`] with the surfaces ground edits name opened by `surface` (the web
+    /// viewer reads them from its server).
+    pub fn compile_with(
+        &self,
+        schema: &Schema,
+        surface: &dyn Fn(&str) -> Result<Arc<Surface>, String>,
+    ) -> Result<Compiled, String> {
         let edits = (self.edits.iter().enumerate())
-            .map(|(i, e)| compile(e, schema, dir).map_err(|m| format!("edits[{i}]: {m}")))
+            .map(|(i, e)| compile(e, schema, surface).map_err(|m| format!("edits[{i}]: {m}")))
             .collect::<Result<_, _>>()?;
         Ok(Compiled { edits })
     }
 }
 
-fn compile(e: &Edit, schema: &Schema, dir: &Path) -> Result<CompiledEdit, String> {
+fn compile(
+    e: &Edit,
+    schema: &Schema,
+    surface: &dyn Fn(&str) -> Result<Arc<Surface>, String>,
+) -> Result<CompiledEdit, String> {
     let classes = schema.has(&myriad_core::Attribute::Classification);
     if !matches!(e.action, Action::Remove) && !classes {
         return Err("the dataset has no classes to set (remove points instead)".into());
@@ -431,31 +459,11 @@ fn compile(e: &Edit, schema: &Schema, dir: &Path) -> Result<CompiledEdit, String
         region: e.region()?,
         bound: e.filter()?.bind(schema)?,
         surface: match &e.action {
-            Action::Ground { surface, .. } => Some(open_surface(&dir.join(surface))?),
+            Action::Ground { surface: name, .. } => Some(surface(name)?),
             _ => None,
         },
         action: e.action.clone(),
     })
-}
-
-#[cfg(not(target_arch = "wasm32"))]
-type Surface = crate::ground::surface::Surface;
-#[cfg(target_arch = "wasm32")]
-type Surface = ();
-
-#[cfg(not(target_arch = "wasm32"))]
-fn open_surface(path: &Path) -> Result<std::sync::Arc<Surface>, String> {
-    Surface::open(path)
-        .map(std::sync::Arc::new)
-        .map_err(|e| e.to_string())
-}
-
-#[cfg(target_arch = "wasm32")]
-fn open_surface(path: &Path) -> Result<std::sync::Arc<Surface>, String> {
-    Err(format!(
-        "{}: ground surfaces are read by the native program only",
-        path.display()
-    ))
 }
 
 /// One edit bound to a dataset's columns.
@@ -464,7 +472,7 @@ struct CompiledEdit {
     region: Option<Box<dyn Region>>,
     bound: Bound,
     /// The surface a ground edit reads.
-    surface: Option<std::sync::Arc<Surface>>,
+    surface: Option<Arc<Surface>>,
     action: Action,
 }
 
@@ -528,7 +536,6 @@ impl myriad_format::edits::Edits for Compiled {
 }
 
 /// A ground edit on the points `chosen` of `b`, tile by tile of the surface.
-#[cfg(not(target_arch = "wasm32"))]
 fn ground(
     surface: &Surface,
     rule: &Rule,
@@ -559,11 +566,6 @@ fn ground(
         }
     }
     Ok(())
-}
-
-#[cfg(target_arch = "wasm32")]
-fn ground(_: &Surface, _: &Rule, _: &mut PointBatch, _: Vec<usize>) -> Result<(), String> {
-    Err("ground surfaces are read by the native program only".into())
 }
 
 /// A polygon in plan between two elevations.
@@ -628,6 +630,7 @@ impl Region for Spheres {
 
 /// The edits of the dataset at `dataset`, read from [`sidecar_for`] it (`None`: no file, or no
 /// edit in it); an error names the file. What [`install`] gives the dataset reader.
+#[cfg(not(target_arch = "wasm32"))]
 pub fn load(
     dataset: &Path,
     meta: &myriad_format::Metadata,

@@ -1,0 +1,193 @@
+//! `/edits/NAME`: a served dataset's edits (`myriad_measure::edits`: classes set and points
+//! removed, kept beside it) for the web viewer, which applies them to the pages it decodes.
+//! GET answers the layer (an empty one where there is none), with `"editable"` saying whether
+//! POST is taken; `GET /edits/NAME?surface=FILE` answers a terrain surface a ground edit of the
+//! layer names (with ranges: the viewer reads the tiles it needs). POST, only with `serve
+//! --edit` and from the server's own pages, makes one change (`{"add": EDIT}`, `{"undo":
+//! true}`, `{"redo": true}`) to the file as it is then, under the lock every program that
+//! changes it takes: two clients editing at once each keep their edits. A change's body is at
+//! most [`MAX_CHANGE`] bytes, read within `work::BODY_TIMEOUT`, by at most
+//! `work::PUTS_AT_ONCE` clients at once (more wait their turn, [`QUEUE`] at most, then 503); an edit the dataset could not
+//! be read with is refused (400, one line), an undo with nothing to undo is 409.
+
+use crate::catalog::{File, Kind};
+use crate::work::BODY_TIMEOUT;
+use crate::{Body, Budget, Shared, full, settled, status};
+use http_body_util::{BodyExt, Limited};
+use hyper::body::Incoming;
+use hyper::header::{self, HeaderValue};
+use hyper::{Request, Response, StatusCode};
+use myriad_measure::edits::{Action, Change, Layer, Refused, read, sidecar_for};
+use serde_json::Value;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// How long a change waits for its turn to send its body before it is answered 503.
+pub const QUEUE: std::time::Duration = std::time::Duration::from_secs(10);
+/// A change's body is at most this (a brush stroke of some ten thousand spheres).
+pub const MAX_CHANGE: usize = 1 << 20;
+
+fn json(layer: &Layer, editable: bool, done: Option<String>, head: bool) -> Response<Body> {
+    let mut v: Value = serde_json::from_str(&layer.to_json()).expect("a layer's JSON");
+    v["editable"] = editable.into();
+    if let Some(d) = done {
+        v["done"] = d.into();
+    }
+    let text = v.to_string();
+    let len = text.len();
+    let mut r = Response::new(full(if head { String::new() } else { text }));
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
+    // Edits change: never answered from a cache.
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    r
+}
+
+/// The dataset of that name, as it is for good (a dataset being built has no edits yet).
+fn dataset(shared: &Shared, name: &str) -> Result<File, Box<Response<Body>>> {
+    let f = (shared.catalog.file(name))
+        .filter(|f| f.kind == Kind::Dataset)
+        .ok_or_else(|| Box::new(status(StatusCode::NOT_FOUND, "no such dataset")))?;
+    let f = settled(f).ok_or_else(|| Box::new(crate::being_built()))?;
+    if f.remote.is_some() {
+        return Err(Box::new(status(
+            StatusCode::FORBIDDEN,
+            "read-only: edits are kept beside datasets on the server's disk, not on S3 or the web",
+        )));
+    }
+    Ok(f)
+}
+
+pub(crate) async fn get(
+    shared: &Arc<Shared>,
+    budget: &Budget,
+    name: &str,
+    req: &Request<Incoming>,
+) -> Response<Body> {
+    let head = req.method() == hyper::Method::HEAD;
+    let Some(f) = shared
+        .catalog
+        .file(name)
+        .filter(|f| f.kind == Kind::Dataset)
+    else {
+        return status(StatusCode::NOT_FOUND, "no such dataset");
+    };
+    if f.remote.is_some() {
+        // On S3 or a web server: no edits kept, none to be made.
+        return json(&Layer::default(), false, None, head);
+    }
+    let f = match dataset(shared, name) {
+        Ok(f) => f,
+        Err(r) => return *r,
+    };
+    let sidecar = sidecar_for(&f.path);
+    let surface = (req.uri().query().unwrap_or("").split('&'))
+        .find_map(|kv| kv.strip_prefix("surface="))
+        .map(crate::percent_decode);
+    let s = sidecar.clone();
+    let layer = match tokio::task::spawn_blocking(move || read(&s)).await {
+        Ok(Ok(l)) => l.unwrap_or_default(),
+        Ok(Err(e)) => return status(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+        Err(_) => return status(StatusCode::INTERNAL_SERVER_ERROR, "failed"),
+    };
+    let Some(surface) = surface else {
+        return json(&layer, shared.options.edit, None, head);
+    };
+    // Only a surface the layer's edits name: never another file beside the dataset.
+    let named = |s: &str| {
+        (layer.edits.iter().chain(&layer.undone))
+            .any(|e| matches!(&e.action, Action::Ground { surface, .. } if surface == s))
+    };
+    match surface {
+        Some(s) if named(&s) && !s.contains('/') && !s.starts_with('.') => {
+            let path: PathBuf = sidecar.with_file_name(&s);
+            let mut file = f.at(path);
+            file.content_type = "application/octet-stream";
+            match crate::files::file(&file, budget, req).await {
+                Ok(r) => r,
+                Err(e) => status(StatusCode::NOT_FOUND, &format!("{s}: {e}")),
+            }
+        }
+        _ => status(
+            StatusCode::NOT_FOUND,
+            "no surface of that name in this dataset's edits",
+        ),
+    }
+}
+
+pub(crate) async fn post(
+    shared: &Arc<Shared>,
+    name: &str,
+    req: Request<Incoming>,
+) -> Response<Body> {
+    let f = match dataset(shared, name) {
+        Ok(f) => f,
+        Err(r) => return *r,
+    };
+    if !shared.options.edit {
+        return status(
+            StatusCode::FORBIDDEN,
+            "read-only: `myriad serve --edit` lets viewers edit",
+        );
+    }
+    let too_large = || {
+        status(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            &format!("a change is at most {MAX_CHANGE} bytes"),
+        )
+    };
+    let declared = (req.headers().get(header::CONTENT_LENGTH))
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > MAX_CHANGE as u64) {
+        return too_large();
+    }
+    // Editors at once wait their turn to send (a viewer's edit is not to fail because another
+    // is being sent), a while.
+    let Ok(Ok(permit)) = tokio::time::timeout(QUEUE, shared.puts.acquire()).await else {
+        return status(StatusCode::SERVICE_UNAVAILABLE, "busy: try again");
+    };
+    let body = Limited::new(req.into_body(), MAX_CHANGE);
+    let bytes = match tokio::time::timeout(BODY_TIMEOUT, body.collect()).await {
+        Err(_) => {
+            return status(
+                StatusCode::REQUEST_TIMEOUT,
+                "the body did not arrive in time",
+            );
+        }
+        Ok(Err(e))
+            if e.downcast_ref::<http_body_util::LengthLimitError>()
+                .is_some() =>
+        {
+            return too_large();
+        }
+        Ok(Err(e)) => return status(StatusCode::BAD_REQUEST, &e.to_string()),
+        Ok(Ok(c)) => c.to_bytes(),
+    };
+    drop(permit);
+    let Ok(text) = std::str::from_utf8(&bytes) else {
+        return status(StatusCode::BAD_REQUEST, "not UTF-8");
+    };
+    let change = match Change::parse(text) {
+        Ok(c) => c,
+        Err(e) => return status(StatusCode::BAD_REQUEST, &format!("change: {e}")),
+    };
+    let path = f.path.clone();
+    let made = tokio::task::spawn_blocking(move || {
+        let ds = myriad_format::Dataset::open_stored(&path)
+            .map_err(|e| Refused::Failed(e.to_string()))?;
+        change.apply(&path, &ds.meta)
+    })
+    .await;
+    match made {
+        Ok(Ok((layer, done))) => json(&layer, true, Some(done), false),
+        Ok(Err(Refused::Invalid(m))) => status(StatusCode::BAD_REQUEST, &m),
+        Ok(Err(Refused::Nothing(m))) => status(StatusCode::CONFLICT, &m),
+        Ok(Err(Refused::Failed(m))) => status(StatusCode::INTERNAL_SERVER_ERROR, &m),
+        Err(_) => status(StatusCode::INTERNAL_SERVER_ERROR, "failed"),
+    }
+}
