@@ -57,7 +57,7 @@ impl App {
         let (gpu, _) = Gpu::best();
         let raster = Rasterizer::new(&gpu);
         let (layers, extent) = Layers::open(datasets, o.filter, o.colour, o.occlusion)?;
-        let tools = Tools::new(&layers, extent.view, o.work, o.section, o.volume);
+        let tools = Tools::new(&layers, extent.view, o.work, (o.section, o.volume), o.edits);
         let view = Navigation::new(
             (extent.view, extent.all),
             o.fov,
@@ -129,7 +129,7 @@ impl App {
         ui.separator();
         panel::frame_report(ui, &self.render, &self.layers, &self.pacing.timing);
         self.tools.pick.panel(ui);
-        let asked = self.tools.panel(ui, &self.layers);
+        let asked = self.tools.panel(ui, &mut self.layers);
         if let Some((eye, target)) = asked.go {
             self.view.nav.look(eye, target);
         }
@@ -149,7 +149,16 @@ impl App {
         let scale = ui.ctx().pixels_per_point() as f64;
         // Keys typed into the panel (an annotation's title) are not shortcuts.
         let typing = ui.ctx().egui_wants_keyboard_input();
-        let pressed = |key| !typing && ui.input(|i| i.key_pressed(key));
+        // Ctrl (Cmd) with a key is a command, not the key's tool.
+        let command = ui.input(|i| i.modifiers.command);
+        let pressed = |key| !typing && !command && ui.input(|i| i.key_pressed(key));
+        let with_command = |key| !typing && command && ui.input(|i| i.key_pressed(key));
+        let shift = ui.input(|i| i.modifiers.shift);
+        if with_command(egui::Key::Z) && !shift {
+            (self.tools.edit).change(myriad_measure::edits::Change::Undo, &mut self.layers);
+        } else if with_command(egui::Key::Y) || with_command(egui::Key::Z) {
+            (self.tools.edit).change(myriad_measure::edits::Change::Redo, &mut self.layers);
+        }
         if pressed(egui::Key::H) {
             self.panel.help = !self.panel.help;
         }
@@ -169,7 +178,7 @@ impl App {
         let layers = &self.layers;
         let pick = |x, y| layers.pick(&cam, x, y).map(|p| p.position);
         self.view.mouse(ui, response, (cursor, scale), &pick);
-        self.tools.clicks(response, cursor, &cam, &self.layers);
+        self.tools.clicks(response, cursor, &cam, &mut self.layers);
     }
 
     /// Step: the budget paced for this frame (begun at `t`, the view `w` x `h` pixels) and the
@@ -213,7 +222,7 @@ impl App {
     /// it): on the first, the view and the tools asked for on the command line.
     fn draw(&mut self, width: u32, height: u32, scale: f32) -> Vec<u8> {
         self.view.size(width, height);
-        self.tools.start(&self.view.bounds, &self.layers);
+        self.tools.start(&self.view.bounds, &mut self.layers);
         let full = self.view.nav.camera;
         (self.render).draw(&mut self.layers, &full, scale, &self.pacing.select)
     }

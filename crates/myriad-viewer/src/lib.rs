@@ -10,7 +10,7 @@
 //! (`shown.rs`), camera and navigation (`navigation.rs`, over [`nav`], which needs no window
 //! and is tested alone), budget pacing (`pacing.rs`, over [`motion`]), the scripted orbit
 //! (`orbit.rs`), screenshots (`shots.rs`), the tools (`tools/`: measure, annotate, profile,
-//! volume, clip, pick), the panel (`panel.rs`) and datasets being built ([`builds`]). The
+//! volume, edit, clip, pick), the panel (`panel.rs`) and datasets being built ([`builds`]). The
 //! headset's session is [`vr`]'s (its controllers `vr_hands.rs`, its Vulkan `vr_vulkan.rs`,
 //! its navigation and eyes' fields [`vr_nav`]).
 
@@ -45,6 +45,7 @@ use myriad_format::Dataset;
 use myriad_render::Gpu;
 pub use options::{ViewOptions, VolumeAsked};
 use std::sync::Arc;
+pub use tools::edit::EditsAsked;
 
 /// Opens the window and runs until it is closed.
 pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), String> {

@@ -55,6 +55,8 @@ pub struct ViewOptions {
     /// A volume to measure on opening (its result printed): the polygon, an elevation for
     /// the base (none: the rim's plane) and a cell size (none: from the spacing).
     pub volume: Option<VolumeAsked>,
+    /// The dataset the edit tool edits, and the edits to make on opening.
+    pub edits: Option<crate::tools::edit::EditsAsked>,
 }
 
 /// A volume asked for on the command line: the polygon, an elevation for the base (none: the

@@ -180,6 +180,19 @@ impl Layers {
         Ok((layers, Extent { view: bounds, all }))
     }
 
+    /// The layers of the dataset at `path` shown with its edits as they are now (the dataset
+    /// opened again: its edits read), their settings kept and their points read again.
+    pub fn reopen(&mut self, path: &std::path::Path) -> Result<(), String> {
+        let ds = Arc::new(Dataset::open(path).map_err(|e| e.to_string())?);
+        let filter = self.filter();
+        let (shares, colour) = (self.shares, self.colour);
+        for l in self.list.iter_mut().filter(|l| l.dataset.path() == path) {
+            l.dataset = ds.clone();
+            l.refilter(&filter, shares, colour);
+        }
+        Ok(())
+    }
+
     /// The first dataset's coordinate reference system.
     pub fn crs(&self) -> Option<String> {
         self.list.first().and_then(|l| l.dataset.meta.crs.clone())

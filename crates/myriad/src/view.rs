@@ -68,6 +68,19 @@ pub struct ViewArgs {
     /// With --volume: the grid's cell size [default: about twice the points' spacing]
     #[arg(help_heading = "Tools", long, requires = "volume")]
     volume_cell: Option<f64>,
+    /// Open making this edit of the first dataset, as the edit tool makes one (key K): the
+    /// points in the polygon given a class, or removed: X1,Y1,X2,Y2,X3,Y3[,...]=CLASS or
+    /// =remove (a polygon @FILE too); repeat for more, made in order
+    #[arg(
+        help_heading = "Tools",
+        long,
+        value_name = "POLYGON=CLASS",
+        allow_hyphen_values = true
+    )]
+    classify: Vec<String>,
+    /// Then undo this many of its edits (as Ctrl+Z does)
+    #[arg(help_heading = "Tools", long, default_value_t = 0)]
+    undo_edits: u32,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -197,6 +210,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         parallel: a.parallel,
         volume: volume_asked(&a, &datasets)?,
         section: section_asked(&a, &datasets)?,
+        edits: Some(edits_asked(&a, &datasets)?),
         width: a.width,
         height: a.height,
         camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),
@@ -418,6 +432,54 @@ fn shape_arg(
         .map_err(anyhow::Error::msg)?;
     }
     Ok(shape.points)
+}
+
+/// The dataset the edit tool edits (the first given, where it is a dataset on this disk: a
+/// scan's is rebuilt under another name when it changes, one on the web is not ours to edit),
+/// and `--classify` and `--undo-edits`, checked.
+fn edits_asked(
+    a: &ViewArgs,
+    datasets: &[(String, Arc<Dataset>)],
+) -> Result<myriad_viewer::EditsAsked> {
+    use myriad_measure::edits::{Action, Area, Change, Edit};
+    let dataset = match a.datasets.first() {
+        None => Err("no dataset".to_string()),
+        Some(p) if myriad_format::remote::is_url(p) => Err(format!(
+            "{}: edits are kept beside a dataset on this machine's disk",
+            p.display()
+        )),
+        Some(p) if !myriad_build::open::is_dataset(p) => Err(format!(
+            "{}: a scan: convert it first (`myriad convert`) so that its edits have a dataset \
+             to stay beside",
+            p.display()
+        )),
+        Some(_) => Ok(datasets[0].1.path().to_path_buf()),
+    };
+    let mut changes = Vec::new();
+    for c in &a.classify {
+        let Some((polygon, to)) = c.rsplit_once('=') else {
+            bail!("--classify \"{c}\": POLYGON=CLASS or POLYGON=remove");
+        };
+        let ring = shape_arg(polygon, "--classify", Want::Polygon, datasets)?;
+        let action = match to.trim() {
+            "remove" => Action::Remove,
+            t => match myriad_measure::Filter::parse_classes(t).map_err(anyhow::Error::msg)?[..] {
+                [one] => Action::Class(one),
+                _ => bail!("--classify \"{c}\": one class after ="),
+            },
+        };
+        changes.push(Change::Add(Edit {
+            area: Area::Polygon { ring, z: None },
+            classes: None,
+            wheres: Vec::new(),
+            action,
+        }));
+    }
+    changes.extend((0..a.undo_edits).map(|_| Change::Undo));
+    if let (Err(m), false) = (&dataset, changes.is_empty()) {
+        bail!("--classify: {m}");
+    }
+    Ok(myriad_viewer::EditsAsked { dataset, changes })
 }
 
 /// `--volume` with `--volume-base` and `--volume-cell`, checked.

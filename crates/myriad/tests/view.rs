@@ -608,3 +608,104 @@ fn the_viewer_builds_a_scan_again_when_it_changes_on_disk() {
     let info = String::from_utf8_lossy(&info.stdout);
     assert!(info.contains("150,000"), "{info}");
 }
+
+/// Edits in the window (issue 70; `--classify`, as key K and clicks make one, and
+/// `--undo-edits`, as Ctrl+Z): each printed, kept beside the dataset, the same points in
+/// `extract`'s output as `classify` gives on a copy, and drawn edited (the class given shows
+/// in the screenshot, where the data had none).
+#[test]
+fn the_viewer_edits_classes_as_the_cli_does() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("edit");
+    let las = d.join("c.las");
+    let r = common::myriad(&["synth", "-o", las.to_str().unwrap(), "--points", "150k"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (ds, copy) = (d.join("c.myr"), d.join("cli.myr"));
+    common::ok(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    std::fs::copy(&ds, &copy).unwrap();
+    let before = std::fs::read(&ds).unwrap();
+    let r0 = common::records(&las);
+    assert!(r0.iter().all(|r| r[5] != 9), "no water in the scene");
+    let (lo, hi) = r0
+        .iter()
+        .fold(([i64::MAX; 2], [i64::MIN; 2]), |(lo, hi), r| {
+            (
+                [lo[0].min(r[0]), lo[1].min(r[1])],
+                [hi[0].max(r[0]), hi[1].max(r[1])],
+            )
+        });
+    let at = |fx: f64, fy: f64| {
+        format!(
+            "{},{}",
+            (lo[0] as f64 + fx * (hi[0] - lo[0]) as f64) / 1000.0,
+            (lo[1] as f64 + fy * (hi[1] - lo[1]) as f64) / 1000.0
+        )
+    };
+    let ring = |c: [(f64, f64); 4]| c.map(|(x, y)| at(x, y)).join(",");
+    let p1 = ring([(0.2, 0.2), (0.7, 0.25), (0.65, 0.7), (0.25, 0.6)]);
+    let p2 = ring([(0.75, 0.1), (0.95, 0.1), (0.95, 0.3), (0.75, 0.3)]);
+    let p3 = ring([(0.05, 0.8), (0.3, 0.8), (0.3, 0.95), (0.05, 0.95)]);
+    let png = d.join("e.png");
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+        ds.to_str().unwrap(),
+        "--width",
+        "800",
+        "--height",
+        "600",
+        "--view",
+        "top",
+        "--color",
+        "classification",
+        "--classify",
+        &format!("{p1}=9"),
+        "--classify",
+        &format!("{p2}=remove"),
+        "--classify",
+        &format!("{p3}=17"),
+        "--undo-edits",
+        "1",
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--exit-after-converged",
+    ]) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    for said in ["edit 1: ", "edit 2: ", "edit 3: ", "undone: "] {
+        assert!(stdout.contains(said), "{said} in {stdout}");
+    }
+    common::ok(&[
+        "classify",
+        copy.to_str().unwrap(),
+        "--polygon",
+        &p1,
+        "--to",
+        "9",
+    ]);
+    common::ok(&[
+        "classify",
+        copy.to_str().unwrap(),
+        "--polygon",
+        &p2,
+        "--remove",
+    ]);
+    let (a, b) = (d.join("a.las"), d.join("b.las"));
+    common::ok(&["extract", ds.to_str().unwrap(), "-o", a.to_str().unwrap()]);
+    common::ok(&["extract", copy.to_str().unwrap(), "-o", b.to_str().unwrap()]);
+    let (ra, rb) = (common::records(&a), common::records(&b));
+    assert_eq!(ra, rb, "the window's edits are the CLI's");
+    let water = ra.iter().filter(|r| r[5] == 9).count();
+    assert!(
+        water > 10_000 && ra.len() < r0.len(),
+        "{water} of {}",
+        ra.len()
+    );
+    let (_, _, img) = decode_png(&png);
+    let shown = img.chunks(4).filter(|p| p[..3] == class_colour(9)).count();
+    assert!(shown > 5_000, "{shown} pixels of water drawn");
+    assert_eq!(std::fs::read(&ds).unwrap(), before, "the dataset untouched");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,12 +1,13 @@
 //! The tools over the view, each a value of its own in its own file: measuring (`measure.rs`),
 //! annotating and the saved work (`annotate.rs`), the profile of a section line
-//! (`profile.rs`), the volume over a polygon (`volume.rs`), the clipping box (`clip.rs`) and
-//! picking a point (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
+//! (`profile.rs`), the volume over a polygon (`volume.rs`), editing classes (`edit.rs`), the
+//! clipping box (`clip.rs`) and picking a point (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
 //! takes clicks at a time), the clicks they take, their parts of the panel, and what they draw
 //! over the view.
 
 pub(crate) mod annotate;
 pub(crate) mod clip;
+pub(crate) mod edit;
 pub(crate) mod measure;
 pub(crate) mod pick;
 pub(crate) mod profile;
@@ -28,6 +29,7 @@ pub(crate) struct Tools {
     /// The cross-section tool and its profile's window.
     pub profile: profile::Section,
     pub volume: volume::Volumes,
+    pub edit: edit::Editing,
     pub clip: clip::Clip,
     pub pick: pick::Picking,
 }
@@ -43,13 +45,13 @@ pub(crate) struct Asked {
 impl Tools {
     /// The tools over `layers` (the first dataset's CRS, name and spacing), the clipping box
     /// within `bounds`; the work saved in `work` (none: not kept); a section and a volume
-    /// asked for on the command line.
+    /// asked for on the command line, and the dataset to edit with the edits asked for there.
     pub fn new(
         layers: &Layers,
         bounds: Aabb,
         work: Option<PathBuf>,
-        section: Option<(Vec<[f64; 2]>, f64)>,
-        volume: Option<VolumeAsked>,
+        (section, volume): (Option<(Vec<[f64; 2]>, f64)>, Option<VolumeAsked>),
+        edits: Option<edit::EditsAsked>,
     ) -> Tools {
         let crs = layers.crs();
         let crs = crs.as_deref();
@@ -59,15 +61,17 @@ impl Tools {
             measure: measure::Measuring::new(annotate.work.measurements.clone(), crs),
             profile: profile::Section::first(layers, crs, section),
             volume: volume::Volumes::new(units, volume),
+            edit: edit::Editing::new(edits),
             clip: clip::Clip::new(bounds),
             pick: pick::Picking::new(crs),
             annotate,
         }
     }
 
-    /// The first frame: the section and the volume asked for on the command line, over
-    /// `bounds` (the data's extent).
-    pub fn start(&mut self, bounds: &Aabb, layers: &Layers) {
+    /// The first frame: the edits, the section and the volume asked for on the command line,
+    /// over `bounds` (the data's extent).
+    pub fn start(&mut self, bounds: &Aabb, layers: &mut Layers) {
+        self.edit.start(layers);
         self.profile.start(bounds, layers);
         self.volume.start(bounds, layers);
     }
@@ -78,6 +82,7 @@ impl Tools {
         self.annotate.placing = false;
         self.profile.drawing = false;
         self.volume.drawing = false;
+        self.edit.drawing = false;
     }
 
     fn start_measuring(&mut self, kind: Kind) {
@@ -85,11 +90,17 @@ impl Tools {
         self.measure.start(kind);
     }
 
-    /// The tools' keys (`pressed`): Esc stops them; V a volume's polygon, X a section line, T
-    /// an annotation, M N A O C Z I the measurements (not in fly mode, whose keys move).
+    /// The tools' keys (`pressed`): Esc stops them; V a volume's polygon, K an edit's, X a
+    /// section line, T an annotation, M N A O C Z I the measurements (not in fly mode, whose
+    /// keys move).
     pub fn keys(&mut self, pressed: &dyn Fn(egui::Key) -> bool, fly: bool) {
         if pressed(egui::Key::Escape) {
             self.stop();
+        }
+        if pressed(egui::Key::K) && !fly {
+            let on = !self.edit.drawing;
+            self.stop();
+            self.edit.draw_polygon(on);
         }
         if pressed(egui::Key::V) && !fly {
             let on = !self.volume.drawing;
@@ -124,14 +135,28 @@ impl Tools {
     /// Clicks on the view (`response`; `cursor`: its position in the view, pixels) seen by
     /// `cam`: a double click picks a point; a click adds the point under the cursor (of
     /// `layers`) to the tool taking clicks, a right click ends its figure (a volume measured, a
-    /// section cut).
+    /// section cut, an edit applied).
     pub fn clicks(
         &mut self,
         response: &egui::Response,
         cursor: Option<(f64, f64)>,
         cam: &Camera,
-        layers: &Layers,
+        layers: &mut Layers,
     ) {
+        if self.edit.drawing {
+            let at = cursor
+                .and_then(|(x, y)| layers.pick(cam, x, y))
+                .map(|p| p.position);
+            if response.clicked()
+                && let Some(p) = at
+            {
+                self.edit.polygon.push(p);
+            }
+            if response.secondary_clicked() && self.edit.polygon.len() >= 3 {
+                self.edit.apply(layers);
+            }
+        }
+        let layers = &*layers;
         let at = || {
             let (x, y) = cursor?;
             layers.pick(cam, x, y).map(|p| p.position)
@@ -172,14 +197,15 @@ impl Tools {
     }
 
     /// The tools' parts of the panel: measuring, annotations, the profile, the volume, the
-    /// clipping box.
-    pub fn panel(&mut self, ui: &mut egui::Ui, layers: &Layers) -> Asked {
+    /// edits, the clipping box.
+    pub fn panel(&mut self, ui: &mut egui::Ui, layers: &mut Layers) -> Asked {
         ui.separator();
         if self.measure.panel(ui).is_some() {
             // One tool takes clicks at a time.
             self.annotate.placing = false;
             self.profile.drawing = false;
             self.volume.drawing = false;
+            self.edit.drawing = false;
         }
         ui.separator();
         if self.annotate.placing {
@@ -193,6 +219,13 @@ impl Tools {
         ui.separator();
         if self.volume.panel(ui) {
             self.volume.measure_first(layers);
+        }
+        ui.separator();
+        let was = self.edit.drawing;
+        self.edit.panel(ui, layers);
+        if self.edit.drawing && !was {
+            self.stop();
+            self.edit.drawing = true;
         }
         ui.separator();
         let clip = self.clip.panel(ui);
@@ -218,6 +251,7 @@ impl Tools {
         self.annotate.draw(painter, &screen);
         self.profile.draw(painter, &screen);
         self.volume.draw(painter, &screen);
+        self.edit.draw(painter, &screen);
     }
 
     /// After the frame: the profile's window (its picture's points saved from the first
