@@ -51,13 +51,16 @@ pub struct ViewOptions {
     pub view: Option<crate::nav::View>,
     pub parallel: bool,
     /// A cross-section to cut on opening: the line in plan and the width.
-    pub section: Option<(Vec<[f64; 2]>, f64)>,
+    pub section: Option<SectionAsked>,
     /// A volume to measure on opening (its result printed): the polygon, an elevation for
     /// the base (none: the rim's plane) and a cell size (none: from the spacing).
     pub volume: Option<VolumeAsked>,
     /// The dataset the edit tool edits, and the edits to make on opening.
     pub edits: Option<crate::tools::edit::EditsAsked>,
 }
+
+/// A section asked for on the command line: the line in plan and the width.
+pub type SectionAsked = (Vec<[f64; 2]>, f64);
 
 /// A volume asked for on the command line: the polygon, an elevation for the base (none: the
 /// rim's plane) and a cell size (none: from the spacing).

@@ -14,7 +14,7 @@ pub(crate) mod profile;
 pub(crate) mod volume;
 
 use crate::measure::Kind;
-use crate::options::VolumeAsked;
+use crate::options::{SectionAsked, VolumeAsked};
 use crate::shown::Layers;
 use eframe::egui;
 use myriad_core::Aabb;
@@ -50,7 +50,7 @@ impl Tools {
         layers: &Layers,
         bounds: Aabb,
         work: Option<PathBuf>,
-        (section, volume): (Option<(Vec<[f64; 2]>, f64)>, Option<VolumeAsked>),
+        (section, volume): (Option<SectionAsked>, Option<VolumeAsked>),
         edits: Option<edit::EditsAsked>,
     ) -> Tools {
         let crs = layers.crs();
