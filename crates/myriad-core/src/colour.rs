@@ -298,9 +298,20 @@ pub fn colours(
         ColorBy::Ramp(r) => {
             let [lo, hi] = r.range;
             let span = if hi > lo { hi - lo } else { 1.0 };
-            (0..n)
-                .map(|i| rgba(r.gradient.at((r.column.value(b, i) - lo) / span)))
-                .collect()
+            let colour = |v: f64| rgba(r.gradient.at((v - lo) / span));
+            match r.column {
+                // The terrain found once for the node (a point without one: at its level).
+                Column::AboveGround(id) => {
+                    let g = crate::ground::get(id);
+                    (b.positions[..n].iter())
+                        .map(|p| {
+                            let h = g.as_ref().and_then(|g| g.height(p[0], p[1]));
+                            colour(h.map_or(0.0, |h| p[2] - h))
+                        })
+                        .collect()
+                }
+                c => (0..n).map(|i| colour(c.value(b, i))).collect(),
+            }
         }
     }
 }
@@ -309,6 +320,41 @@ pub fn colours(
 mod tests {
     use super::*;
     use crate::{Attribute, Schema};
+
+    /// A terrain rising 1 a unit of x, none where x < 0.
+    struct Slope;
+    impl crate::ground::GroundHeight for Slope {
+        fn height(&self, x: f64, _: f64) -> Option<f64> {
+            (x >= 0.0).then_some(x)
+        }
+    }
+
+    #[test]
+    fn heights_above_the_ground_through_a_gradient() {
+        let id = crate::ground::register("colour-test", std::sync::Arc::new(Slope));
+        let mut b = PointBatch::with_schema(&Schema::new(vec![]), 0);
+        b.positions = vec![
+            [0.0, 0.0, 0.0],
+            [2.0, 5.0, 7.0],
+            [4.0, 0.0, 4.0],
+            [-1.0, 0.0, 9.0],
+        ];
+        let column = Column::AboveGround(id);
+        let r = Ramp {
+            column,
+            gradient: Gradient::Turbo,
+            range: [0.0, 10.0],
+        };
+        let c = colours(&b, 4, ColorBy::Ramp(r), (0.0, 1.0), 0);
+        let at = |t: f64| {
+            let [r, g, b] = Gradient::Turbo.at(t);
+            [r, g, b, 255]
+        };
+        // 0, 5 and 0 above it; the last has no terrain under it: at the ground's colour.
+        assert_eq!(c, vec![at(0.0), at(0.5), at(0.0), at(0.0)]);
+        assert_eq!(column.value(&b, 1), 5.0);
+        assert!(column.value(&b, 3).is_nan());
+    }
 
     #[test]
     fn colour_schemes() {

@@ -20,6 +20,8 @@ pub enum Column {
     Rgb(usize),
     Nir,
     Extra(Extra),
+    /// Elevation above the terrain registered as this ([`crate::ground`]).
+    AboveGround(u32),
 }
 
 /// Where an extra-bytes dimension lies in a point's extra bytes, and how its value reads.
@@ -127,6 +129,12 @@ impl Column {
             Column::GpsTime => b.gps_time.as_ref().map(|c| c[i]),
             Column::Rgb(k) => b.rgb.as_ref().map(|c| c[i][*k] as f64),
             Column::Nir => b.nir.as_ref().map(|c| c[i] as f64),
+            Column::AboveGround(id) => {
+                let [x, y, z] = b.positions[i];
+                crate::ground::get(*id)
+                    .and_then(|g| g.height(x, y))
+                    .map(|h| z - h)
+            }
             Column::Extra(d) => b.extra_bytes.as_ref().and_then(|e| {
                 let at = i * b.extra_stride + d.offset;
                 extra_value(e.get(at..at + d.data_type.size())?, d)

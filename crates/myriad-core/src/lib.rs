@@ -11,6 +11,7 @@ pub mod colour;
 pub mod column;
 pub mod error;
 pub mod geometry;
+pub mod ground;
 pub mod guard;
 pub mod mesh;
 pub mod pca;

@@ -25,6 +25,10 @@ pub trait Edits: Send + Sync + std::fmt::Debug {
         cube: &Aabb,
         batch: &mut PointBatch,
     ) -> std::result::Result<Option<Vec<bool>>, String>;
+    /// The terrain the edits classify ground by (the last ground edit's), for heights above it.
+    fn ground(&self) -> Option<Arc<dyn myriad_core::ground::GroundHeight>> {
+        None
+    }
 }
 
 /// Finds the edits of the dataset at a path (`None`: it has none); an error names their file.

@@ -566,6 +566,51 @@ impl Dataset {
         self.edits.as_ref()
     }
 
+    /// The column of heights above the terrain the dataset's edits hold (`myriad ground`),
+    /// registered for colouring; `None` where they hold none.
+    pub fn above_ground(&self) -> Option<myriad_core::column::Column> {
+        let g = self.edits.as_ref()?.ground()?;
+        let id = myriad_core::ground::register(&self.path.display().to_string(), g);
+        Some(myriad_core::column::Column::AboveGround(id))
+    }
+
+    /// The colours `--color NAME` asks for (a scheme, or a column through a gradient over a
+    /// range fitted to the overview where none is given: `myriad_core::colour::choose`), and
+    /// `above-ground`: the height above the terrain the dataset's edits hold.
+    pub fn choose_colour(
+        &self,
+        name: &str,
+        gradient: Option<myriad_core::colour::Gradient>,
+        range: Option<[f64; 2]>,
+    ) -> std::result::Result<myriad_core::colour::ColorBy, String> {
+        use myriad_core::colour::{ColorBy, Gradient, Ramp, choose};
+        let n = name.trim().to_ascii_lowercase().replace('-', "_");
+        if !matches!(n.as_str(), "above_ground" | "hag" | "height_above_ground") {
+            return choose(name, gradient, range, &self.meta.schema, || {
+                self.overview().unwrap_or_default()
+            });
+        }
+        let column = self.above_ground().ok_or_else(|| {
+            format!(
+                "--color {name}: {} has no terrain (`myriad ground {}` finds it)",
+                self.path.display(),
+                self.path.display()
+            )
+        })?;
+        let range = match range {
+            Some(r) => r,
+            None => self
+                .overview()
+                .and_then(|o| Ramp::fit(column, &o))
+                .map_or([0.0, 1.0], |[_, hi]| [0.0, hi.max(1e-6)]),
+        };
+        Ok(ColorBy::Ramp(Ramp {
+            column,
+            gradient: gradient.unwrap_or(Gradient::Turbo),
+            range,
+        }))
+    }
+
     /// Sets the edits applied to the nodes read (`None`: the points as stored).
     pub fn set_edits(&mut self, edits: Option<Arc<dyn edits::Edits>>) {
         self.edits = edits;

@@ -35,9 +35,17 @@ async function useEdits(layer, again) {
   const text = JSON.stringify({ myriad: "edits", version: 1, crs: layer.crs, edits: layer.edits,
     undone: layer.undone });
   const surfaces = new URL(`${editsUrl()}?surface=`, location.href).href;
-  const answers = await Promise.all(decoders.map((w) => call(w, { type: "edits", text, surfaces })));
+  const workers = [selector, ...decoders];
+  const answers = await Promise.all(workers.map((w) => call(w, { type: "edits", text, surfaces })));
   for (const a of answers) if (a.edits.error) throw new Error(a.edits.error);
   editing.layer = layer;
+  // A terrain (`myriad ground`): colour by height above it.
+  const scheme = document.getElementById("scheme");
+  const ground = layer.edits.some((e) => e.ground);
+  if (ground && scheme && ![...scheme.options].some((o) => o.value === "ramp:above_ground")) {
+    scheme.querySelector("optgroup").prepend(new Option("above_ground", "ramp:above_ground"));
+    if (settings.ramp && settings.ramp.name === "above_ground") scheme.value = "ramp:above_ground";
+  }
   editing.applied += 1;
   if (again) reload();
 }

@@ -284,10 +284,10 @@ async function open() {
   }
   for (const r of await Promise.all(ready)) if (r.info && r.info.error) throw new Error(r.info.error);
   ui();
-  if (settings.ramp || settings.where) await applyStyle();
   // The dataset's edits (classes set, points removed) apply to every node decoded, from the
-  // first; a static site has none.
+  // first (and its terrain to colours by height above it); a static site has none.
   if (!SITE) await loadEdits();
+  if (settings.ramp || settings.where) await applyStyle();
   requestSelection();
   // Saved work lives on `myriad serve --edit`; a static site has none.
   if (!SITE) loadWork().catch((e) => error(`saved work: ${e.message || e}`));
@@ -785,7 +785,7 @@ async function applyStyle() {
   const asked = ++styleAsked;
   const r = settings.ramp;
   const ask = { color: r ? r.name : "rgb", where: settings.where,
-    gradient: r ? (r.gradient || (r.name === "z" ? "spectral" : "viridis")) : null, range: r ? r.range : null };
+    gradient: r ? (r.gradient || (r.name === "z" ? "spectral" : r.name === "above_ground" ? "turbo" : "viridis")) : null, range: r ? r.range : null };
   const problem = document.getElementById("style-problem");
   const answer = (await call(selector, { type: "style", style: ask })).style;
   if (asked !== styleAsked) return false;

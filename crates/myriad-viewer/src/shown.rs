@@ -11,7 +11,7 @@
 
 use eframe::egui;
 use myriad_core::Aabb;
-use myriad_core::colour::{Gradient, choose};
+use myriad_core::colour::Gradient;
 use myriad_core::{Column, Schema};
 use myriad_format::Dataset;
 use myriad_lod::Camera;
@@ -106,9 +106,7 @@ pub fn typed_conditions(text: &str, schemas: &[&Schema]) -> Result<Vec<Condition
 /// `name`'s values of `ds` through `gradient`, over the 2nd to 98th percentiles of its overview
 /// (`--color NAME --gradient G`).
 pub fn ramp_over(ds: &Dataset, name: &str, gradient: Gradient) -> Result<ColorBy, String> {
-    choose(name, Some(gradient), None, &ds.meta.schema, || {
-        ds.overview().unwrap_or_default()
-    })
+    ds.choose_colour(name, Some(gradient), None)
 }
 
 impl Layer {
@@ -273,6 +271,10 @@ impl Layers {
                 ui.separator();
                 ui.label("attribute through a gradient");
                 let mut names = vec![("z".to_string(), Column::Axis(2))];
+                // Above the terrain where `myriad ground` found one.
+                if let Some(c) = ds.above_ground() {
+                    names.push(("above_ground".to_string(), c));
+                }
                 names.extend(Column::columns(&ds.meta.schema));
                 for (name, column) in names {
                     let on = matches!(self.colour, ColorBy::Ramp(r) if r.column == column);
@@ -280,6 +282,7 @@ impl Layers {
                         let gradient = match self.colour {
                             ColorBy::Ramp(r) => r.gradient,
                             _ if name == "z" => Gradient::Spectral,
+                            _ if name == "above_ground" => Gradient::Turbo,
                             _ => Gradient::Viridis,
                         };
                         match ramp_over(&ds, &name, gradient) {

@@ -242,10 +242,8 @@ pub fn style(
     {
         return Err(format!("range {lo},{hi}: two numbers, low then high"));
     }
-    let colour = myriad_core::colour::choose(name, gradient, range, &ds.meta.schema, || {
-        ds.overview().unwrap_or_default()
-    })
-    .map_err(|e| e.replace("--color ", "colour "))?;
+    let colour =
+        (ds.choose_colour(name, gradient, range)).map_err(|e| e.replace("--color ", "colour "))?;
     let ramp = match colour {
         ColorBy::Ramp(r) => json!({ "gradient": gradient_name(r.gradient), "range": r.range }),
         _ => Value::Null,

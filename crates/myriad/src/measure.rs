@@ -39,15 +39,16 @@ impl FilterArgs {
 pub struct ColourArgs {
     /// Colour: rgb, intensity, elevation, classification, return, source, level, uniform (one
     /// grey: the shape by shading alone), or any attribute (gps_time, scan_angle,
-    /// point_source_id, an extra-bytes dimension by name) through --gradient
+    /// point_source_id, an extra-bytes dimension by name) through --gradient, or above-ground
+    /// (the height above the terrain `myriad ground` found)
     #[arg(long = "color", default_value = "rgb")]
     pub colour: String,
     /// A gradient for the colour's values: spectral, viridis, turbo, grey [default: viridis;
-    /// spectral for elevation]
+    /// spectral for elevation, turbo above the ground]
     #[arg(long, value_parser = parse_gradient)]
     pub gradient: Option<Gradient>,
     /// The values the gradient spans: LOW,HIGH [default: the 2nd to 98th percentile of the
-    /// overview's]
+    /// overview's; from 0 above the ground]
     #[arg(long, value_parser = myriad_core::units::parse_floats::<2>, allow_hyphen_values = true)]
     pub range: Option<[f64; 2]>,
 }
@@ -74,7 +75,12 @@ impl ColourArgs {
 
     /// [`ColourArgs::choose`] for a dataset, fitted to its overview.
     pub fn for_dataset(&self, ds: &Dataset) -> Result<ColorBy> {
-        self.choose(&ds.meta.schema, || ds.overview().unwrap_or_default())
+        if let Some([lo, hi]) = self.range
+            && !(lo < hi)
+        {
+            bail!("--range {lo},{hi}: the low end must be below the high end");
+        }
+        (ds.choose_colour(&self.colour, self.gradient, self.range)).map_err(|e| anyhow!(e))
     }
 }
 

@@ -321,6 +321,50 @@ fn ground_is_found_in_tiles_without_a_seam() {
     let out = d.join("x.las");
     let got = extracted(&a, &out);
     assert_eq!(extracted(&b, &d.join("y.las")), got, "tiles show no seam");
+    // Coloured by height above the terrain: most of the scene (its ground) at the gradient's low
+    // end, roofs and trees above it; where there is no terrain, one line says so.
+    let png = d.join("hag.png");
+    let mut args = common::render_cpu(s(&b), s(&png), ("320", "240"));
+    args.extend([
+        "--view",
+        "top",
+        "--passes",
+        "none",
+        "--color",
+        "above-ground",
+    ]);
+    ok(&args);
+    let (_, _, img) = decode_png(&png);
+    let turbo = |t: f64| myriad_core::colour::Gradient::Turbo.at(t);
+    let ts: Vec<f64> = (img.chunks(4))
+        .filter(|p| p[..3] != [0, 0, 0])
+        .map(|p| {
+            let d = |k: usize| -> i32 {
+                let c = turbo(k as f64 / 100.0);
+                (0..3).map(|i| (c[i] as i32 - p[i] as i32).abs()).sum()
+            };
+            (0..=100).min_by_key(|&k| d(k)).unwrap() as f64 / 100.0
+        })
+        .collect();
+    let share =
+        |f: &dyn Fn(f64) -> bool| ts.iter().filter(|&&t| f(t)).count() as f64 / ts.len() as f64;
+    assert!(ts.len() > 15_000, "{} pixels", ts.len());
+    assert!(
+        share(&|t| t < 0.1) > 0.4,
+        "{} at the ground",
+        share(&|t| t < 0.1)
+    );
+    assert!(
+        share(&|t| t > 0.3) > 0.03,
+        "{} above it",
+        share(&|t| t > 0.3)
+    );
+    let no_terrain = d.join("c.myr");
+    std::fs::copy(&a, &no_terrain).unwrap();
+    let png = d.join("none.png");
+    let mut args = common::render_cpu(s(&no_terrain), s(&png), ("320", "240"));
+    args.extend(["--color", "above-ground"]);
+    fails(&args, "has no terrain");
     // Records sort by position first: the same points in the same order.
     assert_eq!(got.len(), truth.len());
     let is_ground = |c: i64| c == 2 || c == 11;

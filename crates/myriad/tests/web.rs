@@ -1239,6 +1239,22 @@ fn the_web_viewer_edits_classes_as_the_cli_does() {
         want,
         "the ground edit drawn as extract reads it"
     );
+    // Coloured by height above its terrain (the workers read the surface by ranges).
+    let styled = b
+        .eval(
+            "(async () => { settings.ramp = { name: 'above_ground', gradient: null, range: null }; \
+             return await applyStyle(); })()",
+        )
+        .unwrap();
+    assert_eq!(
+        styled,
+        true,
+        "{}",
+        b.eval("myriad.state.styleProblem").unwrap()
+    );
+    let st = converge(&mut b);
+    assert_eq!(st["style"]["gradient"], "turbo", "{st}");
+    assert_eq!(st["style"]["range"][0], 0.0, "{st}");
 
     // A polygon given class 6 and another's points removed, from the page and by the CLI.
     let bounds = Dataset::open(&myr).unwrap().meta.bounds;

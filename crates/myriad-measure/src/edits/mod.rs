@@ -492,6 +492,11 @@ pub struct Compiled {
 }
 
 impl myriad_format::edits::Edits for Compiled {
+    fn ground(&self) -> Option<Arc<dyn myriad_core::ground::GroundHeight>> {
+        let s = self.edits.iter().rev().find_map(|e| e.surface.clone())?;
+        Some(s)
+    }
+
     fn meets(&self, cube: &Aabb) -> bool {
         self.edits
             .iter()

@@ -346,3 +346,11 @@ impl Surface {
         })
     }
 }
+
+impl myriad_core::ground::GroundHeight for Surface {
+    fn height(&self, x: f64, y: f64) -> Option<f64> {
+        let t = self.tile_of(x, y)?;
+        let cells = self.tile(t).ok()??;
+        Surface::height(self, t, &cells, x, y).map(|h| h.z)
+    }
+}
