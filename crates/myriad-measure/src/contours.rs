@@ -5,12 +5,60 @@
 
 use std::collections::HashMap;
 
+/// Most levels one call draws.
+pub const MAX_LEVELS: f64 = 10_000.0;
+
 /// A contour: its elevation, its vertices in plan, whether it closes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Contour {
     pub elevation: f64,
     pub points: Vec<[f64; 2]>,
     pub closed: bool,
+}
+
+/// The contours every `interval` of the terrain a dataset's ground edit holds (`myriad ground`),
+/// for the viewers' overlay: the surface's height sampled at the centres of a grid of at most
+/// `max_cells` cells over the dataset's extent, then [`contours`]. An error says why there are
+/// none: no terrain, or more than [`MAX_LEVELS`] levels.
+pub fn of_terrain(
+    ds: &myriad_format::Dataset,
+    interval: f64,
+    max_cells: usize,
+) -> Result<Vec<Contour>, String> {
+    if !(interval.is_finite() && interval > 0.0) {
+        return Err(format!("interval {interval}: a positive number"));
+    }
+    let ground = (ds.edits().and_then(|e| e.ground())).ok_or_else(|| {
+        format!(
+            "{}: no terrain (`myriad ground` finds it)",
+            ds.path().display()
+        )
+    })?;
+    let b = ds.meta.bounds;
+    let [w, h, _] = b.size();
+    let cell = (w.max(1e-9) * h.max(1e-9) / max_cells.max(4) as f64).sqrt();
+    let (nx, ny) = (
+        ((w / cell).ceil() as usize).clamp(2, max_cells),
+        ((h / cell).ceil() as usize).clamp(2, max_cells),
+    );
+    let place = |c: f64, r: f64| [b.min[0] + (c + 0.5) * cell, b.min[1] + (r + 0.5) * cell];
+    let mut z = Vec::with_capacity(nx * ny);
+    for r in 0..ny {
+        for c in 0..nx {
+            let [x, y] = place(c as f64, r as f64);
+            z.push(ground.height(x, y).map_or(f32::NAN, |v| v as f32));
+        }
+    }
+    let (lo, hi) = (z.iter().filter(|v| !v.is_nan()))
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if ((hi - lo) as f64 / interval) > MAX_LEVELS {
+        return Err(format!(
+            "interval {interval}: more than {MAX_LEVELS} levels between {lo} and {hi}"
+        ));
+    }
+    Ok(contours(&z, nx, ny, interval, place))
 }
 
 /// The contours of `z` (`nx` x `ny` values, row by row; NaN: none) every `interval` (levels at

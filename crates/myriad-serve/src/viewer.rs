@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 10] = [
+static FILES: [(&str, Asset); 11] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -76,6 +76,10 @@ static FILES: [(&str, Asset); 10] = [
     (
         "edit.js",
         Asset::new(include_bytes!("../viewer/edit.js"), "text/javascript"),
+    ),
+    (
+        "contours.js",
+        Asset::new(include_bytes!("../viewer/contours.js"), "text/javascript"),
     ),
     (
         "myriad_web.wasm",

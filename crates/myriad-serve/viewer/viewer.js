@@ -726,6 +726,7 @@ function ui() {
   profileUi();
   volumeUi();
   editUi();
+  contoursUi();
   navigation();
 }
 
@@ -969,6 +970,8 @@ window.myriad = {
   edit: (polygon, to) => applyEdit(polygon, to),
   undoEdit: () => changeEdits({ undo: true }),
   redoEdit: () => changeEdits({ redo: true }),
+  // The terrain's contours every `interval`: how many lines.
+  contours: (interval) => makeContours(interval),
 };
 
 // WebGPU where the browser has it on a hardware adapter (or `#renderer=webgpu` asks for it),

@@ -185,6 +185,7 @@ function placeLabels() {
   if (cut.length >= 2 && cut.every((q) => q)) {
     lines += `<polyline class="section" points="${cut.map((q) => q.join(",")).join(" ")}" />`;
   }
+  if (typeof contourShapes === "function") lines = contourShapes() + lines;
   if (typeof volumeShapes === "function") lines += volumeShapes();
   if (typeof editShapes === "function") lines += editShapes();
   svg.innerHTML = lines;

@@ -260,6 +260,8 @@ onmessage = async (e) => {
       const n = withName(m.text, (p, len) =>
         withName(m.surfaces, (q, k) => wasm.exports.myr_edits(p, len, q, k)));
       postMessage({ id: m.id, edits: json(n), stats });
+    } else if (m.type === "contours") {
+      postMessage({ id: m.id, contours: json(wasm.exports.myr_contours(m.interval, m.cells)), stats });
     } else if (m.type === "between") {
       postMessage({ id: m.id, text: json(wasm.exports.myr_between(...m.a, ...m.b)), stats });
     } else if (m.type === "point") {

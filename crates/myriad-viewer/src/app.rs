@@ -57,7 +57,13 @@ impl App {
         let (gpu, _) = Gpu::best();
         let raster = Rasterizer::new(&gpu);
         let (layers, extent) = Layers::open(datasets, o.filter, o.colour, o.occlusion)?;
-        let tools = Tools::new(&layers, extent.view, o.work, (o.section, o.volume), o.edits);
+        let tools = Tools::new(
+            &layers,
+            extent.view,
+            o.work,
+            (o.section, o.volume),
+            (o.edits, o.contours),
+        );
         let view = Navigation::new(
             (extent.view, extent.all),
             o.fov,

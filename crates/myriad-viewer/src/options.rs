@@ -57,6 +57,8 @@ pub struct ViewOptions {
     pub volume: Option<VolumeAsked>,
     /// The dataset the edit tool edits, and the edits to make on opening.
     pub edits: Option<crate::tools::edit::EditsAsked>,
+    /// Contours of the terrain every this much, shown on opening.
+    pub contours: Option<f64>,
 }
 
 /// A section asked for on the command line: the line in plan and the width.

@@ -248,7 +248,10 @@ impl Layers {
         let before = self.colour;
         egui::ComboBox::from_label("colour")
             .selected_text(match self.colour {
-                ColorBy::Ramp(r) => format!("{:?} ramp", r.column),
+                ColorBy::Ramp(r) => match r.column {
+                    Column::AboveGround(_) => "above ground ramp".to_string(),
+                    c => format!("{c:?} ramp"),
+                },
                 c => format!("{c:?}"),
             })
             .show_ui(ui, |ui| {

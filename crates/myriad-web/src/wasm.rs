@@ -337,6 +337,27 @@ pub unsafe extern "C" fn myr_edits(
     }
 }
 
+/// The contours every `interval` of the terrain the dataset's edits hold (after [`myr_edits`]),
+/// sampled on a grid of at most `cells` cells: `{"lines": [{"z", "closed", "points": [x, y,
+/// ...]}]}`, or an error saying why there are none.
+#[unsafe(no_mangle)]
+pub extern "C" fn myr_contours(interval: f64, cells: u32) -> u32 {
+    let r = with_dataset(|ds| myriad_measure::contours::of_terrain(ds, interval, cells as usize));
+    match r {
+        Some(Ok(lines)) => {
+            let lines: Vec<Value> = (lines.iter())
+                .map(|c| {
+                    let pts: Vec<f64> = c.points.iter().flatten().copied().collect();
+                    json!({ "z": c.elevation, "closed": c.closed, "points": pts })
+                })
+                .collect();
+            answer_json(json!({ "lines": lines }))
+        }
+        Some(Err(m)) => error(m),
+        None => error("no dataset open"),
+    }
+}
+
 /// Opens the dataset of `len` bytes for selecting (the selection worker): its information.
 #[unsafe(no_mangle)]
 pub extern "C" fn myr_open(len: f64, name_ptr: *const u8, name_len: u32) -> u32 {

@@ -81,6 +81,10 @@ pub struct ViewArgs {
     /// Then undo this many of its edits (as Ctrl+Z does)
     #[arg(help_heading = "Tools", long, default_value_t = 0)]
     undo_edits: u32,
+    /// Open with the contours of the terrain `myriad ground` found, every INTERVAL (the panel's
+    /// "contours every"); their count is printed
+    #[arg(help_heading = "Tools", long, value_name = "INTERVAL")]
+    contours: Option<f64>,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -211,6 +215,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
         volume: volume_asked(&a, &datasets)?,
         section: section_asked(&a, &datasets)?,
         edits: Some(edits_asked(&a, &datasets)?),
+        contours: match a.contours {
+            Some(i) if !(i.is_finite() && i > 0.0) => bail!("--contours {i}: a positive interval"),
+            c => c,
+        },
         width: a.width,
         height: a.height,
         camera: a.camera.map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]])),

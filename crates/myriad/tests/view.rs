@@ -627,6 +627,10 @@ fn the_viewer_edits_classes_as_the_cli_does() {
     common::ok(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
     std::fs::copy(&ds, &copy).unwrap();
     let before = std::fs::read(&ds).unwrap();
+    // A terrain for the contours (its edit the first of each).
+    for d in [&ds, &copy] {
+        common::ok(&["ground", d.to_str().unwrap(), "--no-count"]);
+    }
     let r0 = common::records(&las);
     assert!(r0.iter().all(|r| r[5] != 9), "no water in the scene");
     let (lo, hi) = r0
@@ -667,6 +671,8 @@ fn the_viewer_edits_classes_as_the_cli_does() {
         &format!("{p3}=17"),
         "--undo-edits",
         "1",
+        "--contours",
+        "2",
         "--screenshot",
         png.to_str().unwrap(),
         "--exit-after-converged",
@@ -674,9 +680,15 @@ fn the_viewer_edits_classes_as_the_cli_does() {
         return;
     };
     assert!(ok, "{stdout}\n{stderr}");
-    for said in ["edit 1: ", "edit 2: ", "edit 3: ", "undone: "] {
+    for said in ["edit 2: ", "edit 3: ", "edit 4: ", "undone: ", "contours: "] {
         assert!(stdout.contains(said), "{said} in {stdout}");
     }
+    let lines: usize = (stdout.split("contours: ").nth(1).unwrap().split(' '))
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(lines > 0, "{stdout}");
     common::ok(&[
         "classify",
         copy.to_str().unwrap(),
@@ -706,6 +718,11 @@ fn the_viewer_edits_classes_as_the_cli_does() {
     let (_, _, img) = decode_png(&png);
     let shown = img.chunks(4).filter(|p| p[..3] == class_colour(9)).count();
     assert!(shown > 5_000, "{shown} pixels of water drawn");
+    let near = |p: &[u8], c: [u8; 3]| (0..3).all(|i| (p[i] as i32 - c[i] as i32).abs() <= 12);
+    let contour = (img.chunks(4))
+        .filter(|p| near(p, [230, 170, 90]) || near(p, [255, 225, 150]))
+        .count();
+    assert!(contour > 30, "{contour} pixels of contours drawn");
     assert_eq!(std::fs::read(&ds).unwrap(), before, "the dataset untouched");
     let _ = std::fs::remove_dir_all(&d);
 }

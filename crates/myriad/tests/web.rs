@@ -1255,6 +1255,22 @@ fn the_web_viewer_edits_classes_as_the_cli_does() {
     let st = converge(&mut b);
     assert_eq!(st["style"]["gradient"], "turbo", "{st}");
     assert_eq!(st["style"]["range"][0], 0.0, "{st}");
+    // The terrain's contours over the view, as the CLI's lines from the same terrain.
+    let lines = b.eval("myriad.contours(2)").unwrap().as_u64().unwrap();
+    assert!(lines > 0, "{lines} contour lines");
+    b.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        .unwrap();
+    let drawn_lines = b
+        .eval("document.querySelectorAll('#labels polyline.contour').length")
+        .unwrap();
+    assert!(drawn_lines.as_u64().unwrap() > 0, "{drawn_lines} drawn");
+    let zs = b
+        .eval("[...new Set(myriad.state.contours.lines.map((c) => c.z))]")
+        .unwrap();
+    assert!(
+        (zs.as_array().unwrap().iter()).all(|z| (z.as_f64().unwrap() / 2.0).fract() == 0.0),
+        "levels at multiples of 2: {zs}"
+    );
 
     // A polygon given class 6 and another's points removed, from the page and by the CLI.
     let bounds = Dataset::open(&myr).unwrap().meta.bounds;

@@ -1,12 +1,14 @@
 //! The tools over the view, each a value of its own in its own file: measuring (`measure.rs`),
 //! annotating and the saved work (`annotate.rs`), the profile of a section line
 //! (`profile.rs`), the volume over a polygon (`volume.rs`), editing classes (`edit.rs`), the
-//! clipping box (`clip.rs`) and picking a point (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
+//! terrain's contours (`contours.rs`), the clipping box (`clip.rs`) and picking a point
+//! (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
 //! takes clicks at a time), the clicks they take, their parts of the panel, and what they draw
 //! over the view.
 
 pub(crate) mod annotate;
 pub(crate) mod clip;
+pub(crate) mod contours;
 pub(crate) mod edit;
 pub(crate) mod measure;
 pub(crate) mod pick;
@@ -30,6 +32,7 @@ pub(crate) struct Tools {
     pub profile: profile::Section,
     pub volume: volume::Volumes,
     pub edit: edit::Editing,
+    pub contours: contours::Contours,
     pub clip: clip::Clip,
     pub pick: pick::Picking,
 }
@@ -51,7 +54,7 @@ impl Tools {
         bounds: Aabb,
         work: Option<PathBuf>,
         (section, volume): (Option<SectionAsked>, Option<VolumeAsked>),
-        edits: Option<edit::EditsAsked>,
+        (edits, contours): (Option<edit::EditsAsked>, Option<f64>),
     ) -> Tools {
         let crs = layers.crs();
         let crs = crs.as_deref();
@@ -62,6 +65,7 @@ impl Tools {
             profile: profile::Section::first(layers, crs, section),
             volume: volume::Volumes::new(units, volume),
             edit: edit::Editing::new(edits),
+            contours: contours::Contours::new(contours),
             clip: clip::Clip::new(bounds),
             pick: pick::Picking::new(crs),
             annotate,
@@ -72,6 +76,7 @@ impl Tools {
     /// over `bounds` (the data's extent).
     pub fn start(&mut self, bounds: &Aabb, layers: &mut Layers) {
         self.edit.start(layers);
+        self.contours.start(layers);
         self.profile.start(bounds, layers);
         self.volume.start(bounds, layers);
     }
@@ -227,6 +232,7 @@ impl Tools {
             self.stop();
             self.edit.drawing = true;
         }
+        self.contours.panel(ui, layers);
         ui.separator();
         let clip = self.clip.panel(ui);
         Asked { go, clip }
@@ -246,6 +252,7 @@ impl Tools {
             let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
             Some(rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp))
         };
+        self.contours.draw(painter, &screen);
         self.clip.draw(painter, &screen);
         self.measure.draw(painter, &screen);
         self.annotate.draw(painter, &screen);
@@ -261,11 +268,12 @@ impl Tools {
         let filter = layers.filter();
         self.profile.window(ctx, ds.as_deref(), &filter);
         self.volume.take();
+        self.contours.take();
     }
 
     /// No profile being cut, no volume being measured.
     pub fn settled(&self) -> bool {
-        self.profile.settled() && self.volume.settled()
+        self.profile.settled() && self.volume.settled() && self.contours.settled()
     }
 
     /// The complete measurements taken into the saved work, written once it has settled.
