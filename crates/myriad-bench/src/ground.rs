@@ -34,6 +34,8 @@ pub struct GroundBenchArgs {
     scalar: f64,
     #[arg(long, default_value_t = 1.0)]
     low: f64,
+    #[arg(long, default_value_t = 2)]
+    isolated: usize,
     /// Classes left out of the comparison (a provider's classes that say nothing of the
     /// ground, such as overlap)
     #[arg(long)]
@@ -129,7 +131,10 @@ pub fn errors(
                         e.ground_sq += (p[2] - h.z) * (p[2] - h.z);
                         e.ground_on += 1;
                     }
-                    rule.class(c, p[2] - h.z, h.slope).unwrap_or(c)
+                    match surface.is_isolated(p[0], p[1], p[2]) {
+                        true => 7,
+                        false => rule.class(c, p[2] - h.z, h.slope).unwrap_or(c),
+                    }
                 }
             };
             let called = ground_classes.contains(&called);
@@ -156,6 +161,7 @@ pub fn run(a: GroundBenchArgs) -> Result<()> {
         threshold: a.threshold,
         scalar: a.scalar,
         low: a.low,
+        isolated: a.isolated,
     };
     let ignore = match &a.ignore {
         Some(c) => myriad_measure::Filter::parse_classes(c).map_err(|m| anyhow!(m))?,
@@ -200,7 +206,7 @@ pub fn run(a: GroundBenchArgs) -> Result<()> {
         // The peak resident memory counts from here (Linux: "5" to clear_refs resets it).
         let _ = std::fs::write("/proc/self/clear_refs", "5");
         let t = std::time::Instant::now();
-        ground::build(&ds, &p, a.tile, &out, &|_, _| {})?;
+        ground::build(&ds, &p, a.isolated, a.tile, &out, &|_, _| {})?;
         let seconds = t.elapsed().as_secs_f64();
         let peak = myriad_io::process::peak_rss_bytes().unwrap_or(0);
         let e = errors(&ds, &Surface::open(&out)?, &rule, &ignore, &ground_classes)?;

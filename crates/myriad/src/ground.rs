@@ -1,6 +1,7 @@
 //! `myriad ground DATASET`: the terrain under a dataset found out of core (SMRF in tiles with
 //! overlap, `myriad_measure::ground`), kept beside it as a surface and an edit that classifies
-//! its points against it: ground (2), low noise (7), and not ground (1) for points labelled 2.
+//! its points against it: ground (2), low or isolated noise (7), and not ground (1) for points
+//! labelled 2.
 
 use anyhow::{Result, anyhow, bail};
 use clap::Args;
@@ -42,6 +43,10 @@ pub struct GroundArgs {
     /// this much below its neighbours' closing is left out of the terrain
     #[arg(long, default_value_t = 1.0)]
     low: f64,
+    /// A point with fewer than this many others in the 3 x 3 x 3 cubes of a cell around it is
+    /// isolated noise (class 7); 0: none looked for
+    #[arg(long, default_value_t = 2)]
+    isolated: usize,
     /// Memory for the tiles in flight (the points are read page by page)
     #[arg(long, value_parser = myriad_build::convert::parse_size, default_value = "1GB")]
     memory: u64,
@@ -90,6 +95,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
         threshold: a.threshold,
         scalar: a.scalar,
         low: a.low,
+        isolated: a.isolated,
     };
     let dataset = crate::classify::edited_dataset(&a.dataset)?;
     let sidecar = edits::sidecar_for(&dataset);
@@ -118,7 +124,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
     let surface = free_name(&dataset);
     let t = std::time::Instant::now();
     let bar = crate::progress::Bar::new();
-    let made = ground::build(&ds, &p, tile, &surface, &|_, _| {});
+    let made = ground::build(&ds, &p, a.isolated, tile, &surface, &|_, _| {});
     bar.clear();
     let made = made?;
     let seconds = t.elapsed().as_secs_f64();
@@ -170,7 +176,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
         .map_err(anyhow::Error::msg)?;
         let all: u64 = counts.iter().sum();
         println!(
-            "{} points: {} ground (class 2, {:.1} %), {} low noise (class 7)",
+            "{} points: {} ground (class 2, {:.1} %), {} noise (class 7: low or isolated)",
             thousands(all),
             thousands(counts[2]),
             100.0 * counts[2] as f64 / all.max(1) as f64,

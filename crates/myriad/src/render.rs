@@ -204,8 +204,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         gpu.name,
         raster.path,
     );
-    // Every selected point drawn, but those of damaged pages.
-    debug_assert!(damaged > 0 || stats.points == still.selected_points);
+    // Every selected point drawn, but those of damaged pages (and those its edits remove).
+    debug_assert!(damaged > 0 || stats.points == still.selected_points || ds.edits().is_some());
     full_image_whole(&a, damaged)
 }
 

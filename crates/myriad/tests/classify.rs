@@ -621,3 +621,62 @@ fn edits_from_the_server_are_kept_and_lose_nothing() {
         "the scan and dataset untouched"
     );
 }
+
+/// `ground` finds isolated points (fewer than `--isolated` others in the cubes of a cell around
+/// them) and makes them noise, class 7, as it does low points; a small cluster in the air is not
+/// isolated, nor is the ground; `--isolated 0` finds none.
+#[test]
+fn isolated_points_are_noise() {
+    let d = tempdir("isolated");
+    let xyz = d.join("plane.xyz");
+    let mut text = String::from("x y z classification\n");
+    for i in 0..200 {
+        for j in 0..200 {
+            let z = 0.02 * ((i * 7 + j * 13) % 5) as f64;
+            text += &format!("{} {} {z} 1\n", i as f64 * 0.5, j as f64 * 0.5);
+        }
+    }
+    let lonely = [[20.0, 20.0, 20.0], [60.0, 35.0, 35.0], [80.0, 80.0, 50.0]];
+    for p in lonely {
+        text += &format!("{} {} {} 1\n", p[0], p[1], p[2]);
+    }
+    for k in 0..10 {
+        text += &format!("{} 50 30 1\n", 40.0 + 0.1 * k as f64);
+    }
+    std::fs::write(&xyz, text).unwrap();
+    let classes = |ds: &Path| -> Vec<([f64; 3], u8)> {
+        let out = d.join("out.las");
+        ok(&["extract", s(ds), "-o", s(&out), "--force"]);
+        let mut src = myriad_io::open(&out, &myriad_io::OpenOptions::default()).unwrap();
+        let mut all = Vec::new();
+        while let Some(b) = src.read_batch(myriad_io::DEFAULT_BATCH).unwrap() {
+            let c = b.classification.clone().unwrap();
+            all.extend(b.positions.iter().copied().zip(c));
+        }
+        all
+    };
+    for (name, isolated, found) in [("a.myr", "2", 3), ("b.myr", "0", 0)] {
+        let ds = d.join(name);
+        ok(&["convert", s(&xyz), "-o", s(&ds)]);
+        let said = ok(&["ground", s(&ds), "--isolated", isolated]);
+        assert!(said.contains("noise (class 7"), "{said}");
+        let got = classes(&ds);
+        assert_eq!(got.len(), 40_013);
+        let noise: Vec<[f64; 3]> = (got.iter().filter(|(_, c)| *c == 7))
+            .map(|(p, _)| *p)
+            .collect();
+        assert_eq!(noise.len(), found, "{noise:?}");
+        for p in &noise {
+            assert!(
+                lonely
+                    .iter()
+                    .any(|q| (0..3).all(|a| (p[a] - q[a]).abs() < 0.01)),
+                "{p:?}"
+            );
+        }
+        let ground = got.iter().filter(|(p, c)| *c == 2 && p[2] < 1.0).count();
+        assert!(ground > 39_000, "{ground} of the plane's 40,000 ground");
+        let cluster = got.iter().filter(|(p, c)| p[2] == 30.0 && *c == 1).count();
+        assert_eq!(cluster, 10, "the cluster in the air is not isolated");
+    }
+}

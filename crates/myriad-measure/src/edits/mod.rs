@@ -563,6 +563,10 @@ fn ground(
         };
         for &(_, i) in run {
             let [x, y, z] = b.positions[i];
+            if surface.is_isolated(x, y, z) {
+                classes[i] = 7;
+                continue;
+            }
             if let Some(h) = surface.height(t, &cells, x, y)
                 && let Some(c) = rule.class(classes[i], z - h.z, h.slope)
             {

@@ -67,6 +67,9 @@ pub struct Options {
     pub threshold: f64,
     pub scalar: f64,
     pub low: f64,
+    /// A point with fewer than this many others in the 3 x 3 x 3 cubes of a cell around it is
+    /// isolated noise (class 7); 0: none looked for.
+    pub isolated: usize,
 }
 
 impl Default for Options {
@@ -80,6 +83,7 @@ impl Default for Options {
             threshold: 0.5,
             scalar: 1.25,
             low: 1.0,
+            isolated: 2,
         }
     }
 }
@@ -138,7 +142,7 @@ pub fn not_noise(schema: &myriad_core::Schema) -> Result<crate::Bound, String> {
 #[cfg(not(target_arch = "wasm32"))]
 mod build {
     use super::smrf::{self, Grid, Params};
-    use super::surface::{Placement, SurfaceWriter};
+    use super::surface::{Isolated, MAX_ISOLATED, Placement, SurfaceWriter, voxel_key};
     use myriad_core::{Aabb, Error, Result};
     use myriad_format::Dataset;
     use rayon::prelude::*;
@@ -149,8 +153,66 @@ mod build {
     const MAX_SIDE: f64 = (1u64 << 24) as f64;
     /// Most tiles of a surface (its index stays a few megabytes).
     const MAX_TILES: usize = 100_000;
-    /// Bytes of memory a cell of a tile in flight takes (the filter's grids).
-    pub const BYTES_PER_CELL: u64 = 40;
+    /// Bytes of memory a cell of a tile in flight takes: the filter's grids, and the voxel keys
+    /// of its points (8 bytes each, some 8 points a cell at the default cell of 2.5 spacings).
+    pub const BYTES_PER_CELL: u64 = 104;
+
+    /// The voxels of a tile's core (`cx`, `cy`, `w`, `h`, in cells) whose points have fewer than
+    /// `least` others in the 27 voxels around them; `keys`: a voxel key a point of the tile and
+    /// its margin.
+    fn lonely_voxels(
+        mut keys: Vec<u64>,
+        least: usize,
+        (cx, cy, w, h): (usize, usize, usize, usize),
+    ) -> Vec<u64> {
+        keys.sort_unstable();
+        let mut runs: Vec<(u64, u32)> = Vec::new();
+        for k in keys {
+            match runs.last_mut() {
+                Some((last, n)) if *last == k => *n += 1,
+                _ => runs.push((k, 1)),
+            }
+        }
+        let count = |k: u64| {
+            runs.binary_search_by_key(&k, |r| r.0)
+                .map_or(0, |i| runs[i].1)
+        };
+        let split = |k: u64| {
+            (
+                (k >> 40) as i64,
+                (k >> 16 & 0xff_ffff) as i64,
+                (k & 0xffff) as i64,
+            )
+        };
+        let mut out = Vec::new();
+        for &(k, n) in &runs {
+            let (i, j, z) = split(k);
+            let core = (i as usize) >= cx && (i as usize) < cx + w;
+            if !core || (j as usize) < cy || (j as usize) >= cy + h || n as usize > least {
+                continue;
+            }
+            let mut others = n as usize - 1;
+            'around: for di in -1..=1 {
+                for dj in -1..=1 {
+                    for dz in -1..=1 {
+                        let (a, b, c) = (i + di, j + dj, z + dz);
+                        if (di, dj, dz) == (0, 0, 0) || a < 0 || b < 0 || !(0..=0xffff).contains(&c)
+                        {
+                            continue;
+                        }
+                        others += count(voxel_key(a as u64, b as u64, c as u64)) as usize;
+                        if others >= least {
+                            break 'around;
+                        }
+                    }
+                }
+            }
+            if others < least {
+                out.push(k);
+            }
+        }
+        out
+    }
 
     /// What [`build`] made.
     #[derive(Debug, Clone, Copy, PartialEq)]
@@ -181,10 +243,13 @@ mod build {
     }
 
     /// Makes the terrain under `ds` with `p` in tiles of `tile` cells (a side) and writes it to
-    /// `out` (which must not exist). `progress` is told each tile done.
+    /// `out` (which must not exist), with the voxels (cubes of a cell) whose points have fewer
+    /// than `isolated` others in the 27 around them (none where 0). `progress` is told each tile
+    /// done.
     pub fn build(
         ds: &Dataset,
         p: &Params,
+        isolated: usize,
         tile: usize,
         out: &Path,
         progress: &(dyn Fn(usize, usize) + Sync),
@@ -234,6 +299,15 @@ mod build {
         let m = smrf::margin(p);
         let done = AtomicU64::new(0);
         let read = AtomicU64::new(0);
+        let lonely = std::sync::Mutex::new(Vec::new());
+        let voxel = |q: &[f64; 3]| {
+            let (i, j) = (
+                (q[0] - placement.x0) / p.cell,
+                (q[1] - placement.y0) / p.cell,
+            );
+            let k = ((q[2] - b.min[2]) / p.cell).clamp(0.0, 65535.0);
+            voxel_key(i as u64, j as u64, k as u64)
+        };
         (0..tx * ty)
             .into_par_iter()
             .try_for_each(|t| -> Result<()> {
@@ -260,11 +334,15 @@ mod build {
                     ],
                 );
                 let mut zmin = Grid::empty(gw, gh);
+                let mut keys = Vec::new();
                 let got = crate::read_region(ds, &area, &bound, |batch| {
                     for q in &batch.positions {
                         let gx = ((q[0] - placement.x0) / p.cell).floor() as isize - ex;
                         let gy = ((q[1] - placement.y0) / p.cell).floor() as isize - ey;
                         if gx >= 0 && gy >= 0 && (gx as usize) < gw && (gy as usize) < gh {
+                            if isolated > 0 {
+                                keys.push(voxel(q));
+                            }
                             let c = &mut zmin.z[gy as usize * gw + gx as usize];
                             let z = q[2] as f32;
                             if c.is_nan() || z < *c {
@@ -275,6 +353,10 @@ mod build {
                 })
                 .map_err(Error::Invalid)?;
                 read.fetch_add(got.points, Ordering::Relaxed);
+                if isolated > 0 {
+                    let found = lonely_voxels(keys, isolated, (cx, cy, w, h));
+                    lonely.lock().expect("isolated voxels").extend(found);
+                }
                 let (terrain, _) = smrf::terrain(&zmin, p);
                 writer.write_tile(t % tx, t / tx, |x, y| {
                     let (gx, gy) = ((x - ex) as usize, (y - ey) as usize);
@@ -283,6 +365,19 @@ mod build {
                 progress(done.fetch_add(1, Ordering::Relaxed) as usize + 1, tx * ty);
                 Ok(())
             })?;
+        if isolated > 0 {
+            let mut keys = lonely.into_inner().expect("isolated voxels");
+            if keys.len() > MAX_ISOLATED {
+                return Err(Error::Invalid(format!(
+                    "{name}: {} isolated cubes of {}: more than {MAX_ISOLATED} (a smaller \
+                     --isolated, or 0)",
+                    keys.len(),
+                    p.cell
+                )));
+            }
+            keys.sort_unstable();
+            writer.set_isolated(Isolated { z0: b.min[2], keys });
+        }
         let bytes = writer.finish()?;
         Ok(Made {
             placement,

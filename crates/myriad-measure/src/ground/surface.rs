@@ -3,8 +3,9 @@
 //! and slope read one tile), zstd-compressed with a CRC-32, an index and the grid's placement in
 //! JSON at the end. Readers decompress the tiles the points they are given fall in, a few kept.
 //!
-//! Bytes: `MYRSURF1`, the tiles, the JSON, then its offset (u64 LE), its length (u32 LE) and
-//! `MYRSURF1` again.
+//! Bytes: `MYRSURF1`, the tiles, the isolated voxels (where the terrain was made with them: the
+//! sorted keys of the cubes, a cell a side, whose points have too few neighbours, zstd-compressed,
+//! u64 LE each), the JSON, then its offset (u64 LE), its length (u32 LE) and `MYRSURF1` again.
 
 use myriad_core::{Error, Result};
 use myriad_format::ByteSource;
@@ -28,6 +29,21 @@ const MAX_CELLS: u64 = 1 << 24;
 pub const MAX_TILE: usize = 4096;
 /// Surfaces up to this size have every tile's checksum checked when they are opened.
 const CHECK_WHOLE: u64 = 256 << 20;
+/// Most isolated voxels a surface keeps (64 MB of keys).
+pub const MAX_ISOLATED: usize = 8 << 20;
+
+/// The key of voxel (i, j, k): 24, 24 and 16 bits.
+pub fn voxel_key(i: u64, j: u64, k: u64) -> u64 {
+    (i & 0xff_ffff) << 40 | (j & 0xff_ffff) << 16 | (k & 0xffff)
+}
+
+/// The voxels (cubes of the grid's cell from its corner and `z0`) whose points are isolated
+/// noise, their keys sorted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Isolated {
+    pub z0: f64,
+    pub keys: Vec<u64>,
+}
 
 /// Where a grid lies: its lower-left corner, its cell, its size in cells, its tiles' side.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,6 +75,7 @@ pub struct SurfaceWriter {
     path: PathBuf,
     out: Mutex<(BufWriter<File>, u64)>,
     index: Mutex<Vec<Option<(u64, u32, u32)>>>,
+    isolated: Mutex<Option<Isolated>>,
     pub placement: Placement,
 }
 
@@ -74,6 +91,7 @@ impl SurfaceWriter {
             path: path.to_path_buf(),
             out: Mutex::new((w, MAGIC.len() as u64)),
             index: Mutex::new(vec![None; tx * ty]),
+            isolated: Mutex::new(None),
             placement,
         })
     }
@@ -109,20 +127,38 @@ impl SurfaceWriter {
         Ok(())
     }
 
-    /// Writes the index and gives the file its name.
+    /// The isolated voxels, written with the index.
+    pub fn set_isolated(&self, i: Isolated) {
+        *self.isolated.lock().expect("surface writer") = Some(i);
+    }
+
+    /// Writes the isolated voxels and the index, and gives the file its name.
     pub fn finish(self) -> Result<u64> {
         let p = self.placement;
         let index = self.index.into_inner().expect("surface index");
-        let (mut w, at) = self.out.into_inner().expect("surface writer");
+        let (mut w, mut at) = self.out.into_inner().expect("surface writer");
+        let io = |e| Error::io(&self.path, e);
+        let isolated = match self.isolated.into_inner().expect("surface writer") {
+            None => Value::Null,
+            Some(iso) => {
+                let raw: Vec<u8> = iso.keys.iter().flat_map(|k| k.to_le_bytes()).collect();
+                let packed = zstd::bulk::compress(&raw, 3).map_err(io)?;
+                w.write_all(&packed).map_err(io)?;
+                let block = json!({ "z0": iso.z0, "count": iso.keys.len(),
+                    "at": [at, packed.len(), crc32fast::hash(&packed)] });
+                at += packed.len() as u64;
+                block
+            }
+        };
         let meta = json!({
             "x0": p.x0, "y0": p.y0, "cell": p.cell, "nx": p.nx, "ny": p.ny, "tile": p.tile,
             "tiles": index.iter().map(|t| match t {
                 Some((o, l, c)) => json!([o, l, c]),
                 None => Value::Null,
             }).collect::<Vec<_>>(),
+            "isolated": isolated,
         })
         .to_string();
-        let io = |e| Error::io(&self.path, e);
         w.write_all(meta.as_bytes()).map_err(io)?;
         w.write_all(&at.to_le_bytes()).map_err(io)?;
         w.write_all(&(meta.len() as u32).to_le_bytes())
@@ -144,6 +180,8 @@ pub struct Surface {
     pub placement: Placement,
     tiles: Vec<Option<(u64, u32, u32)>>,
     cache: Mutex<Vec<(usize, Arc<Vec<f32>>)>>,
+    /// The isolated voxels, where the terrain was made with them.
+    pub isolated: Option<Isolated>,
 }
 
 impl std::fmt::Debug for Surface {
@@ -250,13 +288,66 @@ impl Surface {
                 }
             }
         }
+        let isolated = match &v["isolated"] {
+            Value::Null => None,
+            iso => {
+                let (z0, count) = (iso["z0"].as_f64(), iso["count"].as_u64());
+                let block = (
+                    iso["at"][0].as_u64(),
+                    iso["at"][1].as_u64(),
+                    iso["at"][2].as_u64(),
+                );
+                let (Some(z0), Some(count), (Some(o), Some(l), Some(c))) = (z0, count, block)
+                else {
+                    return Err(bad(at, "its index's isolated voxels lack their place"));
+                };
+                if count as usize > MAX_ISOLATED || o.checked_add(l).is_none_or(|e| e > at) {
+                    return Err(bad(
+                        at,
+                        "its index places the isolated voxels outside the file",
+                    ));
+                }
+                let packed = read(o, l as usize)?;
+                if crc32fast::hash(&packed) != c as u32 {
+                    return Err(bad(o, "isolated voxels: checksum mismatch"));
+                }
+                let raw = myriad_format::decompress_zstd(&packed, count as usize * 8)
+                    .map_err(|m| bad(o, &format!("isolated voxels: {m}")))?;
+                if raw.len() != count as usize * 8 {
+                    return Err(bad(o, "isolated voxels: another number of them"));
+                }
+                let keys = (raw.chunks_exact(8))
+                    .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+                    .collect();
+                Some(Isolated { z0, keys })
+            }
+        };
         Ok(Surface {
+            isolated,
             name: name.to_string(),
             source,
             placement,
             tiles,
             cache: Mutex::new(Vec::new()),
         })
+    }
+
+    /// Whether a point lies in an isolated voxel.
+    pub fn is_isolated(&self, x: f64, y: f64, z: f64) -> bool {
+        let Some(iso) = &self.isolated else {
+            return false;
+        };
+        let p = &self.placement;
+        let (i, j, k) = (
+            (x - p.x0) / p.cell,
+            (y - p.y0) / p.cell,
+            (z - iso.z0) / p.cell,
+        );
+        if !(i >= 0.0 && j >= 0.0 && k >= 0.0) {
+            return false;
+        }
+        let key = voxel_key(i as u64, j as u64, (k as u64).min(0xffff));
+        iso.keys.binary_search(&key).is_ok()
     }
 
     /// The tile a point lies in (`None`: outside the grid).
