@@ -247,7 +247,8 @@ pub fn cloud(data: &[u8]) {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// An edits file (`NAME.edits.json`, first byte even) or a ground surface (odd): parsed, bound to
+/// An edits file (`NAME.edits.json`, first byte even; also read as a viewer's change) or a ground
+/// surface (odd; its isolated cubes looked up too): parsed, bound to
 /// a schema with classes and intensity and applied to a few points (an edits file), or opened
 /// and read at points across its grid (a surface); an edits file that parses writes back to
 /// the same layer.
@@ -272,12 +273,16 @@ pub fn edits(data: &[u8]) {
                 {
                     assert!(!h.z.is_nan() && h.slope >= 0.0);
                 }
+                // Isolated cubes: a lookup anywhere, inside the grid or not.
+                let _ = s.is_isolated(x, y, p.cell * i as f64);
             }
         }
         let _ = std::fs::remove_dir_all(&d);
         return;
     }
     let Ok(text) = std::str::from_utf8(rest) else { return };
+    // A viewer's change (`serve --edit`'s POST body): one line of error or a change.
+    let _ = myriad_measure::edits::Change::parse(text);
     let Ok(layer) = myriad_measure::edits::Layer::parse(text) else { return };
     assert_eq!(
         myriad_measure::edits::Layer::parse(&layer.to_json()).as_ref(),
