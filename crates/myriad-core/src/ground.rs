@@ -12,6 +12,15 @@ pub trait GroundHeight: Send + Sync {
     fn height(&self, x: f64, y: f64) -> Option<f64>;
 }
 
+/// No terrain: what a key holds once its dataset's terrain is gone (its ground edit undone).
+pub struct NoGround;
+
+impl GroundHeight for NoGround {
+    fn height(&self, _: f64, _: f64) -> Option<f64> {
+        None
+    }
+}
+
 type Registered = Vec<(String, Arc<dyn GroundHeight>)>;
 
 fn grounds() -> &'static Mutex<Registered> {

@@ -567,11 +567,20 @@ impl Dataset {
     }
 
     /// The column of heights above the terrain the dataset's edits hold (`myriad ground`),
-    /// registered for colouring; `None` where they hold none.
+    /// registered for colouring under the dataset's path; `None` where they hold none (and the
+    /// path's terrain registered before, if any, is forgotten: colours made over it say none).
     pub fn above_ground(&self) -> Option<myriad_core::column::Column> {
-        let g = self.edits.as_ref()?.ground()?;
-        let id = myriad_core::ground::register(&self.path.display().to_string(), g);
-        Some(myriad_core::column::Column::AboveGround(id))
+        let key = self.path.display().to_string();
+        match self.edits.as_ref().and_then(|e| e.ground()) {
+            Some(g) => {
+                let id = myriad_core::ground::register(&key, g);
+                Some(myriad_core::column::Column::AboveGround(id))
+            }
+            None => {
+                myriad_core::ground::register(&key, Arc::new(myriad_core::ground::NoGround));
+                None
+            }
+        }
     }
 
     /// The colours `--color NAME` asks for (a scheme, or a column through a gradient over a

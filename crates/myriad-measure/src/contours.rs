@@ -37,9 +37,10 @@ pub fn of_terrain(
     let b = ds.meta.bounds;
     let [w, h, _] = b.size();
     let cell = (w.max(1e-9) * h.max(1e-9) / max_cells.max(4) as f64).sqrt();
+    let most = max_cells.max(4);
     let (nx, ny) = (
-        ((w / cell).ceil() as usize).clamp(2, max_cells),
-        ((h / cell).ceil() as usize).clamp(2, max_cells),
+        ((w / cell).ceil() as usize).clamp(2, most),
+        ((h / cell).ceil() as usize).clamp(2, most),
     );
     let place = |c: f64, r: f64| [b.min[0] + (c + 0.5) * cell, b.min[1] + (r + 0.5) * cell];
     let mut z = Vec::with_capacity(nx * ny);

@@ -2,8 +2,8 @@
 //! let through when it carries one of the file's tokens (`Authorization: Bearer TOKEN`), the
 //! session cookie a one-time link set (`/login/CODE`, printed when the server starts; a code
 //! works once), or a link signed for one dataset that has not expired (`?expires=UNIX&sig=HEX`
-//! on `/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME` or `/work/NAME`; the page's own requests then carry a
-//! cookie with that signature). Signatures and the session cookie are HMAC-SHA256 (`ring`) under
+//! on `/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME` or `/edits/NAME`; the page's
+//! own requests then carry a cookie with that signature). Signatures and the session cookie are HMAC-SHA256 (`ring`) under
 //! a key derived from the token file, so a link signed by `serve --sign` holds for every server
 //! started with the same file, and none holds once the file's tokens change. The viewer's code
 //! (`/viewer/...`) and CORS preflights are public: they hold nothing of a dataset.
@@ -48,9 +48,10 @@ pub enum Verdict {
     Expired(u64),
 }
 
-/// The dataset a path is about (`/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME`, decoded).
+/// The dataset a path is about (`/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME`,
+/// `/edits/NAME`, decoded).
 pub fn dataset_of(path: &str) -> Option<String> {
-    ["/view/", "/d/", "/x/", "/geo/", "/work/"]
+    ["/view/", "/d/", "/x/", "/geo/", "/work/", "/edits/"]
         .iter()
         .find_map(|p| path.strip_prefix(p))
         .and_then(crate::percent_decode)

@@ -5,10 +5,13 @@
 //! layer names (with ranges: the viewer reads the tiles it needs). POST, only with `serve
 //! --edit` and from the server's own pages, makes one change (`{"add": EDIT}`, `{"undo":
 //! true}`, `{"redo": true}`) to the file as it is then, under the lock every program that
-//! changes it takes: two clients editing at once each keep their edits. A change's body is at
-//! most [`MAX_CHANGE`] bytes, read within `work::BODY_TIMEOUT`, by at most
-//! `work::PUTS_AT_ONCE` clients at once (more wait their turn, [`QUEUE`] at most, then 503); an edit the dataset could not
-//! be read with is refused (400, one line), an undo with nothing to undo is 409.
+//! changes it takes: two clients editing at once each keep their edits. At most [`AT_ONCE`]
+//! layers are read and answered, or changes read and made, at once (the others wait their turn,
+//! [`QUEUE`] at most, then 503), so that a layer (up to 16 MB) costs the server a bounded amount
+//! of memory whatever the clients. A change's body is at most [`MAX_CHANGE`] bytes, read within
+//! `work::BODY_TIMEOUT`; an edit the dataset could not be read with is refused (400, one line),
+//! and so is a ground edit (`myriad ground` makes those, with their surface); one the file could
+//! not hold is 413; an undo with nothing to undo is 409.
 
 use crate::catalog::{File, Kind};
 use crate::work::BODY_TIMEOUT;
@@ -22,7 +25,9 @@ use serde_json::Value;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// How long a change waits for its turn to send its body before it is answered 503.
+/// Layers and changes handled at once.
+pub const AT_ONCE: usize = 2;
+/// How long a request waits for its turn before it is answered 503.
 pub const QUEUE: std::time::Duration = std::time::Duration::from_secs(10);
 /// A change's body is at most this (a brush stroke of some ten thousand spheres).
 pub const MAX_CHANGE: usize = 1 << 20;
@@ -83,6 +88,9 @@ pub(crate) async fn get(
     let f = match dataset(shared, name) {
         Ok(f) => f,
         Err(r) => return *r,
+    };
+    let Ok(Ok(_permit)) = tokio::time::timeout(QUEUE, shared.edits.acquire()).await else {
+        return status(StatusCode::SERVICE_UNAVAILABLE, "busy: try again");
     };
     let sidecar = sidecar_for(&f.path);
     let surface = (req.uri().query().unwrap_or("").split('&'))
@@ -146,9 +154,9 @@ pub(crate) async fn post(
     if declared.is_some_and(|n| n > MAX_CHANGE as u64) {
         return too_large();
     }
-    // Editors at once wait their turn to send (a viewer's edit is not to fail because another
-    // is being sent), a while.
-    let Ok(Ok(permit)) = tokio::time::timeout(QUEUE, shared.puts.acquire()).await else {
+    // Editors at once wait their turn (a viewer's edit is not to fail because another is being
+    // made), a while; the turn lasts until the change is made.
+    let Ok(Ok(_permit)) = tokio::time::timeout(QUEUE, shared.edits.acquire()).await else {
         return status(StatusCode::SERVICE_UNAVAILABLE, "busy: try again");
     };
     let body = Limited::new(req.into_body(), MAX_CHANGE);
@@ -168,7 +176,6 @@ pub(crate) async fn post(
         Ok(Err(e)) => return status(StatusCode::BAD_REQUEST, &e.to_string()),
         Ok(Ok(c)) => c.to_bytes(),
     };
-    drop(permit);
     let Ok(text) = std::str::from_utf8(&bytes) else {
         return status(StatusCode::BAD_REQUEST, "not UTF-8");
     };
@@ -176,6 +183,14 @@ pub(crate) async fn post(
         Ok(c) => c,
         Err(e) => return status(StatusCode::BAD_REQUEST, &format!("change: {e}")),
     };
+    if let Change::Add(e) = &change
+        && matches!(e.action, Action::Ground { .. })
+    {
+        return status(
+            StatusCode::BAD_REQUEST,
+            "change: a ground edit is made by `myriad ground`, with its surface",
+        );
+    }
     let path = f.path.clone();
     let made = tokio::task::spawn_blocking(move || {
         let ds = myriad_format::Dataset::open_stored(&path)
@@ -187,6 +202,7 @@ pub(crate) async fn post(
         Ok(Ok((layer, done))) => json(&layer, true, Some(done), false),
         Ok(Err(Refused::Invalid(m))) => status(StatusCode::BAD_REQUEST, &m),
         Ok(Err(Refused::Nothing(m))) => status(StatusCode::CONFLICT, &m),
+        Ok(Err(Refused::TooLarge(m))) => status(StatusCode::PAYLOAD_TOO_LARGE, &m),
         Ok(Err(Refused::Failed(m))) => status(StatusCode::INTERNAL_SERVER_ERROR, &m),
         Err(_) => status(StatusCode::INTERNAL_SERVER_ERROR, "failed"),
     }

@@ -170,6 +170,8 @@ struct Shared {
     scratch: myriad_io::claim::Folder,
     /// Saved work's bodies being read at once, and one sidecar written at a time.
     puts: Semaphore,
+    /// Edits' changes and layers being read, written or answered at once (`edits.rs`).
+    edits: Semaphore,
     saving: Arc<std::sync::Mutex<()>>,
     /// Who may read (none: everyone).
     access: Option<access::Access>,
@@ -236,6 +238,7 @@ impl Server {
             spooled: Arc::new(Semaphore::new(SPOOLED_AT_ONCE)),
             scratch,
             puts: Semaphore::new(work::PUTS_AT_ONCE),
+            edits: Semaphore::new(edits::AT_ONCE),
             saving: Arc::default(),
             access,
             tls,

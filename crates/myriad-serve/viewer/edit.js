@@ -18,19 +18,32 @@ state.editing = editing;
 
 function editsUrl() { return `/edits/${encodeURIComponent(state.dataset)}`; }
 
-// The dataset's edits, applied before the first nodes are decoded.
+// The dataset's edits, applied before the first nodes are decoded (any decoded before are
+// decoded again). A dataset being built has none yet (503: asked again when it is done); one the
+// server cannot read them for is shown as stored, the reason said.
 async function loadEdits() {
-  const r = await fetch(editsUrl(), { cache: "no-store" });
-  if (!r.ok) throw new Error(`${editsUrl()}: HTTP ${r.status}: ${(await r.text()).trim()}`);
-  const layer = await r.json();
-  editing.editable = !!layer.editable;
-  if (layer.edits.length) await useEdits(layer, false);
-  else editing.layer = layer;
-  editing.loaded = true;
-  editPanel();
+  try {
+    const r = await fetch(editsUrl(), { cache: "no-store" });
+    if (r.status === 503 || r.status === 404) {
+      editing.editable = false;
+      return;
+    }
+    if (!r.ok) throw new Error(`${editsUrl()}: HTTP ${r.status}: ${(await r.text()).trim()}`);
+    const layer = await r.json();
+    editing.editable = !!layer.editable;
+    if (layer.edits.length) await useEdits(layer, nodes.size > 0);
+    else editing.layer = layer;
+  } catch (e) {
+    editing.editable = false;
+    error(`edits: ${e.message || e} (shown as stored)`);
+  } finally {
+    editing.loaded = true;
+    editPanel();
+  }
 }
 
-// Gives `layer` to every decode worker; `again`: the nodes drawn are decoded again.
+// Gives `layer` to every worker; `again`: the nodes drawn are decoded again (and the contours
+// made again).
 async function useEdits(layer, again) {
   const text = JSON.stringify({ myriad: "edits", version: 1, crs: layer.crs, edits: layer.edits,
     undone: layer.undone });
@@ -47,7 +60,10 @@ async function useEdits(layer, again) {
     if (settings.ramp && settings.ramp.name === "above_ground") scheme.value = "ramp:above_ground";
   }
   editing.applied += 1;
-  if (again) reload();
+  if (again) {
+    reload();
+    if (state.contours && state.contours.on) makeContours(state.contours.interval).catch(() => {});
+  }
 }
 
 // The classes shown, as `--classes` takes them (null: all).
@@ -63,17 +79,22 @@ function shownClasses() {
 }
 
 // One change (`{add: EDIT}`, `{undo: true}`, `{redo: true}`) made by the server; resolves with
-// what it did.
-async function changeEdits(change) {
-  const r = await fetch(editsUrl(), { method: "POST", body: JSON.stringify(change),
-    headers: { "Content-Type": "application/json" } });
-  if (!r.ok) throw new Error(`HTTP ${r.status}: ${(await r.text()).trim()}`);
-  const layer = await r.json();
-  editing.changes += 1;
-  editing.done = layer.done;
-  await useEdits(layer, true);
-  editPanel();
-  return layer.done;
+// what it did. Changes are sent one after another, each answer applied before the next is sent.
+let editsQueue = Promise.resolve();
+function changeEdits(change) {
+  const made = editsQueue.then(async () => {
+    const r = await fetch(editsUrl(), { method: "POST", body: JSON.stringify(change),
+      headers: { "Content-Type": "application/json" } });
+    if (!r.ok) throw new Error(`HTTP ${r.status}: ${(await r.text()).trim()}`);
+    const layer = await r.json();
+    editing.changes += 1;
+    editing.done = layer.done;
+    await useEdits(layer, true);
+    editPanel();
+    return layer.done;
+  });
+  editsQueue = made.catch(() => {});
+  return made;
 }
 
 // The polygon drawn given class `to` (a number), or its points removed (`to` = "remove").
@@ -143,7 +164,8 @@ function editUi() {
   document.getElementById("edit-undo").onclick = () => changeEdits({ undo: true }).catch(failed);
   document.getElementById("edit-redo").onclick = () => changeEdits({ redo: true }).catch(failed);
   window.addEventListener("keydown", (e) => {
-    if (!editing.editable || !(e.ctrlKey || e.metaKey) || e.target.tagName === "INPUT") return;
+    const typing = ["INPUT", "TEXTAREA", "SELECT"].includes(e.target.tagName) || e.target.isContentEditable;
+    if (!editing.editable || !(e.ctrlKey || e.metaKey) || typing) return;
     const k = e.key.toLowerCase();
     if (k === "z" && !e.shiftKey) { e.preventDefault(); changeEdits({ undo: true }).catch(failed); }
     if (k === "y" || (k === "z" && e.shiftKey)) { e.preventDefault(); changeEdits({ redo: true }).catch(failed); }

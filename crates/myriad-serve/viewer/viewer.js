@@ -333,6 +333,8 @@ async function follow() {
       state.info = info;
       state.version = b.version;
       state.refreshes = (state.refreshes || 0) + 1;
+      // The new workers take the dataset's edits (a dataset being built has none yet).
+      await loadEdits();
       if (settings.ramp || settings.where) await applyStyle();
       else if (b.new && sameColours) refresh(new Set(b.new.map(keyString)));
       else reload();
@@ -413,6 +415,8 @@ function load() {
     call(w, { type: "decode", key: n.key, page: n.page, total: n.total, origin,
       scheme: settings.scheme, z: [vb[2], vb[5]], hidden: [...settings.hidden] }).then((m) => {
       w.busy -= 1;
+      // Dropped while it was decoded (a reload: new edits, a new style): not uploaded.
+      if (nodes.get(k) !== node) { requestSelection(); return; }
       upload(node, origin, n.cube[3], m.positions, m.colours);
       node.classes = m.classes;
       classList();

@@ -182,6 +182,8 @@ impl Layers {
     /// opened again: its edits read), their settings kept and their points read again.
     pub fn reopen(&mut self, path: &std::path::Path) -> Result<(), String> {
         let ds = Arc::new(Dataset::open(path).map_err(|e| e.to_string())?);
+        // Its terrain as it is now, for colours above it.
+        let _ = ds.above_ground();
         let filter = self.filter();
         let (shares, colour) = (self.shares, self.colour);
         for l in self.list.iter_mut().filter(|l| l.dataset.path() == path) {
@@ -189,6 +191,34 @@ impl Layers {
             l.refilter(&filter, shares, colour);
         }
         Ok(())
+    }
+
+    /// The classes drawn, as `--classes` takes them: every class the command line's filter
+    /// keeps and the panel does not hide, those not seen yet included (`None`: all of them).
+    pub(crate) fn classes_drawn(&self) -> Option<String> {
+        let drawn = |c: u8| {
+            self.filter.classes.as_ref().is_none_or(|l| l.contains(&c))
+                && self.classes.get(&c).is_none_or(|&(_, shown)| shown)
+        };
+        if (0..=255).all(drawn) {
+            return None;
+        }
+        let mut runs: Vec<(u8, u8)> = Vec::new();
+        for c in (0..=255u8).filter(|&c| drawn(c)) {
+            match runs.last_mut() {
+                Some((_, b)) if *b as u16 + 1 == c as u16 => *b = c,
+                _ => runs.push((c, c)),
+            }
+        }
+        Some(
+            (runs.iter())
+                .map(|&(a, b)| match a == b {
+                    true => a.to_string(),
+                    false => format!("{a}-{b}"),
+                })
+                .collect::<Vec<_>>()
+                .join(","),
+        )
     }
 
     /// The first dataset's coordinate reference system.

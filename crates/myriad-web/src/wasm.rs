@@ -320,10 +320,13 @@ pub unsafe extern "C" fn myr_edits(
     let set = |ds: &mut Dataset| -> Result<usize, String> {
         if layer.edits.is_empty() {
             ds.set_edits(None);
+            let _ = ds.above_ground();
             return Ok(0);
         }
         let c = layer.compile_with(&ds.meta.schema, &open)?;
         ds.set_edits(Some(Arc::new(c)));
+        // Its terrain as it is now, for colours above it.
+        let _ = ds.above_ground();
         Ok(layer.edits.len())
     };
     let mut done = DATASET.with(|s| s.borrow_mut().as_mut().map(set));

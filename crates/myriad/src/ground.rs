@@ -113,7 +113,7 @@ pub fn run(a: GroundArgs) -> Result<()> {
     let threads = rayon::current_num_threads();
     let tile = match a.tile {
         Some(t) => t,
-        None => ground::tile_for(a.memory, threads, &p)?,
+        None => ground::tile_for(a.memory, threads, &p, a.isolated > 0)?,
     };
     if tile == 0 || tile > ground::surface::MAX_TILE {
         bail!(

@@ -79,7 +79,8 @@ pub struct ViewArgs {
     )]
     classify: Vec<String>,
     /// Then undo this many of its edits (as Ctrl+Z does)
-    #[arg(help_heading = "Tools", long, default_value_t = 0)]
+    #[arg(help_heading = "Tools", long, default_value_t = 0,
+          value_parser = clap::value_parser!(u32).range(0..=10_000))]
     undo_edits: u32,
     /// Open with the contours of the terrain `myriad ground` found, every INTERVAL (the panel's
     /// "contours every"); their count is printed

@@ -562,6 +562,11 @@ fn edits_from_the_server_are_kept_and_lose_nothing() {
         ),
         (r#"{"add": {"to": 300}}"#, 400, "300"),
         (r#"{"delete": true}"#, 400, "one of"),
+        (
+            r#"{"add": {"ground": {"surface": "site.ground-1.surface", "threshold": 0.5, "scalar": 1.25, "low": 1}}}"#,
+            400,
+            "myriad ground",
+        ),
         ("{\n\"add\": ", 400, "line 2"),
     ] {
         let (got, answer) = http_send(&rw.base, "POST", path, &json_headers, body);

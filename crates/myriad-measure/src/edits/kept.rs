@@ -21,6 +21,8 @@ pub enum Refused {
     Invalid(String),
     /// Nothing to undo or redo.
     Nothing(String),
+    /// The file could not hold the layer with it.
+    TooLarge(String),
     /// The file could not be read or written.
     Failed(String),
 }
@@ -28,7 +30,10 @@ pub enum Refused {
 impl std::fmt::Display for Refused {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Refused::Invalid(m) | Refused::Nothing(m) | Refused::Failed(m) => f.write_str(m),
+            Refused::Invalid(m)
+            | Refused::Nothing(m)
+            | Refused::TooLarge(m)
+            | Refused::Failed(m) => f.write_str(m),
         }
     }
 }
@@ -67,13 +72,20 @@ impl Change {
         if let Change::Add(e) = &self {
             admit(e, meta, &sidecar).map_err(Refused::Invalid)?;
         }
-        let mut nothing = false;
+        let (mut nothing, mut large) = (false, false);
         let made =
             change(&sidecar, |layer| match self {
                 Change::Add(e) => {
                     let what = format!("edit {}: {}", layer.edits.len() + 1, e.describe());
                     layer.crs = meta.crs.clone();
                     layer.push(e);
+                    if let Err(m) = Layer::parse(&layer.to_json()) {
+                        large = true;
+                        return Err(format!(
+                            "{}: the edit cannot be kept: {m}",
+                            sidecar.display()
+                        ));
+                    }
                     Ok(what)
                 }
                 Change::Undo => (layer.undo().map(|e| format!("undone: {}", e.describe())))
@@ -87,9 +99,10 @@ impl Change {
                         format!("{}: no edit to redo", sidecar.display())
                     }),
             });
-        made.map_err(|m| match nothing {
-            true => Refused::Nothing(m),
-            false => Refused::Failed(m),
+        made.map_err(|m| match (nothing, large) {
+            (true, _) => Refused::Nothing(m),
+            (_, true) => Refused::TooLarge(m),
+            _ => Refused::Failed(m),
         })
     }
 }

@@ -153,9 +153,11 @@ mod build {
     const MAX_SIDE: f64 = (1u64 << 24) as f64;
     /// Most tiles of a surface (its index stays a few megabytes).
     const MAX_TILES: usize = 100_000;
-    /// Bytes of memory a cell of a tile in flight takes: the filter's grids, and the voxel keys
-    /// of its points (8 bytes each, some 8 points a cell at the default cell of 2.5 spacings).
-    pub const BYTES_PER_CELL: u64 = 104;
+    /// Bytes of memory a cell of a tile in flight takes (the filter's grids)...
+    pub const BYTES_PER_CELL: u64 = 40;
+    /// ...and, where isolated points are looked for, the cubes' keys of its points (8 bytes
+    /// each, some 8 points a cell at the default cell of 2.5 spacings).
+    pub const BYTES_PER_CELL_ISOLATED: u64 = 104;
 
     /// The voxels of a tile's core (`cx`, `cy`, `w`, `h`, in cells) whose points have fewer than
     /// `least` others in the 27 voxels around them; `keys`: a voxel key a point of the tile and
@@ -196,7 +198,11 @@ mod build {
                 for dj in -1..=1 {
                     for dz in -1..=1 {
                         let (a, b, c) = (i + di, j + dj, z + dz);
-                        if (di, dj, dz) == (0, 0, 0) || a < 0 || b < 0 || !(0..=0xffff).contains(&c)
+                        let side = 0..1 << 24;
+                        if (di, dj, dz) == (0, 0, 0)
+                            || !side.contains(&a)
+                            || !side.contains(&b)
+                            || !(0..=0xffff).contains(&c)
                         {
                             continue;
                         }
@@ -224,14 +230,20 @@ mod build {
         pub bytes: u64,
     }
 
-    /// The side of a tile's core for a memory budget and a number of threads.
-    /// An error where even a tile of 64 cells and its margin do not fit in `memory`.
-    pub fn tile_for(memory: u64, threads: usize, p: &Params) -> Result<usize> {
-        let cells = memory / BYTES_PER_CELL / threads.max(1) as u64;
+    /// The side of a tile's core for a memory budget and a number of threads (`isolated`: the
+    /// isolated points looked for too). An error where even a tile of 64 cells and its margin
+    /// do not fit in `memory`.
+    pub fn tile_for(memory: u64, threads: usize, p: &Params, isolated: bool) -> Result<usize> {
+        let per_cell = if isolated {
+            BYTES_PER_CELL_ISOLATED
+        } else {
+            BYTES_PER_CELL
+        };
+        let cells = memory / per_cell / threads.max(1) as u64;
         let side = (cells as f64).sqrt() as usize;
         let m = 2 * smrf::margin(p);
         if side < 64 + m {
-            let least = ((64 + m) as u64).pow(2) * BYTES_PER_CELL * threads.max(1) as u64;
+            let least = ((64 + m) as u64).pow(2) * per_cell * threads.max(1) as u64;
             return Err(Error::Invalid(format!(
                 "--memory {memory}: a tile of 64 cells and its margin of {} need {least} bytes on \
                  each of {threads} threads together (more --memory, a larger --cell, or a smaller \
@@ -355,7 +367,15 @@ mod build {
                 read.fetch_add(got.points, Ordering::Relaxed);
                 if isolated > 0 {
                     let found = lonely_voxels(keys, isolated, (cx, cy, w, h));
-                    lonely.lock().expect("isolated voxels").extend(found);
+                    let mut all = lonely.lock().expect("isolated voxels");
+                    all.extend(found);
+                    if all.len() > MAX_ISOLATED {
+                        return Err(Error::Invalid(format!(
+                            "{name}: more than {MAX_ISOLATED} isolated cubes of {}: \
+                             --isolated {isolated} finds too many (a smaller one, or 0)",
+                            p.cell
+                        )));
+                    }
                 }
                 let (terrain, _) = smrf::terrain(&zmin, p);
                 writer.write_tile(t % tx, t / tx, |x, y| {
@@ -367,14 +387,6 @@ mod build {
             })?;
         if isolated > 0 {
             let mut keys = lonely.into_inner().expect("isolated voxels");
-            if keys.len() > MAX_ISOLATED {
-                return Err(Error::Invalid(format!(
-                    "{name}: {} isolated cubes of {}: more than {MAX_ISOLATED} (a smaller \
-                     --isolated, or 0)",
-                    keys.len(),
-                    p.cell
-                )));
-            }
             keys.sort_unstable();
             writer.set_isolated(Isolated { z0: b.min[2], keys });
         }

@@ -316,9 +316,12 @@ impl Surface {
                 if raw.len() != count as usize * 8 {
                     return Err(bad(o, "isolated voxels: another number of them"));
                 }
-                let keys = (raw.chunks_exact(8))
+                let keys: Vec<u64> = (raw.chunks_exact(8))
                     .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
                     .collect();
+                if keys.windows(2).any(|w| w[0] >= w[1]) {
+                    return Err(bad(o, "isolated voxels: not in order"));
+                }
                 Some(Isolated { z0, keys })
             }
         };

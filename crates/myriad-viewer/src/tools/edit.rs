@@ -34,6 +34,8 @@ pub(crate) struct Editing {
     counts: (usize, usize),
     pub done: Option<String>,
     pub problem: Option<String>,
+    /// A change was made since this was last taken (what depends on the edits is made again).
+    pub changed: bool,
     asked: Vec<Change>,
 }
 
@@ -59,6 +61,7 @@ impl Editing {
             counts,
             done: None,
             problem: None,
+            changed: false,
             asked,
         }
     }
@@ -85,12 +88,11 @@ impl Editing {
         self.drawing = false;
         let ring: Vec<[f64; 2]> = self.polygon.iter().map(|p| [p[0], p[1]]).collect();
         self.polygon.clear();
-        let classes = layers.filter().classes.map(|c| {
-            c.iter()
-                .map(|k| k.to_string())
-                .collect::<Vec<_>>()
-                .join(",")
-        });
+        let classes = layers.classes_drawn();
+        if classes.as_deref() == Some("") {
+            self.problem = Some("every class is hidden: nothing to edit".into());
+            return;
+        }
         let edit = Edit {
             area: Area::Polygon { ring, z: None },
             classes,
@@ -124,6 +126,7 @@ impl Editing {
                 self.counts = (layer.edits.len(), layer.undone.len());
                 self.done = Some(done);
                 self.problem = layers.reopen(&path).err();
+                self.changed = true;
             }
             Err(r) => {
                 self.done = None;

@@ -268,6 +268,9 @@ impl Tools {
         let filter = layers.filter();
         self.profile.window(ctx, ds.as_deref(), &filter);
         self.volume.take();
+        if std::mem::take(&mut self.edit.changed) && self.contours.on {
+            self.contours.make(layers);
+        }
         self.contours.take();
     }
 
