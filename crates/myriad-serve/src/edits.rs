@@ -14,11 +14,8 @@
 //! not hold is 413; an undo with nothing to undo is 409.
 
 use crate::catalog::{File, Kind};
-use crate::work::BODY_TIMEOUT;
-use crate::{Body, Budget, Shared, full, settled, status};
-use http_body_util::{BodyExt, Limited};
+use crate::{Body, Budget, Shared, settled, status};
 use hyper::body::Incoming;
-use hyper::header::{self, HeaderValue};
 use hyper::{Request, Response, StatusCode};
 use myriad_measure::edits::{Action, Change, Layer, Refused, read, sidecar_for};
 use serde_json::Value;
@@ -38,18 +35,7 @@ fn json(layer: &Layer, editable: bool, done: Option<String>, head: bool) -> Resp
     if let Some(d) = done {
         v["done"] = d.into();
     }
-    let text = v.to_string();
-    let len = text.len();
-    let mut r = Response::new(full(if head { String::new() } else { text }));
-    let h = r.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
-    h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
-    // Edits change: never answered from a cache.
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    r
+    crate::work::changing(v.to_string(), head)
 }
 
 /// The dataset of that name, as it is for good (a dataset being built has no edits yet).
@@ -142,44 +128,16 @@ pub(crate) async fn post(
             "read-only: `myriad serve --edit` lets viewers edit",
         );
     }
-    let too_large = || {
-        status(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            &format!("a change is at most {MAX_CHANGE} bytes"),
-        )
-    };
-    let declared = (req.headers().get(header::CONTENT_LENGTH))
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > MAX_CHANGE as u64) {
-        return too_large();
-    }
     // Editors at once wait their turn (a viewer's edit is not to fail because another is being
     // made), a while; the turn lasts until the change is made.
     let Ok(Ok(_permit)) = tokio::time::timeout(QUEUE, shared.edits.acquire()).await else {
         return status(StatusCode::SERVICE_UNAVAILABLE, "busy: try again");
     };
-    let body = Limited::new(req.into_body(), MAX_CHANGE);
-    let bytes = match tokio::time::timeout(BODY_TIMEOUT, body.collect()).await {
-        Err(_) => {
-            return status(
-                StatusCode::REQUEST_TIMEOUT,
-                "the body did not arrive in time",
-            );
-        }
-        Ok(Err(e))
-            if e.downcast_ref::<http_body_util::LengthLimitError>()
-                .is_some() =>
-        {
-            return too_large();
-        }
-        Ok(Err(e)) => return status(StatusCode::BAD_REQUEST, &e.to_string()),
-        Ok(Ok(c)) => c.to_bytes(),
+    let text = match crate::work::text_body(req, MAX_CHANGE, "a change").await {
+        Ok(t) => t,
+        Err(r) => return *r,
     };
-    let Ok(text) = std::str::from_utf8(&bytes) else {
-        return status(StatusCode::BAD_REQUEST, "not UTF-8");
-    };
-    let change = match Change::parse(text) {
+    let change = match Change::parse(&text) {
         Ok(c) => c,
         Err(e) => return status(StatusCode::BAD_REQUEST, &format!("change: {e}")),
     };

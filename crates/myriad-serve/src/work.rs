@@ -25,7 +25,12 @@ pub const PUTS_AT_ONCE: usize = 4;
 fn json(w: &Work, editable: bool, head: bool) -> Response<Body> {
     let mut v = w.to_json();
     v["editable"] = editable.into();
-    let text = v.to_string();
+    changing(v.to_string(), head)
+}
+
+/// JSON of something that changes (saved work, edits): never answered from a cache; `head`:
+/// its headers alone.
+pub(crate) fn changing(text: String, head: bool) -> Response<Body> {
     let len = text.len();
     let mut r = Response::new(full(if head { String::new() } else { text }));
     let h = r.headers_mut();
@@ -34,9 +39,48 @@ fn json(w: &Work, editable: bool, head: bool) -> Response<Body> {
         HeaderValue::from_static("application/json"),
     );
     h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
-    // Saved work changes: never answered from a cache.
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     r
+}
+
+/// A request's body as text, at most `max` bytes, arrived within [`BODY_TIMEOUT`]; else the
+/// answer (413 naming `what`, 408, 400).
+pub(crate) async fn text_body(
+    req: Request<Incoming>,
+    max: usize,
+    what: &str,
+) -> Result<String, Box<Response<Body>>> {
+    let too_large = || {
+        Box::new(status(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            &format!("{what} is at most {max} bytes"),
+        ))
+    };
+    let declared = (req.headers().get(header::CONTENT_LENGTH))
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > max as u64) {
+        return Err(too_large());
+    }
+    let body = Limited::new(req.into_body(), max);
+    let bytes = match tokio::time::timeout(BODY_TIMEOUT, body.collect()).await {
+        Err(_) => {
+            return Err(Box::new(status(
+                StatusCode::REQUEST_TIMEOUT,
+                "the body did not arrive in time",
+            )));
+        }
+        Ok(Err(e))
+            if e.downcast_ref::<http_body_util::LengthLimitError>()
+                .is_some() =>
+        {
+            return Err(too_large());
+        }
+        Ok(Err(e)) => return Err(Box::new(status(StatusCode::BAD_REQUEST, &e.to_string()))),
+        Ok(Ok(c)) => c.to_bytes(),
+    };
+    String::from_utf8(bytes.to_vec())
+        .map_err(|_| Box::new(status(StatusCode::BAD_REQUEST, "not UTF-8")))
 }
 
 /// The saved work, its CRS the sidecar's where it has one, else the dataset's own.
@@ -100,44 +144,14 @@ pub(crate) async fn put(
             "read-only: `myriad serve --edit` lets viewers save their work",
         );
     }
-    let declared = req
-        .headers()
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > MAX_BYTES as u64) {
-        return status(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            &format!("work is at most {MAX_BYTES} bytes"),
-        );
-    }
     let Ok(_permit) = shared.puts.try_acquire() else {
         return status(StatusCode::SERVICE_UNAVAILABLE, "busy: try again");
     };
-    let body = Limited::new(req.into_body(), MAX_BYTES);
-    let bytes = match tokio::time::timeout(BODY_TIMEOUT, body.collect()).await {
-        Err(_) => {
-            return status(
-                StatusCode::REQUEST_TIMEOUT,
-                "the body did not arrive in time",
-            );
-        }
-        Ok(Err(e))
-            if e.downcast_ref::<http_body_util::LengthLimitError>()
-                .is_some() =>
-        {
-            return status(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                &format!("work is at most {MAX_BYTES} bytes"),
-            );
-        }
-        Ok(Err(e)) => return status(StatusCode::BAD_REQUEST, &e.to_string()),
-        Ok(Ok(c)) => c.to_bytes(),
+    let text = match text_body(req, MAX_BYTES, "work").await {
+        Ok(t) => t,
+        Err(r) => return *r,
     };
-    let Ok(text) = std::str::from_utf8(&bytes) else {
-        return status(StatusCode::BAD_REQUEST, "not UTF-8");
-    };
-    let mut w = match Work::parse(text) {
+    let mut w = match Work::parse(&text) {
         Ok(w) => w,
         Err(e) => return status(StatusCode::BAD_REQUEST, &format!("work: {e}")),
     };

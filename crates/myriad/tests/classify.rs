@@ -28,6 +28,19 @@ fn inside(poly: &[[f64; 2]], x: f64, y: f64) -> bool {
     c
 }
 
+/// The place `f` of the way along axis `a` of the records' extent (records in thousandths).
+fn within(records: &[Vec<i64>]) -> impl Fn(usize, f64) -> f64 {
+    let (lo, hi) = records
+        .iter()
+        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), r| {
+            (
+                std::array::from_fn::<i64, 3, _>(|a| lo[a].min(r[a])),
+                std::array::from_fn::<i64, 3, _>(|a| hi[a].max(r[a])),
+            )
+        });
+    move |a: usize, f: f64| (lo[a] as f64 + f * (hi[a] - lo[a]) as f64) / 1000.0
+}
+
 fn number_after(out: &str, before: &str) -> u64 {
     let t = out.split(before).next().unwrap();
     let n = t.rsplit(' ').next().unwrap().replace(',', "");
@@ -46,15 +59,7 @@ fn edits_are_a_layer_every_reader_applies() {
     assert_eq!(r0.len(), 200_000);
 
     // The bounds, in thousandths, give a polygon over a part and a box over another.
-    let (lo, hi) = r0
-        .iter()
-        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), r| {
-            (
-                std::array::from_fn(|a| lo[a].min(r[a])),
-                std::array::from_fn(|a| hi[a].max(r[a])),
-            )
-        });
-    let at = |a: usize, f: f64| (lo[a] as f64 + f * (hi[a] - lo[a]) as f64) / 1000.0;
+    let at = within(&r0);
     let poly = [
         [at(0, 0.1), at(1, 0.1)],
         [at(0, 0.5), at(1, 0.2)],
@@ -425,15 +430,7 @@ fn edits_from_the_server_are_kept_and_lose_nothing() {
     std::fs::copy(&served, &cli).unwrap();
     let (scan0, ds0) = (digest(&scan), digest(&served));
     let r0 = records(&scan);
-    let (lo, hi) = r0
-        .iter()
-        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), r| {
-            (
-                std::array::from_fn(|a| lo[a].min(r[a])),
-                std::array::from_fn(|a| hi[a].max(r[a])),
-            )
-        });
-    let at = |a: usize, f: f64| (lo[a] as f64 + f * (hi[a] - lo[a]) as f64) / 1000.0;
+    let at = within(&r0);
     // Nine slabs across x, each a box given its own class.
     let slab = |i: usize| {
         let (x0, x1) = (at(0, i as f64 / 9.0), at(0, (i as f64 + 0.7) / 9.0));
