@@ -1,5 +1,7 @@
 //! Colour schemes: what a point's colour shows.
 
+pub use crate::classes::class_colour;
+use crate::classes::palette;
 use crate::{Column, PointBatch, Schema};
 
 /// What a point's colour shows.
@@ -187,49 +189,6 @@ impl ColorBy {
     }
 }
 
-/// Colour of ASPRS class `c` (LAS 1.4 table 17 names them; the colours are the usual ones).
-pub fn class_colour(c: u8) -> [u8; 3] {
-    match c {
-        0 => [128, 128, 128],
-        1 => [170, 170, 170],
-        2 => [166, 120, 72],
-        3 => [144, 238, 144],
-        4 => [60, 179, 113],
-        5 => [0, 110, 0],
-        6 => [230, 90, 60],
-        7 => [255, 0, 255],
-        8 => [255, 255, 0],
-        9 => [40, 100, 255],
-        10 => [150, 75, 0],
-        11 => [90, 90, 90],
-        12 => [255, 215, 0],
-        13 => [255, 255, 255],
-        14 => [200, 200, 200],
-        15 => [255, 140, 0],
-        16 => [200, 100, 200],
-        17 => [140, 140, 200],
-        18 => [255, 0, 0],
-        c => palette(c as u32),
-    }
-}
-
-/// A distinct colour for a small integer (return numbers, sources, levels).
-fn palette(i: u32) -> [u8; 3] {
-    const P: [[u8; 3]; 10] = [
-        [230, 25, 75],
-        [60, 180, 75],
-        [255, 225, 25],
-        [0, 130, 200],
-        [245, 130, 48],
-        [145, 30, 180],
-        [70, 240, 240],
-        [240, 50, 230],
-        [210, 245, 60],
-        [250, 190, 212],
-    ];
-    P[i as usize % P.len()]
-}
-
 fn ramp(t: f64) -> [u8; 3] {
     let t = t.clamp(0.0, 1.0);
     // Blue, green, yellow, red.
@@ -282,7 +241,10 @@ pub fn colours(
         },
         ColorBy::Elevation => elevation(),
         ColorBy::Classification => match &b.classification {
-            Some(c) => c[..n].iter().map(|&c| rgba(class_colour(c))).collect(),
+            Some(c) => {
+                let scheme = crate::classes::current();
+                c[..n].iter().map(|&c| rgba(scheme.colour(c))).collect()
+            }
             None => elevation(),
         },
         ColorBy::ReturnNumber => match &b.return_number {

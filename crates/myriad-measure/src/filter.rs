@@ -12,40 +12,15 @@
 
 use myriad_core::{Attribute, Column, PointBatch, Schema};
 
-/// The ASPRS standard classes (LAS 1.4 R15, table 17) by number; a class of 19 or more is
-/// "user class N".
-pub const CLASS_NAMES: [&str; 19] = [
-    "never classified",
-    "unclassified",
-    "ground",
-    "low vegetation",
-    "medium vegetation",
-    "high vegetation",
-    "building",
-    "low point",
-    "reserved",
-    "water",
-    "rail",
-    "road surface",
-    "overlap",
-    "wire guard",
-    "wire conductor",
-    "transmission tower",
-    "wire connector",
-    "bridge deck",
-    "high noise",
-];
+pub use myriad_core::classes::ASPRS_NAMES as CLASS_NAMES;
 
-/// The name of class `c`.
+/// The name of class `c` in the class scheme in force (the ASPRS table's by default).
 pub fn class_name(c: u8) -> String {
-    match CLASS_NAMES.get(c as usize) {
-        Some(n) => (*n).to_string(),
-        None => format!("user class {c}"),
-    }
+    myriad_core::classes::current().name(c).to_string()
 }
 
-/// A class given by name: its number (spaces, dashes and underscores alike; a few of the
-/// usual short names too).
+/// A class given by name: its number (spaces, dashes and underscores alike; the names of the
+/// scheme in force, the ASPRS table's, and a few of the usual short names).
 fn class_by_name(name: &str) -> Option<u8> {
     let norm = |s: &str| s.to_ascii_lowercase().replace(['-', '_'], " ");
     let n = norm(name);
@@ -56,12 +31,11 @@ fn class_by_name(name: &str) -> Option<u8> {
         "bridge" => Some(17),
         _ => None,
     };
-    alias.or_else(|| {
-        CLASS_NAMES
-            .iter()
-            .position(|c| norm(c) == n)
-            .map(|i| i as u8)
-    })
+    let scheme = myriad_core::classes::current();
+    (scheme.names.iter().position(|c| norm(c) == n))
+        .or_else(|| CLASS_NAMES.iter().position(|c| norm(c) == n))
+        .map(|i| i as u8)
+        .or(alias)
 }
 
 /// A comparison.
@@ -220,6 +194,29 @@ impl Filter {
 
     /// The filter against a dataset's attributes: an attribute the dataset lacks is an error
     /// naming it and listing those it has.
+    /// This filter for a dataset of `schema`: its classes left out where the dataset has no
+    /// classification (a class scheme's hidden classes hide nothing there).
+    pub fn for_schema(&self, schema: &Schema) -> Filter {
+        let mut f = self.clone();
+        if !schema.has(&Attribute::Classification) {
+            f.classes = None;
+        }
+        f
+    }
+
+    /// This filter keeping no point of a class `scheme` hides, where it names no classes and
+    /// the dataset of `schema` has them.
+    pub fn hiding(&self, scheme: &myriad_core::classes::Scheme, schema: &Schema) -> Filter {
+        let mut f = self.clone();
+        if f.classes.is_none()
+            && schema.has(&Attribute::Classification)
+            && !scheme.hidden_classes().is_empty()
+        {
+            f.classes = Some((0..=255u8).filter(|&c| !scheme.is_hidden(c)).collect());
+        }
+        f
+    }
+
     pub fn bind(&self, schema: &Schema) -> Result<Bound, String> {
         let names = || {
             let mut n = vec!["x".to_string(), "y".into(), "z".into()];

@@ -11,11 +11,13 @@
 //! - [`edits`]: classes set and points removed, kept beside the dataset as a layer that every
 //!   reader applies;
 //! - [`work`]: saved work, annotations and measurements in a sidecar next to the dataset
-//!   (GeoJSON and DXF through [`files`]).
+//!   (GeoJSON and DXF through [`files`]), with the dataset's class scheme ([`scheme`]) and
+//!   camera paths ([`camera_path`]).
 //!
 //! Every tool reads the original points, at full resolution, from the pages whose nodes meet
 //! its region ([`read_region`]), whatever a view draws.
 
+pub mod camera_path;
 pub mod contours;
 pub mod corridor;
 pub mod crs;
@@ -31,6 +33,7 @@ pub mod polygon;
 pub mod profile;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod raster;
+pub mod scheme;
 pub mod shape;
 pub mod volume;
 pub mod work;

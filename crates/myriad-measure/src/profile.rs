@@ -99,7 +99,7 @@ impl Profile {
     /// the returned vertical exaggeration says), grid lines at round steps. RGBA rows.
     pub fn plot(&self, width: u32) -> (u32, u32, Vec<u8>, f64) {
         let frame = self.frame(width);
-        let (z0, z1) = self.z_range();
+        let (z0, _) = self.z_range();
         let Frame {
             margin,
             inner_h,
@@ -108,7 +108,6 @@ impl Profile {
             ..
         } = frame;
         let inner_w = width as f64 - 2.0 * margin;
-        let rise = (z1 - z0).max(1e-3);
         let mut img = vec![0u8; (width * height * 4) as usize];
         for px in img.chunks_exact_mut(4) {
             px.copy_from_slice(&[250, 250, 250, 255]);
@@ -120,26 +119,14 @@ impl Profile {
             }
         };
         let to_px = |along: f64, z: f64| frame.to_px(along, z);
-        // Grid lines every round step of about a tenth of the length.
-        // Counted, not stepped until past the end: at elevations of 1e13 with millimetres of
-        // rise, adding the step left the value where it was (found by an audit).
-        let lines = |from: f64, to: f64, step: f64| {
-            let n = ((to + 1e-9 - from) / step).floor();
-            let n = if n.is_finite() {
-                n.clamp(-1.0, 100.0) as i64
-            } else {
-                -1
-            };
-            (0..=n).map(move |k| from + k as f64 * step)
-        };
-        for g in lines(0.0, self.length, nice_step(self.length / 10.0)) {
+        let (along, heights) = self.grid(width);
+        for g in along {
             let (x, _) = to_px(g, z0);
             for y in margin as i64..(margin + inner_h) as i64 {
                 put(x.round() as i64, y, [215, 215, 215]);
             }
         }
-        let zstep = nice_step(rise / 5.0);
-        for gz in lines((z0 / zstep).ceil() * zstep, z1, zstep) {
+        for gz in heights {
             let (_, y) = to_px(0.0, gz);
             for x in margin as i64..(margin + inner_w) as i64 {
                 put(x, y.round() as i64, [215, 215, 215]);
@@ -160,6 +147,34 @@ impl Profile {
             }
         }
         (width, height, img, exaggeration)
+    }
+}
+
+impl Profile {
+    /// The grid lines of the picture [`Profile::plot`] draws `width` pixels wide: the
+    /// distances along (every round step of about a tenth of the length) and the elevations
+    /// (about a fifth of the rise).
+    pub fn grid(&self, _width: u32) -> (Vec<f64>, Vec<f64>) {
+        let (z0, z1) = self.z_range();
+        let rise = (z1 - z0).max(1e-3);
+        // Counted, not stepped until past the end: at elevations of 1e13 with millimetres of
+        // rise, adding the step left the value where it was (found by an audit).
+        let lines = |from: f64, to: f64, step: f64| {
+            let n = ((to + 1e-9 - from) / step).floor();
+            let n = if n.is_finite() {
+                n.clamp(-1.0, 100.0) as i64
+            } else {
+                -1
+            };
+            (0..=n)
+                .map(move |k| from + k as f64 * step)
+                .collect::<Vec<_>>()
+        };
+        let zstep = nice_step(rise / 5.0);
+        (
+            lines(0.0, self.length, nice_step(self.length / 10.0)),
+            lines((z0 / zstep).ceil() * zstep, z1, zstep),
+        )
     }
 }
 

@@ -11,8 +11,13 @@
 //!   "annotations": [ { "position": [x, y, z], "title": "...", "text": "...",
 //!                      "camera": { "position": [x, y, z], "target": [x, y, z] } } ],
 //!   "measurements": [ { "kind": "distance", "points": [[x, y, z], ...],
-//!                       "value": 17.0, "label": "17.000 m" } ] }
+//!                       "value": 17.0, "label": "17.000 m" } ],
+//!   "classes": { "2": { "name": "terrain", "colour": "#8b5a2b", "hidden": false } },
+//!   "paths": [ { "name": "...", "views": [ { "position": [x, y, z], "target": [x, y, z],
+//!                                            "time": 0 } ] } ] }
 //! ```
+//! `classes` (a class scheme, [`crate::scheme`]) and `paths` (camera paths,
+//! [`crate::camera_path`]) may be left out.
 //! `value` and `label` are written for readers (the web viewer shows the label) and ignored on
 //! reading: the figure is always computed again from the points.
 
@@ -30,17 +35,10 @@ pub const MAX_POINTS: usize = 10_000;
 /// Most characters of a title, and of a text.
 pub const MAX_TITLE: usize = 200;
 pub const MAX_TEXT: usize = 10_000;
-/// The largest coordinate saved work holds (a billion kilometres, or feet): past any projected or
-/// geocentric system, and small enough that distances, areas and a camera's direction between
-/// two such points stay finite.
-pub const MAX_COORD: f64 = 1e12;
 
-/// Where a dataset's camera was when an annotation was made.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct View {
-    pub position: [f64; 3],
-    pub target: [f64; 3],
-}
+/// Where a dataset's camera was when an annotation was made (and the largest coordinate saved
+/// work holds).
+pub use crate::camera_path::{MAX_COORD, View};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Annotation {
@@ -58,6 +56,10 @@ pub struct Work {
     pub annotations: Vec<Annotation>,
     /// Complete measurements only.
     pub measurements: Vec<Measurement>,
+    /// The class scheme the viewers and `render` use for the dataset (`None`: the default).
+    pub classes: Option<myriad_core::classes::Scheme>,
+    /// Camera paths recorded in the viewers (`render --path NAME` flies one).
+    pub paths: Vec<crate::camera_path::CameraPath>,
 }
 
 /// The sidecar of `opened` (a dataset, a scan, a folder of tiles): beside it, its name with
@@ -263,19 +265,29 @@ impl Work {
     }
 
     pub fn is_empty(&self) -> bool {
-        self.annotations.is_empty() && self.measurements.is_empty()
+        self.annotations.is_empty()
+            && self.measurements.is_empty()
+            && self.classes.is_none()
+            && self.paths.is_empty()
     }
 
     /// The sidecar's JSON.
     pub fn to_json(&self) -> Value {
         let (units, metres) = units_of(self.crs.as_deref());
-        json!({
+        let mut v = json!({
             "myriad": "work",
             "version": 1,
             "crs": self.crs,
             "annotations": self.annotations.iter().map(Annotation::to_json).collect::<Vec<_>>(),
             "measurements": self.measurements.iter().map(|m| measurement_json(m, units, metres)).collect::<Vec<_>>(),
-        })
+        });
+        if let Some(s) = &self.classes {
+            v["classes"] = crate::scheme::to_json(s);
+        }
+        if !self.paths.is_empty() {
+            v["paths"] = self.paths.iter().map(|p| p.to_json()).collect();
+        }
+        v
     }
 
     /// The sidecar's text: an annotation or a measurement a line (for people, and for
@@ -286,7 +298,24 @@ impl Work {
             "{{\n  \"myriad\": \"work\",\n  \"version\": 1,\n  \"crs\": {},\n",
             v["crs"]
         );
-        for (key, end) in [("annotations", ",\n"), ("measurements", "\n")] {
+        let mut keys = vec!["annotations", "measurements"];
+        keys.extend(
+            ["classes", "paths"]
+                .into_iter()
+                .filter(|k| v.get(*k).is_some()),
+        );
+        for (i, &key) in keys.iter().enumerate() {
+            let end = if i + 1 < keys.len() { ",\n" } else { "\n" };
+            if let Some(o) = v[key].as_object() {
+                let lines: Vec<String> = (o.iter())
+                    .map(|(k, e)| format!("    {}: {e}", Value::from(k.as_str())))
+                    .collect();
+                s.push_str(&format!(
+                    "  \"{key}\": {{\n{}\n  }}{end}",
+                    lines.join(",\n")
+                ));
+                continue;
+            }
             let items = v[key].as_array().map_or(&[][..], |a| a.as_slice());
             if items.is_empty() {
                 s.push_str(&format!("  \"{key}\": []{end}"));
@@ -332,10 +361,19 @@ impl Work {
         let measurements = (list(o, "measurements")?.iter().enumerate())
             .map(|(i, m)| measurement_from_json(m, &format!("measurements[{i}]")))
             .collect::<Result<_, _>>()?;
+        let classes = match o.get("classes") {
+            None | Some(Value::Null) => None,
+            Some(c) => Some(crate::scheme::from_json(c)?),
+        };
+        let paths = (list(o, "paths")?.iter().enumerate())
+            .map(|(i, p)| crate::camera_path::CameraPath::from_json(p, &format!("paths[{i}].")))
+            .collect::<Result<_, _>>()?;
         Ok(Work {
             crs,
             annotations,
             measurements,
+            classes,
+            paths,
         })
     }
 
@@ -372,6 +410,15 @@ impl Work {
                 }
             }
         }
+        for (i, path) in self.paths.iter().enumerate() {
+            for (j, k) in path.keys.iter().enumerate() {
+                for (what, p) in [("position", &k.view.position), ("target", &k.view.target)] {
+                    if let Some(why) = out_of_range(p) {
+                        return Err(format!("paths[{i}].views[{j}].{what}: {why}: {p:?}"));
+                    }
+                }
+            }
+        }
         Ok(())
     }
 
@@ -392,8 +439,15 @@ impl Work {
         {
             return Err(format!("more than {MAX_ITEMS} annotations or measurements"));
         }
+        if self.paths.len() + other.paths.len() > MAX_ITEMS {
+            return Err(format!("more than {MAX_ITEMS} camera paths"));
+        }
         self.annotations.extend(other.annotations);
         self.measurements.extend(other.measurements);
+        self.paths.extend(other.paths);
+        if self.classes.is_none() {
+            self.classes = other.classes;
+        }
         Ok(())
     }
 

@@ -35,6 +35,7 @@ mod style;
 mod targets;
 
 pub mod args;
+pub mod legend;
 pub mod preview;
 pub mod scene;
 pub mod selector;

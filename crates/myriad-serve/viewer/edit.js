@@ -136,16 +136,22 @@ function editPanel() {
   document.getElementById("edit-go").disabled = !editing.editable || editing.polygon.length < 3;
 }
 
+// The classes an edit gives, named by the class scheme: the ASPRS table's (0 to 22) and any
+// other the scheme names.
+function editClasses() {
+  const to = document.getElementById("edit-to");
+  const was = to.value;
+  const named = state.info.classes.filter((c) => c.class <= 22 || !/^user \d+$/.test(c.name));
+  to.replaceChildren(...named.map((c) => new Option(`${c.class} ${c.name}`, String(c.class))),
+    new Option("remove the points", "remove"));
+  if (was) to.value = was;
+}
+
 function editUi() {
   // A static site has no server to keep edits.
   if (SITE) { document.getElementById("edit").style.display = "none"; return; }
   const to = document.getElementById("edit-to");
-  const names = ["never classified", "unclassified", "ground", "low vegetation", "medium vegetation",
-    "high vegetation", "building", "low point (noise)", "key point", "water", "rail", "road surface",
-    "overlap", "wire guard", "wire conductor", "transmission tower", "wire connector", "bridge deck",
-    "high noise"];
-  to.innerHTML = names.map((n, c) => `<option value="${c}">${c} ${n}</option>`).join("") +
-    `<option value="remove">remove the points</option>`;
+  editClasses();
   to.value = "7";
   const failed = (e) => { editing.problem = String(e.message || e); error(editing.problem); editPanel(); };
   document.getElementById("edit-start").onclick = () => {

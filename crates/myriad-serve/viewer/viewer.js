@@ -106,9 +106,15 @@ const settings = {
   clip: null, // {box: [6], inside: bool}
   // In the parallel (orthographic) view: the field of view to go back to.
   parallel: Number(params.get("parallel")) || null,
-  // ASPRS classes not drawn (their points are dropped as nodes are decoded).
-  hidden: new Set((params.get("hide") || "").split(",").filter((c) => c !== "").map(Number)),
+  // Classes not drawn (their points are dropped as nodes are decoded): the address's "hide"
+  // ("none": every class drawn), else those the class scheme hides (noise by default).
+  hidden: new Set((params.get("hide") || "").split(",").filter((c) => c !== "" && c !== "none").map(Number)),
+  hideGiven: params.get("hide") !== null,
+  // The class scheme of the dataset's saved work ("classes"; null: the default).
+  classes: null,
 };
+// The classes the scheme hides, as the address would name them.
+let schemeHidden = "";
 let camera = null;
 const nodes = new Map(); // key string -> {key, origin, count, buffer vao, positions, spacing, tree}
 let selection = null; // the last answer
@@ -133,7 +139,8 @@ function cameraLink() {
     if (settings.ramp.range) p.set("range", settings.ramp.range.join(","));
   } else if (SCHEMES[settings.scheme] !== "rgb") p.set("color", SCHEMES[settings.scheme]);
   if (settings.where) p.set("where", settings.where);
-  if (settings.hidden.size) p.set("hide", [...settings.hidden].join(","));
+  const hide = [...settings.hidden].sort((a, b) => a - b).join(",");
+  if (hide !== schemeHidden) p.set("hide", hide || "none");
   if (settings.clip) p.set("clip", settings.clip.box.join(",") + (settings.clip.inside ? "" : ",outside"));
   return `${location.origin}${location.pathname}${location.search}#${p.toString().replace(/%2C/g, ",")}`;
 }
@@ -287,10 +294,12 @@ async function open() {
   // The dataset's edits (classes set, points removed) apply to every node decoded, from the
   // first (and its terrain to colours by height above it); a static site has none.
   if (!SITE) await loadEdits();
-  if (settings.ramp || settings.where) await applyStyle();
+  // Saved work lives on `myriad serve`; a static site has none. Its class scheme names,
+  // colours and hides classes from the first node decoded.
+  if (!SITE) await loadWork().catch((e) => error(`saved work: ${e.message || e}`));
+  settings.classes = (work.doc && work.doc.classes) || null;
+  await applyStyle();
   requestSelection();
-  // Saved work lives on `myriad serve --edit`; a static site has none.
-  if (!SITE) loadWork().catch((e) => error(`saved work: ${e.message || e}`));
   if (state.building) setTimeout(follow, 1000);
 }
 
@@ -512,6 +521,7 @@ function sameCamera(a, b) {
 }
 
 function frame() {
+  pathTick();
   const w = Math.round(canvas.clientWidth * (window.devicePixelRatio || 1));
   const h = Math.round(canvas.clientHeight * (window.devicePixelRatio || 1));
   if (w !== canvas.width || h !== canvas.height) {
@@ -731,6 +741,7 @@ function ui() {
   volumeUi();
   editUi();
   contoursUi();
+  pathUi();
   navigation();
 }
 
@@ -789,7 +800,7 @@ let styleAsked = 0;
 async function applyStyle() {
   const asked = ++styleAsked;
   const r = settings.ramp;
-  const ask = { color: r ? r.name : "rgb", where: settings.where,
+  const ask = { color: r ? r.name : "rgb", where: settings.where, classes: settings.classes,
     gradient: r ? (r.gradient || (r.name === "z" ? "spectral" : r.name === "above_ground" ? "turbo" : "viridis")) : null, range: r ? r.range : null };
   const problem = document.getElementById("style-problem");
   const answer = (await call(selector, { type: "style", style: ask })).style;
@@ -797,6 +808,16 @@ async function applyStyle() {
   if (answer.error) { problem.textContent = answer.error; state.styleProblem = answer.error; return false; }
   problem.textContent = "";
   state.styleProblem = null;
+  // The scheme's names and colours for the class list and legend; its hidden classes hidden
+  // where the address names none.
+  state.info.classes = answer.classes;
+  editClasses();
+  schemeHidden = answer.classes.filter((c) => c.hidden).map((c) => c.class).join(",");
+  if (!settings.hideGiven) {
+    settings.hidden = new Set(answer.classes.filter((c) => c.hidden).map((c) => c.class));
+    settings.hideGiven = true;
+    classesShown = "";
+  }
   if (r && answer.ramp) { r.gradient = answer.ramp.gradient; r.range = answer.ramp.range; }
   const fixed = { ...ask, gradient: r ? r.gradient : null, range: r ? r.range : null };
   await Promise.all(decoders.map((w) => call(w, { type: "style", style: fixed })));

@@ -19,6 +19,7 @@ async function loadWork() {
   work.doc = doc;
   work.loaded = true;
   workPanel();
+  pathPanel();
   dirty = true;
 }
 
@@ -29,6 +30,7 @@ async function saveWork() {
   const body = JSON.stringify({
     myriad: "work", version: 1, crs: d.crs, annotations: d.annotations,
     measurements: d.measurements.map((m) => ({ kind: m.kind, points: m.points })),
+    classes: d.classes, paths: d.paths,
   });
   try {
     const r = await fetch(workUrl(), { method: "PUT", body, headers: { "Content-Type": "application/json" } });

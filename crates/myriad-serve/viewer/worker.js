@@ -262,6 +262,8 @@ onmessage = async (e) => {
       postMessage({ id: m.id, edits: json(n), stats });
     } else if (m.type === "contours") {
       postMessage({ id: m.id, contours: json(wasm.exports.myr_contours(m.interval, m.cells)), stats });
+    } else if (m.type === "path") {
+      postMessage({ id: m.id, path: withName(JSON.stringify(m.path), (p, n) => json(wasm.exports.myr_path(p, n, m.fps))), stats });
     } else if (m.type === "between") {
       postMessage({ id: m.id, text: json(wasm.exports.myr_between(...m.a, ...m.b)), stats });
     } else if (m.type === "point") {

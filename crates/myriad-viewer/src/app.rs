@@ -63,6 +63,7 @@ impl App {
             o.work,
             (o.section, o.volume),
             (o.edits, o.contours),
+            o.paths,
         );
         let view = Navigation::new(
             (extent.view, extent.all),
@@ -135,7 +136,8 @@ impl App {
         ui.separator();
         panel::frame_report(ui, &self.render, &self.layers, &self.pacing.timing);
         self.tools.pick.panel(ui);
-        let asked = self.tools.panel(ui, &mut self.layers);
+        let cam = self.view.nav.camera;
+        let asked = self.tools.panel(ui, &mut self.layers, &cam);
         if let Some((eye, target)) = asked.go {
             self.view.nav.look(eye, target);
         }
@@ -245,6 +247,10 @@ impl App {
             (rect.height() * ppp).round().max(1.0) as u32,
         );
         self.orbit.step(&mut self.view.nav);
+        // A camera path playing moves the camera.
+        if let Some(v) = self.tools.path.tick() {
+            self.view.nav.look(v.position, v.target);
+        }
         self.shots.view_at(rect, ppp, (w, h));
         let t = Instant::now();
         let (shown, image, size) = self.pace_and_draw(ui, t, (w, h));

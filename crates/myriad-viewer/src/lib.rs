@@ -46,6 +46,7 @@ use myriad_render::Gpu;
 pub use options::{ViewOptions, VolumeAsked};
 use std::sync::Arc;
 pub use tools::edit::EditsAsked;
+pub use tools::path::PathsAsked;
 
 /// Opens the window and runs until it is closed.
 pub fn run(datasets: Vec<(String, Arc<Dataset>)>, o: ViewOptions) -> Result<(), String> {

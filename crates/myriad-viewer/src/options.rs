@@ -59,6 +59,8 @@ pub struct ViewOptions {
     pub edits: Option<crate::tools::edit::EditsAsked>,
     /// Contours of the terrain every this much, shown on opening.
     pub contours: Option<f64>,
+    /// Camera path views to record and save, and a path to play, on opening.
+    pub paths: Option<crate::tools::path::PathsAsked>,
 }
 
 /// A section asked for on the command line: the line in plan and the width.

@@ -12,7 +12,7 @@
 use eframe::egui;
 use myriad_core::Aabb;
 use myriad_core::colour::Gradient;
-use myriad_core::{Column, Schema};
+use myriad_core::{Attribute, Column, Schema};
 use myriad_format::Dataset;
 use myriad_lod::Camera;
 use myriad_measure::Filter;
@@ -66,7 +66,7 @@ pub fn reopen(
     (ram, gpu): (usize, usize),
     colour: ColorBy,
 ) -> Scene {
-    let bound = filter.bind(&ds.meta.schema).unwrap_or_else(|e| {
+    let bound = (filter.for_schema(&ds.meta.schema).bind(&ds.meta.schema)).unwrap_or_else(|e| {
         eprintln!("warning: {}: {e}: drawn unfiltered", ds.path().display());
         myriad_measure::Bound::all()
     });
@@ -109,6 +109,23 @@ pub fn ramp_over(ds: &Dataset, name: &str, gradient: Gradient) -> Result<ColorBy
     ds.choose_colour(name, Some(gradient), None)
 }
 
+/// `filter` drawing the classes of `classes` ticked there, where one is not, and the others as
+/// `filter` says (classes not seen yet, an edit's new class, drawn unless it names classes).
+fn with_classes(filter: &Filter, classes: &BTreeMap<u8, (u64, bool)>) -> Filter {
+    let mut f = filter.clone();
+    if classes.values().any(|&(_, shown)| !shown) {
+        f.classes = Some(
+            (0..=255u8)
+                .filter(|c| match classes.get(c) {
+                    Some(&(_, shown)) => shown,
+                    None => filter.classes.as_ref().is_none_or(|l| l.contains(c)),
+                })
+                .collect(),
+        );
+    }
+    f
+}
+
 impl Layer {
     pub(crate) fn refilter(&mut self, filter: &Filter, shares: (usize, usize), colour: ColorBy) {
         self.scene = reopen(&self.scene, self.dataset.clone(), filter, shares, colour);
@@ -137,13 +154,25 @@ impl Layers {
         let mut list = Vec::new();
         let mut bounds = Aabb::EMPTY;
         let mut all = Aabb::EMPTY;
+        // The classes of the overviews, and those the class scheme hides (unticked, none
+        // drawn) where the command line names none.
+        let scheme = myriad_core::classes::current();
         let mut classes = BTreeMap::new();
-        for (name, ds) in datasets {
-            for (c, n) in overview_classes(&ds) {
-                let shown = filter.classes.as_ref().is_none_or(|l| l.contains(&c));
+        for (_, ds) in &datasets {
+            for (c, n) in overview_classes(ds) {
+                let shown =
+                    (filter.classes.as_ref()).map_or(!scheme.is_hidden(c), |l| l.contains(&c));
                 classes.entry(c).or_insert((0, shown)).0 += n;
             }
-            let bound = (filter.bind(&ds.meta.schema))
+            if filter.classes.is_none() && ds.meta.schema.has(&Attribute::Classification) {
+                for c in scheme.hidden_classes() {
+                    classes.entry(c).or_insert((0, false));
+                }
+            }
+        }
+        let drawn = with_classes(&filter, &classes);
+        for (name, ds) in datasets {
+            let bound = (drawn.for_schema(&ds.meta.schema).bind(&ds.meta.schema))
                 .map_err(|e| format!("{}: {e}", ds.path().display()))?;
             let mut scene = Scene::open_filtered(ds.clone(), bound, ram, gpu_bytes);
             scene.set_colour(colour);
@@ -260,16 +289,8 @@ impl Layers {
     /// The filter the view draws: the command line's conditions and the panel's, and the
     /// classes ticked.
     pub(crate) fn filter(&self) -> Filter {
-        let mut f = self.filter.clone();
+        let mut f = with_classes(&self.filter, &self.classes);
         f.conditions.extend(self.typed.conditions.iter().cloned());
-        if self.classes.values().any(|&(_, shown)| !shown) {
-            f.classes = Some(
-                (self.classes.iter())
-                    .filter(|(_, (_, shown))| *shown)
-                    .map(|(c, _)| *c)
-                    .collect(),
-            );
-        }
         f
     }
 
@@ -384,12 +405,13 @@ impl Layers {
             return;
         }
         let mut changed = false;
+        let scheme = myriad_core::classes::current();
         egui::CollapsingHeader::new("classes (points in the overview)")
             .default_open(false)
             .show(ui, |ui| {
                 for (c, (count, shown)) in self.classes.iter_mut() {
                     ui.horizontal(|ui| {
-                        let [r, g, b] = myriad_core::colour::class_colour(*c);
+                        let [r, g, b] = scheme.colour(*c);
                         let (rect, _) =
                             ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
                         ui.painter()

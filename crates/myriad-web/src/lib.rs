@@ -102,12 +102,9 @@ impl Viewer {
             // A cloud format read in place ("COPC 1.0", "EPT", "Potree 2.0"): its nodes are read by
             // the decoders themselves, not fetched as pages.
             "foreign": self.dataset.foreign_format(),
-            // The ASPRS classes' names and colours (as `render` colours them), for the class list.
-            "classes": (0..=255u8).map(|c| json!({
-                "class": c,
-                "name": myriad_measure::filter::class_name(c),
-                "colour": myriad_core::colour::class_colour(c),
-            })).collect::<Vec<_>>(),
+            // The classes' names, colours and visibility (the default scheme, as `render` colours
+            // them; a style's answer gives a dataset's own), for the class list.
+            "classes": myriad_measure::scheme::table(&Default::default()),
         })
     }
 

@@ -180,9 +180,10 @@ fn shown_by(ds: &Dataset, hidden: &Hidden) -> Result<myriad_measure::Bound, Stri
 }
 
 /// Sets what the calls after it show (JSON at `p`: `{"color": NAME, "gradient": G or null,
-/// "range": [LOW, HIGH] or null, "where": CONDITIONS}`, as [`crate::style`] and
-/// [`crate::shown`] read them). The answer: the colour chosen (a ramp's gradient and range,
-/// fitted where none was given) or an error, the style before it kept.
+/// "range": [LOW, HIGH] or null, "where": CONDITIONS, "classes": SCHEME or null}`, as
+/// [`crate::style`], [`crate::shown`] and `myriad_measure::scheme` read them). The answer: the
+/// colour chosen (a ramp's gradient and range, fitted where none was given) and every class's
+/// name, colour and visibility, or an error, the style before it kept.
 ///
 /// # Safety
 /// `p..p + n` is memory the JavaScript wrote.
@@ -199,6 +200,14 @@ pub unsafe extern "C" fn myr_style(p: *const u8, n: u32) -> u32 {
         .as_array()
         .and_then(|r| Some([r.first()?.as_f64()?, r.get(1)?.as_f64()?]));
     let wheres = text("where").unwrap_or_default();
+    // The class scheme (the `"classes"` of the dataset's saved work; none: the default).
+    let scheme = match &asked["classes"] {
+        Value::Null => myriad_core::classes::Scheme::default(),
+        c => match myriad_measure::scheme::from_json(c) {
+            Ok(s) => s,
+            Err(e) => return error(format!("class scheme: {e}")),
+        },
+    };
     let r = with_dataset(|ds| -> Result<(Option<ColorBy>, Value), String> {
         shown(ds, &[false; 256], &wheres)?;
         let (c, v) = crate::style(ds, &colour_name, gradient.as_deref(), range)?;
@@ -213,6 +222,8 @@ pub unsafe extern "C" fn myr_style(p: *const u8, n: u32) -> u32 {
                 }
             });
             v["where"] = wheres.into();
+            v["classes"] = myriad_measure::scheme::table(&scheme);
+            myriad_core::classes::set(scheme);
             answer_json(v)
         }
         Some(Err(e)) => error(e),
@@ -338,6 +349,40 @@ pub unsafe extern "C" fn myr_edits(
         Some(Err(m)) => error(format!("edits: {m}")),
         None => error("no dataset open"),
     }
+}
+
+/// The views of a camera path (JSON at `p`: `{"views": [...]}`, as saved work keeps it) at
+/// `fps` frames a second: `{"views": [[ex, ey, ez, tx, ty, tz], ...], "duration": s}`, the
+/// curve `render --path` flies, or an error naming the member.
+///
+/// # Safety
+/// `p..p + n` is memory the JavaScript wrote.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn myr_path(p: *const u8, n: u32, fps: f64) -> u32 {
+    let v: Value = match serde_json::from_str(&name(p, n)) {
+        Ok(v) => v,
+        Err(e) => return error(format!("camera path: {e}")),
+    };
+    let path = match myriad_measure::camera_path::CameraPath::from_json(&v, "") {
+        Ok(p) => p,
+        Err(e) => return error(format!("camera path: {e}")),
+    };
+    if !(fps > 0.0 && fps <= 240.0) || path.duration() * fps > 1e6 {
+        return error("camera path: too many frames");
+    }
+    let views: Vec<Value> = (path.frames(fps).iter())
+        .map(|v| {
+            json!([
+                v.position[0],
+                v.position[1],
+                v.position[2],
+                v.target[0],
+                v.target[1],
+                v.target[2]
+            ])
+        })
+        .collect();
+    answer_json(json!({ "views": views, "duration": path.duration() }))
 }
 
 /// The contours every `interval` of the terrain the dataset's edits hold (after [`myr_edits`]),

@@ -52,6 +52,16 @@ pub struct AnnotateArgs {
     /// Replace an existing --export file
     #[arg(long)]
     force: bool,
+    /// Keep this class scheme with the work (a JSON file, as `render --classes-scheme` reads),
+    /// for the viewers and `render`; `default`: none kept (the ASPRS table)
+    #[arg(long, value_name = "FILE")]
+    classes_scheme: Option<PathBuf>,
+    /// Add a camera path from a file (as `render --path` reads; repeatable)
+    #[arg(help_heading = "Import and export", long, value_name = "FILE")]
+    add_path: Vec<PathBuf>,
+    /// Write the camera path of this name (or number, from 1) to FILE: NAME=FILE
+    #[arg(help_heading = "Import and export", long, value_name = "NAME=FILE")]
+    export_path: Option<String>,
     /// Print the work as the sidecar's JSON instead of a list
     #[arg(long)]
     json: bool,
@@ -103,6 +113,25 @@ fn list(w: &Work, sidecar: &Path) {
         w.annotations.len(),
         w.measurements.len()
     );
+    if let Some(s) = &w.classes {
+        let changed: Vec<String> = (s.changed().iter())
+            .map(|&c| {
+                let [r, g, b] = s.colour(c);
+                let hidden = if s.is_hidden(c) { ", hidden" } else { "" };
+                format!("{c} {} #{r:02x}{g:02x}{b:02x}{hidden}", s.name(c))
+            })
+            .collect();
+        println!("class scheme: {}", changed.join("; "));
+    }
+    for (i, p) in w.paths.iter().enumerate() {
+        println!(
+            "camera path {} \"{}\": {} views, {:.1} s",
+            i + 1,
+            p.name,
+            p.keys.len(),
+            p.duration()
+        );
+    }
     for (i, a) in w.annotations.iter().enumerate() {
         let p = a.position;
         let text = if a.text.is_empty() {
@@ -211,6 +240,17 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
     for m in &a.measure {
         w.measurements.push(parse_measure(m)?);
     }
+    match a.classes_scheme.as_deref() {
+        Some(f) if f.as_os_str() == "default" => w.classes = None,
+        Some(f) => w.classes = Some(crate::measure::read_scheme(f)?),
+        None => {}
+    }
+    for f in &a.add_path {
+        w.paths.push(crate::render::read_path(f)?);
+    }
+    if w.paths.len() > work::MAX_ITEMS {
+        bail!("more than {} camera paths", work::MAX_ITEMS);
+    }
     if w.annotations.len() > work::MAX_ITEMS || w.measurements.len() > work::MAX_ITEMS {
         bail!("more than {} annotations or measurements", work::MAX_ITEMS);
     }
@@ -220,6 +260,18 @@ pub fn run(a: AnnotateArgs) -> Result<()> {
     if let Some(out) = &a.export {
         myriad_io::atomic::refuse_input_as_output(out, &[&a.path, &sidecar])?;
         export_work(&w, out, a.force)?;
+        eprintln!("{}: written", out.display());
+    }
+    if let Some(e) = &a.export_path {
+        let (name, out) = e
+            .rsplit_once('=')
+            .ok_or_else(|| anyhow!("--export-path {e}: NAME=FILE"))?;
+        let path =
+            crate::render::saved_path(&w, name).map_err(|m| anyhow!("--export-path {e}: {m}"))?;
+        let out = Path::new(out);
+        myriad_io::atomic::refuse_input_as_output(out, &[&a.path, &sidecar])?;
+        let text = path.to_file();
+        myriad_measure::files::write_atomic(out, a.force, |w| w.write_all(text.as_bytes()))?;
         eprintln!("{}: written", out.display());
     }
     if a.json {

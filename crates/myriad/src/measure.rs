@@ -51,6 +51,12 @@ pub struct ColourArgs {
     /// overview's; from 0 above the ground]
     #[arg(long, value_parser = myriad_core::units::parse_floats::<2>, allow_hyphen_values = true)]
     pub range: Option<[f64; 2]>,
+    /// Class names, colours and classes hidden, from a JSON file ({"classes": {"2": {"name":
+    /// "terrain", "colour": "#8b5a2b", "hidden": false}}}) [default: the one kept with the
+    /// dataset's saved work (`myriad annotate --classes-scheme`), else the ASPRS table with
+    /// noise (7, 18) hidden]
+    #[arg(long, value_name = "FILE")]
+    pub classes_scheme: Option<PathBuf>,
 }
 
 fn parse_gradient(s: &str) -> Result<Gradient, String> {
@@ -71,6 +77,17 @@ impl ColourArgs {
         }
         myriad_core::colour::choose(&self.colour, self.gradient, self.range, schema, sample)
             .map_err(|e| anyhow!(e))
+    }
+
+    /// The class scheme for what `opened` names (`--classes-scheme`, else the one its saved
+    /// work keeps, else the default), put in force for the colours made from now on.
+    pub fn use_scheme(&self, opened: &Path) -> Result<myriad_core::classes::Scheme> {
+        let scheme = match &self.classes_scheme {
+            Some(f) => read_scheme(f)?,
+            None => saved_scheme(opened),
+        };
+        myriad_core::classes::set(scheme.clone());
+        Ok(scheme)
     }
 
     /// [`ColourArgs::choose`] for a dataset, fitted to its overview.
@@ -122,6 +139,7 @@ pub fn profile(a: ProfileArgs) -> Result<()> {
     let line = xy_arg(&a.line, "--line", Want::Line).map_err(|e| anyhow!(e))?;
     let corridor = Corridor::new(&line.points, a.width).map_err(|e| anyhow!(e))?;
     let filter = a.filter.filter()?;
+    a.colour.use_scheme(&a.dataset)?;
     let ext = extension(&a.output);
     if !matches!(
         ext.as_str(),
@@ -250,7 +268,9 @@ fn write_profile(
                     "the corridor holds no point: no picture to draw (is the line in the dataset's coordinates? `myriad info` gives its bounds)"
                 );
             }
-            let (w, h, rgba, exaggeration) = p.plot(a.pixels);
+            // Labelled: distances along, elevations, the unit, the vertical exaggeration.
+            let (w, h, rgba, exaggeration) =
+                myriad_render::legend::labelled_profile(p, a.pixels, units_of(ds));
             myriad_io::atomic::AtomicFile::create(&a.output, a.force).and_then(|f| {
                 myriad_io::image::write_png(f.temp_path(), w, h, &rgba)?;
                 f.commit()
@@ -434,4 +454,34 @@ fn print_volume(
         thousands(v.points),
         thousands(v.nodes_read)
     );
+}
+
+/// A class scheme file, read; an error names it and the line or member.
+pub fn read_scheme(f: &Path) -> Result<myriad_core::classes::Scheme> {
+    let max = myriad_measure::scheme::MAX_BYTES;
+    let size = std::fs::metadata(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+    if size.len() > max as u64 {
+        bail!(
+            "{}: larger than {max} bytes: not a class scheme",
+            f.display()
+        );
+    }
+    let text = std::fs::read_to_string(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+    myriad_measure::scheme::parse(&text).map_err(|e| anyhow!("{}: {e}", f.display()))
+}
+
+/// The class scheme kept with the saved work of `opened` (a dataset, a scan, tiles), else the
+/// default; saved work that cannot be read is said and left alone.
+pub fn saved_scheme(opened: &Path) -> myriad_core::classes::Scheme {
+    if myriad_format::remote::is_url(opened) {
+        return Default::default();
+    }
+    let sidecar = myriad_measure::work::sidecar_for(opened);
+    match myriad_measure::files::load_work(&sidecar, None) {
+        Ok(w) => w.classes.unwrap_or_default(),
+        Err(e) => {
+            eprintln!("warning: {e}: the default class scheme is used");
+            Default::default()
+        }
+    }
 }

@@ -46,12 +46,36 @@ pub struct RenderArgs {
     /// One of the standard views instead of --camera: overview (the default), top, close
     #[arg(help_heading = "Camera", long, conflicts_with = "camera", value_parser = ["overview", "top", "close"])]
     view: Option<String>,
+    /// The parallel (orthographic) view: the eye moved back along its line of sight until the
+    /// field of view is 1 degree, the view at the target the same size (as the viewers' key 0)
+    #[arg(help_heading = "Camera", long, conflicts_with = "stereo")]
+    parallel: bool,
+    /// Draw a legend over the image: a gradient colouring's colours and range, and in the
+    /// parallel view a scale bar
+    #[arg(help_heading = "Colour", long, conflicts_with_all = ["stereo", "fly"])]
+    legend: bool,
     /// Up direction
     #[arg(help_heading = "Camera", long, value_parser = parse_floats::<3>, default_value = "0,0,1", allow_hyphen_values = true)]
     up: [f64; 3],
     /// Vertical field of view in degrees
     #[arg(help_heading = "Camera", long, default_value_t = 60.0)]
     fov: f64,
+    /// Fly a camera path, a frame at each step: a path file ({"views": [{"position": [X,Y,Z],
+    /// "target": [X,Y,Z], "time": SECONDS}, ...]}) or the name or number of one kept with the
+    /// dataset's saved work (recorded in a viewer); -o names a folder of PNG frames, or a .mp4
+    /// (no video encoder is linked: its frames are written beside it with the ffmpeg line that
+    /// makes it)
+    #[arg(help_heading = "Camera", long = "path", value_name = "FILE|NAME",
+          conflicts_with_all = ["stereo", "surface", "no_wait", "camera", "view"])]
+    fly: Option<String>,
+    /// With --path: frames a second
+    #[arg(
+        help_heading = "Camera",
+        long,
+        default_value_t = 30.0,
+        requires = "fly"
+    )]
+    fps: f64,
     /// Most points drawn
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "5M")]
     budget: u64,
@@ -138,6 +162,7 @@ pub struct RenderArgs {
 pub fn run(a: RenderArgs) -> Result<()> {
     check(&a)?;
     let filter = a.filter.filter()?;
+    let scheme = a.colour.use_scheme(&a.dataset)?;
     let surface = (a.surface.map(|k| a.surface_options.surface(k)).transpose())
         .map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
@@ -155,12 +180,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
     };
     let ds = Arc::new(Dataset::open(&dataset)?);
+    // The classes the scheme hides are not drawn, unless --classes names them.
+    let filter = filter.hiding(&scheme, &ds.meta.schema);
     let options = SelectOptions {
         budget: if a.full { u64::MAX } else { a.budget },
         min_pixels: if a.full { 0.0 } else { a.lod_threshold },
     };
     let mut scene = scene_of(&a, &ds, &filter)?;
-    let cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
+    if let Some(p) = &a.fly {
+        return render_path(&a, p, (&mut scene, &ds), (&gpu, &raster), &options, &style);
+    }
+    let mut cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
+    if a.parallel {
+        cam = parallel(cam, &ds.meta.bounds);
+    }
     if a.stereo {
         return render_stereo(&a, &mut scene, &ds, (&gpu, &raster), &cam, &options, &style);
     }
@@ -179,7 +212,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     // An image of two versions of a dataset replaced on its server is no image of either.
     ds.check_unchanged()?;
-    write_png(&a.output, a.width, a.height, &still.image)?;
+    let mut image = still.image;
+    if a.legend {
+        legend(&a, &scene, &ds, &cam, &mut image);
+    }
+    write_png(&a.output, a.width, a.height, &image)?;
     let damaged = warn_damage(&scene);
     if let Some((requests, bytes)) = ds.fetched() {
         println!(
@@ -213,12 +250,17 @@ pub fn run(a: RenderArgs) -> Result<()> {
 /// input (nor there, without --force), the image's size, the field of view, the clipping box,
 /// eye-dome lighting's strength and radius.
 fn check(a: &RenderArgs) -> Result<()> {
-    if !a
-        .output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        bail!("{}: render writes a PNG image (.png)", a.output.display());
+    let ext = (a.output.extension()).map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match (&a.fly, ext.as_deref()) {
+        (None, Some("png")) | (Some(_), None | Some("mp4")) => {}
+        (None, _) => bail!("{}: render writes a PNG image (.png)", a.output.display()),
+        (Some(_), _) => bail!(
+            "{}: render --path writes a folder of frames (a name without an extension) or a .mp4",
+            a.output.display()
+        ),
+    }
+    if !(a.fps > 0.0 && a.fps <= 1000.0) {
+        bail!("--fps must be above 0 and at most 1000");
     }
     myriad_io::atomic::refuse_input_as_output(&a.output, &[&a.dataset])?;
     if a.output.exists() && !a.force {
@@ -490,6 +532,50 @@ fn warn_damage(scene: &Scene) -> usize {
     lines.len()
 }
 
+/// The field of view of the parallel view, in degrees (the viewers' too).
+const PARALLEL_FOV: f64 = 1.0;
+
+/// `cam` as a parallel view: the eye moved back along its line of sight until the field of
+/// view is [`PARALLEL_FOV`], the view at the target the same size; near and far around `all`.
+fn parallel(mut cam: Camera, all: &Aabb) -> Camera {
+    let v: [f64; 3] = std::array::from_fn(|i| cam.position[i] - cam.target[i]);
+    let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-9);
+    let half = d * (cam.fov_y.to_radians() / 2.0).tan();
+    let far = half / (PARALLEL_FOV.to_radians() / 2.0).tan();
+    cam.position = std::array::from_fn(|i| cam.target[i] + v[i] * far / d);
+    cam.fov_y = PARALLEL_FOV;
+    cam.fit_depth(all);
+    cam
+}
+
+/// `--legend`: a gradient colouring's legend; in the parallel view, a scale bar.
+fn legend(a: &RenderArgs, scene: &Scene, ds: &Dataset, cam: &Camera, image: &mut [u8]) {
+    use myriad_render::legend::{Canvas, gradient_legend, scale_bar};
+    let mut c = Canvas {
+        width: a.width,
+        height: a.height,
+        px: image,
+    };
+    if let myriad_render::ColorBy::Ramp(r) = scene.colour() {
+        let name = match r.column {
+            myriad_core::Column::AboveGround(_) => "height above ground".to_string(),
+            col => (myriad_core::Column::columns(&ds.meta.schema).into_iter())
+                .find(|(_, c)| *c == col)
+                .map_or_else(|| a.colour.colour.clone(), |(n, _)| n),
+        };
+        gradient_legend(&mut c, r.gradient, r.range, &name);
+    }
+    if a.parallel {
+        let d: f64 = (0..3)
+            .map(|i| (cam.position[i] - cam.target[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let per_pixel = 2.0 * d * (cam.fov_y.to_radians() / 2.0).tan() / a.height as f64;
+        let units = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
+        scale_bar(&mut c, per_pixel, units);
+    }
+}
+
 /// The camera `--view` or `--camera` asks for (default: `view` framed from above at 45
 /// degrees), near and far planes around `all`.
 fn view_of(a: &RenderArgs, view: &Aabb, all: &Aabb) -> Result<Camera> {
@@ -535,4 +621,157 @@ pub fn camera(
     }
     cam.fit_depth(all);
     Ok(cam)
+}
+
+/// The most frames `render --path` writes.
+const MAX_FRAMES: usize = 1_000_000;
+
+/// A camera path file, read; an error names it and the line or member.
+pub fn read_path(f: &std::path::Path) -> Result<myriad_measure::camera_path::CameraPath> {
+    let max = myriad_measure::camera_path::MAX_BYTES;
+    let size = std::fs::metadata(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+    if size.len() > max as u64 {
+        bail!(
+            "{}: larger than {max} bytes: not a camera path",
+            f.display()
+        );
+    }
+    let text = std::fs::read_to_string(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+    myriad_measure::camera_path::CameraPath::parse(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))
+}
+
+/// The camera path of saved work by its name or its number (from 1).
+pub fn saved_path(
+    w: &myriad_measure::work::Work,
+    name: &str,
+) -> std::result::Result<myriad_measure::camera_path::CameraPath, String> {
+    let by_number = name.parse::<usize>().ok().and_then(|i| i.checked_sub(1));
+    (w.paths.iter().find(|p| p.name == name))
+        .or_else(|| by_number.and_then(|i| w.paths.get(i)))
+        .cloned()
+        .ok_or_else(|| {
+            let names: Vec<String> = (w.paths.iter().enumerate())
+                .map(|(i, p)| format!("{} \"{}\"", i + 1, p.name))
+                .collect();
+            match names.len() {
+                0 => "no such file, and the saved work keeps no camera path".to_string(),
+                _ => format!(
+                    "no such file, nor a camera path of the saved work ({})",
+                    names.join(", ")
+                ),
+            }
+        })
+}
+
+/// Whether `dir` holds only frames (`NNNNN.png`): what `render --path --force` replaces.
+fn only_frames(dir: &std::path::Path) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries.flatten().all(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.strip_suffix(".png")
+                .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+        })
+    })
+}
+
+/// `render --path`: the path flown at `--fps`, a frame a step, each drawn as a still (the
+/// selection settled within the budget, the passes run), into a folder that appears whole.
+fn render_path(
+    a: &RenderArgs,
+    given: &str,
+    (scene, ds): (&mut Scene, &Dataset),
+    (gpu, raster): (&Gpu, &Rasterizer),
+    options: &SelectOptions,
+    style: &Style,
+) -> Result<()> {
+    let file = std::path::Path::new(given);
+    let path = if file.is_file() {
+        read_path(file)?
+    } else {
+        let sidecar = myriad_measure::work::sidecar_for(&a.dataset);
+        let w = myriad_measure::files::load_work(&sidecar, None)?;
+        saved_path(&w, given).map_err(|e| anyhow::anyhow!("--path {given}: {e}"))?
+    };
+    let views = path.frames(a.fps);
+    if views.len() > MAX_FRAMES {
+        bail!(
+            "--path {given}: {} frames at {} fps: at most {MAX_FRAMES}",
+            views.len(),
+            a.fps
+        );
+    }
+    let video = (a.output.extension()).is_some_and(|e| e.eq_ignore_ascii_case("mp4"));
+    let folder = if video {
+        a.output.with_extension("frames")
+    } else {
+        a.output.clone()
+    };
+    myriad_io::atomic::refuse_input_as_output(&folder, &[&a.dataset])?;
+    let out =
+        myriad_io::atomic::AtomicDir::create(&folder, a.force, only_frames, "a folder of frames")?;
+    let t0 = Instant::now();
+    let mut points = Vec::with_capacity(views.len());
+    for (i, v) in views.iter().enumerate() {
+        let eye_target = [
+            v.position[0],
+            v.position[1],
+            v.position[2],
+            v.target[0],
+            v.target[1],
+            v.target[2],
+        ];
+        let cam = camera(
+            &scene.view_bounds,
+            &ds.meta.bounds,
+            Some(eye_target),
+            a.up,
+            a.width,
+            a.height,
+            a.fov,
+        )
+        .map_err(|e| anyhow::anyhow!("--path {given}: frame {i}: {e}"))?;
+        let still = myriad_render::still::draw(scene, gpu, raster, &cam, options, style, None, t0);
+        write_png(
+            &out.temp().join(format!("{i:05}.png")),
+            a.width,
+            a.height,
+            &still.image,
+        )?;
+        points.push(still.stats.points);
+    }
+    ds.check_unchanged()?;
+    out.commit()?;
+    let damaged = warn_damage(scene);
+    points.sort_unstable();
+    println!(
+        "{}: {} frames of {}x{} ({:.2} s at {} fps, camera path \"{}\"), median {} points a frame, drawn in {:.1} s ({}, {:?} path)",
+        folder.display(),
+        views.len(),
+        a.width,
+        a.height,
+        path.duration(),
+        a.fps,
+        path.name,
+        myriad_core::units::thousands(points[points.len() / 2]),
+        t0.elapsed().as_secs_f64(),
+        gpu.name,
+        raster.path,
+    );
+    if video {
+        // yuv420p wants even sides.
+        let pad = if a.width % 2 == 1 || a.height % 2 == 1 {
+            " -vf pad=ceil(iw/2)*2:ceil(ih/2)*2"
+        } else {
+            ""
+        };
+        println!(
+            "no video encoder is linked into myriad; make {} from the frames with:\nffmpeg -framerate {} -i {}/%05d.png{pad} -c:v libx264 -pix_fmt yuv420p -crf 18 {}",
+            a.output.display(),
+            a.fps,
+            folder.display(),
+            a.output.display()
+        );
+    }
+    full_image_whole(a, damaged)
 }

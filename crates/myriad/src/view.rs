@@ -86,6 +86,22 @@ pub struct ViewArgs {
     /// "contours every"); their count is printed
     #[arg(help_heading = "Tools", long, value_name = "INTERVAL")]
     contours: Option<f64>,
+    /// Add this view to the camera path being recorded (as key J does): EX,EY,EZ,TX,TY,TZ
+    /// (repeatable, in order, 2 s apart)
+    #[arg(help_heading = "Camera path", long, value_parser = parse_floats::<6>, allow_hyphen_values = true, value_name = "EYE,TARGET")]
+    path_view: Vec<[f64; 6]>,
+    /// Save the views recorded as the camera path NAME with the saved work (the panel's "save")
+    #[arg(
+        help_heading = "Camera path",
+        long,
+        value_name = "NAME",
+        requires = "path_view"
+    )]
+    record_path: Option<String>,
+    /// Play a camera path once the view is in: a path file, or the name or number of one
+    /// kept with the saved work
+    #[arg(help_heading = "Camera path", long, value_name = "FILE|NAME")]
+    play_path: Option<String>,
     /// Most points drawn, shared by all datasets
     #[arg(long, value_parser = myriad_core::units::parse_count, default_value = "2M")]
     budget: u64,
@@ -197,6 +213,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
         to_build,
         watched,
     } = open_layers(&a, &mut opener)?;
+    // The class scheme: --classes-scheme, else the first dataset's saved one.
+    if let Some(first) = a.datasets.first() {
+        a.colour.use_scheme(first)?;
+    }
     if a.vr {
         return run_vr(&a, datasets);
     }
@@ -216,6 +236,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         volume: volume_asked(&a, &datasets)?,
         section: section_asked(&a, &datasets)?,
         edits: Some(edits_asked(&a, &datasets)?),
+        paths: Some(paths_asked(&a)?),
         contours: match a.contours {
             Some(i) if !(i.is_finite() && i > 0.0) => bail!("--contours {i}: a positive interval"),
             c => c,
@@ -489,6 +510,50 @@ fn edits_asked(
         bail!("--classify: {m}");
     }
     Ok(myriad_viewer::EditsAsked { dataset, changes })
+}
+
+/// `--path-view`, `--record-path` and `--play-path`, checked (a path to play read).
+fn paths_asked(a: &ViewArgs) -> Result<myriad_viewer::PathsAsked> {
+    let mut views = Vec::new();
+    for v in &a.path_view {
+        if v[..3] == v[3..] {
+            bail!("--path-view: the eye and the target are the same point");
+        }
+        views.push(myriad_measure::camera_path::View {
+            position: [v[0], v[1], v[2]],
+            target: [v[3], v[4], v[5]],
+        });
+    }
+    let recorded = a.play_path.is_some() && a.play_path == a.record_path;
+    let play = match &a.play_path {
+        None => None,
+        Some(_) if recorded => None,
+        Some(p) if std::path::Path::new(p).is_file() => {
+            Some(crate::render::read_path(std::path::Path::new(p))?)
+        }
+        Some(p) => {
+            let first = a
+                .datasets
+                .first()
+                .filter(|d| !myriad_format::remote::is_url(d));
+            let w = match first {
+                Some(d) => {
+                    myriad_measure::files::load_work(&myriad_measure::work::sidecar_for(d), None)?
+                }
+                None => Default::default(),
+            };
+            Some(
+                crate::render::saved_path(&w, p)
+                    .map_err(|e| anyhow::anyhow!("--play-path {p}: {e}"))?,
+            )
+        }
+    };
+    Ok(myriad_viewer::PathsAsked {
+        views,
+        save_as: a.record_path.clone(),
+        play,
+        play_recorded: recorded,
+    })
 }
 
 /// `--volume` with `--volume-base` and `--volume-cell`, checked.

@@ -726,3 +726,107 @@ fn the_viewer_edits_classes_as_the_cli_does() {
     assert_eq!(std::fs::read(&ds).unwrap(), before, "the dataset untouched");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Issue 71 in the window: a class scheme (`--classes-scheme`) colours and hides classes; views
+/// recorded (`--path-view`, as key J adds them) are saved with the work as a camera path
+/// (`--record-path`, the panel's "save") that `render --path` flies, and a path plays
+/// (`--play-path`) before the screenshot.
+#[test]
+fn the_viewer_uses_the_class_scheme_and_records_camera_paths() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("scheme-window");
+    let las = d.join("c.las");
+    common::ok(&["synth", "-o", las.to_str().unwrap(), "--points", "100k"]);
+    let ds = d.join("c.myr");
+    common::ok(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    let scheme = d.join("scheme.json");
+    std::fs::write(
+        &scheme,
+        r##"{"classes": {"6": {"name": "houses", "colour": "#0000ff"}, "5": {"hidden": true}}}"##,
+    )
+    .unwrap();
+    let b = myriad_format::Dataset::open(&ds).unwrap().meta.bounds;
+    let c = b.center();
+    let view = |dx: f64| {
+        format!(
+            "{},{},{},{},{},{}",
+            c[0] + dx,
+            c[1] - 150.0,
+            c[2] + 150.0,
+            c[0],
+            c[1],
+            c[2]
+        )
+    };
+    let (v1, v2) = (view(-60.0), view(60.0));
+    let png = d.join("s.png");
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+        ds.to_str().unwrap(),
+        "--width",
+        "640",
+        "--height",
+        "480",
+        "--color",
+        "classification",
+        "--classes-scheme",
+        scheme.to_str().unwrap(),
+        "--path-view",
+        &v1,
+        "--path-view",
+        &v2,
+        "--record-path",
+        "tour",
+        "--play-path",
+        "tour",
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--exit-after-converged",
+    ]) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("camera path saved \"tour\": 2 views, 2.0 s"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("played camera path \"tour\" (2.0 s)"),
+        "{stdout}"
+    );
+    let work: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.work.json")).unwrap()).unwrap();
+    assert_eq!(work["paths"][0]["name"], "tour", "{work}");
+    assert_eq!(work["paths"][0]["views"].as_array().unwrap().len(), 2);
+    let (_, _, img) = decode_png(&png);
+    let count = |c: [u8; 3]| img.chunks(4).filter(|p| p[..3] == c).count();
+    let (blue, old, trees) = (
+        count([0, 0, 255]),
+        count(class_colour(6)),
+        count(class_colour(5)),
+    );
+    assert!(
+        blue > 1000 && old == 0 && trees == 0,
+        "{blue} blue, {old} of the default building colour, {trees} of trees"
+    );
+    let out = common::ok(&[
+        "render",
+        ds.to_str().unwrap(),
+        "--path",
+        "tour",
+        "--fps",
+        "2",
+        "-o",
+        d.join("f").to_str().unwrap(),
+        "--raster",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(out.contains("5 frames of 64x48"), "{out}");
+    let _ = std::fs::remove_dir_all(&d);
+}

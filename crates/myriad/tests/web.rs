@@ -1335,3 +1335,114 @@ fn the_web_viewer_edits_classes_as_the_cli_does() {
         "the scan and the dataset untouched"
     );
 }
+
+/// Issue 71 in the web viewer: the class scheme kept with the saved work names, colours and
+/// hides classes (the class list its legend, the points its colours); a camera path recorded
+/// with "add view" (and key J) is saved with the work as `view` and `render --path` read it, and
+/// plays.
+#[test]
+fn the_web_viewer_uses_the_class_scheme_and_records_camera_paths() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-scheme");
+    let laz = d.join("w.laz");
+    ok(&["synth", "-o", s(&laz), "--points", "100k"]);
+    let myr = d.join("w.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let scheme = d.join("scheme.json");
+    std::fs::write(
+        &scheme,
+        r##"{"classes": {"6": {"name": "houses", "colour": "#0000ff"}, "5": {"hidden": true}}}"##,
+    )
+    .unwrap();
+    ok(&["annotate", s(&myr), "--classes-scheme", s(&scheme)]);
+    let server = serve(&[s(&myr), "--edit"], std::process::Stdio::null());
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!(
+            "{}/view/w.myr#renderer=webgl2&color=classification",
+            server.base
+        ),
+        W,
+        H,
+    )
+    .unwrap();
+    converge(&mut b);
+    b.eval("document.getElementById('panel').style.display = 'none'; new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        .unwrap();
+    let (_, _, px) = png(&b.screenshot().unwrap());
+    b.eval("document.getElementById('panel').style.display = ''")
+        .unwrap();
+    let near = |p: &[u8; 3], c: [u8; 3]| (0..3).all(|k| (p[k] as i32 - c[k] as i32).abs() <= 4);
+    let blue = px.iter().filter(|p| near(p, [0, 0, 255])).count();
+    let old = px.iter().filter(|p| near(p, [230, 90, 60])).count();
+    let trees = px.iter().filter(|p| near(p, [0, 110, 0])).count();
+    assert!(
+        blue > 2000 && old == 0 && trees == 0,
+        "{blue} blue, {old} of the default building colour, {trees} of trees"
+    );
+    let rows = b
+        .eval("[...document.querySelectorAll('#classes label.class')].map(l => [l.textContent, l.querySelector('input').checked])")
+        .unwrap()
+        .to_string();
+    for want in [
+        r#"6 houses: "#,
+        r#"5 high vegetation: "#,
+        r#"7 low point: 0",false"#,
+    ] {
+        assert!(rows.contains(want), "{want} in {rows}");
+    }
+    assert!(rows.contains(r#"5 high vegetation: "#) && !rows.contains(r#"high vegetation: 0"#));
+    let link = b.eval("myriad.link()").unwrap();
+    assert!(
+        !link.as_str().unwrap().contains("hide="),
+        "the scheme's hidden classes: {link}"
+    );
+
+    // A camera path: two views (the button, then key J after the camera moved), saved, played.
+    b.eval("document.getElementById('path-name').value = 'tour'; document.getElementById('path-name').onchange({target: document.getElementById('path-name')}); document.getElementById('path-add').click()")
+        .unwrap();
+    b.eval("(() => { const c = myriad.camera(); myriad.setCamera({position: c.position.map((v, i) => i === 2 ? v + 50 : v)}); })()")
+        .unwrap();
+    b.eval("window.dispatchEvent(new KeyboardEvent('keydown', {key: 'j'})); document.getElementById('path-save').click()")
+        .unwrap();
+    b.wait_for(
+        "myriad.state.work.saves > 0 && myriad.state.work.doc.paths",
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    let saved: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("w.work.json")).unwrap()).unwrap();
+    assert_eq!(saved["paths"][0]["name"], "tour", "{saved}");
+    assert_eq!(saved["paths"][0]["views"].as_array().unwrap().len(), 2);
+    assert_eq!(saved["paths"][0]["views"][1]["time"], 2.0);
+    assert_eq!(
+        saved["classes"]["6"]["name"], "houses",
+        "the scheme kept: {saved}"
+    );
+    b.eval("document.getElementById('path-play').click()")
+        .unwrap();
+    b.wait_for("myriad.state.paths.played === 1", Duration::from_secs(30))
+        .unwrap();
+    drop(b);
+    // `render --path tour` flies what the page saved.
+    let out = ok(&[
+        "render",
+        s(&myr),
+        "--path",
+        "tour",
+        "--fps",
+        "2",
+        "-o",
+        s(&d.join("f")),
+        "--raster",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(out.contains("5 frames of 64x48"), "{out}");
+}

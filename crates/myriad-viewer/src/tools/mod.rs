@@ -1,8 +1,8 @@
 //! The tools over the view, each a value of its own in its own file: measuring (`measure.rs`),
 //! annotating and the saved work (`annotate.rs`), the profile of a section line
 //! (`profile.rs`), the volume over a polygon (`volume.rs`), editing classes (`edit.rs`), the
-//! terrain's contours (`contours.rs`), the clipping box (`clip.rs`) and picking a point
-//! (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
+//! terrain's contours (`contours.rs`), camera paths (`path.rs`), the clipping box (`clip.rs`)
+//! and picking a point (`pick.rs`). [`Tools`] holds them: the keys that start and stop them (one
 //! takes clicks at a time), the clicks they take, their parts of the panel, and what they draw
 //! over the view.
 
@@ -11,6 +11,7 @@ pub(crate) mod clip;
 pub(crate) mod contours;
 pub(crate) mod edit;
 pub(crate) mod measure;
+pub(crate) mod path;
 pub(crate) mod pick;
 pub(crate) mod profile;
 pub(crate) mod volume;
@@ -33,6 +34,7 @@ pub(crate) struct Tools {
     pub volume: volume::Volumes,
     pub edit: edit::Editing,
     pub contours: contours::Contours,
+    pub path: path::Paths,
     pub clip: clip::Clip,
     pub pick: pick::Picking,
 }
@@ -55,6 +57,7 @@ impl Tools {
         work: Option<PathBuf>,
         (section, volume): (Option<SectionAsked>, Option<VolumeAsked>),
         (edits, contours): (Option<edit::EditsAsked>, Option<f64>),
+        paths: Option<path::PathsAsked>,
     ) -> Tools {
         let crs = layers.crs();
         let crs = crs.as_deref();
@@ -66,6 +69,7 @@ impl Tools {
             volume: volume::Volumes::new(units, volume),
             edit: edit::Editing::new(edits),
             contours: contours::Contours::new(contours),
+            path: path::Paths::new(paths),
             clip: clip::Clip::new(bounds),
             pick: pick::Picking::new(crs),
             annotate,
@@ -77,6 +81,7 @@ impl Tools {
     pub fn start(&mut self, bounds: &Aabb, layers: &mut Layers) {
         self.edit.start(layers);
         self.contours.start(layers);
+        self.path.start(&mut self.annotate.work);
         self.profile.start(bounds, layers);
         self.volume.start(bounds, layers);
     }
@@ -96,8 +101,8 @@ impl Tools {
     }
 
     /// The tools' keys (`pressed`): Esc stops them; V a volume's polygon, K an edit's, X a
-    /// section line, T an annotation, M N A O C Z I the measurements (not in fly mode, whose
-    /// keys move).
+    /// section line, T an annotation, M N A O C Z I the measurements, J adds the view to the
+    /// camera path (not in fly mode, whose keys move).
     pub fn keys(&mut self, pressed: &dyn Fn(egui::Key) -> bool, fly: bool) {
         if pressed(egui::Key::Escape) {
             self.stop();
@@ -116,6 +121,9 @@ impl Tools {
             let on = !self.profile.drawing;
             self.stop();
             self.profile.draw_line(on);
+        }
+        if pressed(egui::Key::J) && !fly {
+            self.path.add_asked = true;
         }
         if pressed(egui::Key::T) && !fly {
             let on = !self.annotate.placing;
@@ -148,6 +156,9 @@ impl Tools {
         cam: &Camera,
         layers: &mut Layers,
     ) {
+        if std::mem::take(&mut self.path.add_asked) {
+            self.path.add_camera(cam);
+        }
         if self.edit.drawing {
             let at = cursor
                 .and_then(|(x, y)| layers.pick(cam, x, y))
@@ -203,7 +214,7 @@ impl Tools {
 
     /// The tools' parts of the panel: measuring, annotations, the profile, the volume, the
     /// edits, the clipping box.
-    pub fn panel(&mut self, ui: &mut egui::Ui, layers: &mut Layers) -> Asked {
+    pub fn panel(&mut self, ui: &mut egui::Ui, layers: &mut Layers, cam: &Camera) -> Asked {
         ui.separator();
         if self.measure.panel(ui).is_some() {
             // One tool takes clicks at a time.
@@ -234,6 +245,8 @@ impl Tools {
         }
         self.contours.panel(ui, layers);
         ui.separator();
+        self.path.panel(ui, &mut self.annotate.work, cam);
+        ui.separator();
         let clip = self.clip.panel(ui);
         Asked { go, clip }
     }
@@ -259,6 +272,7 @@ impl Tools {
         self.profile.draw(painter, &screen);
         self.volume.draw(painter, &screen);
         self.edit.draw(painter, &screen);
+        self.path.draw(painter, &screen);
     }
 
     /// After the frame: the profile's window (its picture's points saved from the first
@@ -276,7 +290,10 @@ impl Tools {
 
     /// No profile being cut, no volume being measured.
     pub fn settled(&self) -> bool {
-        self.profile.settled() && self.volume.settled() && self.contours.settled()
+        self.profile.settled()
+            && self.volume.settled()
+            && self.contours.settled()
+            && self.path.settled()
     }
 
     /// The complete measurements taken into the saved work, written once it has settled.
