@@ -520,8 +520,42 @@ function sameCamera(a, b) {
   return !!a && !!b && ["position", "target", "up"].every((k) => a[k].every((v, i) => v === b[k][i])) && a.fov === b.fov;
 }
 
+// The scale bar in the parallel view (a round length at the target's depth) and a gradient
+// colouring's legend (its colours, the range's ends), over the view as `render --legend` draws
+// them into PNGs.
+function legends() {
+  const bar = document.getElementById("scalebar");
+  bar.style.display = settings.parallel && camera ? "block" : "none";
+  if (settings.parallel && camera) {
+    const d = Math.hypot(...camera.position.map((v, i) => v - camera.target[i]));
+    const perPixel = 2 * d * Math.tan(camera.fov * Math.PI / 360) / canvas.clientHeight;
+    const want = perPixel * canvas.clientWidth / 5;
+    const p = Math.pow(10, Math.floor(Math.log10(want)));
+    let len = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= want * 0.999) || 10 * p;
+    if (len > want * 1.5) len /= 2;
+    bar.querySelector(".bar").style.width = `${Math.round(len / perPixel)}px`;
+    const decimals = Math.max(0, Math.ceil(-Math.log10(len)));
+    bar.querySelector(".text").textContent = `${len.toFixed(decimals)} ${state.info.units || "units"}`;
+  }
+  const g = document.getElementById("ramp-legend");
+  const r = settings.ramp;
+  const stops = state.rampStops;
+  g.style.display = r && r.range && stops ? "block" : "none";
+  if (r && r.range && stops) {
+    g.querySelector(".name").textContent = r.name === "z" ? "elevation" : r.name;
+    g.querySelector(".bar").style.background =
+      `linear-gradient(to right, ${stops.map((c) => `rgb(${c.join(",")})`).join(", ")})`;
+    const [a, b] = g.querySelectorAll(".ends span");
+    const step = Math.abs(r.range[1] - r.range[0]) / 10;
+    const decimals = Math.max(0, Math.ceil(-Math.log10(step || 1)));
+    a.textContent = r.range[0].toFixed(decimals);
+    b.textContent = r.range[1].toFixed(decimals);
+  }
+}
+
 function frame() {
-  pathTick();
+  // (path.js, loaded after this file, may not be there on the first frame.)
+  if (typeof pathTick === "function") pathTick();
   const w = Math.round(canvas.clientWidth * (window.devicePixelRatio || 1));
   const h = Math.round(canvas.clientHeight * (window.devicePixelRatio || 1));
   if (w !== canvas.width || h !== canvas.height) {
@@ -531,6 +565,7 @@ function frame() {
   if (dirty && camera && state.info) {
     dirty = false;
     draw();
+    legends();
   }
   requestAnimationFrame(frame);
 }
@@ -819,6 +854,7 @@ async function applyStyle() {
     classesShown = "";
   }
   if (r && answer.ramp) { r.gradient = answer.ramp.gradient; r.range = answer.ramp.range; }
+  state.rampStops = answer.ramp ? answer.ramp.stops : null;
   const fixed = { ...ask, gradient: r ? r.gradient : null, range: r ? r.range : null };
   await Promise.all(decoders.map((w) => call(w, { type: "style", style: fixed })));
   if (asked !== styleAsked) return false;

@@ -261,6 +261,9 @@ impl App {
         }
         self.render.show(ui, rect, shown, image, size);
         (self.tools).draw(ui.painter(), rect, ppp, &self.view.nav.camera);
+        let units = myriad_measure::measurement::crs_units(self.layers.crs().as_deref());
+        let parallel = self.view.nav.parallel().then_some(&self.view.nav.camera);
+        crate::legend::draw(ui.painter(), rect, parallel, self.layers.colour, units);
         if self.render.loading() {
             ui.painter().text(
                 rect.right_top() + egui::vec2(-10.0, 10.0),

@@ -17,6 +17,7 @@
 mod app;
 mod blit;
 pub mod builds;
+mod legend;
 pub mod measure;
 pub mod motion;
 pub mod nav;

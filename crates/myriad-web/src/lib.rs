@@ -97,6 +97,8 @@ impl Viewer {
             "columns": Column::columns(&m.schema).into_iter().map(|(n, _)| n).collect::<Vec<_>>(),
             "gradients": Gradient::ALL.iter().map(|g| gradient_name(*g)).collect::<Vec<_>>(),
             "crs": m.crs,
+            // The unit of the CRS's coordinates (for the scale bar).
+            "units": myriad_measure::measurement::crs_units(m.crs.as_deref()),
             // The files besides the dataset's own that hold its pages, relative to it.
             "files": m.files.iter().map(|f| f.path.as_str()).collect::<Vec<_>>(),
             // A cloud format read in place ("COPC 1.0", "EPT", "Potree 2.0"): its nodes are read by
@@ -242,7 +244,11 @@ pub fn style(
     let colour =
         (ds.choose_colour(name, gradient, range)).map_err(|e| e.replace("--color ", "colour "))?;
     let ramp = match colour {
-        ColorBy::Ramp(r) => json!({ "gradient": gradient_name(r.gradient), "range": r.range }),
+        // Its colours at eleven stops, for the legend.
+        ColorBy::Ramp(r) => json!({
+            "gradient": gradient_name(r.gradient), "range": r.range,
+            "stops": (0..=10).map(|i| r.gradient.at(i as f64 / 10.0)).collect::<Vec<_>>(),
+        }),
         _ => Value::Null,
     };
     Ok((colour, json!({ "color": name, "ramp": ramp })))

@@ -1401,6 +1401,36 @@ fn the_web_viewer_uses_the_class_scheme_and_records_camera_paths() {
         "the scheme's hidden classes: {link}"
     );
 
+    // Legends over the view: a gradient colouring's, and the parallel view's scale bar.
+    b.eval(
+        "(() => { const s = document.getElementById('scheme'); s.value = 'ramp:z'; \
+         s.dispatchEvent(new Event('change')); myriad.setParallel(true); })()",
+    )
+    .unwrap();
+    let shown = b
+        .wait_for(
+            "myriad.state.style && myriad.state.style.color === 'z' && \
+             getComputedStyle(document.getElementById('ramp-legend')).display === 'block' && \
+             getComputedStyle(document.getElementById('scalebar')).display === 'block' && \
+             [document.getElementById('ramp-legend').textContent, \
+              document.querySelector('#scalebar .text').textContent, \
+              document.querySelector('#scalebar .bar').getBoundingClientRect().width]",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    assert!(
+        shown[0].as_str().unwrap().starts_with("elevation"),
+        "{shown}"
+    );
+    assert!(shown[1].as_str().unwrap().ends_with(" m"), "{shown}");
+    let bar = shown[2].as_f64().unwrap();
+    assert!(bar > W as f64 / 10.0 && bar < W as f64 * 0.3, "{shown}");
+    b.eval(
+        "(() => { const s = document.getElementById('scheme'); s.value = 'classification'; \
+         s.dispatchEvent(new Event('change')); myriad.setParallel(false); })()",
+    )
+    .unwrap();
+
     // A camera path: two views (the button, then key J after the camera moved), saved, played.
     b.eval("document.getElementById('path-name').value = 'tour'; document.getElementById('path-name').onchange({target: document.getElementById('path-name')}); document.getElementById('path-add').click()")
         .unwrap();
