@@ -28,6 +28,7 @@ pub mod files;
 pub mod filter;
 pub mod geojson;
 pub mod ground;
+pub mod map;
 pub mod measurement;
 pub mod polygon;
 pub mod profile;

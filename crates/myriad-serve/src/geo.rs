@@ -1,7 +1,10 @@
 //! `GET /geo/NAME?at=X,Y,Z`: the longitude, latitude (degrees) and ellipsoidal height (metres,
 //! WGS 84) of a point in the dataset's coordinates, through PROJ (`myriad_io::proj`), for the web
-//! viewer's picked point: `{"lon":..,"lat":..,"h":..}`. A malformed point: 400; a dataset
-//! without a CRS: 422; a point that does not transform: 422; no PROJ on the server: 503.
+//! viewer's picked point: `{"lon":..,"lat":..,"h":..}`. `GET /geo/NAME?footprint`: where the
+//! dataset lies on a web map (`myriad_measure::map`): the affine from its plan to Web
+//! Mercator's unit square (`{"a": [6], "origin": [x, y]}`) and its bounds in plan, for the web
+//! viewer's map. A malformed question: 400; a dataset without a CRS: 422; a point that does not
+//! transform: 422; no PROJ on the server: 503.
 //!
 //! One transform per dataset, made on its first question and kept (PROJ's objects serve one
 //! thread at a time: each behind a lock); questions run on the blocking pool.
@@ -15,6 +18,23 @@ type Cached = Result<Arc<Mutex<myriad_io::proj::Geographic>>, (u16, String)>;
 #[derive(Default)]
 pub(crate) struct Geo {
     by_path: Mutex<HashMap<PathBuf, Cached>>,
+}
+
+/// What `/geo/` is asked.
+#[derive(Debug, PartialEq)]
+pub(crate) enum Question {
+    /// A point's longitude, latitude and height.
+    At([f64; 3]),
+    /// The dataset's place on a web map.
+    Footprint,
+}
+
+/// The question of a query: `at=X,Y,Z` or `footprint`.
+pub(crate) fn question(query: &str) -> Result<Question, String> {
+    if query.split('&').any(|kv| kv == "footprint") {
+        return Ok(Question::Footprint);
+    }
+    parse(query).map(Question::At)
 }
 
 /// The point `at=X,Y,Z` names.
@@ -56,7 +76,11 @@ impl Geo {
     }
 
     /// The answer's status and body.
-    pub(crate) fn answer(&self, dataset: &Path, at: [f64; 3]) -> (u16, String) {
+    pub(crate) fn answer(&self, dataset: &Path, q: Question) -> (u16, String) {
+        let at = match q {
+            Question::At(at) => at,
+            Question::Footprint => return self.footprint(dataset),
+        };
         match self.transform(dataset) {
             Err(e) => e,
             Ok(g) => match g.lock().unwrap_or_else(|e| e.into_inner()).of(at) {
@@ -66,6 +90,34 @@ impl Geo {
                 ),
                 None => (422, format!("{at:?} does not transform to WGS 84")),
             },
+        }
+    }
+}
+
+impl Geo {
+    fn footprint(&self, dataset: &Path) -> (u16, String) {
+        let g = match self.transform(dataset) {
+            Err(e) => return e,
+            Ok(g) => g,
+        };
+        let b = match myriad_format::Dataset::open_stored(dataset) {
+            Ok(ds) => ds.meta.bounds,
+            Err(e) => return (500, e.to_string()),
+        };
+        let mut t = g.lock().unwrap_or_else(|e| e.into_inner());
+        match myriad_measure::map::georef_of(&b, |p| t.of(p)) {
+            Some(r) => (
+                200,
+                serde_json::json!({
+                    "a": r.a, "origin": r.origin,
+                    "bounds": [b.min[0], b.min[1], b.max[0], b.max[1]],
+                })
+                .to_string(),
+            ),
+            None => (
+                422,
+                "the dataset's extent does not transform to WGS 84".into(),
+            ),
         }
     }
 }

@@ -768,8 +768,8 @@ async fn route(
         let Some(name) = percent_decode(name) else {
             return status(StatusCode::BAD_REQUEST, "malformed path");
         };
-        let at = match geo::parse(req.uri().query().unwrap_or("")) {
-            Ok(at) => at,
+        let at = match geo::question(req.uri().query().unwrap_or("")) {
+            Ok(q) => q,
             Err(m) => return status(StatusCode::BAD_REQUEST, &m),
         };
         return match catalog.file(&name) {

@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 12] = [
+static FILES: [(&str, Asset); 13] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -80,6 +80,10 @@ static FILES: [(&str, Asset); 12] = [
     (
         "contours.js",
         Asset::new(include_bytes!("../viewer/contours.js"), "text/javascript"),
+    ),
+    (
+        "map.js",
+        Asset::new(include_bytes!("../viewer/map.js"), "text/javascript"),
     ),
     (
         "path.js",

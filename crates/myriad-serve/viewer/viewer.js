@@ -566,6 +566,7 @@ function frame() {
     dirty = false;
     draw();
     legends();
+    mapDraw();
   }
   requestAnimationFrame(frame);
 }
@@ -777,6 +778,7 @@ function ui() {
   editUi();
   contoursUi();
   pathUi();
+  mapUi();
   navigation();
 }
 

@@ -40,6 +40,8 @@ pub(crate) struct App {
     /// Screenshots: the command line's, and those saved from the panel.
     shots: Shots,
     tools: Tools,
+    /// The map beside the view.
+    map: crate::map::MiniMap,
     panel: Panel,
     /// Datasets still being built, their layers showing a preview.
     builds: Option<Builds>,
@@ -65,6 +67,12 @@ impl App {
             (o.edits, o.contours),
             o.paths,
         );
+        let first = layers.list.first().map(|l| l.dataset.meta.bounds);
+        let map = crate::map::MiniMap::new(
+            o.map_tiles,
+            layers.crs().as_deref(),
+            &first.unwrap_or(extent.all),
+        );
         let view = Navigation::new(
             (extent.view, extent.all),
             o.fov,
@@ -88,6 +96,7 @@ impl App {
             orbit: Orbit::new(o.orbit_frames),
             shots: Shots::new(o.screenshot, o.exit_after_converged),
             tools,
+            map,
             panel: Panel::default(),
             builds: o.builds,
             redraw: false,
@@ -136,6 +145,7 @@ impl App {
         ui.separator();
         panel::frame_report(ui, &self.render, &self.layers, &self.pacing.timing);
         self.tools.pick.panel(ui);
+        self.map.panel(ui);
         let cam = self.view.nav.camera;
         let asked = self.tools.panel(ui, &mut self.layers, &cam);
         if let Some((eye, target)) = asked.go {
@@ -264,6 +274,17 @@ impl App {
         let units = myriad_measure::measurement::crs_units(self.layers.crs().as_deref());
         let parallel = self.view.nav.parallel().then_some(&self.view.nav.camera);
         crate::legend::draw(ui.painter(), rect, parallel, self.layers.colour, units);
+        // The map; a click there moves the camera, its offset from the target kept.
+        let cam = self.view.nav.camera;
+        if let Some([x, y]) = self.map.draw(ui, rect, &response, &cam) {
+            let d = [x - cam.target[0], y - cam.target[1]];
+            let eye = [
+                cam.position[0] + d[0],
+                cam.position[1] + d[1],
+                cam.position[2],
+            ];
+            self.view.nav.look(eye, [x, y, cam.target[2]]);
+        }
         if self.render.loading() {
             ui.painter().text(
                 rect.right_top() + egui::vec2(-10.0, 10.0),
@@ -283,6 +304,7 @@ impl App {
             && self.builds.as_ref().is_none_or(Builds::done)
             && self.render.converged()
             && self.tools.settled()
+            && self.map.settled()
     }
 
     /// Step: after the frame, the view converged or not: the report at rest after an orbit,

@@ -18,6 +18,7 @@ mod app;
 mod blit;
 pub mod builds;
 mod legend;
+mod map;
 pub mod measure;
 pub mod motion;
 pub mod nav;

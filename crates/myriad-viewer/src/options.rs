@@ -61,6 +61,8 @@ pub struct ViewOptions {
     pub contours: Option<f64>,
     /// Camera path views to record and save, and a path to play, on opening.
     pub paths: Option<crate::tools::path::PathsAsked>,
+    /// The map beside the view: a tile address template (`{z}/{x}/{y}`).
+    pub map_tiles: Option<String>,
 }
 
 /// A section asked for on the command line: the line in plan and the width.

@@ -98,6 +98,11 @@ pub struct ViewArgs {
         requires = "path_view"
     )]
     record_path: Option<String>,
+    /// A map beside the view: footprint, camera and view cone on tiles from this address
+    /// template, as https://tile.example/{z}/{x}/{y}.png (XYZ; {-y} for TMS, WMTS's
+    /// {TileMatrix}/{TileCol}/{TileRow}); none is built in
+    #[arg(long, value_name = "TEMPLATE")]
+    map_tiles: Option<String>,
     /// Play a camera path once the view is in: a path file, or the name or number of one
     /// kept with the saved work
     #[arg(help_heading = "Camera path", long, value_name = "FILE|NAME")]
@@ -237,6 +242,14 @@ pub fn run(a: ViewArgs) -> Result<()> {
         section: section_asked(&a, &datasets)?,
         edits: Some(edits_asked(&a, &datasets)?),
         paths: Some(paths_asked(&a)?),
+        map_tiles: match &a.map_tiles {
+            Some(t) => {
+                myriad_measure::map::check_template(t)
+                    .map_err(|e| anyhow::anyhow!("--map-tiles {e}"))?;
+                Some(t.clone())
+            }
+            None => None,
+        },
         contours: match a.contours {
             Some(i) if !(i.is_finite() && i > 0.0) => bail!("--contours {i}: a positive interval"),
             c => c,

@@ -830,3 +830,55 @@ fn the_viewer_uses_the_class_scheme_and_records_camera_paths() {
     assert!(out.contains("5 frames of 64x48"), "{out}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Issue 71 in the window: the map in the view's top right corner, its tiles asked at the zoom
+/// and place pyproj gives for the dataset's corners, the footprint drawn over them.
+#[test]
+fn the_viewer_shows_a_map_beside_the_view() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    if !common::proj() {
+        return;
+    }
+    let d = tempdir("map-window");
+    let las = d.join("c.las");
+    common::ok(&["synth", "-o", las.to_str().unwrap(), "--points", "50k"]);
+    let ds = d.join("c.myr");
+    common::ok(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    let tiles = common::tile_server([10, 120, 200]);
+    let png = d.join("m.png");
+    let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+        ds.to_str().unwrap(),
+        "--width",
+        "800",
+        "--height",
+        "600",
+        "--map-tiles",
+        &tiles.template,
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--exit-after-converged",
+    ]) else {
+        return;
+    };
+    assert!(ok, "{stdout}\n{stderr}");
+    let asked = tiles.asked.lock().unwrap().clone();
+    assert!(stdout.contains("map tile: http://127.0.0.1:"), "{stdout}");
+    let bounds = myriad_format::Dataset::open(&ds).unwrap().meta.bounds;
+    common::check_tiles(&asked, &bounds);
+    let (w, _, img) = decode_png(&png);
+    let (mut tile, mut line) = (0, 0);
+    for (i, p) in img.chunks(4).enumerate() {
+        let x = (i as u32) % w;
+        if x < w / 2 {
+            continue;
+        }
+        tile += (p[..3] == [10, 120, 200]) as usize;
+        line += (p[0] > 240 && p[1] > 190 && p[1] < 230 && p[2] < 40) as usize;
+    }
+    assert!(tile > 20_000, "{tile} pixels of tiles");
+    assert!(line > 150, "{line} pixels of the footprint");
+    let _ = std::fs::remove_dir_all(&d);
+}

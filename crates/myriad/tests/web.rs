@@ -1476,3 +1476,106 @@ fn the_web_viewer_uses_the_class_scheme_and_records_camera_paths() {
     ]);
     assert!(out.contains("5 frames of 64x48"), "{out}");
 }
+
+/// Issue 71: the map beside the view. Tiles from a local server (one colour each) are asked at
+/// the zoom and place pyproj gives for the dataset's corners; the footprint is drawn over them;
+/// a click on the map moves the camera there; a dataset without a CRS says why the map is off.
+#[test]
+fn the_web_viewer_shows_a_map_beside_the_view() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    if !common::proj() {
+        return;
+    }
+    let d = tempdir("web-map");
+    let laz = d.join("m.laz");
+    ok(&["synth", "-o", s(&laz), "--points", "50k"]);
+    let myr = d.join("m.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let e57 = d.join("room.e57");
+    ok(&[
+        "synth",
+        "-o",
+        s(&e57),
+        "--points",
+        "20k",
+        "--scene",
+        "indoor",
+    ]);
+    let room = d.join("room.myr");
+    ok(&["convert", s(&e57), "-o", s(&room)]);
+    let tiles = common::tile_server([10, 120, 200]);
+    let server = serve(&[s(&myr), s(&room)], std::process::Stdio::null());
+    let mut b = Browser::launch(&exe).unwrap();
+    let template = tiles.template.replace('{', "%7B").replace('}', "%7D");
+    b.open(
+        &format!("{}/view/m.myr#renderer=webgl2&map={template}", server.base),
+        W,
+        H,
+    )
+    .unwrap();
+    converge(&mut b);
+    let counts = b
+        .wait_for(
+            "myriad.state.map.requested.length > 0 && \
+             myriad.state.map.requested.every((t) => { const i = myriad.state.map.images.get(t.url); return i.complete; }) && \
+             (() => { myriad.state.map.drawn = 0; mapDraw(); \
+               const d = document.querySelector('#map canvas').getContext('2d').getImageData(0, 0, 256, 256).data; \
+               let tile = 0, line = 0; \
+               for (let i = 0; i < d.length; i += 4) { \
+                 if (d[i] === 10 && d[i + 1] === 120 && d[i + 2] === 200) tile++; \
+                 if (d[i] > 240 && d[i + 1] > 190 && d[i + 1] < 230 && d[i + 2] < 40) line++; } \
+               return [tile, line]; })()",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    let (tile, line) = (counts[0].as_u64().unwrap(), counts[1].as_u64().unwrap());
+    assert!(tile > 20_000, "{tile} pixels of tiles");
+    assert!(line > 150, "{line} pixels of the footprint");
+    let asked = tiles.asked.lock().unwrap().clone();
+    let bounds = Dataset::open(&myr).unwrap().meta.bounds;
+    common::check_tiles(&asked, &bounds);
+    // A click at the map's centre: the camera's target moves to the footprint's centre.
+    b.eval(
+        "(() => { const c = document.querySelector('#map canvas'); const r = c.getBoundingClientRect(); \
+         c.dispatchEvent(new MouseEvent('mousemove', {clientX: r.left + 128, clientY: r.top + 128})); \
+         c.dispatchEvent(new MouseEvent('click', {clientX: r.left + 128, clientY: r.top + 128})); })()",
+    )
+    .unwrap();
+    let cam = b.eval("myriad.camera()").unwrap();
+    let c = bounds.center();
+    let (tx, ty) = (
+        cam["target"][0].as_f64().unwrap(),
+        cam["target"][1].as_f64().unwrap(),
+    );
+    assert!(
+        (tx - c[0]).abs() < 3.0 && (ty - c[1]).abs() < 3.0,
+        "target {tx}, {ty} against {c:?}"
+    );
+    let cursor = b
+        .eval("document.querySelector('#map .cursor').textContent")
+        .unwrap();
+    assert!(cursor.as_str().unwrap().starts_with("39."), "{cursor}");
+    drop(b);
+    // No CRS: the map says why it is off.
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(
+        &format!(
+            "{}/view/room.myr#renderer=webgl2&map={template}",
+            server.base
+        ),
+        W,
+        H,
+    )
+    .unwrap();
+    converge(&mut b);
+    let off = b
+        .wait_for("myriad.state.map.off", Duration::from_secs(30))
+        .unwrap();
+    assert!(
+        off.as_str().unwrap().contains("no coordinate system"),
+        "{off}"
+    );
+}

@@ -491,3 +491,132 @@ pub fn http_send(
     let body = text.split_once("\r\n\r\n").map_or("", |b| b.1).to_string();
     (status, body)
 }
+
+/// A local map tile server: every `GET /Z/X/Y.png` answered with a 256 x 256 PNG of one colour
+/// (CORS open), the paths asked kept in order.
+pub struct Tiles {
+    pub template: String,
+    pub asked: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+}
+
+pub fn tile_server(colour: [u8; 3]) -> Tiles {
+    use std::io::{BufRead, BufReader, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let asked = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let mut png = Vec::new();
+    {
+        let mut e = png::Encoder::new(&mut png, 256, 256);
+        e.set_color(png::ColorType::Rgb);
+        e.set_depth(png::BitDepth::Eight);
+        let px: Vec<u8> = (0..256 * 256).flat_map(|_| colour).collect();
+        e.write_header().unwrap().write_image_data(&px).unwrap();
+    }
+    let kept = asked.clone();
+    std::thread::spawn(move || {
+        for s in listener.incoming().flatten() {
+            let (kept, png) = (kept.clone(), png.clone());
+            std::thread::spawn(move || {
+                let mut r = BufReader::new(&s);
+                let mut line = String::new();
+                if r.read_line(&mut line).is_err() {
+                    return;
+                }
+                loop {
+                    let mut h = String::new();
+                    if r.read_line(&mut h).map_or(true, |n| n == 0) || h.trim().is_empty() {
+                        break;
+                    }
+                }
+                let path = line.split(' ').nth(1).unwrap_or("").to_string();
+                kept.lock().unwrap().push(path);
+                let head = format!(
+                    "HTTP/1.1 200 OK\r\nContent-Type: image/png\r\nContent-Length: {}\r\nAccess-Control-Allow-Origin: *\r\nConnection: close\r\n\r\n",
+                    png.len()
+                );
+                let mut s = &s;
+                let _ = s.write_all(head.as_bytes());
+                let _ = s.write_all(&png);
+            });
+        }
+    });
+    Tiles {
+        template: format!("http://127.0.0.1:{port}/{{z}}/{{x}}/{{y}}.png"),
+        asked,
+    }
+}
+
+/// The tiles a map asked for a dataset of EPSG:32633 and `bounds`, checked against pyproj's
+/// longitudes and latitudes of its corners: one zoom, the deepest at which the footprint fits
+/// in 80 % of 256 pixels, and the tile of its centre among them. None (SKIPPED) without pyproj.
+pub fn check_tiles(asked: &[String], bounds: &myriad_core::Aabb) -> Option<()> {
+    let py = python_with("pyproj")?;
+    let (lo, hi) = (bounds.min, bounds.max);
+    let script = format!(
+        "import pyproj\nt = pyproj.Transformer.from_crs('EPSG:32633', 'EPSG:4326', always_xy=True)\n\
+         for x, y in [({}, {}), ({}, {}), ({}, {}), ({}, {}), ({}, {})]:\n    print(*t.transform(x, y))",
+        lo[0],
+        lo[1],
+        hi[0],
+        lo[1],
+        hi[0],
+        hi[1],
+        lo[0],
+        hi[1],
+        (lo[0] + hi[0]) / 2.0,
+        (lo[1] + hi[1]) / 2.0
+    );
+    let out = Command::new(&py).args(["-c", &script]).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ll: Vec<(f64, f64)> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split(' ').map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1])
+        })
+        .collect();
+    let unit = |(lon, lat): (f64, f64)| {
+        let r = f64::to_radians(lat);
+        [
+            (lon + 180.0) / 360.0,
+            (1.0 - (r.tan() + 1.0 / r.cos()).ln() / std::f64::consts::PI) / 2.0,
+        ]
+    };
+    let tiles: Vec<(u32, u32, u32)> = asked
+        .iter()
+        .map(|p| {
+            let v: Vec<u32> = p
+                .trim_start_matches('/')
+                .trim_end_matches(".png")
+                .split('/')
+                .map(|x| x.parse().unwrap())
+                .collect();
+            (v[0], v[1], v[2])
+        })
+        .collect();
+    assert!(!tiles.is_empty(), "no tile asked");
+    let z = tiles[0].0;
+    assert!(tiles.iter().all(|t| t.0 == z), "one zoom: {tiles:?}");
+    let m: Vec<[f64; 2]> = ll[..4].iter().map(|&p| unit(p)).collect();
+    let span = |k: usize| {
+        m.iter().map(|p| p[k]).fold(f64::MIN, f64::max)
+            - m.iter().map(|p| p[k]).fold(f64::MAX, f64::min)
+    };
+    let px = span(0).max(span(1)) * 256.0 * (1u64 << z) as f64;
+    assert!(
+        px <= 0.8 * 256.0 + 1.0 && px > 0.4 * 256.0 - 1.0,
+        "the footprint {px} pixels wide at zoom {z}"
+    );
+    let c = unit(ll[4]);
+    let n = (1u64 << z) as f64;
+    let centre = (z, (c[0] * n).floor() as u32, (c[1] * n).floor() as u32);
+    assert!(
+        tiles.contains(&centre),
+        "the centre's tile {centre:?} in {tiles:?}"
+    );
+    Some(())
+}
