@@ -14,6 +14,7 @@ pub mod atomic;
 pub mod claim;
 pub mod copc;
 pub mod e57;
+pub mod e57_images;
 pub mod geotiff;
 pub mod image;
 pub mod las;

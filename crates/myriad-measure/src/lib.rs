@@ -30,6 +30,7 @@ pub mod geojson;
 pub mod ground;
 pub mod map;
 pub mod measurement;
+pub mod photos;
 pub mod polygon;
 pub mod profile;
 #[cfg(not(target_arch = "wasm32"))]

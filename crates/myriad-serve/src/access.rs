@@ -51,10 +51,12 @@ pub enum Verdict {
 /// The dataset a path is about (`/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME`,
 /// `/edits/NAME`, decoded).
 pub fn dataset_of(path: &str) -> Option<String> {
-    ["/view/", "/d/", "/x/", "/geo/", "/work/", "/edits/"]
-        .iter()
-        .find_map(|p| path.strip_prefix(p))
-        .and_then(crate::percent_decode)
+    [
+        "/view/", "/d/", "/x/", "/geo/", "/work/", "/edits/", "/photos/",
+    ]
+    .iter()
+    .find_map(|p| path.strip_prefix(p))
+    .and_then(crate::percent_decode)
 }
 
 impl Access {

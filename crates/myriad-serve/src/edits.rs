@@ -39,7 +39,7 @@ fn json(layer: &Layer, editable: bool, done: Option<String>, head: bool) -> Resp
 }
 
 /// The dataset of that name, as it is for good (a dataset being built has no edits yet).
-fn dataset(shared: &Shared, name: &str) -> Result<File, Box<Response<Body>>> {
+pub(crate) fn dataset(shared: &Shared, name: &str) -> Result<File, Box<Response<Body>>> {
     let f = (shared.catalog.file(name))
         .filter(|f| f.kind == Kind::Dataset)
         .ok_or_else(|| Box::new(status(StatusCode::NOT_FOUND, "no such dataset")))?;

@@ -28,6 +28,7 @@ mod edits;
 mod files;
 mod geo;
 pub mod live;
+mod photos;
 pub mod range;
 pub mod tls;
 pub mod viewer;
@@ -740,6 +741,12 @@ async fn route(
     if let Some(name) = path.strip_prefix("/edits/") {
         return match percent_decode(name) {
             Some(name) => edits::get(shared, budget, &name, req).await,
+            None => status(StatusCode::BAD_REQUEST, "malformed path"),
+        };
+    }
+    if let Some(name) = path.strip_prefix("/photos/") {
+        return match percent_decode(name) {
+            Some(name) => photos::get(shared, budget, &name, req).await,
             None => status(StatusCode::BAD_REQUEST, "malformed path"),
         };
     }

@@ -36,7 +36,7 @@ static PAGE: Asset = Asset::new(
     include_bytes!("../viewer/index.html"),
     "text/html; charset=utf-8",
 );
-static FILES: [(&str, Asset); 13] = [
+static FILES: [(&str, Asset); 14] = [
     // The native renderer's point shader: the WebGPU renderer takes its point_pixels.
     (
         "draw.wgsl",
@@ -80,6 +80,10 @@ static FILES: [(&str, Asset); 13] = [
     (
         "contours.js",
         Asset::new(include_bytes!("../viewer/contours.js"), "text/javascript"),
+    ),
+    (
+        "photos.js",
+        Asset::new(include_bytes!("../viewer/photos.js"), "text/javascript"),
     ),
     (
         "map.js",

@@ -567,6 +567,7 @@ function frame() {
     draw();
     legends();
     mapDraw();
+    photoMarks();
   }
   requestAnimationFrame(frame);
 }
@@ -779,6 +780,7 @@ function ui() {
   contoursUi();
   pathUi();
   mapUi();
+  photosUi();
   navigation();
 }
 

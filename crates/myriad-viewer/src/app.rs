@@ -42,6 +42,8 @@ pub(crate) struct App {
     tools: Tools,
     /// The map beside the view.
     map: crate::map::MiniMap,
+    /// Photos and panoramas kept with the first dataset.
+    photos: crate::photos::Photos,
     panel: Panel,
     /// Datasets still being built, their layers showing a preview.
     builds: Option<Builds>,
@@ -73,6 +75,8 @@ impl App {
             layers.crs().as_deref(),
             &first.unwrap_or(extent.all),
         );
+        let photos =
+            crate::photos::Photos::new(layers.list.first().map(|l| l.dataset.path()), o.photo);
         let view = Navigation::new(
             (extent.view, extent.all),
             o.fov,
@@ -97,6 +101,7 @@ impl App {
             shots: Shots::new(o.screenshot, o.exit_after_converged),
             tools,
             map,
+            photos,
             panel: Panel::default(),
             builds: o.builds,
             redraw: false,
@@ -146,6 +151,7 @@ impl App {
         panel::frame_report(ui, &self.render, &self.layers, &self.pacing.timing);
         self.tools.pick.panel(ui);
         self.map.panel(ui);
+        self.photos.panel(ui);
         let cam = self.view.nav.camera;
         let asked = self.tools.panel(ui, &mut self.layers, &cam);
         if let Some((eye, target)) = asked.go {
@@ -257,6 +263,10 @@ impl App {
             (rect.height() * ppp).round().max(1.0) as u32,
         );
         self.orbit.step(&mut self.view.nav);
+        // `view --photo N`: the camera at its pose.
+        if let Some(v) = self.photos.start(ui.ctx()) {
+            self.view.put(v.eye, v.target, v.up, v.fov_y);
+        }
         // A camera path playing moves the camera.
         if let Some(v) = self.tools.path.tick() {
             self.view.nav.look(v.position, v.target);
@@ -274,8 +284,21 @@ impl App {
         let units = myriad_measure::measurement::crs_units(self.layers.crs().as_deref());
         let parallel = self.view.nav.parallel().then_some(&self.view.nav.camera);
         crate::legend::draw(ui.painter(), rect, parallel, self.layers.colour, units);
-        // The map; a click there moves the camera, its offset from the target kept.
+        // The photos' markers, the one open over the view from its pose.
         let cam = self.view.nav.camera;
+        let focal = cam.focal();
+        let screen = |p: [f64; 3]| -> Option<egui::Pos2> {
+            let e = cam.to_eye(p);
+            (e[2] > 1e-9).then(|| {
+                let x = cam.width as f64 / 2.0 + e[0] * focal / e[2];
+                let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
+                rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp)
+            })
+        };
+        if let Some(v) = self.photos.draw(ui, rect, &response, &cam, &screen) {
+            self.view.put(v.eye, v.target, v.up, v.fov_y);
+        }
+        // The map; a click there moves the camera, its offset from the target kept.
         if let Some([x, y]) = self.map.draw(ui, rect, &response, &cam) {
             let d = [x - cam.target[0], y - cam.target[1]];
             let eye = [

@@ -27,6 +27,7 @@ mod options;
 mod orbit;
 mod pacing;
 mod panel;
+mod photos;
 mod present;
 mod render;
 mod report;

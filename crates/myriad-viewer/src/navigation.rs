@@ -44,6 +44,14 @@ impl Navigation {
         }
     }
 
+    /// The camera put at `eye` looking at `target` with `up` and a `fov` degrees field of view
+    /// (a photo's pose): the first frame frames nothing then.
+    pub fn put(&mut self, eye: [f64; 3], target: [f64; 3], up: [f64; 3], fov: f64) {
+        self.nav.look(eye, target);
+        (self.nav.camera.up, self.nav.camera.fov_y) = (up, fov);
+        self.framed = true;
+    }
+
     /// The view's size in pixels; on the first frame, the view asked for (or the data
     /// framed).
     pub fn size(&mut self, width: u32, height: u32) {

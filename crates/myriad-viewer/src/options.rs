@@ -63,6 +63,8 @@ pub struct ViewOptions {
     pub paths: Option<crate::tools::path::PathsAsked>,
     /// The map beside the view: a tile address template (`{z}/{x}/{y}`).
     pub map_tiles: Option<String>,
+    /// Open photo N (from 1) kept with the first dataset, the camera at its pose.
+    pub photo: Option<usize>,
 }
 
 /// A section asked for on the command line: the line in plan and the width.

@@ -86,10 +86,44 @@ pub fn run(args: InfoArgs) -> Result<()> {
             placement: src.placement_path().map(|p| p.to_path_buf()),
             trimmed: src.trimmed(),
         };
+        // The images an E57 file carries.
+        let images = match r.info.format {
+            myriad_io::Format::E57 => myriad_io::e57_images::images(path)?,
+            _ => Vec::new(),
+        };
         if args.json {
-            println!("{}", to_json(&r));
+            let mut v = to_json(&r);
+            if !images.is_empty() {
+                v["images"] = images
+                    .iter()
+                    .map(|im| {
+                        json!({
+                            "name": im.name, "model": im.model_name(), "width": im.width,
+                            "height": im.height, "format": im.format, "bytes": im.bytes(),
+                            "pose": im.pose.map(|(q, t)| json!({"rotation": q, "translation": t})),
+                        })
+                    })
+                    .collect();
+            }
+            println!("{v}");
         } else {
             print_human(&r);
+            for (i, im) in images.iter().enumerate() {
+                let place = match im.pose {
+                    Some((_, t)) => format!("at {:.3}, {:.3}, {:.3}", t[0], t[1], t[2]),
+                    None => "no pose (shown with the data, not placed)".into(),
+                };
+                println!(
+                    "  image {}     \"{}\": {} {}x{} {} ({} bytes), {place}",
+                    i + 1,
+                    im.name,
+                    im.model_name(),
+                    im.width,
+                    im.height,
+                    im.format.to_uppercase(),
+                    thousands(im.bytes())
+                );
+            }
         }
     }
     Ok(())

@@ -13,6 +13,7 @@ mod info;
 mod measure;
 mod mesh;
 mod partition;
+mod photos;
 mod progress;
 mod raster;
 mod render;
@@ -73,6 +74,8 @@ enum Command {
     /// Keep annotations and measurements with a dataset (as view and serve do), and export
     /// them to GeoJSON or DXF, or import them
     Annotate(annotate::AnnotateArgs),
+    /// Keep photos and panoramas with a dataset: an E57 file's images, a Potree panorama list
+    Photos(photos::PhotosArgs),
     /// Read every page of a dataset, check checksums and invariants, name damaged nodes
     Verify(dataset::VerifyArgs),
     /// Render a dataset to a PNG, headless (level of detail within a point budget)
@@ -152,6 +155,7 @@ fn main() -> ExitCode {
         Command::Raster(a) => raster::run(a),
         Command::Contours(a) => raster::contours(a),
         Command::Annotate(a) => annotate::run(a),
+        Command::Photos(a) => photos::run(a),
         Command::Verify(a) => dataset::verify(a),
         Command::Render(a) => render::run(a),
         Command::Mesh(a) => mesh::run(a),

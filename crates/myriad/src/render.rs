@@ -68,6 +68,21 @@ pub struct RenderArgs {
     #[arg(help_heading = "Camera", long = "path", value_name = "FILE|NAME",
           conflicts_with_all = ["stereo", "surface", "no_wait", "camera", "view"])]
     fly: Option<String>,
+    /// Draw the view from photo N (from 1) kept with the dataset (`myriad photos`): a pinhole
+    /// camera's own (its pose, its field of view, --width wide and as high as its image is
+    /// for that width), a panorama's centre column over 90 degrees
+    #[arg(help_heading = "Camera", long, value_name = "N",
+          conflicts_with_all = ["camera", "view", "fly", "stereo", "parallel"])]
+    photo: Option<usize>,
+    /// A 360-degree panorama from the camera's eye (equirectangular, --width wide and half as
+    /// high), its centre column along the camera's heading: six square views of 90 degrees
+    /// resampled; its pose for `myriad photos` (a Potree coordinates.txt line) is printed
+    #[arg(help_heading = "Camera", long,
+          conflicts_with_all = ["fly", "photo", "stereo", "parallel", "surface", "legend"])]
+    panorama: bool,
+    /// With --photo: the photo under the points (where no point is drawn, its pixels show)
+    #[arg(help_heading = "Camera", long, requires = "photo")]
+    over_photo: bool,
     /// With --path: frames a second
     #[arg(
         help_heading = "Camera",
@@ -191,8 +206,48 @@ pub fn run(a: RenderArgs) -> Result<()> {
         return render_path(&a, p, (&mut scene, &ds), (&gpu, &raster), &options, &style);
     }
     let mut cam = view_of(&a, &scene.view_bounds, &ds.meta.bounds)?;
+    let mut photo = None;
+    if let Some(n) = a.photo {
+        let (p, file) = crate::photos::photo(&dataset, n)?;
+        let v = p.view().ok_or_else(|| {
+            anyhow::anyhow!(
+                "--photo {n}: \"{}\" is not placed (a {} image): no view to draw from",
+                p.name,
+                p.kind_name()
+            )
+        })?;
+        let height = ((a.width as f64 * p.height as f64 / p.width as f64).round() as u32).max(1);
+        let eye_target = [
+            v.eye[0],
+            v.eye[1],
+            v.eye[2],
+            v.target[0],
+            v.target[1],
+            v.target[2],
+        ];
+        cam = camera(
+            &scene.view_bounds,
+            &ds.meta.bounds,
+            Some(eye_target),
+            v.up,
+            a.width,
+            height,
+            v.fov_y,
+        )?;
+        photo = Some(file);
+    }
     if a.parallel {
         cam = parallel(cam, &ds.meta.bounds);
+    }
+    if a.panorama {
+        return render_panorama(
+            &a,
+            (&mut scene, &ds),
+            (&gpu, &raster),
+            &cam,
+            &options,
+            &style,
+        );
     }
     if a.stereo {
         return render_stereo(&a, &mut scene, &ds, (&gpu, &raster), &cam, &options, &style);
@@ -216,7 +271,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if a.legend {
         legend(&a, &scene, &ds, &cam, &mut image);
     }
-    write_png(&a.output, a.width, a.height, &image)?;
+    if let (Some(file), true) = (&photo, a.over_photo) {
+        under_photo(file, &mut image, cam.width, cam.height)?;
+    }
+    write_png(&a.output, cam.width, cam.height, &image)?;
     let damaged = warn_damage(&scene);
     if let Some((requests, bytes)) = ds.fetched() {
         println!(
@@ -530,6 +588,116 @@ fn warn_damage(scene: &Scene) -> usize {
         eprintln!("warning: {why}");
     }
     lines.len()
+}
+
+/// `render --panorama`: six views of 90 degrees from `cam`'s eye (ahead, left, behind, right,
+/// up, down of its heading), each drawn as a still, resampled to an equirectangular image:
+/// column c at azimuth 180 - 360 (c + 0.5) / width degrees from the heading (counterclockwise),
+/// row r at elevation 90 - 180 (r + 0.5) / height.
+fn render_panorama(
+    a: &RenderArgs,
+    (scene, ds): (&mut Scene, &Dataset),
+    (gpu, raster): (&Gpu, &Rasterizer),
+    cam: &Camera,
+    options: &SelectOptions,
+    style: &Style,
+) -> Result<()> {
+    let (w, h) = (a.width.max(8), (a.width / 2).max(4));
+    let side = (w / 4).max(64);
+    let heading = (cam.target[1] - cam.position[1]).atan2(cam.target[0] - cam.position[0]);
+    let e = cam.position;
+    let (c, s) = (heading.cos(), heading.sin());
+    // The panorama's frame (x ahead, y left, z up) in the dataset's axes.
+    let world = |d: [f64; 3]| [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]];
+    let ahead = world([1.0, 0.0, 0.0]);
+    let faces: Vec<([f64; 3], [f64; 3])> = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ]
+    .iter()
+    .map(|&d| (world(d), if d[2] == 0.0 { [0.0, 0.0, 1.0] } else { ahead }))
+    .collect();
+    let t0 = Instant::now();
+    let mut views = Vec::new();
+    for (dir, up) in &faces {
+        let target = [e[0] + dir[0], e[1] + dir[1], e[2] + dir[2]];
+        let mut face = Camera {
+            position: e,
+            target,
+            up: *up,
+            fov_y: 90.0,
+            width: side,
+            height: side,
+            ..*cam
+        };
+        face.fit_depth(&ds.meta.bounds);
+        let still = myriad_render::still::draw(scene, gpu, raster, &face, options, style, None, t0);
+        views.push((face, still.image));
+    }
+    ds.check_unchanged()?;
+    let mut out = vec![0u8; (w * h * 4) as usize];
+    for r in 0..h {
+        let el = std::f64::consts::FRAC_PI_2 - (r as f64 + 0.5) / h as f64 * std::f64::consts::PI;
+        for col in 0..w {
+            let az = std::f64::consts::PI - (col as f64 + 0.5) / w as f64 * std::f64::consts::TAU;
+            let d = world([el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]);
+            // The face looking most along the ray, and its pixel there.
+            let best = (views.iter())
+                .map(|(f, img)| (f.to_eye([e[0] + d[0], e[1] + d[1], e[2] + d[2]]), f, img))
+                .max_by(|x, y| x.0[2].total_cmp(&y.0[2]));
+            let Some((q, f, img)) = best else { continue };
+            let focal = f.focal();
+            let x = (side as f64 / 2.0 + q[0] * focal / q[2])
+                .floor()
+                .clamp(0.0, side as f64 - 1.0) as u32;
+            let y = (side as f64 / 2.0 - q[1] * focal / q[2])
+                .floor()
+                .clamp(0.0, side as f64 - 1.0) as u32;
+            let from = ((y * side + x) * 4) as usize;
+            let to = ((r * w + col) * 4) as usize;
+            out[to..to + 4].copy_from_slice(&img[from..from + 4]);
+        }
+    }
+    write_png(&a.output, w, h, &out)?;
+    let damaged = warn_damage(scene);
+    println!(
+        "{}: a panorama of {w}x{h} from {:.3}, {:.3}, {:.3} (six views of {side}x{side}), drawn in {:.1} s",
+        a.output.display(),
+        e[0],
+        e[1],
+        e[2],
+        t0.elapsed().as_secs_f64()
+    );
+    // Its line of a Potree panorama list: file, time, x, y, z, course (clockwise from +y), pitch, roll.
+    let course = (90.0 - heading.to_degrees()).rem_euclid(360.0);
+    let name = a
+        .output
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    println!(
+        "coordinates.txt: {name}\t0\t{}\t{}\t{}\t{course}\t0\t0",
+        e[0], e[1], e[2]
+    );
+    full_image_whole(a, damaged)
+}
+
+/// `--over-photo`: the pixels where no point was drawn (the background) take the photo's,
+/// the photo scaled to the image.
+fn under_photo(file: &std::path::Path, image: &mut [u8], w: u32, h: u32) -> Result<()> {
+    let p = image::open(file)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?
+        .resize_exact(w, h, image::imageops::FilterType::Triangle)
+        .to_rgba8();
+    for (px, q) in image.chunks_exact_mut(4).zip(p.pixels()) {
+        if px == [0, 0, 0, 255] {
+            px.copy_from_slice(&[q[0], q[1], q[2], 255]);
+        }
+    }
+    Ok(())
 }
 
 /// The field of view of the parallel view, in degrees (the viewers' too).

@@ -103,6 +103,10 @@ pub struct ViewArgs {
     /// {TileMatrix}/{TileCol}/{TileRow}); none is built in
     #[arg(long, value_name = "TEMPLATE")]
     map_tiles: Option<String>,
+    /// Open photo N (from 1) kept with the first dataset (`myriad photos`): the camera at its
+    /// pose, the photo over the view (a panorama as a sphere around the eye)
+    #[arg(long, value_name = "N")]
+    photo: Option<usize>,
     /// Play a camera path once the view is in: a path file, or the name or number of one
     /// kept with the saved work
     #[arg(help_heading = "Camera path", long, value_name = "FILE|NAME")]
@@ -242,6 +246,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         section: section_asked(&a, &datasets)?,
         edits: Some(edits_asked(&a, &datasets)?),
         paths: Some(paths_asked(&a)?),
+        photo: a.photo,
         map_tiles: match &a.map_tiles {
             Some(t) => {
                 myriad_measure::map::check_template(t)

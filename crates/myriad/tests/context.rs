@@ -352,3 +352,257 @@ fn pictures_say_their_scale() {
         .count();
     assert_eq!(bar, 0);
 }
+
+#[test]
+fn photos_are_shown_from_their_poses() {
+    let d = tempdir("photos");
+    let scan = synth(&d, "city.las", 100_000);
+    let ds = d.join("city.myr");
+    ok(&["convert", s(&scan), "-o", s(&ds)]);
+    // The "photo": what Myriad draws from a known camera.
+    let (eye, target) = (
+        [499_900.0, 4_399_960.0, 60.0],
+        [500_000.0, 4_400_055.0, 5.0],
+    );
+    let (w, h, fov) = (320u32, 240u32, 50.0f64);
+    let photo = d.join("photo.png");
+    let camera = format!(
+        "{},{},{},{},{},{}",
+        eye[0], eye[1], eye[2], target[0], target[1], target[2]
+    );
+    let base = [
+        "--raster",
+        "cpu",
+        "--passes",
+        "none",
+        "--color",
+        "classification",
+        "--width",
+        "320",
+    ];
+    let mut args = vec![
+        "render",
+        s(&ds),
+        "-o",
+        s(&photo),
+        "--camera",
+        &camera,
+        "--fov",
+        "50",
+        "--height",
+        "240",
+    ];
+    args.extend_from_slice(&base);
+    ok(&args);
+    // An E57 carrying it as a pinhole image, a panorama and a visual reference.
+    let e57 = d.join("images.e57");
+    common::photo_e57(
+        &e57,
+        (eye, target, fov),
+        &std::fs::read(&photo).unwrap(),
+        (w, h),
+        [500_000.0, 4_400_020.0, 1.6],
+    );
+    let info = ok(&["info", s(&e57), "--header-only"]);
+    assert!(
+        info.contains("image 1     \"camera\": pinhole 320x240 PNG"),
+        "{info}"
+    );
+    assert!(
+        info.contains("\"site sketch\": visual reference 40x30 PNG") && info.contains("no pose"),
+        "{info}"
+    );
+    let listed = ok(&["photos", s(&ds), "--add", s(&e57)]);
+    assert!(listed.contains("3 photos"), "{listed}");
+    assert!(
+        listed.contains("photo 1 \"camera\": pinhole 320x240, at 499900.000, 4399960.000, 60.000"),
+        "{listed}"
+    );
+    assert!(
+        listed.contains("photo 3 \"site sketch\": reference 40x30, not placed"),
+        "{listed}"
+    );
+    assert_eq!(
+        std::fs::read(d.join("city.photos").join("1.png")).unwrap(),
+        std::fs::read(&photo).unwrap()
+    );
+
+    // The view from the photo's pose is the photo, within a few pixels.
+    let from = d.join("from.png");
+    let mut args = vec!["render", s(&ds), "-o", s(&from), "--photo", "1"];
+    args.extend_from_slice(&base);
+    ok(&args);
+    let ((fw, fh, a), (_, _, b)) = (decode_png(&from), decode_png(&photo));
+    assert_eq!((fw, fh), (w, h));
+    let differ = a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
+    assert!(
+        differ < (w * h / 50) as usize,
+        "{differ} pixels differ from the photo"
+    );
+    // The dataset's points land on the photo where its camera model puts them.
+    let set = myriad_measure::photos::parse(
+        &std::fs::read_to_string(d.join("city.photos.json")).unwrap(),
+    )
+    .unwrap();
+    let px = set[0].project(target).unwrap();
+    assert!(
+        (px[0] - 160.0).abs() < 0.5 && (px[1] - 120.0).abs() < 0.5,
+        "{px:?}"
+    );
+    // The panorama: the view along its centre column; under the points, the photo's pixels.
+    let mut args = vec![
+        "render",
+        s(&ds),
+        "-o",
+        s(&from),
+        "--photo",
+        "2",
+        "--over-photo",
+        "--force",
+    ];
+    args.extend_from_slice(&base);
+    ok(&args);
+    let (_, _, p) = decode_png(&from);
+    let photo_px = p.chunks(4).filter(|c| c[..3] == [200, 100, 50]).count();
+    let points = p.chunks(4).filter(|c| c[..3] != [200, 100, 50]).count();
+    assert!(
+        photo_px > 1000 && points > 1000,
+        "{photo_px} of the panorama, {points} of points"
+    );
+    fails(
+        &["render", s(&ds), "-o", s(&from), "--photo", "3", "--force"],
+        "\"site sketch\" is not placed",
+    );
+    fails(
+        &["render", s(&ds), "-o", s(&from), "--photo", "9", "--force"],
+        "keeps 3 photos",
+    );
+
+    // The pump E57's visual reference image: listed and kept, not placed.
+    if let Some(pump) = common::shared_data("pye57__pumpAVisualReferenceImage.e57") {
+        let info = ok(&["info", s(&pump), "--header-only"]);
+        assert!(
+            info.contains("visual reference 3072x2304 JPEG") && info.contains("no pose"),
+            "{info}"
+        );
+        let listed = ok(&["photos", s(&ds), "--add", s(&pump)]);
+        assert!(
+            listed.contains("photo 4 ")
+                && listed.contains("reference 3072x2304, not placed (no pose) (4.jpg)"),
+            "{listed}"
+        );
+        let jpg = std::fs::read(d.join("city.photos").join("4.jpg")).unwrap();
+        assert_eq!(&jpg[..2], &[0xff, 0xd8], "a JPEG");
+    }
+}
+
+/// A panorama set made by Myriad (`render --panorama` from a synthetic city, its Potree
+/// `coordinates.txt` line as printed): added with `photos`, the panorama is where its pose says:
+/// the view from it (`render --photo`) and the panorama sampled along each of that view's rays
+/// agree pixel for pixel, but for the resampling's edges.
+#[test]
+fn a_panorama_set_is_placed_where_it_was_taken() {
+    let d = tempdir("panoramas");
+    let scan = synth(&d, "city.las", 200_000);
+    let ds = d.join("city.myr");
+    ok(&["convert", s(&scan), "-o", s(&ds)]);
+    let set = d.join("set");
+    std::fs::create_dir_all(&set).unwrap();
+    let pano = set.join("p1.png");
+    let said = ok(&[
+        "render",
+        s(&ds),
+        "-o",
+        s(&pano),
+        "--panorama",
+        "--camera",
+        "499990,4400040,12,500010,4400050,12",
+        "--width",
+        "512",
+        "--raster",
+        "cpu",
+        "--passes",
+        "none",
+        "--color",
+        "classification",
+    ]);
+    let line = said
+        .lines()
+        .find_map(|l| l.strip_prefix("coordinates.txt: "))
+        .unwrap();
+    std::fs::write(
+        set.join("coordinates.txt"),
+        format!("File\tTime\tX\tY\tZ\tcourse\tpitch\troll\n{line}\n"),
+    )
+    .unwrap();
+    let listed = ok(&["photos", s(&ds), "--add", s(&set.join("coordinates.txt"))]);
+    assert!(
+        listed
+            .contains("photo 1 \"p1.png\": spherical 512x256, at 499990.000, 4400040.000, 12.000"),
+        "{listed}"
+    );
+    let from = d.join("from.png");
+    ok(&[
+        "render",
+        s(&ds),
+        "-o",
+        s(&from),
+        "--photo",
+        "1",
+        "--width",
+        "256",
+        "--raster",
+        "cpu",
+        "--passes",
+        "none",
+        "--color",
+        "classification",
+    ]);
+    let (w, h, view) = decode_png(&from);
+    let (pw, ph, pano_px) = decode_png(&pano);
+    let photos = myriad_measure::photos::parse(
+        &std::fs::read_to_string(d.join("city.photos.json")).unwrap(),
+    )
+    .unwrap();
+    let p = &photos[0];
+    let v = p.view().unwrap();
+    let cam = myriad_lod::Camera {
+        position: v.eye,
+        target: v.target,
+        up: v.up,
+        fov_y: v.fov_y,
+        width: w,
+        height: h,
+        near: 0.1,
+        far: 1000.0,
+    };
+    let (r, u, f) = cam.basis();
+    let focal = cam.focal();
+    let (mut same, mut drawn) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let a = ((y * w + x) * 4) as usize;
+            if view[a..a + 3] == [0, 0, 0] {
+                continue;
+            }
+            drawn += 1;
+            let (dx, dy) = (
+                (x as f64 + 0.5 - w as f64 / 2.0) / focal,
+                -(y as f64 + 0.5 - h as f64 / 2.0) / focal,
+            );
+            let at: [f64; 3] = std::array::from_fn(|i| v.eye[i] + f[i] + r[i] * dx + u[i] * dy);
+            let q = p.project(at).unwrap();
+            let (qx, qy) = (
+                (q[0].floor() as u32).min(pw - 1),
+                (q[1].floor() as u32).min(ph - 1),
+            );
+            let b = ((qy * pw + qx) * 4) as usize;
+            same += (view[a..a + 3] == pano_px[b..b + 3]) as usize;
+        }
+    }
+    assert!(drawn > 10_000, "{drawn} pixels drawn");
+    assert!(
+        same as f64 > 0.85 * drawn as f64,
+        "{same} of {drawn} pixels agree with the panorama"
+    );
+}

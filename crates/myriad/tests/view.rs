@@ -882,3 +882,71 @@ fn the_viewer_shows_a_map_beside_the_view() {
     assert!(line > 150, "{line} pixels of the footprint");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Issue 71 in the window: photos kept with the dataset (an E57's pinhole photo and panorama),
+/// `--photo N` puts the camera at the photo's pose and draws it over the view (the panorama as a
+/// sphere around the eye).
+#[test]
+fn the_viewer_shows_photos_from_their_poses() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        eprintln!("SKIPPED: xvfb-run is not installed (apt-get install xvfb xauth)");
+        return;
+    }
+    let d = tempdir("photos-window");
+    let las = d.join("c.las");
+    common::ok(&["synth", "-o", las.to_str().unwrap(), "--points", "50k"]);
+    let ds = d.join("c.myr");
+    common::ok(&["convert", las.to_str().unwrap(), "-o", ds.to_str().unwrap()]);
+    let e57 = d.join("images.e57");
+    let photo = common::flat_png(160, 120, [30, 200, 120]);
+    common::photo_e57(
+        &e57,
+        (
+            [499_900.0, 4_399_960.0, 60.0],
+            [500_000.0, 4_400_055.0, 5.0],
+            50.0,
+        ),
+        &photo,
+        (160, 120),
+        [500_000.0, 4_400_020.0, 1.6],
+    );
+    common::ok(&[
+        "photos",
+        ds.to_str().unwrap(),
+        "--add",
+        e57.to_str().unwrap(),
+    ]);
+    for (n, colour) in [("1", [30u8, 200, 120]), ("2", [200, 100, 50])] {
+        let png = d.join(format!("p{n}.png"));
+        let Some((ok, stdout, stderr)) = view_under_xvfb(&[
+            ds.to_str().unwrap(),
+            "--width",
+            "640",
+            "--height",
+            "480",
+            "--photo",
+            n,
+            "--screenshot",
+            png.to_str().unwrap(),
+            "--exit-after-converged",
+        ]) else {
+            return;
+        };
+        assert!(ok, "{stdout}\n{stderr}");
+        assert!(
+            stdout.contains(&format!("photo {n} \"")) && stdout.contains("viewed from its pose"),
+            "{stdout}"
+        );
+        // The photo at 0.6 over the view: its colour where the view is black.
+        let (_, _, img) = decode_png(&png);
+        let want = colour.map(|c| (c as f32 * 0.6).round() as i32);
+        let near = (img.chunks(4))
+            .filter(|p| (0..3).all(|k| (p[k] as i32 - want[k]).abs() <= 6))
+            .count();
+        assert!(
+            near > 5_000,
+            "photo {n}: {near} pixels of its colour over the view"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}

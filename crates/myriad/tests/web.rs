@@ -1579,3 +1579,81 @@ fn the_web_viewer_shows_a_map_beside_the_view() {
         "{off}"
     );
 }
+
+/// Issue 71: photos in the web viewer. The server lists a dataset's photos and gives only the
+/// images its list names; the page marks the placed ones, opens one, and views from its pose
+/// with the photo over the points.
+#[test]
+fn the_web_viewer_shows_photos_from_their_poses() {
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-photos");
+    let laz = d.join("p.laz");
+    ok(&["synth", "-o", s(&laz), "--points", "50k"]);
+    let myr = d.join("p.myr");
+    ok(&["convert", s(&laz), "-o", s(&myr)]);
+    let e57 = d.join("images.e57");
+    let eye = [499_900.0, 4_399_960.0, 60.0];
+    common::photo_e57(
+        &e57,
+        (eye, [500_000.0, 4_400_055.0, 5.0], 50.0),
+        &common::flat_png(160, 120, [30, 200, 120]),
+        (160, 120),
+        [500_000.0, 4_400_020.0, 1.6],
+    );
+    ok(&["photos", s(&myr), "--add", s(&e57)]);
+    let server = serve(&[s(&myr)], std::process::Stdio::null());
+    let list = common::http_get(&server.base, "/photos/p.myr", &[]);
+    assert!(
+        list.contains("\"camera\"") && list.contains("\"site sketch\""),
+        "{list}"
+    );
+    let image = ureq::get(&format!("{}/photos/p.myr?file=1.png", server.base))
+        .call()
+        .unwrap()
+        .into_body()
+        .read_to_vec()
+        .unwrap();
+    assert_eq!(
+        image,
+        std::fs::read(d.join("p.photos").join("1.png")).unwrap()
+    );
+    for other in ["..%2Fp.myr", "p.photos.json", "4.png"] {
+        let r = ureq::get(&format!("{}/photos/p.myr?file={other}", server.base)).call();
+        assert!(
+            matches!(r, Err(ureq::Error::StatusCode(404))),
+            "{other}: {r:?}"
+        );
+    }
+    let mut b = Browser::launch(&exe).unwrap();
+    b.open(&format!("{}/view/p.myr#renderer=webgl2", server.base), W, H)
+        .unwrap();
+    converge(&mut b);
+    b.wait_for("myriad.state.photos.loaded", Duration::from_secs(30))
+        .unwrap();
+    let marks = b
+        .eval("[...document.querySelectorAll('.photo-mark')].map((m) => m.title)")
+        .unwrap();
+    assert_eq!(
+        marks,
+        serde_json::json!(["camera", "panorama", "site sketch"])
+    );
+    b.eval("openPhoto(0); viewFromPhoto()").unwrap();
+    let shown = b
+        .wait_for(
+            "getComputedStyle(document.getElementById('photo-over')).display === 'block' && \
+             document.getElementById('photo-over').complete && \
+             [myriad.camera().position, document.querySelector('#photos .shown img').naturalWidth]",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    for k in 0..3 {
+        assert!(
+            (shown[0][k].as_f64().unwrap() - eye[k]).abs() < 1e-6,
+            "{shown}"
+        );
+    }
+    assert_eq!(shown[1], 160);
+}

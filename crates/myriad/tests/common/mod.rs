@@ -620,3 +620,111 @@ pub fn check_tiles(asked: &[String], bounds: &myriad_core::Aabb) -> Option<()> {
     );
     Some(())
 }
+
+/// A PNG of one colour.
+pub fn flat_png(w: u32, h: u32, c: [u8; 3]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut e = png::Encoder::new(&mut out, w, h);
+    e.set_color(png::ColorType::Rgb);
+    e.set_depth(png::BitDepth::Eight);
+    let px: Vec<u8> = (0..w * h).flat_map(|_| c).collect();
+    e.write_header().unwrap().write_image_data(&px).unwrap();
+    out
+}
+
+/// An E57 file of three images: "camera", a pinhole photo (`png`, `w` x `h`) taken from `eye`
+/// towards `target` (up +z) with a vertical field of view of `fov` degrees; "panorama", a
+/// spherical image of one colour (200, 100, 50) at `pano`, its centre column along +x; "site
+/// sketch", a visual reference without a pose.
+pub fn photo_e57(
+    path: &Path,
+    (eye, target, fov): ([f64; 3], [f64; 3], f64),
+    png: &[u8],
+    (w, h): (u32, u32),
+    pano: [f64; 3],
+) {
+    let norm = |v: [f64; 3]| {
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| c / n)
+    };
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    // The camera's frame: x right, y down, z forward.
+    let forward = norm(std::array::from_fn(|i| target[i] - eye[i]));
+    let right = norm(cross(forward, [0.0, 0.0, 1.0]));
+    let down = cross(forward, right);
+    let m: [[f64; 3]; 3] = std::array::from_fn(|i| [right[i], down[i], forward[i]]);
+    let q = myriad_measure::photos::quaternion(m);
+    let focal = (h as f64 / 2.0) / (fov.to_radians() / 2.0).tan();
+    let mut wr = e57::E57Writer::from_file(path, "guid-file").unwrap();
+    let pose = |p: [f64; 3], q: [f64; 4]| e57::Transform {
+        rotation: e57::Quaternion {
+            w: q[0],
+            x: q[1],
+            y: q[2],
+            z: q[3],
+        },
+        translation: e57::Translation {
+            x: p[0],
+            y: p[1],
+            z: p[2],
+        },
+    };
+    let mut img = wr.add_image("guid-pinhole").unwrap();
+    img.set_name("camera");
+    img.set_transform(pose(eye, q));
+    img.add_pinhole(
+        e57::ImageFormat::Png,
+        &mut &png[..],
+        e57::PinholeImageProperties {
+            width: w,
+            height: h,
+            focal_length: focal * 1e-5,
+            pixel_width: 1e-5,
+            pixel_height: 1e-5,
+            principal_x: w as f64 / 2.0,
+            principal_y: h as f64 / 2.0,
+        },
+        None,
+    )
+    .unwrap();
+    img.finalize().unwrap();
+    let mut img = wr.add_image("guid-pano").unwrap();
+    img.set_name("panorama");
+    img.set_transform(pose(pano, [1.0, 0.0, 0.0, 0.0]));
+    let flat = flat_png(64, 32, [200, 100, 50]);
+    let (pw, ph) = (std::f64::consts::TAU / 64.0, std::f64::consts::PI / 32.0);
+    img.add_spherical(
+        e57::ImageFormat::Png,
+        &mut flat.as_slice(),
+        e57::SphericalImageProperties {
+            width: 64,
+            height: 32,
+            pixel_width: pw,
+            pixel_height: ph,
+        },
+        None,
+    )
+    .unwrap();
+    img.finalize().unwrap();
+    let mut img = wr.add_image("guid-reference").unwrap();
+    img.set_name("site sketch");
+    let sketch = flat_png(40, 30, [10, 20, 30]);
+    img.add_visual_reference(
+        e57::ImageFormat::Png,
+        &mut sketch.as_slice(),
+        e57::VisualReferenceImageProperties {
+            width: 40,
+            height: 30,
+        },
+        None,
+    )
+    .unwrap();
+    img.finalize().unwrap();
+    wr.finalize().unwrap();
+}
