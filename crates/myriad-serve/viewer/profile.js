@@ -66,6 +66,34 @@ async function cutProfile(line, width) {
   return s;
 }
 
+// The grid lines labelled over the picture (as `myriad profile -o .png` labels its axes):
+// distances along its foot, elevations at its left, the unit, the vertical exaggeration.
+function profileLabels(g, s) {
+  const f = s.frame, grid = s.grid;
+  if (!grid) return;
+  const digits = (step) => Math.max(0, Math.ceil(-Math.log10(step)));
+  const text = (t, x, y, align) => {
+    g.textAlign = align;
+    g.lineWidth = 3;
+    g.strokeStyle = "rgba(250, 250, 250, 0.9)";
+    g.strokeText(t, x, y);
+    g.fillStyle = "rgb(40, 40, 40)";
+    g.fillText(t, x, y);
+  };
+  g.font = "11px monospace";
+  const bottom = f.margin + f.inner_h;
+  grid.along.forEach((a, i) => {
+    if (grid.along.length > 8 && i % 2 === 1) return;
+    text(a.toFixed(digits(grid.steps[0])), f.margin + a * f.per_m, bottom - 3, "center");
+  });
+  for (const z of grid.z) {
+    text(z.toFixed(digits(grid.steps[1])), 4, bottom - (z - f.z0) * f.per_m * f.exaggeration - 2, "left");
+  }
+  const ex = Math.abs(f.exaggeration - 1) > 0.005 ? `, vertical exaggeration ${f.exaggeration.toFixed(2)}x` : "";
+  text(`distance along (${s.units})${ex}`, f.width - 4, 12, "right");
+  text(`elevation (${s.units})`, 4, 12, "left");
+}
+
 function drawProfile() {
   const canvas = document.querySelector("#profile canvas");
   const s = section.result;
@@ -74,6 +102,7 @@ function drawProfile() {
   canvas.height = s.frame.height;
   const g = canvas.getContext("2d");
   g.putImageData(section.image, 0, 0);
+  profileLabels(g, s);
   const png = document.querySelector("#profile a.png");
   png.href = canvas.toDataURL("image/png");
   png.download = `${state.dataset.replace(/\.myr$/, "")}-profile.png`;

@@ -387,6 +387,13 @@ pub fn cut_profile(
         "margin": f.margin, "per_m": f.per_m, "exaggeration": f.exaggeration,
         "inner_h": f.inner_h, "z0": f.z0, "width": w, "height": h,
     });
+    // The grid lines the picture draws, for the page to label.
+    let (along, heights) = p.grid(w);
+    summary["grid"] = json!({
+        "along": along, "z": heights,
+        "steps": [myriad_measure::profile::nice_step(p.length / 10.0),
+                  myriad_measure::profile::nice_step((z1 - z0).max(1e-3) / 5.0)],
+    });
     let mut csv = Vec::new();
     p.write_csv(&mut csv).map_err(|e| e.to_string())?;
     Ok((summary, rgba, csv))

@@ -1430,6 +1430,20 @@ fn the_web_viewer_uses_the_class_scheme_and_records_camera_paths() {
          s.dispatchEvent(new Event('change')); myriad.setParallel(false); })()",
     )
     .unwrap();
+    // A profile's picture has its axes labelled (the ink of the labels, in the PNG it saves).
+    let b0 = Dataset::open(&myr).unwrap().meta.bounds;
+    let (c, x0, x1) = (b0.center(), b0.min[0] + 5.0, b0.max[0] - 5.0);
+    let ink = b
+        .eval(&format!(
+            "myriad.cut([[{x0}, {y}], [{x1}, {y}]], 3).then(() => {{ \
+               const c = document.querySelector('#profile canvas'); \
+               const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let n = 0; \
+               for (let i = 0; i < d.length; i += 4) if (d[i] === 40 && d[i + 1] === 40 && d[i + 2] === 40) n++; \
+               return [n, document.querySelector('#profile a.png').href.length]; }})",
+            y = c[1]
+        ))
+        .unwrap();
+    assert!(ink[0].as_u64().unwrap() > 20, "{ink}: the labels' ink");
 
     // A camera path: two views (the button, then key J after the camera moved), saved, played.
     b.eval("document.getElementById('path-name').value = 'tour'; document.getElementById('path-name').onchange({target: document.getElementById('path-name')}); document.getElementById('path-add').click()")

@@ -278,6 +278,7 @@ impl Section {
                     rect.min + egui::vec2((x / k) as f32, (y / k) as f32)
                 };
                 let painter = ui.painter_at(rect);
+                axis_labels(&painter, rect, p, &s.frame, units, &to_screen);
                 let colour = egui::Color32::from_rgb(200, 0, 120);
                 for q in &s.picks {
                     painter.circle_filled(to_screen(*q), 4.0, colour);
@@ -334,8 +335,12 @@ fn save_profile(
         "csv" => myriad_measure::files::write_atomic(&path, false, |w| p.write_csv(w)),
         "dxf" => myriad_measure::files::profile_drawing(p, &s.corridor)
             .and_then(|d| myriad_measure::files::save_drawing(&d, &path, false)),
+        // The picture with its axes labelled, as `myriad profile -o .png` writes it.
         "png" => myriad_io::atomic::AtomicFile::create(&path, false).and_then(|f| {
-            myriad_io::image::write_png(f.temp_path(), s.frame.width, s.frame.height, &s.rgba)?;
+            let units =
+                myriad_measure::measurement::crs_units(ds.and_then(|d| d.meta.crs.as_deref()));
+            let (w, h, rgba, _) = myriad_render::legend::labelled_profile(p, PICTURE, units);
+            myriad_io::image::write_png(f.temp_path(), w, h, &rgba)?;
             f.commit()
         }),
         _ => match ds {
@@ -356,4 +361,71 @@ fn save_profile(
         Ok(()) => format!("{}: written", path.display()),
         Err(e) => format!("error: {e}"),
     }
+}
+
+/// The profile's grid lines labelled over its picture (`rect`, `to_screen` from distance along
+/// and elevation): distances along its foot, elevations at its left, the unit, the vertical
+/// exaggeration.
+fn axis_labels(
+    painter: &egui::Painter,
+    rect: egui::Rect,
+    p: &myriad_measure::profile::Profile,
+    frame: &myriad_measure::profile::Frame,
+    units: &str,
+    to_screen: &dyn Fn([f64; 2]) -> egui::Pos2,
+) {
+    use myriad_measure::profile::nice_step;
+    use myriad_render::legend::number;
+    let font = egui::FontId::monospace(11.0);
+    let ink = egui::Color32::from_rgb(40, 40, 40);
+    let (z0, z1) = p.z_range();
+    let (along, heights) = p.grid(frame.width);
+    let (sa, sz) = (
+        nice_step(p.length / 10.0),
+        nice_step((z1 - z0).max(1e-3) / 5.0),
+    );
+    for (i, g) in along.iter().enumerate() {
+        if along.len() > 8 && i % 2 == 1 {
+            continue;
+        }
+        let at = to_screen([*g, z0]);
+        painter.text(
+            at + egui::vec2(0.0, -2.0),
+            egui::Align2::CENTER_BOTTOM,
+            number(*g, sa),
+            font.clone(),
+            ink,
+        );
+    }
+    for z in &heights {
+        let at = egui::pos2(rect.left() + 4.0, to_screen([0.0, *z]).y);
+        painter.text(
+            at,
+            egui::Align2::LEFT_BOTTOM,
+            number(*z, sz),
+            font.clone(),
+            ink,
+        );
+    }
+    let mut caption = format!("distance along ({units})");
+    if (frame.exaggeration - 1.0).abs() > 0.005 {
+        caption.push_str(&format!(
+            ", vertical exaggeration {:.2}x",
+            frame.exaggeration
+        ));
+    }
+    painter.text(
+        rect.right_top() + egui::vec2(-4.0, 2.0),
+        egui::Align2::RIGHT_TOP,
+        caption,
+        font.clone(),
+        ink,
+    );
+    painter.text(
+        rect.left_top() + egui::vec2(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        format!("elevation ({units})"),
+        font,
+        ink,
+    );
 }
