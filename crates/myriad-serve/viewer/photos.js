@@ -3,8 +3,9 @@
 // placed one; a click on it (or on the panel's list) opens it in the panel; "view from here"
 // puts the camera at its pose (a pinhole camera's own field of view; a panorama's centre column
 // over 90 degrees), and from there a pinhole photo is drawn over the points ("photo over the
-// view" sets how opaque), so that the points show where the photo has them. A panorama is shown
-// in the panel, not yet as a sphere around the eye (the window does that).
+// view" sets how opaque), so that the points show where the photo has them; a panorama as a
+// sphere around the eye (each pixel of a half-resolution overlay takes the panorama's along its
+// ray).
 "use strict";
 
 const photos = { list: [], open: null, atPose: null, loaded: false };
@@ -106,6 +107,7 @@ function photoMarks() {
   const p = photos.open !== null ? photos.list[photos.open] : null;
   const at = photos.atPose && camera.position.every((v, i) => v === photos.atPose[i]);
   if (!at) photos.atPose = null;
+  panoramaOver(at && p && p.kind === "spherical" ? p : null);
   const show = !!(at && p && p.kind === "pinhole");
   over.style.display = show ? "block" : "none";
   if (show) {
@@ -116,6 +118,50 @@ function photoMarks() {
     over.style.left = `${(canvas.clientWidth - w) / 2}px`; over.style.top = "0px";
     over.style.opacity = document.getElementById("photo-opacity").value;
   }
+}
+
+// The panorama `p` as a sphere around the eye, over the view (none: hidden). Its pixels are
+// read once (from the image the server gives: same origin).
+function panoramaOver(p) {
+  const c = document.getElementById("photo-sphere");
+  if (!p) { c.style.display = "none"; return; }
+  const url = photoUrl(p);
+  if (!photos.pixels || photos.pixels.url !== url) {
+    if (photos.loading === url) return;
+    photos.loading = url;
+    const img = new Image();
+    img.onload = () => {
+      const t = document.createElement("canvas");
+      t.width = img.naturalWidth; t.height = img.naturalHeight;
+      const g = t.getContext("2d");
+      g.drawImage(img, 0, 0);
+      photos.pixels = { url, w: t.width, h: t.height, data: g.getImageData(0, 0, t.width, t.height).data };
+      photos.loading = null;
+      dirty = true;
+    };
+    img.src = url;
+    return;
+  }
+  const W = Math.max(1, Math.round(canvas.clientWidth / 2)), H = Math.max(1, Math.round(canvas.clientHeight / 2));
+  if (c.width !== W || c.height !== H) { c.width = W; c.height = H; }
+  const g = c.getContext("2d"), out = g.createImageData(W, H), px = photos.pixels;
+  const [r, u, f] = basis(camera);
+  const q = p.pose.rotation, inv = [q[0], -q[1], -q[2], -q[3]];
+  const focal = H / (2 * Math.tan(camera.fov * Math.PI / 360));
+  for (let y = 0; y < H; y++) {
+    for (let x = 0; x < W; x++) {
+      const dx = (x + 0.5 - W / 2) / focal, dy = -(y + 0.5 - H / 2) / focal;
+      const d = rotateBy(inv, [0, 1, 2].map((i) => f[i] + r[i] * dx + u[i] * dy));
+      const az = Math.atan2(d[1], d[0]), el = Math.atan2(d[2], Math.hypot(d[0], d[1]));
+      const col = Math.min(px.w - 1, Math.max(0, Math.floor((Math.PI - az) / (2 * Math.PI) * px.w)));
+      const row = Math.min(px.h - 1, Math.max(0, Math.floor((Math.PI / 2 - el) / Math.PI * px.h)));
+      const a = (row * px.w + col) * 4, b = (y * W + x) * 4;
+      out.data[b] = px.data[a]; out.data[b + 1] = px.data[a + 1]; out.data[b + 2] = px.data[a + 2]; out.data[b + 3] = 255;
+    }
+  }
+  g.putImageData(out, 0, 0);
+  c.style.display = "block";
+  c.style.opacity = document.getElementById("photo-opacity").value;
 }
 
 function photosUi() {

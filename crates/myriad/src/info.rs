@@ -88,7 +88,11 @@ pub fn run(args: InfoArgs) -> Result<()> {
         };
         // The images an E57 file carries.
         let images = match r.info.format {
-            myriad_io::Format::E57 => myriad_io::e57_images::images(path)?,
+            // (Images that do not read are said, the points' report kept.)
+            myriad_io::Format::E57 => myriad_io::e57_images::images(path).unwrap_or_else(|e| {
+                eprintln!("warning: {e}: its images not listed");
+                Vec::new()
+            }),
             _ => Vec::new(),
         };
         if args.json {

@@ -1670,4 +1670,20 @@ fn the_web_viewer_shows_photos_from_their_poses() {
         );
     }
     assert_eq!(shown[1], 160);
+    // The panorama (one colour) as a sphere around the eye at its pose.
+    b.eval("openPhoto(1); viewFromPhoto()").unwrap();
+    let sphere = b
+        .wait_for(
+            "getComputedStyle(document.getElementById('photo-sphere')).display === 'block' && \
+             (() => { const c = document.getElementById('photo-sphere'); \
+               const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let n = 0; \
+               for (let i = 0; i < d.length; i += 4) if (d[i] === 200 && d[i + 1] === 100 && d[i + 2] === 50) n++; \
+               return [n, c.width * c.height]; })()",
+            Duration::from_secs(30),
+        )
+        .unwrap();
+    assert_eq!(
+        sphere[0], sphere[1],
+        "every pixel of the sphere the panorama's: {sphere}"
+    );
 }
