@@ -200,7 +200,7 @@ impl Photo {
                 .ok_or_else(|| format!("{at}.{k}: 1 to 1048576 pixels"))
         };
         let file = text("file")?;
-        if file.is_empty() || file.contains("..") || file.starts_with('/') || file.contains('\\') {
+        if file.is_empty() || file.contains("..") || file.contains('/') || file.contains('\\') {
             return Err(format!("{at}.file: a name in the photos' folder"));
         }
         let kind = match text("kind")?.as_str() {
@@ -346,7 +346,7 @@ pub fn quaternion(m: [[f64; 3]; 3]) -> [f64; 4] {
 }
 
 /// Panoramas as Potree lists them (`coordinates.txt`): a header line, then a line a panorama,
-/// tab- or space-separated: file, time, x, y, z, course, pitch, roll (degrees; the course is
+/// tab-separated (spaces where a line has no tab), names quoted or not: file, time, x, y, z, course, pitch, roll (degrees; the course is
 /// the heading of the panorama's centre column, clockwise from +y). Each a spherical photo of
 /// `size` (its width and height).
 pub fn potree_panoramas(
@@ -355,10 +355,16 @@ pub fn potree_panoramas(
 ) -> Result<Vec<Photo>, String> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
-        let f: Vec<&str> = line
-            .split(['\t', ' ', ','])
-            .filter(|s| !s.is_empty())
-            .collect();
+        let f: Vec<&str> = if line.contains('\t') {
+            line.split('\t')
+                .map(|s| s.trim().trim_matches('"'))
+                .collect()
+        } else {
+            line.split_whitespace()
+                .map(|s| s.trim_matches('"'))
+                .collect()
+        };
+        let f: Vec<&str> = f.into_iter().filter(|s| !s.is_empty()).collect();
         if f.is_empty() {
             continue;
         }

@@ -216,17 +216,20 @@ pub fn labelled_profile(p: &Profile, width: u32, units: &str) -> (u32, u32, Vec<
     (w, h, px, exaggeration)
 }
 
+/// A scale bar's length near `want`: 1, 2 or 5 times a power of ten (2.5 where 5 would pass
+/// half as much again).
+pub fn bar_length(want: f64) -> f64 {
+    let len = nice_step(want);
+    if len > want * 1.5 { len / 2.0 } else { len }
+}
+
 /// A scale bar at the bottom left of an image whose pixels are `per_pixel` units wide (a
 /// parallel view): a round length of about a fifth of the width, labelled in `units`.
 pub fn scale_bar(c: &mut Canvas, per_pixel: f64, units: &str) {
     if !(per_pixel.is_finite() && per_pixel > 0.0) {
         return;
     }
-    let want = per_pixel * c.width as f64 / 5.0;
-    let mut len = nice_step(want);
-    if len > want * 1.5 {
-        len /= 2.0;
-    }
+    let len = bar_length(per_pixel * c.width as f64 / 5.0);
     let bar = (len / per_pixel).round() as i64;
     let (x0, y0) = (16i64, c.height as i64 - 20);
     c.rect(x0 - 6, y0 - 22, x0 + bar + 6, y0 + 12, [255, 255, 255], 0.8);

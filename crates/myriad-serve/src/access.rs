@@ -2,7 +2,7 @@
 //! let through when it carries one of the file's tokens (`Authorization: Bearer TOKEN`), the
 //! session cookie a one-time link set (`/login/CODE`, printed when the server starts; a code
 //! works once), or a link signed for one dataset that has not expired (`?expires=UNIX&sig=HEX`
-//! on `/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME` or `/edits/NAME`; the page's
+//! on `/view/NAME`, `/d/NAME`, `/x/NAME`, `/geo/NAME`, `/work/NAME`, `/edits/NAME` or `/photos/NAME`; the page's
 //! own requests then carry a cookie with that signature). Signatures and the session cookie are HMAC-SHA256 (`ring`) under
 //! a key derived from the token file, so a link signed by `serve --sign` holds for every server
 //! started with the same file, and none holds once the file's tokens change. The viewer's code

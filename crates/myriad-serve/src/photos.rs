@@ -22,12 +22,9 @@ pub(crate) async fn get(
     let Some(f) = (shared.catalog.file(name)).filter(|f| f.kind == Kind::Dataset) else {
         return status(StatusCode::NOT_FOUND, "no such dataset");
     };
-    if f.remote.is_some() {
+    // On S3 or the web, or being built (photos are kept beside a finished dataset): none.
+    let Some(f) = crate::settled(f).filter(|f| f.remote.is_none()) else {
         return crate::work::changing(r#"{"photos": []}"#.into(), head);
-    }
-    let f = match crate::edits::dataset(shared, name) {
-        Ok(f) => f,
-        Err(r) => return *r,
     };
     let list = myriad_measure::photos::sidecar_for(&f.path);
     let read = tokio::task::spawn_blocking(

@@ -68,8 +68,8 @@ async function mapStart(template) {
   const el = document.getElementById("map");
   el.style.display = template ? "block" : "none";
   if (!template) return;
-  localStorage.setItem("myriad.map", template);
-  if (!/^https?:\/\//.test(template) || !/\{(z|TileMatrix)\}/.test(template)) {
+  if (!/^https?:\/\//.test(template) || !/\{(z|TileMatrix)\}/.test(template) ||
+      !/\{(x|TileCol)\}/.test(template) || !/\{(y|-y|TileRow)\}/.test(template)) {
     mapOff("a tile address is http(s)://...{z}/{x}/{y}...");
     return;
   }
@@ -104,6 +104,8 @@ function mapDraw() {
       if (!img) {
         img = new Image();
         img.crossOrigin = "anonymous";
+        // The tile server learns nothing of the page (its address names the dataset).
+        img.referrerPolicy = "no-referrer";
         img.onload = () => { map.drawn = 0; mapDraw(); };
         img.src = url;
         map.images.set(url, img);
@@ -153,7 +155,12 @@ function mapUi() {
   const input = document.getElementById("map-url");
   const asked = params.get("map") || localStorage.getItem("myriad.map") || "";
   input.value = asked;
-  input.onchange = () => { mapStart(input.value.trim()).catch((e) => mapOff(String(e.message || e))); };
+  // Only what is typed here is kept for later pages (not a link's `#map=`).
+  input.onchange = () => {
+    const t = input.value.trim();
+    if (t) localStorage.setItem("myriad.map", t); else localStorage.removeItem("myriad.map");
+    mapStart(t).catch((e) => mapOff(String(e.message || e)));
+  };
   const c = document.querySelector("#map canvas");
   c.addEventListener("mousemove", (e) => {
     if (!map.view) return;

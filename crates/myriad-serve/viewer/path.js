@@ -8,11 +8,14 @@
 const paths = { recording: { name: "path 1", views: [] }, playing: null, played: 0 };
 state.paths = paths;
 
-function pathGap() { return Math.max(0.1, Number(document.getElementById("path-gap").value) || 2); }
+// Seconds between views: 0.1 to 600 (as the window takes them); a path stays within what the
+// saved work's reader takes (10,000 views, a day).
+function pathGap() { return Math.min(600, Math.max(0.1, Number(document.getElementById("path-gap").value) || 2)); }
 
 function pathAdd() {
   const v = paths.recording.views;
   const time = v.length ? v[v.length - 1].time + pathGap() : 0;
+  if (v.length >= 10000 || time > 86400) { error("a camera path holds at most 10,000 views and a day"); return; }
   v.push({ position: [...camera.position], target: [...camera.target], time });
   pathPanel();
 }
@@ -44,7 +47,7 @@ function pathTick() {
 function pathSave() {
   const rec = paths.recording;
   if (!work.editable || !rec.views.length) return;
-  const copy = { name: rec.name, views: rec.views.map((v) => ({ ...v })) };
+  const copy = { name: rec.name.slice(0, 200), views: rec.views.map((v) => ({ ...v })) };
   work.doc.paths = (work.doc.paths || []).filter((p) => p.name !== rec.name).concat([copy]);
   saveWork().then(pathPanel);
 }

@@ -131,14 +131,16 @@ function panoramaOver(p) {
     photos.loading = url;
     const img = new Image();
     img.onload = () => {
+      // At most 4096 x 2048 read back (a browser's canvas has its limits).
       const t = document.createElement("canvas");
-      t.width = img.naturalWidth; t.height = img.naturalHeight;
+      t.width = Math.min(4096, img.naturalWidth); t.height = Math.min(2048, img.naturalHeight);
       const g = t.getContext("2d");
-      g.drawImage(img, 0, 0);
+      g.drawImage(img, 0, 0, t.width, t.height);
       photos.pixels = { url, w: t.width, h: t.height, data: g.getImageData(0, 0, t.width, t.height).data };
       photos.loading = null;
       dirty = true;
     };
+    img.onerror = () => { photos.loading = null; error(`${url}: not an image the browser reads`); };
     img.src = url;
     return;
   }

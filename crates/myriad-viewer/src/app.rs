@@ -199,6 +199,10 @@ impl App {
         });
         // The camera the clicks were made in (before this frame's drag moves it).
         let cam = self.view.nav.camera;
+        // Clicks and drags on the map are the map's.
+        if (response.hover_pos()).is_some_and(|p| self.map.covers(rect, p)) {
+            return;
+        }
         let layers = &self.layers;
         let pick = |x, y| layers.pick(&cam, x, y).map(|p| p.position);
         self.view.mouse(ui, response, (cursor, scale), &pick);

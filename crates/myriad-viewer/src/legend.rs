@@ -28,11 +28,7 @@ pub fn draw(
             .sum::<f64>()
             .sqrt();
         let per_point = 2.0 * d * (cam.fov_y.to_radians() / 2.0).tan() / rect.height() as f64;
-        let want = per_point * rect.width() as f64 / 5.0;
-        let mut len = nice_step(want);
-        if len > want * 1.5 {
-            len /= 2.0;
-        }
+        let len = myriad_render::legend::bar_length(per_point * rect.width() as f64 / 5.0);
         let bar = (len / per_point) as f32;
         let at = rect.left_bottom() + egui::vec2(16.0, -20.0);
         painter.rect_filled(

@@ -102,6 +102,16 @@ impl MiniMap {
         self.template = Some(template);
     }
 
+    /// Whether `pos` (in points) is on the map drawn over `rect`: clicks there are the map's.
+    pub fn covers(&self, rect: egui::Rect, pos: egui::Pos2) -> bool {
+        self.template.is_some()
+            && egui::Rect::from_min_size(
+                rect.right_top() + egui::vec2(-SIDE - 8.0, 8.0),
+                egui::vec2(SIDE, SIDE),
+            )
+            .contains(pos)
+    }
+
     /// No tile still being fetched.
     pub fn settled(&self) -> bool {
         !self.tiles.values().any(|t| matches!(t, Tile::Loading))
@@ -132,7 +142,13 @@ impl MiniMap {
         let (sent, ctx) = (self.sent.clone(), ctx.clone());
         std::thread::spawn(move || {
             let got = (|| -> Result<egui::ColorImage, String> {
-                let body = ureq::get(&url)
+                // A tile that does not come within 20 s is given up (the view converges).
+                let agent: ureq::Agent = ureq::Agent::config_builder()
+                    .timeout_global(Some(std::time::Duration::from_secs(20)))
+                    .build()
+                    .into();
+                let body = agent
+                    .get(&url)
                     .call()
                     .map_err(|e| e.to_string())?
                     .into_body()
@@ -140,9 +156,15 @@ impl MiniMap {
                     .limit(8 << 20)
                     .read_to_vec()
                     .map_err(|e| e.to_string())?;
-                let img = image::load_from_memory(&body)
-                    .map_err(|e| e.to_string())?
-                    .to_rgba8();
+                let img = image::load_from_memory(&body).map_err(|e| e.to_string())?;
+                if img.width() > 1024 || img.height() > 1024 {
+                    return Err(format!(
+                        "a tile of {}x{}: at most 1024 pixels a side",
+                        img.width(),
+                        img.height()
+                    ));
+                }
+                let img = img.to_rgba8();
                 let size = [img.width() as usize, img.height() as usize];
                 Ok(egui::ColorImage::from_rgba_unmultiplied(size, img.as_raw()))
             })();
@@ -247,7 +269,7 @@ impl MiniMap {
         );
         let (_, lat) = from_unit(view.centre);
         let per_px = metres_per_unit(lat) / view.scale();
-        let len = myriad_measure::profile::nice_step(per_px * 80.0);
+        let len = myriad_render::legend::bar_length(per_px * 80.0);
         let bar = (len / per_px) as f32;
         let base = area.left_bottom() + egui::vec2(6.0, -8.0);
         painter.rect_filled(

@@ -80,6 +80,13 @@ impl Photos {
         let path = self.folder.join(&self.list[i].file);
         let tex = match image::open(&path) {
             Ok(img) => {
+                // At most the GPU's largest texture (a 20,000-pixel panorama shrunk).
+                let side = ctx.input(|i| i.max_texture_side).clamp(256, 8192) as u32;
+                let img = if img.width() > side || img.height() > side {
+                    img.resize(side, side, image::imageops::FilterType::Triangle)
+                } else {
+                    img
+                };
                 let img = img.to_rgba8();
                 let size = [img.width() as usize, img.height() as usize];
                 let c = egui::ColorImage::from_rgba_unmultiplied(size, img.as_raw());

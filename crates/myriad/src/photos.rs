@@ -115,9 +115,20 @@ fn is_e57(f: &Path) -> bool {
         .is_ok_and(|_| &magic == b"ASTM-E57")
 }
 
-/// The next free image name in `folder` for photo `n` (from 0) with `ext`.
-fn image_name(n: usize, ext: &str) -> String {
-    format!("{}.{ext}", n + 1)
+/// A name for an image in `folder` that no file has yet (from photo `n`'s number, from 0, up),
+/// so that no image a list names is written over.
+fn image_name(folder: &Path, n: usize, ext: &str) -> String {
+    (n + 1..)
+        .map(|k| format!("{k}.{ext}"))
+        .find(|name| !folder.join(name).exists())
+        .expect("a free name")
+}
+
+/// `p` as the list will hold it: read back through the list's own checks (an E57 image of no
+/// size, a pixel size of 0, a rotation of zeros), the file and the image named on failure.
+fn checked(p: Photo, from: &Path) -> Result<Photo> {
+    Photo::from_json(&p.to_json(), "photo")
+        .map_err(|e| anyhow!("{}: image \"{}\": {e}", from.display(), p.name))
 }
 
 fn from_e57(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
@@ -125,14 +136,9 @@ fn from_e57(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
     if images.is_empty() {
         bail!("{}: the E57 file carries no image", f.display());
     }
-    std::fs::create_dir_all(folder).map_err(|e| anyhow!("{}: {e}", folder.display()))?;
+    // Every entry checked before any image is written.
     let mut out = Vec::new();
-    for (k, im) in images.iter().enumerate() {
-        let bytes = myriad_io::e57_images::image_bytes(f, im, MAX_IMAGE)?;
-        let ext = if im.format == "png" { "png" } else { "jpg" };
-        let name = image_name(first + k, ext);
-        let path = folder.join(&name);
-        myriad_measure::files::write_atomic(&path, true, |w| w.write_all(&bytes))?;
+    for im in &images {
         let kind = match im.model {
             myriad_io::e57_images::Model::Pinhole { focal, principal } => {
                 Kind::Pinhole { focal, principal }
@@ -141,18 +147,27 @@ fn from_e57(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
             // Shown with the data, not placed (a cylindrical model is not drawn from).
             _ => Kind::Reference,
         };
-        let pose = im
-            .pose
-            .filter(|_| kind != Kind::Reference)
+        let pose = (im.pose.filter(|_| kind != Kind::Reference))
             .map(|(rotation, position)| Pose { position, rotation });
-        out.push(Photo {
-            name: im.name.clone(),
-            kind,
-            width: im.width,
-            height: im.height,
-            file: name,
-            pose,
-        });
+        let file = if im.format == "png" { "png" } else { "jpg" }.to_string();
+        out.push(checked(
+            Photo {
+                name: im.name.clone(),
+                kind,
+                width: im.width,
+                height: im.height,
+                file,
+                pose,
+            },
+            f,
+        )?);
+    }
+    std::fs::create_dir_all(folder).map_err(|e| anyhow!("{}: {e}", folder.display()))?;
+    for (k, (im, p)) in images.iter().zip(&mut out).enumerate() {
+        let bytes = myriad_io::e57_images::image_bytes(f, im, MAX_IMAGE)?;
+        let name = image_name(folder, first + k, &p.file);
+        myriad_measure::files::write_atomic(&folder.join(&name), false, |w| w.write_all(&bytes))?;
+        p.file = name;
     }
     Ok(out)
 }
@@ -161,21 +176,28 @@ fn from_potree(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
     let text = std::fs::read_to_string(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
     let dir = f.parent().unwrap_or(Path::new("."));
     let size = |name: &str| image::image_dimensions(dir.join(name)).ok();
-    let mut set =
-        photos::potree_panoramas(&text, size).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+    let set = photos::potree_panoramas(&text, size).map_err(|e| anyhow!("{}: {e}", f.display()))?;
     if set.is_empty() {
         bail!("{}: no panorama listed", f.display());
     }
+    let mut out = Vec::new();
+    for p in set {
+        let mut p = p;
+        // (The list's names hold no folder: the image's own name is checked apart.)
+        let own = std::mem::replace(&mut p.file, "image".into());
+        let mut p = checked(p, f)?;
+        p.file = own;
+        out.push(p);
+    }
     std::fs::create_dir_all(folder).map_err(|e| anyhow!("{}: {e}", folder.display()))?;
-    for (k, p) in set.iter_mut().enumerate() {
+    for (k, p) in out.iter_mut().enumerate() {
         let from = dir.join(&p.file);
-        let ext = from
-            .extension()
-            .map_or("jpg".into(), |e| e.to_string_lossy().to_ascii_lowercase());
-        let name = image_name(first + k, &ext);
+        let ext =
+            (from.extension()).map_or("jpg".into(), |e| e.to_string_lossy().to_ascii_lowercase());
         let bytes = std::fs::read(&from).map_err(|e| anyhow!("{}: {e}", from.display()))?;
-        myriad_measure::files::write_atomic(&folder.join(&name), true, |w| w.write_all(&bytes))?;
+        let name = image_name(folder, first + k, &ext);
+        myriad_measure::files::write_atomic(&folder.join(&name), false, |w| w.write_all(&bytes))?;
         p.file = name;
     }
-    Ok(set)
+    Ok(out)
 }

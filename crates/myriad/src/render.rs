@@ -216,7 +216,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 p.kind_name()
             )
         })?;
-        let height = ((a.width as f64 * p.height as f64 / p.width as f64).round() as u32).max(1);
+        let height = (a.width as f64 * p.height as f64 / p.width as f64)
+            .round()
+            .max(1.0);
+        if height > 16384.0 {
+            bail!(
+                "--photo {n}: {}x{} at --width {}: {height} pixels high, at most 16384 (a smaller --width)",
+                p.width,
+                p.height,
+                a.width
+            );
+        }
+        let height = height as u32;
         let eye_target = [
             v.eye[0],
             v.eye[1],
@@ -234,7 +245,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             height,
             v.fov_y,
         )?;
-        photo = Some(file);
+        photo = Some((p, file));
     }
     if a.parallel {
         cam = parallel(cam, &ds.meta.bounds);
@@ -271,8 +282,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if a.legend {
         legend(&a, &scene, &ds, &cam, &mut image);
     }
-    if let (Some(file), true) = (&photo, a.over_photo) {
-        under_photo(file, &mut image, cam.width, cam.height)?;
+    if let (Some((p, file)), true) = (&photo, a.over_photo) {
+        under_photo(p, file, &mut image, &cam)?;
     }
     write_png(&a.output, cam.width, cam.height, &image)?;
     let damaged = warn_damage(&scene);
@@ -685,16 +696,41 @@ fn render_panorama(
     full_image_whole(a, damaged)
 }
 
-/// `--over-photo`: the pixels where no point was drawn (the background) take the photo's,
-/// the photo scaled to the image.
-fn under_photo(file: &std::path::Path, image: &mut [u8], w: u32, h: u32) -> Result<()> {
-    let p = image::open(file)
+/// `--over-photo`: the pixels where no point was drawn (the background) take the photo's
+/// along their rays (`Photo::project`: a pinhole photo's principal point honoured, a
+/// panorama's direction looked up).
+fn under_photo(
+    p: &myriad_measure::photos::Photo,
+    file: &std::path::Path,
+    image: &mut [u8],
+    cam: &Camera,
+) -> Result<()> {
+    let img = image::open(file)
         .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?
-        .resize_exact(w, h, image::imageops::FilterType::Triangle)
         .to_rgba8();
-    for (px, q) in image.chunks_exact_mut(4).zip(p.pixels()) {
-        if px == [0, 0, 0, 255] {
-            px.copy_from_slice(&[q[0], q[1], q[2], 255]);
+    let (iw, ih) = img.dimensions();
+    // The photo's pixels are the list's; an image of another size is scaled to them.
+    let (sx, sy) = (iw as f64 / p.width as f64, ih as f64 / p.height as f64);
+    let (r, u, f) = cam.basis();
+    let focal = cam.focal();
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let at = ((y * cam.width + x) * 4) as usize;
+            if image[at..at + 4] != [0, 0, 0, 255] {
+                continue;
+            }
+            let dx = (x as f64 + 0.5 - cam.width as f64 / 2.0) / focal;
+            let dy = -(y as f64 + 0.5 - cam.height as f64 / 2.0) / focal;
+            let q: [f64; 3] =
+                std::array::from_fn(|i| cam.position[i] + f[i] + r[i] * dx + u[i] * dy);
+            let Some([c, row]) = p.project(q) else {
+                continue;
+            };
+            let (c, row) = ((c * sx).floor(), (row * sy).floor());
+            if c >= 0.0 && row >= 0.0 && c < iw as f64 && row < ih as f64 {
+                let px = img.get_pixel(c as u32, row as u32);
+                image[at..at + 3].copy_from_slice(&px.0[..3]);
+            }
         }
     }
     Ok(())
@@ -720,8 +756,8 @@ fn parallel(mut cam: Camera, all: &Aabb) -> Camera {
 fn legend(a: &RenderArgs, scene: &Scene, ds: &Dataset, cam: &Camera, image: &mut [u8]) {
     use myriad_render::legend::{Canvas, gradient_legend, scale_bar};
     let mut c = Canvas {
-        width: a.width,
-        height: a.height,
+        width: cam.width,
+        height: cam.height,
         px: image,
     };
     if let myriad_render::ColorBy::Ramp(r) = scene.colour() {
@@ -738,7 +774,7 @@ fn legend(a: &RenderArgs, scene: &Scene, ds: &Dataset, cam: &Camera, image: &mut
             .map(|i| (cam.position[i] - cam.target[i]).powi(2))
             .sum::<f64>()
             .sqrt();
-        let per_pixel = 2.0 * d * (cam.fov_y.to_radians() / 2.0).tan() / a.height as f64;
+        let per_pixel = 2.0 * d * (cam.fov_y.to_radians() / 2.0).tan() / cam.height as f64;
         let units = myriad_measure::measurement::crs_units(ds.meta.crs.as_deref());
         scale_bar(&mut c, per_pixel, units);
     }
@@ -861,14 +897,14 @@ fn render_path(
         let w = myriad_measure::files::load_work(&sidecar, None)?;
         saved_path(&w, given).map_err(|e| anyhow::anyhow!("--path {given}: {e}"))?
     };
-    let views = path.frames(a.fps);
-    if views.len() > MAX_FRAMES {
+    let count = (path.duration() * a.fps + 1e-9).floor() + 1.0;
+    if count > MAX_FRAMES as f64 {
         bail!(
-            "--path {given}: {} frames at {} fps: at most {MAX_FRAMES}",
-            views.len(),
+            "--path {given}: {count} frames at {} fps: at most {MAX_FRAMES}",
             a.fps
         );
     }
+    let views = path.frames(a.fps);
     let video = (a.output.extension()).is_some_and(|e| e.eq_ignore_ascii_case("mp4"));
     let folder = if video {
         a.output.with_extension("frames")

@@ -89,7 +89,14 @@ impl Paths {
         if self.recording.keys.is_empty() {
             return;
         }
-        let p = self.recording.clone();
+        // As the saved work's reader will take it: else said, and not saved.
+        let p = match CameraPath::from_json(&self.recording.to_json(), "") {
+            Ok(p) => p,
+            Err(e) => {
+                self.said = Some(format!("not saved: {e}"));
+                return;
+            }
+        };
         match work.paths.iter_mut().find(|q| q.name == p.name) {
             Some(q) => *q = p,
             None => work.paths.push(p),
