@@ -1618,6 +1618,11 @@ fn the_web_viewer_shows_photos_from_their_poses() {
         [500_000.0, 4_400_020.0, 1.6],
     );
     ok(&["photos", s(&myr), "--add", s(&e57)]);
+    // The pump E57's visual reference (a 3072x2304 JPEG, no pose): listed and shown.
+    let pump = common::shared_data("pye57__pumpAVisualReferenceImage.e57");
+    if let Some(pump) = &pump {
+        ok(&["photos", s(&myr), "--add", s(pump)]);
+    }
     let server = serve(&[s(&myr)], std::process::Stdio::null());
     let list = common::http_get(&server.base, "/photos/p.myr", &[]);
     assert!(
@@ -1650,10 +1655,25 @@ fn the_web_viewer_shows_photos_from_their_poses() {
     let marks = b
         .eval("[...document.querySelectorAll('.photo-mark')].map((m) => m.title)")
         .unwrap();
-    assert_eq!(
-        marks,
-        serde_json::json!(["camera", "panorama", "site sketch"])
-    );
+    let mut want = vec!["camera", "panorama", "site sketch"];
+    if pump.is_some() {
+        want.push("pumpVisual");
+        b.eval("openPhoto(3)").unwrap();
+        let shown = b
+            .wait_for(
+                "(() => { const i = document.querySelector('#photos .shown img'); \
+                  return i && i.complete && i.naturalWidth > 0 && \
+                  [i.naturalWidth, document.querySelector('#photos .shown button').disabled]; })()",
+                Duration::from_secs(30),
+            )
+            .unwrap();
+        assert_eq!(
+            shown,
+            serde_json::json!([3072, true]),
+            "the pump's image shown, not placed"
+        );
+    }
+    assert_eq!(marks, serde_json::json!(want));
     b.eval("openPhoto(0); viewFromPhoto()").unwrap();
     let shown = b
         .wait_for(
