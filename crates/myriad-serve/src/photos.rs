@@ -7,10 +7,57 @@ use crate::catalog::Kind;
 use crate::{Body, Budget, Shared, status};
 use hyper::body::Incoming;
 use hyper::{Request, Response, StatusCode};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::SystemTime;
 
 /// The largest photos list read.
 const MAX_LIST: u64 = 64 << 20;
+
+type Photos = Arc<Vec<myriad_measure::photos::Photo>>;
+
+/// The lists read, by path, with the length and time they had: a list is read and parsed again
+/// only when it changed (every image request asks for it). At most [`CACHED`] lists kept.
+type Kept = std::sync::Mutex<HashMap<PathBuf, (u64, SystemTime, Photos)>>;
+
+fn cache() -> &'static Kept {
+    static C: std::sync::OnceLock<Kept> = std::sync::OnceLock::new();
+    C.get_or_init(Default::default)
+}
+
+const CACHED: usize = 64;
+
+/// The photos list at `list` (none there: empty).
+fn read_list(list: &Path) -> Result<Photos, String> {
+    let m = match std::fs::metadata(list) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Arc::new(Vec::new())),
+        Err(e) => return Err(e.to_string()),
+        Ok(m) if m.len() > MAX_LIST => {
+            return Err(format!("a photos list of more than {MAX_LIST} bytes"));
+        }
+        Ok(m) => m,
+    };
+    let stamp = (m.len(), m.modified().unwrap_or(SystemTime::UNIX_EPOCH));
+    let kept = cache()
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .get(list)
+        .cloned();
+    if let Some((len, time, p)) = kept
+        && (len, time) == stamp
+    {
+        return Ok(p);
+    }
+    let text = std::fs::read_to_string(list).map_err(|e| e.to_string())?;
+    let p = Arc::new(myriad_measure::photos::parse(&text)?);
+    let mut c = cache().lock().unwrap_or_else(|p| p.into_inner());
+    if c.len() >= CACHED {
+        c.clear();
+    }
+    c.insert(list.to_path_buf(), (stamp.0, stamp.1, p.clone()));
+    Ok(p)
+}
 
 pub(crate) async fn get(
     shared: &Arc<Shared>,
@@ -27,21 +74,7 @@ pub(crate) async fn get(
         return crate::work::changing(r#"{"photos": []}"#.into(), head);
     };
     let list = myriad_measure::photos::sidecar_for(&f.path);
-    let read = tokio::task::spawn_blocking(
-        move || -> Result<Vec<myriad_measure::photos::Photo>, String> {
-            match std::fs::metadata(&list) {
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-                Err(e) => return Err(e.to_string()),
-                Ok(m) if m.len() > MAX_LIST => {
-                    return Err(format!("a photos list of more than {MAX_LIST} bytes"));
-                }
-                Ok(_) => {}
-            }
-            let text = std::fs::read_to_string(&list).map_err(|e| e.to_string())?;
-            myriad_measure::photos::parse(&text)
-        },
-    )
-    .await;
+    let read = tokio::task::spawn_blocking(move || read_list(&list)).await;
     let photos = match read {
         Ok(Ok(p)) => p,
         Ok(Err(e)) => return status(StatusCode::INTERNAL_SERVER_ERROR, &format!("photos: {e}")),
