@@ -272,6 +272,9 @@ pub fn folder_for(dataset: &std::path::Path) -> std::path::PathBuf {
     dataset.with_file_name(format!("{stem}.photos"))
 }
 
+/// The largest photos list (and Potree panorama list) read, bytes.
+pub const MAX_BYTES: usize = 64 << 20;
+
 /// The most photos a dataset keeps.
 pub const MAX_PHOTOS: usize = 100_000;
 

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 /// The largest photos list read.
-const MAX_LIST: u64 = 64 << 20;
+const MAX_LIST: u64 = myriad_measure::photos::MAX_BYTES as u64;
 
 type Photos = Arc<Vec<myriad_measure::photos::Photo>>;
 

@@ -290,15 +290,7 @@ impl App {
         crate::legend::draw(ui.painter(), rect, parallel, self.layers.colour, units);
         // The photos' markers, the one open over the view from its pose.
         let cam = self.view.nav.camera;
-        let focal = cam.focal();
-        let screen = |p: [f64; 3]| -> Option<egui::Pos2> {
-            let e = cam.to_eye(p);
-            (e[2] > 1e-9).then(|| {
-                let x = cam.width as f64 / 2.0 + e[0] * focal / e[2];
-                let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
-                rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp)
-            })
-        };
+        let screen = crate::tools::on_view(&cam, rect, ppp);
         if let Some(v) = self.photos.draw(ui, rect, &response, &cam, &screen) {
             self.view.put(v.eye, v.target, v.up, v.fov_y);
         }

@@ -12,6 +12,41 @@ use myriad_render::legend::number;
 const INK: egui::Color32 = egui::Color32::from_rgb(20, 20, 20);
 const PAPER: egui::Color32 = egui::Color32::from_rgba_premultiplied(204, 204, 204, 204);
 
+/// A scale bar from `at` (its left end) of a round length near `want` points, `per_point`
+/// units a point, labelled above by `label` of its length, on a pale box.
+pub(crate) fn scale_bar(
+    painter: &egui::Painter,
+    at: egui::Pos2,
+    per_point: f64,
+    want: f64,
+    label: &dyn Fn(f64) -> String,
+) {
+    let len = myriad_render::legend::bar_length(per_point * want);
+    let bar = (len / per_point) as f32;
+    let paper = egui::Rect::from_min_max(
+        at + egui::vec2(-6.0, -22.0),
+        at + egui::vec2(bar + 6.0, 12.0),
+    );
+    painter.rect_filled(paper, 2.0, PAPER);
+    painter.rect_filled(
+        egui::Rect::from_min_size(at, egui::vec2(bar, 4.0)),
+        0.0,
+        INK,
+    );
+    for x in [0.0, bar - 2.0] {
+        let tick = egui::Rect::from_min_size(at + egui::vec2(x, -6.0), egui::vec2(2.0, 10.0));
+        painter.rect_filled(tick, 0.0, INK);
+    }
+    let font = egui::FontId::monospace(12.0);
+    painter.text(
+        at + egui::vec2(bar / 2.0, -11.0),
+        egui::Align2::CENTER_CENTER,
+        label(len),
+        font,
+        INK,
+    );
+}
+
 /// Draws over `rect`: a scale bar where `parallel` gives the parallel view's camera, a legend
 /// where `colour` is a gradient; lengths in `units`.
 pub fn draw(
@@ -28,34 +63,9 @@ pub fn draw(
             .sum::<f64>()
             .sqrt();
         let per_point = 2.0 * d * (cam.fov_y.to_radians() / 2.0).tan() / rect.height() as f64;
-        let len = myriad_render::legend::bar_length(per_point * rect.width() as f64 / 5.0);
-        let bar = (len / per_point) as f32;
         let at = rect.left_bottom() + egui::vec2(16.0, -20.0);
-        painter.rect_filled(
-            egui::Rect::from_min_max(
-                at + egui::vec2(-6.0, -22.0),
-                at + egui::vec2(bar + 6.0, 12.0),
-            ),
-            2.0,
-            PAPER,
-        );
-        painter.rect_filled(
-            egui::Rect::from_min_size(at, egui::vec2(bar, 4.0)),
-            0.0,
-            INK,
-        );
-        for x in [0.0, bar - 2.0] {
-            let tick = egui::Rect::from_min_size(at + egui::vec2(x, -6.0), egui::vec2(2.0, 10.0));
-            painter.rect_filled(tick, 0.0, INK);
-        }
-        let label = format!("{} {units}", number(len, len));
-        painter.text(
-            at + egui::vec2(bar / 2.0, -11.0),
-            egui::Align2::CENTER_CENTER,
-            label,
-            font.clone(),
-            INK,
-        );
+        let label = |len: f64| format!("{} {units}", number(len, len));
+        scale_bar(painter, at, per_point, rect.width() as f64 / 5.0, &label);
     }
     if let ColorBy::Ramp(r) = colour {
         let w = (rect.width() / 4.0).clamp(80.0, 320.0);

@@ -191,7 +191,6 @@ impl MiniMap {
         painter.rect_filled(area, 0.0, egui::Color32::from_gray(40));
         let font = egui::FontId::monospace(11.0);
         let ink = egui::Color32::from_rgb(20, 20, 20);
-        let paper = egui::Color32::from_rgba_unmultiplied(255, 255, 255, 204);
         let (g, view) = match (&self.georef, self.view) {
             (Ok(g), Some(v)) => (*g, v),
             (Err(why), _) => {
@@ -269,33 +268,19 @@ impl MiniMap {
         );
         let (_, lat) = from_unit(view.centre);
         let per_px = metres_per_unit(lat) / view.scale();
-        let len = myriad_render::legend::bar_length(per_px * 80.0);
-        let bar = (len / per_px) as f32;
-        let base = area.left_bottom() + egui::vec2(6.0, -8.0);
-        painter.rect_filled(
-            egui::Rect::from_min_max(
-                base + egui::vec2(-2.0, -16.0),
-                base + egui::vec2(bar + 40.0, 4.0),
-            ),
-            0.0,
-            paper,
-        );
-        painter.rect_filled(
-            egui::Rect::from_min_size(base, egui::vec2(bar, 3.0)),
-            0.0,
-            ink,
-        );
-        let label = if len >= 1000.0 {
-            format!("{} km", len / 1000.0)
-        } else {
-            format!("{len} m")
+        let km = |len: f64| {
+            if len >= 1000.0 {
+                format!("{} km", len / 1000.0)
+            } else {
+                format!("{len} m")
+            }
         };
-        painter.text(
-            base + egui::vec2(bar + 4.0, 0.0),
-            egui::Align2::LEFT_BOTTOM,
-            label,
-            font.clone(),
-            ink,
+        crate::legend::scale_bar(
+            &painter,
+            area.left_bottom() + egui::vec2(12.0, -10.0),
+            per_px,
+            80.0,
+            &km,
         );
         let hover = response.hover_pos().filter(|p| area.contains(*p));
         if let Some(p) = hover {

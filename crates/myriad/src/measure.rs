@@ -458,16 +458,18 @@ fn print_volume(
 
 /// A class scheme file, read; an error names it and the line or member.
 pub fn read_scheme(f: &Path) -> Result<myriad_core::classes::Scheme> {
-    let max = myriad_measure::scheme::MAX_BYTES;
+    let text = read_text(f, myriad_measure::scheme::MAX_BYTES, "a class scheme")?;
+    myriad_measure::scheme::parse(&text).map_err(|e| anyhow!("{}: {e}", f.display()))
+}
+
+/// The text of the file `f` the user gave (`what` it should be), refused past `max` bytes;
+/// errors name the file.
+pub fn read_text(f: &Path, max: usize, what: &str) -> Result<String> {
     let size = std::fs::metadata(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
     if size.len() > max as u64 {
-        bail!(
-            "{}: larger than {max} bytes: not a class scheme",
-            f.display()
-        );
+        bail!("{}: larger than {max} bytes: not {what}", f.display());
     }
-    let text = std::fs::read_to_string(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
-    myriad_measure::scheme::parse(&text).map_err(|e| anyhow!("{}: {e}", f.display()))
+    std::fs::read_to_string(f).map_err(|e| anyhow!("{}: {e}", f.display()))
 }
 
 /// The class scheme kept with the saved work of `opened` (a dataset, a scan, tiles), else the

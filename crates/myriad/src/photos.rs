@@ -173,7 +173,7 @@ fn from_e57(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
 }
 
 fn from_potree(f: &Path, folder: &Path, first: usize) -> Result<Vec<Photo>> {
-    let text = std::fs::read_to_string(f).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+    let text = crate::measure::read_text(f, photos::MAX_BYTES, "a panorama list")?;
     let dir = f.parent().unwrap_or(Path::new("."));
     let size = |name: &str| image::image_dimensions(dir.join(name)).ok();
     let set = photos::potree_panoramas(&text, size).map_err(|e| anyhow!("{}: {e}", f.display()))?;

@@ -833,14 +833,7 @@ const MAX_FRAMES: usize = 1_000_000;
 /// A camera path file, read; an error names it and the line or member.
 pub fn read_path(f: &std::path::Path) -> Result<myriad_measure::camera_path::CameraPath> {
     let max = myriad_measure::camera_path::MAX_BYTES;
-    let size = std::fs::metadata(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
-    if size.len() > max as u64 {
-        bail!(
-            "{}: larger than {max} bytes: not a camera path",
-            f.display()
-        );
-    }
-    let text = std::fs::read_to_string(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?;
+    let text = crate::measure::read_text(f, max, "a camera path")?;
     myriad_measure::camera_path::CameraPath::parse(&text)
         .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))
 }

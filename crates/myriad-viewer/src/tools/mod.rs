@@ -25,6 +25,24 @@ use myriad_lod::Camera;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Where a point shows over the view (`rect`, `ppp` pixels a point) seen by `cam`; `None`
+/// behind the eye.
+pub(crate) fn on_view(
+    cam: &Camera,
+    rect: egui::Rect,
+    ppp: f32,
+) -> impl Fn([f64; 3]) -> Option<egui::Pos2> + '_ {
+    let focal = cam.focal();
+    move |p| {
+        let e = cam.to_eye(p);
+        (e[2] > 1e-9).then(|| {
+            let x = cam.width as f64 / 2.0 + e[0] * focal / e[2];
+            let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
+            rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp)
+        })
+    }
+}
+
 pub(crate) struct Tools {
     pub measure: measure::Measuring,
     /// Annotations and the measurements as saved beside the first dataset.
@@ -255,16 +273,7 @@ impl Tools {
     /// clipping box, the measurements, the annotations, the section line, the volume's polygon
     /// and grid.
     pub fn draw(&self, painter: &egui::Painter, rect: egui::Rect, ppp: f32, cam: &Camera) {
-        let focal = cam.focal();
-        let screen = |p: [f64; 3]| -> Option<egui::Pos2> {
-            let e = cam.to_eye(p);
-            if e[2] <= 1e-9 {
-                return None;
-            }
-            let x = cam.width as f64 / 2.0 + e[0] * focal / e[2];
-            let y = cam.height as f64 / 2.0 - e[1] * focal / e[2];
-            Some(rect.min + egui::vec2(x as f32 / ppp, y as f32 / ppp))
-        };
+        let screen = on_view(cam, rect, ppp);
         self.contours.draw(painter, &screen);
         self.clip.draw(painter, &screen);
         self.measure.draw(painter, &screen);
