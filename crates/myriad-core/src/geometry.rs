@@ -224,8 +224,115 @@ pub fn morton(x: u32, y: u32, z: u32) -> u64 {
     spread(x) | spread(y) << 1 | spread(z) << 2
 }
 
+/// Which of `positions` are lone: no other point within `radius` of them. A renderer that sizes
+/// points by the spacing of their level of detail (a square as wide as the gap to the next
+/// point, to close the surface) draws a lone point at that size too, where there is no surface
+/// to close: a block. Points in cells of side `radius`; each looks in its own cell, then in the
+/// 26 around it. A `radius` that is not positive and finite: none is lone.
+pub fn lone_points(positions: &[[f64; 3]], radius: f64) -> Vec<bool> {
+    use std::collections::HashMap;
+    let n = positions.len();
+    if n == 0 || !(radius.is_finite() && radius > 0.0) {
+        return vec![false; n];
+    }
+    let cell = |p: &[f64; 3]| p.map(|v| (v / radius).floor() as i64);
+    // Points sorted by cell, and each cell's run in that order.
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let cells: Vec<[i64; 3]> = positions.iter().map(cell).collect();
+    order.sort_unstable_by_key(|&i| cells[i as usize]);
+    let mut runs: HashMap<[i64; 3], (u32, u32), BuildCell> =
+        HashMap::with_capacity_and_hasher(n / 2, BuildCell);
+    let mut start = 0;
+    while start < n {
+        let c = cells[order[start] as usize];
+        let mut end = start + 1;
+        while end < n && cells[order[end] as usize] == c {
+            end += 1;
+        }
+        runs.insert(c, (start as u32, end as u32));
+        start = end;
+    }
+    let r2 = radius * radius;
+    let near = |i: usize, run: (u32, u32)| {
+        order[run.0 as usize..run.1 as usize].iter().any(|&j| {
+            let (p, q) = (positions[i], positions[j as usize]);
+            j as usize != i && (0..3).map(|a| (p[a] - q[a]) * (p[a] - q[a])).sum::<f64>() <= r2
+        })
+    };
+    (0..n)
+        .map(|i| {
+            let c = cells[i];
+            if near(i, runs[&c]) {
+                return false;
+            }
+            !(0..27).any(|k| {
+                let d = [k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1];
+                let o = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
+                k != 13 && runs.get(&o).is_some_and(|&run| near(i, run))
+            })
+        })
+        .collect()
+}
+
+/// A cheap hash of a cell's integer coordinates (for [`lone_points`]'s map).
+#[derive(Clone, Copy, Default)]
+struct BuildCell;
+
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl std::hash::BuildHasher for BuildCell {
+    type Hasher = CellHasher;
+    fn build_hasher(&self) -> CellHasher {
+        CellHasher(0)
+    }
+}
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+}
+
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn lone_points_have_no_neighbour_within_the_radius() {
+        // A row 1 apart, a point 3 away from it, and two points 1.5 apart far off.
+        let mut p: Vec<[f64; 3]> = (0..10).map(|i| [i as f64, 0.0, 0.0]).collect();
+        p.push([4.0, 3.0, 0.0]);
+        p.push([100.0, 100.0, -7.0]);
+        p.push([101.5, 100.0, -7.0]);
+        let lone = super::lone_points(&p, 2.0);
+        assert_eq!(lone[..10], [false; 10]);
+        assert_eq!(lone[10..], [true, false, false]);
+        // Across cell borders and at negative coordinates, a neighbour just within counts.
+        let q = [[-0.01, -0.01, -0.01], [1.98, -0.01, -0.01]];
+        assert_eq!(super::lone_points(&q, 2.0), [false, false]);
+        assert_eq!(super::lone_points(&q, 1.98), [true, true]);
+        // Coincident points are not lone; no radius: none is.
+        assert_eq!(
+            super::lone_points(&[[5.0; 3], [5.0; 3]], 0.1),
+            [false, false]
+        );
+        assert_eq!(super::lone_points(&q, 0.0), [false, false]);
+        assert_eq!(super::lone_points(&q, f64::NAN), [false, false]);
+    }
     #[test]
     fn morton_interleaves_x_first() {
         assert_eq!(super::morton(1, 0, 0), 1);

@@ -11,6 +11,12 @@ use std::collections::HashMap;
 /// finest one is the point's. So a coarse point shrinks where finer nodes are drawn around it, and
 /// stays large where nothing finer is drawn (yet), covering the hole.
 ///
+/// A node's spacing here is at most its drawn ancestors': a child's points, with its ancestors'
+/// in its cube, sample that cube at least as densely as the ancestors alone. A sparse child (a
+/// few points, separated at a coarse level of its own, so its nominal spacing exceeds its
+/// parent's) would otherwise size every point in its octant, its parent's too, by its coarse
+/// spacing: squares dozens of pixels wide amid points a few pixels wide.
+///
 /// Entries in breadth-first order, children of a node contiguous in octant order:
 /// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -37,9 +43,14 @@ impl DrawnTree {
             return t;
         }
         let mut keys = vec![NodeKey::ROOT];
+        // The finest spacing drawn above each key (its ancestors').
+        let mut above = vec![f32::INFINITY];
         let mut i = 0;
         while i < keys.len() {
             let key = keys[i];
+            let own = spacing[&key];
+            let s = if own > 0.0 { own.min(above[i]) } else { 0.0 };
+            let below = if own > 0.0 { s } else { above[i] };
             let first = keys.len() as u32;
             let mut mask = 0u32;
             for o in 0..8 {
@@ -47,13 +58,21 @@ impl DrawnTree {
                 if spacing.contains_key(&c) {
                     mask |= 1 << o;
                     keys.push(c);
+                    above.push(below);
                 }
             }
-            t.entries.push([mask, first, spacing[&key].to_bits(), 0]);
+            t.entries.push([mask, first, s.to_bits(), 0]);
             t.index.insert(key, i as u32);
             i += 1;
         }
         t
+    }
+
+    /// The spacing drawn node `key`'s points are drawn at (at most its drawn ancestors'); None
+    /// when it is not drawn.
+    pub fn spacing(&self, key: &NodeKey) -> Option<f64> {
+        let s = f32::from_bits(self.entries[*self.index.get(key)? as usize][2]);
+        (s > 0.0).then_some(s as f64)
     }
 
     /// The spacing the GPU gives a point at `p` of the drawn node `key` (as the shaders walk

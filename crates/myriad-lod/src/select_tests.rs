@@ -585,4 +585,27 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
     assert_eq!(t.entries[0][2], 0);
     assert_eq!(t.entries[0][0], 1, "only octant 0 below the root");
     assert!(DrawnTree::new(&s, |_| false).entries.is_empty());
+    // A sparse leaf (its few points separated at a coarse level: a spacing above its
+    // parent's): no point in its cube is drawn wider than the parent's spacing.
+    let mut sparse = s.clone();
+    let coarse = 10.0 * spacing(&NodeKey::ROOT);
+    sparse
+        .nodes
+        .iter_mut()
+        .find(|n| n.key == leaf)
+        .unwrap()
+        .spacing = coarse;
+    let t = DrawnTree::new(&sparse, |_| true);
+    let parent_spacing = spacing(&parent) as f32 as f64;
+    assert_eq!(t.spacing(&leaf), Some(parent_spacing));
+    assert_eq!(t.spacing_at(&h.root, &leaf, p), Some(parent_spacing));
+    assert_eq!(
+        t.spacing_at(&h.root, &NodeKey::ROOT, p),
+        Some(parent_spacing)
+    );
+    // Its sibling, finer than the parent, keeps its own.
+    assert_eq!(
+        t.spacing(&parent.child(1)),
+        Some(spacing(&parent.child(1)) as f32 as f64)
+    );
 }

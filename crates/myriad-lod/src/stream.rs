@@ -112,7 +112,7 @@ impl std::fmt::Debug for Prepared {
 
 /// Work a loader thread does on each node it has read (after decoding, before the node is
 /// resident), for whoever shows it.
-pub type Prepare = Arc<dyn Fn(&NodeKey, &Loaded) -> Option<Prepared> + Send + Sync>;
+pub type Prepare = Arc<dyn Fn(&NodeEntry, &Loaded) -> Option<Prepared> + Send + Sync>;
 
 impl std::ops::Deref for Loaded {
     type Target = PointBatch;
@@ -213,7 +213,7 @@ impl Loader {
                                         let prepare =
                                             shared.prepare.read().ok().and_then(|p| p.clone());
                                         if let Some(p) = prepare {
-                                            l.prepared = p(&node.key, &l);
+                                            l.prepared = p(&node, &l);
                                         }
                                         Ok(l)
                                     }),

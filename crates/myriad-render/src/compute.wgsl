@@ -177,7 +177,7 @@ fn draw_point(p: vec3<f32>, local: u32, r: Range, view_proj: mat4x4<f32>) {
         }
         return;
     }
-    let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube));
+    let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube, lone(local, r.base, r.words)));
     blend_centre = vec2<f32>(fx, fy);
     blend_shape = blend_point(f32(s));
     blend_tol = f32(s) * clip.w / u.focal;

@@ -6,7 +6,7 @@
 //! compute, so that it draws the same images. It is the reference the GPU paths are tested
 //! against, and what `myriad render` uses when there is no GPU adapter.
 
-use crate::points::{Draw, Layout, frame_origin};
+use crate::points::{Draw, LONE_BIT, LONE_PIXELS, Layout, frame_origin};
 use crate::post::{GBuffer, pack_normal};
 use crate::{Clip, PointSize, Shape, Style};
 use myriad_lod::Camera;
@@ -23,9 +23,11 @@ fn key_depth(key: u32, far: f32) -> f32 {
     (1.0 - (key - 1) as f32 / 4294967040.0) * far
 }
 
-/// As `point_pixels` in draw.wgsl for adaptive sizes (fixed sizes are decided once per frame).
+/// As `point_pixels` in draw.wgsl for adaptive sizes (fixed sizes are decided once per frame);
+/// `lone`: the point is ([`crate::points::LONE_BIT`]).
 #[allow(clippy::too_many_arguments)]
 fn adaptive_pixels(
+    lone: bool,
     p: [f32; 3],
     w: f32,
     draw_spacing: f32,
@@ -61,7 +63,8 @@ fn adaptive_pixels(
             }
         }
     }
-    (spacing * focal / w).round().clamp(1.0, max_size)
+    let s = (spacing * focal / w).round().clamp(1.0, max_size);
+    if lone { s.min(LONE_PIXELS) } else { s }
 }
 
 /// As `splat_shape` in draw.wgsl: radius in pixels and the eye normal of a splat at depth `w`.
@@ -487,7 +490,15 @@ fn points_pass(
                         let s = match fixed {
                             Some(px) => px,
                             None => adaptive_pixels(
-                                p, clip[3], spacing, node, cube, tree, max_size, e.focal,
+                                words > 0 && data[ci * 4096 + qi] & LONE_BIT != 0,
+                                p,
+                                clip[3],
+                                spacing,
+                                node,
+                                cube,
+                                tree,
+                                max_size,
+                                e.focal,
                             ),
                         } as i32;
                         let blend = (

@@ -81,6 +81,12 @@ fn decode(i: u32, base: u32, stride: u32, words: u32, read: u32, offset: vec3<f3
     return p;
 }
 
+// Whether point `i` is lone (points.rs's LONE_BIT above the axes of its first position word;
+// f32 positions have none).
+fn lone(i: u32, base: u32, words: u32) -> bool {
+    return words != 0u && (points[base + i] & 0x40000000u) != 0u;
+}
+
 // Point `i`'s colour word (RGBA8), after its position words.
 fn colour_word(i: u32, base: u32, stride: u32, words: u32) -> u32 {
     return points[base + select(words, 3u, words == 0u) * stride + i];
@@ -138,8 +144,8 @@ fn clipped(p: vec3<f32>) -> bool {
 
 // Pixels on a side for a point at `p` (relative to the origin) at eye depth `w`: fixed, or the
 // spacing of the finest drawn node around it, as seen. `draw_spacing`, `node` and `cube` are the
-// point's draw's (as in `Draw`).
-fn point_pixels(p: vec3<f32>, w: f32, draw_spacing: f32, node: u32, cube: vec4<f32>) -> f32 {
+// point's draw's (as in `Draw`); `alone`: the point is lone (at most LONE_PIXELS wide).
+fn point_pixels(p: vec3<f32>, w: f32, draw_spacing: f32, node: u32, cube: vec4<f32>, alone: bool) -> f32 {
     if (u.point_size > 0.0) {
         return clamp(round(u.point_size), 1.0, u.max_size);
     }
@@ -167,5 +173,7 @@ fn point_pixels(p: vec3<f32>, w: f32, draw_spacing: f32, node: u32, cube: vec4<f
             }
         }
     }
-    return clamp(round(spacing * u.focal / w), 1.0, u.max_size);
+    let s = clamp(round(spacing * u.focal / w), 1.0, u.max_size);
+    // A lone point: at most points.rs's LONE_PIXELS.
+    return select(s, min(s, 3.0), alone);
 }

@@ -21,6 +21,18 @@ use wgpu::util::DeviceExt;
 /// Bits of an axis in one position word.
 pub const WORD_BITS: u32 = 10;
 
+/// The bit of a point's first position word (above its three axes) that marks it lone: no
+/// other point of its node within its [`myriad_format::NodeEntry::lone_radius`]
+/// ([`myriad_core::geometry::lone_points`]).
+/// Its adaptive size is then at most [`LONE_PIXELS`], on every path: a square as wide as its
+/// level's spacing closes the gaps of a surface, and a lone point (an outlier in a sparse node,
+/// a bird, a stray return) has none around it to close; drawn that wide near the camera, it is
+/// a block dozens of pixels across.
+pub const LONE_BIT: u32 = 1 << 30;
+
+/// The widest a lone point is drawn with adaptive sizes, in pixels (fixed sizes are as asked).
+pub const LONE_PIXELS: f32 = 3.0;
+
 /// How positions are held.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Encoding {
@@ -233,6 +245,18 @@ impl Encoded {
             len: n as u32,
             splats: None,
         }
+    }
+
+    /// Marks the points `lone` says ([`LONE_BIT`]); positions held as f32 (the layout before
+    /// quantization, for comparisons) have no bit to spare and are not marked.
+    pub fn with_lone(mut self, lone: &[bool]) -> Encoded {
+        assert_eq!(lone.len(), self.len as usize);
+        if self.words > 0 {
+            for (w, _) in self.data.iter_mut().zip(lone).filter(|(_, l)| **l) {
+                *w |= LONE_BIT;
+            }
+        }
+        self
     }
 
     /// These points as splats: each also has a normal and a radius (world units).

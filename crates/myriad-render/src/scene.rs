@@ -283,8 +283,8 @@ impl Scene {
         scene.grid = Some(grid);
         let words = scene.words();
         scene.prepare_words(words);
-        if let Some(mut n) = root_node {
-            n.prepared = Some(words.prepare(&NodeKey::ROOT, &n));
+        if let (Some(mut n), Some(e)) = (root_node, scene.hierarchy.get(&NodeKey::ROOT).cloned()) {
+            n.prepared = Some(words.prepare(&e, &n));
             scene.loader.insert(NodeKey::ROOT, n);
         }
         scene
@@ -650,6 +650,8 @@ impl Scene {
                 };
                 let mut d = p.prefix(count, n.spacing);
                 if cells {
+                    // At most its drawn ancestors' spacing (the tree's).
+                    d.spacing = tree.spacing(&n.key).unwrap_or(n.spacing);
                     d.node = Some((tree.index[&n.key] + base, self.hierarchy.bounds(&n.key)));
                 }
                 Some((n.key, d))

@@ -683,3 +683,109 @@ fn the_loader_threads_make_the_gpu_words_and_frames_only_hand_them_over() {
         assert!(read_after == ramp);
     }
 }
+
+/// A sparse node among fine ones, and a lone point: the root a grid of spacing 8 over the
+/// square, a lone point 40 above it (in an octant where no child is drawn); child 0 (of the bottom layer) two points 16 apart with a
+/// spacing of 32 of its own (a few points, separated at a coarse level of their node), just
+/// above the plane; children 1 to 3 fine grids (spacing 1).
+struct Sparse;
+
+const SPARSE: NodeKey = NodeKey {
+    level: 1,
+    cell: [0, 0, 0],
+};
+
+fn sparse_points(key: &NodeKey) -> (Vec<[f64; 3]>, [u16; 3]) {
+    if *key == SPARSE {
+        (vec![[8.0, 8.0, 0.5], [24.0, 24.0, 0.5]], [65_535, 0, 0])
+    } else if key.level == 0 {
+        let mut p = node_points(key);
+        p.push([48.0, 48.0, 40.0]);
+        (p, [65_535; 3])
+    } else {
+        (node_points(key), [0, 0, 65_535])
+    }
+}
+
+fn sparse_entry(key: NodeKey) -> NodeEntry {
+    let n = sparse_points(&key).0.len() as u32;
+    NodeEntry {
+        points: n,
+        prefix: vec![n],
+        spacing: vec![if key == SPARSE {
+            32.0
+        } else {
+            entry(key).spacing[0]
+        }],
+        ..entry(key)
+    }
+}
+
+impl PageReader for Sparse {
+    fn read(&self, node: &NodeEntry) -> Result<PointBatch, String> {
+        let (points, rgb) = sparse_points(&node.key);
+        let schema = Schema::new(vec![Attribute::Rgb]);
+        let mut b = PointBatch::with_schema(&schema, points.len());
+        for (i, p) in points.into_iter().enumerate() {
+            b.positions.push(p);
+            // The lone point green.
+            let last = node.key.level == 0 && i as u32 == node.points - 1;
+            b.rgb
+                .as_mut()
+                .unwrap()
+                .push(if last { [0, 65_535, 0] } else { rgb });
+        }
+        Ok(b)
+    }
+}
+
+#[test]
+fn a_sparse_nodes_points_and_a_lone_point_are_drawn_no_wider_than_their_bounds() {
+    // Adaptive sizes: a point takes the spacing of the finest drawn node around it, at most its
+    // drawn ancestors' (the sparse node's two points and the root's in its quarter: the root's
+    // 8, not the sparse node's 32); a point with no other within two of its node's finest
+    // spacings at most LONE_PIXELS wide. On every path.
+    let root = Aabb::new([0.0; 3], [64.0; 3]);
+    for (gpu, raster) in common::paths() {
+        let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));
+        let h = Hierarchy::new(root, keys.map(sparse_entry));
+        let mut scene = Scene::new(Arc::new(Sparse), h, root, 1, usize::MAX, usize::MAX);
+        scene.set_colour(ColorBy::Rgb);
+        let cam = above();
+        let options = SelectOptions {
+            budget: 1_000_000,
+            min_pixels: 0.5,
+        };
+        let scale = 1.0;
+        let style = Style {
+            size: PointSize::Adaptive { scale, max: 64.0 },
+            ..Style::default()
+        };
+        scene.converge(&cam, &options, None);
+        let (img, stats) = scene.frame(&gpu, &raster, &cam, &options, &style);
+        assert_eq!(stats.points, 65 + 2 + 3 * 1024, "{:?}", raster.path);
+        let count = |c: [u8; 3]| img.chunks(4).filter(|p| p[..3] == c).count();
+        // The root's spacing at the plane: 8 x focal / 80 (and 79.5 for the sparse points).
+        let focal = cam.focal();
+        let root_px = (8.0 * scale as f64 * focal / 79.5).round();
+        let sparse_px = (32.0 * scale as f64 * focal / 79.5).round();
+        assert!(sparse_px > 3.0 * root_px, "{sparse_px} {root_px}");
+        let red = count([255, 0, 0]) as f64;
+        assert!(
+            red > 0.0 && red <= 2.0 * root_px * root_px,
+            "{:?}: the sparse node's points cover {red} pixels: two squares of {root_px} at \
+             most (its own spacing would make them {sparse_px})",
+            raster.path
+        );
+        let green = count([0, 255, 0]);
+        assert!(
+            (1..=9).contains(&green),
+            "{:?}: the lone point covers {green} pixels (at most 3 x 3; its node's spacing \
+             would make it {} wide)",
+            raster.path,
+            (8.0 * focal / 40.0).round()
+        );
+        // The fine grids are drawn as before: their quarters covered.
+        assert!(count([0, 0, 255]) > 3 * 55 * 55, "{}", count([0, 0, 255]));
+    }
+}

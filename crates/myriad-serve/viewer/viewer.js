@@ -421,7 +421,7 @@ function load() {
     node.state = "loading";
     const origin = [n.cube[0], n.cube[1], n.cube[2]];
     const vb = state.info.view_bounds;
-    call(w, { type: "decode", key: n.key, page: n.page, total: n.total, origin,
+    call(w, { type: "decode", key: n.key, page: n.page, total: n.total, finest: n.finest, origin,
       scheme: settings.scheme, z: [vb[2], vb[5]], hidden: [...settings.hidden] }).then((m) => {
       w.busy -= 1;
       // Dropped while it was decoded (a reload: new edits, a new style): not uploaded.

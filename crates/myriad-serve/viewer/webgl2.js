@@ -19,8 +19,9 @@ function makeWebGL2(canvas) {
   out vec4 vColour;
   uvec4 entry(uint i) { return texelFetch(tree, ivec2(int(i & 1023u), int(i >> 10u)), 0); }
   uint ones(uint m) { uint n = 0u; for (int b = 0; b < 8; b++) n += (m >> uint(b)) & 1u; return n; }
-  // draw.wgsl's point_pixels: the spacing of the finest drawn node around the point, as seen.
-  float pointPixels(vec3 p, float w) {
+  // draw.wgsl's point_pixels: the spacing of the finest drawn node around the point, as seen;
+  // a lone point (its colour's alpha 0, as the module marks it) at most 3 pixels.
+  float pointPixels(vec3 p, float w, bool alone) {
     if (fixedSize > 0.0) return clamp(round(fixedSize), 1.0, maxSize);
     float sp = spacing;
     if (node >= 0) {
@@ -41,10 +42,11 @@ function makeWebGL2(canvas) {
         if (cs > 0.0) sp = cs * scale;
       }
     }
-    return clamp(round(sp * focal / w), 1.0, maxSize);
+    float px = clamp(round(sp * focal / w), 1.0, maxSize);
+    return alone ? min(px, 3.0) : px;
   }
   void main() {
-    vColour = colour;
+    vColour = vec4(colour.rgb, 1.0);
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     gl_PointSize = 1.0;
     if (clipMin.w != 0.0) {
@@ -56,7 +58,7 @@ function makeWebGL2(canvas) {
     vec3 ndc = clip.xyz / clip.w;
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < -1.0 || ndc.z > 1.0) return;
     // The square the native rasterizers cover (quads.wgsl): snapped to whole pixels.
-    float s = pointPixels(pos, clip.w);
+    float s = pointPixels(pos, clip.w, colour.a < 0.5);
     float fx = (ndc.x * 0.5 + 0.5) * size.x, fy = (0.5 - ndc.y * 0.5) * size.y;
     float x0 = floor(fx) - floor((s - 1.0) * 0.5), y0 = floor(fy) - floor((s - 1.0) * 0.5);
     gl_Position = vec4((x0 + 0.5 * s) / size.x * 2.0 - 1.0, 1.0 - (y0 + 0.5 * s) / size.y * 2.0, ndc.z, 1.0);

@@ -34,7 +34,8 @@ POINT_PIXELS
 fn vs(@builtin(vertex_index) v: u32, @location(0) p: vec3<f32>, @location(1) colour: vec4<f32>) -> Out {
   var out: Out;
   out.pos = vec4<f32>(2.0, 2.0, 2.0, 1.0);
-  out.colour = colour;
+  // The module marks a lone point by its colour's alpha 0 (draw.wgsl's `lone`).
+  out.colour = vec4<f32>(colour.rgb, 1.0);
   if (u.clip_min.w != 0.0) {
     let inside = all(p >= u.clip_min.xyz) && all(p <= u.clip_max.xyz);
     if (inside == (u.clip_min.w == 2.0)) {
@@ -51,7 +52,7 @@ fn vs(@builtin(vertex_index) v: u32, @location(0) p: vec3<f32>, @location(1) col
   }
   let fx = (ndc.x * 0.5 + 0.5) * u.size.x;
   let fy = (0.5 - ndc.y * 0.5) * u.size.y;
-  let s = point_pixels(p, clip.w, u.spacing, bitcast<u32>(u.node), vec4<f32>(0.0, 0.0, 0.0, u.side));
+  let s = point_pixels(p, clip.w, u.spacing, bitcast<u32>(u.node), vec4<f32>(0.0, 0.0, 0.0, u.side), colour.a < 0.5);
   let x0 = floor(fx) - floor((s - 1.0) * 0.5);
   let y0 = floor(fy) - floor((s - 1.0) * 0.5);
   let px = vec2<f32>(x0, y0) + CORNERS[v % 6u] * s;

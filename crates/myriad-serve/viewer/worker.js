@@ -152,7 +152,7 @@ function nodeArgs(m) {
   const words = [0, 0, 0, 0, 0, 0, 0, 0];
   for (const c of m.hidden || []) words[c >> 5] += 2 ** (c & 31);
   return [m.key[0], m.key[1], m.key[2], m.key[3], m.page[0], m.page[1], m.page[2], m.total,
-    m.origin[0], m.origin[1], m.origin[2], ...words];
+    m.origin[0], m.origin[1], m.origin[2], ...words, m.finest || 0];
 }
 
 // A node of a cloud format: read and decoded by the module (the range requests synchronous).

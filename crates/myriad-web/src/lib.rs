@@ -159,7 +159,10 @@ impl Viewer {
                     "key": key_json(&n.key),
                     "points": n.points,
                     "total": e.points,
-                    "spacing": n.spacing,
+                    // Which of its points are lone (NodeEntry::lone_radius).
+                    "finest": e.spacing.last().copied().unwrap_or(0.0),
+                    // At most its drawn ancestors' (the tree's, where it is in it).
+                    "spacing": if cells { tree.spacing(&n.key).unwrap_or(n.spacing) } else { n.spacing },
                     "page": [e.page.offset, e.page.length, e.page.crc],
                     "cube": [cube.min[0], cube.min[1], cube.min[2], cube.size()[0]],
                     "tree": if cells { tree.index.get(&n.key).map(|&i| i as i64).unwrap_or(-1) } else { -1 },
@@ -301,7 +304,14 @@ pub fn decoded(
         .iter()
         .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
         .collect();
-    let colours = colours(&b, b.len(), colour, z_range, e.key.level);
+    let mut colours = colours(&b, b.len(), colour, z_range, e.key.level);
+    // Lone points (no other of the node's within two of its finest spacings) marked by their
+    // colour's alpha 0: the viewer's shaders draw them at most 3 pixels wide, as the native
+    // renderer's LONE_BIT does.
+    let lone = myriad_core::geometry::lone_points(&b.positions, e.lone_radius());
+    for (c, _) in colours.iter_mut().zip(lone).filter(|(_, l)| *l) {
+        c[3] = 0;
+    }
     Decoded {
         positions,
         colours,

@@ -533,9 +533,9 @@ const SCHEMES: [&str; 8] = [
 /// 0xffffffff and an error message.
 ///
 /// # Safety
-/// `page` holds `page_len` bytes and `args` 19 f64s (level, x, y, z, offset, length, crc,
-/// points, the origin, then the hidden classes as 8 words of 32 bits), written by the
-/// JavaScript.
+/// `page` holds `page_len` bytes and `args` 20 f64s (level, x, y, z, offset, length, crc,
+/// points, the origin, the hidden classes as 8 words of 32 bits, then the node's finest
+/// spacing or 0), written by the JavaScript.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn myr_decode(
     page: *const u8,
@@ -606,7 +606,7 @@ fn answer_decoded(r: Option<Result<crate::Decoded, String>>) -> u32 {
 /// answered as [`myr_decode`] answers.
 ///
 /// # Safety
-/// `args` holds 19 f64s as for [`myr_decode`].
+/// `args` holds 20 f64s as for [`myr_decode`].
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn myr_decode_read(
     args: *const f64,
@@ -637,7 +637,7 @@ pub unsafe extern "C" fn myr_decode_read(
 }
 
 /// f64s of a node's arguments: see [`myr_decode`].
-const ARGS: usize = 19;
+const ARGS: usize = 20;
 
 /// The hidden classes of a node's arguments: 8 words of 32 flags after the origin.
 fn hidden_classes(a: &[f64]) -> Hidden {
@@ -659,7 +659,12 @@ fn node_entry(a: &[f64]) -> myriad_format::NodeEntry {
         length: a[5] as u32,
         crc: a[6] as u32,
     };
-    entry(key, page, a[7] as u32)
+    let mut e = entry(key, page, a[7] as u32);
+    // The node's finest spacing (which of its points are lone), 0: none known.
+    if a[19] > 0.0 {
+        e.spacing = vec![a[19]];
+    }
+    e
 }
 
 /// Every attribute of point `index` of a node (its page and `args` as for [`myr_decode`]).

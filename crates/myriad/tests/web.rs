@@ -1707,3 +1707,89 @@ fn the_web_viewer_shows_photos_from_their_poses() {
         "every pixel of the sphere the panorama's: {sphere}"
     );
 }
+
+#[test]
+fn the_web_viewer_draws_a_lone_point_no_wider_than_the_native_renderer() {
+    // A plane 0.5 apart and one red point 20 above it: nothing within two of its node's
+    // finest spacings, so it is lone and drawn at most 3 x 3 pixels (its node's spacing would
+    // make it 9 wide from 40 away), in WebGL2 and WebGPU as by `myriad render`.
+    let Some(exe) = browser::find() else {
+        eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
+        return;
+    };
+    let d = tempdir("web-lone");
+    let mut text = String::new();
+    for i in 0..200 {
+        for j in 0..200 {
+            text += &format!("{} {} 0 128 128 128\n", i as f64 * 0.5, j as f64 * 0.5);
+        }
+    }
+    text += "50 50 20 255 0 0\n";
+    let txt = d.join("lone.txt");
+    std::fs::write(&txt, text).unwrap();
+    let myr = d.join("lone.myr");
+    ok(&[
+        "convert",
+        s(&txt),
+        "--columns",
+        "x,y,z,r,g,b",
+        "-o",
+        s(&myr),
+    ]);
+    let red = |px: &[[u8; 3]]| {
+        px.iter()
+            .filter(|c| c[0] > 200 && c[1] < 60 && c[2] < 60)
+            .count()
+    };
+    let grey = |px: &[[u8; 3]]| px.iter().filter(|c| c[0] > 100 && c[0] == c[2]).count();
+    let native = d.join("native.png");
+    ok(&[
+        "render",
+        s(&myr),
+        "-o",
+        s(&native),
+        "--width",
+        &W.to_string(),
+        "--height",
+        &H.to_string(),
+        "--camera",
+        "50,50,60,50,50,0",
+        "--up",
+        "0,1,0",
+        "--passes",
+        "none",
+    ]);
+    let (_, _, px) = png(&std::fs::read(&native).unwrap());
+    let cpu = red(&px);
+    assert!(
+        (1..=9).contains(&cpu),
+        "render: the lone point covers {cpu} pixels"
+    );
+    let server = serve(&[s(&myr)], std::process::Stdio::null());
+    for renderer in ["webgl2", "webgpu"] {
+        let mut b = Browser::launch(&exe).unwrap();
+        let url = format!(
+            "{}/view/lone.myr#renderer={renderer}&camera=50,50,60,50,50,0&up=0,1,0&edl=0",
+            server.base
+        );
+        b.open(&url, W, H).unwrap();
+        let st = converge(&mut b);
+        if st["renderer"] != renderer {
+            eprintln!(
+                "SKIPPED {renderer}: this browser has none ({})",
+                st["renderer"]
+            );
+            continue;
+        }
+        b.eval("document.getElementById('panel').style.display = 'none'; new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            .unwrap();
+        let (_, _, px) = png(&b.screenshot().unwrap());
+        let (r, g) = (red(&px), grey(&px));
+        eprintln!("{renderer}: the lone point {r} pixels (render: {cpu}), the plane {g}");
+        assert!(g > 100_000, "{renderer}: the plane covers {g} pixels");
+        assert!(
+            (1..=9).contains(&r),
+            "{renderer}: the lone point covers {r} pixels (at most 3 x 3)"
+        );
+    }
+}

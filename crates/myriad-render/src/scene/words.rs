@@ -6,7 +6,7 @@
 
 use super::Scene;
 use crate::{ColorBy, Encoded, Encoding, Gpu, colours};
-use myriad_core::NodeKey;
+use myriad_format::NodeEntry;
 use myriad_format::page::Quantization;
 use myriad_lod::Selection;
 use myriad_lod::stream::{Loaded, Prepared};
@@ -35,8 +35,10 @@ struct Made {
 }
 
 impl Words {
-    /// Node `key`'s words.
-    pub(crate) fn encode(&self, key: &NodeKey, node: &Loaded) -> Encoded {
+    /// Node `key`'s words (`e`: its entry, whose finest spacing says which points are lone,
+    /// [`NodeEntry::lone_radius`]).
+    pub(crate) fn encode(&self, e: &NodeEntry, node: &Loaded) -> Encoded {
+        let key = &e.key;
         let c = colours(
             &node.points,
             node.len(),
@@ -49,18 +51,19 @@ impl Words {
             Positions::Grid(g) => Encoding::Grid(g),
             Positions::Fitted(origin) => Encoding::fitted(origin, &node.positions),
         };
-        let e = Encoded::new(encoding, &node.positions, &c);
+        let lone = myriad_core::geometry::lone_points(&node.positions, e.lone_radius());
+        let words = Encoded::new(encoding, &node.positions, &c).with_lone(&lone);
         match &node.splats {
-            Some(s) => e.with_splats(&s.normals, &s.radii),
-            None => e,
+            Some(s) => words.with_splats(&s.normals, &s.radii),
+            None => words,
         }
     }
 }
 
 impl Words {
     /// Node `key`'s words, as a loader thread keeps them with the node.
-    pub(crate) fn prepare(&self, key: &NodeKey, node: &Loaded) -> Prepared {
-        let encoded = self.encode(key, node);
+    pub(crate) fn prepare(&self, e: &NodeEntry, node: &Loaded) -> Prepared {
+        let encoded = self.encode(e, node);
         Prepared {
             bytes: encoded.bytes(),
             made: Arc::new(Made {
@@ -90,7 +93,7 @@ impl Scene {
             if self.buffers.touch(key) || bytes_up >= self.upload_limit {
                 continue;
             }
-            let Some(batch) = self.loader.get(key) else {
+            let (Some(batch), Some(e)) = (self.loader.get(key), self.hierarchy.get(key)) else {
                 continue;
             };
             // Made on a loader thread; else (read before these settings) encoded here.
@@ -101,7 +104,7 @@ impl Scene {
                 }
                 None => {
                     self.uploads_encoded += 1;
-                    words.encode(key, &batch).into_points(gpu)
+                    words.encode(e, &batch).into_points(gpu)
                 }
             };
             let bytes = p.bytes();
@@ -132,9 +135,8 @@ impl Scene {
             return;
         }
         self.prepared_for = Some(words);
-        self.loader.set_prepare(Some(Arc::new(move |key, node| {
-            Some(words.prepare(key, node))
-        })));
+        self.loader
+            .set_prepare(Some(Arc::new(move |e, node| Some(words.prepare(e, node)))));
     }
 }
 
