@@ -245,7 +245,7 @@ impl ComputePass {
                     node: draw.node.map_or(u32::MAX, |n| n.0),
                     start,
                     count: draw.count,
-                    radius: radius_of(draw.points),
+                    radius: radius_of(draw),
                     base,
                     stride: draw.count,
                     words: l.words,

@@ -16,7 +16,8 @@ struct Range {
     // The draw's first thread (and index in `splat_codes`), and its points.
     start: u32,
     count: u32,
-    // Splats: smallest and largest radius; z 1 when this draw has them.
+    // Splats: smallest and largest radius; z 1 when this draw has them. w 1: its lone points
+    // drawn small (it draws a leaf node whole).
     radius: vec4<f32>,
     // Where its words are in `points`, words between its arrays, position words (0: f32) and
     // how many of them to read.
@@ -177,7 +178,7 @@ fn draw_point(p: vec3<f32>, local: u32, r: Range, view_proj: mat4x4<f32>) {
         }
         return;
     }
-    let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube, lone(local, r.base, r.words)));
+    let s = i32(point_pixels(p, clip.w, r.spacing, r.node, r.cube, lone(local, r.base, r.words) && r.radius.w > 0.0));
     blend_centre = vec2<f32>(fx, fy);
     blend_shape = blend_point(f32(s));
     blend_tol = f32(s) * clip.w / u.focal;

@@ -139,10 +139,11 @@ impl Frame<'_> {
     }
 }
 
-/// A draw's splat radius range as the shaders take it (zeros: no splats).
-pub(crate) fn radius_of(p: &crate::Points) -> [f32; 4] {
-    p.splat_range()
-        .map_or([0.0; 4], |[lo, hi]| [lo, hi, 1.0, 0.0])
+/// A draw's splat radius range as the shaders take it (zeros: no splats), and in w 1 where its
+/// lone points are drawn small ([`crate::Draw::lone`]).
+pub(crate) fn radius_of(draw: &crate::Draw) -> [f32; 4] {
+    let whole = draw.lone as u32 as f32;
+    (draw.points.splat_range()).map_or([0.0, 0.0, 0.0, whole], |[lo, hi]| [lo, hi, 1.0, whole])
 }
 
 /// Every draw's (quads) or batch's (compute) uniforms in one buffer, at aligned offsets.

@@ -30,7 +30,8 @@ struct Draw {
     eye_right: vec4<f32>,
     eye_up: vec4<f32>,
     eye_forward: vec4<f32>,
-    // Quad path, this draw's splats: smallest and largest radius, z 1 when it has splats.
+    // Quad path, this draw's splats: smallest and largest radius, z 1 when it has splats; w 1:
+    // its lone points drawn small (it draws a leaf node whole).
     radius: vec4<f32>,
     // Quad path, this draw's points (as `Range` in compute.wgsl): its origin relative to the
     // frame's, its first word's step per axis, and its place: base, stride, words, read (`decode`).

@@ -429,6 +429,7 @@ impl Points {
             spacing,
             node: None,
             behind: 0.0,
+            lone: false,
         }
     }
 
@@ -507,6 +508,11 @@ pub struct Draw<'a> {
     /// covers the same pixels, but loses the depth test to what is drawn where it is: a
     /// stand-in ([`crate::Scene`], `mwkd`) fills holes without covering loaded detail.
     pub behind: f32,
+    /// Its lone points ([`LONE_BIT`]) are drawn at most [`LONE_PIXELS`] wide: it draws a leaf
+    /// node whole (lone among all the node's points, with no descendant holding points around
+    /// them: an inner node's point lone among its node's sample stands in for the points below
+    /// it, and a coarser prefix's points may lie as far apart as its spacing).
+    pub lone: bool,
 }
 
 /// Where a draw's points are for a frame drawn relative to `origin`: their origin there, the

@@ -118,7 +118,7 @@ impl QuadPass {
                     dr.count,
                     dr.spacing,
                     dr.node,
-                    radius_of(dr.points),
+                    radius_of(dr),
                     0,
                     Some((layout, dr.points.len)),
                 )

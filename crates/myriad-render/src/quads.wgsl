@@ -74,7 +74,7 @@ fn vertex(
     }
     let fx = (ndc.x * 0.5 + 0.5) * f32(width);
     let fy = (0.5 - ndc.y * 0.5) * f32(u.height);
-    var s = point_pixels(p, clip.w, u.spacing, u.node, u.cube, lone(instance, l.x, l.z));
+    var s = point_pixels(p, clip.w, u.spacing, u.node, u.cube, lone(instance, l.x, l.z) && u.radius.w > 0.0);
     out.footprint = blend_point(s);
     if (u.radius.z > 0.0 && u.point_size == 0.0) {
         out.splat = splat_shape(splat_codes[instance], u.radius.xy, clip.w);

@@ -649,6 +649,10 @@ impl Scene {
                     n.points
                 };
                 let mut d = p.prefix(count, n.spacing);
+                // A leaf drawn whole: its lone points are lone in the dataset.
+                let leaf = self.hierarchy.children(&n.key).next().is_none()
+                    && self.hierarchy.page_ref(&n.key).is_none();
+                d.lone = leaf && count == p.len;
                 if cells {
                     // At most its drawn ancestors' spacing (the tree's).
                     d.spacing = tree.spacing(&n.key).unwrap_or(n.spacing);

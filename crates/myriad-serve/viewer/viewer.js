@@ -484,12 +484,14 @@ function draw() {
     const n = nodes.get(keyString(s.key));
     if (!n || !n.count) { if (!n || n.state !== "failed") complete = false; continue; }
     const count = Math.min(s.points, n.count);
+    const whole = s.leaf && s.points >= s.total ? 1 : 0;
     const o = n.origin;
     draws.push({
       handle: n.handle, count, vp: viewProj(camera, o, w, h, renderer.zeroToOne),
       spacing: s.spacing * ADAPTIVE_SCALE, node: s.tree, side: n.side,
       clipMin: c ? [c.box[0] - o[0], c.box[1] - o[1], c.box[2] - o[2], c.inside ? 1 : 2] : [0, 0, 0, 0],
-      clipMax: c ? [c.box[3] - o[0], c.box[4] - o[1], c.box[5] - o[2], 0] : [0, 0, 0, 0],
+      // w 1: a leaf node drawn whole, its lone points drawn small (points.rs's Draw::lone).
+      clipMax: c ? [c.box[3] - o[0], c.box[4] - o[1], c.box[5] - o[2], whole] : [0, 0, 0, whole],
     });
     drawnPoints += count;
     drawnNodes += 1;

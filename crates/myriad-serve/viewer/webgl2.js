@@ -58,7 +58,7 @@ function makeWebGL2(canvas) {
     vec3 ndc = clip.xyz / clip.w;
     if (ndc.x < -1.0 || ndc.x >= 1.0 || ndc.y <= -1.0 || ndc.y > 1.0 || ndc.z < -1.0 || ndc.z > 1.0) return;
     // The square the native rasterizers cover (quads.wgsl): snapped to whole pixels.
-    float s = pointPixels(pos, clip.w, colour.a < 0.5);
+    float s = pointPixels(pos, clip.w, colour.a < 0.5 && clipMax.w > 0.5);
     float fx = (ndc.x * 0.5 + 0.5) * size.x, fy = (0.5 - ndc.y * 0.5) * size.y;
     float x0 = floor(fx) - floor((s - 1.0) * 0.5), y0 = floor(fy) - floor((s - 1.0) * 0.5);
     gl_Position = vec4((x0 + 0.5 * s) / size.x * 2.0 - 1.0, 1.0 - (y0 + 0.5 * s) / size.y * 2.0, ndc.z, 1.0);

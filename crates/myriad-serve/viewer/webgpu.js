@@ -52,7 +52,7 @@ fn vs(@builtin(vertex_index) v: u32, @location(0) p: vec3<f32>, @location(1) col
   }
   let fx = (ndc.x * 0.5 + 0.5) * u.size.x;
   let fy = (0.5 - ndc.y * 0.5) * u.size.y;
-  let s = point_pixels(p, clip.w, u.spacing, bitcast<u32>(u.node), vec4<f32>(0.0, 0.0, 0.0, u.side), colour.a < 0.5);
+  let s = point_pixels(p, clip.w, u.spacing, bitcast<u32>(u.node), vec4<f32>(0.0, 0.0, 0.0, u.side), colour.a < 0.5 && u.clip_max.w > 0.5);
   let x0 = floor(fx) - floor((s - 1.0) * 0.5);
   let y0 = floor(fy) - floor((s - 1.0) * 0.5);
   let px = vec2<f32>(x0, y0) + CORNERS[v % 6u] * s;

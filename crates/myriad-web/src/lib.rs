@@ -161,6 +161,9 @@ impl Viewer {
                     "total": e.points,
                     // Which of its points are lone (NodeEntry::lone_radius).
                     "finest": e.spacing.last().copied().unwrap_or(0.0),
+                    // No descendant: drawn whole, its lone points are drawn small.
+                    "leaf": self.hierarchy.children(&n.key).next().is_none()
+                        && self.hierarchy.page_ref(&n.key).is_none(),
                     // At most its drawn ancestors' (the tree's, where it is in it).
                     "spacing": if cells { tree.spacing(&n.key).unwrap_or(n.spacing) } else { n.spacing },
                     "page": [e.page.offset, e.page.length, e.page.crc],
