@@ -56,16 +56,6 @@ pub struct NodeEntry {
 }
 
 impl NodeEntry {
-    /// The radius within which a point of this node needs another of its points to not be
-    /// lone (`myriad_core::geometry::lone_points`; renderers draw a lone point small, having no
-    /// surface around it to close): two of the node's finest spacings. Its finest level's points
-    /// lie one to a cell of that side, so a surface's neighbours are about one spacing apart; a
-    /// point with no other within two has empty cells all around it. 0 (none lone) for a node
-    /// without spacings.
-    pub fn lone_radius(&self) -> f64 {
-        self.spacing.last().map_or(0.0, |s| 2.0 * s)
-    }
-
     /// An entry for a node of the key's octree (no stored bounds or contour).
     pub fn new(
         key: NodeKey,

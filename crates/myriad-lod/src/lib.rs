@@ -25,7 +25,8 @@ pub use occlusion::{DepthMap, Occluder, Occlusion};
 pub use pace::Pace;
 pub use prefetch::prefetch;
 pub use select::{
-    merge, point_spacing, select, select_many, select_occluded, select_occluded_from, select_where,
+    lone_radius, merge, point_spacing, select, select_many, select_occluded, select_occluded_from,
+    select_where,
 };
 pub use selection::{SelectOptions, Selected, Selection};
 pub use stream::{Loader, PageReader};

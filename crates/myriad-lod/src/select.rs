@@ -45,6 +45,16 @@ pub fn point_spacing(e: &NodeEntry) -> Vec<f64> {
     out
 }
 
+/// The radius within which a point of node `e` needs another of its points to not be lone
+/// (`myriad_core::geometry::lone_points`; renderers draw a lone point of a leaf small, having no
+/// surface around it to close): two of the spacings its finest level is drawn at
+/// ([`point_spacing`]: a point drawn that wide, one and a half spacings at the default scale,
+/// with no other within two, stands apart from everything around it). 0 (none lone) for a node
+/// without spacings.
+pub fn lone_radius(e: &NodeEntry) -> f64 {
+    point_spacing(e).last().map_or(0.0, |s| 2.0 * s)
+}
+
 /// Nodes within this angle (radians, about 17 degrees) of the view axis count as central alike.
 /// Scheiblauer 2006 floors the angle only against division by zero; a wider floor spreads the
 /// budget more evenly over the middle of the view: `myriad bench render` (PSNR at a 1 M budget

@@ -22,7 +22,7 @@ use wgpu::util::DeviceExt;
 pub const WORD_BITS: u32 = 10;
 
 /// The bit of a point's first position word (above its three axes) that marks it lone: no
-/// other point of its node within its [`myriad_format::NodeEntry::lone_radius`]
+/// other point of its node within its [`myriad_lod::lone_radius`]
 /// ([`myriad_core::geometry::lone_points`]).
 /// Its adaptive size is then at most [`LONE_PIXELS`], on every path: a square as wide as its
 /// level's spacing closes the gaps of a surface, and a lone point (an outlier in a sparse node,

@@ -760,7 +760,7 @@ fn a_sparse_nodes_points_and_a_lone_point_are_drawn_no_wider_than_their_bounds()
     // Adaptive sizes: a point takes the spacing of the finest drawn node around it, at most its
     // drawn ancestors' (the sparse node's two points and the root's in its quarter: the root's
     // 8, not the sparse node's 32); a point of a leaf with no other of its node within two of
-    // the node's finest spacings at most LONE_PIXELS wide. On every path.
+    // the spacings its finest level is drawn at, at most LONE_PIXELS wide. On every path.
     let root = Aabb::new([0.0; 3], [64.0; 3]);
     for (gpu, raster) in common::paths() {
         let keys = std::iter::once(NodeKey::ROOT).chain((0..4).map(|o| NodeKey::ROOT.child(o)));

@@ -159,8 +159,9 @@ impl Viewer {
                     "key": key_json(&n.key),
                     "points": n.points,
                     "total": e.points,
-                    // Which of its points are lone (NodeEntry::lone_radius).
-                    "finest": e.spacing.last().copied().unwrap_or(0.0),
+                    // The spacing its finest level is drawn at: which of its points are lone
+                    // (myriad_lod::lone_radius).
+                    "finest": myriad_lod::point_spacing(e).last().copied().unwrap_or(0.0),
                     // No descendant: drawn whole, its lone points are drawn small.
                     "leaf": self.hierarchy.children(&n.key).next().is_none()
                         && self.hierarchy.page_ref(&n.key).is_none(),
@@ -308,10 +309,10 @@ pub fn decoded(
         .flat_map(|p| (0..3).map(move |a| (p[a] - origin[a]) as f32))
         .collect();
     let mut colours = colours(&b, b.len(), colour, z_range, e.key.level);
-    // Lone points (no other of the node's within two of its finest spacings) marked by their
+    // Lone points (no other of the node's within `myriad_lod::lone_radius`) marked by their
     // colour's alpha 0: the viewer's shaders draw them at most 3 pixels wide, as the native
     // renderer's LONE_BIT does.
-    let lone = myriad_core::geometry::lone_points(&b.positions, e.lone_radius());
+    let lone = myriad_core::geometry::lone_points(&b.positions, myriad_lod::lone_radius(e));
     for (c, _) in colours.iter_mut().zip(lone).filter(|(_, l)| *l) {
         c[3] = 0;
     }

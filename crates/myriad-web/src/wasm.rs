@@ -534,8 +534,8 @@ const SCHEMES: [&str; 8] = [
 ///
 /// # Safety
 /// `page` holds `page_len` bytes and `args` 20 f64s (level, x, y, z, offset, length, crc,
-/// points, the origin, the hidden classes as 8 words of 32 bits, then the node's finest
-/// spacing or 0), written by the JavaScript.
+/// points, the origin, the hidden classes as 8 words of 32 bits, then the spacing the node's
+/// finest level is drawn at (`myriad_lod::point_spacing`) or 0), written by the JavaScript.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn myr_decode(
     page: *const u8,
@@ -660,7 +660,8 @@ fn node_entry(a: &[f64]) -> myriad_format::NodeEntry {
         crc: a[6] as u32,
     };
     let mut e = entry(key, page, a[7] as u32);
-    // The node's finest spacing (which of its points are lone), 0: none known.
+    // The spacing the node's finest level is drawn at (which of its points are lone), 0: none
+    // known.
     if a[19] > 0.0 {
         e.spacing = vec![a[19]];
     }

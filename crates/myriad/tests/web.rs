@@ -1710,9 +1710,10 @@ fn the_web_viewer_shows_photos_from_their_poses() {
 
 #[test]
 fn the_web_viewer_draws_a_lone_point_no_wider_than_the_native_renderer() {
-    // A plane 0.5 apart and one red point 20 above it: nothing within two of its node's
-    // finest spacings, so it is lone and drawn at most 3 x 3 pixels (its node's spacing would
-    // make it 9 wide from 40 away), in WebGL2 and WebGPU as by `myriad render`.
+    // A plane 0.5 apart and one red point 20 above it, one node: nothing within two of the
+    // spacings its finest level is drawn at, so it is lone and drawn at most 3 x 3 pixels (its
+    // node's spacing would make it about 10 wide from 40 away), in WebGL2 and WebGPU as by
+    // `myriad render`.
     let Some(exe) = browser::find() else {
         eprintln!("SKIPPED: no Chromium (apt-get install chromium; .ci/run installs it)");
         return;

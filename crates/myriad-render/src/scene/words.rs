@@ -35,8 +35,8 @@ struct Made {
 }
 
 impl Words {
-    /// Node `key`'s words (`e`: its entry, whose finest spacing says which points are lone,
-    /// [`NodeEntry::lone_radius`]).
+    /// Node `key`'s words (`e`: its entry, whose spacings say which points are lone,
+    /// [`myriad_lod::lone_radius`]).
     pub(crate) fn encode(&self, e: &NodeEntry, node: &Loaded) -> Encoded {
         let key = &e.key;
         let c = colours(
@@ -51,7 +51,7 @@ impl Words {
             Positions::Grid(g) => Encoding::Grid(g),
             Positions::Fitted(origin) => Encoding::fitted(origin, &node.positions),
         };
-        let lone = myriad_core::geometry::lone_points(&node.positions, e.lone_radius());
+        let lone = myriad_core::geometry::lone_points(&node.positions, myriad_lod::lone_radius(e));
         let words = Encoded::new(encoding, &node.positions, &c).with_lone(&lone);
         match &node.splats {
             Some(s) => words.with_splats(&s.normals, &s.radii),
