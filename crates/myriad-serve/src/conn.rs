@@ -180,7 +180,8 @@ impl<T: AsyncWrite + Unpin> AsyncWrite for Watched<T> {
     }
 }
 
-/// Whether the peer of socket `fd` has closed its side (a read would give end of file).
+/// Whether the peer of socket `fd` has closed its side (a read would give end of file, or the
+/// connection was reset).
 pub(crate) fn peer_closed(fd: std::os::fd::RawFd) -> bool {
     let mut b = [0u8; 1];
     // SAFETY: `fd` is an open socket for as long as its connection runs (the caller's), and
@@ -193,7 +194,14 @@ pub(crate) fn peer_closed(fd: std::os::fd::RawFd) -> bool {
             libc::MSG_PEEK | libc::MSG_DONTWAIT,
         )
     };
+    // End of file: closed; reset (a client that closed before reading what it had been sent):
+    // closed too.
     n == 0
+        || (n < 0
+            && matches!(
+                std::io::Error::last_os_error().raw_os_error(),
+                Some(libc::ECONNRESET | libc::ENOTCONN | libc::EPIPE)
+            ))
 }
 
 /// Why a connection's watchdog closed it.
