@@ -55,6 +55,48 @@ pub struct RenderBenchArgs {
     positions_only: bool,
 }
 
+/// The side, in pixels, from which a square of one colour counts as a block ([`blocks`]).
+pub const BLOCK: usize = 6;
+
+/// Blocks in an RGBA8 image `width` pixels wide drawn without post passes: the tiles of 16 x 16
+/// pixels holding a square of [`BLOCK`] x [`BLOCK`] pixels of one colour other than the
+/// background (black). A point drawn that wide amid points of a pixel or two (its square is
+/// of its own colour, passes off) is one.
+pub fn blocks(img: &[u8], width: usize) -> usize {
+    let px: Vec<u32> = img
+        .chunks_exact(4)
+        .map(|p| u32::from_le_bytes([p[0], p[1], p[2], 0]))
+        .collect();
+    let height = px.len() / width.max(1);
+    // Per pixel: the run of its colour ending there along its row, and the rows above it
+    // whose runs there are as long.
+    let mut run = vec![0usize; px.len()];
+    let mut tall = vec![0usize; px.len()];
+    let mut tiles = std::collections::HashSet::new();
+    for y in 0..height {
+        for x in 0..width {
+            let i = y * width + x;
+            run[i] = if x > 0 && px[i] == px[i - 1] {
+                run[i - 1] + 1
+            } else {
+                1
+            };
+            let wide = run[i] >= BLOCK && px[i] != 0;
+            tall[i] = match (wide, y > 0) {
+                (false, _) => 0,
+                (true, true) if px[i - width] == px[i] && tall[i - width] > 0 => {
+                    tall[i - width] + 1
+                }
+                (true, _) => 1,
+            };
+            if tall[i] >= BLOCK {
+                tiles.insert((x / 16, y / 16));
+            }
+        }
+    }
+    tiles.len()
+}
+
 /// Peak signal-to-noise ratio of RGB between two RGBA8 images, in dB (infinite when equal).
 pub fn psnr(a: &[u8], b: &[u8]) -> f64 {
     assert_eq!(a.len(), b.len());
@@ -145,14 +187,15 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             continue;
         }
         println!(
-            "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8}",
+            "\n{name}: {} points\n{:<10} {:<9} {:>12} {:>10} {:>10} {:>8} {:>14}",
             myriad_core::units::thousands(total),
             "view",
             "size",
             "points",
             "ours dB",
             "random dB",
-            "gain"
+            "gain",
+            "blocks lod/all"
         );
         let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
         for (view, mut cam) in views {
@@ -179,8 +222,10 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                 if ours <= theirs {
                     lost += 1;
                 }
+                let w = a.width as usize;
+                let squares = format!("{}/{}", blocks(&lod, w), blocks(&full, w));
                 println!(
-                    "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2}",
+                    "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2} {squares:>14}",
                     myriad_core::units::thousands(points),
                     ours - theirs
                 );
@@ -383,6 +428,31 @@ fn random_image(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blocks_are_squares_of_one_colour_six_pixels_wide() {
+        let (w, h) = (64, 40);
+        let mut img = vec![0u8; w * h * 4];
+        let mut fill = |x0: usize, y0: usize, s: usize, c: [u8; 4]| {
+            for y in y0..y0 + s {
+                for x in x0..x0 + s {
+                    img[(y * w + x) * 4..][..4].copy_from_slice(&c);
+                }
+            }
+        };
+        // A 6-pixel square, a 5-pixel one, a 6-pixel one of two colours (split down the middle),
+        // and a 12-pixel one across tiles.
+        fill(1, 1, 6, [200, 10, 10, 255]);
+        fill(20, 1, 5, [10, 200, 10, 255]);
+        fill(40, 1, 6, [10, 10, 200, 255]);
+        fill(43, 1, 3, [10, 10, 201, 255]);
+        fill(10, 20, 12, [90, 90, 90, 255]);
+        // The first tile; of the big square (10..21 by 20..31), the tiles where a 6 x 6 square
+        // of it ends (x 15..21, y 25..31: two tiles).
+        assert_eq!(blocks(&img, w), 1 + 2);
+        // Black is the background.
+        assert_eq!(blocks(&vec![0u8; w * h * 4], w), 0);
+    }
 
     #[test]
     fn psnr_of_known_differences() {
