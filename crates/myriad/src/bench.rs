@@ -13,7 +13,8 @@ pub enum BenchCommand {
     /// next to the raw LAS/LAZ decode of the same file
     Convert(myriad_bench::convert::ConvertBenchArgs),
     /// Image quality of the level of detail at a point budget (PSNR against every point, next
-    /// to as many random points) in three standard views, and the frame time of the pipeline
+    /// to as many random points, and blocks: points drawn 6 pixels wide or more where the image
+    /// of every point has none) in three standard views, and the frame time of the pipeline
     Render(myriad_bench::render::RenderBenchArgs),
     /// The cost of each post pass (fill, shade, ssao, edl, blur, aa) at 1280x720 and
     /// 2160x2160, and the PSNR of no pass, fill, fill+blur and the default chain at 250 k and

@@ -59,10 +59,12 @@ pub struct RenderBenchArgs {
 pub const BLOCK: usize = 6;
 
 /// Blocks in an RGBA8 image `width` pixels wide drawn without post passes: the tiles of 16 x 16
-/// pixels holding a square of [`BLOCK`] x [`BLOCK`] pixels of one colour other than the
-/// background (black). A point drawn that wide amid points of a pixel or two (its square is
-/// of its own colour, passes off) is one.
-pub fn blocks(img: &[u8], width: usize) -> usize {
+/// pixels (column, row) holding a square of [`BLOCK`] x [`BLOCK`] pixels of one colour other
+/// than the background (black). A point drawn that wide (its square is of its own colour,
+/// passes off) is one: near the camera, where every point is that wide, a surface closed; amid
+/// points of a pixel or two, a block. So a view's blocks are those of its image at a budget in
+/// tiles where its image of every point has none.
+pub fn blocks(img: &[u8], width: usize) -> std::collections::HashSet<(usize, usize)> {
     let px: Vec<u32> = img
         .chunks_exact(4)
         .map(|p| u32::from_le_bytes([p[0], p[1], p[2], 0]))
@@ -94,7 +96,7 @@ pub fn blocks(img: &[u8], width: usize) -> usize {
             }
         }
     }
-    tiles.len()
+    tiles
 }
 
 /// Peak signal-to-noise ratio of RGB between two RGBA8 images, in dB (infinite when equal).
@@ -195,7 +197,7 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
             "ours dB",
             "random dB",
             "gain",
-            "blocks lod/all"
+            "blocks"
         );
         let views = Camera::standard_views(&scene.view_bounds, a.width, a.height);
         for (view, mut cam) in views {
@@ -223,7 +225,14 @@ pub fn run(a: RenderBenchArgs) -> Result<()> {
                     lost += 1;
                 }
                 let w = a.width as usize;
-                let squares = format!("{}/{}", blocks(&lod, w), blocks(&full, w));
+                // Tiles with a block at the budget where the image of every point has none, and
+                // the image of every point's.
+                let every = blocks(&full, w);
+                let squares = format!(
+                    "{}/{}",
+                    blocks(&lod, w).difference(&every).count(),
+                    every.len()
+                );
                 println!(
                     "{view:<10} {mode:<9} {:>12} {ours:>10.2} {theirs:>10.2} {:>+8.2} {squares:>14}",
                     myriad_core::units::thousands(points),
@@ -449,9 +458,11 @@ mod tests {
         fill(10, 20, 12, [90, 90, 90, 255]);
         // The first tile; of the big square (10..21 by 20..31), the tiles where a 6 x 6 square
         // of it ends (x 15..21, y 25..31: two tiles).
-        assert_eq!(blocks(&img, w), 1 + 2);
+        let b = blocks(&img, w);
+        assert_eq!(b.len(), 1 + 2, "{b:?}");
+        assert!(b.contains(&(0, 0)) && b.contains(&(0, 1)) && b.contains(&(1, 1)));
         // Black is the background.
-        assert_eq!(blocks(&vec![0u8; w * h * 4], w), 0);
+        assert!(blocks(&vec![0u8; w * h * 4], w).is_empty());
     }
 
     #[test]
