@@ -1,7 +1,7 @@
 //! The drawn nodes of a frame as a small array octree that the shaders walk per point, for
 //! adaptive point sizes (Scheiblauer 2006, section 4.4; Discher et al. 2018, section 5.1).
 
-use crate::selection::Selection;
+use crate::selection::{Selected, Selection};
 use myriad_core::{Aabb, NodeKey};
 use std::collections::HashMap;
 
@@ -11,11 +11,12 @@ use std::collections::HashMap;
 /// finest one is the point's. So a coarse point shrinks where finer nodes are drawn around it, and
 /// stays large where nothing finer is drawn (yet), covering the hole.
 ///
-/// A node's spacing here is at most its drawn ancestors': a child's points, with its ancestors'
-/// in its cube, sample that cube at least as densely as the ancestors alone. A sparse child (a
-/// few points, separated at a coarse level of its own, so its nominal spacing exceeds its
-/// parent's) would otherwise size every point in its octant, its parent's too, by its coarse
-/// spacing: squares dozens of pixels wide amid points a few pixels wide.
+/// A sparse node drawn whole (its spacing more than [`SPARSE`] times its drawn ancestors') takes
+/// theirs: its points, with its ancestors' in its cube, sample that cube at least as densely as
+/// the ancestors alone. It (a few points, separated at a coarse level of its own) would otherwise
+/// size every point in its octant, its parent's too, by its coarse spacing: squares dozens of
+/// pixels wide amid points a few pixels wide. A node drawn in part (a coarse prefix of its
+/// levels, as far as the budget went) keeps its own, as before.
 ///
 /// Entries in breadth-first order, children of a node contiguous in octant order:
 /// `[child mask, index of the first child, spacing as f32 bits (0: not drawn), 0]`.
@@ -25,13 +26,26 @@ pub struct DrawnTree {
     pub index: HashMap<NodeKey, u32>,
 }
 
+/// A node drawn whole is sparse where its spacing exceeds its drawn ancestors' this many times
+/// (then it takes theirs): a leaf's finest level, sized from its own density, may well lie a
+/// little above its parent's level drawn; a sparse node's, separated at a coarse level of its own,
+/// lies several times above (KY's edges: 4 to 6).
+pub const SPARSE: f32 = 2.0;
+
 impl DrawnTree {
     /// The nodes of `selection` for which `drawn` holds, and their ancestors (as pass-through
-    /// entries when not drawn themselves).
-    pub fn new(selection: &Selection, drawn: impl Fn(&NodeKey) -> bool) -> DrawnTree {
+    /// entries when not drawn themselves); `whole`: a selected node is drawn whole (all its
+    /// points: its spacing is then at most its drawn ancestors').
+    pub fn new(
+        selection: &Selection,
+        drawn: impl Fn(&NodeKey) -> bool,
+        whole: impl Fn(&Selected) -> bool,
+    ) -> DrawnTree {
         let mut spacing: HashMap<NodeKey, f32> = HashMap::new();
+        let mut capped: HashMap<NodeKey, bool> = HashMap::new();
         for n in selection.nodes.iter().filter(|n| drawn(&n.key)) {
             spacing.insert(n.key, n.spacing as f32);
+            capped.insert(n.key, whole(n));
             let mut k = n.key;
             while k.level > 0 {
                 k = k.parent();
@@ -49,7 +63,11 @@ impl DrawnTree {
         while i < keys.len() {
             let key = keys[i];
             let own = spacing[&key];
-            let s = if own > 0.0 { own.min(above[i]) } else { 0.0 };
+            let s = match (own > 0.0, capped.get(&key) == Some(&true)) {
+                (false, _) => 0.0,
+                (true, true) if own > SPARSE * above[i] => above[i],
+                (true, _) => own,
+            };
             let below = if own > 0.0 { s } else { above[i] };
             let first = keys.len() as u32;
             let mut mask = 0u32;

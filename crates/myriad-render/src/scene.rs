@@ -631,7 +631,11 @@ impl Scene {
         // (the selection's spacing) in kd-trees.
         let cells = self.hierarchy.cells();
         let tree = if cells {
-            DrawnTree::new(selection, |k| self.buffers.contains(k))
+            DrawnTree::new(
+                selection,
+                |k| self.buffers.contains(k),
+                |n| (self.hierarchy.get(&n.key)).is_some_and(|e| n.points >= e.points),
+            )
         } else {
             DrawnTree::default()
         };
@@ -649,9 +653,10 @@ impl Scene {
                     n.points
                 };
                 let mut d = p.prefix(count, n.spacing);
-                // A leaf drawn whole: its lone points are lone in the dataset.
+                // A leaf drawn whole: its lone points are lone in the dataset (a node whose
+                // children's page is not read yet may have some).
                 let leaf = self.hierarchy.children(&n.key).next().is_none()
-                    && self.hierarchy.page_ref(&n.key).is_none();
+                    && self.hierarchy.unloaded_below(&n.key).next().is_none();
                 d.lone = leaf && count == p.len;
                 if cells {
                     // At most its drawn ancestors' spacing (the tree's).

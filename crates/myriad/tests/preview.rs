@@ -594,6 +594,9 @@ fn snapshots_drawn_while_the_build_runs_come_closer_to_the_final_image() {
     eprintln!("snapshots (chunks built, pixels lit, PSNR against the final image): {drawn:?}");
     let (first, end) = (drawn[0], *drawn.last().unwrap());
     assert!(end.1 > first.1, "{drawn:?}");
-    assert!(end.2 > first.2 + 3.0, "{drawn:?}");
+    // 2 dB here (3.5 before sparse nodes took their ancestors' spacing: the finished dataset's
+    // levels above the chunks, built at the end, now bound its sparse leaves' sizes, which no
+    // snapshot has until then).
+    assert!(end.2 > first.2 + 1.5, "{drawn:?}");
     assert!(lit(&last) >= end.1 * 9 / 10, "{drawn:?}");
 }
