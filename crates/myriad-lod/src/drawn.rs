@@ -1,6 +1,7 @@
 //! The drawn nodes of a frame as a small array octree that the shaders walk per point, for
 //! adaptive point sizes (Scheiblauer 2006, section 4.4; Discher et al. 2018, section 5.1).
 
+use crate::Hierarchy;
 use crate::selection::{Selected, Selection};
 use myriad_core::{Aabb, NodeKey};
 use std::collections::HashMap;
@@ -33,14 +34,15 @@ pub struct DrawnTree {
 pub const SPARSE: f32 = 2.0;
 
 impl DrawnTree {
-    /// The nodes of `selection` for which `drawn` holds, and their ancestors (as pass-through
-    /// entries when not drawn themselves); `whole`: a selected node is drawn whole (all its
-    /// points: its spacing is then at most its drawn ancestors').
+    /// The nodes of `selection` (of `h`) for which `drawn` holds, and their ancestors (as
+    /// pass-through entries when not drawn themselves).
     pub fn new(
         selection: &Selection,
+        h: &Hierarchy,
         drawn: impl Fn(&NodeKey) -> bool,
-        whole: impl Fn(&Selected) -> bool,
     ) -> DrawnTree {
+        // Drawn whole: all its points (a sparse one then takes its ancestors' spacing).
+        let whole = |n: &Selected| h.get(&n.key).is_some_and(|e| n.points >= e.points);
         let mut spacing: HashMap<NodeKey, f32> = HashMap::new();
         let mut capped: HashMap<NodeKey, bool> = HashMap::new();
         for n in selection.nodes.iter().filter(|n| drawn(&n.key)) {

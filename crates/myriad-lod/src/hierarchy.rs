@@ -263,6 +263,12 @@ impl Hierarchy {
     pub fn children(&self, key: &NodeKey) -> impl Iterator<Item = &NodeEntry> {
         (0..8).filter_map(move |o| self.get(&key.child(o)))
     }
+
+    /// Whether `key` has no children, as far as can be known (a node whose children's page is
+    /// not read yet may have some: not a leaf).
+    pub fn is_leaf(&self, key: &NodeKey) -> bool {
+        self.children(key).next().is_none() && self.unloaded_below(key).next().is_none()
+    }
     /// Every known node's key, in no particular order.
     pub fn keys(&self) -> impl Iterator<Item = NodeKey> + '_ {
         self.pages.values().flat_map(|p| p.nodes.keys().copied())

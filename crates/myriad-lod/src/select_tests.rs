@@ -557,7 +557,7 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
     assert_eq!(s.points, h.points());
     let spacing = |k: &NodeKey| s.nodes.iter().find(|n| n.key == *k).unwrap().spacing;
     // Everything drawn: a root point in the first level-2 cell takes that cell's spacing.
-    let t = DrawnTree::new(&s, |_| true, |_| true);
+    let t = DrawnTree::new(&s, &h, |_| true);
     assert_eq!(t.entries.len(), s.nodes.len());
     let leaf = NodeKey::ROOT.child(0).child(0);
     let p = [1.0, 1.0, 1.0];
@@ -566,7 +566,7 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
     assert!(got < spacing(&NodeKey::ROOT));
     // That leaf not drawn (still loading): its parent's spacing there, the leaf's sibling
     // still its own.
-    let t = DrawnTree::new(&s, |k| *k != leaf, |_| true);
+    let t = DrawnTree::new(&s, &h, |k| *k != leaf);
     let parent = NodeKey::ROOT.child(0);
     assert_eq!(
         t.spacing_at(&h.root, &NodeKey::ROOT, p).unwrap(),
@@ -580,11 +580,11 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
     );
     assert_eq!(t.spacing_at(&h.root, &leaf, p), None);
     // Only a deep node drawn: its ancestors pass through with no spacing of their own.
-    let t = DrawnTree::new(&s, |k| *k == leaf, |_| true);
+    let t = DrawnTree::new(&s, &h, |k| *k == leaf);
     assert_eq!(t.entries.len(), 3);
     assert_eq!(t.entries[0][2], 0);
     assert_eq!(t.entries[0][0], 1, "only octant 0 below the root");
-    assert!(DrawnTree::new(&s, |_| false, |_| true).entries.is_empty());
+    assert!(DrawnTree::new(&s, &h, |_| false).entries.is_empty());
     // A sparse leaf (its few points separated at a coarse level: a spacing above its
     // parent's): no point in its cube is drawn wider than the parent's spacing.
     let mut sparse = s.clone();
@@ -595,7 +595,7 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
         .find(|n| n.key == leaf)
         .unwrap()
         .spacing = coarse;
-    let t = DrawnTree::new(&sparse, |_| true, |_| true);
+    let t = DrawnTree::new(&sparse, &h, |_| true);
     let parent_spacing = spacing(&parent) as f32 as f64;
     assert_eq!(t.spacing(&leaf), Some(parent_spacing));
     assert_eq!(t.spacing_at(&h.root, &leaf, p), Some(parent_spacing));
@@ -604,7 +604,13 @@ fn points_take_the_spacing_of_the_finest_drawn_node_around_them() {
         Some(parent_spacing)
     );
     // Drawn in part (a coarse prefix), it keeps its own.
-    let part = DrawnTree::new(&sparse, |_| true, |n| n.key != leaf);
+    let mut part = sparse.clone();
+    part.nodes
+        .iter_mut()
+        .find(|n| n.key == leaf)
+        .unwrap()
+        .points -= 1;
+    let part = DrawnTree::new(&part, &h, |_| true);
     assert_eq!(part.spacing(&leaf), Some(coarse as f32 as f64));
     // Its sibling, finer than the parent, keeps its own.
     assert_eq!(

@@ -339,7 +339,7 @@ fn points_pass(
         });
         let data = draw.points.cpu_words();
         // Its lone points drawn small ([`Draw::lone`]).
-        let whole = words > 0 && draw.lone;
+        let lone_small = words > 0 && draw.lone;
         let colours = &data[draw.points.arrays() as usize * stride..][..draw.count as usize];
         // Oriented splats (as compute.wgsl) where the draw has them and sizes are adaptive.
         let splats = match (draw.points.cpu_splats(), draw.points.splat_range(), fixed) {
@@ -492,7 +492,7 @@ fn points_pass(
                         let s = match fixed {
                             Some(px) => px,
                             None => adaptive_pixels(
-                                whole && data[ci * 4096 + qi] & LONE_BIT != 0,
+                                lone_small && data[ci * 4096 + qi] & LONE_BIT != 0,
                                 p,
                                 clip[3],
                                 spacing,

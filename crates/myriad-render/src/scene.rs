@@ -631,11 +631,7 @@ impl Scene {
         // (the selection's spacing) in kd-trees.
         let cells = self.hierarchy.cells();
         let tree = if cells {
-            DrawnTree::new(
-                selection,
-                |k| self.buffers.contains(k),
-                |n| (self.hierarchy.get(&n.key)).is_some_and(|e| n.points >= e.points),
-            )
+            DrawnTree::new(selection, &self.hierarchy, |k| self.buffers.contains(k))
         } else {
             DrawnTree::default()
         };
@@ -653,11 +649,8 @@ impl Scene {
                     n.points
                 };
                 let mut d = p.prefix(count, n.spacing);
-                // A leaf drawn whole: its lone points are lone in the dataset (a node whose
-                // children's page is not read yet may have some).
-                let leaf = self.hierarchy.children(&n.key).next().is_none()
-                    && self.hierarchy.unloaded_below(&n.key).next().is_none();
-                d.lone = leaf && count == p.len;
+                // A leaf drawn whole: its lone points are lone in the dataset.
+                d.lone = self.hierarchy.is_leaf(&n.key) && count == p.len;
                 if cells {
                     // At most its drawn ancestors' spacing (the tree's).
                     d.spacing = tree.spacing(&n.key).unwrap_or(n.spacing);

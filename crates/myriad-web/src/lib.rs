@@ -146,11 +146,7 @@ impl Viewer {
                 }
             }
         };
-        let tree = DrawnTree::new(
-            &selection,
-            |k| ask.drawn.contains(k),
-            |n| (self.hierarchy.get(&n.key)).is_some_and(|e| n.points >= e.points),
-        );
+        let tree = DrawnTree::new(&selection, &self.hierarchy, |k| ask.drawn.contains(k));
         let root = self.hierarchy.root;
         let cells = self.hierarchy.cells();
         let nodes: Vec<Value> = selection
@@ -167,8 +163,7 @@ impl Viewer {
                     // (myriad_lod::lone_radius).
                     "finest": myriad_lod::point_spacing(e).last().copied().unwrap_or(0.0),
                     // No descendant: drawn whole, its lone points are drawn small.
-                    "leaf": self.hierarchy.children(&n.key).next().is_none()
-                        && self.hierarchy.unloaded_below(&n.key).next().is_none(),
+                    "leaf": self.hierarchy.is_leaf(&n.key),
                     // At most its drawn ancestors' (the tree's, where it is in it).
                     "spacing": if cells { tree.spacing(&n.key).unwrap_or(n.spacing) } else { n.spacing },
                     "page": [e.page.offset, e.page.length, e.page.crc],
