@@ -114,8 +114,22 @@ impl ConvertOptions {
     }
 }
 
-/// A quarter of the machine's memory, at most 8 GB (1 GB when it cannot be read).
+/// The default budget of a build: [`DEFAULT_MEMORY`], or a quarter of the machine's memory
+/// where that is less (at least [`MIN_MEMORY`]).
 pub fn default_memory() -> u64 {
+    machine_memory().clamp(MIN_MEMORY, DEFAULT_MEMORY)
+}
+
+/// A build's default budget, 1 GB: about what PotreeConverter 2 takes for 50 M points, and
+/// more than it for 7 M (539 MB for KY here; it never took under half a gigabyte on the
+/// corpus). Scans whose points fit in half of it are built from memory; larger ones keep what
+/// the write buffers hold and spill the rest ([`crate::distribute`]): a 50 M point scan built in
+/// 559 MB at the speed of 2.8 GB. `--memory` gives more.
+pub const DEFAULT_MEMORY: u64 = 1 << 30;
+
+/// A quarter of the machine's memory, at most 8 GB (1 GB when it cannot be read): the default
+/// of `convert --append`, which refuses to go over its budget.
+pub fn machine_memory() -> u64 {
     let total = std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|m| {
@@ -164,7 +178,7 @@ pub const MIN_MEMORY: u64 = 512 << 20;
 pub struct Plan {
     pub buffer_bytes: usize,
     /// What the buffers may hold when every point is expected to stay in memory until its
-    /// chunk is built: the budget less the chunks being built.
+    /// chunk is built: the budget less the chunks being built, or half of it if more.
     pub resident_bytes: usize,
     pub chunk_points: u64,
     /// Threads that fit the budget (at most those asked for).
@@ -186,9 +200,54 @@ pub fn plan(memory: u64, threads: usize, params: &NestedParams) -> Plan {
     let building = threads as u64 * (chunk_points * BUILD_BYTES_PER_POINT + family);
     Plan {
         buffer_bytes: buffer_bytes as usize,
-        resident_bytes: free.saturating_sub(building).max(buffer_bytes) as usize,
+        // Points kept from reading leave memory as their chunks are built (a chunk's rows go
+        // to its build), so half the budget may hold them where `building` leaves less: it
+        // counts four copies of the widest schema's rows for every point of a chunk, and a
+        // build from memory of KY (7.2 M points, 374 MB of rows) with 1 GB peaks at 491 MB.
+        resident_bytes: free
+            .saturating_sub(building)
+            .max(free / 2)
+            .max(buffer_bytes) as usize,
         chunk_points,
         threads,
+    }
+}
+
+/// One phase of a build: how long it took, and the CPU time of all threads in it (the share of
+/// the cores it kept busy; `None` where the system does not say).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    pub name: &'static str,
+    pub seconds: f64,
+    pub cpu_seconds: Option<f64>,
+}
+
+/// Times the phases of a build one after the other.
+struct Phases {
+    done: Vec<Phase>,
+    wall: Instant,
+    cpu: Option<f64>,
+}
+
+impl Phases {
+    fn start() -> Phases {
+        Phases {
+            done: Vec::new(),
+            wall: Instant::now(),
+            cpu: myriad_io::process::cpu_seconds(),
+        }
+    }
+
+    /// Ends the phase `name`, and starts the next.
+    fn end(&mut self, name: &'static str) {
+        let cpu = myriad_io::process::cpu_seconds();
+        self.done.push(Phase {
+            name,
+            seconds: self.wall.elapsed().as_secs_f64(),
+            cpu_seconds: cpu.zip(self.cpu).map(|(now, then)| now - then),
+        });
+        self.wall = Instant::now();
+        self.cpu = cpu;
     }
 }
 
@@ -200,8 +259,8 @@ pub struct Summary {
     pub bytes: u64,
     pub chunks: usize,
     pub seconds: f64,
-    /// Seconds per phase.
-    pub phases: Vec<(&'static str, f64)>,
+    /// Each phase, in order.
+    pub phases: Vec<Phase>,
     pub skipped_non_finite: u64,
     pub trimmed: u64,
     /// Points that did not move into the target CRS (`--to-crs`), dropped.
@@ -337,15 +396,13 @@ pub fn convert(
         .num_threads(plan.threads)
         .build()
         .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?;
-    let mut phases = Vec::new();
-    let mut t = Instant::now();
+    let mut phases = Phases::start();
 
     // 1. Distribution. A build drawn while it runs: octree and layered only.
     let growing = (options.growing.as_ref())
         .filter(|_| !matches!(structure, Structure::Kd | Structure::Mwkd));
     let dist = read_inputs(inputs, options, &plan, growing, report)?;
-    phases.push(("reading", t.elapsed().as_secs_f64()));
-    t = Instant::now();
+    phases.end("reading");
 
     let quant = dataset_quantization(options, &dist)?;
     let writer = DatasetWriter::create(out, options.force, quant)?;
@@ -378,8 +435,7 @@ pub fn convert(
     } else {
         chunks.build_nested(growing, &meta)?
     };
-    phases.push(("building", t.elapsed().as_secs_f64()));
-    t = Instant::now();
+    phases.end("building");
 
     // 3. The levels above the chunks.
     let tops_level = options.planned.as_ref().and_then(|p| p.tops_level);
@@ -394,14 +450,19 @@ pub fn convert(
         spill_dir: &spill_dir,
     }
     .build(pending, tops_level, report)?;
-    phases.push(("merging", t.elapsed().as_secs_f64()));
-    t = Instant::now();
+    phases.end("merging");
 
     // 4. Hierarchy, metadata, header.
     let (nodes, depth, bytes) = write_dataset(writer, meta, dist.points, out, report)?;
-    phases.push(("writing", t.elapsed().as_secs_f64()));
+    phases.end("writing");
     let seconds = start.elapsed().as_secs_f64();
-    Ok(summary(&dist, (nodes, depth, bytes), seconds, phases, tops))
+    Ok(summary(
+        &dist,
+        (nodes, depth, bytes),
+        seconds,
+        phases.done,
+        tops,
+    ))
 }
 
 /// The dataset's integer grid: the plan's, else the one the inputs give ([`quantization`]).
@@ -601,7 +662,7 @@ fn summary(
     dist: &distribute::Distribution,
     written: (u64, u32, u64),
     seconds: f64,
-    phases: Vec<(&'static str, f64)>,
+    phases: Vec<Phase>,
     tops: Vec<BuiltNode>,
 ) -> Summary {
     let (nodes, depth, bytes) = written;
@@ -731,12 +792,15 @@ mod tests {
                 assert!(2 * p.buffer_bytes as u64 + (160 << 20) <= memory);
                 assert!(build + (160 << 20) <= memory, "{memory} {threads}: {p:?}");
                 // Points kept from reading to building, beside the chunks being built: within
-                // the budget, or no more than the buffers hold anyway.
+                // the budget, or half of it (they leave as their chunks are built), or no more
+                // than the buffers hold anyway.
                 assert!(
                     p.resident_bytes as u64 + build + (160 << 20) <= memory
+                        || p.resident_bytes as u64 <= (memory - (160 << 20)) / 2
                         || p.resident_bytes == p.buffer_bytes,
                     "{memory} {threads}: {p:?}"
                 );
+                assert!(p.resident_bytes as u64 + (160 << 20) <= memory);
                 assert!(p.threads >= 1 && p.threads <= threads);
             }
         }

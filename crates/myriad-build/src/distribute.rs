@@ -1,6 +1,10 @@
 //! Distribution, the first phase of the out-of-core build: every input is read once and its
-//! points are scattered into chunks, cells of one octree level over the root cube, each spilled to
-//! its own file on disk. Memory holds only the write buffers (`buffer_bytes` in all) and one batch.
+//! points are scattered into chunks, cells of one octree level over the root cube. Memory holds
+//! the write buffers (`buffer_bytes` in all, or `resident_bytes` where every point fits in that)
+//! and one batch: when the buffers fill, the largest are appended to their chunks' spill files on
+//! disk until half of them is free; what they hold at the end goes to the chunks' builds from
+//! memory, after what the files hold (every point kept in memory is one not encoded, written,
+//! read back and decoded).
 //!
 //! Decoding LAZ twice (count, then distribute) would halve the speed, so the chunk level comes
 //! from the header counts and bounds alone: level `L` is chosen so that a surface of the total
@@ -35,7 +39,8 @@ const MAX_LEVEL: u32 = 20;
 pub struct DistributeOptions {
     /// A chunk with more points than this is split into its eight children.
     pub chunk_points: u64,
-    /// Memory for the chunks' write buffers, in bytes.
+    /// Memory for the chunks' write buffers, in bytes: their points stay in memory until they
+    /// fill, then the largest are spilled until half of them is free.
     pub buffer_bytes: usize,
     /// When the declared points fit in this many bytes (when larger than `buffer_bytes`), the
     /// buffers hold them all: nothing is written to disk and read back, and each chunk goes to
@@ -83,6 +88,9 @@ pub struct Chunk {
     pub cell: [u32; 3],
     pub points: u64,
     path: PathBuf,
+    /// Whether some of its points were written to its spill file (the rest, if any, stayed in
+    /// memory).
+    on_disk: bool,
 }
 
 /// The result of distribution. Dropping it removes the spill files.
@@ -116,7 +124,7 @@ pub struct Distribution {
     /// The chunks' points, by cell, when they all fit in the write buffers and were never
     /// spilled (taken out as the chunks are loaded): a small build writes and reads back no
     /// spill files, and its points are never turned into rows.
-    resident: std::sync::Mutex<HashMap<[u32; 3], PointBatch>>,
+    resident: std::sync::Mutex<Resident>,
     /// Held so that dropping the distribution removes the spill files.
     _spill: myriad_io::claim::Folder,
 }
@@ -130,9 +138,10 @@ impl Distribution {
             .resident
             .lock()
             .expect("resident points")
-            .remove(&chunk.cell);
-        if let Some(b) = resident {
-            // Points this process scattered whole: their count is the chunk's.
+            .remove(&(chunk.level, chunk.cell));
+        if !chunk.on_disk {
+            // Points this process scattered whole, none spilled: their count is the chunk's.
+            let b = resident.unwrap_or_else(|| PointBatch::with_schema(&self.schema, 0));
             debug_assert_eq!(b.len() as u64, chunk.points);
             return Ok(b);
         }
@@ -146,6 +155,10 @@ impl Distribution {
             } else {
                 b.append(&f);
             }
+        }
+        // The points that came after the last flush, kept in memory: they follow the file's.
+        if let Some(r) = resident {
+            b.append(&r);
         }
         if b.len() as u64 != chunk.points {
             return Err(frames.error(format!(
@@ -186,6 +199,8 @@ struct Scatter<'a> {
     cells: HashMap<[u32; 3], usize>,
     /// Per slot: the cell, its write buffer, its point count.
     slots: Vec<([u32; 3], PointBatch, u64)>,
+    /// Per slot: whether its spill file was written to.
+    on_disk: Vec<bool>,
     /// Per slot: the points of the batch being added that go there (reused).
     picks: Vec<Vec<u32>>,
     /// Whether anything was written to the spill files yet.
@@ -222,6 +237,7 @@ impl<'a> Scatter<'a> {
             row,
             cells: HashMap::new(),
             slots: Vec::new(),
+            on_disk: Vec::new(),
             picks: Vec::new(),
             spilled: false,
             buffered: 0,
@@ -242,11 +258,13 @@ impl Scatter<'_> {
     fn chunks(&self) -> Vec<Chunk> {
         self.slots
             .iter()
-            .map(|&(cell, _, n)| Chunk {
+            .zip(&self.on_disk)
+            .map(|(&(cell, _, n), &on_disk)| Chunk {
                 level: self.level,
                 cell,
                 points: n,
                 path: spill_path(self.folder, self.level, cell),
+                on_disk,
             })
             .collect()
     }
@@ -268,6 +286,7 @@ impl Scatter<'_> {
                     if s == next {
                         self.slots
                             .push((cell, PointBatch::with_schema(self.schema, 0), 0));
+                        self.on_disk.push(false);
                         self.picks.push(Vec::new());
                     }
                     last = Some((cell, s));
@@ -303,36 +322,68 @@ impl Scatter<'_> {
             }
         }
         if self.buffered > self.limit {
-            self.flush()?;
+            // The largest buffers, until half of them is free: what stays is read no more,
+            // and at the end goes to its chunk's build from memory.
+            self.flush_largest(self.buffered - self.limit / 2)?;
         }
         Ok(())
     }
 
-    /// The points of every chunk, by cell, when none was spilled (else `None`, nothing taken).
-    fn take_resident(&mut self) -> Option<HashMap<[u32; 3], PointBatch>> {
-        if self.spilled {
-            return None;
-        }
+    /// The points still in the buffers, by level and cell (those of a chunk whose spill file
+    /// was written to come after the file's).
+    fn take_resident(&mut self) -> Resident {
         self.buffered = 0;
-        Some(
-            self.slots
-                .iter_mut()
-                .map(|(cell, buf, _)| (*cell, std::mem::take(buf)))
-                .collect(),
-        )
+        let level = self.level;
+        self.slots
+            .iter_mut()
+            .filter(|(_, buf, _)| !buf.is_empty())
+            .map(|(cell, buf, _)| ((level, *cell), std::mem::take(buf)))
+            .collect()
+    }
+
+    /// Writes the largest buffers to their spill files until at least `bytes` of points are
+    /// out of memory.
+    fn flush_largest(&mut self, bytes: usize) -> Result<()> {
+        let mut by_size: Vec<usize> = (0..self.slots.len()).collect();
+        by_size.sort_unstable_by_key(|&s| std::cmp::Reverse(self.slots[s].1.len()));
+        let mut out = vec![false; self.slots.len()];
+        let mut freed = 0;
+        for s in by_size {
+            if freed >= bytes {
+                break;
+            }
+            out[s] = true;
+            freed += self.slots[s].1.len() * self.row;
+        }
+        self.write(&out)?;
+        self.buffered = self.buffered.saturating_sub(freed);
+        Ok(())
     }
 
     /// Appends every buffer to its chunk's spill file, the chunks in parallel: a flush on the
     /// reading thread alone left the decoding threads waiting (a quarter of the two cores idle
     /// while 500 M points were read).
     fn flush(&mut self) -> Result<()> {
+        self.write(&vec![true; self.slots.len()])?;
+        self.buffered = 0;
+        Ok(())
+    }
+
+    /// Appends the buffers of the slots marked in `which` to their spill files, in parallel.
+    fn write(&mut self, which: &[bool]) -> Result<()> {
         use rayon::prelude::*;
-        self.spilled |= self.slots.iter().any(|(_, b, _)| !b.is_empty());
         let (folder, level, codec, schema) = (self.folder, self.level, self.codec, self.schema);
+        for ((slot, written), &w) in self.slots.iter().zip(&mut self.on_disk).zip(which) {
+            if w && !slot.1.is_empty() {
+                *written = true;
+                self.spilled = true;
+            }
+        }
         self.slots
             .par_iter_mut()
-            .filter(|(_, b, _)| !b.is_empty())
-            .try_for_each(|(cell, buf, _)| {
+            .zip(which)
+            .filter(|((_, b, _), w)| **w && !b.is_empty())
+            .try_for_each(|((cell, buf, _), _)| {
                 let path = spill_path(folder, level, *cell);
                 let mut f = std::fs::OpenOptions::new()
                     .create(true)
@@ -343,9 +394,7 @@ impl Scatter<'_> {
                 // Freed, not cleared: capacities would otherwise outgrow the budget.
                 *buf = PointBatch::with_schema(schema, 0);
                 f.write_all(&frame).map_err(|e| Error::io(&path, e))
-            })?;
-        self.buffered = 0;
-        Ok(())
+            })
     }
 }
 
@@ -544,8 +593,16 @@ pub fn distribute_with(
         schema: &schema,
     };
     let tally = pass.run(inputs, sources, &infos, &mut scatter, on_read)?;
-    let (root, chunks, resident) = settle(&mut scatter, &tally, root, margin_step, options)?;
-    let done = split_large(chunks, &root, &schema, folder.path(), options, codec)?;
+    let (root, chunks, mut resident) = settle(&mut scatter, &tally, root, margin_step, options)?;
+    let done = split_large(
+        chunks,
+        &root,
+        &schema,
+        folder.path(),
+        options,
+        codec,
+        &mut resident,
+    )?;
     Ok(Distribution {
         root,
         schema,
@@ -560,7 +617,7 @@ pub fn distribute_with(
         not_transformed: tally.not_transformed,
         las_header,
         sides: tally.sides,
-        resident: std::sync::Mutex::new(resident.unwrap_or_default()),
+        resident: std::sync::Mutex::new(resident),
         _spill: folder,
     })
 }
@@ -758,20 +815,20 @@ impl Pass<'_> {
     }
 }
 
-/// The chunks' points by cell, where they stayed in the write buffers.
-type Resident = HashMap<[u32; 3], PointBatch>;
+/// The chunks' points that stayed in the write buffers, by level and cell.
+type Resident = HashMap<(u32, [u32; 3]), PointBatch>;
 
-/// The chunks as the pass left them: kept in memory where they all fit in the write buffers and
-/// none is to be split or scattered again, else flushed to their spill files; scattered again
-/// over a root cube from the bounds read where points fell outside the headers' bounds or those
-/// overstate them by far. The root cube, the chunks, and their points where kept in memory.
+/// The chunks as the pass left them: the points still in the write buffers kept in memory, all
+/// flushed to their spill files and scattered again over a root cube from the bounds read where
+/// points fell outside the headers' bounds or those overstate them by far. The root cube, the
+/// chunks, and their points kept in memory.
 fn settle(
     scatter: &mut Scatter,
     tally: &Tally,
     root: Aabb,
     margin_step: f64,
     options: &DistributeOptions,
-) -> Result<(Aabb, Vec<Chunk>, Option<Resident>)> {
+) -> Result<(Aabb, Vec<Chunk>, Resident)> {
     let (clamped, actual, level) = (tally.clamped, &tally.actual, scatter.level);
     // Points outside the headers' bounds went to the nearest cell, whose cube does not hold
     // them. Rare (a header not updated after editing), but the tree must contain its points:
@@ -781,20 +838,15 @@ fn settle(
     let overstated = options.grid.is_none()
         && !actual.is_empty()
         && root.size()[0] > 16.0 * root_cube(actual, margin_step).size()[0];
-    // Everything still in the write buffers, and no chunk to scatter again: the rows stay in
-    // memory (KY: 374 MB not written to disk and read back; the reading phase 2.7-3.0 -> 1.9-2.1 s).
-    let split = scatter
-        .slots
-        .iter()
-        .any(|&(_, _, n)| n > options.chunk_points && level < MAX_LEVEL);
-    let resident = if clamped > 0 || overstated || split {
-        None
+    // What is still in the write buffers stays in memory, unless every chunk is to be
+    // scattered again (KY: 374 MB not written to disk and read back; the reading phase 2.7-3.0
+    // -> 1.9-2.1 s).
+    let resident = if clamped > 0 || overstated {
+        scatter.flush()?;
+        Resident::new()
     } else {
         scatter.take_resident()
     };
-    if resident.is_none() {
-        scatter.flush()?;
-    }
     let mut chunks = scatter.chunks();
     let root = if clamped > 0 || overstated {
         let root = root_cube(actual, margin_step);
@@ -814,9 +866,11 @@ fn settle(
     Ok((root, chunks, resident))
 }
 
-/// Split chunks that came out too large, from their own spill files, until they fit: those
-/// of one round in parallel, each with its share of the write buffers (one at a time left a
-/// core idle for 130 of the 420 s that 500 M points took). Every chunk, by level and cell.
+/// Split chunks that came out too large until they fit: in memory where all their points
+/// stayed there, else from their own spill files (the points kept in memory written after
+/// them first), those of one round in parallel, each with its share of the write buffers (one
+/// at a time left a core idle for 130 of the 420 s that 500 M points took). Every chunk, by
+/// level and cell.
 fn split_large(
     mut chunks: Vec<Chunk>,
     root: &Aabb,
@@ -824,6 +878,7 @@ fn split_large(
     folder: &Path,
     options: &DistributeOptions,
     codec: Codec,
+    resident: &mut Resident,
 ) -> Result<Vec<Chunk>> {
     let mut done = Vec::new();
     loop {
@@ -834,8 +889,26 @@ fn split_large(
         if big.is_empty() {
             break;
         }
+        let (in_memory, big): (Vec<Chunk>, Vec<Chunk>) = big.into_iter().partition(|c| !c.on_disk);
+        let mut next = Vec::new();
+        for chunk in in_memory {
+            let points = resident
+                .remove(&(chunk.level, chunk.cell))
+                .unwrap_or_else(|| PointBatch::with_schema(schema, 0));
+            next.extend(split_in_memory(&chunk, points, root, folder, resident));
+        }
+        for chunk in &big {
+            if let Some(rest) = resident.remove(&(chunk.level, chunk.cell)) {
+                let mut f = std::fs::OpenOptions::new()
+                    .append(true)
+                    .open(&chunk.path)
+                    .map_err(|e| Error::io(&chunk.path, e))?;
+                f.write_all(&encode_frame(&rest, codec))
+                    .map_err(|e| Error::io(&chunk.path, e))?;
+            }
+        }
         use rayon::prelude::*;
-        let share = options.buffer_bytes / rayon::current_num_threads().clamp(1, big.len());
+        let share = options.buffer_bytes / rayon::current_num_threads().clamp(1, big.len().max(1));
         let split: Vec<Vec<Chunk>> = big
             .par_iter()
             .map(|chunk| {
@@ -850,10 +923,45 @@ fn split_large(
                 )
             })
             .collect::<Result<_>>()?;
-        chunks = split.into_iter().flatten().collect();
+        chunks = split.into_iter().flatten().chain(next).collect();
     }
     done.sort_by_key(|c| (c.level, c.cell));
     Ok(done)
+}
+
+/// The points of `chunk`, all in memory, sorted into its eight children (one level down), kept
+/// in memory in their turn: the chunks they make.
+fn split_in_memory(
+    chunk: &Chunk,
+    points: PointBatch,
+    root: &Aabb,
+    folder: &Path,
+    resident: &mut Resident,
+) -> Vec<Chunk> {
+    let level = chunk.level + 1;
+    let mut outside = 0;
+    let mut picks: [Vec<u32>; 8] = Default::default();
+    for (i, &p) in points.positions.iter().enumerate() {
+        // A point of the chunk's cube falls in one of its children's: twice its coordinate in
+        // cells, exactly.
+        let c = cell_of(root, level, p, &mut outside);
+        let child = (0..3).fold(0, |k, a| k | ((c[a] & 1) as usize) << a);
+        picks[child].push(i as u32);
+    }
+    (0..8)
+        .filter(|&k| !picks[k].is_empty())
+        .map(|k| {
+            let cell = std::array::from_fn(|a| chunk.cell[a] * 2 + ((k >> a) & 1) as u32);
+            resident.insert((level, cell), points.gather(&picks[k]));
+            Chunk {
+                level,
+                cell,
+                points: picks[k].len() as u64,
+                path: spill_path(folder, level, cell),
+                on_disk: false,
+            }
+        })
+        .collect()
 }
 
 /// Scatters the points of `chunks` into the cells of `level` over `root` and removes their

@@ -372,3 +372,76 @@ fn chunks_that_fit_in_memory_are_not_spilled() {
     assert_eq!(a, b, "the same chunks, the same points in the same order");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Where the points do not all fit, the largest write buffers go to disk when they fill and the
+/// rest stay in memory; a chunk too large whose points all stayed is split in memory. Either
+/// way: the same chunks, the same points in the same order as when everything is spilled.
+#[test]
+fn chunks_kept_in_part_or_split_in_memory_are_those_spilled() {
+    let d = tempdir("partly");
+    let las = d.join("city.las");
+    let opts = myriad_synth::SynthOptions {
+        points: 100_000,
+        scene: myriad_synth::SceneKind::City,
+        seed: 5,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    let spill = d.join("spill");
+    std::fs::create_dir_all(&spill).unwrap();
+    let run = |buffer_bytes, chunk_points| {
+        let options = DistributeOptions {
+            chunk_points,
+            buffer_bytes,
+            resident_bytes: 0,
+            compress_above: u64::MAX,
+            min_chunks: 8,
+            temp_dir: spill.clone(),
+            grid: None,
+        };
+        let dist = distribute(
+            std::slice::from_ref(&las),
+            &OpenOptions::default(),
+            &options,
+        )
+        .unwrap();
+        let files = std::fs::read_dir(dist.spill_dir())
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name() != myriad_io::claim::LOCK_FILE)
+            .count();
+        let chunks: Vec<_> = dist
+            .chunks
+            .iter()
+            .map(|c| {
+                let b = dist.load(c).unwrap();
+                assert_eq!(b.len() as u64, c.points);
+                (c.level, c.cell, keys(&b))
+            })
+            .collect();
+        assert_eq!(chunks.iter().map(|c| c.2.len()).sum::<usize>(), 100_000);
+        (files, chunks)
+    };
+    // 16 KB of buffers: nearly every point goes through the spill files.
+    let (spilled_files, spilled) = run(16 << 10, 15_000);
+    // Everything fits: chunks over 15,000 points are split without a file written.
+    let (files, in_memory) = run(256 << 20, 15_000);
+    // A megabyte: some points written, the rest kept.
+    let (partly_files, partly) = run(1 << 20, 15_000);
+    let (_, whole) = run(256 << 20, 1_000_000);
+    assert!(spilled_files > 0 && partly_files > 0);
+    assert_eq!(
+        files, 0,
+        "spill files written for points that fit in memory"
+    );
+    assert!(
+        in_memory.len() > whole.len(),
+        "no chunk was split: {} chunks",
+        whole.len()
+    );
+    assert!(in_memory.iter().all(|c| c.2.len() <= 15_000));
+    assert!(
+        in_memory == spilled,
+        "split in memory: other chunks or order"
+    );
+    assert!(partly == spilled, "kept in part: other chunks or order");
+    std::fs::remove_dir_all(&d).unwrap();
+}

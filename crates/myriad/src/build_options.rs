@@ -12,7 +12,7 @@ pub struct BuildArgs {
     /// aggregates drawn as splats)
     #[arg(long, default_value = "octree")]
     pub(crate) structure: String,
-    /// Memory budget: 512MB, 2GB, or bytes [default: a quarter of RAM, at most 8GB]
+    /// Memory budget: 512MB, 2GB, or bytes [default: 1GB, or a quarter of RAM if less; --append: a quarter of RAM, at most 8GB]
     #[arg(long, value_parser = convert::parse_size)]
     pub(crate) memory: Option<u64>,
     /// Worker threads [default: all cores]

@@ -170,7 +170,9 @@ fn print_converted(a: &ConvertArgs, output: &Path, s: &convert::Summary) {
             "seconds": s.seconds, "points_per_second": rate, "bytes": s.bytes,
             "bytes_per_point": bpp, "skipped_non_finite": s.skipped_non_finite,
             "trimmed": s.trimmed, "not_transformed": s.not_transformed,
-            "phases": s.phases.iter().map(|(n, t)| json!({"phase": n, "seconds": t})).collect::<Vec<_>>(),
+            "phases": s.phases.iter().map(|p| json!({
+                "phase": p.name, "seconds": p.seconds, "cpu_seconds": p.cpu_seconds,
+            })).collect::<Vec<_>>(),
         }));
         return;
     }
@@ -183,7 +185,7 @@ fn print_converted(a: &ConvertArgs, output: &Path, s: &convert::Summary) {
         rate / 1e6,
         s.phases
             .iter()
-            .map(|(n, t)| format!("{n} {t:.2} s"))
+            .map(|p| format!("{} {:.2} s", p.name, p.seconds))
             .collect::<Vec<_>>()
             .join(", ")
     );
@@ -232,7 +234,7 @@ fn append(a: &ConvertArgs, dataset: &Path) -> Result<()> {
         global_threads(t);
     }
     let bar = Bar::new();
-    let memory = a.build.memory.unwrap_or_else(convert::default_memory);
+    let memory = a.build.memory.unwrap_or_else(convert::machine_memory);
     let s = myriad_build::append::append(dataset, &a.inputs, &open, memory, &bar)?;
     bar.clear();
     if a.json {
