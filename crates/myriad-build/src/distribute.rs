@@ -81,7 +81,8 @@ pub enum Progress<'a> {
     Points(&'a PointBatch),
 }
 
-/// One chunk: an octree cell and the points that fell into it, spilled to disk.
+/// One chunk: an octree cell and the points that fell into it, kept in memory or spilled to
+/// disk (or both: the file's first).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chunk {
     pub level: u32,
@@ -121,9 +122,9 @@ pub struct Distribution {
     /// Where airborne inputs' scanners saw each flight line's points from (scan angles and
     /// source IDs fitted as they were read); empty where the scans say where they stood.
     pub sides: crate::sides::Sides,
-    /// The chunks' points, by cell, when they all fit in the write buffers and were never
-    /// spilled (taken out as the chunks are loaded): a small build writes and reads back no
-    /// spill files, and its points are never turned into rows.
+    /// The points that stayed in the write buffers, by level and cell (taken out as the chunks
+    /// are loaded): all of a small build's, which writes and reads back no spill files, and the
+    /// last of a larger one's.
     resident: std::sync::Mutex<Resident>,
     /// Held so that dropping the distribution removes the spill files.
     _spill: myriad_io::claim::Folder,
@@ -201,8 +202,14 @@ struct Scatter<'a> {
     slots: Vec<([u32; 3], PointBatch, u64)>,
     /// Per slot: whether its spill file was written to.
     on_disk: Vec<bool>,
-    /// Per slot: the points of the batch being added that go there (reused).
-    picks: Vec<Vec<u32>>,
+    /// The points of the batch being added grouped by slot, in order, and where each slot's
+    /// begin (`slots.len() + 1` entries): one list for all slots, reused. A list per slot kept
+    /// the capacity of the most points it ever took from one batch: with thousands of chunks
+    /// (a billion points), hundreds of megabytes that grew all through the reading.
+    picks: Vec<u32>,
+    starts: Vec<usize>,
+    /// The slot of each point of the batch being added (reused).
+    slot_of: Vec<u32>,
     /// Whether anything was written to the spill files yet.
     spilled: bool,
     buffered: usize,
@@ -239,6 +246,8 @@ impl<'a> Scatter<'a> {
             slots: Vec::new(),
             on_disk: Vec::new(),
             picks: Vec::new(),
+            starts: Vec::new(),
+            slot_of: Vec::new(),
             spilled: false,
             buffered: 0,
             expected: expected as f64,
@@ -276,7 +285,8 @@ impl Scatter<'_> {
         // Points the write buffers hold without spilling.
         let fits = (self.limit / self.row.max(1)) as f64;
         let mut last: Option<([u32; 3], usize)> = None;
-        for (&i, &cell) in picked.iter().zip(cells) {
+        debug_assert_eq!(picked.len(), cells.len());
+        for &cell in cells {
             // Consecutive points mostly share a cell.
             let slot = match last {
                 Some((c, s)) if c == cell => s,
@@ -287,15 +297,35 @@ impl Scatter<'_> {
                         self.slots
                             .push((cell, PointBatch::with_schema(self.schema, 0), 0));
                         self.on_disk.push(false);
-                        self.picks.push(Vec::new());
                     }
                     last = Some((cell, s));
                     s
                 }
             };
-            self.picks[slot].push(i);
+            self.slot_of.push(slot as u32);
         }
-        for (slot, picks) in self.slots.iter_mut().zip(&mut self.picks) {
+        // The points grouped by slot, each slot's in their order (a counting sort).
+        self.starts.clear();
+        self.starts.resize(self.slots.len() + 1, 0);
+        for &s in &self.slot_of {
+            self.starts[s as usize + 1] += 1;
+        }
+        for k in 1..self.starts.len() {
+            self.starts[k] += self.starts[k - 1];
+        }
+        self.picks.clear();
+        self.picks.resize(picked.len(), 0);
+        for (&i, &s) in picked.iter().zip(&self.slot_of) {
+            // `starts[s]` moves up to the next slot's start as its points are placed...
+            let at = &mut self.starts[s as usize];
+            self.picks[*at] = i;
+            *at += 1;
+        }
+        self.slot_of.clear();
+        for (k, slot) in self.slots.iter_mut().enumerate() {
+            // ...so that it ends where slot `k + 1` begins: slot `k`'s are those before.
+            let begin = if k == 0 { 0 } else { self.starts[k - 1] };
+            let picks = &self.picks[begin..self.starts[k]];
             if !picks.is_empty() {
                 let (len, want) = (slot.1.len(), slot.1.len() + picks.len());
                 if want > slot.1.capacity() && !self.spilled && self.expected <= fits {
@@ -318,12 +348,11 @@ impl Scatter<'_> {
                 slot.1.extend_gather(batch, picks);
                 slot.2 += picks.len() as u64;
                 self.buffered += picks.len() * self.row;
-                picks.clear();
             }
         }
         if self.buffered > self.limit {
-            // The largest buffers, until half of them is free: what stays is read no more,
-            // and at the end goes to its chunk's build from memory.
+            // The largest buffers, until half of them is free: what stays is never written and
+            // read back, if the buffers do not fill again before the end.
             self.flush_largest(self.buffered - self.limit / 2)?;
         }
         Ok(())
