@@ -120,11 +120,11 @@ pub fn default_memory() -> u64 {
     machine_memory().clamp(MIN_MEMORY, DEFAULT_MEMORY)
 }
 
-/// A build's default budget, 1 GB: about what PotreeConverter 2 takes for 50 M points, and
-/// more than it for 7 M (539 MB for KY here; it never took under half a gigabyte on the
-/// corpus). Scans whose points fit in half of it are built from memory; larger ones keep what
-/// the write buffers hold and spill the rest ([`crate::distribute`]): a 50 M point scan built in
-/// 559 MB at the speed of 2.8 GB. `--memory` gives more.
+/// A build's default budget, 1 GB: what PotreeConverter 2 takes for about 40 M points (352 MB
+/// to 1.3 GB on the corpus of docs/guide/benchmarks-build.md). Scans whose points fit in half of
+/// it are built from memory; larger ones keep what the write buffers hold and spill the rest
+/// ([`crate::distribute`]): the build peaks near 500 MB whatever the scan (a 50 M point city in
+/// 544-578 MB, 6 % slower than from memory in 2.8 GB). `--memory` gives more.
 pub const DEFAULT_MEMORY: u64 = 1 << 30;
 
 /// A quarter of the machine's memory, at most 8 GB (1 GB when it cannot be read): the default

@@ -319,50 +319,61 @@ fn chunks_and_tops_form_one_nested_octree() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A `synth` city of `points` points as `d/city.las`.
+fn synth_city(d: &Path, points: u64, seed: u64) -> PathBuf {
+    let las = d.join("city.las");
+    let opts = myriad_synth::SynthOptions {
+        points,
+        scene: myriad_synth::SceneKind::City,
+        seed,
+    };
+    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    las
+}
+
+/// Chunks of one level and cell, and their points in order.
+type Chunked = Vec<(u32, [u32; 3], Vec<[u64; 4]>)>;
+
+/// `las` distributed with write buffers of `buffer_bytes` and chunks of at most `chunk_points`,
+/// spilling into `spill`: the spill files written, and the chunks.
+fn chunks_of(las: &Path, spill: &Path, buffer_bytes: usize, chunk_points: u64) -> (usize, Chunked) {
+    let options = DistributeOptions {
+        chunk_points,
+        buffer_bytes,
+        resident_bytes: 0,
+        compress_above: u64::MAX,
+        min_chunks: 8,
+        temp_dir: spill.to_path_buf(),
+        grid: None,
+    };
+    let dist = distribute(&[las.to_path_buf()], &OpenOptions::default(), &options).unwrap();
+    // Spill files: everything in the folder but the lock that holds it.
+    let files = std::fs::read_dir(dist.spill_dir())
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().file_name() != myriad_io::claim::LOCK_FILE)
+        .count();
+    let chunks: Chunked = dist
+        .chunks
+        .iter()
+        .map(|c| {
+            let b = dist.load(c).unwrap();
+            assert_eq!(b.len() as u64, c.points);
+            (c.level, c.cell, keys(&b))
+        })
+        .collect();
+    (files, chunks)
+}
+
 /// Rows that all fit the write buffers are never written to disk: the chunks come from memory,
 /// the same as from spill files.
 #[test]
 fn chunks_that_fit_in_memory_are_not_spilled() {
     let d = tempdir("resident");
-    let las = d.join("city.las");
-    let opts = myriad_synth::SynthOptions {
-        points: 100_000,
-        scene: myriad_synth::SceneKind::City,
-        seed: 4,
-    };
-    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    let las = synth_city(&d, 100_000, 4);
     let spill = d.join("spill");
     std::fs::create_dir_all(&spill).unwrap();
-    let run = |buffer_bytes| {
-        let options = DistributeOptions {
-            chunk_points: 1_000_000,
-            buffer_bytes,
-            resident_bytes: 0,
-            compress_above: u64::MAX,
-            min_chunks: 8,
-            temp_dir: spill.clone(),
-            grid: None,
-        };
-        let dist = distribute(
-            std::slice::from_ref(&las),
-            &OpenOptions::default(),
-            &options,
-        )
-        .unwrap();
-        // Spill files: everything in the folder but the lock that holds it.
-        let files = std::fs::read_dir(dist.spill_dir())
-            .unwrap()
-            .filter(|e| e.as_ref().unwrap().file_name() != myriad_io::claim::LOCK_FILE)
-            .count();
-        let chunks: Vec<_> = dist
-            .chunks
-            .iter()
-            .map(|c| (c.cell, keys(&dist.load(c).unwrap())))
-            .collect();
-        (files, chunks)
-    };
-    let (in_memory, a) = run(256 << 20);
-    let (on_disk, b) = run(64 << 10);
+    let (in_memory, a) = chunks_of(&las, &spill, 256 << 20, 1_000_000);
+    let (on_disk, b) = chunks_of(&las, &spill, 64 << 10, 1_000_000);
     assert_eq!(
         in_memory, 0,
         "spill files written for rows that fit in memory"
@@ -379,54 +390,19 @@ fn chunks_that_fit_in_memory_are_not_spilled() {
 #[test]
 fn chunks_kept_in_part_or_split_in_memory_are_those_spilled() {
     let d = tempdir("partly");
-    let las = d.join("city.las");
-    let opts = myriad_synth::SynthOptions {
-        points: 100_000,
-        scene: myriad_synth::SceneKind::City,
-        seed: 5,
-    };
-    myriad_synth::write(&opts, &las, true, |_| {}).unwrap();
+    let las = synth_city(&d, 100_000, 5);
     let spill = d.join("spill");
     std::fs::create_dir_all(&spill).unwrap();
-    let run = |buffer_bytes, chunk_points| {
-        let options = DistributeOptions {
-            chunk_points,
-            buffer_bytes,
-            resident_bytes: 0,
-            compress_above: u64::MAX,
-            min_chunks: 8,
-            temp_dir: spill.clone(),
-            grid: None,
-        };
-        let dist = distribute(
-            std::slice::from_ref(&las),
-            &OpenOptions::default(),
-            &options,
-        )
-        .unwrap();
-        let files = std::fs::read_dir(dist.spill_dir())
-            .unwrap()
-            .filter(|e| e.as_ref().unwrap().file_name() != myriad_io::claim::LOCK_FILE)
-            .count();
-        let chunks: Vec<_> = dist
-            .chunks
-            .iter()
-            .map(|c| {
-                let b = dist.load(c).unwrap();
-                assert_eq!(b.len() as u64, c.points);
-                (c.level, c.cell, keys(&b))
-            })
-            .collect();
-        assert_eq!(chunks.iter().map(|c| c.2.len()).sum::<usize>(), 100_000);
-        (files, chunks)
-    };
     // 16 KB of buffers: nearly every point goes through the spill files.
-    let (spilled_files, spilled) = run(16 << 10, 15_000);
+    let (spilled_files, spilled) = chunks_of(&las, &spill, 16 << 10, 15_000);
     // Everything fits: chunks over 15,000 points are split without a file written.
-    let (files, in_memory) = run(256 << 20, 15_000);
+    let (files, in_memory) = chunks_of(&las, &spill, 256 << 20, 15_000);
     // A megabyte: some points written, the rest kept.
-    let (partly_files, partly) = run(1 << 20, 15_000);
-    let (_, whole) = run(256 << 20, 1_000_000);
+    let (partly_files, partly) = chunks_of(&las, &spill, 1 << 20, 15_000);
+    let (_, whole) = chunks_of(&las, &spill, 256 << 20, 1_000_000);
+    for c in [&spilled, &in_memory, &partly, &whole] {
+        assert_eq!(c.iter().map(|c| c.2.len()).sum::<usize>(), 100_000);
+    }
     assert!(spilled_files > 0 && partly_files > 0);
     assert_eq!(
         files, 0,
