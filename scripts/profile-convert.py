@@ -16,26 +16,23 @@ import collections, json, os, re, subprocess, sys, tempfile
 HZ = 999
 
 
+# What a sample's symbol does, the first rule that matches (kernel samples by their object).
+CATEGORIES = [
+    (r"laz::", "LAZ decode"),
+    (r"ZSTD|HUF_|HIST_|FSE_", "zstd"),
+    (r"mospt", "MOSPT places"),
+    (r"order::", "acquisition order"),
+    (r"sort", "sorts"),
+    (r"page::", "page planes"),
+    (r"memmove|memcpy|memset", "copies"),
+    (r"malloc|free|realloc|_int_|calloc", "allocator"),
+]
+
+
 def category(sym, dso):
     if "kernel" in dso:
         return "kernel"
-    if "laz::" in sym:
-        return "LAZ decode"
-    if re.search(r"ZSTD|HUF_|HIST_|FSE_", sym):
-        return "zstd"
-    if "mospt" in sym:
-        return "MOSPT places"
-    if "order::" in sym:
-        return "acquisition order"
-    if "sort" in sym:
-        return "sorts"
-    if "page::" in sym:
-        return "page planes"
-    if re.search(r"memmove|memcpy|memset", sym):
-        return "copies"
-    if re.search(r"malloc|free|realloc|_int_|calloc", sym):
-        return "allocator"
-    return "other"
+    return next((name for pattern, name in CATEGORIES if re.search(pattern, sym)), "other")
 
 
 def main():

@@ -51,6 +51,42 @@ fn default_copc_converter() -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// Per phase of the convert: its name, and its seconds and CPU seconds in each run.
+type Phases = Vec<(String, Vec<f64>, Vec<f64>)>;
+
+/// Adds the phases of one run's `convert --json` summary.
+fn add_phases(phases: &mut Phases, summary: &serde_json::Value) {
+    for (i, p) in summary["phases"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        if phases.len() <= i {
+            let name = p["phase"].as_str().unwrap_or("?").to_string();
+            phases.push((name, vec![], vec![]));
+        }
+        phases[i].1.push(p["seconds"].as_f64().unwrap_or(f64::NAN));
+        phases[i]
+            .2
+            .push(p["cpu_seconds"].as_f64().unwrap_or(f64::NAN));
+    }
+}
+
+/// Where the time went: each phase's median seconds, CPU seconds (the cores it kept busy) and
+/// CPU nanoseconds a point.
+fn phase_line(phases: &Phases, points: u64) -> String {
+    phases
+        .iter()
+        .map(|(name, secs, cpu)| {
+            let (s, c) = (median(secs.clone()), median(cpu.clone()));
+            let ns = c * 1e9 / points.max(1) as f64;
+            format!("{name} {s:.2} s ({c:.2} CPU-s, {ns:.0} ns/pt)")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// One run of each side of the COPC comparison: seconds, peak bytes, bytes out.
 #[derive(Default)]
 struct CopcRuns {
@@ -114,8 +150,7 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
             let (mut secs, mut rates, mut raws, mut peaks) = (vec![], vec![], vec![], vec![]);
             let (mut peer_secs, mut peer_peaks, mut walls) = (vec![], vec![], vec![]);
             let mut last = serde_json::Value::Null;
-            // Per phase: seconds and CPU seconds of each run.
-            let mut phases: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+            let mut phases = Phases::new();
             let mut copc = CopcRuns::default();
             for _ in 0..a.runs.max(1) {
                 // Baseline first, in the same minute: the las/laz crates decoding the file.
@@ -146,16 +181,7 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
                     );
                 }
                 last = serde_json::from_slice(&out.stdout)?;
-                for (i, p) in last["phases"].as_array().into_iter().flatten().enumerate() {
-                    if phases.len() <= i {
-                        let name = p["phase"].as_str().unwrap_or("?").to_string();
-                        phases.push((name, vec![], vec![]));
-                    }
-                    phases[i].1.push(p["seconds"].as_f64().unwrap_or(f64::NAN));
-                    phases[i]
-                        .2
-                        .push(p["cpu_seconds"].as_f64().unwrap_or(f64::NAN));
-                }
+                add_phases(&mut phases, &last);
                 secs.push(last["seconds"].as_f64().unwrap_or(f64::NAN));
                 rates.push(last["points_per_second"].as_f64().unwrap_or(f64::NAN));
                 peaks.push(last["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN));
@@ -227,23 +253,7 @@ pub fn run(a: ConvertBenchArgs) -> Result<()> {
                 last["bytes_per_point"].as_f64().unwrap_or(f64::NAN),
                 input_bytes as f64 / points.max(1) as f64,
             );
-            // Where the time went: each phase's median seconds, and the cores it kept busy (its
-            // CPU seconds over its seconds).
-            println!(
-                "{:<40} phases: {}",
-                "",
-                phases
-                    .iter()
-                    .map(|(name, secs, cpu)| {
-                        let (s, c) = (median(secs.clone()), median(cpu.clone()));
-                        format!(
-                            "{name} {s:.2} s ({c:.2} CPU-s, {:.0} ns/pt)",
-                            c * 1e9 / points.max(1) as f64
-                        )
-                    })
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
+            println!("{:<40} phases: {}", "", phase_line(&phases, points));
             if !copc.peer.is_empty() {
                 let mb = |b: u64| b as f64 / 1e6;
                 let side = |runs: &[(f64, u64, u64)]| {
